@@ -1,0 +1,3 @@
+"""hcmt: learned simulation of flexible bodies in contact (Hierarchical Contact Mesh Transformer)."""
+
+__version__ = "0.1.0"

@@ -1,0 +1,3 @@
+from hcmt.cli import main
+
+raise SystemExit(main())

@@ -1,0 +1,71 @@
+"""The `hcmt` command.
+
+Every subcommand is registered in :data:`COMMANDS` below, and nowhere else: name -> (module, one-line help).
+Each module defines ``configure(parser)`` (adds its arguments) and ``main(args) -> int``. Modules are imported
+only when their command runs, so ``hcmt --help`` stays fast (no torch import).
+"""
+from __future__ import annotations
+
+import argparse
+import importlib
+import sys
+
+COMMANDS: dict[str, tuple[str, str]] = {
+    "generate": ("hcmt.sim.generate", "generate a dataset with the built-in FEM solver (impact-plate)"),
+    "simulate": ("hcmt.sim.generate", "simulate one Impact Plate design with explicit parameters (solver baseline)"),
+    "convert": ("hcmt.data.convert", "convert a MeshGraphNets/HCMT TFRecord or Deformable Plate pickle dataset to native HDF5"),
+    "info": ("hcmt.data.info", "summarize a native dataset: splits, trajectories, nodes, fields, design parameters"),
+    "hierarchy": ("hcmt.graph.report", "build the HCMT mesh hierarchy of a dataset and report its quality per level"),
+    "train": ("hcmt.train.cli", "train HCMT, MeshGraphNets or Graph Transformer on a dataset"),
+    "rollout": ("hcmt.train.cli", "roll a trained model out over a dataset split (writes HDF5 predictions)"),
+    "evaluate": ("hcmt.train.cli", "compute the paper's RMSE metrics of a run on a split (writes RUN/metrics.json)"),
+    "compare": ("hcmt.train.cli", "aggregate several runs into the paper's Table 2 layout (mean +- std)"),
+    "plot": ("hcmt.viz.cli", "draw stress contours, animations, error curves and training curves of a run"),
+    "export": ("hcmt.viz.cli", "export a rollout to ParaView (VTU or XDMF time series)"),
+    "demo": ("hcmt.train.demo", "quickstart: generate a small dataset, train HCMT briefly on CPU, roll out, evaluate"),
+}
+
+
+class CommandError(Exception):
+    """An error the user can fix; printed as one line, exit status 2."""
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog="hcmt", description=__doc__.splitlines()[0])
+    from hcmt import __version__
+
+    parser.add_argument("--version", action="version", version=f"hcmt {__version__}")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND", title="commands")
+    requested = _requested_command(sys.argv[1:])
+    for name, (module, help_text) in COMMANDS.items():
+        p = sub.add_parser(name, help=help_text, description=help_text)
+        if name == requested:  # import only the module that will run
+            mod = importlib.import_module(module)
+            configure = getattr(mod, f"configure_{name}", None) or mod.configure
+            configure(p)
+            p.set_defaults(_run=getattr(mod, f"main_{name}", None) or mod.main)
+    return parser
+
+
+def _requested_command(argv: list[str]) -> str | None:
+    for a in argv:
+        if not a.startswith("-"):
+            return a
+    return None
+
+
+def main(argv: list[str] | None = None) -> int:
+    if argv is not None:
+        sys.argv = [sys.argv[0], *argv]
+    parser = build_parser()
+    args = parser.parse_args(sys.argv[1:])
+    if not getattr(args, "_run", None):
+        parser.print_help()
+        return 0 if args.command is None else 2
+    from hcmt.data.errors import DatasetError
+
+    try:
+        return int(args._run(args) or 0)
+    except (DatasetError, CommandError, FileNotFoundError, ValueError) as exc:
+        print(f"hcmt {args.command}: error: {exc}", file=sys.stderr)
+        return 2

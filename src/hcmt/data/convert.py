@@ -1,0 +1,111 @@
+"""``hcmt convert SRC OUT``: published datasets into the native format.
+
+SRC is either a MeshGraphNets / HCMT TFRecord folder (``meta.json`` + ``<split>.tfrecord``) or a Deformable Plate
+(GGNS) folder of pickles (``<split>.pkl``) or a single pickle. Every split found is converted; each output file is
+written atomically and the output's ``meta.json`` last, so an interrupted or refused conversion leaves no dataset
+that looks complete. ``static_varlen`` fields (the official Impact Plate data's precomputed hierarchy) are not
+copied: hcmt builds its own hierarchy (``hcmt hierarchy``).
+"""
+from __future__ import annotations
+
+import argparse
+import shutil
+from pathlib import Path
+
+from hcmt.data.errors import DatasetError
+from hcmt.data.format import make_meta, write_meta, write_split
+from hcmt.data.ggns import ggns_features, ggns_to_native, load_ggns_pickle
+from hcmt.data.tfrecord import iter_tfrecord, read_tf_meta
+
+_PICKLE_SUFFIXES = (".pkl", ".pickle", ".pk")
+
+
+def convert_tfrecord(src: Path, out: Path) -> dict:
+    tf_meta = read_tf_meta(src)
+    splits = sorted(p.stem for p in src.glob("*.tfrecord"))
+    if not splits:
+        raise DatasetError("no <split>.tfrecord files beside meta.json", file=src)
+    features = {}
+    for name, spec in tf_meta["features"].items():
+        if spec["type"] == "static":
+            features[name] = {"type": "static", "shape": spec["shape"][1:], "dtype": spec["dtype"]}
+        elif spec["type"] == "dynamic":
+            features[name] = dict(spec)
+    world = features.get("world_pos") or features.get("mesh_pos")
+    extra = {k: tf_meta[k] for k in ("collision_radius", "simulator") if k in tf_meta}
+    meta = make_meta(
+        features,
+        trajectory_length=tf_meta.get("trajectory_length", 0),
+        dimension=int(world["shape"][-1]) if world else 0,
+        dt=tf_meta.get("dt"),
+        units=tf_meta.get("units", {}),
+        generator={"converted_from": str(src), "source_format": "tfrecord",
+                   "skipped_fields": [k for k, v in tf_meta["features"].items() if v["type"] == "static_varlen"]},
+        **extra,
+    )
+    for split in splits:
+        def trajectories(split=split):
+            for i, traj in enumerate(iter_tfrecord(src, split, tf_meta)):
+                yield f"traj_{i:05d}", {k: v for k, v in traj.items() if k in features}, {}
+
+        write_split(out / f"{split}.h5", meta, trajectories())
+    write_meta(out, meta)
+    return meta
+
+
+def convert_ggns(src: Path, out: Path) -> dict:
+    files = [src] if src.is_file() else sorted(p for p in src.iterdir() if p.suffix in _PICKLE_SUFFIXES)
+    if not files:
+        raise DatasetError("no pickle files (*.pkl) found", file=src)
+    meta = None
+    for path in files:
+        trajs = load_ggns_pickle(path)
+        converted = [ggns_to_native(t, file=path, trajectory=i) for i, t in enumerate(trajs)]
+        steps = {c[0]["world_pos"].shape[0] for c in converted}
+        if len(steps) != 1 or (meta and meta["trajectory_length"] not in steps):
+            raise DatasetError(f"trajectories have different lengths {sorted(steps)}", file=path)
+        if meta is None:
+            meta = make_meta(ggns_features(steps.pop()), trajectory_length=converted[0][0]["world_pos"].shape[0],
+                             dimension=2, dt=None, units={},
+                             generator={"converted_from": str(src), "source_format": "ggns-pickle"})
+        split = path.stem
+        write_split(out / f"{split}.h5", meta, ((f"traj_{i:05d}", f, a) for i, (f, a) in enumerate(converted)))
+    write_meta(out, meta)
+    return meta
+
+
+def convert(src: str | Path, out: str | Path) -> dict:
+    """Convert SRC into a native dataset at OUT; on any error nothing new is left at OUT."""
+    src, out = Path(src), Path(out)
+    if not src.exists():
+        raise FileNotFoundError(f"{src}: no such file or folder")
+    if (out / "meta.json").exists():
+        raise DatasetError("already holds a dataset; choose another output folder or delete it", file=out)
+    existed = out.exists()
+    out.mkdir(parents=True, exist_ok=True)
+    try:
+        if src.is_dir() and (src / "meta.json").is_file():
+            return convert_tfrecord(src, out)
+        if src.suffix in _PICKLE_SUFFIXES or src.is_dir():
+            return convert_ggns(src, out)
+        raise DatasetError("not a TFRecord dataset folder (meta.json + *.tfrecord) nor a GGNS pickle", file=src)
+    except BaseException:
+        for p in out.glob("*.h5"):
+            p.unlink()
+        if not existed:
+            shutil.rmtree(out, ignore_errors=True)
+        raise
+
+
+def configure(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("src", help="TFRecord dataset folder (meta.json + <split>.tfrecord) or GGNS pickle(s)")
+    parser.add_argument("out", help="output folder for the native dataset (meta.json + <split>.h5)")
+
+
+def main(args: argparse.Namespace) -> int:
+    meta = convert(args.src, args.out)
+    from hcmt.data.info import summarize
+
+    print(f"converted {args.src} -> {args.out}")
+    print(summarize(args.out))
+    return 0 if meta else 1

@@ -1,0 +1,294 @@
+"""hcmt's native dataset format: a folder with ``meta.json`` and one HDF5 file per split.
+
+Layout::
+
+    DATASET/
+      meta.json          # MeshGraphNets-style schema + dimension, units, node types, generator settings
+      train.h5           # one group per trajectory: traj_00000, traj_00001, ...
+      valid.h5
+      test.h5            # any other split name works too: test_thicker.h5, ...
+
+``meta.json`` follows the MeshGraphNets convention: ``field_names`` and, per field in ``features``, ``type``
+(``static`` | ``dynamic``), ``dtype`` and ``shape`` with -1 for a node or cell count. Static fields are stored once,
+without a time axis (``mesh_pos`` [N,d], ``cells`` [C,3|4], ``node_type`` [N,1]); dynamic fields carry one
+(``world_pos`` [T,N,d], ``stress`` [T,N,1]). A trajectory's design parameters are attributes of its group.
+Trajectories may differ in node count.
+
+Every file is written atomically (a temp file in the same folder, then ``os.replace``), so an interrupted write
+never leaves a file that looks complete.
+"""
+from __future__ import annotations
+
+import enum
+import json
+import os
+import tempfile
+from contextlib import contextmanager
+from pathlib import Path
+from typing import Iterable, Iterator, Mapping
+
+import h5py
+import numpy as np
+
+from hcmt.data.errors import DatasetError
+
+FORMAT_NAME = "hcmt-dataset"
+FORMAT_VERSION = 1
+
+
+class NodeType(enum.IntEnum):
+    """MeshGraphNets' node-type enum plus SYMMETRIC as in the official HCMT Impact Plate data."""
+
+    NORMAL = 0
+    OBSTACLE = 1
+    AIRFOIL = 2
+    HANDLE = 3
+    INFLOW = 4
+    OUTFLOW = 5
+    WALL_BOUNDARY = 6
+    SYMMETRIC = 7
+
+
+NODE_TYPE_SIZE = 9  # one-hot width, as in the official code (enum SIZE = 9)
+
+_DTYPES = {"float32", "float64", "int32", "int64", "uint8", "int8", "int16", "uint16", "bool"}
+
+
+def make_meta(
+    features: Mapping[str, Mapping],
+    trajectory_length: int,
+    dimension: int,
+    dt: float | None = None,
+    units: Mapping[str, str] | None = None,
+    generator: Mapping | None = None,
+    **extra,
+) -> dict:
+    """Build a ``meta.json`` dictionary and check that it is well formed.
+
+    ``features`` maps a field name to ``{"type": "static"|"dynamic", "shape": [...], "dtype": "float32"}``.
+    """
+    meta = {
+        "format": FORMAT_NAME,
+        "version": FORMAT_VERSION,
+        "field_names": list(features),
+        "features": {k: {"type": v["type"], "shape": list(v["shape"]), "dtype": str(v["dtype"])} for k, v in features.items()},
+        "trajectory_length": int(trajectory_length),
+        "dimension": int(dimension),
+        "dt": dt,
+        "units": dict(units or {}),
+        "node_types": {t.name: int(t) for t in NodeType},
+        "node_type_size": NODE_TYPE_SIZE,
+        "generator": dict(generator or {}),
+        **extra,
+    }
+    check_meta(meta, "meta.json")
+    return meta
+
+
+def check_meta(meta: Mapping, where: str | os.PathLike) -> None:
+    """Refuse a schema that cannot describe a trajectory."""
+    for key in ("field_names", "features", "trajectory_length"):
+        if key not in meta:
+            raise DatasetError(f"missing key {key!r}; a dataset's meta.json needs field_names, features and "
+                               "trajectory_length", file=where)
+    for name in meta["field_names"]:
+        spec = meta["features"].get(name)
+        if spec is None:
+            raise DatasetError("listed in field_names but has no entry in features", file=where, field=name)
+        if spec.get("type") not in ("static", "dynamic", "static_varlen", "dynamic_varlen"):
+            raise DatasetError(f"type {spec.get('type')!r}; expected static or dynamic", file=where, field=name)
+        if str(spec.get("dtype")) not in _DTYPES:
+            raise DatasetError(f"dtype {spec.get('dtype')!r}; expected one of {sorted(_DTYPES)}", file=where, field=name)
+
+
+def write_meta(dataset_dir: str | os.PathLike, meta: Mapping) -> Path:
+    """Write ``meta.json`` atomically."""
+    path = Path(dataset_dir) / "meta.json"
+    check_meta(meta, path)
+    with atomic_path(path) as tmp:
+        tmp.write_text(json.dumps(meta, indent=2, sort_keys=False) + "\n")
+    return path
+
+
+def read_meta(dataset_dir: str | os.PathLike) -> dict:
+    path = Path(dataset_dir) / "meta.json"
+    if not path.is_file():
+        raise DatasetError("not found; a dataset is a folder with meta.json and <split>.h5 files "
+                           "(make one with `hcmt generate` or `hcmt convert`)", file=path)
+    try:
+        meta = json.loads(path.read_text())
+    except json.JSONDecodeError as exc:
+        raise DatasetError(f"is not valid JSON ({exc})", file=path) from None
+    check_meta(meta, path)
+    return meta
+
+
+def list_splits(dataset_dir: str | os.PathLike) -> list[str]:
+    """Split names present in a dataset folder, train/valid/test first."""
+    names = sorted(p.stem for p in Path(dataset_dir).glob("*.h5"))
+    order = {"train": 0, "valid": 1, "test": 2}
+    return sorted(names, key=lambda n: (order.get(n, 3), n))
+
+
+@contextmanager
+def atomic_path(path: str | os.PathLike) -> Iterator[Path]:
+    """Yield a temporary path beside ``path``; on success rename it onto ``path``, on failure delete it."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    os.close(fd)
+    tmp = Path(tmp)
+    try:
+        yield tmp
+        os.replace(tmp, path)
+    finally:
+        if tmp.exists():
+            tmp.unlink()
+
+
+def validate_trajectory(meta: Mapping, fields: Mapping[str, np.ndarray], *, file=None, trajectory=None) -> dict:
+    """Check one trajectory against ``meta``; return its fields as arrays of the declared dtypes.
+
+    Checks: every declared field present and no undeclared one; rank, fixed dimensions and -1 dimensions
+    consistent (node count shared by all per-node fields, time axis equal to ``trajectory_length``); dtype
+    kind (float vs integer); finite values; cell indices within the node count; node types within the enum.
+    """
+    specs = meta["features"]
+    missing = [k for k in meta["field_names"] if k not in fields]
+    if missing:
+        raise DatasetError(f"missing; meta.json declares {meta['field_names']}", file=file, trajectory=trajectory,
+                           field=missing[0])
+    extra = [k for k in fields if k not in specs]
+    if extra:
+        raise DatasetError(f"unexpected field; meta.json declares only {meta['field_names']}", file=file,
+                           trajectory=trajectory, field=extra[0])
+    out = {}
+    num_nodes = None
+    for name in meta["field_names"]:
+        spec = specs[name]
+        value = np.asarray(fields[name])
+        shape = list(spec["shape"])
+        if spec["type"] == "dynamic" and shape and shape[0] not in (-1, None):
+            shape[0] = int(meta["trajectory_length"]) if shape[0] is None else shape[0]
+        want = np.dtype(spec["dtype"])
+        if value.ndim != len(shape):
+            raise DatasetError(f"shape {list(value.shape)} has rank {value.ndim}; meta.json declares shape {shape}",
+                               file=file, trajectory=trajectory, field=name)
+        for axis, (got, exp) in enumerate(zip(value.shape, shape)):
+            if exp != -1 and got != exp:
+                raise DatasetError(f"shape {list(value.shape)} disagrees with meta.json shape {shape} at axis {axis}",
+                                   file=file, trajectory=trajectory, field=name)
+        if value.dtype.kind != want.kind and not (value.dtype.kind in "iu" and want.kind in "iu"):
+            raise DatasetError(f"dtype {value.dtype} disagrees with meta.json dtype {want}", file=file,
+                               trajectory=trajectory, field=name)
+        if value.dtype.kind == "f" and not np.isfinite(value).all():
+            bad = np.argwhere(~np.isfinite(value))[0].tolist()
+            raise DatasetError(f"non-finite value (NaN or Inf) at index {bad}", file=file, trajectory=trajectory,
+                               field=name)
+        if name in ("mesh_pos", "node_type", "world_pos", "stress", "density", "modulus"):
+            n = value.shape[1] if spec["type"] == "dynamic" else value.shape[0]
+            if num_nodes is None:
+                num_nodes = n
+            elif n != num_nodes:
+                raise DatasetError(f"has {n} nodes but other per-node fields have {num_nodes}", file=file,
+                                   trajectory=trajectory, field=name)
+        out[name] = value.astype(want, copy=False)
+    if "cells" in out and num_nodes is not None:
+        cells = out["cells"]
+        if cells.size and (cells.min() < 0 or cells.max() >= num_nodes):
+            raise DatasetError(f"cell index out of range [{int(cells.min())}, {int(cells.max())}]; the trajectory has "
+                               f"{num_nodes} nodes", file=file, trajectory=trajectory, field="cells")
+    if "node_type" in out:
+        nt = out["node_type"]
+        unknown = np.setdiff1d(np.unique(nt), [int(t) for t in NodeType])
+        if unknown.size:
+            raise DatasetError(f"unknown node type(s) {unknown.tolist()}; expected {[f'{t.name}={int(t)}' for t in NodeType]}",
+                               file=file, trajectory=trajectory, field="node_type")
+    return out
+
+
+def write_split(
+    path: str | os.PathLike,
+    meta: Mapping,
+    trajectories: Iterable[tuple[str, Mapping[str, np.ndarray], Mapping]],
+    compression: str | None = "gzip",
+) -> Path:
+    """Write one split file atomically; every trajectory is validated against ``meta`` first.
+
+    ``trajectories`` yields ``(name, fields, attrs)``; ``attrs`` (design parameters) become group attributes.
+    Nothing is left at ``path`` if any trajectory is refused.
+    """
+    path = Path(path)
+    with atomic_path(path) as tmp:
+        with h5py.File(tmp, "w") as f:
+            f.attrs["format"] = FORMAT_NAME
+            f.attrs["version"] = FORMAT_VERSION
+            count = 0
+            for name, fields, attrs in trajectories:
+                arrays = validate_trajectory(meta, fields, file=path, trajectory=name)
+                g = f.create_group(name)
+                for key, value in arrays.items():
+                    big = value.size > 4096
+                    g.create_dataset(key, data=value, compression=compression if big else None,
+                                     shuffle=bool(compression and big))
+                for key, value in (attrs or {}).items():
+                    g.attrs[key] = value
+                count += 1
+            f.attrs["num_trajectories"] = count
+    return path
+
+
+class Split:
+    """Read-only access to one split of a native dataset.
+
+    ``split[i]`` returns the trajectory's fields as a dict of numpy arrays, validated against meta.json;
+    ``split.attrs(i)`` its design parameters; ``split.names`` the trajectory group names in file order.
+    """
+
+    def __init__(self, dataset_dir: str | os.PathLike, split: str, meta: Mapping | None = None):
+        self.dataset_dir = Path(dataset_dir)
+        self.meta = dict(meta) if meta is not None else read_meta(dataset_dir)
+        self.path = self.dataset_dir / f"{split}.h5"
+        self.split = split
+        if not self.path.is_file():
+            raise DatasetError(f"split {split!r} not found; available: {list_splits(self.dataset_dir)}", file=self.path)
+        try:
+            self._file = h5py.File(self.path, "r")
+            self.names = sorted(self._file.keys())
+        except OSError as exc:
+            raise DatasetError(f"cannot be read as HDF5 (truncated or corrupt?): {exc}", file=self.path) from None
+
+    def __len__(self) -> int:
+        return len(self.names)
+
+    def __getitem__(self, i: int) -> dict[str, np.ndarray]:
+        name = self.names[i]
+        try:
+            group = self._file[name]
+            fields = {k: group[k][()] for k in group.keys()}
+        except (OSError, KeyError, RuntimeError) as exc:
+            raise DatasetError(f"cannot be read (truncated or corrupt file?): {exc}", file=self.path,
+                               trajectory=name) from None
+        return validate_trajectory(self.meta, fields, file=self.path, trajectory=name)
+
+    def __iter__(self):
+        return (self[i] for i in range(len(self)))
+
+    def attrs(self, i: int) -> dict:
+        return {k: (v.item() if hasattr(v, "item") else v) for k, v in self._file[self.names[i]].attrs.items()}
+
+    def num_nodes(self, i: int) -> int:
+        return int(self._file[self.names[i]]["mesh_pos"].shape[0])
+
+    def close(self) -> None:
+        self._file.close()
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()
+
+
+def open_split(dataset_dir: str | os.PathLike, split: str) -> Split:
+    return Split(dataset_dir, split)

@@ -1,0 +1,54 @@
+"""YAML configs: built-in ones by name (``src/hcmt/configs/NAME.yaml``, also reachable as ``configs/``), or a
+file path. A config may name a ``base`` config whose values it overrides. Any key can be overridden from the
+command line as ``section.key=value`` (the value is parsed as YAML: ``train.lr=3e-4``, ``model.levels=4``)."""
+from __future__ import annotations
+
+import copy
+from pathlib import Path
+
+import yaml
+
+CONFIG_DIR = Path(__file__).resolve().parent.parent / "configs"
+
+
+def builtin_configs() -> list[str]:
+    return sorted(p.stem for p in CONFIG_DIR.glob("*.yaml"))
+
+
+def _read(name_or_path: str) -> dict:
+    path = Path(name_or_path)
+    if not path.is_file():
+        path = CONFIG_DIR / f"{name_or_path}.yaml"
+    if not path.is_file():
+        raise FileNotFoundError(f"config {name_or_path!r}: neither a file nor a built-in config "
+                                f"(built-in: {', '.join(builtin_configs())})")
+    data = yaml.safe_load(path.read_text()) or {}
+    if not isinstance(data, dict):
+        raise ValueError(f"config {path}: expected a mapping at top level")
+    base = data.pop("base", None)
+    return merge(_read(base), data) if base else data
+
+
+def merge(base: dict, over: dict) -> dict:
+    out = copy.deepcopy(base)
+    for k, v in over.items():
+        out[k] = merge(out[k], v) if isinstance(v, dict) and isinstance(out.get(k), dict) else copy.deepcopy(v)
+    return out
+
+
+def load_config(name_or_path: str, overrides: list[str] | None = None) -> dict:
+    cfg = _read(name_or_path)
+    for item in overrides or []:
+        key, sep, raw = item.partition("=")
+        if not sep or not key:
+            raise ValueError(f"override {item!r}: expected section.key=value")
+        node = cfg
+        *parents, leaf = key.split(".")
+        for p in parents:
+            node = node.setdefault(p, {})
+            if not isinstance(node, dict):
+                raise ValueError(f"override {item!r}: {p} is not a section")
+        node[leaf] = yaml.safe_load(raw)
+    for section in ("model", "train", "data"):
+        cfg.setdefault(section, {})
+    return cfg

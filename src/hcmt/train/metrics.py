@@ -1,0 +1,45 @@
+"""The paper's rollout metrics.
+
+For a predicted trajectory ``pred`` [T, N, D] against ground truth ``true`` [T, N, D] whose frame 0 is the
+initial condition, the error at step ``t`` is the RMSE over nodes of the error vector,
+
+    e_t = sqrt( (1/N) Σ_i ||pred_t,i − true_t,i||² ),
+
+and ``rmse_h`` is its mean over steps 1..h (``rmse_all``: over every predicted step). Trajectory values are then
+averaged over trajectories. The paper reports them ×10³ (``SCALE``); :func:`rollout_rmse` returns them so scaled.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+SCALE = 1e3
+HORIZONS = {"rmse_1": 1, "rmse_50": 50, "rmse_all": None}
+
+
+def step_rmse(pred: np.ndarray, true: np.ndarray) -> np.ndarray:
+    """[T, N, D] × 2 → [T]: RMSE over nodes of the per-node error vector at each step."""
+    pred, true = np.asarray(pred, np.float64), np.asarray(true, np.float64)
+    if pred.shape != true.shape:
+        raise ValueError(f"prediction shape {pred.shape} differs from ground truth {true.shape}")
+    return np.sqrt(((pred - true) ** 2).sum(-1).mean(-1))
+
+
+def rollout_rmse(pred: np.ndarray, true: np.ndarray, start: int = 1) -> dict[str, float]:
+    """rmse_1, rmse_50 and rmse_all (×10³) of one trajectory; ``start`` is the first predicted frame."""
+    e = step_rmse(pred, true)[start:]
+    out = {}
+    for name, h in HORIZONS.items():
+        out[name] = float(e[: h if h else len(e)].mean() * SCALE)
+    return out
+
+
+def aggregate(per_trajectory: list[dict[str, float]]) -> dict[str, float]:
+    """Mean over trajectories of each metric."""
+    keys = per_trajectory[0].keys()
+    return {k: float(np.mean([m[k] for m in per_trajectory])) for k in keys}
+
+
+def mean_std(values) -> dict[str, float]:
+    """Mean ± sample standard deviation (ddof=1, as across seeds in the paper's tables; 0 for one value)."""
+    v = np.asarray(list(values), np.float64)
+    return {"mean": float(v.mean()), "std": float(v.std(ddof=1)) if v.size > 1 else 0.0, "n": int(v.size)}

@@ -36,6 +36,16 @@ def merge(base: dict, over: dict) -> dict:
     return out
 
 
+def parse_value(raw: str):
+    """A command-line value: a number if it reads as one (YAML 1.1 takes ``3e-4`` for a string), else YAML."""
+    for kind in (int, float):
+        try:
+            return kind(raw)
+        except ValueError:
+            pass
+    return yaml.safe_load(raw)
+
+
 def load_config(name_or_path: str, overrides: list[str] | None = None) -> dict:
     cfg = _read(name_or_path)
     for item in overrides or []:
@@ -48,7 +58,7 @@ def load_config(name_or_path: str, overrides: list[str] | None = None) -> dict:
             node = node.setdefault(p, {})
             if not isinstance(node, dict):
                 raise ValueError(f"override {item!r}: {p} is not a section")
-        node[leaf] = yaml.safe_load(raw)
+        node[leaf] = parse_value(raw)
     for section in ("model", "train", "data"):
         cfg.setdefault(section, {})
     return cfg

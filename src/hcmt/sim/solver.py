@@ -1,0 +1,271 @@
+"""Explicit-dynamics FEM on linear triangles (CST): the numerical solver behind the Impact Plate generator.
+
+Governing equation (paper Table 1, flexible dynamic): ``M x'' + D x' + T(x) = f(t)``, integrated with the central
+difference scheme and a lumped (diagonal) mass ``M``.
+
+Constitutive law: total-Lagrangian St Venant-Kirchhoff per element,
+
+    F = I + grad u = sum_a x_a (grad N_a)^T,   E = (F^T F - I) / 2,   S = lambda tr(E) I + 2 mu E,
+    P = F S,   f_a = W P grad N_a      (W: element weight; internal force of node a),
+
+which is exactly objective: a rigid rotation gives E = 0 and no force (a small-strain K u would not).
+
+Two formulations (``formulation``):
+
+* ``"axisymmetric"`` (default): x is the radius r, y the axis z. The hoop stretch ``F_tt = r / R`` is evaluated at the
+  element centroid (``R`` reference, ``r`` current centroid radius); ``W = 2 pi R_c A`` so masses, forces (N) and
+  energies (mJ) are those of the full revolved 3-D body (a half disk becomes a whole sphere).
+* ``"plane_strain"``: ``F_zz = 1`` (so ``S_zz = lambda tr E``), ``W = A`` (per mm of depth).
+
+Units: mm, ms, g, hence N, MPa, mJ, and speeds in mm/ms = m/s.
+
+Hot path: ``F`` for all elements is one sparse product ``D @ x`` with a precomputed gradient operator ``D`` [3C, N]
+(rows: dN/dX, dN/dY, centroid average); the nodal forces are ``D^T @ Q`` with ``Q`` the weighted stresses. No loop
+over elements.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.sparse as sp
+
+FORMULATIONS = ("axisymmetric", "plane_strain")
+
+
+@dataclass
+class FEModel:
+    """Precomputed operators of a triangle mesh (reference configuration ``X``)."""
+
+    X: np.ndarray  # [N,2] reference positions
+    cells: np.ndarray  # [C,3]
+    formulation: str
+    D: sp.csr_matrix  # [3C, N] gradient + centroid operator
+    DT: sp.csr_matrix  # its transpose, CSR for fast products
+    W: np.ndarray  # [C] element weight (volume, or area per unit depth)
+    Rc: np.ndarray  # [C] reference centroid radius (axisymmetric) else ones
+    lam: np.ndarray  # [C] Lame lambda (MPa)
+    mu: np.ndarray  # [C] shear modulus (MPa)
+    rho: np.ndarray  # [C] density (g/mm^3)
+    wave_speed: np.ndarray  # [C] dilatational wave speed sqrt((lambda + 2 mu) / rho)
+    altitude: np.ndarray  # [C] smallest altitude of each triangle (mm)
+    mass: np.ndarray  # [N] lumped nodal mass (g)
+    nodal_average: sp.csr_matrix  # [N, C] element -> node average (area weighted)
+    bulk_viscosity: float = 0.0  # linear bulk viscosity coefficient b1
+
+    @property
+    def num_nodes(self) -> int:
+        return len(self.X)
+
+    @property
+    def num_cells(self) -> int:
+        return len(self.cells)
+
+
+def lame(modulus, poisson):
+    """(lambda, mu) of Young's modulus E and Poisson ratio nu: lambda = E nu / ((1+nu)(1-2nu)), mu = E / (2(1+nu))."""
+    modulus, poisson = np.asarray(modulus, float), np.asarray(poisson, float)
+    return modulus * poisson / ((1 + poisson) * (1 - 2 * poisson)), modulus / (2 * (1 + poisson))
+
+
+def check_material(name: str, density, modulus, poisson) -> None:
+    """Refuse impossible materials with a message naming the parameter and the expected range."""
+    for what, v, ok, expected in (
+        ("density", density, lambda a: a > 0, "> 0 g/mm^3"),
+        ("Young's modulus", modulus, lambda a: a > 0, "> 0 MPa"),
+        ("Poisson ratio", poisson, lambda a: (a > -1) & (a < 0.5), "in (-1, 0.5)"),
+    ):
+        a = np.asarray(v, float)
+        if not np.all(np.isfinite(a)) or not np.all(ok(a)):
+            raise ValueError(f"{name} {what} must be {expected}, got {v}")
+
+
+def build_model(X: np.ndarray, cells: np.ndarray, density, modulus, poisson, *, formulation: str = "axisymmetric",
+                bulk_viscosity: float = 0.0) -> FEModel:
+    """Precompute the CST operators of a mesh. ``density``, ``modulus`` (MPa), ``poisson`` are per cell or scalars."""
+    if formulation not in FORMULATIONS:
+        raise ValueError(f"formulation must be one of {FORMULATIONS}, got {formulation!r}")
+    if bulk_viscosity < 0:
+        raise ValueError(f"bulk_viscosity must be >= 0, got {bulk_viscosity}")
+    X = np.asarray(X, float)
+    cells = np.asarray(cells, np.int64)
+    C, N = len(cells), len(X)
+    rho, E, nu = (np.broadcast_to(np.asarray(v, float), (C,)).copy() for v in (density, modulus, poisson))
+    check_material("element", rho, E, nu)
+    p = X[cells]  # [C,3,2]
+    # grad N_a = perp(x_c - x_b) / (2A) for the cyclic triple (a, b, c)
+    nxt, prv = p[:, [1, 2, 0]], p[:, [2, 0, 1]]
+    A = 0.5 * ((p[:, 1, 0] - p[:, 0, 0]) * (p[:, 2, 1] - p[:, 0, 1]) - (p[:, 1, 1] - p[:, 0, 1]) * (p[:, 2, 0] - p[:, 0, 0]))
+    if np.any(A <= 0):
+        bad = np.flatnonzero(A <= 0)[:5]
+        raise ValueError(f"cells must be counter-clockwise with positive area; cells {bad.tolist()} are not")
+    dNdX = (nxt[..., 1] - prv[..., 1]) / (2 * A[:, None])  # [C,3]
+    dNdY = (prv[..., 0] - nxt[..., 0]) / (2 * A[:, None])
+    Rc = p[:, :, 0].mean(1)
+    if formulation == "axisymmetric":
+        if np.any(X[:, 0] < -1e-9):
+            raise ValueError("axisymmetric meshes need x = r >= 0 for every node")
+        W = 2 * np.pi * Rc * A
+    else:
+        Rc = np.ones(C)
+        W = A.copy()
+    rows = np.concatenate([np.repeat(np.arange(C), 3) + k * C for k in range(3)])
+    cols = np.tile(cells.ravel(), 3)
+    vals = np.concatenate([dNdX.ravel(), dNdY.ravel(), np.full(3 * C, 1.0 / 3.0)])
+    D = sp.csr_matrix((vals, (rows, cols)), shape=(3 * C, N))
+    lam, mu = lame(E, nu)
+    c = np.sqrt((lam + 2 * mu) / rho)
+    edge = np.linalg.norm(nxt - p, axis=2)  # edge a -> a+1, opposite vertex a+2
+    altitude = (2 * A[:, None] / edge).min(1)
+    mass = np.bincount(cells.ravel(), weights=np.repeat(rho * W / 3.0, 3), minlength=N)
+    avg = sp.csr_matrix((np.repeat(A, 3), (cells.ravel(), np.repeat(np.arange(C), 3))), shape=(N, C))
+    deg = np.asarray(avg.sum(1)).ravel()
+    avg = sp.diags(1.0 / np.where(deg > 0, deg, 1.0)) @ avg
+    return FEModel(X=X, cells=cells, formulation=formulation, D=D, DT=D.T.tocsr(), W=W, Rc=Rc, lam=lam, mu=mu,
+                   rho=rho, wave_speed=c, altitude=altitude, mass=mass, nodal_average=avg.tocsr(),
+                   bulk_viscosity=float(bulk_viscosity))
+
+
+def stable_time_step(model: FEModel, safety: float = 0.8) -> float:
+    """Courant step ``dt = safety * min_e h_e / c_e`` (h_e smallest altitude, c_e dilatational wave speed), reduced
+    by the bulk-viscosity factor ``sqrt(1 + b1^2) - b1``. ``safety`` must lie in (0, 0.8]."""
+    if not 0 < safety <= 0.8:
+        raise ValueError(f"time-step safety factor must be in (0, 0.8], got {safety}")
+    b1 = model.bulk_viscosity
+    return float(safety * np.min(model.altitude / model.wave_speed) * (np.sqrt(1 + b1 * b1) - b1))
+
+
+def deformation(model: FEModel, x: np.ndarray):
+    """Deformation gradient components ``(F11, F12, F21, F22, F33)`` per element (F_iJ = dx_i/dX_J)."""
+    C = model.num_cells
+    G = model.D @ x  # [3C,2]
+    F11, F21 = G[:C, 0], G[:C, 1]
+    F12, F22 = G[C:2 * C, 0], G[C:2 * C, 1]
+    F33 = G[2 * C:, 0] / model.Rc if model.formulation == "axisymmetric" else np.ones(C)
+    return F11, F12, F21, F22, F33
+
+
+def green_lagrange(F11, F12, F21, F22, F33):
+    """E = (F^T F - I)/2 as (E11, E22, E12, E33)."""
+    return (0.5 * (F11 * F11 + F21 * F21 - 1), 0.5 * (F12 * F12 + F22 * F22 - 1), 0.5 * (F11 * F12 + F21 * F22),
+            0.5 * (F33 * F33 - 1))
+
+
+def internal_force(model: FEModel, x: np.ndarray, v: np.ndarray | None = None) -> np.ndarray:
+    """Nodal internal (resisting) forces ``f_a = sum_e W P grad N_a`` [N,2]; with ``v`` and a bulk viscosity
+    ``b1 > 0`` adds the linear bulk-viscosity stress ``q = b1 rho c h (tr eps_dot)`` (applied in compression and
+    expansion alike, so it is a pure dissipation ``W q tr(eps_dot) >= 0``)."""
+    F11, F12, F21, F22, F33 = deformation(model, x)
+    E11, E22, E12, E33 = green_lagrange(F11, F12, F21, F22, F33)
+    lt = model.lam * (E11 + E22 + E33)
+    m2 = 2 * model.mu
+    S11, S22, S12, S33 = lt + m2 * E11, lt + m2 * E22, m2 * E12, lt + m2 * E33
+    if v is not None and model.bulk_viscosity > 0:
+        Fd11, _, _, Fd22, Fd33 = deformation(model, v)
+        rate = Fd11 + Fd22 + (Fd33 if model.formulation == "axisymmetric" else 0.0)
+        q = model.bulk_viscosity * model.rho * model.wave_speed * model.altitude * rate
+        # small-strain form: an isotropic first Piola stress q I with the reference gradients (exactly dissipative)
+        extra = q
+    else:
+        extra = 0.0
+    W = model.W
+    P11 = (F11 * S11 + F12 * S12 + extra) * W
+    P12 = (F11 * S12 + F12 * S22) * W
+    P21 = (F21 * S11 + F22 * S12) * W
+    P22 = (F21 * S12 + F22 * S22 + extra) * W
+    Q = np.empty((3 * model.num_cells, 2))
+    C = model.num_cells
+    Q[:C, 0], Q[:C, 1], Q[C:2 * C, 0], Q[C:2 * C, 1] = P11, P21, P12, P22
+    Q[2 * C:, 1] = 0.0
+    Q[2 * C:, 0] = (F33 * S33 + extra) * W / model.Rc if model.formulation == "axisymmetric" else 0.0
+    return model.DT @ Q
+
+
+def strain_energy(model: FEModel, x: np.ndarray) -> float:
+    """Total SVK strain energy ``sum_e W (lambda/2 tr(E)^2 + mu E:E)`` (mJ)."""
+    E11, E22, E12, E33 = green_lagrange(*deformation(model, x))
+    tr = E11 + E22 + E33
+    psi = 0.5 * model.lam * tr**2 + model.mu * (E11**2 + E22**2 + 2 * E12**2 + E33**2)
+    return float(np.dot(model.W, psi))
+
+
+def cauchy_stress(model: FEModel, x: np.ndarray):
+    """Element Cauchy stress ``sigma = F S F^T / J`` as (s11, s22, s12, s33); s33 is the hoop (axisymmetric) or
+    out-of-plane (plane strain, ``lambda tr E`` for F33 = 1) component."""
+    F11, F12, F21, F22, F33 = deformation(model, x)
+    E11, E22, E12, E33 = green_lagrange(F11, F12, F21, F22, F33)
+    lt = model.lam * (E11 + E22 + E33)
+    m2 = 2 * model.mu
+    S11, S22, S12, S33 = lt + m2 * E11, lt + m2 * E22, m2 * E12, lt + m2 * E33
+    J = (F11 * F22 - F12 * F21) * F33
+    P11, P12 = F11 * S11 + F12 * S12, F11 * S12 + F12 * S22
+    P21, P22 = F21 * S11 + F22 * S12, F21 * S12 + F22 * S22
+    return ((P11 * F11 + P12 * F12) / J, (P21 * F21 + P22 * F22) / J, (P11 * F21 + P12 * F22) / J,
+            S33 * F33 * F33 / J)
+
+
+def von_mises(s11, s22, s12, s33):
+    """sigma_vm = sqrt(((s11-s22)^2 + (s22-s33)^2 + (s33-s11)^2)/2 + 3 s12^2), the out-of-plane component included."""
+    return np.sqrt(0.5 * ((s11 - s22) ** 2 + (s22 - s33) ** 2 + (s33 - s11) ** 2) + 3 * s12**2)
+
+
+def nodal_von_mises(model: FEModel, x: np.ndarray) -> np.ndarray:
+    """Element von Mises stress averaged (area weighted) to the nodes [N]; every element belongs to one body, so
+    the average never mixes the ball and the plate."""
+    return model.nodal_average @ von_mises(*cauchy_stress(model, x))
+
+
+class CentralDifference:
+    """Explicit central-difference integration of ``M a = f_ext - f_int(x, v) + f_contact(x)``:
+
+        v_{n+1/2} = v_{n-1/2} + dt a_n,   x_{n+1} = x_n + dt v_{n+1/2},
+
+    with ``a = 0`` and ``v = 0`` on the fixed degrees of freedom ``fixed`` [N,2] (SYMMETRIC: x, HANDLE: x and y).
+    ``gravity`` (mm/ms^2) acts along -y on every node. ``contact`` is any object with ``force(x, v)`` and
+    ``energy(x)`` (see :class:`hcmt.sim.contact.PenaltyContact`)."""
+
+    def __init__(self, model: FEModel, fixed: np.ndarray, dt: float, *, contact=None, gravity: float = 0.0):
+        if not dt > 0:
+            raise ValueError(f"time step must be > 0, got {dt}")
+        self.model, self.dt, self.contact, self.gravity = model, float(dt), contact, float(gravity)
+        self.free = ~np.asarray(fixed, bool)
+        self.inv_mass = (1.0 / model.mass)[:, None] * self.free
+        self.f_ext = np.zeros((model.num_nodes, 2))
+        self.f_ext[:, 1] = -model.mass * self.gravity
+        self.t, self.steps = 0.0, 0
+
+    def acceleration(self, x: np.ndarray, v: np.ndarray) -> np.ndarray:
+        f = self.f_ext - internal_force(self.model, x, v)
+        if self.contact is not None:
+            f += self.contact.force(x, v)
+        return f * self.inv_mass
+
+    def start(self, x0: np.ndarray, v0: np.ndarray) -> None:
+        """Initial state: positions ``x0`` and velocities ``v0`` at t = 0 (fixed components zeroed)."""
+        self.x = np.array(x0, float)
+        v0 = np.array(v0, float) * self.free
+        self.a = self.acceleration(self.x, v0)
+        self.v_half = v0 - 0.5 * self.dt * self.a  # v_{-1/2}
+        self.t, self.steps = 0.0, 0
+
+    def step(self, n: int = 1) -> None:
+        x, v, dt = self.x, self.v_half, self.dt
+        for _ in range(n):  # the time loop itself (each step fully vectorized)
+            v += dt * self.a
+            x += dt * v
+            self.a = self.acceleration(x, v)
+        self.steps += n
+        self.t = self.steps * dt
+
+    @property
+    def velocity(self) -> np.ndarray:
+        """Velocity at the current (integer) time, ``v_n = v_{n-1/2} + dt/2 a_n``."""
+        return self.v_half + 0.5 * self.dt * self.a
+
+    def energies(self) -> dict[str, float]:
+        """Kinetic, strain, contact-penalty and gravity potential energy (mJ) at the current time."""
+        v = self.velocity
+        m = self.model.mass
+        return dict(kinetic=float(0.5 * np.dot(m, (v * v).sum(1))), strain=strain_energy(self.model, self.x),
+                    contact=self.contact.energy(self.x) if self.contact is not None else 0.0,
+                    gravity=float(self.gravity * np.dot(m, self.x[:, 1])))

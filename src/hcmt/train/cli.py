@@ -1,0 +1,204 @@
+"""``hcmt train / rollout / evaluate / compare``."""
+from __future__ import annotations
+
+import argparse
+import json
+from collections import defaultdict
+from pathlib import Path
+
+import h5py
+import numpy as np
+
+from hcmt.data.format import atomic_path
+from hcmt.train.config import load_config
+
+
+# -- train ---------------------------------------------------------------------------------------------------------
+def configure_train(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--config", required=True, help="built-in config name (impact_plate, impact_plate_cpu, ...) or a YAML file")
+    p.add_argument("--data", required=True, help="native dataset folder")
+    p.add_argument("--model", required=True, choices=["hcmt", "mgn", "gt"])
+    p.add_argument("--ablation", choices=["late-contact", "only-cmt", "only-hmt", "lpe", "single-branch", "no-remesh"])
+    p.add_argument("--steps", type=int, help="training steps (overrides train.steps)")
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--out", required=True, help="run folder")
+    p.add_argument("--resume", action="store_true", help="continue the run in --out from its last checkpoint")
+    p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
+                   help="override any config key, e.g. --set train.lr=3e-4 --set model.levels=4")
+    p.add_argument("--device", help="cpu, cuda, cuda:1 (default: cuda if available)")
+    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+
+
+def main_train(args: argparse.Namespace) -> int:
+    from hcmt.train.trainer import train
+
+    overrides = list(args.set) + ([f"train.steps={args.steps}"] if args.steps is not None else [])
+    cfg = load_config(args.config, overrides)
+    summary = train(cfg, args.data, args.model, args.out, ablation=args.ablation, seed=args.seed,
+                    resume=args.resume, device=args.device, progress=not args.no_progress)
+    print(json.dumps(summary, indent=2))
+    return 0
+
+
+# -- rollout -------------------------------------------------------------------------------------------------------
+def _run_args(p: argparse.ArgumentParser) -> None:
+    p.add_argument("run", help="run folder made by `hcmt train`")
+    p.add_argument("--data", required=True, help="native dataset folder")
+    p.add_argument("--split", default="test")
+    p.add_argument("--limit", type=int, help="only the first N trajectories")
+    p.add_argument("--checkpoint", default="best", choices=["best", "checkpoint"])
+
+
+configure_rollout = _run_args
+
+
+def rollout_path(run: str | Path, split: str) -> Path:
+    return Path(run) / f"rollout_{split}.h5"
+
+
+def run_rollouts(run, data, split, limit=None, checkpoint="best") -> Path:
+    """Roll a run's model out over a split; predictions go to ``RUN/rollout_<split>.h5`` (atomically)."""
+    from tqdm import tqdm
+
+    from hcmt.train.adapters import get_adapter
+    from hcmt.train.data import load_split
+    from hcmt.train.rollout import rollout
+    from hcmt.train.trainer import load_run, uses_hierarchy
+
+    model, info = load_run(run, checkpoint)
+    cfg = info["config"]
+    adapter = get_adapter(cfg["dataset"])
+    levels, remesh = uses_hierarchy(info["model"])
+    trajs = load_split(data, split, adapter, levels, remesh, limit=limit)
+    radius = float(cfg["train"]["contact_radius"])
+    path = rollout_path(run, split)
+    with atomic_path(path) as tmp, h5py.File(tmp, "w") as f:
+        f.attrs["data"] = str(Path(data).resolve())
+        f.attrs["split"] = split
+        for tr in tqdm(trajs, desc=f"rollout {split}"):
+            r = rollout(model, adapter, tr, radius)
+            g = f.create_group(tr.name)
+            g["world_pos"] = r["world_pos"].numpy()
+            if r["stress"] is not None:
+                g["stress"] = r["stress"].numpy()
+            g.attrs["ms_per_step"] = r["ms_per_step"]
+            g.attrs["start"] = r["start"]
+    return path
+
+
+def main_rollout(args: argparse.Namespace) -> int:
+    path = run_rollouts(args.run, args.data, args.split, args.limit, args.checkpoint)
+    print(f"wrote {path}")
+    return 0
+
+
+# -- evaluate ------------------------------------------------------------------------------------------------------
+configure_evaluate = _run_args
+
+
+def evaluate(run, data, split, limit=None, checkpoint="best") -> dict:
+    """Paper metrics of a run on a split; rolls out first if ``RUN/rollout_<split>.h5`` is missing."""
+    from hcmt.data.format import Split
+    from hcmt.train.metrics import aggregate, rollout_rmse
+
+    path = rollout_path(run, split)
+    if not path.is_file():
+        run_rollouts(run, data, split, limit, checkpoint)
+    per_traj, ms = [], []
+    with h5py.File(path, "r") as f, Split(data, split) as s:
+        index = {n: i for i, n in enumerate(s.names)}
+        for name in f.keys():
+            truth = s[index[name]]
+            g = f[name]
+            start = int(g.attrs["start"])
+            row = {"trajectory": name}
+            row.update({f"position_{k}": v for k, v in rollout_rmse(g["world_pos"][()], truth["world_pos"], start).items()})
+            if "stress" in g and "stress" in truth:
+                row.update({f"stress_{k}": v for k, v in rollout_rmse(g["stress"][()], truth["stress"], start).items()})
+            per_traj.append(row)
+            ms.append(float(g.attrs["ms_per_step"]))
+    means = aggregate([{k: v for k, v in r.items() if k != "trajectory"} for r in per_traj])
+    metrics = {"split": split, "trajectories": len(per_traj)}
+    for q in ("position", "stress"):
+        if f"{q}_rmse_all" in means:
+            metrics[q] = {k: means[f"{q}_{k}"] for k in ("rmse_1", "rmse_50", "rmse_all")}
+    metrics["inference_ms_per_step"] = float(np.median(ms))
+    stats = Path(run) / "train_stats.json"
+    metrics["train_ms_per_step"] = json.loads(stats.read_text()).get("train_ms_per_step") if stats.is_file() else None
+    metrics["per_trajectory"] = per_traj
+    with atomic_path(Path(run) / "metrics.json") as tmp:
+        tmp.write_text(json.dumps(metrics, indent=2))
+    return metrics
+
+
+def format_metrics(m: dict) -> str:
+    lines = [f"split {m['split']}: {m['trajectories']} trajectories (RMSE x1e3)",
+             f"  {'':<9}{'rmse_1':>12}{'rmse_50':>12}{'rmse_all':>12}"]
+    for q in ("position", "stress"):
+        if q in m:
+            lines.append(f"  {q:<9}" + "".join(f"{m[q][k]:>12.4g}" for k in ("rmse_1", "rmse_50", "rmse_all")))
+    lines.append(f"  inference {m['inference_ms_per_step']:.2f} ms/step"
+                 + (f", training {m['train_ms_per_step']:.2f} ms/step" if m.get("train_ms_per_step") else ""))
+    return "\n".join(lines)
+
+
+def main_evaluate(args: argparse.Namespace) -> int:
+    m = evaluate(args.run, args.data, args.split, args.limit, args.checkpoint)
+    print(format_metrics(m))
+    print(f"wrote {Path(args.run) / 'metrics.json'}")
+    return 0
+
+
+# -- compare -------------------------------------------------------------------------------------------------------
+def configure_compare(p: argparse.ArgumentParser) -> None:
+    p.add_argument("runs", nargs="+", help="run folders holding metrics.json (from `hcmt evaluate`)")
+    p.add_argument("--json", help="also write the table as JSON")
+
+
+def compare(runs: list[str]) -> dict:
+    """{label: {quantity: {metric: {mean, std, n}}}} over seeds; label = model (+ ablation)."""
+    import yaml
+
+    from hcmt.train.metrics import mean_std
+
+    groups: dict[str, list[dict]] = defaultdict(list)
+    for run in runs:
+        mpath = Path(run) / "metrics.json"
+        if not mpath.is_file():
+            raise FileNotFoundError(f"{mpath}: run `hcmt evaluate {run} --data ... --split ...` first")
+        info = yaml.safe_load((Path(run) / "run.yaml").read_text())["model"]
+        label = info["name"].upper() + (f" ({info['ablation']})" if info.get("ablation") else "")
+        groups[label].append(json.loads(mpath.read_text()))
+    table = {}
+    for label, ms in groups.items():
+        row = {}
+        for q in ("position", "stress"):
+            if all(q in m for m in ms):
+                row[q] = {k: mean_std(m[q][k] for m in ms) for k in ("rmse_1", "rmse_all")}
+        row["train_ms_per_step"] = mean_std(m["train_ms_per_step"] or np.nan for m in ms)
+        row["inference_ms_per_step"] = mean_std(m["inference_ms_per_step"] for m in ms)
+        table[label] = row
+    return table
+
+
+def format_compare(table: dict) -> str:
+    head = f"{'Model':<24}{'Position RMSE-all':>24}{'Stress RMSE-all':>24}{'Position RMSE-1':>20}  seeds"
+    lines = ["RMSE x1e3, mean ± std over seeds (paper Table 2 layout)", head]
+    for label, row in table.items():
+        def cell(q, k, w):
+            if q not in row:
+                return f"{'-':>{w}}"
+            return f"{row[q][k]['mean']:>{w - 10}.4g} ± {row[q][k]['std']:<7.3g}"
+        n = row["inference_ms_per_step"]["n"]
+        lines.append(f"{label:<24}{cell('position', 'rmse_all', 24)}{cell('stress', 'rmse_all', 24)}"
+                     f"{cell('position', 'rmse_1', 20)}  {n}")
+    return "\n".join(lines)
+
+
+def main_compare(args: argparse.Namespace) -> int:
+    table = compare(args.runs)
+    print(format_compare(table))
+    if args.json:
+        with atomic_path(Path(args.json)) as tmp:
+            tmp.write_text(json.dumps(table, indent=2))
+    return 0

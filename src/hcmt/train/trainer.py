@@ -1,0 +1,260 @@
+"""Training as the paper does it (Appendix "Hyperparameter Details"): one-step MSE on normalized velocity (or
+acceleration) and stress, Gaussian noise on NORMAL nodes' positions with the target corrected (GNS/MGN), Adam,
+exponential learning-rate decay from ``lr`` to ``lr_final`` over the run, batch size 1 by default.
+
+A run folder holds ``run.yaml`` (everything needed to rebuild the model), ``checkpoint.pt`` (latest) and
+``best.pt`` (best validation rollout), ``log.jsonl``, TensorBoard scalars under ``tb/`` and ``train_stats.json``.
+Checkpoints are written atomically. ``resume=True`` continues exactly: model, optimizer, scheduler, normalizers
+and step are restored, and the data order and noise are pure functions of (seed, step, rank), so a run stopped and
+resumed ends with the same parameters as one that never stopped.
+
+Several processes: under ``torchrun`` (``WORLD_SIZE`` set by it) training uses DistributedDataParallel with gloo on
+CPU and NCCL on GPU; each rank takes every ``world``-th frame of the shared permutation. Buffers (the normalizers)
+are broadcast from rank 0, so every rank normalizes alike.
+"""
+from __future__ import annotations
+
+import json
+import math
+import os
+import time
+from pathlib import Path
+
+import numpy as np
+import torch
+import torch.distributed as dist
+import yaml
+
+from hcmt.data.format import atomic_path, read_meta
+from hcmt.graph.batch import collate
+from hcmt.models import build_model
+from hcmt.train.adapters import get_adapter, node_features, noise_mask, output_mask, target
+from hcmt.train.data import build_graph, load_split
+from hcmt.train.metrics import rollout_rmse
+from hcmt.train.rollout import rollout
+
+
+def model_args(cfg: dict, model_name: str, ablation: str | None, meta: dict) -> dict:
+    """Constructor arguments of the model, from the config and the dataset's dimensions."""
+    adapter = get_adapter(cfg["dataset"])
+    d = int(meta["dimension"])
+    m = int(meta["features"]["mesh_pos"]["shape"][-1])
+    mc = cfg["model"]
+    return {
+        "name": model_name, "node_in": adapter.node_in(d), "mesh_in": m + d + 2, "contact_in": d + 1,
+        "out": adapter.out(d), "ablation": ablation, "levels": mc.get("levels", 0), "L_C": mc.get("L_C", 2),
+        "hidden": mc.get("hidden", 128), "heads": mc.get("heads", 4), "clip": mc.get("clip", 2.0),
+        "blocks": mc.get("blocks", 15),
+    }
+
+
+def make_model(args: dict):
+    args = dict(args)
+    return build_model(args.pop("name"), args.pop("node_in"), args.pop("mesh_in"), args.pop("contact_in"),
+                       args.pop("out"), **args)
+
+
+def uses_hierarchy(args: dict) -> tuple[int, bool]:
+    """(levels, remesh) of the hierarchy a model needs; MGN and GT need none, only-cmt none either."""
+    if args["name"] != "hcmt" or args.get("ablation") == "only-cmt":
+        return 0, True
+    return int(args["levels"]), args.get("ablation") != "no-remesh"
+
+
+def save_atomic(obj, path: Path) -> None:
+    with atomic_path(path) as tmp:
+        torch.save(obj, tmp)
+
+
+def _distributed() -> tuple[int, int]:
+    if "WORLD_SIZE" in os.environ and int(os.environ["WORLD_SIZE"]) > 1:  # launched by torchrun
+        if not dist.is_initialized():
+            dist.init_process_group("nccl" if torch.cuda.is_available() else "gloo")
+        return dist.get_rank(), dist.get_world_size()
+    return 0, 1
+
+
+def frame_index(trajs, history: int) -> np.ndarray:
+    """All training frames as (trajectory, t) rows with x^{t-history} .. x^{t+1} in range."""
+    rows = [(i, t) for i, tr in enumerate(trajs) for t in range(history, tr.num_steps - 1)]
+    return np.asarray(rows, np.int64)
+
+
+def validate(model, adapter, trajs, radius) -> dict:
+    pos, stress = [], []
+    for tr in trajs:
+        r = rollout(model, adapter, tr, radius)
+        pos.append(rollout_rmse(r["world_pos"].numpy(), tr.world_pos.numpy(), r["start"])["rmse_all"])
+        if r["stress"] is not None:
+            stress.append(rollout_rmse(r["stress"].numpy(), tr.stress.numpy(), r["start"])["rmse_all"])
+    out = {"valid/position_rmse_all": float(np.mean(pos))}
+    if stress:
+        out["valid/stress_rmse_all"] = float(np.mean(stress))
+    return out
+
+
+def train(cfg: dict, data: str | Path, model_name: str, out: str | Path, *, ablation: str | None = None,
+          seed: int = 0, resume: bool = False, device: str | None = None, progress: bool = True,
+          stop_at: int | None = None) -> dict:
+    """Train one model; returns a summary (final loss, steps, ms per step, best validation metric).
+
+    ``stop_at`` ends this call after that global step (checkpointed), as an interruption would; ``resume=True``
+    then continues the same schedule."""
+    rank, world = _distributed()
+    out = Path(out)
+    device = torch.device(device or (f"cuda:{rank % torch.cuda.device_count()}" if torch.cuda.is_available() else "cpu"))
+    tc = cfg["train"]
+    steps = int(tc["steps"])
+    meta = read_meta(data)
+    adapter = get_adapter(cfg["dataset"])
+    args = model_args(cfg, model_name, ablation, meta)
+    ckpt_path = out / "checkpoint.pt"
+    if resume and not ckpt_path.is_file():
+        raise FileNotFoundError(f"{ckpt_path}: nothing to resume; start without --resume")
+    if not resume and ckpt_path.is_file():
+        raise ValueError(f"{out} already holds a run; pass --resume to continue it or choose another --out")
+    if rank == 0:
+        out.mkdir(parents=True, exist_ok=True)
+        run = {"model": args, "config": cfg, "data": str(Path(data).resolve()), "seed": seed}
+        with atomic_path(out / "run.yaml") as tmp:
+            tmp.write_text(yaml.safe_dump(run, sort_keys=False))
+
+    torch.manual_seed(seed)  # parameter initialization
+    model = make_model(args).to(device)
+    levels, remesh = uses_hierarchy(args)
+    exclude = cfg.get("data", {}).get("exclude_trajectories")
+    train_trajs = load_split(data, "train", adapter, levels, remesh, exclude=exclude)
+    valid_trajs = (load_split(data, "valid", adapter, levels, remesh, limit=int(tc.get("valid_trajectories", 2)))
+                   if (Path(data) / "valid.h5").is_file() else [])
+    frames = frame_index(train_trajs, adapter.history)
+    batch = int(tc.get("batch_size", 1))
+    per_epoch = max(len(frames) // (world * batch), 1)
+
+    opt = torch.optim.Adam(model.parameters(), lr=float(tc["lr"]))
+    decay = float(tc.get("lr_final", tc["lr"])) / float(tc["lr"])
+    sched = torch.optim.lr_scheduler.LambdaLR(opt, lambda s: decay ** min(s / max(steps, 1), 1.0))
+    step, best = 0, math.inf
+    if resume:
+        state = torch.load(ckpt_path, map_location=device, weights_only=False)
+        model.load_state_dict(state["model"])
+        opt.load_state_dict(state["optimizer"])
+        sched.load_state_dict(state["scheduler"])
+        step, best = int(state["step"]), float(state["best"])
+    net = model
+    if world > 1:
+        net = torch.nn.parallel.DistributedDataParallel(model, device_ids=[device.index] if device.type == "cuda" else None)
+
+    radius = float(tc["contact_radius"])
+    noise_std, gamma = float(tc.get("noise_std", 0.0)), float(tc.get("noise_gamma", 1.0))
+    warmup = int(tc.get("normalizer_steps", 0))
+    log_every, ckpt_every = int(tc.get("log_every", 100)), int(tc.get("checkpoint_every", 1000))
+    valid_every = int(tc.get("valid_every", 0))
+    writer = log = None
+    if rank == 0:
+        from torch.utils.tensorboard import SummaryWriter
+
+        writer = SummaryWriter(str(out / "tb"), purge_step=step if resume else None)
+        log = open(out / "log.jsonl", "a")
+    from tqdm import tqdm
+
+    bar = tqdm(total=steps, initial=step, disable=not progress or rank != 0, desc=f"train {model_name}",
+               dynamic_ncols=True)
+    times, last_loss = [], float("nan")
+
+    def save(path):
+        save_atomic({"model": model.state_dict(), "optimizer": opt.state_dict(), "scheduler": sched.state_dict(),
+                     "step": step, "best": best, "model_args": args}, path)
+
+    model.train()
+    end = steps if stop_at is None else min(steps, int(stop_at))
+    while step < end:
+        epoch, pos_in_epoch = divmod(step, per_epoch)
+        perm = np.random.default_rng([seed, epoch]).permutation(len(frames))
+        first = (pos_in_epoch * world + rank) * batch  # this rank's share of the step's global batch
+        picks = perm[first:first + batch]
+        gen = torch.Generator().manual_seed(int(np.random.SeedSequence([seed, step, rank]).generate_state(1)[0]))
+        t0 = time.perf_counter()
+        graphs, targets, masks = [], [], []
+        for ti, t in frames[picks]:
+            tr = train_trajs[ti]
+            w = tr.world_pos
+            pos, prev, nxt = w[t], w[t - adapter.history], w[t + 1]
+            noise = torch.randn(pos.shape, generator=gen) * noise_std * noise_mask(tr.static["node_type"])
+            pos = pos + noise
+            feats = node_features(adapter, tr.static, pos, prev, nxt)
+            graphs.append(build_graph(tr, pos, feats, radius))
+            tgt_next = nxt + (1.0 - gamma) * noise
+            targets.append(target(adapter, pos, prev, tgt_next, tr.stress[t + 1] if tr.stress is not None else None))
+            masks.append(output_mask(adapter, tr.static["node_type"], pos.shape[1]))
+        graph = collate(graphs).to(device)
+        tgt = torch.cat(targets).to(device)
+        mask = torch.cat(masks).to(device)
+        pred = net(graph, accumulate=True)
+        norm_tgt = model.normalize_target(tgt, accumulate=True)
+        loss = ((pred - norm_tgt) ** 2 * mask).sum() / mask.sum().clamp_min(1.0)
+        if step >= warmup:
+            opt.zero_grad(set_to_none=True)
+            loss.backward()
+            opt.step()
+            sched.step()
+        elif world > 1:  # keep DDP's reducer in step: a zero-gradient backward
+            (loss * 0).backward()
+        step += 1
+        times.append(time.perf_counter() - t0)
+        last_loss = float(loss.detach())
+        if not math.isfinite(last_loss):
+            raise FloatingPointError(f"loss became {last_loss} at step {step}; lower train.lr or check the data")
+        bar.update(1)
+        if rank == 0 and (step % log_every == 0 or step == steps):
+            bar.set_postfix(loss=f"{last_loss:.4g}", lr=f"{sched.get_last_lr()[0]:.2e}")
+            rec = {"step": step, "loss": last_loss, "lr": sched.get_last_lr()[0], "ms_per_step": 1e3 * float(np.median(times[-log_every:]))}
+            writer.add_scalar("train/loss", last_loss, step)
+            writer.add_scalar("train/lr", rec["lr"], step)
+            log.write(json.dumps(rec) + "\n")
+            log.flush()
+        if rank == 0 and valid_trajs and valid_every and (step % valid_every == 0 or step == steps):
+            metrics = validate(model, adapter, valid_trajs, radius)
+            model.train()
+            for k, v in metrics.items():
+                writer.add_scalar(k, v, step)
+            log.write(json.dumps({"step": step, **metrics}) + "\n")
+            log.flush()
+            if metrics["valid/position_rmse_all"] < best:
+                best = metrics["valid/position_rmse_all"]
+                save(out / "best.pt")
+        if rank == 0 and (step % ckpt_every == 0 or step == end):
+            save(ckpt_path)
+    bar.close()
+    summary = {"steps": step, "final_loss": last_loss, "train_ms_per_step": 1e3 * float(np.median(times)) if times else None,
+               "best_valid_position_rmse_all": best if math.isfinite(best) else None, "world_size": world,
+               "device": str(device)}
+    if rank == 0 and step == steps:
+        if not (out / "best.pt").is_file():
+            save(out / "best.pt")
+        with atomic_path(out / "train_stats.json") as tmp:
+            tmp.write_text(json.dumps(summary, indent=2))
+    if rank == 0:
+        writer.close()
+        log.close()
+    if world > 1:
+        dist.barrier()
+    return summary
+
+
+def load_run(run: str | Path, which: str = "best", device: str = "cpu"):
+    """(model, run dict) of a run folder; ``which`` is ``best`` or ``checkpoint``."""
+    run = Path(run)
+    info_path = run / "run.yaml"
+    if not info_path.is_file():
+        raise FileNotFoundError(f"{info_path}: not a run folder (made by `hcmt train --out RUN`)")
+    info = yaml.safe_load(info_path.read_text())
+    path = run / f"{which}.pt"
+    if not path.is_file():
+        path = run / "checkpoint.pt"
+    if not path.is_file():
+        raise FileNotFoundError(f"{run}: no checkpoint yet (best.pt / checkpoint.pt)")
+    state = torch.load(path, map_location=device, weights_only=False)
+    model = make_model(state["model_args"])
+    model.load_state_dict(state["model"])
+    model.eval()
+    return model, info

@@ -1,0 +1,115 @@
+"""Training, rollout and evaluation end to end on small data; resume equality; DDP; adapters; guards."""
+import json
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+import torch
+
+from hcmt.cli import main as cli
+from hcmt.data.format import NodeType, open_split
+from hcmt.train.adapters import get_adapter
+from hcmt.train.cli import evaluate
+from hcmt.train.config import load_config
+from hcmt.train.data import load_split
+from hcmt.train.rollout import RolloutError, rollout
+from hcmt.train.trainer import load_run, train
+
+from layouts import deforming_plate_tfrecord, ggns_pickles, sphere_simple_tfrecord, write_impact_like
+
+TINY = ["model.levels=1", "model.L_C=1", "model.hidden=16", "model.heads=2", "model.blocks=2",
+        "train.normalizer_steps=1", "train.log_every=1", "train.checkpoint_every=2", "train.valid_every=3",
+        "train.valid_trajectories=1", "train.lr=1e-3", "train.contact_radius=0.3"]
+
+
+@pytest.fixture(scope="module")
+def impact(tmp_path_factory):
+    return write_impact_like(tmp_path_factory.mktemp("impact") / "data")
+
+
+@pytest.mark.parametrize("model", ["hcmt", "mgn", "gt"])
+def test_tiny_end_to_end(impact, tmp_path, model):
+    cfg = load_config("impact_plate_cpu", TINY + ["train.steps=4"])
+    summary = train(cfg, impact, model, tmp_path / "run", seed=1, progress=False)
+    assert summary["steps"] == 4 and np.isfinite(summary["final_loss"])
+    for f in ("run.yaml", "checkpoint.pt", "best.pt", "log.jsonl", "train_stats.json"):
+        assert (tmp_path / "run" / f).is_file(), f
+    assert any(p.name.startswith("events") for p in (tmp_path / "run" / "tb").iterdir())
+    logs = [json.loads(l) for l in (tmp_path / "run" / "log.jsonl").read_text().splitlines()]
+    assert [r["step"] for r in logs if "loss" in r] == [1, 2, 3, 4]
+    assert any("valid/position_rmse_all" in r for r in logs)
+    m = evaluate(tmp_path / "run", impact, "test")
+    assert set(m["position"]) == {"rmse_1", "rmse_50", "rmse_all"} and "stress" in m
+    assert np.isfinite(m["position"]["rmse_all"]) and m["inference_ms_per_step"] > 0
+    assert json.loads((tmp_path / "run" / "metrics.json").read_text())["trajectories"] == 1
+
+
+def test_rollout_imposes_boundary_conditions(impact, tmp_path):
+    cfg = load_config("impact_plate_cpu", TINY + ["train.steps=2"])
+    train(cfg, impact, "mgn", tmp_path / "run", progress=False)
+    model, info = load_run(tmp_path / "run")
+    (traj,) = load_split(impact, "test", get_adapter("impact_plate"), 0)
+    r = rollout(model, get_adapter("impact_plate"), traj, 0.3)
+    nt = traj.static["node_type"]
+    pred, true = r["world_pos"], traj.world_pos
+    assert torch.equal(pred[:, nt == NodeType.HANDLE], true[:, nt == NodeType.HANDLE])
+    assert torch.equal(pred[:, nt == NodeType.SYMMETRIC, 0], true[:, nt == NodeType.SYMMETRIC, 0])
+    assert torch.equal(pred[:2], true[:2])  # history frames come from the data
+    assert not torch.equal(pred[2:, nt == NodeType.NORMAL], true[2:, nt == NodeType.NORMAL])
+
+
+def test_non_finite_guard_names_trajectory_and_step(impact, tmp_path):
+    cfg = load_config("impact_plate_cpu", TINY + ["train.steps=2"])
+    train(cfg, impact, "mgn", tmp_path / "run", progress=False)
+    model, _ = load_run(tmp_path / "run")
+    with torch.no_grad():
+        model.decoder[-1].bias.fill_(float("nan"))
+    (traj,) = load_split(impact, "test", get_adapter("impact_plate"), 0)
+    with pytest.raises(RolloutError, match=r"trajectory traj_00000: .*non-finite at step 2"):
+        rollout(model, get_adapter("impact_plate"), traj, 0.3)
+
+
+def test_resume_ends_with_the_same_parameters(impact, tmp_path):
+    cfg = load_config("impact_plate_cpu", TINY + ["train.steps=6", "train.noise_std=0.01"])
+    train(cfg, impact, "hcmt", tmp_path / "straight", seed=3, progress=False)
+    train(cfg, impact, "hcmt", tmp_path / "resumed", seed=3, progress=False, stop_at=3)
+    train(cfg, impact, "hcmt", tmp_path / "resumed", seed=3, progress=False, resume=True)
+    a = torch.load(tmp_path / "straight" / "checkpoint.pt", weights_only=False)
+    b = torch.load(tmp_path / "resumed" / "checkpoint.pt", weights_only=False)
+    assert a["step"] == b["step"] == 6
+    for k in a["model"]:
+        assert torch.equal(a["model"][k], b["model"][k]), k
+    with pytest.raises(ValueError, match="--resume"):
+        train(cfg, impact, "hcmt", tmp_path / "straight", seed=3, progress=False)
+
+
+def test_two_process_ddp(impact, tmp_path):
+    cmd = [sys.executable, "-m", "torch.distributed.run", "--nproc_per_node=2", "--master_port=29533", "-m", "hcmt",
+           "train", "--config", "impact_plate_cpu", "--data", str(impact), "--model", "hcmt", "--steps", "3",
+           "--out", str(tmp_path / "ddp"), "--no-progress"] + sum((["--set", s] for s in TINY), [])
+    r = subprocess.run(cmd, capture_output=True, text=True, timeout=300)
+    assert r.returncode == 0, r.stderr[-3000:]
+    stats = json.loads((tmp_path / "ddp" / "train_stats.json").read_text())
+    assert stats["world_size"] == 2 and stats["steps"] == 3
+
+
+@pytest.mark.parametrize("kind", ["deforming_plate", "sphere_simple", "deformable_plate"])
+def test_adapters_on_official_layouts(tmp_path, kind):
+    src = tmp_path / "src"
+    {"deforming_plate": deforming_plate_tfrecord, "sphere_simple": sphere_simple_tfrecord,
+     "deformable_plate": ggns_pickles}[kind](src)
+    assert cli(["convert", str(src), str(tmp_path / "data")]) == 0
+    radius = {"deforming_plate": 0.03, "sphere_simple": 0.05, "deformable_plate": 0.08}[kind]
+    cfg = load_config(f"{kind}_cpu", TINY + ["train.steps=2", f"train.contact_radius={radius}"])
+    train(cfg, tmp_path / "data", "hcmt", tmp_path / "run", progress=False)
+    m = evaluate(tmp_path / "run", tmp_path / "data", "test")
+    assert np.isfinite(m["position"]["rmse_all"])
+    assert ("stress" in m) == get_adapter(kind).stress_output
+    # prescribed obstacles and handles follow the data exactly
+    import h5py
+
+    with h5py.File(tmp_path / "run" / "rollout_test.h5") as f, open_split(tmp_path / "data", "test") as s:
+        pred, truth = f["traj_00000/world_pos"][()], s[0]
+    fixed = np.isin(truth["node_type"].reshape(-1), [NodeType.HANDLE] + list(get_adapter(kind).prescribed))
+    np.testing.assert_array_equal(pred[:, fixed], truth["world_pos"][:, fixed])

@@ -56,7 +56,8 @@ def plate_mesh(thickness: float, half_length: float, mesh_size: float, *, layers
                growth: float = 1.0, h_max: float | None = None, y_growth: float = 1.0) -> tuple[np.ndarray, np.ndarray]:
     """Plate ``[0, L] x [-t, 0]``: x spacing ``mesh_size`` at the centre (graded by ``growth`` up to ``h_max``),
     ``layers`` element layers through the thickness (default ``max(4, round(t / mesh_size))``; fewer than 4 locks
-    CST triangles in bending). ``y_growth > 1`` grades the layers, finest at the top (contact) surface."""
+    CST triangles in bending). ``y_growth > 1`` instead grades the layers like x (``mesh_size`` at the top, contact,
+    surface, growing up to ``h_max``): used for the thick block of the Hertz check."""
     if layers is None:
         layers = max(4, int(round(thickness / mesh_size)))
     if layers < 4:
@@ -64,8 +65,10 @@ def plate_mesh(thickness: float, half_length: float, mesh_size: float, *, layers
     xs = graded_coordinates(half_length, mesh_size, growth, h_max)
     if y_growth == 1.0:
         depth = np.linspace(0.0, thickness, layers + 1)
-    else:
-        depth = thickness * np.cumsum(np.r_[0.0, y_growth ** np.arange(layers)]) / np.sum(y_growth ** np.arange(layers))
+    else:  # graded from the top like x: first layer mesh_size, growing up to h_max
+        depth = graded_coordinates(thickness, mesh_size, y_growth, h_max)
+        if len(depth) < 5:
+            raise ValueError(f"graded plate has {len(depth) - 1} layers; at least 4 are needed")
     ys = -depth[::-1]
     return structured_triangles(xs, ys)
 

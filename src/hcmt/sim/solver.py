@@ -241,9 +241,10 @@ class CentralDifference:
         return f * self.inv_mass
 
     def start(self, x0: np.ndarray, v0: np.ndarray) -> None:
-        """Initial state: positions ``x0`` and velocities ``v0`` at t = 0 (fixed components zeroed)."""
+        """Initial state: positions ``x0`` and velocities ``v0`` at t = 0. A fixed component keeps its initial
+        velocity (zero in the Impact Plate scene; nonzero makes it a prescribed-velocity boundary)."""
         self.x = np.array(x0, float)
-        v0 = np.array(v0, float) * self.free
+        v0 = np.array(v0, float)
         self.a = self.acceleration(self.x, v0)
         self.v_half = v0 - 0.5 * self.dt * self.a  # v_{-1/2}
         self.t, self.steps = 0.0, 0
@@ -269,3 +270,21 @@ class CentralDifference:
         return dict(kinetic=float(0.5 * np.dot(m, (v * v).sum(1))), strain=strain_energy(self.model, self.x),
                     contact=self.contact.energy(self.x) if self.contact is not None else 0.0,
                     gravity=float(self.gravity * np.dot(m, self.x[:, 1])))
+
+
+def linear_stiffness(model: FEModel) -> sp.csr_matrix:
+    """Small-strain stiffness ``K = B^T diag(W C) B`` [2N, 2N] (dofs interleaved x0, y0, x1, ...): the tangent of
+    :func:`internal_force` at the reference configuration, for static solves and stable-step checks.
+    ``B`` maps u to (eps11, eps22, gamma12, eps33) per element; eps33 = u_r / R_c in the axisymmetric case, 0 else."""
+    C, N = model.num_cells, model.num_nodes
+    Dx, Dy, Dc = model.D[:C], model.D[C:2 * C], model.D[2 * C:]
+    zero = sp.csr_matrix((C, N))
+    hoop = sp.diags(1.0 / model.Rc) @ Dc if model.formulation == "axisymmetric" else zero
+    B = sp.bmat([[Dx, zero], [zero, Dy], [Dy, Dx], [hoop, zero]]).tocsr()  # columns: all ux, then all uy
+    lam, mu, W = model.lam * model.W, model.mu * model.W, model.W
+    a = lam + 2 * mu
+    blocks = [[a, lam, None, lam], [lam, a, None, lam], [None, None, mu, None], [lam, lam, None, a]]
+    Cmat = sp.bmat([[sp.diags(b) if b is not None else None for b in row] for row in blocks], format="csr")
+    K = (B.T @ Cmat @ B).tocsr()
+    perm = np.arange(2 * N).reshape(2, N).T.ravel()  # to interleaved dofs
+    return K[perm][:, perm].tocsr()

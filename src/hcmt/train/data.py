@@ -13,7 +13,7 @@ from hcmt.data.format import Split
 from hcmt.graph.batch import Graph
 from hcmt.graph.contact import contact_edges, near_pairs, object_ids
 from hcmt.graph.edges import cells_to_edges, contact_edge_features, mesh_edge_features
-from hcmt.graph.hierarchy import build_hierarchy
+from hcmt.graph.hierarchy import cached_hierarchy
 from hcmt.train.adapters import Adapter, exclude_trajectories
 
 SELF_CONTACT_HOPS = 2  # self-contact ignores node pairs this close on the mesh (cloth)
@@ -64,11 +64,11 @@ def prepare_trajectory(fields: dict, name: str, adapter: Adapter, levels: int, r
     if adapter.self_contact:
         traj.self_exclude = near_pairs(edges, n, SELF_CONTACT_HOPS)
     if levels > 0:
-        h = build_hierarchy(np.asarray(fields["mesh_pos"]), cells, node_type, levels, remesh=remesh,
-                            cache_dir=cache_dir)
+        h = cached_hierarchy(np.asarray(fields["mesh_pos"]), cells, node_type, levels, remesh=remesh,
+                             cache_dir=cache_dir)
         traj.pool = [torch.from_numpy(np.asarray(p, np.int64)) for p in h.pool]
-        traj.level_edges = [torch.from_numpy(np.asarray(e, np.int64)) for e in h.level_edges]
-        traj.level_nodes = [torch.from_numpy(np.asarray(v, np.int64)) for v in h.level_nodes]
+        traj.level_edges = [torch.from_numpy(np.asarray(e, np.int64)) for e in h.edges[1:]]
+        traj.level_nodes = [torch.from_numpy(np.asarray(v, np.int64)) for v in h.nodes[1:]]
     return traj
 
 

@@ -1,6 +1,8 @@
 """Model invariants: permutation equivariance, per-receiver softmax, gradients, batching, empty edge sets."""
 from __future__ import annotations
 
+import re
+
 import pytest
 import torch
 
@@ -80,7 +82,7 @@ def test_attention_weights_sum_to_one_per_receiver_head_and_branch():
         elif name.startswith("cmt"):
             edges, n = g.mesh_edges, g.num_nodes
         else:
-            level = int(name.rstrip("0123456789")[-0:] and name[len(name.rstrip("0123456789")):])
+            level = int(re.search(r"(\d+)$", name).group(1))  # hmt.down{l} / hmt.bottom{λ} / hmt.up{l}
             edges, n = level_edges[level], level_n[level]
         assert w.shape == (edges.shape[1], 4, 8)
         sums = torch.zeros(n, 4, 8).index_add_(0, edges[1], w)

@@ -1,0 +1,74 @@
+"""Parts shared by HCMT, MGN and GT: input/target normalizers, encoders, decoder (paper "Features and Encoder
+Layer", "Decoder and Updater"; MeshGraphNets' encode-process-decode).
+
+* encoders ε_node, ε_mesh, ε_contact: MLPs with LayerNorm (:func:`hcmt.models.mlp.mlp`); ε_mesh is **one** encoder
+  for every level (the paper: it "shares weight parameters across levels"), and so is its normalizer;
+* decoder: MLP without LayerNorm, producing the **normalized** output;
+* normalizers (:class:`~hcmt.models.normalizer.Normalizer`) for node, mesh-edge and contact-edge inputs and for the
+  targets. They accumulate when ``accumulate`` is true; ``accumulate=None`` means "while ``self.training``".
+"""
+from __future__ import annotations
+
+from torch import Tensor, nn
+
+from hcmt.data.errors import DatasetError
+from hcmt.graph.batch import Graph
+
+from .mlp import mlp
+from .normalizer import Normalizer
+
+
+class Simulator(nn.Module):
+    """Encoder, decoder and normalizers; subclasses define ``forward(graph, accumulate=None) -> [N, out]``."""
+
+    def __init__(self, node_in: int, mesh_in: int, contact_in: int, out: int, *, hidden: int = 128):
+        super().__init__()
+        for name, size in (("node_in", node_in), ("mesh_in", mesh_in), ("contact_in", contact_in), ("out", out),
+                           ("hidden", hidden)):
+            if int(size) < 1:
+                raise ValueError(f"{name} must be a positive size, got {size}")
+        self.node_in, self.mesh_in, self.contact_in, self.out, self.hidden = node_in, mesh_in, contact_in, out, hidden
+        self.node_normalizer = Normalizer(node_in)
+        self.mesh_normalizer = Normalizer(mesh_in)
+        self.contact_normalizer = Normalizer(contact_in)
+        self.output_normalizer = Normalizer(out)
+        self.node_encoder = mlp(node_in, hidden, hidden)
+        self.mesh_encoder = mlp(mesh_in, hidden, hidden)
+        self.contact_encoder = mlp(contact_in, hidden, hidden)
+        self.decoder = mlp(hidden, hidden, out, layer_norm=False)
+
+    # -- normalization -------------------------------------------------------------------------------------------
+    def _accumulating(self, accumulate: bool | None) -> bool:
+        return self.training if accumulate is None else bool(accumulate)
+
+    def normalize_target(self, target: Tensor, accumulate: bool | None = None) -> Tensor:
+        """Targets in the units the loss compares with ``forward``'s output (MGN: the output normalizer)."""
+        return self.output_normalizer(target, self._accumulating(accumulate))
+
+    def denormalize(self, output: Tensor) -> Tensor:
+        """``forward``'s normalized output back to physical units."""
+        return self.output_normalizer.inverse(output)
+
+    # -- encoders ------------------------------------------------------------------------------------------------
+    def check_graph(self, graph: Graph) -> None:
+        n = graph.num_nodes
+        checks = (
+            ("node_features", graph.node_features, self.node_in, n),
+            ("mesh_features", graph.mesh_features, self.mesh_in, graph.mesh_edges.shape[-1]),
+            ("contact_features", graph.contact_features, self.contact_in, graph.contact_edges.shape[-1]),
+        )
+        for name, x, width, rows in checks:
+            if x.dim() != 2 or x.shape[1] != width or x.shape[0] != rows:
+                raise DatasetError(f"expected shape [{rows}, {width}], got {tuple(x.shape)}", field=name)
+        for name, e in (("mesh_edges", graph.mesh_edges), ("contact_edges", graph.contact_edges)):
+            if e.dim() != 2 or e.shape[0] != 2:
+                raise DatasetError(f"expected edges [2, E], got {tuple(e.shape)}", field=name)
+
+    def encode_nodes(self, graph: Graph, accumulate: bool) -> Tensor:
+        return self.node_encoder(self.node_normalizer(graph.node_features, accumulate))
+
+    def encode_mesh(self, features: Tensor, accumulate: bool) -> Tensor:
+        return self.mesh_encoder(self.mesh_normalizer(features, accumulate))
+
+    def encode_contact(self, graph: Graph, accumulate: bool) -> Tensor:
+        return self.contact_encoder(self.contact_normalizer(graph.contact_features, accumulate))

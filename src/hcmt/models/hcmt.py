@@ -1,0 +1,152 @@
+r"""Hierarchical Contact Mesh Transformer (paper §3.2): encoder → CMT → HMT → decoder (→ updater).
+
+* **CMT layer**: :math:`L_C` two-branch :class:`~hcmt.models.block.TransformerBlock`\ s on level 0, one branch over
+  mesh edges :math:`E_0`, one over contact edges :math:`C` (eqs. 1–4).
+* **HMT layer**: a U over the mesh hierarchy with :math:`\lambda` levels, one mesh-attention block per level on the
+  way down (levels :math:`0..\lambda-1`), one at the bottom (level :math:`\lambda`) and one per level on the way up
+  (levels :math:`\lambda-1..0`), so :math:`L_H = 2\lambda + 1` (eqs. 5–7; the authors' code). Contact edges are
+  not used ("contact-then-propagate").
+
+  - *Pooling* gathers the kept nodes: :math:`h^{l+1} = h^{l}[\mathrm{pool}_l]`.
+  - *Unpooling* **replaces** the kept rows of level :math:`l`'s saved (post-down-block) features by the coarse
+    features: ``saved.index_copy(0, pool[l], h)`` (the authors' ``tensor_scatter_nd_update``). Replacing, not
+    adding, because the coarse features were obtained from those same saved rows by residual blocks
+    (:math:`h_{coarse} = h_{saved}[\mathrm{pool}] + \Delta`), so replacing adds exactly the update :math:`\Delta`;
+    adding would count :math:`h_{saved}` twice at kept nodes only.
+  - Edge features: every level's raw edge features go through the one mesh normalizer and encoder (in one call);
+    going up, a level reuses the same encoded edge features it used going down (paper: "the (ℓ−1)-th edge feature
+    uses the (L_H−ℓ)-th edge feature after reaching the final level λ").
+
+* **Ablations** (``ablation=``): ``late-contact`` (HMT, then CMT), ``only-cmt`` (:math:`L_C + L_H` CMT blocks, so the
+  depth :math:`L = 15` of the paper is kept; no hierarchy), ``only-hmt`` (HMT alone, :math:`L_H` blocks, contact
+  edges unused), ``lpe`` (+ Laplacian eigenvector PE, :mod:`hcmt.models.lpe`), ``single-branch`` (CMT blocks put
+  mesh and contact edges in one softmax), ``no-remesh`` (the model is unchanged: the graph builder makes the coarse
+  edges without Delaunay; the flag is kept in ``self.remesh`` for the data pipeline). The clip range ``c`` is the
+  ``clip`` setting.
+"""
+from __future__ import annotations
+
+import torch
+from torch import Tensor, nn
+
+from hcmt.data.errors import DatasetError
+from hcmt.graph.batch import Graph
+
+from .base import Simulator
+from .block import TransformerBlock
+from .lpe import LaplacianPE
+
+ABLATIONS = ("late-contact", "only-cmt", "only-hmt", "lpe", "single-branch", "no-remesh")
+
+
+class HMT(nn.Module):
+    """The hierarchical mesh Transformer layer: ``2λ + 1`` one-branch blocks over the levels' mesh edges."""
+
+    def __init__(self, levels: int, hidden: int = 128, heads: int = 4, clip: float = 2.0):
+        super().__init__()
+        if levels < 0:
+            raise ValueError(f"number of levels λ must be >= 0, got {levels}")
+        self.levels = levels
+        make = lambda: TransformerBlock(hidden, heads, clip, edge_types=1)  # noqa: E731
+        self.down = nn.ModuleList(make() for _ in range(levels))
+        self.bottom = make()
+        self.up = nn.ModuleList(make() for _ in range(levels))
+
+    def forward(self, h: Tensor, latents: list[Tensor], edges: list[Tensor], pool: list[Tensor],
+                attention: list | None = None) -> Tensor:
+        """latents/edges: level 0..λ encoded mesh-edge features and edges; pool: λ kept-index tensors.
+        With ``attention`` (a list), appends each block's ``(name, weights)``."""
+        saved = []
+
+        def run(block, h, level, name):
+            if attention is None:
+                return block(h, [(latents[level], edges[level])])
+            h, w = block(h, [(latents[level], edges[level])], return_attention=True)
+            attention.append((name, w[0]))
+            return h
+
+        for level, block in enumerate(self.down):
+            h = run(block, h, level, f"hmt.down{level}")
+            saved.append(h)
+            h = h.index_select(0, pool[level])
+        h = run(self.bottom, h, self.levels, f"hmt.bottom{self.levels}")
+        for level in reversed(range(self.levels)):
+            h = saved[level].index_copy(0, pool[level], h)
+            h = run(self.up[level], h, level, f"hmt.up{level}")
+        return h
+
+
+class HCMT(Simulator):
+    def __init__(self, node_in: int, mesh_in: int, contact_in: int, out: int, *, L_C: int = 2, levels: int = 6,
+                 hidden: int = 128, heads: int = 4, clip: float = 2.0, ablation: str | None = None, lpe_k: int = 8):
+        super().__init__(node_in, mesh_in, contact_in, out, hidden=hidden)
+        if ablation in ("", "none"):
+            ablation = None
+        if ablation is not None and ablation not in ABLATIONS:
+            raise ValueError(f"unknown ablation {ablation!r}; expected one of {', '.join(ABLATIONS)} or None")
+        if L_C < 0 or levels < 0:
+            raise ValueError(f"L_C and λ must be >= 0, got L_C={L_C}, levels={levels}")
+        self.ablation, self.L_C, self.levels, self.clip = ablation, L_C, levels, float(clip)
+        self.L_H = 2 * levels + 1
+        self.remesh = ablation != "no-remesh"
+        cmt_blocks = {"only-cmt": L_C + self.L_H, "only-hmt": 0}.get(ablation, L_C)
+        self.cmt = nn.ModuleList(
+            TransformerBlock(hidden, heads, clip, edge_types=2, merge_branches=ablation == "single-branch")
+            for _ in range(cmt_blocks)
+        )
+        self.hmt = None if ablation == "only-cmt" else HMT(levels, hidden, heads, clip)
+        self.lpe = LaplacianPE(hidden, lpe_k) if ablation == "lpe" else None
+        if not self.cmt:  # only-hmt never sees contact edges: no unused parameters
+            self.contact_encoder = None
+
+    @property
+    def uses_hierarchy(self) -> bool:
+        return self.hmt is not None and self.levels > 0
+
+    def _levels(self, graph: Graph):
+        if not self.uses_hierarchy:
+            return [], [], []
+        if graph.num_levels < self.levels:
+            raise DatasetError(f"graph has {graph.num_levels} pooled levels, the model needs λ={self.levels}",
+                               field="pool")
+        pool, edges, feats = (graph.pool[: self.levels], graph.level_edges[: self.levels],
+                              graph.level_features[: self.levels])
+        for l, f in enumerate(feats):
+            if f.dim() != 2 or f.shape[1] != self.mesh_in or f.shape[0] != edges[l].shape[1]:
+                raise DatasetError(f"level {l + 1}: expected [{edges[l].shape[1]}, {self.mesh_in}], "
+                                   f"got {tuple(f.shape)}", field="level_features")
+        return pool, edges, feats
+
+    def forward(self, graph: Graph, accumulate: bool | None = None, return_attention: bool = False):
+        """Normalized output ``[N, out]``; with ``return_attention`` also a list of ``(block name, weights)``
+        with weights ``[E, H, d_k]`` per branch (CMT: ``cmt{ℓ}.mesh`` / ``cmt{ℓ}.contact``)."""
+        self.check_graph(graph)
+        acc = self._accumulating(accumulate)
+        pool, level_edges, level_feats = self._levels(graph)
+        z = self.encode_nodes(graph, acc)
+        if self.lpe is not None:
+            z = z + self.lpe(graph.mesh_edges, graph.num_nodes, graph.batch)
+        # one normalizer/encoder call for the mesh edges of every level (ε_mesh is shared across levels)
+        sizes = [graph.mesh_features.shape[0]] + [f.shape[0] for f in level_feats]
+        latents = list(self.encode_mesh(torch.cat([graph.mesh_features, *level_feats]), acc).split(sizes))
+        edges = [graph.mesh_edges, *level_edges]
+        contact = self.encode_contact(graph, acc) if len(self.cmt) else None
+        attention = [] if return_attention else None
+
+        def cmt(z):
+            for n, block in enumerate(self.cmt):
+                sets = [(latents[0], graph.mesh_edges), (contact, graph.contact_edges)]
+                if attention is None:
+                    z = block(z, sets)
+                else:
+                    z, w = block(z, sets, return_attention=True)
+                    names = ["mesh+contact"] if len(w) == 1 else ["mesh", "contact"]
+                    attention.extend((f"cmt{n}.{b}", wb) for b, wb in zip(names, w))
+            return z
+
+        def hmt(z):
+            return z if self.hmt is None else self.hmt(z, latents, edges, pool, attention)
+
+        z = cmt(hmt(z)) if self.ablation == "late-contact" else hmt(cmt(z))
+        out = self.decoder(z)
+        return (out, attention) if return_attention else out

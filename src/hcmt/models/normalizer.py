@@ -1,0 +1,65 @@
+"""Online feature normalizer, as MeshGraphNets' ``normalization.Normalizer``.
+
+Running statistics over every row seen while accumulating: ``mean = Σx / n``,
+``std = max(sqrt(Σx²/n − mean²), ε)``; accumulation stops after ``max_accumulations`` calls. The statistics are
+buffers, so they are saved in the model's ``state_dict`` and move with ``.to(device)``. Sums are kept in float64
+(float32 sums of 10⁶ batches lose the variance to cancellation). Before anything was accumulated the normalizer is
+the identity (mean 0, std 1) rather than MGN's division by ε, so an untrained model in eval mode stays finite.
+"""
+from __future__ import annotations
+
+import torch
+from torch import Tensor, nn
+
+
+class Normalizer(nn.Module):
+    def __init__(self, size: int, *, max_accumulations: int = 10**6, std_epsilon: float = 1e-8):
+        super().__init__()
+        if size < 1:
+            raise ValueError(f"Normalizer size must be positive, got {size}")
+        self.size, self.max_accumulations, self.std_epsilon = size, int(max_accumulations), float(std_epsilon)
+        self.register_buffer("count", torch.zeros((), dtype=torch.float64))
+        self.register_buffer("num_accumulations", torch.zeros((), dtype=torch.float64))
+        self.register_buffer("sum", torch.zeros(size, dtype=torch.float64))
+        self.register_buffer("sum_squared", torch.zeros(size, dtype=torch.float64))
+
+    def _check(self, x: Tensor) -> None:
+        if x.dim() != 2 or x.shape[1] != self.size:
+            raise ValueError(f"Normalizer expects features [rows, {self.size}], got shape {tuple(x.shape)}")
+
+    @torch.no_grad()
+    def accumulate(self, x: Tensor) -> None:
+        """Add the rows of ``x`` to the statistics (no-op once ``max_accumulations`` is reached or x is empty)."""
+        self._check(x)
+        if x.shape[0] == 0 or self.num_accumulations >= self.max_accumulations:
+            return
+        x64 = x.detach().to(torch.float64)
+        self.count += x64.shape[0]
+        self.sum += x64.sum(0)
+        self.sum_squared += (x64 * x64).sum(0)
+        self.num_accumulations += 1
+
+    def mean(self) -> Tensor:
+        return (self.sum / self.count.clamp(min=1.0)).float()
+
+    def std(self) -> Tensor:
+        n = self.count.clamp(min=1.0)
+        var = (self.sum_squared / n - (self.sum / n) ** 2).clamp(min=0.0)
+        std = var.sqrt().clamp(min=self.std_epsilon)
+        return torch.where(self.count > 0, std, torch.ones_like(std)).float()
+
+    def forward(self, x: Tensor, accumulate: bool = False) -> Tensor:
+        """Normalize ``x`` (after adding it to the statistics when ``accumulate``)."""
+        if accumulate:
+            self.accumulate(x)
+        else:
+            self._check(x)
+        return (x - self.mean().to(x.dtype)) / self.std().to(x.dtype)
+
+    def inverse(self, x: Tensor) -> Tensor:
+        """Un-normalize: ``x · std + mean``."""
+        self._check(x)
+        return x * self.std().to(x.dtype) + self.mean().to(x.dtype)
+
+    def extra_repr(self) -> str:
+        return f"size={self.size}, max_accumulations={self.max_accumulations}, std_epsilon={self.std_epsilon}"

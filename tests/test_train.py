@@ -113,3 +113,26 @@ def test_adapters_on_official_layouts(tmp_path, kind):
         pred, truth = f["traj_00000/world_pos"][()], s[0]
     fixed = np.isin(truth["node_type"].reshape(-1), [NodeType.HANDLE] + list(get_adapter(kind).prescribed))
     np.testing.assert_array_equal(pred[:, fixed], truth["world_pos"][:, fixed])
+
+
+def test_cli_train_rollout_evaluate_compare(impact, tmp_path, capsys):
+    runs = []
+    for model, seed in (("hcmt", 0), ("hcmt", 1), ("mgn", 0)):
+        run = tmp_path / f"{model}{seed}"
+        args = ["train", "--config", "impact_plate_cpu", "--data", str(impact), "--model", model, "--steps", "2",
+                "--seed", str(seed), "--out", str(run), "--no-progress"] + sum((["--set", s] for s in TINY), [])
+        assert cli(args) == 0
+        assert cli(["rollout", str(run), "--data", str(impact), "--split", "test"]) == 0
+        assert (run / "rollout_test.h5").is_file()
+        assert cli(["evaluate", str(run), "--data", str(impact), "--split", "test"]) == 0
+        runs.append(str(run))
+    capsys.readouterr()
+    assert cli(["compare", *runs, "--json", str(tmp_path / "table.json")]) == 0
+    out = capsys.readouterr().out
+    assert "HCMT" in out and "MGN" in out and "±" in out
+    table = json.loads((tmp_path / "table.json").read_text())
+    hc = [json.loads((tmp_path / f"hcmt{s}" / "metrics.json").read_text())["position"]["rmse_all"] for s in (0, 1)]
+    assert table["HCMT"]["position"]["rmse_all"]["n"] == 2
+    assert table["HCMT"]["position"]["rmse_all"]["mean"] == pytest.approx(np.mean(hc))
+    assert table["HCMT"]["position"]["rmse_all"]["std"] == pytest.approx(np.std(hc, ddof=1))
+    assert cli(["compare", str(tmp_path)]) == 2  # not a run: clear error

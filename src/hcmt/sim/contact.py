@@ -17,8 +17,6 @@ Candidates: each slave keeps its ``K`` nearest master segments (by midpoint, fro
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
 from scipy.spatial import cKDTree
 
@@ -30,15 +28,6 @@ def boundary_edges(cells: np.ndarray) -> np.ndarray:
     key = np.sort(e, axis=1)
     _, inv, cnt = np.unique(key, axis=0, return_inverse=True, return_counts=True)
     return e[cnt[inv.ravel()] == 1]
-
-
-@dataclass
-class ContactPass:
-    slaves: np.ndarray  # [S] slave node ids (all boundary nodes of the slave body)
-    segments: np.ndarray  # [M,2] master boundary segments
-    # refreshed candidates
-    active: np.ndarray | None = None  # [s] indices into slaves of the slaves near the master body
-    cand: np.ndarray | None = None  # [s,K] segment indices
 
 
 class PenaltyContact:
@@ -56,47 +45,52 @@ class PenaltyContact:
         if np.any(eb != body[edges[:, 1]]):
             raise ValueError("a boundary edge joins the two bodies; contact needs two separate bodies")
         bnodes = np.unique(boundary_edges(cells))
-        self.passes = [ContactPass(slaves=bnodes[body[bnodes] == s], segments=edges[eb == 1 - s]) for s in (0, 1)]
+        # pass 0: plate nodes on ball segments; pass 1: ball nodes on plate segments
+        self.passes = [(bnodes[body[bnodes] == s], edges[eb == 1 - s]) for s in (0, 1)]
         lengths = np.linalg.norm(X[edges[:, 1]] - X[edges[:, 0]], axis=1)
         self.min_segment = float(lengths.min())
         self.search = 2.0 * float(lengths.max())
         self.countdown = 0
+        self.s = self.seg = self.k = None
 
     def refresh(self, x: np.ndarray, v: np.ndarray) -> None:
-        """Recompute candidate pairs and the number of substeps they stay valid."""
-        for ps in self.passes:
-            mid = 0.5 * (x[ps.segments[:, 0]] + x[ps.segments[:, 1]])
+        """Recompute the candidate pairs of both passes (one stacked set of arrays) and the number of substeps
+        they stay valid."""
+        slaves, cands = [], []
+        for sl, segs in self.passes:
+            mid = 0.5 * (x[segs[:, 0]] + x[segs[:, 1]])
             k = min(self.K, len(mid))
-            d, idx = cKDTree(mid).query(x[ps.slaves], k=k)
-            d, idx = d.reshape(len(ps.slaves), k), idx.reshape(len(ps.slaves), k)
+            d, idx = cKDTree(mid).query(x[sl], k=k)
+            d, idx = d.reshape(len(sl), k), idx.reshape(len(sl), k)
             near = d[:, 0] < self.search
-            ps.active, ps.cand = np.flatnonzero(near), idx[near]
-            seg = ps.segments[ps.cand]  # [s,K,2]
-            m = self.mass
-            ps.k = self.alpha * np.minimum(m[ps.slaves[ps.active]][:, None], np.minimum(m[seg[..., 0]], m[seg[..., 1]]))
-            ps.k /= self.dt**2
+            if k < self.K:  # pad with the nearest segment (a duplicate candidate changes nothing)
+                idx = np.concatenate([idx, np.repeat(idx[:, :1], self.K - k, 1)], 1)
+            slaves.append(sl[near])
+            cands.append(segs[idx[near]])
+        self.s = np.concatenate(slaves)
+        self.seg = np.concatenate(cands).reshape(-1, self.K, 2)
+        m = self.mass
+        self.k = self.alpha * np.minimum(m[self.s][:, None], np.minimum(m[self.seg[..., 0]], m[self.seg[..., 1]]))
+        self.k /= self.dt**2
         vmax = float(np.sqrt((v**2).sum(1).max())) if len(v) else 0.0
         self.countdown = max(1, int(0.25 * self.min_segment / (2 * vmax * self.dt + 1e-300)))
 
-    def _pairs(self, ps: ContactPass, x: np.ndarray):
-        s = ps.slaves[ps.active]
-        seg = ps.segments[ps.cand]
-        xs = x[s][:, None, :]
-        xa, xb = x[seg[..., 0]], x[seg[..., 1]]
+    def _pairs(self, x: np.ndarray):
+        """Active contacts: for every candidate slave the valid segment of least penetration."""
+        xs = x[self.s][:, None, :]
+        xa, xb = x[self.seg[..., 0]], x[self.seg[..., 1]]
         t = xb - xa
-        L2 = (t * t).sum(-1)
-        L = np.sqrt(L2)
+        L = np.sqrt((t * t).sum(-1))
         r = xs - xa
-        xi = (r * t).sum(-1) / L2
-        n = np.stack([t[..., 1], -t[..., 0]], -1) / L[..., None]
-        g = (r * n).sum(-1)
+        xi = (r * t).sum(-1) / (L * L)
+        g = (r[..., 0] * t[..., 1] - r[..., 1] * t[..., 0]) / L  # (x_s - x_a) . n, n = (t_y, -t_x) / L
         ok = (xi >= 0) & (xi <= 1) & (g < 0) & (g > -0.5 * L)
-        score = np.where(ok, g, -np.inf)
-        j = np.argmax(score, axis=1)
-        rows = np.arange(len(s))
+        j = np.argmax(np.where(ok, g, -np.inf), axis=1)
+        rows = np.arange(len(self.s))
         hit = ok[rows, j]
         rows, j = rows[hit], j[hit]
-        return s[rows], seg[rows, j], xi[rows, j], n[rows, j], g[rows, j], ps.k[rows, j]
+        n = np.stack([t[rows, j, 1], -t[rows, j, 0]], -1) / L[rows, j, None]
+        return self.s[rows], self.seg[rows, j], xi[rows, j], n, g[rows, j], self.k[rows, j]
 
     def force(self, x: np.ndarray, v: np.ndarray) -> np.ndarray:
         """Contact forces [N,2] at positions ``x`` (refreshing candidates when due)."""
@@ -104,37 +98,28 @@ class PenaltyContact:
             self.refresh(x, v)
         self.countdown -= 1
         N = len(x)
-        f = np.zeros((N, 2))
-        for ps in self.passes:
-            s, seg, xi, n, g, k = self._pairs(ps, x)
-            if len(s) == 0:
-                continue
-            pn = (-k * g)[:, None] * n
-            idx = np.concatenate([s, seg[:, 0], seg[:, 1]])
-            w = np.concatenate([pn, -pn * (1 - xi)[:, None], -pn * xi[:, None]])
-            f[:, 0] += np.bincount(idx, weights=w[:, 0], minlength=N)
-            f[:, 1] += np.bincount(idx, weights=w[:, 1], minlength=N)
-        return f
+        s, seg, xi, n, g, k = self._pairs(x)
+        if len(s) == 0:
+            return np.zeros((N, 2))
+        pn = (-k * g)[:, None] * n
+        idx = np.concatenate([s, seg[:, 0], seg[:, 1]])
+        w = np.concatenate([pn, -pn * (1 - xi)[:, None], -pn * xi[:, None]])
+        return np.stack([np.bincount(idx, weights=w[:, 0], minlength=N),
+                         np.bincount(idx, weights=w[:, 1], minlength=N)], 1)
 
     def energy(self, x: np.ndarray) -> float:
         """Penalty energy ``sum k g^2 / 2`` over both passes (mJ)."""
-        total = 0.0
-        for ps in self.passes:
-            if ps.active is None:
-                continue
-            _, _, _, _, g, k = self._pairs(ps, x)
-            total += float(0.5 * np.dot(k, g * g))
-        return total
+        if self.s is None:
+            return 0.0
+        _, _, _, _, g, k = self._pairs(x)
+        return float(0.5 * np.dot(k, g * g))
 
     def contact_force_on(self, x: np.ndarray, nodes_mask: np.ndarray) -> np.ndarray:
         """Resultant contact force [2] on the nodes selected by ``nodes_mask`` (e.g. the ball)."""
-        f = np.zeros((len(x), 2))
-        for ps in self.passes:
-            if ps.active is None:
-                continue
-            s, seg, xi, n, g, k = self._pairs(ps, x)
-            pn = (-k * g)[:, None] * n
-            np.add.at(f, s, pn)  # diagnostics only, not in the time loop
-            np.add.at(f, seg[:, 0], -pn * (1 - xi)[:, None])
-            np.add.at(f, seg[:, 1], -pn * xi[:, None])
+        if self.s is None:
+            return np.zeros(2)
+        countdown = self.countdown
+        self.countdown = 1  # no refresh from a diagnostic call
+        f = self.force(x, np.zeros_like(x))
+        self.countdown = countdown
         return f[nodes_mask].sum(0)

@@ -18,7 +18,7 @@ NORMAL, OBSTACLE, HANDLE, SYMMETRIC = 0, 1, 3, 7
 #: Preset meshes: ``paper`` about 2,200 nodes (paper Table 6: 2,208), ``small`` about 400-600 nodes (CPU training).
 PRESETS: dict[str, dict[str, float]] = {
     "paper": dict(thickness=0.75, ball_radius=3.5, mesh_size=0.125, plate_half_length=15.0),
-    "small": dict(thickness=0.75, ball_radius=3.0, mesh_size=0.30, plate_half_length=12.0),
+    "small": dict(thickness=0.75, ball_radius=3.75, mesh_size=0.30, plate_half_length=12.0),
 }
 
 

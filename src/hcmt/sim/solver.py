@@ -40,7 +40,7 @@ class FEModel:
     X: np.ndarray  # [N,2] reference positions
     cells: np.ndarray  # [C,3]
     formulation: str
-    D: sp.csr_matrix  # [3C, N] gradient + centroid operator
+    D: sp.csr_matrix  # [3C, N] gradient + centroid operator ([2C, N] in plane strain: no hoop rows)
     DT: sp.csr_matrix  # its transpose, CSR for fast products
     W: np.ndarray  # [C] element weight (volume, or area per unit depth)
     Rc: np.ndarray  # [C] reference centroid radius (axisymmetric) else ones
@@ -52,6 +52,11 @@ class FEModel:
     mass: np.ndarray  # [N] lumped nodal mass (g)
     nodal_average: sp.csr_matrix  # [N, C] element -> node average (area weighted)
     bulk_viscosity: float = 0.0  # linear bulk viscosity coefficient b1
+
+    def __post_init__(self):
+        self.lamW = self.lam * self.W  # weighted constants of the hot path
+        self.mu2W = 2 * self.mu * self.W
+        self.etaW = self.bulk_viscosity * self.rho * self.wave_speed * self.altitude * self.W
 
     @property
     def num_nodes(self) -> int:
@@ -109,10 +114,11 @@ def build_model(X: np.ndarray, cells: np.ndarray, density, modulus, poisson, *, 
     else:
         Rc = np.ones(C)
         W = A.copy()
-    rows = np.concatenate([np.repeat(np.arange(C), 3) + k * C for k in range(3)])
-    cols = np.tile(cells.ravel(), 3)
-    vals = np.concatenate([dNdX.ravel(), dNdY.ravel(), np.full(3 * C, 1.0 / 3.0)])
-    D = sp.csr_matrix((vals, (rows, cols)), shape=(3 * C, N))
+    blocks = 3 if formulation == "axisymmetric" else 2  # the centroid-average rows only carry the hoop stretch
+    rows = np.concatenate([np.repeat(np.arange(C), 3) + k * C for k in range(blocks)])
+    cols = np.tile(cells.ravel(), blocks)
+    vals = np.concatenate([dNdX.ravel(), dNdY.ravel(), np.full(3 * C, 1.0 / 3.0)][:blocks])
+    D = sp.csr_matrix((vals, (rows, cols)), shape=(blocks * C, N))
     lam, mu = lame(E, nu)
     c = np.sqrt((lam + 2 * mu) / rho)
     edge = np.linalg.norm(nxt - p, axis=2)  # edge a -> a+1, opposite vertex a+2
@@ -138,7 +144,7 @@ def stable_time_step(model: FEModel, safety: float = 0.8) -> float:
 def deformation(model: FEModel, x: np.ndarray):
     """Deformation gradient components ``(F11, F12, F21, F22, F33)`` per element (F_iJ = dx_i/dX_J)."""
     C = model.num_cells
-    G = model.D @ x  # [3C,2]
+    G = model.D @ x  # [3C,2] ([2C,2] plane strain)
     F11, F21 = G[:C, 0], G[:C, 1]
     F12, F22 = G[C:2 * C, 0], G[C:2 * C, 1]
     F33 = G[2 * C:, 0] / model.Rc if model.formulation == "axisymmetric" else np.ones(C)
@@ -152,32 +158,43 @@ def green_lagrange(F11, F12, F21, F22, F33):
 
 
 def internal_force(model: FEModel, x: np.ndarray, v: np.ndarray | None = None) -> np.ndarray:
-    """Nodal internal (resisting) forces ``f_a = sum_e W P grad N_a`` [N,2]; with ``v`` and a bulk viscosity
-    ``b1 > 0`` adds the linear bulk-viscosity stress ``q = b1 rho c h (tr eps_dot)`` (applied in compression and
-    expansion alike, so it is a pure dissipation ``W q tr(eps_dot) >= 0``)."""
-    F11, F12, F21, F22, F33 = deformation(model, x)
-    E11, E22, E12, E33 = green_lagrange(F11, F12, F21, F22, F33)
-    lt = model.lam * (E11 + E22 + E33)
-    m2 = 2 * model.mu
-    S11, S22, S12, S33 = lt + m2 * E11, lt + m2 * E22, m2 * E12, lt + m2 * E33
-    if v is not None and model.bulk_viscosity > 0:
-        Fd11, _, _, Fd22, Fd33 = deformation(model, v)
-        rate = Fd11 + Fd22 + (Fd33 if model.formulation == "axisymmetric" else 0.0)
-        q = model.bulk_viscosity * model.rho * model.wave_speed * model.altitude * rate
-        # small-strain form: an isotropic first Piola stress q I with the reference gradients (exactly dissipative)
-        extra = q
-    else:
-        extra = 0.0
-    W = model.W
-    P11 = (F11 * S11 + F12 * S12 + extra) * W
-    P12 = (F11 * S12 + F12 * S22) * W
-    P21 = (F21 * S11 + F22 * S12) * W
-    P22 = (F21 * S12 + F22 * S22 + extra) * W
-    Q = np.empty((3 * model.num_cells, 2))
+    """Nodal internal (resisting) forces ``f_a = sum_e W P grad N_a`` (+ hoop term ``W P_tt / (3 R_c)`` on u_r)
+    [N,2]. With ``v`` and a bulk viscosity ``b1 > 0`` adds the linear bulk-viscosity stress
+    ``q = b1 rho c h tr(eps_dot)`` (h: smallest altitude; applied in compression and expansion alike, with the
+    reference gradients, so it is a pure dissipation ``W q tr(eps_dot) >= 0``).
+
+    This is the hot path: one sparse product for F (and the velocity gradient), elementwise SVK algebra, one sparse
+    product back to the nodes; the algebra is written out rather than calling :func:`deformation` to save temporaries."""
     C = model.num_cells
-    Q[:C, 0], Q[:C, 1], Q[C:2 * C, 0], Q[C:2 * C, 1] = P11, P21, P12, P22
-    Q[2 * C:, 1] = 0.0
-    Q[2 * C:, 0] = (F33 * S33 + extra) * W / model.Rc if model.formulation == "axisymmetric" else 0.0
+    visc = v is not None and model.bulk_viscosity > 0
+    G = model.D @ (np.concatenate((x, v), axis=1) if visc else x)
+    F11, F21, F12, F22 = G[:C, 0], G[:C, 1], G[C:2 * C, 0], G[C:2 * C, 1]
+    axi = model.formulation == "axisymmetric"
+    E11 = 0.5 * (F11 * F11 + F21 * F21 - 1.0)
+    E22 = 0.5 * (F12 * F12 + F22 * F22 - 1.0)
+    tr = E11 + E22
+    if axi:
+        F33 = G[2 * C:, 0] / model.Rc
+        E33 = 0.5 * (F33 * F33 - 1.0)
+        tr += E33
+    lt = model.lamW * tr  # weighted stresses W S
+    S11 = lt + model.mu2W * E11
+    S22 = lt + model.mu2W * E22
+    S12 = model.mu2W * (F11 * F12 + F21 * F22) * 0.5
+    q = 0.0
+    if visc:
+        rate = G[:C, 2] + G[C:2 * C, 3]
+        if axi:
+            rate += G[2 * C:, 2] / model.Rc
+        q = model.etaW * rate
+    Q = np.empty((len(G), 2))
+    Q[:C, 0] = F11 * S11 + F12 * S12 + q
+    Q[:C, 1] = F21 * S11 + F22 * S12
+    Q[C:2 * C, 0] = F11 * S12 + F12 * S22
+    Q[C:2 * C, 1] = F21 * S12 + F22 * S22 + q
+    if axi:
+        Q[2 * C:, 0] = (F33 * (lt + model.mu2W * E33) + q) / model.Rc
+        Q[2 * C:, 1] = 0.0
     return model.DT @ Q
 
 
@@ -277,9 +294,9 @@ def linear_stiffness(model: FEModel) -> sp.csr_matrix:
     :func:`internal_force` at the reference configuration, for static solves and stable-step checks.
     ``B`` maps u to (eps11, eps22, gamma12, eps33) per element; eps33 = u_r / R_c in the axisymmetric case, 0 else."""
     C, N = model.num_cells, model.num_nodes
-    Dx, Dy, Dc = model.D[:C], model.D[C:2 * C], model.D[2 * C:]
+    Dx, Dy = model.D[:C], model.D[C:2 * C]
     zero = sp.csr_matrix((C, N))
-    hoop = sp.diags(1.0 / model.Rc) @ Dc if model.formulation == "axisymmetric" else zero
+    hoop = sp.diags(1.0 / model.Rc) @ model.D[2 * C:] if model.formulation == "axisymmetric" else zero
     B = sp.bmat([[Dx, zero], [zero, Dy], [Dy, Dx], [hoop, zero]]).tocsr()  # columns: all ux, then all uy
     lam, mu, W = model.lam * model.W, model.mu * model.W, model.W
     a = lam + 2 * mu

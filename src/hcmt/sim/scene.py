@@ -1,0 +1,221 @@
+"""The Impact Plate scene: design parameters, their sampling and validation, and one simulated trajectory.
+
+A deformable steel ball drops on the centre of a clamped glass panel (paper appendix "Impact Plate"; ANSYS explicit
+dynamics there, :mod:`hcmt.sim.solver` here). Half model, symmetry line ``x = 0``. The ball starts ``gap`` above
+the plate with the free-fall speed ``v0 = sqrt(2 g H)`` from the drop height ``H`` (the fall itself is not
+simulated), so the impact happens inside the recorded window (52 frames x 0.002 ms = 0.104 ms).
+
+Units (written to meta.json): mm, ms, g, hence N, MPa, mJ and mm/ms (= m/s).
+
+Choices where the paper is silent (it lists "plate properties, thickness, density, modulus, drop height, mesh size"):
+thickness U(0.5, 1.0) mm and drop height U(500, 1000) mm as its generalization study implies; plate density
+U(2.2, 2.8)e-3 g/mm^3 and modulus U(50, 90) GPa (glass is 2.4-2.5e-3 and 60-80 GPa, widened); Poisson 0.20-0.25;
+a steel ball (7.75-8.0e-3 g/mm^3, 190-210 GPa, nu 0.3) of radius 3-4 mm; the plate a disk of radius 15 mm
+(``paper``) or 12 mm (``small``) clamped at its rim; mesh size drawn per preset so the node count matches
+(about 2,200 for ``paper`` as in the paper's Table 6, 400-600 for ``small``).
+"""
+from __future__ import annotations
+
+import time
+from dataclasses import asdict, dataclass, fields, replace
+
+import numpy as np
+
+from hcmt.sim.contact import PenaltyContact
+from hcmt.sim.mesh import HANDLE, SYMMETRIC, impact_plate_mesh
+from hcmt.sim.solver import FORMULATIONS, CentralDifference, build_model, check_material, nodal_von_mises, \
+    stable_time_step
+
+GRAVITY = 9.81e-3  # mm/ms^2
+CONTACT_RADIUS = 0.4  # mm, the learned model's contact-edge radius (paper Table 7); the initial gap must be smaller
+UNITS = {"length": "mm", "time": "ms", "mass": "g", "force": "N", "stress": "MPa", "energy": "mJ",
+         "velocity": "mm/ms (= m/s)", "density": "g/mm^3", "modulus": "MPa"}
+
+
+@dataclass(frozen=True)
+class Design:
+    """One Impact Plate design (the attributes stored with each trajectory)."""
+
+    thickness: float = 0.75  # mm
+    drop_height: float = 750.0  # mm
+    plate_density: float = 2.5e-3  # g/mm^3
+    plate_modulus: float = 70e3  # MPa
+    plate_poisson: float = 0.22
+    ball_radius: float = 3.5  # mm
+    ball_density: float = 7.85e-3
+    ball_modulus: float = 200e3
+    ball_poisson: float = 0.3
+    mesh_size: float = 0.125  # mm, plate element size (and ball element size)
+    plate_half_length: float = 15.0  # mm, disk radius (axisymmetric) or half width (plane strain)
+    gap: float = 0.02  # mm, initial ball-plate gap
+
+    @property
+    def impact_speed(self) -> float:
+        """v0 = sqrt(2 g H) (mm/ms)."""
+        return float(np.sqrt(2 * GRAVITY * self.drop_height))
+
+    def validate(self) -> "Design":
+        """Refuse impossible designs with a message naming the parameter and what was expected."""
+        for name in ("thickness", "ball_radius", "mesh_size", "plate_half_length", "drop_height", "gap"):
+            v = getattr(self, name)
+            if not np.isfinite(v) or v <= 0:
+                raise ValueError(f"{name} must be > 0 (mm), got {v}")
+        check_material("plate", self.plate_density, self.plate_modulus, self.plate_poisson)
+        check_material("ball", self.ball_density, self.ball_modulus, self.ball_poisson)
+        if self.gap >= CONTACT_RADIUS:
+            raise ValueError(f"gap ({self.gap} mm) must be smaller than the contact radius {CONTACT_RADIUS} mm so the "
+                             "first frame already sees the ball near the plate")
+        if self.mesh_size > self.thickness:
+            raise ValueError(f"mesh_size ({self.mesh_size} mm) must not exceed thickness ({self.thickness} mm)")
+        if self.mesh_size > self.ball_radius / 3:
+            raise ValueError(f"mesh_size ({self.mesh_size} mm) must be at most ball_radius / 3 "
+                             f"({self.ball_radius / 3:.3g} mm)")
+        if self.plate_half_length <= self.ball_radius:
+            raise ValueError(f"plate_half_length ({self.plate_half_length} mm) must exceed ball_radius "
+                             f"({self.ball_radius} mm)")
+        return self
+
+
+@dataclass(frozen=True)
+class Settings:
+    """Solver and recording settings shared by a whole dataset (written to meta.json's ``generator``)."""
+
+    formulation: str = "axisymmetric"
+    frames: int = 52
+    frame_dt: float = 0.002  # ms between recorded frames
+    safety: float = 0.8  # Courant safety factor
+    bulk_viscosity: float = 0.06  # linear bulk viscosity b1 (0 = off)
+    penalty: float = 0.2  # contact penalty factor alpha, k = alpha m / dt^2
+    gravity: float = GRAVITY
+
+    def validate(self) -> "Settings":
+        if self.formulation not in FORMULATIONS:
+            raise ValueError(f"formulation must be one of {FORMULATIONS}, got {self.formulation!r}")
+        if self.frames < 2:
+            raise ValueError(f"frames must be >= 2, got {self.frames}")
+        if not self.frame_dt > 0:
+            raise ValueError(f"frame_dt must be > 0 ms, got {self.frame_dt}")
+        if not 0 < self.safety <= 0.8:
+            raise ValueError(f"safety must be in (0, 0.8], got {self.safety}")
+        if self.bulk_viscosity < 0:
+            raise ValueError(f"bulk_viscosity must be >= 0, got {self.bulk_viscosity}")
+        if not 0 < self.penalty <= 0.5:
+            raise ValueError(f"penalty must be in (0, 0.5], got {self.penalty}")
+        return self
+
+
+#: Sampling ranges (uniform) per preset; parameters not listed keep their :class:`Design` default.
+RANGES: dict[str, dict[str, tuple[float, float]]] = {
+    "paper": dict(thickness=(0.5, 1.0), drop_height=(500.0, 1000.0), plate_density=(2.2e-3, 2.8e-3),
+                  plate_modulus=(50e3, 90e3), plate_poisson=(0.20, 0.25), ball_radius=(3.0, 4.0),
+                  ball_density=(7.75e-3, 8.0e-3), ball_modulus=(190e3, 210e3), mesh_size=(0.12, 0.135),
+                  plate_half_length=(15.0, 15.0)),
+    "small": dict(thickness=(0.5, 1.0), drop_height=(500.0, 1000.0), plate_density=(2.2e-3, 2.8e-3),
+                  plate_modulus=(50e3, 90e3), plate_poisson=(0.20, 0.25), ball_radius=(3.5, 4.25),
+                  ball_density=(7.75e-3, 8.0e-3), ball_modulus=(190e3, 210e3), mesh_size=(0.29, 0.32),
+                  plate_half_length=(12.0, 12.0)),
+}
+
+#: Generalization splits (paper appendix): ranges replacing the training ones.
+VARIANTS: dict[str, dict[str, tuple[float, float]]] = {
+    "test_thicker": dict(thickness=(1.0, 1.2)),
+    "test_higher": dict(drop_height=(1000.0, 1200.0)),
+    "test_thicker_higher": dict(thickness=(1.0, 1.2), drop_height=(1000.0, 1200.0)),
+}
+
+
+def sample_design(rng: np.random.Generator, preset: str = "small", variant: str | None = None) -> Design:
+    """Draw one design: every parameter of ``RANGES[preset]`` uniform (in a fixed order), the variant's ranges
+    replacing the training ones."""
+    if preset not in RANGES:
+        raise ValueError(f"unknown preset {preset!r}; expected one of {sorted(RANGES)}")
+    if variant is not None and variant not in VARIANTS:
+        raise ValueError(f"unknown variant {variant!r}; expected one of {sorted(VARIANTS)}")
+    ranges = {**RANGES[preset], **(VARIANTS[variant] if variant else {})}
+    names = sorted(ranges)
+    u = rng.random(len(names))
+    return Design(**{k: float(ranges[k][0] + (ranges[k][1] - ranges[k][0]) * ui) for k, ui in zip(names, u)})
+
+
+def design_mesh(design: Design) -> dict[str, np.ndarray]:
+    return impact_plate_mesh(design.thickness, design.ball_radius, design.mesh_size,
+                             plate_half_length=design.plate_half_length, gap=design.gap)
+
+
+def simulate(design: Design, settings: Settings = Settings(), *, progress=None) -> dict:
+    """Simulate one design. Returns ``fields`` (the native-format arrays: mesh_pos, cells, node_type, density,
+    modulus static; world_pos [T,N,2], stress [T,N,1] dynamic; float32/int32), ``attrs`` (the design parameters,
+    its impact speed and the formulation) and ``info`` (wall time, substeps, time step).
+
+    Frame k is the state at t = k * frame_dt; frame 0 the initial one. ``stress`` is the nodal von Mises stress
+    (MPa): element Cauchy stress, the out-of-plane (hoop) component included, area-averaged to the nodes of its
+    own body."""
+    design.validate()
+    settings.validate()
+    start = time.perf_counter()
+    mesh = design_mesh(design)
+    X, cells, body, cell_body = mesh["mesh_pos"], mesh["cells"], mesh["body"], mesh["cell_body"]
+    ball_c = cell_body == 1
+    model = build_model(X, cells,
+                        np.where(ball_c, design.ball_density, design.plate_density),
+                        np.where(ball_c, design.ball_modulus, design.plate_modulus),
+                        np.where(ball_c, design.ball_poisson, design.plate_poisson),
+                        formulation=settings.formulation, bulk_viscosity=settings.bulk_viscosity)
+    substeps = int(np.ceil(settings.frame_dt / stable_time_step(model, settings.safety)))
+    dt = settings.frame_dt / substeps  # frames land exactly on substeps
+    fixed = np.zeros_like(X, dtype=bool)
+    fixed[mesh["node_type"] == SYMMETRIC, 0] = True
+    fixed[mesh["node_type"] == HANDLE] = True
+    contact = PenaltyContact(X, cells, body, model.mass, dt, alpha=settings.penalty)
+    sim = CentralDifference(model, fixed, dt, contact=contact, gravity=settings.gravity)
+    v0 = np.zeros_like(X)
+    v0[body == 1, 1] = -design.impact_speed
+    sim.start(X, v0)
+    T, N = settings.frames, len(X)
+    world_pos = np.empty((T, N, 2), np.float32)
+    stress = np.empty((T, N, 1), np.float32)
+    for k in range(T):
+        if k:
+            sim.step(substeps)
+        world_pos[k] = sim.x
+        stress[k, :, 0] = nodal_von_mises(model, sim.x)
+        if progress is not None:
+            progress(k)
+    is_ball = body == 1
+    fields_ = dict(
+        mesh_pos=X.astype(np.float32), cells=cells.astype(np.int32),
+        node_type=mesh["node_type"].astype(np.int32)[:, None],
+        density=np.where(is_ball, design.ball_density, design.plate_density).astype(np.float32)[:, None],
+        modulus=np.where(is_ball, design.ball_modulus, design.plate_modulus).astype(np.float32)[:, None],
+        world_pos=world_pos, stress=stress)
+    attrs = {**asdict(design), "impact_speed": design.impact_speed, "formulation": settings.formulation}
+    info = dict(wall_time=time.perf_counter() - start, substeps=substeps * (T - 1), dt=dt, num_nodes=N,
+                num_cells=len(cells), energy=sim.energies())
+    return dict(fields=fields_, attrs=attrs, info=info)
+
+
+def feature_spec(settings: Settings = Settings()) -> dict:
+    """meta.json ``features`` of an Impact Plate dataset."""
+    T = settings.frames
+    return {
+        "mesh_pos": {"type": "static", "shape": [-1, 2], "dtype": "float32"},
+        "cells": {"type": "static", "shape": [-1, 3], "dtype": "int32"},
+        "node_type": {"type": "static", "shape": [-1, 1], "dtype": "int32"},
+        "density": {"type": "static", "shape": [-1, 1], "dtype": "float32"},
+        "modulus": {"type": "static", "shape": [-1, 1], "dtype": "float32"},
+        "world_pos": {"type": "dynamic", "shape": [T, -1, 2], "dtype": "float32"},
+        "stress": {"type": "dynamic", "shape": [T, -1, 1], "dtype": "float32"},
+    }
+
+
+def design_from_dict(values: dict) -> Design:
+    """A :class:`Design` from a mapping, refusing unknown names."""
+    known = {f.name for f in fields(Design)}
+    unknown = sorted(set(values) - known)
+    if unknown:
+        raise ValueError(f"unknown design parameter(s) {unknown}; expected some of {sorted(known)}")
+    return replace(Design(), **{k: float(v) for k, v in values.items()})
+
+
+__all__ = ["Design", "Settings", "RANGES", "VARIANTS", "UNITS", "GRAVITY", "CONTACT_RADIUS", "sample_design",
+           "simulate", "feature_spec", "design_mesh", "design_from_dict"]

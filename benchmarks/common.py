@@ -1,0 +1,89 @@
+"""Shared plumbing of the paper-table benchmarks: dataset generation, resumable runs, result files.
+
+Every script is resumable: a finished run (``metrics_<split>.json`` present) is skipped, an interrupted one resumes
+from its last checkpoint, and the dataset is generated once (the generator itself skips finished trajectories).
+"""
+from __future__ import annotations
+
+import json
+import shutil
+import sys
+import time
+from pathlib import Path
+
+
+from hcmt.cli import main as hcmt
+from hcmt.data.format import atomic_path
+from hcmt.train.cli import evaluate, rollout_path
+from hcmt.train.config import load_config
+from hcmt.train.metrics import mean_std
+from hcmt.train.trainer import train
+
+ROOT = Path(__file__).resolve().parent
+RESULTS = ROOT / "results"
+
+# The accuracy study's scale (stated in docs/RESULTS.md): `small` preset, CPU budget per run.
+DATASET = dict(preset="small", train=40, valid=4, test=10, seed=2024, variants=True)
+
+
+def dataset(work: Path, spec: dict = DATASET) -> Path:
+    data = work / f"impact_plate_{spec['preset']}_{spec['train']}"
+    if not (data / "meta.json").is_file():
+        args = ["generate", "impact-plate", str(data), "--preset", spec["preset"], "--train", str(spec["train"]),
+                "--valid", str(spec["valid"]), "--test", str(spec["test"]), "--seed", str(spec["seed"]),
+                "--workers", "2"] + (["--variants"] if spec.get("variants") else [])
+        if hcmt(args):
+            sys.exit("dataset generation failed")
+    return data
+
+
+def run_and_evaluate(work: Path, data: Path, name: str, model: str, seed: int, overrides: list[str],
+                     splits=("test",), ablation: str | None = None, config: str = "impact_plate_cpu") -> dict:
+    """Train (or resume, or skip) one run, then evaluate it on each split; returns {split: metrics}."""
+    run = work / "runs" / name
+    out = {}
+    done = all((run / f"metrics_{s}.json").is_file() for s in splits)
+    if not done:
+        cfg = load_config(config, overrides)
+        if not (run / "train_stats.json").is_file():
+            if run.exists() and not (run / "checkpoint.pt").is_file():
+                shutil.rmtree(run)
+            t0 = time.perf_counter()
+            train(cfg, data, model, run, ablation=ablation, seed=seed, resume=(run / "checkpoint.pt").is_file(),
+                  progress=False)
+            print(f"  trained {name} in {time.perf_counter() - t0:.0f} s", flush=True)
+        for s in splits:
+            m = evaluate(run, data, s)
+            with atomic_path(run / f"metrics_{s}.json") as tmp:
+                tmp.write_text(json.dumps(m, indent=2))
+            rollout_path(run, s).unlink(missing_ok=True)
+    for s in splits:
+        out[s] = json.loads((run / f"metrics_{s}.json").read_text())
+    stats = json.loads((run / "train_stats.json").read_text())
+    for s in splits:
+        out[s]["train_ms_per_step"] = stats["train_ms_per_step"]
+        out[s]["steps"] = stats["steps"]
+    return out
+
+
+def summarize(metrics: list[dict]) -> dict:
+    """{"position": {"rmse_1": {mean, std}, "rmse_all": ...}, "stress": ...} over seeds."""
+    out = {}
+    for q in ("position", "stress"):
+        if all(q in m for m in metrics):
+            out[q] = {k: mean_std(m[q][k] for m in metrics) for k in ("rmse_1", "rmse_50", "rmse_all")}
+    out["train_ms_per_step"] = mean_std(m["train_ms_per_step"] for m in metrics)
+    out["inference_ms_per_step"] = mean_std(m["inference_ms_per_step"] for m in metrics)
+    return out
+
+
+def write_json(name: str, obj) -> Path:
+    RESULTS.mkdir(parents=True, exist_ok=True)
+    path = RESULTS / name
+    with atomic_path(path) as tmp:
+        tmp.write_text(json.dumps(obj, indent=2))
+    return path
+
+
+def fmt(ms: dict) -> str:
+    return f"{ms['mean']:.4g} ± {ms['std']:.2g}"

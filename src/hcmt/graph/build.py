@@ -1,0 +1,69 @@
+"""One frame of a trajectory -> the model input :class:`~hcmt.graph.batch.Graph` (paper, "Encoder": ``G_0 = (V_0,
+E_0, C)`` and the pooled levels ``G_1 .. G_lambda`` of the HMT layer).
+
+Static parts (mesh edges, hierarchy, objects) are built once per trajectory; per frame only the world-space edge
+features and the contact edges are computed. Features follow :mod:`hcmt.graph.edges` (relative vectors are
+sender minus receiver). A coarse level's edge features use the positions of its nodes, found through the
+level-0 index of each level node (``hierarchy.nodes``): ``m_ij`` at level ``l`` is built from
+``mesh_pos[nodes[l]]`` and ``world_pos[nodes[l]]``.
+"""
+from __future__ import annotations
+
+from typing import Iterable
+
+import torch
+from torch import Tensor
+
+from hcmt.graph.batch import Graph
+from hcmt.graph.contact import contact_edges
+from hcmt.graph.edges import contact_edge_features, mesh_edge_features
+from hcmt.graph.hierarchy import Hierarchy
+
+
+def hierarchy_tensors(hierarchy: Hierarchy, device) -> dict[str, list[Tensor]]:
+    """``pool``, ``edges`` and ``nodes`` of a hierarchy as int64 tensors on ``device``, cached on the hierarchy."""
+    key = str(torch.device(device))
+    cached = hierarchy._tensors.get(key)
+    if cached is None:
+        cached = {name: [torch.as_tensor(a, dtype=torch.long).to(device) for a in getattr(hierarchy, name)]
+                  for name in ("pool", "edges", "nodes")}
+        cached["object_id"] = torch.as_tensor(hierarchy.object_id, dtype=torch.long).to(device)
+        hierarchy._tensors[key] = cached
+    return cached
+
+
+def frame_graph(node_features: Tensor, mesh_pos: Tensor, world_pos: Tensor, mesh_edges: Tensor | None,
+                hierarchy: Hierarchy, object_id: Tensor | None, radius: float, self_contact: bool = False, *,
+                node_type: Tensor | None = None, type_pairs: Iterable[tuple[int, int]] | None = None,
+                exclude: Tensor | None = None, contact_method: str = "auto") -> Graph:
+    """The graph of one frame.
+
+    ``node_features`` ``[N, F]`` (raw), ``mesh_pos`` ``[N, d_mesh]``, ``world_pos`` ``[N, d_world]``;
+    ``mesh_edges`` ``[2, E]`` (None: the hierarchy's level-0 edges); ``object_id`` ``[N]`` (None: the
+    hierarchy's); ``radius`` the contact radius gamma. Contact rules (``type_pairs``, ``self_contact`` with
+    ``exclude`` = :func:`hcmt.graph.contact.near_pairs` keys) as in :func:`hcmt.graph.contact.contact_edges`.
+    All tensors end up on ``world_pos``'s device.
+    """
+    device = world_pos.device
+    h = hierarchy_tensors(hierarchy, device)
+    mesh_pos = mesh_pos.to(device=device, dtype=world_pos.dtype)
+    mesh_edges = h["edges"][0] if mesh_edges is None else mesh_edges.to(device)
+    object_id = h["object_id"] if object_id is None else object_id.to(device)
+    contacts = contact_edges(world_pos, object_id, radius, node_type=node_type, type_pairs=type_pairs,
+                             self_contact=self_contact, exclude=exclude, method=contact_method)
+    level_edges, level_features = [], []
+    for level in range(1, hierarchy.levels + 1):  # one gather per level
+        idx = h["nodes"][level]
+        edges = h["edges"][level]
+        level_edges.append(edges)
+        level_features.append(mesh_edge_features(mesh_pos[idx], world_pos[idx], edges))
+    return Graph(
+        node_features=node_features.to(device),
+        mesh_edges=mesh_edges,
+        mesh_features=mesh_edge_features(mesh_pos, world_pos, mesh_edges),
+        contact_edges=contacts,
+        contact_features=contact_edge_features(world_pos, contacts),
+        pool=list(h["pool"]),
+        level_edges=level_edges,
+        level_features=level_features,
+    )

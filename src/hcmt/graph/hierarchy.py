@@ -1,0 +1,318 @@
+"""The HCMT mesh hierarchy (paper, "Pooling Method" and HMT layer): levels ``G_0 .. G_lambda``.
+
+Level 0 is the mesh. Level ``l+1`` keeps the nodes that bi-stride pooling (:mod:`hcmt.graph.pooling`) selects from
+level ``l``, object by object, and gets new edges: Delaunay remeshing (:mod:`hcmt.graph.remesh`, the paper) or,
+with ``remesh=False``, the 2-hop connectivity of level ``l`` (the BSMS ablation). The mesh is static within a
+trajectory, so the hierarchy is built once per trajectory from ``mesh_pos`` and ``cells`` and cached
+(:func:`cached_hierarchy`).
+
+Pooling and unpooling (:func:`pool`, :func:`unpool`) -- the semantics the models use:
+
+* down: ``h_{l+1} = pool(h_l, hierarchy.pool[l]) = h_l[pool[l]]`` (the kept nodes' features);
+* up: ``h_l' = unpool(h_{l+1}, h_l, pool[l])``: a copy of the finer level's saved features ``h_l`` with the kept
+  nodes' rows **replaced** by the coarse features, as the official HCMT code (``tensor_scatter_nd_update``); the
+  dropped nodes keep their saved features. ``unpool(pool(h, i), h, i)`` is ``h`` exactly.
+"""
+from __future__ import annotations
+
+import hashlib
+import os
+import tempfile
+import warnings
+from collections import OrderedDict
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import scipy.sparse as sp
+from scipy.sparse.csgraph import connected_components
+
+from hcmt.data.errors import DatasetError
+from hcmt.graph.contact import object_ids
+from hcmt.graph.edges import cells_to_edges, undirected_to_edges
+from hcmt.graph.pooling import bistride_pool
+from hcmt.graph.quality import signed_measure
+from hcmt.graph.remesh import Domain, delaunay_remesh, prepare_domain, two_hop_edges
+
+#: Bump when the algorithm changes: cached hierarchies of other versions are not reused.
+HIERARCHY_VERSION = 1
+
+
+class MeshWarning(UserWarning):
+    """A mesh defect that the hierarchy handles (degenerate or inverted cells, unreferenced nodes, ...)."""
+
+
+@dataclass(eq=False)
+class Hierarchy:
+    """Levels of one mesh, as numpy arrays (level ``l`` numbers its nodes ``0..N_l-1``).
+
+    ``pool[l]`` (``l < lambda``): indices into level ``l`` of the nodes level ``l+1`` keeps (ascending).
+    ``edges[l]``: level ``l``'s edges ``[2, E_l]``, both directions (``edges[0]`` the mesh edges).
+    ``nodes[l]``: the level-0 index of every level-``l`` node (``nodes[0] = arange(N)``); index ``mesh_pos`` and
+    ``world_pos`` with it to get a level's positions.
+    ``cells[l]``: level ``l``'s simplices (level 0 the input cells, coarser levels the kept Delaunay simplices;
+    ``[0, k]`` without remeshing). ``object_id``: the object (cell-graph component) of every level-0 node.
+    """
+
+    pool: list[np.ndarray]
+    edges: list[np.ndarray]
+    nodes: list[np.ndarray]
+    cells: list[np.ndarray]
+    object_id: np.ndarray
+    remesh: bool = True
+    _tensors: dict = field(default_factory=dict, repr=False)  # per-device torch copies (see hcmt.graph.build)
+
+    @property
+    def levels(self) -> int:
+        return len(self.pool)
+
+    def num_nodes(self, level: int) -> int:
+        return int(len(self.nodes[level]))
+
+    def save(self, path: str | os.PathLike) -> None:
+        """Write an ``.npz`` atomically (temp file beside it, then rename)."""
+        path = Path(path)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        arrays = {"levels": np.int64(self.levels), "remesh": np.bool_(self.remesh), "object_id": self.object_id,
+                  "version": np.int64(HIERARCHY_VERSION)}
+        for name in ("pool", "edges", "nodes", "cells"):
+            arrays.update({f"{name}_{l}": a for l, a in enumerate(getattr(self, name))})
+        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+        try:
+            with os.fdopen(fd, "wb") as f:
+                np.savez(f, **arrays)
+            os.replace(tmp, path)
+        finally:
+            if os.path.exists(tmp):
+                os.unlink(tmp)
+
+    @classmethod
+    def load(cls, path: str | os.PathLike) -> "Hierarchy":
+        with np.load(path) as z:
+            if int(z["version"]) != HIERARCHY_VERSION:
+                raise ValueError(f"{path}: hierarchy version {int(z['version'])}, expected {HIERARCHY_VERSION}")
+            n = int(z["levels"])
+            get = lambda name, count: [z[f"{name}_{l}"] for l in range(count)]  # noqa: E731
+            return cls(get("pool", n), get("edges", n + 1), get("nodes", n + 1), get("cells", n + 1),
+                       z["object_id"], bool(z["remesh"]))
+
+
+def pool(x, index):
+    """Level ``l`` features -> level ``l+1``: the rows of the kept nodes, ``x[index]`` (numpy or torch)."""
+    return x[index]
+
+
+def unpool(coarse, fine, index):
+    """Level ``l+1`` features back into level ``l``: a copy of ``fine`` whose rows ``index`` are replaced by
+    ``coarse`` (numpy or torch; differentiable in torch)."""
+    if hasattr(fine, "index_copy"):  # torch: out-of-place, so autograd sees both inputs
+        return fine.index_copy(0, index, coarse)
+    out = np.array(fine, copy=True)
+    out[index] = coarse
+    return out
+
+
+def check_mesh(mesh_pos, cells, node_type=None, *, warn: bool = True) -> tuple[np.ndarray, np.ndarray]:
+    """Validate a mesh; return ``(mesh_pos float64 [N, D], cells int64 [C, k])``.
+
+    Refused (:class:`~hcmt.data.errors.DatasetError`): wrong shapes, non-finite positions, cell indices out of
+    range, cells that are neither triangles nor tetrahedra or have more dimensions than the mesh space.
+    Handled, with a :class:`MeshWarning`: cells that repeat a vertex or have zero measure (they give edges but
+    no domain for the remeshing filter), inverted cells (orientation opposite to the rest of their object; the
+    hierarchy does not depend on orientation), nodes no cell references (each becomes an object of its own,
+    kept at every level).
+    """
+    pos = np.asarray(mesh_pos)
+    if pos.ndim != 2 or pos.shape[1] not in (2, 3) or not np.issubdtype(pos.dtype, np.number):
+        raise DatasetError(f"shape {list(pos.shape)}; expected [N, 2] or [N, 3] coordinates", field="mesh_pos")
+    pos = pos.astype(np.float64)
+    if not np.isfinite(pos).all():
+        bad = int(np.flatnonzero(~np.isfinite(pos).all(1))[0])
+        raise DatasetError(f"node {bad} has a non-finite coordinate", field="mesh_pos")
+    c = np.asarray(cells)
+    if c.ndim != 2 or c.shape[1] not in (3, 4) or (c.size and not np.issubdtype(c.dtype, np.integer)):
+        raise DatasetError(f"shape {list(c.shape)} dtype {c.dtype}; expected integer [C, 3] triangles or "
+                           "[C, 4] tetrahedra", field="cells")
+    c = c.astype(np.int64)
+    n = len(pos)
+    if c.size and (c.min() < 0 or c.max() >= n):
+        raise DatasetError(f"cell index out of range [{int(c.min())}, {int(c.max())}]; the mesh has {n} nodes",
+                           field="cells")
+    if c.shape[1] - 1 > pos.shape[1]:
+        raise DatasetError(f"{c.shape[1]}-vertex cells in a {pos.shape[1]}-D mesh space", field="cells")
+    if node_type is not None:
+        t = np.asarray(node_type)
+        if t.reshape(len(t), -1).shape != (n, 1):
+            raise DatasetError(f"shape {list(t.shape)}; expected [{n}] or [{n}, 1]", field="node_type")
+    if warn:
+        _warn_defects(pos, c, object_ids(c, n))
+    return pos, c
+
+
+def _warn_defects(pos: np.ndarray, cells: np.ndarray, object_id: np.ndarray) -> None:
+    n = len(pos)
+    srt = np.sort(cells, axis=1)
+    repeated = (srt[:, 1:] == srt[:, :-1]).any(1)
+    unreferenced = np.setdiff1d(np.arange(n), cells.ravel())
+    degenerate = repeated.copy()
+    inverted = np.zeros(len(cells), bool)
+    if cells.shape[1] - 1 == pos.shape[1] and len(cells):
+        vol = signed_measure(pos, cells)
+        edge = np.linalg.norm(pos[cells[:, 1:]] - pos[cells[:, :1]], axis=-1).max(1)
+        degenerate |= np.abs(vol) <= 1e-12 * edge ** pos.shape[1]
+        obj = object_id[cells[:, 0]]
+        sign = np.sign(vol)
+        majority = np.sign(np.bincount(obj, sign, obj.max() + 1))[obj]
+        inverted = (sign != 0) & (majority != 0) & (sign != majority) & ~degenerate
+    for count, what in ((degenerate.sum(), "degenerate cells (repeated vertex or zero measure), e.g. cell "
+                         f"{np.flatnonzero(degenerate)[:3].tolist()}; they give edges but no area"),
+                        (inverted.sum(), "inverted cells (orientation opposite to the rest of their object), e.g. "
+                         f"cell {np.flatnonzero(inverted)[:3].tolist()}; used as they are"),
+                        (len(unreferenced), "nodes referenced by no cell, e.g. node "
+                         f"{unreferenced[:3].tolist()}; each is an object of its own, kept at every level")):
+        if count:
+            warnings.warn(f"mesh has {int(count)} {what}", MeshWarning, stacklevel=3)
+
+
+def build_hierarchy(mesh_pos, cells, node_type=None, levels: int = 1, remesh: bool = True) -> Hierarchy:
+    """Build ``levels`` (lambda) pooled levels of a mesh.
+
+    ``mesh_pos`` ``[N, D]`` (mesh space; D = 2 or 3), ``cells`` ``[C, 3|4]``, ``node_type`` ``[N]`` (validated;
+    objects come from connectivity, not from types). ``remesh``: Delaunay remeshing (paper) or 2-hop edges
+    (BSMS ablation). Deterministic. A level that cannot shrink the mesh at all (every object already a single
+    node) is refused; an object that shrinks to one node before the last level stays one node (warned).
+    """
+    if not isinstance(levels, (int, np.integer)) or levels < 0:
+        raise ValueError(f"levels must be a non-negative integer, got {levels!r}")
+    pos, cells = check_mesh(mesh_pos, cells, node_type, warn=False)
+    n0 = len(pos)
+    obj = object_ids(cells, n0)
+    _warn_defects(pos, cells, obj)
+    edges = [cells_to_edges(cells, n0)]
+    nodes = [np.arange(n0, dtype=np.int64)]
+    all_cells = [cells]
+    pools: list[np.ndarray] = []
+    domains = _domains(pos, cells, obj) if remesh else {}
+    k = cells.shape[1]
+    for level in range(levels):
+        n = len(nodes[-1])
+        kept = bistride_pool(edges[-1], n, pos[nodes[-1]])
+        if len(kept) == n:
+            raise ValueError(f"levels={levels} is more than this mesh can be pooled: at level {level} every object "
+                             f"is down to a single node ({n} nodes); use levels <= {level}")
+        coarse = nodes[-1][kept]
+        if remesh:
+            level_cells, pairs = _remesh_level(pos, coarse, obj, domains, edges[-1], n, kept, k)
+        else:
+            level_cells = np.zeros((0, k), np.int64)
+            pairs = None
+        level_edges = undirected_to_edges(pairs, len(kept)) if pairs is not None else two_hop_edges(
+            edges[-1], n, kept)
+        pools.append(kept.astype(np.int64))
+        nodes.append(coarse.astype(np.int64))
+        edges.append(level_edges)
+        all_cells.append(level_cells)
+    _warn_single(obj, nodes, levels)
+    return Hierarchy(pools, edges, nodes, all_cells, obj, bool(remesh))
+
+
+def _domains(pos: np.ndarray, cells: np.ndarray, obj: np.ndarray) -> dict[int, Domain | None]:
+    cell_obj = obj[cells[:, 0]] if len(cells) else np.zeros(0, np.int64)
+    order = np.argsort(cell_obj, kind="stable")
+    ids, starts = np.unique(cell_obj[order], return_index=True)
+    groups = np.split(order, starts[1:])
+    return {int(o): prepare_domain(pos, cells[g]) for o, g in zip(ids, groups)}  # one per object
+
+
+def _remesh_level(pos, coarse, obj, domains, fine_edges, n_fine, kept, k):
+    """Delaunay remeshing of every object's kept nodes: ``(cells [M, k], pairs [P, 2])`` in the coarse numbering.
+    Objects that cannot be remeshed (curved surfaces, no cells) get their 2-hop edges. Connectivity is checked
+    for the whole level at once; only an object that came out split is remeshed again with repair."""
+    cobj = obj[coarse]
+    order = np.argsort(cobj, kind="stable")
+    ids, starts = np.unique(cobj[order], return_index=True)
+    groups = dict(zip(ids.tolist(), np.split(order, starts[1:])))
+    cells_out, pairs_out, fallback = {}, {}, []
+    for o, g in groups.items():  # loop over objects
+        if domains.get(o) is None:
+            fallback.append(g)
+            continue
+        c, p = delaunay_remesh(pos[coarse[g]], domains[o], connect=False)
+        cells_out[o], pairs_out[o] = g[c], g[p]
+    m = len(coarse)
+    if pairs_out:
+        pairs = np.concatenate(list(pairs_out.values()))
+        adj = sp.coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(m, m))
+        label = connected_components(adj, directed=False)[1]
+        pieces = np.bincount(np.unique(cobj * m + label) // m)  # connected pieces of every object
+        for o in np.flatnonzero(pieces > 1):  # rare: an object split by the filter, or with duplicate points
+            if int(o) in pairs_out:
+                g = groups[int(o)]
+                c, p = delaunay_remesh(pos[coarse[g]], domains[int(o)], connect=True)
+                cells_out[int(o)], pairs_out[int(o)] = g[c], g[p]
+    out_pairs = list(pairs_out.values())
+    if fallback:
+        hop = two_hop_edges(fine_edges, n_fine, kept)
+        inside = np.zeros(m, bool)
+        inside[np.concatenate(fallback)] = True
+        out_pairs.append(hop[:, inside[hop[0]] & (hop[0] < hop[1])].T)
+    cells = np.concatenate(list(cells_out.values())) if cells_out else np.zeros((0, k), np.int64)
+    pairs = np.concatenate(out_pairs) if out_pairs else np.zeros((0, 2), np.int64)
+    return cells.astype(np.int64), pairs.astype(np.int64)
+
+
+def _warn_single(obj: np.ndarray, nodes: list[np.ndarray], levels: int) -> None:
+    size0 = np.bincount(obj)
+    for level, idx in enumerate(nodes[:-1]):  # one check per level
+        size = np.bincount(obj[idx], minlength=len(size0))
+        single = np.flatnonzero((size == 1) & (size0 > 1))
+        if len(single):
+            warnings.warn(f"object(s) {single[:5].tolist()} are a single node from level {level} on; levels "
+                          f"{level + 1}..{levels} cannot pool them further", MeshWarning, stacklevel=3)
+            return
+
+
+def hierarchy_key(mesh_pos, cells, node_type, levels: int, remesh: bool) -> str:
+    """Hash of the mesh and settings (and :data:`HIERARCHY_VERSION`): the cache key."""
+    h = hashlib.sha256(f"hcmt-hierarchy v{HIERARCHY_VERSION} levels={int(levels)} remesh={bool(remesh)}".encode())
+    for a, dtype in ((mesh_pos, np.float64), (cells, np.int64), (node_type, np.int64)):
+        a = np.ascontiguousarray(np.zeros(0) if a is None else a, dtype=dtype)
+        h.update(str(a.shape).encode())
+        h.update(a.tobytes())
+    return h.hexdigest()[:32]
+
+
+_MEMORY: OrderedDict[str, Hierarchy] = OrderedDict()
+_MEMORY_SIZE = 256
+
+
+def hierarchy_cache_dir(dataset_dir: str | os.PathLike) -> Path:
+    """Where a dataset's hierarchies are cached: ``DATASET/.cache/hierarchy``."""
+    return Path(dataset_dir) / ".cache" / "hierarchy"
+
+
+def cached_hierarchy(mesh_pos, cells, node_type=None, levels: int = 1, remesh: bool = True,
+                     cache_dir: str | os.PathLike | None = None) -> Hierarchy:
+    """:func:`build_hierarchy`, memoized in memory and (with ``cache_dir``) on disk as ``<key>.npz``.
+
+    The key hashes the mesh and the settings, so a changed mesh or setting builds anew; an unreadable cache
+    file is rebuilt and replaced."""
+    key = hierarchy_key(mesh_pos, cells, node_type, levels, remesh)
+    if key in _MEMORY:
+        _MEMORY.move_to_end(key)
+        return _MEMORY[key]
+    path = Path(cache_dir) / f"{key}.npz" if cache_dir is not None else None
+    h = None
+    if path is not None and path.is_file():
+        try:
+            h = Hierarchy.load(path)
+        except Exception:  # noqa: BLE001 - any damage to a cache file means: rebuild it
+            h = None
+    if h is None:
+        h = build_hierarchy(mesh_pos, cells, node_type, levels, remesh)
+        if path is not None:
+            h.save(path)
+    _MEMORY[key] = h
+    if len(_MEMORY) > _MEMORY_SIZE:
+        _MEMORY.popitem(last=False)
+    return h

@@ -1,0 +1,236 @@
+"""``hcmt generate impact-plate`` and ``hcmt simulate``: write a native Impact Plate dataset, or time one design.
+
+Dataset writing is parallel and resumable:
+
+* trajectory ``i`` of split ``s`` draws its design from ``SeedSequence([seed, code(s), i])``, so the output is
+  identical whatever the worker count or order;
+* each finished trajectory is written atomically to ``OUT/.parts/<split>/<i>.h5``; a rerun skips existing parts;
+* when a split is complete its parts are assembled atomically into ``OUT/<split>.h5`` and then removed; an
+  interruption at any point leaves either complete files or nothing (never a half-written file).
+"""
+from __future__ import annotations
+
+import argparse
+import multiprocessing as mp
+import shutil
+import sys
+from dataclasses import asdict, fields
+from pathlib import Path
+
+import h5py
+import numpy as np
+
+from hcmt.data.errors import DatasetError
+from hcmt.data.format import make_meta, read_meta, write_meta, write_split
+from hcmt.sim.scene import (CONTACT_RADIUS, RANGES, UNITS, VARIANTS, Design, Settings, feature_spec, sample_design,
+                            simulate)
+
+#: Split names and their stable codes in the per-trajectory seed.
+SPLITS = ("train", "valid", "test", "test_thicker", "test_higher", "test_thicker_higher")
+
+
+def trajectory_rng(seed: int, split: str, index: int) -> np.random.Generator:
+    """The generator of trajectory ``index`` of ``split``: independent of worker count and order."""
+    return np.random.default_rng(np.random.SeedSequence([int(seed), SPLITS.index(split), int(index)]))
+
+
+def trajectory_name(index: int) -> str:
+    return f"traj_{index:05d}"
+
+
+def dataset_meta(preset: str, seed: int, counts: dict[str, int], settings: Settings) -> dict:
+    generator = dict(name="hcmt impact-plate", preset=preset, seed=int(seed), counts=dict(counts),
+                     settings=asdict(settings), ranges={k: list(v) for k, v in RANGES[preset].items()},
+                     variants={k: {p: list(r) for p, r in v.items()} for k, v in VARIANTS.items()},
+                     contact_radius=CONTACT_RADIUS)
+    return make_meta(feature_spec(settings), trajectory_length=settings.frames, dimension=2, dt=settings.frame_dt,
+                     units=UNITS, generator=generator, dataset="impact_plate")
+
+
+def _run_one(task: tuple) -> tuple[str, int, float]:
+    """Worker: simulate one trajectory and write its part file atomically (spawn-safe, top level)."""
+    out, meta, preset, seed, split, index, settings = task
+    variant = split if split in VARIANTS else None
+    design = sample_design(trajectory_rng(seed, split, index), preset, variant)
+    result = simulate(design, Settings(**settings))
+    part = Path(out) / ".parts" / split / f"{index:05d}.h5"
+    part.parent.mkdir(parents=True, exist_ok=True)
+    write_split(part, meta, [(trajectory_name(index), result["fields"], result["attrs"])])
+    return split, index, result["info"]["wall_time"]
+
+
+def _split_complete(path: Path, count: int) -> bool:
+    if not path.is_file():
+        return False
+    try:
+        with h5py.File(path, "r") as f:
+            return int(f.attrs.get("num_trajectories", -1)) == count and len(f.keys()) == count
+    except OSError:
+        return False
+
+
+def _assemble(out: Path, meta: dict, split: str, count: int) -> Path:
+    """Write ``OUT/<split>.h5`` from its parts (atomically), then remove the parts."""
+    parts = out / ".parts" / split
+
+    def trajectories():
+        for i in range(count):  # one trajectory in memory at a time
+            with h5py.File(parts / f"{i:05d}.h5", "r") as f:
+                g = f[trajectory_name(i)]
+                yield trajectory_name(i), {k: g[k][()] for k in g.keys()}, dict(g.attrs)
+
+    path = write_split(out / f"{split}.h5", meta, trajectories())
+    shutil.rmtree(parts)
+    return path
+
+
+def generate_dataset(out, *, preset: str = "small", counts: dict[str, int], seed: int = 0, workers: int = 1,
+                     settings: Settings = Settings(), progress: bool = True) -> dict:
+    """Generate (or finish) an Impact Plate dataset in ``out``. ``counts`` maps split names (of :data:`SPLITS`) to
+    trajectory counts. Returns ``{"simulated": n, "skipped": n, "splits": {split: path}}``."""
+    if preset not in RANGES:
+        raise ValueError(f"unknown preset {preset!r}; expected one of {sorted(RANGES)}")
+    for split, n in counts.items():
+        if split not in SPLITS:
+            raise ValueError(f"unknown split {split!r}; expected one of {SPLITS}")
+        if int(n) < 0:
+            raise ValueError(f"--{split} must be >= 0 trajectories, got {n}")
+    if int(workers) < 1:
+        raise ValueError(f"--workers must be >= 1, got {workers}")
+    settings.validate()
+    counts = {k: int(v) for k, v in counts.items() if int(v) > 0}
+    out = Path(out)
+    meta = dataset_meta(preset, seed, counts, settings)
+    if (out / "meta.json").is_file():
+        old = read_meta(out)
+        if old.get("generator") != meta["generator"]:
+            raise DatasetError("holds a dataset generated with other settings (preset, seed, counts or solver "
+                               "settings differ); choose another output folder to generate a new one",
+                               file=out / "meta.json")
+    out.mkdir(parents=True, exist_ok=True)
+    write_meta(out, meta)
+
+    todo, done_splits, skipped = [], {}, 0
+    for split, n in counts.items():
+        if _split_complete(out / f"{split}.h5", n):
+            done_splits[split] = out / f"{split}.h5"
+            shutil.rmtree(out / ".parts" / split, ignore_errors=True)
+            skipped += n
+            continue
+        for i in range(n):
+            if (out / ".parts" / split / f"{i:05d}.h5").is_file():
+                skipped += 1
+            else:
+                todo.append((str(out), meta, preset, int(seed), split, i, asdict(settings)))
+
+    from tqdm import tqdm
+
+    bar = tqdm(total=len(todo), desc=f"impact-plate {preset}", unit="traj", disable=not progress or not todo)
+    if workers == 1 or len(todo) <= 1:
+        for task in todo:
+            _run_one(task)
+            bar.update(1)
+    else:
+        with mp.get_context("spawn").Pool(min(int(workers), len(todo))) as pool:
+            for _ in pool.imap_unordered(_run_one, todo):
+                bar.update(1)
+    bar.close()
+    for split, n in counts.items():
+        if split not in done_splits:
+            done_splits[split] = _assemble(out, meta, split, n)
+    parts = out / ".parts"
+    if parts.is_dir() and not any(parts.iterdir()):
+        parts.rmdir()
+    return dict(simulated=len(todo), skipped=skipped, splits=done_splits)
+
+
+# ---------------------------------------------------------------------------------------------------- commands
+
+def _settings_arguments(parser: argparse.ArgumentParser) -> None:
+    d = Settings()
+    g = parser.add_argument_group("solver")
+    g.add_argument("--formulation", choices=["axisymmetric", "plane_strain"], default=d.formulation,
+                   help="axisymmetric (sphere on a disk, default) or plane strain")
+    g.add_argument("--frames", type=int, default=d.frames, help=f"recorded frames (default {d.frames})")
+    g.add_argument("--frame-dt", type=float, default=d.frame_dt, help=f"ms between frames (default {d.frame_dt})")
+    g.add_argument("--bulk-viscosity", type=float, default=d.bulk_viscosity,
+                   help=f"linear bulk viscosity b1, 0 = off (default {d.bulk_viscosity})")
+    g.add_argument("--penalty", type=float, default=d.penalty, help=f"contact penalty factor (default {d.penalty})")
+
+
+def _settings(args) -> Settings:
+    return Settings(formulation=args.formulation, frames=args.frames, frame_dt=args.frame_dt,
+                    bulk_viscosity=args.bulk_viscosity, penalty=args.penalty).validate()
+
+
+def configure_generate(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("dataset", choices=["impact-plate"], help="which dataset to generate")
+    parser.add_argument("out", help="output dataset folder (created; an interrupted run resumes in place)")
+    parser.add_argument("--preset", choices=sorted(RANGES), default="small",
+                        help="paper: ~2,200 nodes as the paper; small: ~400-600 nodes for CPU training")
+    parser.add_argument("--train", type=int, default=2000, help="training trajectories (default 2000)")
+    parser.add_argument("--valid", type=int, default=200, help="validation trajectories (default 200)")
+    parser.add_argument("--test", type=int, default=200, help="test trajectories (default 200)")
+    parser.add_argument("--variants", action="store_true",
+                        help="also write test_thicker, test_higher, test_thicker_higher (generalization splits)")
+    parser.add_argument("--variant-count", type=int, default=50, help="trajectories per variant split (default 50)")
+    parser.add_argument("--seed", type=int, default=0, help="dataset seed (default 0)")
+    parser.add_argument("--workers", type=int, default=1, help="worker processes (default 1)")
+    parser.add_argument("--no-progress", action="store_true", help="no progress bar")
+    _settings_arguments(parser)
+
+
+def main_generate(args) -> int:
+    counts = dict(train=args.train, valid=args.valid, test=args.test)
+    if args.variants:
+        counts.update({v: args.variant_count for v in VARIANTS})
+    result = generate_dataset(args.out, preset=args.preset, counts=counts, seed=args.seed, workers=args.workers,
+                              settings=_settings(args), progress=not args.no_progress)
+    print(f"{args.out}: simulated {result['simulated']} trajectories, reused {result['skipped']}; splits: "
+          + ", ".join(f"{k} ({counts[k]})" for k in result["splits"]))
+    return 0
+
+
+_DESIGN_HELP = {"thickness": "plate thickness (mm)", "drop_height": "drop height H (mm), v0 = sqrt(2 g H)",
+                "plate_density": "g/mm^3", "plate_modulus": "Young's modulus (MPa)", "plate_poisson": "",
+                "ball_radius": "mm", "ball_density": "g/mm^3", "ball_modulus": "MPa", "ball_poisson": "",
+                "mesh_size": "element size (mm)", "plate_half_length": "plate radius / half width (mm)",
+                "gap": f"initial gap (mm), < contact radius {CONTACT_RADIUS}"}
+
+
+def preset_design(preset: str) -> Design:
+    """The nominal design of a preset: the middle of every sampling range."""
+    return Design(**{k: 0.5 * (lo + hi) for k, (lo, hi) in RANGES[preset].items()})
+
+
+def configure_simulate(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--preset", choices=sorted(RANGES), default="paper",
+                        help="defaults for unspecified parameters: the middle of the preset's ranges (default paper)")
+    for f in fields(Design):
+        parser.add_argument("--" + f.name.replace("_", "-"), type=float, default=None, help=_DESIGN_HELP[f.name])
+    parser.add_argument("--out", default=None, help="write the trajectory to FILE.h5 (meta.json beside it)")
+    _settings_arguments(parser)
+
+
+def main_simulate(args) -> int:
+    given = {f.name: getattr(args, f.name) for f in fields(Design) if getattr(args, f.name) is not None}
+    design = Design(**{**asdict(preset_design(args.preset)), **given}).validate()
+    settings = _settings(args)
+    result = simulate(design, settings)
+    info, f = result["info"], result["fields"]
+    print(f"simulated {settings.frames} frames ({(settings.frames - 1) * settings.frame_dt:.3f} ms) of "
+          f"{info['num_nodes']} nodes / {info['num_cells']} triangles in {info['substeps']} substeps "
+          f"(dt {info['dt']:.3e} ms): wall-clock {info['wall_time']:.2f} s "
+          f"({1e3 * info['wall_time'] / (settings.frames - 1):.1f} ms per frame); "
+          f"peak von Mises {float(f['stress'].max()):.1f} MPa")
+    if args.out:
+        path = Path(args.out)
+        if path.suffix != ".h5":
+            raise ValueError(f"--out must name an .h5 file, got {args.out}")
+        meta = dataset_meta(args.preset, 0, {path.stem: 1}, settings)
+        write_split(path, meta, [(trajectory_name(0), f, result["attrs"])])
+        if not (path.parent / "meta.json").exists():
+            write_meta(path.parent, meta)
+        print(f"wrote {path}")
+    sys.stdout.flush()
+    return 0

@@ -11,7 +11,8 @@ object's original (level-0) mesh** — a barycentric test against the nearest fi
 cells' centroids: 4, then 16, then 128 candidates in 2-D; 8, 32, 128 in 3-D, each pass for the points
 not found yet). It needs no length
 threshold, so it does not depend on the mesh grading. A simplex spanning a hole whose centroid falls in
-material would survive; at the node spacings of a level this is rare.
+material would survive; at the node spacings of a level this is rare. Simplices of no measure (slivers that
+rounding makes of collinear boundary points) are dropped too.
 
 **Connectivity**: dropping simplices can split an object, and scipy leaves duplicate points out of the
 triangulation. Where that happens the shortest dropped Delaunay edges (and each left-out point's edge to its
@@ -36,6 +37,7 @@ from hcmt.graph.quality import signed_measure
 
 _CANDIDATES = {2: (4, 16, 128), 3: (8, 32, 128)}  # nearest fine cells tested per point, pass by pass
 _BARY_TOL = 1e-9
+_SLIVER = 1e-10  # a simplex whose measure is below this fraction of (longest edge)^d is a rounding sliver
 _PLANAR_TOL = 1e-6  # a surface is planar when its thinnest extent is below this fraction of its largest
 
 
@@ -120,7 +122,11 @@ def delaunay_remesh(points: np.ndarray, domain: Domain, connect: bool = True) ->
     except QhullError:  # all points on a line (plane): chain them
         return empty, chain_pairs(p)
     simplices = tri.simplices.astype(np.int64)
-    keep = domain.contains(p[simplices].mean(1))
+    verts = p[simplices]
+    keep = domain.contains(verts.mean(1))
+    # slivers of (nearly) collinear boundary points, made by rounding: no area, only bad edges
+    longest = np.linalg.norm(verts[:, 1:] - verts[:, :1], axis=-1).max(1)
+    keep &= np.abs(signed_measure(p, simplices)) > _SLIVER * longest ** d
     cells = _orient(p, simplices[keep])
     pairs = _cell_pairs(cells, m)
     if not connect or (not len(tri.coplanar) and _connected(pairs, m)):

@@ -72,24 +72,27 @@ class PenaltyContact:
         m = self.mass
         self.k = self.alpha * np.minimum(m[self.s][:, None], np.minimum(m[self.seg[..., 0]], m[self.seg[..., 1]]))
         self.k /= self.dt**2
+        self.gather = np.concatenate([self.s, self.seg[..., 0].ravel(), self.seg[..., 1].ravel()])
         vmax = float(np.sqrt((v**2).sum(1).max())) if len(v) else 0.0
         self.countdown = max(1, int(0.25 * self.min_segment / (2 * vmax * self.dt + 1e-300)))
 
     def _pairs(self, x: np.ndarray):
         """Active contacts: for every candidate slave the valid segment of least penetration."""
-        xs = x[self.s][:, None, :]
-        xa, xb = x[self.seg[..., 0]], x[self.seg[..., 1]]
-        t = xb - xa
-        L = np.sqrt((t * t).sum(-1))
-        r = xs - xa
-        xi = (r * t).sum(-1) / (L * L)
-        g = (r[..., 0] * t[..., 1] - r[..., 1] * t[..., 0]) / L  # (x_s - x_a) . n, n = (t_y, -t_x) / L
+        S, K = self.seg.shape[:2]
+        p = x[self.gather]  # one gather: slaves, then segment starts, then segment ends
+        xs, xa, xb = p[:S, None], p[S:S + S * K].reshape(S, K, 2), p[S + S * K:].reshape(S, K, 2)
+        t, r = xb - xa, xs - xa
+        tx, ty, rx, ry = t[..., 0], t[..., 1], r[..., 0], r[..., 1]
+        L2 = tx * tx + ty * ty
+        L = np.sqrt(L2)
+        xi = (rx * tx + ry * ty) / L2
+        g = (rx * ty - ry * tx) / L  # (x_s - x_a) . n, n = (t_y, -t_x) / L
         ok = (xi >= 0) & (xi <= 1) & (g < 0) & (g > -0.5 * L)
         j = np.argmax(np.where(ok, g, -np.inf), axis=1)
-        rows = np.arange(len(self.s))
+        rows = np.arange(S)
         hit = ok[rows, j]
         rows, j = rows[hit], j[hit]
-        n = np.stack([t[rows, j, 1], -t[rows, j, 0]], -1) / L[rows, j, None]
+        n = np.stack([ty[rows, j], -tx[rows, j]], -1) / L[rows, j, None]
         return self.s[rows], self.seg[rows, j], xi[rows, j], n, g[rows, j], self.k[rows, j]
 
     def force(self, x: np.ndarray, v: np.ndarray) -> np.ndarray:

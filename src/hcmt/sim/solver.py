@@ -40,8 +40,8 @@ class FEModel:
     X: np.ndarray  # [N,2] reference positions
     cells: np.ndarray  # [C,3]
     formulation: str
-    D: sp.csr_matrix  # [3C, N] gradient + centroid operator ([2C, N] in plane strain: no hoop rows)
-    DT: sp.csr_matrix  # its transpose, CSR for fast products
+    D: sp.csc_matrix  # [3C, N] gradient + centroid operator ([2C, N] in plane strain: no hoop rows)
+    DT: sp.csc_matrix  # its transpose
     W: np.ndarray  # [C] element weight (volume, or area per unit depth)
     Rc: np.ndarray  # [C] reference centroid radius (axisymmetric) else ones
     lam: np.ndarray  # [C] Lame lambda (MPa)
@@ -127,7 +127,8 @@ def build_model(X: np.ndarray, cells: np.ndarray, density, modulus, poisson, *, 
     avg = sp.csr_matrix((np.repeat(A, 3), (cells.ravel(), np.repeat(np.arange(C), 3))), shape=(N, C))
     deg = np.asarray(avg.sum(1)).ravel()
     avg = sp.diags(1.0 / np.where(deg > 0, deg, 1.0)) @ avg
-    return FEModel(X=X, cells=cells, formulation=formulation, D=D, DT=D.T.tocsr(), W=W, Rc=Rc, lam=lam, mu=mu,
+    return FEModel(X=X, cells=cells, formulation=formulation, D=D.tocsc(), DT=D.T,  # CSC: faster multivector products
+                   W=W, Rc=Rc, lam=lam, mu=mu,
                    rho=rho, wave_speed=c, altitude=altitude, mass=mass, nodal_average=avg.tocsr(),
                    bulk_viscosity=float(bulk_viscosity))
 
@@ -294,9 +295,10 @@ def linear_stiffness(model: FEModel) -> sp.csr_matrix:
     :func:`internal_force` at the reference configuration, for static solves and stable-step checks.
     ``B`` maps u to (eps11, eps22, gamma12, eps33) per element; eps33 = u_r / R_c in the axisymmetric case, 0 else."""
     C, N = model.num_cells, model.num_nodes
-    Dx, Dy = model.D[:C], model.D[C:2 * C]
+    D = model.D.tocsr()
+    Dx, Dy = D[:C], D[C:2 * C]
     zero = sp.csr_matrix((C, N))
-    hoop = sp.diags(1.0 / model.Rc) @ model.D[2 * C:] if model.formulation == "axisymmetric" else zero
+    hoop = sp.diags(1.0 / model.Rc) @ D[2 * C:] if model.formulation == "axisymmetric" else zero
     B = sp.bmat([[Dx, zero], [zero, Dy], [Dy, Dx], [hoop, zero]]).tocsr()  # columns: all ux, then all uy
     lam, mu, W = model.lam * model.W, model.mu * model.W, model.W
     a = lam + 2 * mu

@@ -7,7 +7,7 @@ process (single-threaded: the solver uses no thread pool; BLAS threads are set t
 nodes, substeps, wall and CPU time, microseconds per substep; then the mean. On a shared machine the CPU time is
 the better figure (wall time includes waiting for the core). Target of issue #3: <= 5 s per paper-preset
 trajectory (52 frames x 0.002 ms).
-
+"""
 from __future__ import annotations
 
 import argparse

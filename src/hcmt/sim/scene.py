@@ -17,7 +17,7 @@ a steel ball (7.75-8.0e-3 g/mm^3, 190-210 GPa, nu 0.3) of radius 3-4 mm; the pla
 from __future__ import annotations
 
 import time
-from dataclasses import asdict, dataclass, fields, replace
+from dataclasses import asdict, dataclass
 
 import numpy as np
 
@@ -208,14 +208,5 @@ def feature_spec(settings: Settings = Settings()) -> dict:
     }
 
 
-def design_from_dict(values: dict) -> Design:
-    """A :class:`Design` from a mapping, refusing unknown names."""
-    known = {f.name for f in fields(Design)}
-    unknown = sorted(set(values) - known)
-    if unknown:
-        raise ValueError(f"unknown design parameter(s) {unknown}; expected some of {sorted(known)}")
-    return replace(Design(), **{k: float(v) for k, v in values.items()})
-
-
 __all__ = ["Design", "Settings", "RANGES", "VARIANTS", "UNITS", "GRAVITY", "CONTACT_RADIUS", "sample_design",
-           "simulate", "feature_spec", "design_mesh", "design_from_dict"]
+           "simulate", "feature_spec", "design_mesh"]

@@ -151,10 +151,10 @@ def check_mesh(mesh_pos, cells, node_type=None, *, warn: bool = True) -> tuple[n
 
 def _warn_defects(pos: np.ndarray, cells: np.ndarray, object_id: np.ndarray) -> None:
     n = len(pos)
-    srt = np.sort(cells, axis=1)
-    repeated = (srt[:, 1:] == srt[:, :-1]).any(1)
-    unreferenced = np.setdiff1d(np.arange(n), cells.ravel())
-    degenerate = repeated.copy()
+    degenerate = np.zeros(len(cells), bool)
+    for a, b in zip(*np.triu_indices(cells.shape[1], 1)):  # a repeated vertex: 3 or 6 column comparisons
+        degenerate |= cells[:, a] == cells[:, b]
+    unreferenced = np.flatnonzero(np.bincount(cells.ravel(), minlength=n) == 0)
     inverted = np.zeros(len(cells), bool)
     if cells.shape[1] - 1 == pos.shape[1] and len(cells):
         vol = signed_measure(pos, cells)

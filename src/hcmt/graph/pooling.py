@@ -26,7 +26,7 @@ def component_seeds(pos: np.ndarray, label: np.ndarray, num_components: int) -> 
     centroid = np.stack([np.bincount(label, pos[:, k], num_components) for k in range(pos.shape[1])], 1)
     centroid /= np.maximum(count, 1)[:, None]
     dist = np.linalg.norm(pos - centroid[label], axis=1)
-    order = np.lexsort((np.arange(len(label)), dist, label))  # by component, then distance, then index
+    order = np.lexsort((dist, label))  # by component, then distance; stable, so ties go to the lower index
     first = np.r_[True, label[order][1:] != label[order][:-1]]
     return order[first]
 

@@ -10,7 +10,9 @@ filter (a choice; the paper does not say): **a simplex is kept when its centroid
 object's original (level-0) mesh** — a barycentric test against the nearest fine cells (KD-tree on the fine
 cells' centroids: 4, then 16, then 128 candidates in 2-D; 8, 32, 128 in 3-D, each pass for the points
 not found yet). It needs no length
-threshold, so it does not depend on the mesh grading. A simplex spanning a hole whose centroid falls in
+threshold, so it does not depend on the mesh grading. An object whose cells fill their convex hull (total
+measure = hull measure: Impact Plate's plate and ball, a cloth square, a box) skips the test, since every
+simplex of a subset of its nodes lies in that hull. A simplex spanning a hole whose centroid falls in
 material would survive; at the node spacings of a level this is rare. Simplices of no measure (slivers that
 rounding makes of collinear boundary points) are dropped too.
 
@@ -25,12 +27,13 @@ at most two hops apart in level ``l``.
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components, minimum_spanning_tree
-from scipy.spatial import Delaunay, QhullError, cKDTree
+from scipy.spatial import ConvexHull, Delaunay, QhullError, cKDTree
 
 from hcmt.graph.edges import undirected_to_edges, unique_sorted
 from hcmt.graph.quality import signed_measure
@@ -47,9 +50,10 @@ class Domain:
 
     basis: np.ndarray | None  # [3, 2] projection of a planar surface onto its plane, None for full-dimension
     origin: np.ndarray
-    tree: cKDTree  # over the fine cells' centroids
-    v0: np.ndarray  # [C, d] first vertex of every fine cell
-    inv: np.ndarray  # [C, d, d] inverse of [v1 - v0, ..., vd - v0]
+    convex: bool  # the cells fill their nodes' convex hull: every Delaunay simplex of any subset is inside
+    tree: cKDTree | None = None  # over the fine cells' centroids (non-convex objects only)
+    v0: np.ndarray | None = None  # [C, d] first vertex of every fine cell
+    inv: np.ndarray | None = None  # [C, d, d] inverse of [v1 - v0, ..., vd - v0]
 
     def project(self, pos: np.ndarray) -> np.ndarray:
         return pos if self.basis is None else (pos - self.origin) @ self.basis
@@ -57,6 +61,8 @@ class Domain:
     def contains(self, points: np.ndarray) -> np.ndarray:
         """Whether each point (already projected) lies in some fine cell (boundary included). Candidates: the
         cells with the nearest centroids, more of them for the points not yet found."""
+        if self.convex:
+            return np.ones(len(points), bool)
         inside = np.zeros(len(points), bool)
         todo = np.arange(len(points))
         for k in _CANDIDATES[points.shape[1]]:  # a few widening passes
@@ -70,10 +76,20 @@ class Domain:
     def _test(self, points: np.ndarray, k: int) -> np.ndarray:
         _, cand = self.tree.query(points, k=k)
         cand = cand.reshape(len(points), -1)
-        lam = np.einsum("mkij,mkj->mki", self.inv[cand], points[:, None, :] - self.v0[cand])
-        inside = lam.sum(-1) <= 1.0 + _BARY_TOL  # barycentric coordinates (1 - sum, lam_1..lam_d) all >= 0
-        for j in range(lam.shape[-1]):  # d columns; column-wise tests beat a reduction over a short axis
-            inside &= lam[..., j] >= -_BARY_TOL
+        diff = points[:, None, :] - self.v0[cand]  # [m, k, d]
+        inv = self.inv[cand]  # [m, k, d, d]
+        d = diff.shape[-1]
+        # barycentric coordinates lam = inv @ diff, and 1 - sum(lam), all >= 0; written out per component
+        # (d <= 3) because einsum and reductions over such short axes are slow
+        total = np.zeros(diff.shape[:2])
+        inside = np.ones(diff.shape[:2], bool)
+        for i in range(d):
+            lam = inv[..., i, 0] * diff[..., 0]
+            for j in range(1, d):
+                lam += inv[..., i, j] * diff[..., j]
+            inside &= lam >= -_BARY_TOL
+            total += lam
+        inside &= total <= 1.0 + _BARY_TOL
         return inside.any(-1)
 
 
@@ -104,7 +120,13 @@ def prepare_domain(pos: np.ndarray, cells: np.ndarray) -> Domain | None:
     if not good.any():
         return None
     verts, mat = verts[good], mat[good]
-    return Domain(basis, origin, cKDTree(verts.mean(1)), verts[:, 0], np.linalg.inv(mat))
+    try:
+        hull = ConvexHull(p[np.unique(cells)]).volume
+    except QhullError:
+        hull = np.inf
+    if abs(np.abs(det[good]).sum() / math.factorial(dim_cell) - hull) <= 1e-9 * hull:
+        return Domain(basis, origin, True)
+    return Domain(basis, origin, False, cKDTree(verts.mean(1)), verts[:, 0], np.linalg.inv(mat))
 
 
 def delaunay_remesh(points: np.ndarray, domain: Domain, connect: bool = True) -> tuple[np.ndarray, np.ndarray]:

@@ -76,7 +76,9 @@ def average_rows(per_trajectory: list[list[dict]]) -> list[dict]:
 
 def format_table(rows: list[dict]) -> str:
     def f(v, spec):
-        return "   -  " if isinstance(v, float) and math.isnan(v) else format(v, spec)
+        if isinstance(v, float) and math.isnan(v):
+            return "   -  "
+        return format(v, "8.1f" if spec == "8g" and isinstance(v, float) else spec)
 
     lines = [f"{'level':>5} {'nodes':>8} {'edges':>8} | {'jacobian':>15} | {'min angle':>15} | {'max angle':>15}",
              f"{'':>5} {'':>8} {'':>8} | {'before  after':>15} | {'before  after':>15} | {'before  after':>15}"]

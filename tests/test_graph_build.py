@@ -69,6 +69,11 @@ def test_cloth_frame_has_two_dimensional_mesh_space_and_self_contacts():
     excl = torch.from_numpy(near_pairs(h.edges[0], len(mesh_pos), 3))
     g = frame_graph(torch.zeros(len(mesh_pos), 3), torch.from_numpy(mesh_pos), torch.from_numpy(world), None, h,
                     None, 0.06, self_contact=True, exclude=excl)
+    default = frame_graph(torch.zeros(len(mesh_pos), 3), torch.from_numpy(mesh_pos), torch.from_numpy(world), None,
+                          h, None, 0.06, self_contact=True)  # excludes pairs within 3 mesh hops by default
+    assert torch.equal(default.contact_edges, g.contact_edges)
+    mesh = set(map(tuple, h.edges[0].T.tolist()))
+    assert not mesh & set(map(tuple, g.contact_edges.T.tolist()))
     assert g.mesh_features.shape[1] == 2 + 1 + 3 + 1
     assert all(f.shape[1] == 7 for f in g.level_features)
     assert g.contact_edges.shape[1] > 0 and g.contact_features.shape[1] == 4

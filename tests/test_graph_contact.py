@@ -119,7 +119,7 @@ def test_kdtree_and_dense_agree_on_random_clouds():
     x = torch.from_numpy(rng.uniform(0, 1, (500, 2)))
     obj = torch.from_numpy(rng.integers(0, 4, 500))
     t = torch.from_numpy(rng.integers(0, 2, 500))
-    for kw in ({}, {"node_type": t, "type_pairs": [(0, 1)]}, {"self_contact": True}):
+    for kw in ({}, {"node_type": t, "type_pairs": [(0, 1)]}, {"self_contact": True, "exclude": np.zeros(0, np.int64)}):
         a = contact_edges(x, obj, 0.05, method="kdtree", **kw)
         b = contact_edges(x, obj, 0.05, method="dense", **kw)
         assert torch.equal(a, b)
@@ -130,3 +130,5 @@ def test_bad_parameters_are_refused():
         contact_edges(np.zeros((2, 2)), np.array([0, 1]), 0.0)
     with pytest.raises(ValueError, match="node_type"):
         contact_edges(np.zeros((2, 2)), np.array([0, 1]), 0.1, type_pairs=[(0, 1)])
+    with pytest.raises(ValueError, match="self_contact=True needs exclude"):
+        contact_edges(np.zeros((2, 2)), np.array([0, 0]), 0.1, self_contact=True)

@@ -15,12 +15,12 @@ import torch
 from torch import Tensor
 
 from hcmt.graph.batch import Graph
-from hcmt.graph.contact import contact_edges
+from hcmt.graph.contact import contact_edges, near_pairs
 from hcmt.graph.edges import contact_edge_features, mesh_edge_features
 from hcmt.graph.hierarchy import Hierarchy
 
 
-def hierarchy_tensors(hierarchy: Hierarchy, device) -> dict[str, list[Tensor]]:
+def hierarchy_tensors(hierarchy: Hierarchy, device) -> dict:
     """``pool``, ``edges`` and ``nodes`` of a hierarchy as int64 tensors on ``device``, cached on the hierarchy."""
     key = str(torch.device(device))
     cached = hierarchy._tensors.get(key)
@@ -35,20 +35,26 @@ def hierarchy_tensors(hierarchy: Hierarchy, device) -> dict[str, list[Tensor]]:
 def frame_graph(node_features: Tensor, mesh_pos: Tensor, world_pos: Tensor, mesh_edges: Tensor | None,
                 hierarchy: Hierarchy, object_id: Tensor | None, radius: float, self_contact: bool = False, *,
                 node_type: Tensor | None = None, type_pairs: Iterable[tuple[int, int]] | None = None,
-                exclude: Tensor | None = None, contact_method: str = "auto") -> Graph:
+                self_contact_hops: int = 3, exclude: Tensor | None = None, contact_method: str = "auto") -> Graph:
     """The graph of one frame.
 
     ``node_features`` ``[N, F]`` (raw), ``mesh_pos`` ``[N, d_mesh]``, ``world_pos`` ``[N, d_world]``;
     ``mesh_edges`` ``[2, E]`` (None: the hierarchy's level-0 edges); ``object_id`` ``[N]`` (None: the
-    hierarchy's); ``radius`` the contact radius gamma. Contact rules (``type_pairs``, ``self_contact`` with
-    ``exclude`` = :func:`hcmt.graph.contact.near_pairs` keys) as in :func:`hcmt.graph.contact.contact_edges`.
-    All tensors end up on ``world_pos``'s device.
+    hierarchy's); ``radius`` the contact radius gamma. Contact rules (``type_pairs``; ``self_contact``, which
+    excludes the pairs within ``self_contact_hops`` hops of the hierarchy's mesh edges unless ``exclude`` keys
+    are given) as in :func:`hcmt.graph.contact.contact_edges`. All tensors end up on ``world_pos``'s device.
     """
     device = world_pos.device
     h = hierarchy_tensors(hierarchy, device)
     mesh_pos = mesh_pos.to(device=device, dtype=world_pos.dtype)
     mesh_edges = h["edges"][0] if mesh_edges is None else mesh_edges.to(device)
     object_id = h["object_id"] if object_id is None else object_id.to(device)
+    if self_contact and exclude is None:
+        key = f"near_{self_contact_hops}"
+        if key not in h:  # static: computed once per hierarchy and device
+            h[key] = torch.from_numpy(near_pairs(hierarchy.edges[0], hierarchy.num_nodes(0),
+                                                 self_contact_hops)).to(device)
+        exclude = h[key]
     contacts = contact_edges(world_pos, object_id, radius, node_type=node_type, type_pairs=type_pairs,
                              self_contact=self_contact, exclude=exclude, method=contact_method)
     level_edges, level_features = [], []

@@ -77,6 +77,9 @@ def contact_edges(world_pos, object_id, radius: float, *, node_type=None,
         raise ValueError(f"contact radius must be positive, got {radius}")
     if type_pairs is not None and node_type is None:
         raise ValueError("type_pairs needs node_type")
+    if self_contact and exclude is None:
+        raise ValueError("self_contact=True needs exclude: the keys of the pairs close on the mesh "
+                         "(hcmt.graph.contact.near_pairs of the mesh edges), at least the mesh edges themselves")
     is_torch = isinstance(world_pos, Tensor)
     device = world_pos.device if is_torch else None
     if method == "auto":

@@ -230,3 +230,43 @@ def test_defective_meshes_are_handled_with_warnings():
     small = plate_and_ball(h=0.1, radius=0.25)
     with pytest.warns(MeshWarning, match="single node"):
         build_hierarchy(small["mesh_pos"], small["cells"], None, 6)
+
+
+def test_small_point_sets_remesh_to_a_simplex_or_a_chain():
+    from hcmt.graph.remesh import delaunay_remesh, prepare_domain
+
+    square = np.array([[0.0, 0], [1, 0], [1, 1], [0, 1]])
+    domain = prepare_domain(square, np.array([[0, 1, 2], [0, 2, 3]]))
+    cells, pairs = delaunay_remesh(square[:3], domain)
+    assert len(cells) == 1 and {tuple(sorted(p)) for p in pairs.tolist()} == {(0, 1), (1, 2), (0, 2)}
+    cells, pairs = delaunay_remesh(square[:2], domain)
+    assert len(cells) == 0 and pairs.tolist() == [[0, 1]]
+    line = np.array([[0.0, 0], [0.5, 0], [1.0, 0]])  # collinear: no simplex, a chain along the line
+    cells, pairs = delaunay_remesh(line[[2, 0, 1]], domain)
+    assert len(cells) == 0 and {tuple(sorted(p)) for p in pairs.tolist()} == {(1, 2), (0, 2)}
+
+
+def test_two_hop_edges_and_cliques_against_definitions():
+    from itertools import combinations
+
+    from hcmt.graph.edges import cells_to_edges
+
+    pos, cells = annulus(h=0.15)
+    n = len(pos)
+    edges = cells_to_edges(cells, n)
+    adj = {a: set() for a in range(n)}
+    for a, b in edges.T.tolist():
+        adj[a].add(b)
+    kept = np.arange(0, n, 3)
+    got = two_hop_edges(edges, n, kept)
+    want = set()
+    for ia, a in enumerate(kept.tolist()):
+        for ib, b in enumerate(kept.tolist()):
+            if a != b and (b in adj[a] or adj[a] & adj[b]):
+                want.add((ia, ib))
+    assert set(map(tuple, got.T.tolist())) == want
+    # the 3-cliques of a triangulation's edge graph are its triangles (no 3-cycle of edges goes round this hole)
+    tri = clique_cells(edges, n, 3)
+    assert {tuple(c) for c in tri.tolist()} == {tuple(sorted(c)) for c in cells.tolist()}
+    k4 = cells_to_edges(np.array([list(c) for c in combinations(range(4), 2)]), 4)
+    assert len(clique_cells(k4, 4, 3)) == 4 and clique_cells(k4, 4, 4).tolist() == [[0, 1, 2, 3]]

@@ -137,8 +137,8 @@ def delaunay_remesh(points: np.ndarray, domain: Domain, connect: bool = True) ->
     p = domain.project(points)
     m, d = p.shape
     empty = np.zeros((0, d + 1), np.int64)
-    if m < d + 2:  # too few points for a meaningful triangulation test
-        return (_single_simplex(p) if m == d + 1 else empty), chain_pairs(p)
+    if m <= d:  # too few points for a simplex
+        return empty, chain_pairs(p)
     try:
         tri = Delaunay(p)
     except QhullError:  # all points on a line (plane): chain them
@@ -168,12 +168,6 @@ def _cell_pairs(cells: np.ndarray, m: int) -> np.ndarray:
 def _connected(pairs: np.ndarray, m: int) -> bool:
     adj = sp.coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(m, m))
     return connected_components(adj, directed=False)[0] == 1
-
-
-def _single_simplex(p: np.ndarray) -> np.ndarray:
-    cells = np.arange(len(p), dtype=np.int64)[None]
-    vol = signed_measure(p, cells) if p.shape[1] in (2, 3) else np.ones(1)
-    return _orient(p, cells) if abs(vol[0]) > 0 else np.zeros((0, len(p)), np.int64)
 
 
 def _orient(p: np.ndarray, cells: np.ndarray) -> np.ndarray:

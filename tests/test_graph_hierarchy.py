@@ -1,5 +1,6 @@
 """The mesh hierarchy: halving, connectivity, remeshing quality, unpooling, caching, bad input."""
 import warnings
+from itertools import combinations
 
 import numpy as np
 import pytest
@@ -8,12 +9,13 @@ import torch
 from scipy.sparse.csgraph import connected_components
 from scipy.spatial import ConvexHull
 
-from graph_meshes import annulus, cloth, impact_plate, plate_and_ball, tet_box
+from graph_meshes import annulus, cloth, grid_triangles, impact_plate, plate_and_ball, tet_box
 from hcmt.data.errors import DatasetError
+from hcmt.graph.edges import cells_to_edges
 from hcmt.graph.hierarchy import (Hierarchy, MeshWarning, build_hierarchy, cached_hierarchy, hierarchy_key,
                                   pool, unpool)
 from hcmt.graph.quality import quality_summary
-from hcmt.graph.remesh import clique_cells, two_hop_edges
+from hcmt.graph.remesh import clique_cells, delaunay_remesh, prepare_domain, two_hop_edges
 
 
 def objects_connected(h: Hierarchy) -> list[bool]:
@@ -233,8 +235,6 @@ def test_defective_meshes_are_handled_with_warnings():
 
 
 def test_small_point_sets_remesh_to_a_simplex_or_a_chain():
-    from hcmt.graph.remesh import delaunay_remesh, prepare_domain
-
     square = np.array([[0.0, 0], [1, 0], [1, 1], [0, 1]])
     domain = prepare_domain(square, np.array([[0, 1, 2], [0, 2, 3]]))
     cells, pairs = delaunay_remesh(square[:3], domain)
@@ -247,10 +247,6 @@ def test_small_point_sets_remesh_to_a_simplex_or_a_chain():
 
 
 def test_two_hop_edges_and_cliques_against_definitions():
-    from itertools import combinations
-
-    from hcmt.graph.edges import cells_to_edges
-
     pos, cells = annulus(h=0.15)
     n = len(pos)
     edges = cells_to_edges(cells, n)
@@ -270,3 +266,17 @@ def test_two_hop_edges_and_cliques_against_definitions():
     assert {tuple(c) for c in tri.tolist()} == {tuple(sorted(c)) for c in cells.tolist()}
     k4 = cells_to_edges(np.array([list(c) for c in combinations(range(4), 2)]), 4)
     assert len(clique_cells(k4, 4, 3)) == 4 and clique_cells(k4, 4, 4).tolist() == [[0, 1, 2, 3]]
+
+
+def test_split_object_is_reconnected_through_material():
+    # a U: base [0,3]x[0,1], prongs [0,1]x[1,3] and [2,3]x[1,3], cut from a structured grid
+    g, tri = grid_triangles(7, 7, 3.0, 3.0)
+    c = g[tri].mean(1)
+    tri = tri[(c[:, 1] < 1) | (c[:, 0] < 1) | (c[:, 0] > 2)]
+    domain = prepare_domain(g, tri)
+    assert not domain.convex
+    pts = np.array([[0.5, 2.9], [2.5, 2.9], [0.5, 0.5], [2.5, 0.5]])  # prong tops and base
+    cells, pairs = delaunay_remesh(pts, domain)
+    assert len(cells) == 0  # both Delaunay triangles cover the gap between the prongs
+    # reconnected by the bottom edge and the two prongs, not across the gap at the top (as short as the bottom)
+    assert {tuple(sorted(p)) for p in pairs.tolist()} == {(0, 2), (1, 3), (2, 3)}

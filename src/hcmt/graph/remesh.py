@@ -19,7 +19,7 @@ rounding makes of collinear boundary points) are dropped too.
 **Connectivity**: dropping simplices can split an object, and scipy leaves duplicate points out of the
 triangulation. Where that happens the shortest dropped Delaunay edges (and each left-out point's edge to its
 nearest vertex) that reconnect it are added back: the minimum spanning tree over all Delaunay edges in which
-the kept edges cost next to nothing. An object with too few or degenerate points for a simplex (at the deepest
+the kept edges cost next to nothing and edges whose midpoint is outside the object cost a thousandfold. An object with too few or degenerate points for a simplex (at the deepest
 levels) is chained along its principal axis. Every object therefore stays connected at every level.
 
 **No remeshing** (:func:`two_hop_edges`, the BSMS ablation): level ``l+1``'s edges join the kept nodes that are
@@ -155,7 +155,7 @@ def delaunay_remesh(points: np.ndarray, domain: Domain, connect: bool = True) ->
         return cells, pairs
     # reconnect through the dropped Delaunay edges, and points qhull left out (duplicates) to their nearest vertex
     candidates = np.concatenate([_cell_pairs(simplices, m), tri.coplanar[:, [0, 2]].astype(np.int64)])
-    return cells, _reconnect(p, pairs, candidates)
+    return cells, _reconnect(p, pairs, candidates, domain)
 
 
 def _cell_pairs(cells: np.ndarray, m: int) -> np.ndarray:
@@ -190,12 +190,15 @@ def chain_pairs(p: np.ndarray) -> np.ndarray:
     return np.stack([order[:-1], order[1:]], 1).astype(np.int64)
 
 
-def _reconnect(p: np.ndarray, pairs: np.ndarray, candidates: np.ndarray) -> np.ndarray:
-    """``pairs`` plus the fewest, shortest ``candidates`` that make the point set connected."""
+def _reconnect(p: np.ndarray, pairs: np.ndarray, candidates: np.ndarray, domain: Domain) -> np.ndarray:
+    """``pairs`` plus the fewest, shortest ``candidates`` that make the point set connected, preferring edges
+    through the object (midpoint inside ``domain``) to edges across a gap."""
     m = len(p)
     length = np.linalg.norm(p[candidates[:, 0]] - p[candidates[:, 1]], axis=1) + 1e-300
+    through = domain.contains(0.5 * (p[candidates[:, 0]] + p[candidates[:, 1]]))
     kept = np.isin(_keys(candidates, m), _keys(pairs, m))
-    weight = np.where(kept, length * 1e-9, length)  # kept edges nearly free: the tree keeps them, adds the rest
+    # kept edges nearly free, so the tree keeps them; an edge across a gap costs as much as a thousand inside
+    weight = np.where(kept, length * 1e-9, np.where(through, length, length * 1e3))
     tree = minimum_spanning_tree(sp.coo_matrix((weight, (candidates[:, 0], candidates[:, 1])), shape=(m, m)))
     tree = tree.tocoo()
     added = np.stack([tree.row, tree.col], 1).astype(np.int64)

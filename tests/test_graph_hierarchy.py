@@ -280,3 +280,14 @@ def test_split_object_is_reconnected_through_material():
     assert len(cells) == 0  # both Delaunay triangles cover the gap between the prongs
     # reconnected by the bottom edge and the two prongs, not across the gap at the top (as short as the bottom)
     assert {tuple(sorted(p)) for p in pairs.tolist()} == {(0, 2), (1, 3), (2, 3)}
+
+
+def test_flat_point_sets_stay_connected():
+    pos, cells = tet_box(6, 6, 2, size=(1.0, 1.0, 0.05))  # one layer of cubes: a thin slab
+    domain = prepare_domain(pos, cells)
+    top = pos[pos[:, 2] > 0.04]  # coplanar points: no tetrahedron has volume
+    cells_, pairs = delaunay_remesh(top, domain)
+    assert len(cells_) == 0
+    n = len(top)
+    label = connected_components(sp.coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(n, n)))
+    assert label[0] == 1

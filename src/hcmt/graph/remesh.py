@@ -7,20 +7,20 @@ planar; a curved surface mesh cannot be triangulated this way and gets the 2-hop
 
 Delaunay triangulates the convex hull, so simplices outside a non-convex object (notches, holes) must go. Our
 filter (a choice; the paper does not say): **a simplex is kept when its centroid lies inside some cell of the
-object's original (level-0) mesh** — a barycentric test against the nearest fine cells (KD-tree on the fine
-cells' centroids: 4, then 16, then 128 candidates in 2-D; 8, 32, 128 in 3-D, each pass for the points
-not found yet). It needs no length
-threshold, so it does not depend on the mesh grading. An object whose cells fill their convex hull (total
-measure = hull measure: Impact Plate's plate and ball, a cloth square, a box) skips the test, since every
-simplex of a subset of its nodes lies in that hull. A simplex spanning a hole whose centroid falls in
+object's original (level-0) mesh** -- a barycentric test against the nearest fine cells (KD-tree on the fine
+cells' centroids: 4, then 16, then 128 candidates in 2-D; 8, 32, 128 in 3-D, each pass for the points not found
+yet). It needs no length threshold, so it does not depend on the mesh grading. An object whose cells fill their
+convex hull (total measure = hull measure: Impact Plate's plate and ball, a cloth square, a box) skips the test:
+every simplex of a subset of its nodes lies in that hull. A simplex spanning a hole whose centroid falls in
 material would survive; at the node spacings of a level this is rare. Simplices of no measure (slivers that
 rounding makes of collinear boundary points) are dropped too.
 
 **Connectivity**: dropping simplices can split an object, and scipy leaves duplicate points out of the
 triangulation. Where that happens the shortest dropped Delaunay edges (and each left-out point's edge to its
-nearest vertex) that reconnect it are added back: the minimum spanning tree over all Delaunay edges in which
-the kept edges cost next to nothing and edges whose midpoint is outside the object cost a thousandfold. An object with too few or degenerate points for a simplex (at the deepest
-levels) is chained along its principal axis. Every object therefore stays connected at every level.
+nearest vertex) that reconnect it are added back: the minimum spanning tree over all Delaunay edges in which the
+kept edges cost next to nothing and edges whose midpoint is outside the object cost a thousandfold. An object
+with too few or degenerate points for a simplex (at the deepest levels) is chained along its principal axis.
+Every object therefore stays connected at every level.
 
 **No remeshing** (:func:`two_hop_edges`, the BSMS ablation): level ``l+1``'s edges join the kept nodes that are
 at most two hops apart in level ``l``.
@@ -141,8 +141,11 @@ def delaunay_remesh(points: np.ndarray, domain: Domain, connect: bool = True) ->
         return empty, chain_pairs(p)
     try:
         tri = Delaunay(p)
-    except QhullError:  # all points on a line (plane): chain them
-        return empty, chain_pairs(p)
+    except QhullError:  # a flat point set: joggle it (its slivers are dropped, then reconnected), else chain it
+        try:
+            tri = Delaunay(p, qhull_options="QJ")
+        except QhullError:
+            return empty, chain_pairs(p)
     simplices = tri.simplices.astype(np.int64)
     verts = p[simplices]
     keep = domain.contains(verts.mean(1))

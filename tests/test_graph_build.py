@@ -80,3 +80,16 @@ def test_cloth_frame_has_two_dimensional_mesh_space_and_self_contacts():
     none = frame_graph(torch.zeros(len(mesh_pos), 3), torch.from_numpy(mesh_pos), torch.from_numpy(world), None, h,
                        None, 0.06)  # without self-contact a single object touches nothing
     assert none.contact_edges.shape == (2, 0) and none.contact_features.shape == (0, 4)
+
+
+def test_cached_mesh_space_features_follow_the_mesh_positions():
+    m = plate_and_ball(h=0.1, length=2.0, radius=0.5)
+    h = build_hierarchy(m["mesh_pos"], m["cells"], m["node_type"], 2)
+    n = len(m["mesh_pos"])
+    u = torch.from_numpy(m["mesh_pos"])
+    a = frame_graph(torch.zeros(n, 1), u, u, None, h, None, 0.1)
+    b = frame_graph(torch.zeros(n, 1), u, u, torch.from_numpy(h.edges[0]), h, None, 0.1)  # explicit mesh edges
+    torch.testing.assert_close(a.mesh_features, b.mesh_features)
+    scaled = frame_graph(torch.zeros(n, 1), 2 * u, u, None, h, None, 0.1)  # other mesh positions: not stale
+    torch.testing.assert_close(scaled.mesh_features[:, :3], 2 * a.mesh_features[:, :3])
+    torch.testing.assert_close(scaled.level_features[1][:, :3], 2 * a.level_features[1][:, :3])

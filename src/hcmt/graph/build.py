@@ -5,7 +5,8 @@ Static parts (mesh edges, hierarchy, objects) are built once per trajectory; per
 features and the contact edges are computed. Features follow :mod:`hcmt.graph.edges` (relative vectors are
 sender minus receiver). A coarse level's edge features use the positions of its nodes, found through the
 level-0 index of each level node (``hierarchy.nodes``): ``m_ij`` at level ``l`` is built from
-``mesh_pos[nodes[l]]`` and ``world_pos[nodes[l]]``.
+``mesh_pos[nodes[l]]`` and ``world_pos[nodes[l]]``. The mesh-space half of the coarse levels' features is static
+and computed once per hierarchy (recomputed if other mesh positions are passed).
 """
 from __future__ import annotations
 
@@ -16,18 +17,22 @@ from torch import Tensor
 
 from hcmt.graph.batch import Graph
 from hcmt.graph.contact import contact_edges, near_pairs
-from hcmt.graph.edges import contact_edge_features, mesh_edge_features
+from hcmt.graph.edges import contact_edge_features, mesh_edge_features, relative
 from hcmt.graph.hierarchy import Hierarchy
 
 
 def hierarchy_tensors(hierarchy: Hierarchy, device) -> dict:
-    """``pool``, ``edges`` and ``nodes`` of a hierarchy as int64 tensors on ``device``, cached on the hierarchy."""
+    """``pool``, ``edges``, ``nodes`` (and ``edges_level0``: each level's edges in level-0 numbers) of a hierarchy
+    as int64 tensors on ``device``, cached on the hierarchy."""
     key = str(torch.device(device))
     cached = hierarchy._tensors.get(key)
     if cached is None:
         cached = {name: [torch.as_tensor(a, dtype=torch.long).to(device) for a in getattr(hierarchy, name)]
                   for name in ("pool", "edges", "nodes")}
         cached["object_id"] = torch.as_tensor(hierarchy.object_id, dtype=torch.long).to(device)
+        # every level's edges in level-0 node numbers: features gather level-0 positions directly
+        cached["edges_level0"] = [torch.as_tensor(n[e], dtype=torch.long).to(device)
+                                  for n, e in zip(hierarchy.nodes, hierarchy.edges)]
         hierarchy._tensors[key] = cached
     return cached
 
@@ -47,7 +52,8 @@ def frame_graph(node_features: Tensor, mesh_pos: Tensor, world_pos: Tensor, mesh
     device = world_pos.device
     h = hierarchy_tensors(hierarchy, device)
     mesh_pos = mesh_pos.to(device=device, dtype=world_pos.dtype)
-    mesh_edges = h["edges"][0] if mesh_edges is None else mesh_edges.to(device)
+    own_edges = mesh_edges is None
+    mesh_edges = h["edges"][0] if own_edges else mesh_edges.to(device)
     object_id = h["object_id"] if object_id is None else object_id.to(device)
     if self_contact and exclude is None:
         key = f"near_{self_contact_hops}"
@@ -57,19 +63,28 @@ def frame_graph(node_features: Tensor, mesh_pos: Tensor, world_pos: Tensor, mesh
         exclude = h[key]
     contacts = contact_edges(world_pos, object_id, radius, node_type=node_type, type_pairs=type_pairs,
                              self_contact=self_contact, exclude=exclude, method=contact_method)
-    level_edges, level_features = [], []
-    for level in range(1, hierarchy.levels + 1):  # one gather per level
-        idx = h["nodes"][level]
-        edges = h["edges"][level]
-        level_edges.append(edges)
-        level_features.append(mesh_edge_features(mesh_pos[idx], world_pos[idx], edges))
+    mesh_part = _mesh_space_features(h, mesh_pos)
+    world_part = [relative(world_pos, e) for e in h["edges_level0"][1:]]
+    if own_edges:
+        mesh_features = torch.cat([mesh_part[0], relative(world_pos, mesh_edges)], dim=-1)
+    else:
+        mesh_features = mesh_edge_features(mesh_pos, world_pos, mesh_edges)
     return Graph(
         node_features=node_features.to(device),
         mesh_edges=mesh_edges,
-        mesh_features=mesh_edge_features(mesh_pos, world_pos, mesh_edges),
+        mesh_features=mesh_features,
         contact_edges=contacts,
         contact_features=contact_edge_features(world_pos, contacts),
         pool=list(h["pool"]),
-        level_edges=level_edges,
-        level_features=level_features,
+        level_edges=list(h["edges"][1:]),
+        level_features=[torch.cat([u, x], dim=-1) for u, x in zip(mesh_part[1:], world_part)],
     )
+
+
+def _mesh_space_features(h: dict, mesh_pos: Tensor) -> list[Tensor]:
+    """``[u_ij, |u_ij|]`` of every level (0..lambda); static, so cached with the mesh positions they came from."""
+    cached = h.get("mesh_part")
+    if cached is None or cached[0].dtype != mesh_pos.dtype or not torch.equal(cached[0], mesh_pos):
+        cached = (mesh_pos, [relative(mesh_pos, e) for e in h["edges_level0"]])
+        h["mesh_part"] = cached
+    return cached[1]

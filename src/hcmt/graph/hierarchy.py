@@ -203,11 +203,10 @@ def build_hierarchy(mesh_pos, cells, node_type=None, levels: int = 1, remesh: bo
         coarse = nodes[-1][kept]
         if remesh:
             level_cells, pairs = _remesh_level(pos, coarse, obj, domains, edges[-1], n, kept, k)
+            level_edges = undirected_to_edges(pairs, len(kept))
         else:
             level_cells = np.zeros((0, k), np.int64)
-            pairs = None
-        level_edges = undirected_to_edges(pairs, len(kept)) if pairs is not None else two_hop_edges(
-            edges[-1], n, kept)
+            level_edges = two_hop_edges(edges[-1], n, kept)
         pools.append(kept.astype(np.int64))
         nodes.append(coarse.astype(np.int64))
         edges.append(level_edges)

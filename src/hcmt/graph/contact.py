@@ -15,8 +15,10 @@ our choice, written here once):
   contacts. Mesh edges themselves are within one hop, so contact edges never duplicate mesh edges.
 
 Edges come in both directions, ``[2, C]`` int64, sorted by (sender, receiver). No contact is normal: ``[2, 0]``.
-Two search paths give identical results: a KD-tree (``scipy.spatial.cKDTree``) on CPU and a blocked dense
-distance test in torch for GPU tensors (``method="auto"`` picks by device).
+Two search paths: a KD-tree (``scipy.spatial.cKDTree``, float64) on CPU and a blocked dense distance test in
+torch for GPU tensors (``method="auto"`` picks by device). They give identical edges on CPU (the dense path runs
+in float64 there); on a GPU the final distance test runs in the tensors' dtype, so a pair within float32
+rounding of gamma may fall either way.
 """
 from __future__ import annotations
 

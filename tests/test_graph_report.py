@@ -53,3 +53,7 @@ def test_hierarchy_command_reports_bad_input(tmp_path, capsys):
     assert main(["hierarchy", str(tmp_path / "ds"), "--levels", "-1"]) == 2
     assert "--levels" in capsys.readouterr().err
     assert main(["hierarchy", str(tmp_path / "missing"), "--levels", "2"]) == 2
+    capsys.readouterr()
+    assert main(["hierarchy", str(tmp_path / "ds"), "--levels", "40"]) == 2  # more levels than the mesh has
+    err = capsys.readouterr().err
+    assert "traj_00000" in err and "more than this mesh can be pooled" in err

@@ -97,6 +97,7 @@ def format_table(rows: list[dict]) -> str:
 
 
 def main(args: argparse.Namespace) -> int:
+    from hcmt.data.errors import DatasetError
     from hcmt.data.format import open_split
 
     if args.levels < 0:
@@ -111,8 +112,11 @@ def main(args: argparse.Namespace) -> int:
     per_trajectory = []
     for i in tqdm(range(count), desc="hierarchy", unit="traj", disable=count < 20):  # one mesh per trajectory
         traj = reader[i]
-        h = cached_hierarchy(traj["mesh_pos"], traj["cells"], traj["node_type"].reshape(-1), args.levels,
-                             remesh=True, cache_dir=cache)
+        try:
+            h = cached_hierarchy(traj["mesh_pos"], traj["cells"], traj["node_type"].reshape(-1), args.levels,
+                                 remesh=True, cache_dir=cache)
+        except ValueError as exc:  # DatasetError included: say which trajectory
+            raise DatasetError(str(exc), file=reader.path, trajectory=reader.names[i]) from None
         per_trajectory.append(level_quality(h, traj["mesh_pos"]))
     rows = average_rows(per_trajectory)
     print(f"{args.dataset} [{args.split}]: {count} trajector{'y' if count == 1 else 'ies'}, {args.levels} levels")

@@ -17,6 +17,9 @@ r"""Hierarchical Contact Mesh Transformer (paper §3.2): encoder → CMT → HMT
     going up, a level reuses the same encoded edge features it used going down (paper: "the (ℓ−1)-th edge feature
     uses the (L_H−ℓ)-th edge feature after reaching the final level λ").
 
+* **Decoder and updater**: the decoder (no LayerNorm) gives the normalized output; ``denormalize`` then
+  :func:`hcmt.models.updater.update_positions` (first order, :math:`\hat x^{t+1} = x^t + \hat{\dot x}^t`) give positions.
+
 * **Ablations** (``ablation=``): ``late-contact`` (HMT, then CMT), ``only-cmt`` (:math:`L_C + L_H` CMT blocks, so the
   depth :math:`L = 15` of the paper is kept; no hierarchy), ``only-hmt`` (HMT alone, :math:`L_H` blocks, contact
   edges unused), ``lpe`` (+ Laplacian eigenvector PE, :mod:`hcmt.models.lpe`), ``single-branch`` (CMT blocks put

@@ -30,7 +30,6 @@ from __future__ import annotations
 
 import math
 
-import torch
 from torch import Tensor, nn
 from torch_geometric.utils import scatter, softmax
 

@@ -50,6 +50,7 @@ def object_legend(fig, object_id: np.ndarray, node_type: np.ndarray | None) -> N
 
 def _draw_level(ax, pos: np.ndarray, edges: np.ndarray, colours: np.ndarray, box, *, marked: bool = False,
                 lw: float = 0.5) -> None:
+    edges = edges[:, edges[0] < edges[1]]  # each undirected edge once
     if pos.shape[1] == 3:
         from mpl_toolkits.mplot3d.art3d import Line3DCollection
 

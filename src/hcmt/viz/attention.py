@@ -1,0 +1,235 @@
+r"""Attention maps of a trained model as sparse-matrix images (paper Fig. 6 and 15-18).
+
+The model runs once on the graph of one ground-truth frame (teacher forcing: the data's :math:`x^t` and
+:math:`x^{t-1}`, as in training) and returns every block's softmax weights :math:`a^k_{ij}` (``[E, H, d_k]``: one
+weight per head and channel, :mod:`hcmt.models.attention`). A map is the matrix
+:math:`A_{ij} = \operatorname{mean}_{k,c}\, a^{k,c}_{ij}` with the receiver :math:`i` as the row and the sender
+:math:`j` as the column. Averaging over heads and channels is our choice (the paper does not say how its maps
+reduce the heads); it keeps the softmax's property that every row with an incoming edge sums to 1, so a row of the
+image is how one node spreads its attention.
+
+Nodes are ordered object by object (their order within an object kept), so each object is a diagonal block and the
+contact attention lies in the off-diagonal blocks; block boundaries are drawn and labelled (the Impact Plate: the
+plate, object 0, top left; the ball bottom right, as the paper's Fig. 15 describes). HCMT gives, per CMT block,
+``cmt{n}.contact`` and ``cmt{n}.mesh`` on level 0, and per HMT block ``hmt.down{l}`` / ``hmt.bottom{λ}`` /
+``hmt.up{l}`` on level ``l``; the figure shows the first CMT block's two branches and the down-going HMT block of
+every level (the bottom block for level λ), like Fig. 15. The Graph Transformer baseline gives ``gt{n}`` over mesh
+and contact edges together.
+"""
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import scipy.sparse as sp
+from matplotlib import colors
+
+from hcmt.viz.meshplot import new_figure
+
+
+@dataclass
+class AttentionMaps:
+    """The maps of one frame: ``matrices[name]`` a CSR ``[N_l, N_l]`` (row receiver, column sender) on level
+    ``levels[name]``; ``object_id[l]`` the object of every level-``l`` node."""
+
+    matrices: dict[str, sp.csr_matrix]
+    levels: dict[str, int]
+    object_id: list[np.ndarray]
+    trajectory: str = ""
+    frame: int = 0
+    model: str = ""
+    node_type: list[np.ndarray] = field(default_factory=list)
+
+
+def attention_matrix(weights, edges, num_nodes: int) -> sp.csr_matrix:
+    """Weights ``[E, ...]`` of edges ``[2, E]`` (row 0 sender j, row 1 receiver i) -> CSR ``A[i, j]``, the mean
+    over every axis after the first (heads, channels)."""
+    w = np.asarray(weights.detach().cpu().numpy() if hasattr(weights, "detach") else weights, np.float64)
+    e = np.asarray(edges.detach().cpu().numpy() if hasattr(edges, "detach") else edges, np.int64)
+    if w.shape[0] != e.shape[1]:
+        raise ValueError(f"{w.shape[0]} weights for {e.shape[1]} edges")
+    w = w.reshape(len(w), -1).mean(1)
+    return sp.coo_matrix((w, (e[1], e[0])), shape=(num_nodes, num_nodes)).tocsr()
+
+
+def block_level(name: str) -> int:
+    """Hierarchy level of a block's attention: CMT and GT blocks work on level 0, ``hmt.down2`` on level 2."""
+    m = re.fullmatch(r"hmt\.(?:down|up|bottom)(\d+)", name)
+    return int(m.group(1)) if m else 0
+
+
+def block_edges(name: str, graph) -> "torch.Tensor":  # noqa: F821
+    """The edges ``[2, E]`` a block's weights belong to, in the order the model concatenates them."""
+    import torch
+
+    if name.endswith(".contact"):
+        return graph.contact_edges
+    if name.endswith(".mesh+contact") or re.fullmatch(r"gt\d+", name):
+        return torch.cat([graph.mesh_edges, graph.contact_edges], dim=1)
+    level = block_level(name)
+    return graph.mesh_edges if level == 0 else graph.level_edges[level - 1]
+
+
+def maps_from_model(model, graph, object_id: np.ndarray, level_nodes: list[np.ndarray]) -> dict:
+    """Run ``model`` on ``graph`` with ``return_attention=True``; returns ``{name: CSR}`` and ``{name: level}``.
+    ``level_nodes[l]``: the level-0 index of every level-``l`` node (``l >= 1``)."""
+    import torch
+
+    with torch.no_grad():
+        result = model(graph, accumulate=False, return_attention=True)
+    if not isinstance(result, tuple):
+        raise ValueError(f"{type(model).__name__} has no attention to show (MeshGraphNets is not a Transformer); "
+                         "use an HCMT or GT run")
+    _, attention = result
+    sizes = [graph.num_nodes] + [len(v) for v in level_nodes]
+    matrices, levels = {}, {}
+    for name, w in attention:
+        level = block_level(name)
+        matrices[name] = attention_matrix(w, block_edges(name, graph), sizes[level])
+        levels[name] = level
+    return {"matrices": matrices, "levels": levels}
+
+
+def default_frame(world_pos: np.ndarray, object_id: np.ndarray, history: int) -> int:
+    """The ground-truth frame where two objects come closest (the impact), kept where a graph can be built."""
+    from hcmt.viz.meshplot import closest_pair
+
+    gaps = []
+    for f in range(len(world_pos)):  # one KD-tree query per frame
+        pair = closest_pair(world_pos[f], object_id)
+        gaps.append(0.0 if pair is None else float(np.linalg.norm(pair[0] - pair[1])))
+    return int(np.clip(np.argmin(gaps), history, len(world_pos) - 2))
+
+
+def frame_attention(run: str | Path, data: str | Path, split: str = "test", trajectory: int | str = 0,
+                    frame: int | None = None, checkpoint: str = "best") -> AttentionMaps:
+    """Attention maps of a run's model on one ground-truth frame (default: the impact, :func:`default_frame`)."""
+    import torch
+
+    from hcmt.data.format import Split
+    from hcmt.graph.hierarchy import hierarchy_cache_dir
+    from hcmt.train.adapters import get_adapter, node_features
+    from hcmt.train.data import build_graph, prepare_trajectory
+    from hcmt.train.trainer import load_run, uses_hierarchy
+    from hcmt.viz.rollouts import run_label, trajectory_index
+
+    model, info = load_run(run, checkpoint)
+    cfg = info["config"]
+    adapter = get_adapter(cfg["dataset"])
+    levels, remesh = uses_hierarchy(info["model"])
+    with Split(data, split) as s:
+        index = trajectory_index(s.names, trajectory)
+        traj = prepare_trajectory(s[index], s.names[index], adapter, levels, remesh, hierarchy_cache_dir(data),
+                                  s.attrs(index))
+    world = traj.world_pos
+    obj = traj.object_id.numpy()
+    h = adapter.history
+    T = traj.num_steps
+    if frame is None:
+        frame = default_frame(world.numpy(), obj, h)
+    if not h <= frame <= T - 2:
+        raise ValueError(f"frame {frame} out of range: a graph needs frames {h}..{T - 2} of trajectory {traj.name} "
+                         f"(the previous frame as input, the next one for prescribed nodes)")
+    feats = node_features(adapter, traj.static, world[frame], world[frame - h], world[frame + 1])
+    graph = build_graph(traj, world[frame], feats, float(cfg["train"]["contact_radius"]))
+    level_nodes = [v.numpy() for v in traj.level_nodes]
+    maps = maps_from_model(model, graph, obj, level_nodes)
+    nt = traj.static["node_type"].numpy()
+    return AttentionMaps(maps["matrices"], maps["levels"], [obj] + [obj[v] for v in level_nodes],
+                         traj.name, int(frame), run_label(run), [nt] + [nt[v] for v in level_nodes])
+
+
+def object_order(object_id: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(permutation putting the nodes object by object, boundaries between the blocks in the new order)."""
+    order = np.argsort(object_id, kind="stable")
+    counts = np.bincount(object_id)
+    return order, np.cumsum(counts[counts > 0])[:-1]
+
+
+def default_panels(maps: AttentionMaps) -> list[tuple[str, str]]:
+    """(block name, panel title) of the figure: the first CMT block's branches and each level's first HMT block
+    (Fig. 15), or the first and last GT layers."""
+    names = list(maps.matrices)
+    panels = []
+    for n in names:
+        m = re.fullmatch(r"cmt(\d+)\.(contact|mesh|mesh\+contact)", n)
+        if m and m.group(1) == "0":
+            panels.append((n, f"{m.group(2).capitalize()} of CMT (block 0)"))
+    panels.sort(key=lambda p: 0 if p[0].endswith("contact") and "+" not in p[0] else 1)
+    levels = sorted({maps.levels[n] for n in names if n.startswith("hmt.")})
+    for l in levels:
+        first = next(n for n in names if n.startswith("hmt.") and maps.levels[n] == l)
+        panels.append((first, f"Level {l} of HMT ({first.split('.')[1].rstrip('0123456789')} block)"))
+    gts = [n for n in names if re.fullmatch(r"gt\d+", n)]
+    if gts:
+        panels += [(gts[0], f"GT layer {gts[0][2:]} (mesh and contact)")]
+        if len(gts) > 1:
+            panels.append((gts[-1], f"GT layer {gts[-1][2:]} (mesh and contact)"))
+    return panels
+
+
+def attention_figure(maps: AttentionMaps, panels: list[tuple[str, str]] | None = None, columns: int = 3):
+    """The maps as sparse-matrix images, one panel per block, one logarithmic colour scale for all (the weights of
+    a row sum to 1; a log scale shows the spread of small weights and the few large ones alike)."""
+    panels = panels or default_panels(maps)
+    if not panels:
+        raise ValueError("no attention blocks to draw")
+    cols = min(columns, len(panels))
+    rows = int(np.ceil(len(panels) / cols))
+    fig = new_figure(3.3 * cols + 1.0, 3.3 * rows + 0.6)
+    values = np.concatenate([maps.matrices[n].data for n, _ in panels])
+    positive = values[values > 0]
+    lo = float(max(positive.min(), 1e-4)) if len(positive) else 1e-3
+    norm = colors.LogNorm(vmin=min(lo, 0.5), vmax=1.0)
+    from hcmt.data.format import NodeType
+
+    mappable = None
+    for k, (name, title) in enumerate(panels):
+        ax = fig.add_subplot(rows, cols, k + 1)
+        level = maps.levels[name]
+        obj = maps.object_id[level]
+        n = len(obj)
+        order, bounds = object_order(obj)
+        rank = np.empty(n, np.int64)
+        rank[order] = np.arange(n)
+        coo = maps.matrices[name].tocoo()
+        size = float(np.clip((200.0 / max(n, 1)) ** 2, 1.0, 25.0))  # about one node's width, at least a point
+        if name.endswith(".contact"):
+            size = max(size, 6.0)  # contact edges are few: make them visible
+        mappable = ax.scatter(rank[coo.col], rank[coo.row], c=coo.data, s=size, marker="s", linewidths=0,
+                              norm=norm, cmap="viridis")
+        for b in bounds:
+            ax.axhline(b - 0.5, color="red", lw=0.6)
+            ax.axvline(b - 0.5, color="red", lw=0.6)
+        ax.set_xlim(-0.5, n - 0.5)
+        ax.set_ylim(n - 0.5, -0.5)
+        ax.set_aspect("equal")
+        starts = np.concatenate([[0], bounds])
+        ends = np.concatenate([bounds, [n]])
+        ticks, labels = [], []
+        for o, (a, b) in enumerate(zip(starts, ends)):  # one tick per object block
+            ticks.append((a + b - 1) / 2)
+            types = maps.node_type[level][order[a:b]] if maps.node_type else None
+            common = int(np.bincount(types).argmax()) if types is not None and len(types) else None
+            labels.append(f"obj {o}" + (f"\n{NodeType(common).name}" if common in NodeType._value2member_map_
+                                        else ""))
+        ax.set_xticks(ticks, labels, fontsize=6)
+        ax.set_yticks(ticks, labels, fontsize=6, rotation=90, va="center")
+        ax.set_xlabel(f"sender j ({n} nodes)", fontsize=7)
+        ax.set_ylabel("receiver i", fontsize=7)
+        ax.set_title(f"{title}\n{coo.nnz} edges", fontsize=8)
+    cbar = fig.colorbar(mappable, ax=fig.axes, aspect=40)
+    cbar.set_label("attention weight $a_{ij}$\n(mean over heads and channels)", fontsize=8)
+    fig.suptitle(f"Attention maps of {maps.model}, trajectory {maps.trajectory}, frame {maps.frame} "
+                 "\nrow i: how receiver i spreads its attention over its senders j (each row sums to 1); red lines: object "
+                 "blocks", fontsize=9)
+    return fig
+
+
+def plot_attention(maps: AttentionMaps, path: str | Path, dpi: int = 150) -> Path:
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    attention_figure(maps).savefig(path, dpi=dpi)
+    return path

@@ -1,0 +1,188 @@
+"""``hcmt plot`` and ``hcmt export``.
+
+``hcmt plot RUN [RUN ...] --data DATASET --out DIR`` writes, for one trajectory of a split (rolled out first where a
+run has no rollout of it yet):
+
+* ``stress_contours.png`` / ``stress_contours_zoom.png``: ground truth beside every run at a few frames
+  (``displacement_contours*.png`` for a dataset without stress);
+* ``rollout.gif``: the rollouts beside the ground truth;
+* ``rollout_error.png``: position and stress RMSE per step of every run;
+* ``training_curves.png``: loss, learning rate and validation RMSE of every run with a ``log.jsonl``;
+* ``hierarchy_levels*.png`` / ``hierarchy_remeshing*.png``: the mesh hierarchy of the first HCMT run (or
+  ``--levels``);
+* ``attention_<model>.png``: the attention maps of every HCMT or GT run.
+
+``hcmt export RUN [RUN ...] --data DATASET --format vtu|xdmf --out DIR`` writes the ground truth and every run's
+rollout as ParaView time series (:mod:`hcmt.viz.export`).
+"""
+from __future__ import annotations
+
+import argparse
+import re
+from pathlib import Path
+
+PICTURES = ("contours", "animation", "errors", "training", "hierarchy", "attention")
+
+
+def _frames(text: str | None) -> list[int] | None:
+    if text is None:
+        return None
+    try:
+        return [int(t) for t in text.split(",") if t.strip()]
+    except ValueError:
+        raise ValueError(f"--frames {text!r}: expected comma-separated frame numbers, e.g. 0,10,25,51") from None
+
+
+def _only(text: str | None) -> list[str]:
+    if not text:
+        return list(PICTURES)
+    picked = [t.strip() for t in text.split(",") if t.strip()]
+    unknown = [t for t in picked if t not in PICTURES]
+    if unknown:
+        raise ValueError(f"--only {', '.join(unknown)}: expected some of {', '.join(PICTURES)}")
+    return picked
+
+
+def _common(p: argparse.ArgumentParser) -> None:
+    p.add_argument("runs", nargs="+", metavar="RUN", help="run folder(s) made by `hcmt train`")
+    p.add_argument("--data", required=True, help="native dataset folder")
+    p.add_argument("--out", required=True, help="output folder")
+    p.add_argument("--split", default="test")
+
+
+# -- plot ----------------------------------------------------------------------------------------------------------
+def configure_plot(p: argparse.ArgumentParser) -> None:
+    _common(p)
+    p.add_argument("--trajectory", default="0", help="index or name of the trajectory to draw (default 0)")
+    p.add_argument("--frames", help="frames of the contour figure, e.g. 0,10,25,51 (default: 4 spread evenly)")
+    p.add_argument("--only", help=f"comma-separated subset of {','.join(PICTURES)} (default: all)")
+    p.add_argument("--cmap", default="viridis", help="matplotlib colour map (default viridis)")
+    p.add_argument("--scale", default="frame", choices=["frame", "all"],
+                   help="contour colour scale: one per frame (row) or one for the whole figure")
+    p.add_argument("--fps", type=int, default=10, help="animation frames per second")
+    p.add_argument("--stride", type=int, help="animate every N-th frame (default: at most 100 frames)")
+    p.add_argument("--levels", type=int, help="hierarchy levels to draw when no run is an HCMT with a hierarchy")
+    p.add_argument("--attention-frame", type=int, help="frame of the attention maps (default: the impact)")
+    p.add_argument("--limit", type=int, help="error curves: roll out only the first N trajectories where needed")
+
+
+def _slug(label: str) -> str:
+    return re.sub(r"[^a-z0-9]+", "_", label.lower()).strip("_")
+
+
+def main_plot(args: argparse.Namespace) -> int:
+    import yaml
+
+    from hcmt.viz.rollouts import load_case, unique_labels
+
+    only = _only(args.only)
+    frames = _frames(args.frames)
+    out = Path(args.out)
+    labels = unique_labels(args.runs)
+    written, notes = [], []
+    case = None
+    if {"contours", "animation", "hierarchy"} & set(only):
+        case = load_case(args.runs, args.data, args.split, args.trajectory, labels)
+    if "contours" in only:
+        from hcmt.viz.contours import plot_contours
+
+        written += plot_contours(case, out, frames, cmap=args.cmap, scale=args.scale)
+    if "animation" in only:
+        from hcmt.viz.animation import animate
+
+        written.append(animate(case, out / "rollout.gif", fps=args.fps, stride=args.stride, cmap=args.cmap))
+    if "errors" in only:
+        from hcmt.data.format import read_meta
+        from hcmt.viz.curves import plot_error_curves, rollout_errors
+
+        errors = rollout_errors(args.runs, args.data, args.split, labels, limit=args.limit)
+        written.append(plot_error_curves(errors, read_meta(args.data), out / "rollout_error.png"))
+    if "training" in only:
+        from hcmt.data.format import read_meta
+        from hcmt.viz.curves import plot_training_curves
+
+        logged = [(r, lab) for r, lab in zip(args.runs, labels) if (Path(r) / "log.jsonl").is_file()]
+        if logged:
+            written.append(plot_training_curves([r for r, _ in logged], read_meta(args.data),
+                                                out / "training_curves.png", [lab for _, lab in logged]))
+        else:
+            notes.append("training curves: no run has a log.jsonl")
+    if "hierarchy" in only:
+        from hcmt.graph.hierarchy import cached_hierarchy, hierarchy_cache_dir
+        from hcmt.train.trainer import uses_hierarchy
+        from hcmt.viz.hierarchy import plot_hierarchy
+
+        levels, remesh = args.levels, True
+        if levels is None:
+            for run in args.runs:
+                lv, rm = uses_hierarchy(yaml.safe_load((Path(run) / "run.yaml").read_text())["model"])
+                if lv:
+                    levels, remesh = lv, rm
+                    break
+        if levels:
+            h = cached_hierarchy(case.mesh_pos, case.cells, case.node_type, levels, remesh,
+                                 cache_dir=hierarchy_cache_dir(args.data))
+            written += plot_hierarchy(case.mesh_pos, h, out, length_unit=case.unit("length"),
+                                      node_type=case.node_type)
+        else:
+            notes.append("hierarchy: no run uses a mesh hierarchy; pass --levels N to draw one")
+    if "attention" in only:
+        from hcmt.viz.attention import frame_attention, plot_attention
+
+        for run, label in zip(args.runs, labels):
+            name = yaml.safe_load((Path(run) / "run.yaml").read_text())["model"]["name"]
+            if name not in ("hcmt", "gt"):
+                notes.append(f"attention: {label} ({run}) is not a Transformer; skipped")
+                continue
+            maps = frame_attention(run, args.data, args.split, args.trajectory, args.attention_frame)
+            maps.model = label
+            written.append(plot_attention(maps, out / f"attention_{_slug(label)}.png"))
+    for path in written:
+        print(f"wrote {path}")
+    for note in notes:
+        print(f"note: {note}")
+    return 0
+
+
+# -- export --------------------------------------------------------------------------------------------------------
+def configure_export(p: argparse.ArgumentParser) -> None:
+    _common(p)
+    p.add_argument("--format", default="vtu", choices=["vtu", "xdmf"],
+                   help="vtu: one file per frame + a .pvd collection; xdmf: one .xdmf + .h5 per series")
+    p.add_argument("--trajectory", default="0", help="index or name of the trajectory, or 'all' (default 0)")
+    p.add_argument("--stride", type=int, default=1, help="export every N-th frame (default: all)")
+
+
+def main_export(args: argparse.Namespace) -> int:
+    import h5py
+
+    from hcmt.data.format import Split
+    from hcmt.train.cli import rollout_path, run_rollouts
+    from hcmt.viz.export import export_case
+    from hcmt.viz.rollouts import load_case, unique_labels
+
+    if args.stride < 1:
+        raise ValueError(f"--stride must be >= 1, got {args.stride}")
+    with Split(args.data, args.split) as s:
+        names = list(s.names)
+    if args.trajectory == "all":
+        for run in args.runs:  # roll the whole split out once rather than trajectory by trajectory
+            path = rollout_path(run, args.split)
+            have = set()
+            if path.is_file():
+                with h5py.File(path, "r") as f:
+                    have = set(f.keys())
+            if not set(names) <= have:
+                run_rollouts(run, args.data, args.split)
+        picks = names
+    else:
+        picks = [args.trajectory]
+    labels = unique_labels(args.runs)
+    for t in picks:
+        case = load_case(args.runs, args.data, args.split, t, labels)
+        frames = list(range(0, case.num_frames, args.stride))
+        for path in export_case(case, args.out, args.format, frames):
+            print(f"wrote {path}")
+    if args.format == "xdmf":
+        print("note: XDMF stores the initial positions; apply Warp By Vector with 'displacement' in ParaView")
+    return 0

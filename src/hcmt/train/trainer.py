@@ -17,6 +17,7 @@ from __future__ import annotations
 import json
 import math
 import os
+import sys
 import time
 from pathlib import Path
 
@@ -158,7 +159,7 @@ def train(cfg: dict, data: str | Path, model_name: str, out: str | Path, *, abla
     from tqdm import tqdm
 
     bar = tqdm(total=steps, initial=step, disable=not progress or rank != 0, desc=f"train {model_name}",
-               dynamic_ncols=True)
+               dynamic_ncols=True, mininterval=0.1 if sys.stderr.isatty() else 30.0)
     times, last_loss = [], float("nan")
 
     def save(path):

@@ -23,7 +23,7 @@ ROOT = Path(__file__).resolve().parent
 RESULTS = ROOT / "results"
 
 # The accuracy study's scale (stated in docs/RESULTS.md): `small` preset, CPU budget per run.
-DATASET = dict(preset="small", train=40, valid=4, test=10, seed=2024, variants=True)
+DATASET = dict(preset="small", train=40, valid=4, test=10, seed=2024, variants=20)
 
 
 def dataset(work: Path, spec: dict = DATASET) -> Path:
@@ -31,7 +31,9 @@ def dataset(work: Path, spec: dict = DATASET) -> Path:
     if not (data / "meta.json").is_file():
         args = ["generate", "impact-plate", str(data), "--preset", spec["preset"], "--train", str(spec["train"]),
                 "--valid", str(spec["valid"]), "--test", str(spec["test"]), "--seed", str(spec["seed"]),
-                "--workers", "2"] + (["--variants"] if spec.get("variants") else [])
+                "--workers", "2", "--no-progress"]
+        if spec.get("variants"):
+            args += ["--variants", "--variant-count", str(spec["variants"])]
         if hcmt(args):
             sys.exit("dataset generation failed")
     return data

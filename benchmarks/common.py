@@ -28,7 +28,8 @@ DATASET = dict(preset="small", train=40, valid=4, test=10, seed=2024, variants=2
 
 def dataset(work: Path, spec: dict = DATASET) -> Path:
     data = work / f"impact_plate_{spec['preset']}_{spec['train']}"
-    if not (data / "meta.json").is_file():
+    complete = all((data / f"{s}.h5").is_file() for s in ("train", "valid", "test")) and not (data / ".parts").exists()
+    if not complete:  # the generator resumes an interrupted run, reusing finished trajectories
         args = ["generate", "impact-plate", str(data), "--preset", spec["preset"], "--train", str(spec["train"]),
                 "--valid", str(spec["valid"]), "--test", str(spec["test"]), "--seed", str(spec["seed"]),
                 "--workers", "2", "--no-progress"]

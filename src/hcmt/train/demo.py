@@ -26,7 +26,7 @@ def main(args: argparse.Namespace) -> int:
     out = Path(args.out)
     data, run = out / "impact_plate_small", out / "run_hcmt"
     t0 = time.perf_counter()
-    if not (data / "meta.json").is_file():
+    if not (data / "test.h5").is_file() or (data / ".parts").exists():  # the generator resumes where it stopped
         print(f"[1/3] generating the small Impact Plate dataset in {data}")
         rc = hcmt(["generate", "impact-plate", str(data), "--preset", "small", "--train", str(args.train),
                    "--valid", "1", "--test", str(args.test), "--seed", str(args.seed), "--workers", str(args.workers)])

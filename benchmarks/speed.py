@@ -1,0 +1,181 @@
+"""Speed (issue 8, item 4): learned rollout against the solver on the same trajectories, and how a training step's
+time and peak memory grow with node count.
+
+    python benchmarks/speed.py rollout --n 3 [--run RUN]        # paper preset: solver s/trajectory vs HCMT/MGN rollout
+    python benchmarks/speed.py scaling [--sizes 1000 2000 4000 8000 16000 32000 64000]
+
+``rollout``: simulates ``n`` paper-preset designs with the generator's solver (timed), then rolls HCMT and MGN out
+over the same trajectories (timed per step: graph building, contact search and the model, no I/O). With ``--run``
+the models come from trained runs (``RUN_HCMT RUN_MGN``); otherwise freshly initialized ones with the paper's
+Impact Plate sizes (the time per step does not depend on the weights while the state stays finite).
+
+``scaling``: Impact Plate meshes refined to each target node count (``sim.mesh.impact_plate_mesh`` with a smaller
+element size), one training step (forward + loss + backward + Adam) of HCMT and MGN at paper sizes, median of
+``--reps``; each (model, size) in a fresh process so that its peak resident memory (``ru_maxrss``) is its own.
+Fits time ∝ N^k by least squares in log-log.
+
+Writes benchmarks/results/speed_rollout.json and benchmarks/results/speed_scaling.json.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import resource
+import statistics
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import torch
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from common import write_json  # noqa: E402
+
+from hcmt.graph.hierarchy import build_hierarchy  # noqa: E402
+from hcmt.models import build_for_dataset  # noqa: E402
+from hcmt.sim.mesh import impact_plate_mesh  # noqa: E402
+
+
+def _rollout(args) -> None:
+    from hcmt.sim.generate import trajectory_rng
+    from hcmt.sim.scene import Settings, sample_design, simulate
+    from hcmt.train.adapters import get_adapter
+    from hcmt.train.data import prepare_trajectory
+    from hcmt.train.rollout import rollout
+    from hcmt.train.trainer import load_run
+
+    adapter = get_adapter("impact_plate")
+    models = {}
+    if args.run:
+        for run in args.run:
+            m, info = load_run(run)
+            models[info["model"]["name"]] = (m, int(info["model"].get("levels", 0)) if info["model"]["name"] == "hcmt" else 0)
+    else:
+        torch.manual_seed(0)
+        models = {"hcmt": (build_for_dataset("hcmt", "impact_plate"), 6), "mgn": (build_for_dataset("mgn", "impact_plate"), 0)}
+    rows = []
+    for i in range(args.n):
+        design = sample_design(trajectory_rng(args.seed, "test", i), "paper")
+        t0 = time.perf_counter()
+        sim = simulate(design, Settings())
+        solver_s = time.perf_counter() - t0
+        fields = sim["fields"]
+        steps = fields["world_pos"].shape[0] - 1
+        row = {"nodes": int(fields["mesh_pos"].shape[0]), "frames": steps + 1, "solver_s": solver_s,
+               "solver_ms_per_frame": 1e3 * solver_s / steps}
+        for name, (model, levels) in models.items():
+            traj = prepare_trajectory(fields, f"design{i}", adapter, levels)
+            try:
+                r = rollout(model, adapter, traj, 0.4)
+                row[f"{name}_ms_per_step"] = r["ms_per_step"]
+            except RuntimeError as exc:  # an untrained model may diverge: report it rather than a time
+                row[f"{name}_ms_per_step"] = None
+                row[f"{name}_error"] = str(exc)
+        rows.append(row)
+        print(json.dumps(row), flush=True)
+    summary = {"trajectories": rows, "threads": torch.get_num_threads(), "trained_runs": args.run or None}
+    summary["solver_ms_per_frame"] = statistics.median(r["solver_ms_per_frame"] for r in rows)
+    for name in models:
+        vals = [r[f"{name}_ms_per_step"] for r in rows if r.get(f"{name}_ms_per_step")]
+        if vals:
+            summary[f"{name}_ms_per_step"] = statistics.median(vals)
+            summary[f"{name}_speedup_vs_solver"] = summary["solver_ms_per_frame"] / summary[f"{name}_ms_per_step"]
+    path = write_json("speed_rollout.json", summary)
+    print(json.dumps({k: v for k, v in summary.items() if k != "trajectories"}, indent=2))
+    print(f"wrote {path}")
+
+
+def mesh_with_nodes(target: int) -> dict:
+    """An Impact Plate mesh refined until it has about ``target`` nodes (element size ∝ 1/sqrt(N))."""
+    h = 0.125 * np.sqrt(2150 / target)
+    for _ in range(6):
+        mesh = impact_plate_mesh(0.75, 3.5, h)
+        n = len(mesh["mesh_pos"])
+        if abs(n - target) / target < 0.1:
+            break
+        h *= np.sqrt(n / target)
+    return mesh
+
+
+def _one(model_name: str, target: int, reps: int) -> dict:
+    """One (model, size) measurement; run in its own process."""
+    from hcmt.graph.build import frame_graph
+
+    mesh = mesh_with_nodes(target)
+    n = len(mesh["mesh_pos"])
+    levels = 6 if model_name == "hcmt" else 0
+    t0 = time.perf_counter()
+    h = build_hierarchy(mesh["mesh_pos"], mesh["cells"], mesh["node_type"], levels)
+    hierarchy_ms = 1e3 * (time.perf_counter() - t0)
+    rng = np.random.default_rng(0)
+    mesh_pos = torch.from_numpy(mesh["mesh_pos"]).float()
+    world = mesh_pos + torch.from_numpy(rng.normal(scale=0.005, size=mesh_pos.shape)).float()
+    feats = torch.cat([torch.nn.functional.one_hot(torch.from_numpy(mesh["node_type"]), 9).float(),
+                       torch.from_numpy(rng.normal(size=(n, 4))).float()], 1)
+    torch.manual_seed(0)
+    model = build_for_dataset(model_name, "impact_plate")
+    opt = torch.optim.Adam(model.parameters(), 1e-4)
+    target_out = torch.randn(n, 3)
+    times = []
+    for i in range(reps + 1):
+        t0 = time.perf_counter()
+        g = frame_graph(feats, mesh_pos, world, None, h, None, 0.4)
+        loss = ((model(g, accumulate=True) - model.normalize_target(target_out, accumulate=True)) ** 2).mean()
+        opt.zero_grad()
+        loss.backward()
+        opt.step()
+        if i:  # the first step warms up allocators
+            times.append(1e3 * (time.perf_counter() - t0))
+    return {"model": model_name, "nodes": n, "edges": int(g.mesh_edges.shape[1]), "train_ms": statistics.median(times),
+            "hierarchy_ms": hierarchy_ms, "peak_rss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024}
+
+
+def _scaling(args) -> None:
+    rows = []
+    for size in args.sizes:
+        for model in ("hcmt", "mgn"):
+            out = subprocess.run([sys.executable, __file__, "one", model, str(size), "--reps", str(args.reps)],
+                                 capture_output=True, text=True, env={**os.environ, "PYTHONUNBUFFERED": "1"})
+            if out.returncode:
+                print(out.stderr[-2000:], file=sys.stderr)
+                continue
+            rows.append(json.loads(out.stdout.strip().splitlines()[-1]))
+            print(json.dumps(rows[-1]), flush=True)
+    fits = {}
+    for model in ("hcmt", "mgn"):
+        r = [x for x in rows if x["model"] == model]
+        if len(r) >= 2:
+            k, _ = np.polyfit(np.log([x["nodes"] for x in r]), np.log([x["train_ms"] for x in r]), 1)
+            fits[model] = float(k)
+    path = write_json("speed_scaling.json", {"rows": rows, "exponent": fits, "threads": torch.get_num_threads()})
+    print(f"time ∝ N^k: {fits}\nwrote {path}")
+
+
+def main() -> None:
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    sub = p.add_subparsers(dest="what", required=True)
+    r = sub.add_parser("rollout")
+    r.add_argument("--n", type=int, default=3)
+    r.add_argument("--seed", type=int, default=0)
+    r.add_argument("--run", nargs="+", help="trained run folders (HCMT and/or MGN)")
+    s = sub.add_parser("scaling")
+    s.add_argument("--sizes", type=int, nargs="+", default=[1000, 2000, 4000, 8000, 16000, 32000, 64000])
+    s.add_argument("--reps", type=int, default=3)
+    o = sub.add_parser("one")
+    o.add_argument("model")
+    o.add_argument("size", type=int)
+    o.add_argument("--reps", type=int, default=3)
+    a = p.parse_args()
+    if a.what == "rollout":
+        _rollout(a)
+    elif a.what == "scaling":
+        _scaling(a)
+    else:
+        print(json.dumps(_one(a.model, a.size, a.reps)))
+
+
+if __name__ == "__main__":
+    main()

@@ -27,6 +27,7 @@ import torch
 from torch import Tensor
 
 from hcmt.data.format import NODE_TYPE_SIZE, NodeType
+from hcmt.models.updater import update_positions
 
 
 @dataclass(frozen=True)
@@ -121,13 +122,10 @@ def integrate(adapter: Adapter, output: Tensor, pos: Tensor, prev: Tensor, true_
     """The updater plus boundary conditions: physical output -> (x^{t+1}, σ^{t+1} or None).
 
     Positions set by boundary conditions are copied from ``true_next`` (the data's next frame)."""
-    dim = pos.shape[1]
-    kin = output[:, :dim]
-    nxt = pos + kin if adapter.order == 1 else 2 * pos - prev + kin
-    keep = position_mask(adapter, node_type, dim).bool()
+    nxt, rest = update_positions(output, pos, prev, order=adapter.order)
+    keep = position_mask(adapter, node_type, pos.shape[1]).bool()
     nxt = torch.where(keep, nxt, true_next)
-    stress = output[:, dim:dim + 1] if adapter.stress_output else None
-    return nxt, stress
+    return nxt, (rest[:, :1] if adapter.stress_output else None)
 
 
 def noise_mask(node_type: Tensor) -> Tensor:

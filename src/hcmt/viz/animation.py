@@ -22,8 +22,8 @@ from hcmt.viz.rollouts import Case, quantity_label
 
 def animation_frames(num_frames: int, stride: int | None = None, max_frames: int = 100) -> list[int]:
     """Frames drawn: every ``stride``-th (default: the stride that keeps at most ``max_frames``), and the last."""
-    if stride is None:
-        stride = max(1, int(np.ceil(num_frames / max_frames)))
+    if stride is None:  # the last frame is added below, so at most max_frames - 1 strides fit
+        stride = 1 if num_frames <= max_frames else int(np.ceil((num_frames - 1) / (max_frames - 1)))
     if stride < 1:
         raise ValueError(f"stride must be >= 1, got {stride}")
     frames = list(range(0, num_frames, stride))

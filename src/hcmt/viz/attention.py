@@ -124,7 +124,7 @@ def frame_attention(run: str | Path, data: str | Path, split: str = "test", traj
         traj = prepare_trajectory(s[index], s.names[index], adapter, levels, remesh, hierarchy_cache_dir(data),
                                   s.attrs(index))
     world = traj.world_pos
-    obj = traj.object_id.numpy()
+    obj = np.asarray(traj.hierarchy.object_id)
     h = adapter.history
     T = traj.num_steps
     if frame is None:
@@ -134,7 +134,7 @@ def frame_attention(run: str | Path, data: str | Path, split: str = "test", traj
                          f"(the previous frame as input, the next one for prescribed nodes)")
     feats = node_features(adapter, traj.static, world[frame], world[frame - h], world[frame + 1])
     graph = build_graph(traj, world[frame], feats, float(cfg["train"]["contact_radius"]))
-    level_nodes = [v.numpy() for v in traj.level_nodes]
+    level_nodes = [np.asarray(v) for v in traj.hierarchy.nodes[1:]]
     maps = maps_from_model(model, graph, obj, level_nodes)
     nt = traj.static["node_type"].numpy()
     return AttentionMaps(maps["matrices"], maps["levels"], [obj] + [obj[v] for v in level_nodes],

@@ -14,7 +14,7 @@ from common import dataset, run_and_evaluate, write_json
 
 ABLATIONS = [None, "late-contact", "only-hmt", "only-cmt", "lpe", "single-branch", "no-remesh"]
 CLIPS = [1.0, 3.0]
-LEVELS = [1, 2, 3, 4, 5]
+LEVELS = [1, 2, 3, 4]
 
 
 def row(m: dict) -> dict:
@@ -26,27 +26,29 @@ def main() -> None:
     p.add_argument("--work", type=Path, default=Path("benchmarks/work"))
     p.add_argument("--steps", type=int, default=3000)
     p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--part", choices=["ablations", "levels", "all"], default="all")
     a = p.parse_args()
     data = dataset(a.work)
     base = [f"train.steps={a.steps}"]
-    abl = {}
-    for name in ABLATIONS:
+    abl, lev = {}, {}
+    for name in ABLATIONS if a.part != "levels" else []:
         label = name or "hcmt"
         print(label, flush=True)
         run = f"acc_hcmt_s{a.seed}_{a.steps}" if name is None else f"abl_{label}_s{a.seed}_{a.steps}"
         abl[label] = row(run_and_evaluate(a.work, data, run, "hcmt", a.seed, base, ablation=name)["test"])
-    for c in CLIPS:
+    for c in CLIPS if a.part != "levels" else []:
         print(f"clip {c}", flush=True)
         abl[f"clip-{c:g}"] = row(run_and_evaluate(a.work, data, f"abl_clip{c:g}_s{a.seed}_{a.steps}", "hcmt", a.seed,
                                                   base + [f"model.clip={c}"])["test"])
-    write_json("ablations.json", {"seed": a.seed, "steps": a.steps, "rows": abl})
-    lev = {}
-    for lam in LEVELS:
+    if abl:
+        write_json("ablations.json", {"seed": a.seed, "steps": a.steps, "rows": abl})
+    for lam in LEVELS if a.part != "ablations" else []:
         print(f"levels {lam}", flush=True)
         name = f"lev{lam}_s{a.seed}_{a.steps}"
         lev[lam] = row(run_and_evaluate(a.work, data, name, "hcmt", a.seed,
                                         base + [f"model.levels={lam}", f"model.L_H={2 * lam + 1}"])["test"])
-    write_json("levels.json", {"seed": a.seed, "steps": a.steps, "L_C": 2, "rows": lev})
+    if lev:
+        write_json("levels.json", {"seed": a.seed, "steps": a.steps, "L_C": 2, "rows": lev})
     for k, v in abl.items():
         print(f"{k:<16} position {v['position']['rmse_all']:10.4g}  stress {v['stress']['rmse_all']:10.4g}")
     for k, v in lev.items():

@@ -44,7 +44,8 @@ def main() -> None:
         write_json("ablations.json", {"seed": a.seed, "steps": a.steps, "rows": abl})
     for lam in LEVELS if a.part != "ablations" else []:
         print(f"levels {lam}", flush=True)
-        name = f"lev{lam}_s{a.seed}_{a.steps}"
+        # λ = 4 is the accuracy study's HCMT configuration (impact_plate_cpu): reuse that run
+        name = f"acc_hcmt_s{a.seed}_{a.steps}" if lam == 4 else f"lev{lam}_s{a.seed}_{a.steps}"
         lev[lam] = row(run_and_evaluate(a.work, data, name, "hcmt", a.seed,
                                         base + [f"model.levels={lam}", f"model.L_H={2 * lam + 1}"])["test"])
     if lev:

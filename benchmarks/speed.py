@@ -100,8 +100,13 @@ def mesh_with_nodes(target: int) -> dict:
     return mesh
 
 
+MEMORY_CAP_GB = 12  # per measurement process: a size that needs more fails cleanly instead of meeting the OOM killer
+
+
 def _one(model_name: str, target: int, reps: int) -> dict:
     """One (model, size) measurement; run in its own process."""
+    cap = MEMORY_CAP_GB << 30
+    resource.setrlimit(resource.RLIMIT_AS, (cap, cap))
     from hcmt.graph.build import frame_graph
 
     mesh = mesh_with_nodes(target)
@@ -140,13 +145,15 @@ def _scaling(args) -> None:
             out = subprocess.run([sys.executable, __file__, "one", model, str(size), "--reps", str(args.reps)],
                                  capture_output=True, text=True, env={**os.environ, "PYTHONUNBUFFERED": "1"})
             if out.returncode:
-                print(out.stderr[-2000:], file=sys.stderr)
+                err = out.stderr.strip().splitlines()[-1] if out.stderr.strip() else f"exit {out.returncode}"
+                rows.append({"model": model, "target_nodes": size, "failed": err[-300:]})
+                print(json.dumps(rows[-1]), flush=True)
                 continue
             rows.append(json.loads(out.stdout.strip().splitlines()[-1]))
             print(json.dumps(rows[-1]), flush=True)
     fits = {}
     for model in ("hcmt", "mgn"):
-        r = [x for x in rows if x["model"] == model]
+        r = [x for x in rows if x["model"] == model and "train_ms" in x]
         if len(r) >= 2:
             k, _ = np.polyfit(np.log([x["nodes"] for x in r]), np.log([x["train_ms"] for x in r]), 1)
             fits[model] = float(k)

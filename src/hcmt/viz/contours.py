@@ -5,7 +5,7 @@ scale and colour bar, set by the ground truth at that frame (from 0 for a non-ne
 stress), so ground truth and predictions are compared colour for colour; predictions beyond that range saturate
 and the colour bar's end arrows say so. One scale per row rather than per figure (``scale="frame"``, our choice):
 the impact's peak stress is many times the stress a few frames later, and one scale for all frames leaves the later
-rows a single dark colour; ``scale="all"`` gives one scale for the whole figure. The colour bar carries the unit
+rows a single dark colour; ``scale="all"`` gives every row the same scale (each row still has its colour bar). The colour bar carries the unit
 from meta.json (``units.stress``). A dataset without stress (Sphere Simple,
 Deformable Plate) is drawn with the displacement magnitude ``||x_t - x_0||`` instead.
 
@@ -123,34 +123,32 @@ def contour_figure(case: Case, frames: list[int] | None = None, *, field: str | 
     else:
         windows = [view_box(case, frames)] * rows
     w, h = panel_size(windows[0], panel_width) if not three_d else (panel_width, panel_width * 0.8)
-    fig = new_figure(w * cols + 1.2, h * rows + 0.6)
+    fig = new_figure(w * cols + 1.2, (h + 0.5) * rows + 0.4)
     length = case.unit("length")
-    for r, f in enumerate(frames):
+    for r, (f, sub) in enumerate(zip(frames, np.atleast_1d(fig.subfigures(rows, 1)))):  # one row per frame
         norm, extend = norms[r]
+        sub.suptitle(case.time_label(f), fontsize=9, fontweight="bold")
         row_axes = []
         for c, s in enumerate(series):
             if three_d:
-                ax = fig.add_subplot(rows, cols, r * cols + c + 1, projection="3d")
+                ax = sub.add_subplot(1, cols, c + 1, projection="3d")
                 mappable = draw_field_3d(ax, s.world_pos[f], case.cells, field_values(s, f, field), norm, cmap)
             else:
-                ax = fig.add_subplot(rows, cols, r * cols + c + 1)
+                ax = sub.add_subplot(1, cols, c + 1)
                 mappable = draw_field_2d(ax, s.world_pos[f], case.cells, field_values(s, f, field), norm, cmap,
                                          edges=zoom)
                 x0, x1, y0, y1 = windows[r]
                 ax.set_xlim(x0, x1)
                 ax.set_ylim(y0, y1)
-                if not zoom and c == 0 and len(case.predictions) and not three_d:
+                if not zoom and c == 0 and len(case.predictions):
                     zw = impact_window(case.truth.world_pos[f], obj, case.truth.world_pos[0])
                     if zw is not None:
                         ax.add_patch(Rectangle((zw[0], zw[2]), zw[1] - zw[0], zw[3] - zw[2], fill=False,
                                                ec="red", lw=1.0))
                 ax.tick_params(labelsize=7)
-                if r == rows - 1:
-                    ax.set_xlabel(quantity_label("x", length), fontsize=8)
-                else:
-                    ax.tick_params(labelbottom=False)
+                ax.set_xlabel(quantity_label("x", length), fontsize=8)
                 if c == 0:
-                    ax.set_ylabel(f"{case.time_label(f)}\n" + quantity_label("y", length), fontsize=8)
+                    ax.set_ylabel(quantity_label("y", length), fontsize=8)
                 else:
                     ax.tick_params(labelleft=False)
             title = s.label
@@ -158,15 +156,11 @@ def contour_figure(case: Case, frames: list[int] | None = None, *, field: str | 
                 unit = case.unit("stress" if field == "stress" else "length")
                 what = "stress" if field == "stress" else "position"
                 title += f"\n{what} RMSE {frame_rmse(s, case.truth, f, field):.3g}" + (f" {unit}" if unit else "")
-            elif three_d:
-                title += f"\n{case.time_label(f)}"
             ax.set_title(title, fontsize=9)
             row_axes.append(ax)
-        if scale == "frame" or r == rows - 1:
-            cbar = fig.colorbar(mappable, ax=row_axes if scale == "frame" else fig.axes, extend=extend,
-                                aspect=15 if scale == "frame" else 30)
-            cbar.set_label(field_label(case, field), fontsize=8)
-            cbar.ax.tick_params(labelsize=7)
+        cbar = sub.colorbar(mappable, ax=row_axes, extend=extend, aspect=15)
+        cbar.set_label(field_label(case, field), fontsize=8)
+        cbar.ax.tick_params(labelsize=7)
     what = "impact zoom, mesh edges in white" if zoom else "whole scene"
     if not zoom and not three_d and len(case.predictions):
         what += "; red box: the zoomed view"

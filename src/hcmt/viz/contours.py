@@ -123,7 +123,7 @@ def contour_figure(case: Case, frames: list[int] | None = None, *, field: str | 
     else:
         windows = [view_box(case, frames)] * rows
     w, h = panel_size(windows[0], panel_width) if not three_d else (panel_width, panel_width * 0.8)
-    fig = new_figure(w * cols + 1.2, (h + 0.5) * rows + 0.4)
+    fig = new_figure(w * cols + 1.2, (h + 0.9) * rows + 0.4)  # + row title, panel titles, x label
     length = case.unit("length")
     for r, (f, sub) in enumerate(zip(frames, np.atleast_1d(fig.subfigures(rows, 1)))):  # one row per frame
         norm, extend = norms[r]

@@ -83,13 +83,18 @@ def quantity_label(name: str, unit: str | None) -> str:
     return f"{name} [{unit}]" if unit else f"{name} (unit not in meta.json)"
 
 
+#: the paper's model names; "GT" alone would read as "ground truth" beside the ground truth
+DISPLAY_NAMES = {"hcmt": "HCMT", "mgn": "MGN", "gt": "GT (Graph Transformer)"}
+
+
 def run_label(run: str | Path) -> str:
-    """The model's name as the paper writes it (``HCMT``, ``MGN``, ``GT``), with its ablation."""
+    """The model's name as the paper writes it (``HCMT``, ``MGN``, ``GT (Graph Transformer)``), with its
+    ablation."""
     path = Path(run) / "run.yaml"
     if not path.is_file():
         raise FileNotFoundError(f"{path}: not a run folder (made by `hcmt train --out RUN`)")
     info = yaml.safe_load(path.read_text()).get("model", {})
-    label = str(info.get("name", Path(run).name)).upper()
+    label = DISPLAY_NAMES.get(info.get("name"), str(info.get("name", Path(run).name)).upper())
     return label + (f" ({info['ablation']})" if info.get("ablation") else "")
 
 

@@ -15,7 +15,7 @@ import numpy as np
 from matplotlib import colors
 
 from hcmt.viz.contours import field_label, field_name, field_values, view_box
-from hcmt.viz.meshplot import (closest_pair, draw_field_2d, draw_field_3d, extend_of, impact_window, new_figure,
+from hcmt.viz.meshplot import (box_3d, closest_pair, draw_field_2d, draw_field_3d, extend_of, impact_window, new_figure,
                                panel_size)
 from hcmt.viz.rollouts import Case, quantity_label
 
@@ -109,6 +109,7 @@ def animate(case: Case, path: str | Path, *, fps: int = 10, stride: int | None =
             if r == rows - 1:
                 ax.set_xlabel(quantity_label("x", length), fontsize=7)
     title = fig.suptitle(" ", fontsize=10)
+    limits3d = box_3d(list(case.truth.world_pos)) if three_d else None  # one box for every panel and frame
     last = case.num_frames - 1
     starts = min(s.start for s in case.predictions) if case.predictions else 0
 
@@ -120,7 +121,8 @@ def animate(case: Case, path: str | Path, *, fps: int = 10, stride: int | None =
                 before = set(ax.get_children())
                 values = field_values(s, f, field)
                 if three_d:
-                    draw_field_3d(ax, s.world_pos[f], case.cells, values, norm, cmap)
+                    draw_field_3d(ax, s.world_pos[f], case.cells, values, norm, cmap, limits=limits3d,
+                                  length_unit=length)
                 else:
                     draw_field_2d(ax, s.world_pos[f], case.cells, values, norm, cmap, edges=r == 1)
                     ax.set_xlim(*(box if r == 0 else window)[:2])

@@ -223,8 +223,8 @@ def attention_figure(maps: AttentionMaps, panels: list[tuple[str, str]] | None =
     cbar = fig.colorbar(mappable, ax=fig.axes, aspect=40)
     cbar.set_label("attention weight $a_{ij}$\n(mean over heads and channels)", fontsize=8)
     fig.suptitle(f"Attention maps of {maps.model}, trajectory {maps.trajectory}, frame {maps.frame} "
-                 "\nrow i: how receiver i spreads its attention over its senders j (each row sums to 1); red lines: object "
-                 "blocks", fontsize=9)
+                 "\nrow i: how receiver i spreads its attention over its senders j (each row sums to 1); "
+                 "red lines: object blocks", fontsize=9)
     return fig
 
 

@@ -5,8 +5,8 @@ scale and colour bar, set by the ground truth at that frame (from 0 for a non-ne
 stress), so ground truth and predictions are compared colour for colour; predictions beyond that range saturate
 and the colour bar's end arrows say so. One scale per row rather than per figure (``scale="frame"``, our choice):
 the impact's peak stress is many times the stress a few frames later, and one scale for all frames leaves the later
-rows a single dark colour; ``scale="all"`` gives every row the same scale (each row still has its colour bar). The colour bar carries the unit
-from meta.json (``units.stress``). A dataset without stress (Sphere Simple,
+rows a single dark colour; ``scale="all"`` gives every row the same scale (each row still has its colour bar).
+The colour bar carries the unit from meta.json (``units.stress``). A dataset without stress (Sphere Simple,
 Deformable Plate) is drawn with the displacement magnitude ``||x_t - x_0||`` instead.
 
 Two pictures for a 2-D scene: the whole scene, with the zoom window marked by a red box (as the paper's Fig. 5), and
@@ -21,7 +21,7 @@ import numpy as np
 from matplotlib import colors
 from matplotlib.patches import Rectangle
 
-from hcmt.viz.meshplot import (draw_field_2d, draw_field_3d, extend_of, field_limits, impact_window, new_figure,
+from hcmt.viz.meshplot import (box_3d, draw_field_2d, draw_field_3d, extend_of, field_limits, impact_window, new_figure,
                                panel_size, scene_box)
 from hcmt.viz.rollouts import Case, Series, quantity_label
 
@@ -125,6 +125,7 @@ def contour_figure(case: Case, frames: list[int] | None = None, *, field: str | 
     w, h = panel_size(windows[0], panel_width) if not three_d else (panel_width, panel_width * 0.8)
     fig = new_figure(w * cols + 1.2, (h + 0.9) * rows + 0.4)  # + row title, panel titles, x label
     length = case.unit("length")
+    limits3d = box_3d([case.truth.world_pos[f] for f in frames]) if three_d else None  # shared by every panel
     for r, (f, sub) in enumerate(zip(frames, np.atleast_1d(fig.subfigures(rows, 1)))):  # one row per frame
         norm, extend = norms[r]
         sub.suptitle(case.time_label(f), fontsize=9, fontweight="bold")
@@ -132,7 +133,8 @@ def contour_figure(case: Case, frames: list[int] | None = None, *, field: str | 
         for c, s in enumerate(series):
             if three_d:
                 ax = sub.add_subplot(1, cols, c + 1, projection="3d")
-                mappable = draw_field_3d(ax, s.world_pos[f], case.cells, field_values(s, f, field), norm, cmap)
+                mappable = draw_field_3d(ax, s.world_pos[f], case.cells, field_values(s, f, field), norm, cmap,
+                                         limits=limits3d, length_unit=length)
             else:
                 ax = sub.add_subplot(1, cols, c + 1)
                 mappable = draw_field_2d(ax, s.world_pos[f], case.cells, field_values(s, f, field), norm, cmap,
@@ -164,7 +166,8 @@ def contour_figure(case: Case, frames: list[int] | None = None, *, field: str | 
     what = "impact zoom, mesh edges in white" if zoom else "whole scene"
     if not zoom and not three_d and len(case.predictions):
         what += "; red box: the zoomed view"
-    fig.suptitle(f"{field.capitalize()} on the deformed mesh, trajectory {case.name} ({what})", fontsize=10)
+    name = "Stress" if field == "stress" else "Displacement magnitude"
+    fig.suptitle(f"{name} on the deformed mesh, trajectory {case.name} ({what})", fontsize=10)
     return fig
 
 

@@ -147,7 +147,8 @@ def plot_training_curves(runs: list[str | Path], meta: dict, path: str | Path, l
     panels = ["loss", "lr", "valid/position_rmse_all"] + (["valid/stress_rmse_all"] if has_stress else [])
     units = meta.get("units") or {}
     titles = {"loss": ("training loss", "one-step MSE, normalized"), "lr": ("learning rate", "learning rate"),
-              "valid/position_rmse_all": ("validation rollout", quantity_label("position RMSE-all", units.get("length"))),
+              "valid/position_rmse_all": ("validation rollout",
+                                          quantity_label("position RMSE-all", units.get("length"))),
               "valid/stress_rmse_all": ("validation rollout", quantity_label("stress RMSE-all", units.get("stress")))}
     fig = new_figure(8.4, 6.4)
     for k, key in enumerate(panels):

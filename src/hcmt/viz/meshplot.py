@@ -79,22 +79,36 @@ def draw_field_2d(ax, pos: np.ndarray, cells: np.ndarray, values: np.ndarray, no
     return artist
 
 
-def draw_field_3d(ax, pos: np.ndarray, cells: np.ndarray, values: np.ndarray, norm, cmap):
-    """Surface triangles of a 3-D mesh, each coloured by its nodes' mean value, at equal scale on every axis."""
+def draw_field_3d(ax, pos: np.ndarray, cells: np.ndarray, values: np.ndarray, norm, cmap, *,
+                  limits: tuple[np.ndarray, np.ndarray] | None = None, length_unit: str | None = None):
+    """Surface triangles of a 3-D mesh, each coloured by its nodes' mean value, at equal scale on every axis.
+    ``limits`` (lo [3], hi [3]): the axes' box, shared by the panels to compare (default: ``pos``'s own)."""
+    from matplotlib.cm import ScalarMappable
     from mpl_toolkits.mplot3d.art3d import Poly3DCollection
 
     faces = surface_triangles(cells)
     face_values = np.asarray(values, np.float64)[faces].mean(1)
     poly = Poly3DCollection(pos[faces], facecolors=_cmap(cmap)(norm(face_values)), edgecolors="none")
     ax.add_collection3d(poly)
-    lo, hi = pos.min(0), pos.max(0)
-    ax.set_xlim(lo[0], hi[0])
-    ax.set_ylim(lo[1], hi[1])
-    ax.set_zlim(lo[2], hi[2])
-    ax.set_box_aspect(np.maximum(hi - lo, 1e-3 * (hi - lo).max()))
-    from matplotlib.cm import ScalarMappable
-
+    lo, hi = limits if limits is not None else (pos.min(0), pos.max(0))
+    span = np.maximum(hi - lo, 1e-3 * float((hi - lo).max() or 1.0))  # a flat mesh still gets a box
+    ax.set_xlim(lo[0], lo[0] + span[0])
+    ax.set_ylim(lo[1], lo[1] + span[1])
+    ax.set_zlim(lo[2], lo[2] + span[2])
+    ax.set_box_aspect(span)
+    ax.tick_params(labelsize=5, pad=0)
+    ax.locator_params(nbins=4)
+    for axis, name in zip((ax.xaxis, ax.yaxis, ax.zaxis), "xyz"):
+        axis.set_label_text(f"{name} [{length_unit}]" if length_unit else name, fontsize=6)
+        axis.labelpad = -6
     return ScalarMappable(norm=norm, cmap=_cmap(cmap))
+
+
+def box_3d(positions: list[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
+    """(lo, hi) corners enclosing every finite position of the given [N, 3] arrays."""
+    p = np.concatenate([np.asarray(x).reshape(-1, 3) for x in positions])
+    p = p[np.isfinite(p).all(1)]
+    return p.min(0), p.max(0)
 
 
 def _cmap(cmap):

@@ -55,7 +55,7 @@ def closest_frame(case: Case) -> int:
 
 
 def animate(case: Case, path: str | Path, *, fps: int = 10, stride: int | None = None, cmap: str = "viridis",
-            percentile: float = 99.0, dpi: int = 80) -> Path:
+            percentile: float = 99.0, dpi: int = 100) -> Path:
     """Write the animation to ``path`` (``.gif``); returns it. One animation frame per drawn rollout frame
     (:func:`animation_frames`). The zoom row shows one window for the whole animation (the impact window at the
     frame of closest approach), so the view does not jump; everything but the meshes and the title is drawn once

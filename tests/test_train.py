@@ -136,3 +136,10 @@ def test_cli_train_rollout_evaluate_compare(impact, tmp_path, capsys):
     assert table["HCMT"]["position"]["rmse_all"]["mean"] == pytest.approx(np.mean(hc))
     assert table["HCMT"]["position"]["rmse_all"]["std"] == pytest.approx(np.std(hc, ddof=1))
     assert cli(["compare", str(tmp_path)]) == 2  # not a run: clear error
+
+
+def test_graph_batching_trains(impact, tmp_path):
+    """batch_size > 1 collates several frames (from different trajectories) into one disconnected graph."""
+    cfg = load_config("impact_plate_cpu", TINY + ["train.steps=2", "train.batch_size=2"])
+    s = train(cfg, impact, "hcmt", tmp_path / "run", progress=False)
+    assert s["steps"] == 2 and np.isfinite(s["final_loss"])

@@ -4,22 +4,13 @@ import pickle
 
 import numpy as np
 import pytest
-from tfrecord.writer import TFRecordWriter
 
 from hcmt.cli import main as cli
 from hcmt.data.errors import DatasetError
 from hcmt.data.format import NodeType, open_split, read_meta
 from hcmt.data.tfrecord import iter_tfrecord
 
-
-def write_tf_dataset(folder, meta, split_records):
-    folder.mkdir(parents=True, exist_ok=True)
-    (folder / "meta.json").write_text(json.dumps(meta))
-    for split, records in split_records.items():
-        w = TFRecordWriter(str(folder / f"{split}.tfrecord"))
-        for rec in records:
-            w.write({k: ([np.ascontiguousarray(v).tobytes()], "byte") for k, v in rec.items()})
-        w.close()
+from layouts import write_tf_dataset
 
 
 def deforming_plate(folder, steps=3, trajectories=2):

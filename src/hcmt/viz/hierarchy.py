@@ -78,6 +78,18 @@ def _axes(fig, rows, cols, k, three_d):
     return fig.add_subplot(rows, cols, k, **({"projection": "3d"} if three_d else {}))
 
 
+def _view(mesh_pos: np.ndarray, hierarchy: Hierarchy, zoom: bool):
+    """(level-0 positions, whether 3-D, the drawing window: the impact zoom or the whole 2-D scene)."""
+    pos0 = np.asarray(mesh_pos, np.float64)
+    three_d = pos0.shape[1] == 3
+    if zoom and three_d:
+        raise ValueError("the zoomed view is for 2-D meshes")
+    box = impact_window(pos0, hierarchy.object_id) if zoom else (None if three_d else scene_box(pos0))
+    if box is None and not three_d:
+        raise ValueError("a single object: there is no impact to zoom on")
+    return pos0, three_d, box
+
+
 def level_figure(mesh_pos: np.ndarray, hierarchy: Hierarchy, *, levels: list[int] | None = None, zoom: bool = False,
                  length_unit: str | None = None, node_type: np.ndarray | None = None, columns: int = 4):
     """The level-wise meshes (Fig. 4): one panel per level (default all, ``0..λ``); ``zoom`` shows the impact
@@ -86,13 +98,7 @@ def level_figure(mesh_pos: np.ndarray, hierarchy: Hierarchy, *, levels: list[int
     for l in levels:
         if not 0 <= l <= hierarchy.levels:
             raise ValueError(f"level {l} out of range; the hierarchy has levels 0..{hierarchy.levels}")
-    pos0 = np.asarray(mesh_pos, np.float64)
-    three_d = pos0.shape[1] == 3
-    if zoom and three_d:
-        raise ValueError("the zoomed view is for 2-D meshes")
-    box = impact_window(pos0, hierarchy.object_id) if zoom else (None if three_d else scene_box(pos0))
-    if box is None and not three_d:
-        raise ValueError("a single object: there is no impact to zoom on")
+    pos0, three_d, box = _view(mesh_pos, hierarchy, zoom)
     colours = object_colours(hierarchy.object_id)
     cols = min(columns, len(levels))
     rows = int(np.ceil(len(levels) / cols))
@@ -125,13 +131,7 @@ def remeshing_figure(mesh_pos: np.ndarray, hierarchy: Hierarchy, *, zoom: bool =
         raise ValueError("this hierarchy was built without remeshing; build it with remesh=True to compare")
     if hierarchy.levels < 1:
         raise ValueError("the hierarchy has no pooled level (levels=0): nothing was remeshed")
-    pos0 = np.asarray(mesh_pos, np.float64)
-    three_d = pos0.shape[1] == 3
-    if zoom and three_d:
-        raise ValueError("the zoomed view is for 2-D meshes")
-    box = impact_window(pos0, hierarchy.object_id) if zoom else (None if three_d else scene_box(pos0))
-    if box is None and not three_d:
-        raise ValueError("a single object: there is no impact to zoom on")
+    pos0, three_d, box = _view(mesh_pos, hierarchy, zoom)
     colours = object_colours(hierarchy.object_id)
     k_cell = hierarchy.cells[0].shape[1]
     rows = hierarchy.levels

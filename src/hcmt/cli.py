@@ -31,7 +31,10 @@ class CommandError(Exception):
 
 
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog="hcmt", description=__doc__.splitlines()[0])
+    parser = argparse.ArgumentParser(
+        prog="hcmt", description="Learned simulation of flexible bodies in contact: the Hierarchical Contact Mesh "
+        "Transformer (ICLR 2024), its baselines, and a built-in FEM generator of ground truth.",
+        epilog="`hcmt COMMAND --help` gives each command's options.")
     from hcmt import __version__
 
     parser.add_argument("--version", action="version", version=f"hcmt {__version__}")

@@ -17,7 +17,10 @@ CLIPS = [1.0, 3.0]
 LEVELS = [1, 2, 3, 4]
 
 
-def row(m: dict) -> dict:
+def row(res: dict | None) -> dict | None:
+    if res is None:  # another process is training it
+        return None
+    m = res["test"]
     return {q: {k: m[q][k] for k in ("rmse_1", "rmse_all")} for q in ("position", "stress")}
 
 
@@ -35,11 +38,13 @@ def main() -> None:
         label = name or "hcmt"
         print(label, flush=True)
         run = f"acc_hcmt_s{a.seed}_{a.steps}" if name is None else f"abl_{label}_s{a.seed}_{a.steps}"
-        abl[label] = row(run_and_evaluate(a.work, data, run, "hcmt", a.seed, base, ablation=name)["test"])
+        abl[label] = row(run_and_evaluate(a.work, data, run, "hcmt", a.seed, base, ablation=name))
     for c in CLIPS if a.part != "levels" else []:
         print(f"clip {c}", flush=True)
         abl[f"clip-{c:g}"] = row(run_and_evaluate(a.work, data, f"abl_clip{c:g}_s{a.seed}_{a.steps}", "hcmt", a.seed,
-                                                  base + [f"model.clip={c}"])["test"])
+                                                  base + [f"model.clip={c}"]))
+    abl = {k: v for k, v in abl.items() if v is not None}
+    lev = {k: v for k, v in lev.items() if v is not None}
     if abl:
         write_json("ablations.json", {"seed": a.seed, "steps": a.steps, "rows": abl})
     for lam in LEVELS if a.part != "ablations" else []:
@@ -47,7 +52,8 @@ def main() -> None:
         # λ = 4 is the accuracy study's HCMT configuration (impact_plate_cpu): reuse that run
         name = f"acc_hcmt_s{a.seed}_{a.steps}" if lam == 4 else f"lev{lam}_s{a.seed}_{a.steps}"
         lev[lam] = row(run_and_evaluate(a.work, data, name, "hcmt", a.seed,
-                                        base + [f"model.levels={lam}", f"model.L_H={2 * lam + 1}"])["test"])
+                                        base + [f"model.levels={lam}", f"model.L_H={2 * lam + 1}"]))
+    lev = {k: v for k, v in lev.items() if v is not None}
     if lev:
         write_json("levels.json", {"seed": a.seed, "steps": a.steps, "L_C": 2, "rows": lev})
     for k, v in abl.items():

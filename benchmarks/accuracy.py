@@ -29,16 +29,22 @@ def main() -> None:
         ms = []
         for seed in a.seeds:
             print(f"{model} seed {seed}", flush=True)
-            ms.append(run_and_evaluate(a.work, data, f"acc_{model}_s{seed}_{a.steps}", model, seed,
-                                       [f"train.steps={a.steps}", *a.set])["test"])
-        table[model] = summarize(ms)
-        table[model]["seeds"] = a.seeds
+            res = run_and_evaluate(a.work, data, f"acc_{model}_s{seed}_{a.steps}", model, seed,
+                                   [f"train.steps={a.steps}", *a.set])
+            if res is not None:  # None: another process is training it
+                ms.append((seed, res["test"]))
+        if not ms:
+            continue
+        table[model] = summarize([m for _, m in ms])
+        table[model]["seeds"] = [s for s, _ in ms]
         table[model]["steps"] = a.steps
     path = write_json("accuracy.json", table)
     print(f"\n{'model':<6}{'pos RMSE-1':>18}{'pos RMSE-all':>20}{'stress RMSE-1':>20}{'stress RMSE-all':>22}{'train ms':>12}")
     for m, r in table.items():
         print(f"{m:<6}{fmt(r['position']['rmse_1']):>18}{fmt(r['position']['rmse_all']):>20}"
               f"{fmt(r['stress']['rmse_1']):>20}{fmt(r['stress']['rmse_all']):>22}{r['train_ms_per_step']['mean']:>12.1f}")
+    if "hcmt" not in table or "mgn" not in table:
+        return
     h, g = table["hcmt"], table["mgn"]
     print(f"HCMT/MGN position RMSE-all {h['position']['rmse_all']['mean'] / g['position']['rmse_all']['mean']:.2f}, "
           f"stress RMSE-all {h['stress']['rmse_all']['mean'] / g['stress']['rmse_all']['mean']:.2f} "

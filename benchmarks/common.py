@@ -6,6 +6,7 @@ from its last checkpoint, and the dataset is generated once (the generator itsel
 from __future__ import annotations
 
 import json
+import os
 import shutil
 import sys
 import time
@@ -51,20 +52,14 @@ def run_and_evaluate(work: Path, data: Path, name: str, model: str, seed: int, o
     run = work / "runs" / name
     out = {}
     done = all((run / f"metrics_{s}.json").is_file() for s in splits)
+    if not done and not claim(run):
+        print(f"  {name} is being trained by another process: skipped here", flush=True)
+        return None
     if not done:
-        cfg = load_config(config, overrides)
-        if not (run / "train_stats.json").is_file():
-            if run.exists() and not (run / "checkpoint.pt").is_file():
-                shutil.rmtree(run)
-            t0 = time.perf_counter()
-            train(cfg, data, model, run, ablation=ablation, seed=seed, resume=(run / "checkpoint.pt").is_file(),
-                  progress=False)
-            print(f"  trained {name} in {time.perf_counter() - t0:.0f} s", flush=True)
-        for s in splits:
-            m = evaluate(run, data, s)
-            with atomic_path(run / f"metrics_{s}.json") as tmp:
-                tmp.write_text(json.dumps(m, indent=2))
-            rollout_path(run, s).unlink(missing_ok=True)
+        try:
+            _train_and_evaluate(run, data, model, seed, overrides, splits, ablation, config)
+        finally:
+            (run.parent / f"{run.name}.lock").unlink(missing_ok=True)  # ours: claimed above
     for s in splits:
         out[s] = json.loads((run / f"metrics_{s}.json").read_text())
     stats = json.loads((run / "train_stats.json").read_text())
@@ -72,6 +67,45 @@ def run_and_evaluate(work: Path, data: Path, name: str, model: str, seed: int, o
         out[s]["train_ms_per_step"] = stats["train_ms_per_step"]
         out[s]["steps"] = stats["steps"]
     return out
+
+
+def _train_and_evaluate(run, data, model, seed, overrides, splits, ablation, config) -> None:
+    """Train the run unless trained (resuming a checkpoint), then write ``metrics_<split>.json`` per split."""
+    cfg = load_config(config, overrides)
+    if not (run / "train_stats.json").is_file():
+        if run.exists() and not (run / "checkpoint.pt").is_file():
+            shutil.rmtree(run)
+        t0 = time.perf_counter()
+        train(cfg, data, model, run, ablation=ablation, seed=seed, resume=(run / "checkpoint.pt").is_file(),
+              progress=False)
+        print(f"  trained {run.name} in {time.perf_counter() - t0:.0f} s", flush=True)
+    for s in splits:
+        m = evaluate(run, data, s)
+        with atomic_path(run / f"metrics_{s}.json") as tmp:
+            tmp.write_text(json.dumps(m, indent=2))
+        rollout_path(run, s).unlink(missing_ok=True)
+
+
+def claim(run: Path) -> bool:
+    """Let several benchmark processes share the work: the first to create ``RUN.lock`` (holding its pid) owns
+    the run; a lock whose process is gone is taken over."""
+    lock = run.parent / f"{run.name}.lock"
+    lock.parent.mkdir(parents=True, exist_ok=True)
+    for _ in range(2):
+        try:
+            fd = os.open(lock, os.O_CREAT | os.O_EXCL | os.O_WRONLY)
+        except FileExistsError:
+            try:
+                pid = int(lock.read_text() or 0)
+                os.kill(pid, 0)
+                return pid == os.getpid()
+            except (ProcessLookupError, ValueError):
+                lock.unlink(missing_ok=True)  # stale: its process is gone
+                continue
+        with os.fdopen(fd, "w") as f:
+            f.write(str(os.getpid()))
+        return True
+    return False
 
 
 def summarize(metrics: list[dict]) -> dict:

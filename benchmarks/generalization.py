@@ -28,9 +28,15 @@ def main() -> None:
         for seed in a.seeds:
             res = run_and_evaluate(a.work, data, f"acc_{model}_s{seed}_{a.steps}", model, seed,
                                    [f"train.steps={a.steps}"], splits=SPLITS)
+            if res is None:  # another process is training it
+                continue
             for s in SPLITS:
                 per_split[s].append(res[s])
-        out[model] = {s: summarize(v) for s, v in per_split.items()}
+        if per_split["test"]:
+            out[model] = {s: summarize(v) for s, v in per_split.items()}
+            out[model]["seeds"] = len(per_split["test"])
+    if len(out) < 2:
+        return
     write_json("generalization.json", {"steps": a.steps, "seeds": a.seeds, "rows": out})
     print(f"{'split':<22}{'MGN pos':>12}{'MGN stress':>14}{'HCMT pos':>12}{'HCMT stress':>14}")
     for s in SPLITS:

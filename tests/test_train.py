@@ -82,6 +82,9 @@ def test_resume_ends_with_the_same_parameters(impact, tmp_path):
         assert torch.equal(a["model"][k], b["model"][k]), k
     with pytest.raises(ValueError, match="--resume"):
         train(cfg, impact, "hcmt", tmp_path / "straight", seed=3, progress=False)
+    with pytest.raises(ValueError, match="other config"):
+        train(load_config("impact_plate_cpu", TINY + ["train.steps=9"]), impact, "hcmt", tmp_path / "straight",
+              seed=3, progress=False, resume=True)
 
 
 def test_two_process_ddp(impact, tmp_path):

@@ -114,9 +114,15 @@ def train(cfg: dict, data: str | Path, model_name: str, out: str | Path, *, abla
         raise FileNotFoundError(f"{ckpt_path}: nothing to resume; start without --resume")
     if not resume and ckpt_path.is_file():
         raise ValueError(f"{out} already holds a run; pass --resume to continue it or choose another --out")
+    run = {"model": args, "config": cfg, "data": str(Path(data).resolve()), "seed": seed}
+    if resume and (out / "run.yaml").is_file():  # an exact continuation needs the same settings
+        saved = yaml.safe_load((out / "run.yaml").read_text())
+        changed = [k for k in ("model", "config", "seed") if saved.get(k) != yaml.safe_load(yaml.safe_dump(run[k]))]
+        if changed:
+            raise ValueError(f"{out}: --resume with other {', '.join(changed)} than the run was started with "
+                             f"(see {out / 'run.yaml'}); resume with the same arguments or start a new --out")
     if rank == 0:
         out.mkdir(parents=True, exist_ok=True)
-        run = {"model": args, "config": cfg, "data": str(Path(data).resolve()), "seed": seed}
         with atomic_path(out / "run.yaml") as tmp:
             tmp.write_text(yaml.safe_dump(run, sort_keys=False))
 

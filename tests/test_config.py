@@ -31,3 +31,18 @@ def test_base_and_overrides(tmp_path):
         load_config("nope")
     with pytest.raises(ValueError, match="section.key=value"):
         load_config("impact_plate", ["oops"])
+
+
+@pytest.mark.parametrize("name", TABLE8)
+def test_model_defaults_adapters_and_configs_agree(name):
+    """Table 8 and Table 9 live in three places (configs, model defaults, dataset adapters): they must agree."""
+    from hcmt.models import dataset_spec
+    from hcmt.train.adapters import get_adapter
+
+    spec, adapter, cfg = dataset_spec(name), get_adapter(name), load_config(name)
+    assert adapter.node_in(spec["dim"]) == spec["node_in"]
+    assert adapter.out(spec["dim"]) == spec["out"]
+    assert adapter.order == spec["integration"]
+    m, t = cfg["model"], cfg["train"]
+    assert (m["L_C"], m["L_H"], m["levels"]) == (spec["L_C"], spec["L_H"], spec["levels"])
+    assert (t["noise_std"], t["contact_radius"], t["steps"]) == (spec["noise_std"], spec["radius"], spec["training_steps"])

@@ -14,8 +14,9 @@ TABLE8 = {  # dataset: (L_C, L_H, lambda, noise std, gamma, steps)
 def test_paper_configs_hold_table8(name):
     c = load_config(name)
     m, t = c["model"], c["train"]
-    assert (m["L_C"], m["L_H"], m["levels"], t["noise_std"], t["contact_radius"], t["steps"]) == TABLE8[name]
-    assert m["L_H"] == 2 * m["levels"] + 1 and m["L_C"] + m["L_H"] == 15
+    L_H = 2 * m["levels"] + 1  # derived, as the paper's L_H = 2λ + 1
+    assert (m["L_C"], L_H, m["levels"], t["noise_std"], t["contact_radius"], t["steps"]) == TABLE8[name]
+    assert m["L_C"] + L_H == 15 and "L_H" not in m
     assert (t["lr"], t["lr_final"], t["batch_size"], m["hidden"], m["heads"]) == (1e-4, 1e-6, 1, 128, 4)
     assert f"{name}_cpu" in builtin_configs()
 
@@ -44,5 +45,5 @@ def test_model_defaults_adapters_and_configs_agree(name):
     assert adapter.out(spec["dim"]) == spec["out"]
     assert adapter.order == spec["integration"]
     m, t = cfg["model"], cfg["train"]
-    assert (m["L_C"], m["L_H"], m["levels"]) == (spec["L_C"], spec["L_H"], spec["levels"])
+    assert (m["L_C"], 2 * m["levels"] + 1, m["levels"]) == (spec["L_C"], spec["L_H"], spec["levels"])
     assert (t["noise_std"], t["contact_radius"], t["steps"]) == (spec["noise_std"], spec["radius"], spec["training_steps"])

@@ -131,3 +131,19 @@ def test_info_reports_counts_nodes_types_and_parameter_ranges(tmp_path, meta, ca
     assert "split test_thicker: 1 trajectories" in out
     assert "drop_height" in out and "500 .. 700" in out
     assert "HANDLE 3" in out and "SYMMETRIC 3" in out and "NORMAL 21" in out
+
+
+def test_time_axis_declared_minus_one_still_checked_and_any_per_node_field(tmp_path):
+    feats = features()
+    feats["world_pos"]["shape"] = [-1, -1, 2]
+    feats["poisson_ratio"] = {"type": "static", "shape": [-1, 1], "dtype": "float32"}
+    meta = make_meta(feats, trajectory_length=T, dimension=2)
+    t = trajectory()
+    t["poisson_ratio"] = np.full((6, 1), 0.3, np.float32)
+    write_split(tmp_path / "ok.h5", meta, [("traj_00000", t, {})])
+    short = dict(t, world_pos=t["world_pos"][:2])
+    with pytest.raises(DatasetError, match="field world_pos.*shape"):
+        write_split(tmp_path / "a.h5", meta, [("traj_00000", short, {})])
+    wrong = dict(t, poisson_ratio=np.full((7, 1), 0.3, np.float32))
+    with pytest.raises(DatasetError, match="field poisson_ratio.*7 nodes"):
+        write_split(tmp_path / "b.h5", meta, [("traj_00000", wrong, {})])

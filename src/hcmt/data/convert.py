@@ -32,10 +32,15 @@ def convert_tfrecord(src: Path, out: Path) -> dict:
         elif spec["type"] == "dynamic":
             features[name] = dict(spec)
     world = features.get("world_pos") or features.get("mesh_pos")
+    length = tf_meta.get("trajectory_length") or next(
+        (v["shape"][0] for v in features.values() if v["type"] == "dynamic" and v["shape"][0] > 0), None)
+    if not length:
+        raise DatasetError("has no trajectory_length and no dynamic field with a fixed time axis; add "
+                           "\"trajectory_length\": T", file=src / "meta.json")
     extra = {k: tf_meta[k] for k in ("collision_radius", "simulator") if k in tf_meta}
     meta = make_meta(
         features,
-        trajectory_length=tf_meta.get("trajectory_length", 0),
+        trajectory_length=length,
         dimension=int(world["shape"][-1]) if world else 0,
         dt=tf_meta.get("dt"),
         units=tf_meta.get("units", {}),

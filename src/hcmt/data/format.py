@@ -169,8 +169,8 @@ def validate_trajectory(meta: Mapping, fields: Mapping[str, np.ndarray], *, file
         spec = specs[name]
         value = np.asarray(fields[name])
         shape = list(spec["shape"])
-        if spec["type"] == "dynamic" and shape and shape[0] not in (-1, None):
-            shape[0] = int(meta["trajectory_length"]) if shape[0] is None else shape[0]
+        if spec["type"] == "dynamic" and shape and shape[0] in (-1, None) and int(meta["trajectory_length"]) > 0:
+            shape[0] = int(meta["trajectory_length"])  # a time axis declared -1 still has trajectory_length frames
         want = np.dtype(spec["dtype"])
         if value.ndim != len(shape):
             raise DatasetError(f"shape {list(value.shape)} has rank {value.ndim}; meta.json declares shape {shape}",
@@ -186,7 +186,7 @@ def validate_trajectory(meta: Mapping, fields: Mapping[str, np.ndarray], *, file
             bad = np.argwhere(~np.isfinite(value))[0].tolist()
             raise DatasetError(f"non-finite value (NaN or Inf) at index {bad}", file=file, trajectory=trajectory,
                                field=name)
-        if name in ("mesh_pos", "node_type", "world_pos", "stress", "density", "modulus"):
+        if name != "cells":  # every other field is per node: its node axis must agree with mesh_pos's
             n = value.shape[1] if spec["type"] == "dynamic" else value.shape[0]
             if num_nodes is None:
                 num_nodes = n

@@ -17,7 +17,6 @@ from __future__ import annotations
 
 import hashlib
 import os
-import tempfile
 import warnings
 from collections import OrderedDict
 from dataclasses import dataclass, field
@@ -28,6 +27,7 @@ import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components
 
 from hcmt.data.errors import DatasetError
+from hcmt.data.format import atomic_path
 from hcmt.graph.contact import object_ids
 from hcmt.graph.edges import cells_to_edges, undirected_to_edges
 from hcmt.graph.pooling import bistride_pool
@@ -77,14 +77,8 @@ class Hierarchy:
                   "version": np.int64(HIERARCHY_VERSION)}
         for name in ("pool", "edges", "nodes", "cells"):
             arrays.update({f"{name}_{l}": a for l, a in enumerate(getattr(self, name))})
-        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-        try:
-            with os.fdopen(fd, "wb") as f:
-                np.savez(f, **arrays)
-            os.replace(tmp, path)
-        finally:
-            if os.path.exists(tmp):
-                os.unlink(tmp)
+        with atomic_path(path) as tmp, open(tmp, "wb") as f:
+            np.savez(f, **arrays)
 
     @classmethod
     def load(cls, path: str | os.PathLike) -> "Hierarchy":

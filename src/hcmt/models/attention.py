@@ -15,6 +15,8 @@ Choices where the paper is ambiguous (documented here once for CMT, HMT and the 
   (yuyudeep/hcmt, ``single_propagate_attention``) multiplies ``q * k`` element-wise and never sums over channels.
   The softmax therefore normalizes each (head, channel) over the receiver's incoming edges of the branch: the
   weights of every receiver sum to 1 per head, per channel and per branch.
+* **The edge term is added after the clip, as the paper's eq. 1 writes it.** The authors' code instead multiplies
+  the clipped query-key product by :math:`E\,e_{ij}`; hcmt follows the paper, the spec.
 * **Scale** :math:`\sqrt{d_k}` with :math:`d_k = d/H` the head width (the authors' code and Dwivedi & Bresson);
   the paper writes :math:`\sqrt{d_z}`, a constant factor the learned Q, K absorb.
 * **Softmax, not the authors' unnormalized** ``exp``: the issue and the paper's ``softmax_j`` ask for normalized

@@ -58,7 +58,9 @@ _N, _O, _H, _S = int(NodeType.NORMAL), int(NodeType.OBSTACLE), int(NodeType.HAND
 
 ADAPTERS = {
     "impact_plate": Adapter("impact_plate", ("density", "modulus"), True, False, True, 1, (), False,
-                            # ball <-> plate, as the official code (OBSTACLE <-> NORMAL); SYMMETRIC nodes sit on both
+                            # ball <-> plate between different objects. The official code links OBSTACLE -> NORMAL
+                            # only; here SYMMETRIC nodes (on both bodies' symmetry line) take part too, so the
+                            # contact at x = 0 -- where the ball first touches -- is seen (hcmt's choice)
                             ((_O, _N), (_O, _S), (_S, _N), (_S, _S))),
     "deforming_plate": Adapter("deforming_plate", (), False, True, True, 1, (_O,), False, None),
     "sphere_simple": Adapter("sphere_simple", (), True, False, False, 2, (), True, None),
@@ -76,10 +78,7 @@ def position_mask(adapter: Adapter, node_type: Tensor, dim: int) -> Tensor:
     """[N, dim] float: 1 where the position channel is predicted, 0 where a boundary condition sets it."""
     nt = node_type.reshape(-1)
     mask = torch.ones(nt.shape[0], dim, dtype=torch.float32, device=nt.device)
-    fixed = nt == _H
-    for t in adapter.prescribed:
-        fixed = fixed | (nt == t)
-    mask[fixed] = 0.0
+    mask[torch.isin(nt, torch.tensor((_H, *adapter.prescribed), dtype=nt.dtype))] = 0.0
     mask[nt == _S, 0] = 0.0  # symmetry line: x is fixed
     return mask
 
@@ -100,9 +99,7 @@ def node_features(adapter: Adapter, static: dict[str, Tensor], pos: Tensor, prev
     if adapter.velocity_input:
         parts.append(pos - prev)
     if adapter.obstacle_velocity_input:
-        moving = torch.zeros_like(nt, dtype=torch.bool)
-        for t in adapter.prescribed:
-            moving |= nt == t
+        moving = torch.isin(nt, torch.tensor(adapter.prescribed, dtype=nt.dtype))
         parts.append(torch.where(moving[:, None], next_prescribed - pos, torch.zeros_like(pos)))
     for name in adapter.node_fields:
         parts.append(static[name].reshape(nt.shape[0], -1).to(pos.dtype))
@@ -135,8 +132,10 @@ def noise_mask(node_type: Tensor) -> Tensor:
 
 def exclude_trajectories(names: list[str], excluded: list[int] | None) -> np.ndarray:
     """Indices of the trajectories to use, dropping the listed ones (e.g. Deforming Plate's 173 and 233)."""
+    excluded = [int(i) for i in excluded or []]
+    bad = [i for i in excluded if not 0 <= i < len(names)]
+    if bad:
+        raise ValueError(f"data.exclude_trajectories {bad}: out of range for a split of {len(names)} trajectories")
     keep = np.ones(len(names), bool)
-    for i in excluded or []:
-        if 0 <= i < len(names):
-            keep[i] = False
+    keep[excluded] = False
     return np.flatnonzero(keep)

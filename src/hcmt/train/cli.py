@@ -8,8 +8,10 @@ from pathlib import Path
 
 import h5py
 import numpy as np
+import torch
 
 from hcmt.data.format import atomic_path
+from hcmt.models import ABLATIONS, MODELS
 from hcmt.train.config import load_config
 
 
@@ -17,8 +19,8 @@ from hcmt.train.config import load_config
 def configure_train(p: argparse.ArgumentParser) -> None:
     p.add_argument("--config", required=True, help="built-in config name (impact_plate, impact_plate_cpu, ...) or a YAML file")
     p.add_argument("--data", required=True, help="native dataset folder")
-    p.add_argument("--model", required=True, choices=["hcmt", "mgn", "gt"])
-    p.add_argument("--ablation", choices=["late-contact", "only-cmt", "only-hmt", "lpe", "single-branch", "no-remesh"])
+    p.add_argument("--model", required=True, choices=MODELS)
+    p.add_argument("--ablation", choices=ABLATIONS, help="HCMT ablation (paper Tables 3, 10-12)")
     p.add_argument("--steps", type=int, help="training steps (overrides train.steps)")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--out", required=True, help="run folder")
@@ -73,8 +75,8 @@ def run_rollouts(run, data, split, limit=None, checkpoint="best") -> Path:
     radius = float(cfg["train"]["contact_radius"])
     path = rollout_path(run, split)
     with atomic_path(path) as tmp, h5py.File(tmp, "w") as f:
-        f.attrs["data"] = str(Path(data).resolve())
-        f.attrs["split"] = split
+        for key, value in rollout_key(data, split, limit, info["checkpoint"]["file"], info["checkpoint"]["step"]).items():
+            f.attrs[key] = value
         for tr in tqdm(trajs, desc=f"rollout {split}"):
             r = rollout(model, adapter, tr, radius)
             g = f.create_group(tr.name)
@@ -84,6 +86,26 @@ def run_rollouts(run, data, split, limit=None, checkpoint="best") -> Path:
             g.attrs["ms_per_step"] = r["ms_per_step"]
             g.attrs["start"] = r["start"]
     return path
+
+
+def rollout_key(data, split, limit, checkpoint_file, step) -> dict:
+    """What a rollout file was made from; :func:`evaluate` redoes the rollout when any of it changed."""
+    return {"data": str(Path(data).resolve()), "split": split, "limit": -1 if limit is None else int(limit),
+            "checkpoint": checkpoint_file, "checkpoint_step": int(step)}
+
+
+def _rollout_is_current(path: Path, run, data, split, limit, checkpoint) -> bool:
+    if not path.is_file():
+        return False
+    ckpt = Path(run) / f"{checkpoint}.pt"
+    ckpt = ckpt if ckpt.is_file() else Path(run) / "checkpoint.pt"
+    if not ckpt.is_file():
+        return False
+    step = int(torch.load(ckpt, map_location="cpu", weights_only=False)["step"])
+    want = rollout_key(data, split, limit, ckpt.name, step)
+    with h5py.File(path, "r") as f:
+        have = {k: (v.item() if hasattr(v, "item") else v) for k, v in f.attrs.items()}
+    return all(have.get(k) == v for k, v in want.items())
 
 
 def main_rollout(args: argparse.Namespace) -> int:
@@ -102,7 +124,7 @@ def evaluate(run, data, split, limit=None, checkpoint="best") -> dict:
     from hcmt.train.metrics import aggregate, rollout_rmse
 
     path = rollout_path(run, split)
-    if not path.is_file():
+    if not _rollout_is_current(path, run, data, split, limit, checkpoint):
         run_rollouts(run, data, split, limit, checkpoint)
     per_traj, ms = [], []
     with h5py.File(path, "r") as f, Split(data, split) as s:

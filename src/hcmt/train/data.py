@@ -9,9 +9,10 @@ import numpy as np
 import torch
 from torch import Tensor
 
+from hcmt.data.errors import DatasetError
 from hcmt.data.format import Split
 from hcmt.graph.batch import Graph
-from hcmt.graph.build import frame_graph, hierarchy_tensors
+from hcmt.graph.build import frame_graph
 from hcmt.graph.hierarchy import Hierarchy, cached_hierarchy, hierarchy_cache_dir
 from hcmt.train.adapters import Adapter, exclude_trajectories
 
@@ -33,14 +34,6 @@ class Trajectory:
     @property
     def num_nodes(self) -> int:
         return int(self.world_pos.shape[1])
-
-    @property
-    def mesh_edges(self) -> Tensor:
-        return hierarchy_tensors(self.hierarchy, "cpu")["edges"][0]
-
-    @property
-    def object_id(self) -> Tensor:
-        return hierarchy_tensors(self.hierarchy, "cpu")["object_id"]
 
 
 def prepare_trajectory(fields: dict, name: str, adapter: Adapter, levels: int, remesh: bool = True,
@@ -67,9 +60,20 @@ def load_split(dataset: str | Path, split: str, adapter: Adapter, levels: int, r
     """Every (or the first ``limit``) trajectory of a split, prepared. The hierarchy cache lives beside the data."""
     cache = hierarchy_cache_dir(dataset)
     with Split(dataset, split) as s:
+        needed = ["mesh_pos", "cells", "node_type", "world_pos", *adapter.node_fields]
+        needed += ["stress"] if adapter.stress_output else []
+        missing = [f for f in needed if f not in s.meta["features"]]
+        if missing:
+            raise DatasetError(f"the {adapter.name} adapter (the config's `dataset`) needs fields {missing} that this "
+                               f"dataset lacks; it has {s.meta['field_names']}", file=s.path, field=missing[0])
+        if s.meta["trajectory_length"] and int(s.meta["trajectory_length"]) < adapter.history + 2:
+            raise DatasetError(f"trajectories of {s.meta['trajectory_length']} frames are too short: training and "
+                               f"rollout need at least {adapter.history + 2}", file=s.path)
         idx = exclude_trajectories(s.names, exclude)
         if limit is not None:
             idx = idx[:limit]
+        if len(idx) == 0:
+            raise DatasetError(f"split {split!r} holds no trajectory to use", file=s.path)
         return [prepare_trajectory(s[i], s.names[i], adapter, levels, remesh, cache, s.attrs(i)) for i in idx]
 
 

@@ -40,7 +40,6 @@ def main(args: argparse.Namespace) -> int:
     if not done:
         train(cfg, data, "hcmt", run, seed=args.seed, resume=(run / "checkpoint.pt").is_file(), device="cpu")
     print("[3/3] rolling out and evaluating on the test split")
-    (run / "rollout_test.h5").unlink(missing_ok=True)
     metrics = evaluate(run, data, "test")
     print(format_metrics(metrics))
     print(f"\ndataset   {data}   (hcmt info {data})")

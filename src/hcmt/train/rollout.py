@@ -19,6 +19,7 @@ def rollout(model, adapter: Adapter, traj: Trajectory, radius: float, steps: int
     """Roll ``model`` out over ``traj``. Returns ``world_pos`` [T, N, d] and ``stress`` [T, N, 1] (or None) as
     tensors whose first ``adapter.history + 1`` frames are the data's, and ``ms_per_step``."""
     model.eval()
+    device = next(model.parameters()).device  # graphs go where the model is; results come back to the CPU
     world = traj.world_pos
     T = world.shape[0] if steps is None else min(world.shape[0], steps + adapter.history + 1)
     h = adapter.history
@@ -29,8 +30,8 @@ def rollout(model, adapter: Adapter, traj: Trajectory, radius: float, steps: int
         start = time.perf_counter()
         pos, prev = pos_list[-1], pos_list[-2] if h else pos_list[-1]
         feats = node_features(adapter, traj.static, pos, prev, world[t + 1])
-        graph = build_graph(traj, pos, feats, radius)
-        out = model.denormalize(model(graph, accumulate=False))
+        graph = build_graph(traj, pos, feats, radius).to(device)
+        out = model.denormalize(model(graph, accumulate=False)).cpu()
         nxt, stress = integrate(adapter, out, pos, prev, world[t + 1], traj.static["node_type"])
         elapsed += time.perf_counter() - start
         if not torch.isfinite(nxt).all() or (stress is not None and not torch.isfinite(stress).all()):

@@ -4,13 +4,17 @@ exponential learning-rate decay from ``lr`` to ``lr_final`` over the run, batch 
 
 A run folder holds ``run.yaml`` (everything needed to rebuild the model), ``checkpoint.pt`` (latest) and
 ``best.pt`` (best validation rollout), ``log.jsonl``, TensorBoard scalars under ``tb/`` and ``train_stats.json``.
-Checkpoints are written atomically. ``resume=True`` continues exactly: model, optimizer, scheduler, normalizers
-and step are restored, and the data order and noise are pure functions of (seed, step, rank), so a run stopped and
-resumed ends with the same parameters as one that never stopped.
+Checkpoints are written atomically. ``resume=True`` continues exactly: model, optimizer, normalizers and step are
+restored; the learning rate (:func:`learning_rate`), the data order and every random draw (noise, LPE sign flips) are
+pure functions of (seed, step, rank), so a run stopped and resumed ends with the same parameters as one that never
+stopped. Normalizer statistics accumulate through training (MeshGraphNets); the first ``normalizer_steps`` steps
+only accumulate them, without parameter updates.
 
 Several processes: under ``torchrun`` (``WORLD_SIZE`` set by it) training uses DistributedDataParallel with gloo on
-CPU and NCCL on GPU; each rank takes every ``world``-th frame of the shared permutation. Buffers (the normalizers)
-are broadcast from rank 0, so every rank normalizes alike.
+CPU and NCCL on GPU; each rank takes its share of the shared permutation. DDP broadcasts buffers from rank 0 at
+every forward, so the normalizers' statistics are rank 0's (a sample of the data, like any running statistic) and
+every rank normalizes its inputs alike; a non-finite loss on any rank stops all of them. Validation rollouts run on
+rank 0 while the others wait in the next all-reduce (keep them shorter than the backend's timeout).
 """
 from __future__ import annotations
 
@@ -32,7 +36,7 @@ from hcmt.models import build_model
 from hcmt.train.adapters import get_adapter, node_features, noise_mask, output_mask, target
 from hcmt.train.data import build_graph, load_split
 from hcmt.train.metrics import rollout_rmse
-from hcmt.train.rollout import rollout
+from hcmt.train.rollout import RolloutError, rollout
 
 
 def model_args(cfg: dict, model_name: str, ablation: str | None, meta: dict) -> dict:
@@ -44,7 +48,7 @@ def model_args(cfg: dict, model_name: str, ablation: str | None, meta: dict) -> 
     return {
         "name": model_name, "node_in": adapter.node_in(d), "mesh_in": m + d + 2, "contact_in": d + 1,
         "out": adapter.out(d), "ablation": ablation, "levels": mc.get("levels", 0), "L_C": mc.get("L_C", 2),
-        "hidden": mc.get("hidden", 128), "heads": mc.get("heads", 4), "clip": mc.get("clip", 2.0),
+        "L_H": mc.get("L_H"), "hidden": mc.get("hidden", 128), "heads": mc.get("heads", 4), "clip": mc.get("clip", 2.0),
         "blocks": mc.get("blocks", 15),
     }
 
@@ -60,6 +64,26 @@ def uses_hierarchy(args: dict) -> tuple[int, bool]:
     if args["name"] != "hcmt" or args.get("ablation") == "only-cmt":
         return 0, True
     return int(args["levels"]), args.get("ablation") != "no-remesh"
+
+
+def check_resume(saved: dict, run: dict, out: Path) -> None:
+    """An exact continuation needs the settings the run started with; only ``train.steps`` may grow (the
+    learning-rate schedule then stretches to the new length)."""
+    def strip(r):
+        r = yaml.safe_load(yaml.safe_dump(r))
+        r["config"]["train"].pop("steps", None)
+        return r
+
+    a, b = strip(saved), strip(run)
+    changed = [k for k in ("model", "config", "seed", "world_size") if a.get(k, b[k]) != b[k]]
+    if changed:
+        raise ValueError(f"{out}: --resume with other {', '.join(changed)} than the run was started with "
+                         f"(see {out / 'run.yaml'}); resume with the same arguments or start a new --out")
+
+
+def learning_rate(step: int, steps: int, lr: float, lr_final: float) -> float:
+    """Exponential decay from ``lr`` at step 0 to ``lr_final`` at the last step (paper: 1e-4 -> 1e-6)."""
+    return lr * (lr_final / lr) ** min(step / max(steps, 1), 1.0)
 
 
 def save_atomic(obj, path: Path) -> None:
@@ -82,9 +106,15 @@ def frame_index(trajs, history: int) -> np.ndarray:
 
 
 def validate(model, adapter, trajs, radius) -> dict:
+    """Mean RMSE-all of validation rollouts; a diverging rollout counts as infinite error (early training)."""
     pos, stress = [], []
     for tr in trajs:
-        r = rollout(model, adapter, tr, radius)
+        try:
+            r = rollout(model, adapter, tr, radius)
+        except RolloutError:
+            pos.append(math.inf)
+            stress.append(math.inf)
+            continue
         pos.append(rollout_rmse(r["world_pos"].numpy(), tr.world_pos.numpy(), r["start"])["rmse_all"])
         if r["stress"] is not None:
             stress.append(rollout_rmse(r["stress"].numpy(), tr.stress.numpy(), r["start"])["rmse_all"])
@@ -105,6 +135,11 @@ def train(cfg: dict, data: str | Path, model_name: str, out: str | Path, *, abla
     out = Path(out)
     device = torch.device(device or (f"cuda:{rank % torch.cuda.device_count()}" if torch.cuda.is_available() else "cpu"))
     tc = cfg["train"]
+    for key in ("steps", "lr", "contact_radius"):
+        if key not in tc:
+            raise ValueError(f"config: train.{key} is missing (see configs/impact_plate.yaml for a complete config)")
+    if "dataset" not in cfg:
+        raise ValueError("config: `dataset` (the adapter: impact_plate, deforming_plate, ...) is missing")
     steps = int(tc["steps"])
     meta = read_meta(data)
     adapter = get_adapter(cfg["dataset"])
@@ -114,13 +149,9 @@ def train(cfg: dict, data: str | Path, model_name: str, out: str | Path, *, abla
         raise FileNotFoundError(f"{ckpt_path}: nothing to resume; start without --resume")
     if not resume and ckpt_path.is_file():
         raise ValueError(f"{out} already holds a run; pass --resume to continue it or choose another --out")
-    run = {"model": args, "config": cfg, "data": str(Path(data).resolve()), "seed": seed}
-    if resume and (out / "run.yaml").is_file():  # an exact continuation needs the same settings
-        saved = yaml.safe_load((out / "run.yaml").read_text())
-        changed = [k for k in ("model", "config", "seed") if saved.get(k) != yaml.safe_load(yaml.safe_dump(run[k]))]
-        if changed:
-            raise ValueError(f"{out}: --resume with other {', '.join(changed)} than the run was started with "
-                             f"(see {out / 'run.yaml'}); resume with the same arguments or start a new --out")
+    run = {"model": args, "config": cfg, "data": str(Path(data).resolve()), "seed": seed, "world_size": world}
+    if resume and (out / "run.yaml").is_file():
+        check_resume(yaml.safe_load((out / "run.yaml").read_text()), run, out)
     if rank == 0:
         out.mkdir(parents=True, exist_ok=True)
         with atomic_path(out / "run.yaml") as tmp:
@@ -137,15 +168,13 @@ def train(cfg: dict, data: str | Path, model_name: str, out: str | Path, *, abla
     batch = int(tc.get("batch_size", 1))
     per_epoch = max(len(frames) // (world * batch), 1)
 
-    opt = torch.optim.Adam(model.parameters(), lr=float(tc["lr"]))
-    decay = float(tc.get("lr_final", tc["lr"])) / float(tc["lr"])
-    sched = torch.optim.lr_scheduler.LambdaLR(opt, lambda s: decay ** min(s / max(steps, 1), 1.0))
+    lr0, lr_final = float(tc["lr"]), float(tc.get("lr_final", tc["lr"]))
+    opt = torch.optim.Adam(model.parameters(), lr=lr0)
     step, best = 0, math.inf
     if resume:
         state = torch.load(ckpt_path, map_location=device, weights_only=False)
         model.load_state_dict(state["model"])
         opt.load_state_dict(state["optimizer"])
-        sched.load_state_dict(state["scheduler"])
         step, best = int(state["step"]), float(state["best"])
     net = model
     if world > 1:
@@ -169,8 +198,8 @@ def train(cfg: dict, data: str | Path, model_name: str, out: str | Path, *, abla
     times, last_loss = [], float("nan")
 
     def save(path):
-        save_atomic({"model": model.state_dict(), "optimizer": opt.state_dict(), "scheduler": sched.state_dict(),
-                     "step": step, "best": best, "model_args": args}, path)
+        save_atomic({"model": model.state_dict(), "optimizer": opt.state_dict(), "step": step, "best": best,
+                     "model_args": args}, path)
 
     model.train()
     end = steps if stop_at is None else min(steps, int(stop_at))
@@ -179,7 +208,9 @@ def train(cfg: dict, data: str | Path, model_name: str, out: str | Path, *, abla
         perm = np.random.default_rng([seed, epoch]).permutation(len(frames))
         first = (pos_in_epoch * world + rank) * batch  # this rank's share of the step's global batch
         picks = perm[first:first + batch]
-        gen = torch.Generator().manual_seed(int(np.random.SeedSequence([seed, step, rank]).generate_state(1)[0]))
+        step_seed = int(np.random.SeedSequence([seed, step, rank]).generate_state(1)[0])
+        gen = torch.Generator().manual_seed(step_seed)  # training noise
+        torch.manual_seed(step_seed)  # anything drawing from the global generator (LPE sign flips)
         t0 = time.perf_counter()
         graphs, targets, masks = [], [], []
         for ti, t in frames[picks]:
@@ -199,22 +230,31 @@ def train(cfg: dict, data: str | Path, model_name: str, out: str | Path, *, abla
         pred = net(graph, accumulate=True)
         norm_tgt = model.normalize_target(tgt, accumulate=True)
         loss = ((pred - norm_tgt) ** 2 * mask).sum() / mask.sum().clamp_min(1.0)
+        lr = learning_rate(step, steps, lr0, lr_final)
         if step >= warmup:
+            for group in opt.param_groups:
+                group["lr"] = lr
             opt.zero_grad(set_to_none=True)
             loss.backward()
             opt.step()
-            sched.step()
         elif world > 1:  # keep DDP's reducer in step: a zero-gradient backward
             (loss * 0).backward()
         step += 1
         times.append(time.perf_counter() - t0)
         last_loss = float(loss.detach())
-        if not math.isfinite(last_loss):
-            raise FloatingPointError(f"loss became {last_loss} at step {step}; lower train.lr or check the data")
+        if world > 1:  # every rank must stop together, or the others hang in the next all-reduce
+            flag = torch.tensor([0.0 if math.isfinite(last_loss) else 1.0], device=device)
+            dist.all_reduce(flag)
+            finite = flag.item() == 0
+        else:
+            finite = math.isfinite(last_loss)
+        if not finite:
+            raise FloatingPointError(f"loss became non-finite at step {step} (rank {rank}: {last_loss}); lower "
+                                     "train.lr or check the data")
         bar.update(1)
         if rank == 0 and (step % log_every == 0 or step == steps):
-            bar.set_postfix(loss=f"{last_loss:.4g}", lr=f"{sched.get_last_lr()[0]:.2e}")
-            rec = {"step": step, "loss": last_loss, "lr": sched.get_last_lr()[0], "ms_per_step": 1e3 * float(np.median(times[-log_every:]))}
+            bar.set_postfix(loss=f"{last_loss:.4g}", lr=f"{lr:.2e}")
+            rec = {"step": step, "loss": last_loss, "lr": lr, "ms_per_step": 1e3 * float(np.median(times[-log_every:]))}
             writer.add_scalar("train/loss", last_loss, step)
             writer.add_scalar("train/lr", rec["lr"], step)
             log.write(json.dumps(rec) + "\n")
@@ -264,4 +304,5 @@ def load_run(run: str | Path, which: str = "best", device: str = "cpu"):
     model = make_model(state["model_args"])
     model.load_state_dict(state["model"])
     model.eval()
+    info["checkpoint"] = {"file": path.name, "step": int(state["step"])}
     return model, info

@@ -21,6 +21,8 @@ import numpy as np
 from matplotlib import colors
 from matplotlib.patches import Rectangle
 
+from hcmt.train.metrics import step_rmse
+
 from hcmt.viz.meshplot import (box_3d, draw_field_2d, draw_field_3d, extend_of, field_limits, impact_window, new_figure,
                                panel_size, scene_box)
 from hcmt.viz.rollouts import Case, Series, quantity_label
@@ -89,11 +91,12 @@ def view_box(case: Case, frames: list[int]) -> tuple[float, float, float, float]
 
 def frame_rmse(series: Series, truth: Series, frame: int, field: str) -> float:
     """RMSE over nodes of ``field`` at ``frame`` (the paper's per-step error, in physical units)."""
-    a, b = field_values(series, frame, field), field_values(truth, frame, field)
     if field == "displacement":
         a, b = series.world_pos[frame], truth.world_pos[frame]
-        return float(np.sqrt(((a - b) ** 2).sum(-1).mean()))
-    return float(np.sqrt(((a - b) ** 2).mean()))
+    else:
+        a, b = field_values(series, frame, field), field_values(truth, frame, field)
+        a, b = np.reshape(a, (len(a), -1)), np.reshape(b, (len(b), -1))
+    return float(step_rmse(a[None], b[None])[0])
 
 
 SCALES = ("frame", "all")

@@ -22,10 +22,12 @@ def main() -> None:
     p.add_argument("--steps", type=int, default=3000)
     p.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2])
     p.add_argument("--set", action="append", default=[], help="extra config overrides for every run")
+    p.add_argument("--models", nargs="+", default=list(MODELS), choices=MODELS)
+    p.add_argument("--json", default="accuracy.json", help="result file name under benchmarks/results/")
     a = p.parse_args()
     data = dataset(a.work)
     table = {}
-    for model in MODELS:
+    for model in a.models:
         ms = []
         for seed in a.seeds:
             print(f"{model} seed {seed}", flush=True)
@@ -38,7 +40,9 @@ def main() -> None:
         table[model] = summarize([m for _, m in ms])
         table[model]["seeds"] = [s for s, _ in ms]
         table[model]["steps"] = a.steps
-    path = write_json("accuracy.json", table)
+    path = write_json(a.json, table)
+    if not table:
+        return
     print(f"\n{'model':<6}{'pos RMSE-1':>18}{'pos RMSE-all':>20}{'stress RMSE-1':>20}{'stress RMSE-all':>22}{'train ms':>12}")
     for m, r in table.items():
         print(f"{m:<6}{fmt(r['position']['rmse_1']):>18}{fmt(r['position']['rmse_all']):>20}"

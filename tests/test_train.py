@@ -185,3 +185,14 @@ def test_dataset_without_the_adapters_fields_is_refused(tmp_path):
     with pytest.raises(ValueError, match="out of range"):
         train(load_config("sphere_simple_cpu", TINY + ["train.steps=1", "data.exclude_trajectories=[5]"]),
               tmp_path / "data", "mgn", tmp_path / "run2", progress=False)
+
+
+def test_error_curves_roll_out_the_trajectories_an_old_rollout_lacks(tmp_path):
+    from hcmt.train.cli import run_rollouts
+    from hcmt.viz.curves import rollout_errors
+
+    data = write_impact_like(tmp_path / "data", n_test=2)
+    train(load_config("impact_plate_cpu", TINY + ["train.steps=1"]), data, "mgn", tmp_path / "run", progress=False)
+    run_rollouts(tmp_path / "run", data, "test", limit=1)
+    errors = rollout_errors([tmp_path / "run"], data, "test")
+    assert errors["MGN"]["trajectories"] == ["traj_00000", "traj_00001"]

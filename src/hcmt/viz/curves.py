@@ -30,10 +30,15 @@ def rollout_errors(runs: list[str | Path], data: str | Path, split: str = "test"
     from hcmt.train.cli import rollout_path, run_rollouts
 
     labels = labels or unique_labels(runs)
+    with Split(data, split) as s:
+        wanted = len(s) if limit is None else min(int(limit), len(s))
     paths = []
     for run in runs:
         path = rollout_path(run, split)
-        paths.append(path if path.is_file() else run_rollouts(run, data, split, limit=limit))
+        if path.is_file():
+            with h5py.File(path, "r") as f:
+                enough = len(f.keys()) >= wanted
+        paths.append(path if path.is_file() and enough else run_rollouts(run, data, split, limit=limit))
     names = None
     for path in paths:
         with h5py.File(path, "r") as f:

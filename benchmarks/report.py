@@ -94,7 +94,10 @@ def longer(lines):
                   "![rollout error per step](img/rollout_error_seed0.png)", "",
                   "Figure: `hcmt plot benchmarks/work/runs/acc_hcmt_s0_2000 benchmarks/work/runs/acc_mgn_s0_2000 "
                   "benchmarks/work/runs/acc_gt_s0_2000 --data benchmarks/work/impact_plate_small_40 --out DIR "
-                  "--only errors --limit 10` (seed 0, the 10 test trajectories).", ""]
+                  "--only errors --limit 10` (seed 0, the 10 test trajectories).", "",
+                  "![stress contours](img/stress_contours_zoom_seed0.png)", "",
+                  "Figure: the same three runs, `hcmt plot ... --only contours` (test trajectory 0, impact zoom; one "
+                  "colour scale per frame, set by the ground truth).", ""]
 
 
 def ablations(lines):

@@ -139,18 +139,26 @@ def _one(model_name: str, target: int, reps: int) -> dict:
 
 
 def _scaling(args) -> None:
-    rows = []
+    """Resumable: rows already in speed_scaling.json are kept, the file is rewritten after every new row."""
+    from common import RESULTS
+
+    old = RESULTS / "speed_scaling.json"
+    rows = json.loads(old.read_text())["rows"] if old.is_file() else []
     for size in args.sizes:
         for model in ("hcmt", "mgn"):
+            if any(r["model"] == model and r.get("target_nodes", r.get("nodes")) == size for r in rows):
+                continue
             out = subprocess.run([sys.executable, __file__, "one", model, str(size), "--reps", str(args.reps)],
                                  capture_output=True, text=True, env={**os.environ, "PYTHONUNBUFFERED": "1"})
             if out.returncode:
                 err = out.stderr.strip().splitlines()[-1] if out.stderr.strip() else f"exit {out.returncode}"
                 rows.append({"model": model, "target_nodes": size, "failed": err[-300:]})
                 print(json.dumps(rows[-1]), flush=True)
+                write_json("speed_scaling.json", {"rows": rows, "exponent": {}, "threads": torch.get_num_threads()})
                 continue
-            rows.append(json.loads(out.stdout.strip().splitlines()[-1]))
+            rows.append({"target_nodes": size, **json.loads(out.stdout.strip().splitlines()[-1])})
             print(json.dumps(rows[-1]), flush=True)
+            write_json("speed_scaling.json", {"rows": rows, "exponent": {}, "threads": torch.get_num_threads()})
     fits = {}
     for model in ("hcmt", "mgn"):
         r = [x for x in rows if x["model"] == model and "train_ms" in x]

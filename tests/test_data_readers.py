@@ -10,7 +10,7 @@ from hcmt.data.errors import DatasetError
 from hcmt.data.format import NodeType, open_split, read_meta
 from hcmt.data.tfrecord import iter_tfrecord
 
-from layouts import write_tf_dataset
+from layouts import sphere_simple_tfrecord, write_tf_dataset
 
 
 def deforming_plate(folder, steps=3, trajectories=2):
@@ -59,22 +59,12 @@ def test_deforming_plate_tfrecord_reads_and_converts(tmp_path, capsys):
 
 
 def test_sphere_simple_cloth_layout_2d_mesh_space_3d_world(tmp_path):
-    steps, n = 4, 5
-    meta = {"simulator": "arcsim", "dt": 0.01, "collision_radius": 0.05, "trajectory_length": steps,
-            "field_names": ["cells", "mesh_pos", "node_type", "world_pos"],
-            "features": {"cells": {"type": "static", "shape": [1, -1, 3], "dtype": "int32"},
-                         "mesh_pos": {"type": "static", "shape": [1, -1, 2], "dtype": "float32"},
-                         "node_type": {"type": "static", "shape": [1, -1, 1], "dtype": "int32"},
-                         "world_pos": {"type": "dynamic", "shape": [steps, -1, 3], "dtype": "float32"}}}
-    rec = {"cells": np.array([[[0, 1, 2], [1, 2, 3], [2, 3, 4]]], np.int32),
-           "mesh_pos": np.random.rand(1, n, 2).astype(np.float32),
-           "node_type": np.array([3, 0, 0, 0, 3], np.int32).reshape(1, n, 1),
-           "world_pos": np.random.rand(steps, n, 3).astype(np.float32)}
-    write_tf_dataset(tmp_path / "src", meta, {"test": [rec]})
+    sphere_simple_tfrecord(tmp_path / "src", steps=4)
     assert cli(["convert", str(tmp_path / "src"), str(tmp_path / "out")]) == 0
     with open_split(tmp_path / "out", "test") as s:
         t = s[0]
-    assert t["mesh_pos"].shape == (n, 2) and t["world_pos"].shape == (steps, n, 3)
+    assert t["mesh_pos"].shape == (36, 2) and t["world_pos"].shape == (4, 36, 3)
+    assert read_meta(tmp_path / "out")["dimension"] == 3
 
 
 def test_hcmt_impact_plate_static_varlen_row_splits(tmp_path):

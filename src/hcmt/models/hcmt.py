@@ -34,6 +34,7 @@ from torch import Tensor, nn
 
 from hcmt.data.errors import DatasetError
 from hcmt.graph.batch import Graph
+from hcmt.graph.hierarchy import pool as pool_nodes, unpool
 
 from .base import Simulator
 from .block import TransformerBlock
@@ -71,10 +72,10 @@ class HMT(nn.Module):
         for level, block in enumerate(self.down):
             h = run(block, h, level, f"hmt.down{level}")
             saved.append(h)
-            h = h.index_select(0, pool[level])
+            h = pool_nodes(h, pool[level])
         h = run(self.bottom, h, self.levels, f"hmt.bottom{self.levels}")
         for level in reversed(range(self.levels)):
-            h = saved[level].index_copy(0, pool[level], h)
+            h = unpool(h, saved[level], pool[level])
             h = run(self.up[level], h, level, f"hmt.up{level}")
         return h
 

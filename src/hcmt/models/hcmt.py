@@ -24,7 +24,8 @@ r"""Hierarchical Contact Mesh Transformer (paper §3.2): encoder → CMT → HMT
   depth :math:`L = 15` of the paper is kept; no hierarchy), ``only-hmt`` (HMT alone, :math:`L_H` blocks, contact
   edges unused), ``lpe`` (+ Laplacian eigenvector PE, :mod:`hcmt.models.lpe`), ``single-branch`` (CMT blocks put
   mesh and contact edges in one softmax), ``no-remesh`` (the model is unchanged: the graph builder makes the coarse
-  edges without Delaunay; the flag is kept in ``self.remesh`` for the data pipeline). The clip range ``c`` is the
+  edges without Delaunay: :func:`hcmt.train.trainer.uses_hierarchy` decides the hierarchy from the run's model
+  arguments). The clip range ``c`` is the
   ``clip`` setting.
 """
 from __future__ import annotations
@@ -92,7 +93,6 @@ class HCMT(Simulator):
             raise ValueError(f"L_C and λ must be >= 0, got L_C={L_C}, levels={levels}")
         self.ablation, self.L_C, self.levels, self.clip = ablation, L_C, levels, float(clip)
         self.L_H = 2 * levels + 1
-        self.remesh = ablation != "no-remesh"
         cmt_blocks = {"only-cmt": L_C + self.L_H, "only-hmt": 0}.get(ablation, L_C)
         self.cmt = nn.ModuleList(
             TransformerBlock(hidden, heads, clip, edge_types=2, merge_branches=ablation == "single-branch")

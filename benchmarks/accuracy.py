@@ -11,9 +11,10 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from common import dataset, fmt, run_and_evaluate, summarize, write_json
+from common import dataset, fmt, run_and_evaluate, write_json
 
-MODELS = ("hcmt", "mgn", "gt")
+from hcmt.models import MODELS
+from hcmt.train.metrics import summarize_runs
 
 
 def main() -> None:
@@ -37,7 +38,7 @@ def main() -> None:
                 ms.append((seed, res["test"]))
         if not ms:
             continue
-        table[model] = summarize([m for _, m in ms])
+        table[model] = summarize_runs([m for _, m in ms])
         table[model]["seeds"] = [s for s, _ in ms]
         table[model]["steps"] = a.steps
     path = write_json(a.json, table)
@@ -54,7 +55,6 @@ def main() -> None:
           f"stress RMSE-all {h['stress']['rmse_all']['mean'] / g['stress']['rmse_all']['mean']:.2f} "
           "(paper: 0.51 and 0.41)")
     print(f"wrote {path}")
-
 
 if __name__ == "__main__":
     main()

@@ -17,7 +17,6 @@ from hcmt.cli import main as hcmt
 from hcmt.data.format import atomic_path
 from hcmt.train.cli import evaluate, rollout_path
 from hcmt.train.config import load_config
-from hcmt.train.metrics import mean_std
 from hcmt.train.trainer import train
 
 import torch
@@ -106,17 +105,6 @@ def claim(run: Path) -> bool:
             f.write(str(os.getpid()))
         return True
     return False
-
-
-def summarize(metrics: list[dict]) -> dict:
-    """{"position": {"rmse_1": {mean, std}, "rmse_all": ...}, "stress": ...} over seeds."""
-    out = {}
-    for q in ("position", "stress"):
-        if all(q in m for m in metrics):
-            out[q] = {k: mean_std(m[q][k] for m in metrics) for k in ("rmse_1", "rmse_50", "rmse_all")}
-    out["train_ms_per_step"] = mean_std(m["train_ms_per_step"] for m in metrics)
-    out["inference_ms_per_step"] = mean_std(m["inference_ms_per_step"] for m in metrics)
-    return out
 
 
 def write_json(name: str, obj) -> Path:

@@ -10,7 +10,9 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from common import dataset, run_and_evaluate, summarize, write_json
+from common import dataset, run_and_evaluate, write_json
+
+from hcmt.train.metrics import summarize_runs
 
 SPLITS = ("test", "test_thicker", "test_higher", "test_thicker_higher")
 
@@ -33,7 +35,7 @@ def main() -> None:
             for s in SPLITS:
                 per_split[s].append(res[s])
         if per_split["test"]:
-            out[model] = {s: summarize(v) for s, v in per_split.items()}
+            out[model] = {s: summarize_runs(v) for s, v in per_split.items()}
             out[model]["seeds"] = len(per_split["test"])
     if len(out) < 2:
         return

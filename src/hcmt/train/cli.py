@@ -181,7 +181,7 @@ def compare(runs: list[str]) -> dict:
     """{label: {quantity: {metric: {mean, std, n}}}} over seeds; label = model (+ ablation)."""
     import yaml
 
-    from hcmt.train.metrics import mean_std
+    from hcmt.train.metrics import summarize_runs
 
     groups: dict[str, list[dict]] = defaultdict(list)
     for run in runs:
@@ -191,16 +191,7 @@ def compare(runs: list[str]) -> dict:
         info = yaml.safe_load((Path(run) / "run.yaml").read_text())["model"]
         label = info["name"].upper() + (f" ({info['ablation']})" if info.get("ablation") else "")
         groups[label].append(json.loads(mpath.read_text()))
-    table = {}
-    for label, ms in groups.items():
-        row = {}
-        for q in ("position", "stress"):
-            if all(q in m for m in ms):
-                row[q] = {k: mean_std(m[q][k] for m in ms) for k in ("rmse_1", "rmse_all")}
-        row["train_ms_per_step"] = mean_std(m["train_ms_per_step"] or np.nan for m in ms)
-        row["inference_ms_per_step"] = mean_std(m["inference_ms_per_step"] for m in ms)
-        table[label] = row
-    return table
+    return {label: summarize_runs(ms) for label, ms in groups.items()}
 
 
 def format_compare(table: dict) -> str:

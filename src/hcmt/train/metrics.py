@@ -43,3 +43,15 @@ def mean_std(values) -> dict[str, float]:
     """Mean ± sample standard deviation (ddof=1, as across seeds in the paper's tables; 0 for one value)."""
     v = np.asarray(list(values), np.float64)
     return {"mean": float(v.mean()), "std": float(v.std(ddof=1)) if v.size > 1 else 0.0, "n": int(v.size)}
+
+
+def summarize_runs(metrics: list[dict]) -> dict:
+    """Mean ± std over runs (seeds) of ``metrics.json`` dicts: ``{"position": {"rmse_1": {mean, std, n}, ...},
+    "stress": ..., "train_ms_per_step": ..., "inference_ms_per_step": ...}`` (a missing time counts as NaN)."""
+    out = {}
+    for q in ("position", "stress"):
+        if all(q in m for m in metrics):
+            out[q] = {k: mean_std(m[q][k] for m in metrics) for k in HORIZONS}
+    for key in ("train_ms_per_step", "inference_ms_per_step"):
+        out[key] = mean_std(np.nan if m.get(key) is None else m[key] for m in metrics)
+    return out

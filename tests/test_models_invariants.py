@@ -26,7 +26,11 @@ CONFIGS = [
     ("mgn", dict(blocks=3)),
     ("gt", dict(blocks=3)),
 ]
-IDS = [f"{n}-{kw.get('ablation') or kw.get('levels', '')}" for n, kw in CONFIGS]
+# the authors' attention (model.attention: official) and bias-free FFNs, in HCMT and every ablation
+CONFIGS += [("hcmt", dict(kw, attention="official", ffn_bias=False)) for n, kw in CONFIGS if n == "hcmt"]
+IDS = [f"{n}-{kw.get('ablation') or kw.get('levels', '')}{'-official' if kw.get('attention') else ''}"
+       for n, kw in CONFIGS]
+BATCHED = [CONFIGS[0], CONFIGS[8], CONFIGS[9], CONFIGS[10]]
 
 
 def make(name, **kw):
@@ -111,6 +115,45 @@ def test_propagate_matches_dense_masked_softmax_with_clip():
     assert (out[4:] == 0).all()
 
 
+def test_official_propagate_matches_dense_reference():
+    """The authors' formula (yuyudeep/hcmt core_model.py) on dense [N, N, H, d] arrays: no normalization, the edge
+    term inside the clip, a plain sum over senders."""
+    torch.manual_seed(2)
+    n, h, d, clip = 6, 2, 3, 0.7
+    edges = torch.tensor([[1, 2, 3, 0, 4, 5, 1, 0], [0, 0, 0, 1, 1, 1, 2, 3]])
+    q, k, v = (torch.randn(n, h, d) * 3 for _ in range(3))
+    et, gate = torch.randn(edges.shape[1], h, d), torch.randn(edges.shape[1], h, d)
+    out, w = propagate(q, k, v, et, gate, edges, clip, mode="official")
+    j, i = edges
+    mask = torch.zeros(n, n, 1, 1)
+    mask[i, j] = 1.0
+    e_dense, g_dense = torch.zeros(n, n, h, d), torch.zeros(n, n, h, d)
+    e_dense[i, j], g_dense[i, j] = et, gate
+    qk = q.unsqueeze(1) * k.unsqueeze(0) / d**0.5  # [i, j, h, d]
+    w_dense = torch.exp((e_dense * qk).clamp(-clip, clip)) * mask
+    torch.testing.assert_close(w, w_dense[i, j])
+    ref = (w_dense * g_dense * v.unsqueeze(0)).sum(1)
+    torch.testing.assert_close(out, ref)
+    assert (out[4:] == 0).all()
+    assert w.min() >= torch.exp(torch.tensor(-clip)) - 1e-6 and w.max() <= torch.exp(torch.tensor(clip)) + 1e-6
+    # unlike a softmax, the sum grows with the number of senders: duplicate node 0's edges
+    out2, _ = propagate(q, k, v, torch.cat([et, et[:3]]), torch.cat([gate, gate[:3]]),
+                        torch.cat([edges, edges[:, :3]], 1), clip, mode="official")
+    torch.testing.assert_close(out2[0], 2 * out[0])
+    torch.testing.assert_close(out2[1:], out[1:])
+
+
+def test_unknown_attention_mode_is_refused():
+    with pytest.raises(ValueError, match="model.attention.*'softmx'.*paper, official"):
+        make("hcmt", levels=1, L_C=1, attention="softmx")
+
+
+def test_official_mode_has_bias_free_ffn():
+    model = make("hcmt", levels=1, L_C=1, attention="official", ffn_bias=False)
+    assert not any(n.endswith("bias") and ".ffn." in n for n, _ in model.named_parameters())
+    assert any(n.endswith("bias") and ".ffn." in n for n, _ in make("hcmt", levels=1, L_C=1).named_parameters())
+
+
 def test_softmax_is_stable_for_huge_edge_terms():
     n, edges = 3, torch.tensor([[1, 2], [0, 0]])
     q = k = v = torch.ones(n, 1, 2)
@@ -143,7 +186,7 @@ def test_every_parameter_receives_a_gradient(name, kw):
     assert not missing, f"no gradient for {missing}"
 
 
-@pytest.mark.parametrize("name,kw", [CONFIGS[0], CONFIGS[-2], CONFIGS[-1]], ids=["hcmt", "mgn", "gt"])
+@pytest.mark.parametrize("name,kw", BATCHED, ids=["hcmt", "mgn", "gt", "hcmt-official"])
 def test_batch_of_graphs_equals_graphs_one_by_one(name, kw):
     a = grid_graph(9, 9, levels=2, node_in=NODE_IN, contacts=8, seed=1)
     b = grid_graph(9, 13, levels=2, node_in=NODE_IN, contacts=6, seed=2)
@@ -180,7 +223,7 @@ def test_wrong_feature_width_is_refused():
 
 
 @pytest.mark.skipif(not torch.cuda.is_available(), reason="no CUDA device")
-@pytest.mark.parametrize("name,kw", [CONFIGS[0], CONFIGS[-2], CONFIGS[-1]], ids=["hcmt", "mgn", "gt"])
+@pytest.mark.parametrize("name,kw", BATCHED, ids=["hcmt", "mgn", "gt", "hcmt-official"])
 def test_cuda_matches_cpu(name, kw):
     g = grid_graph(9, 9, levels=2, node_in=NODE_IN, contacts=8)
     model = warm(make(name, **kw), g)

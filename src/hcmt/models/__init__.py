@@ -6,6 +6,7 @@ normalized output ``[N, out]`` and owns its normalizers (``normalize_target``, `
 """
 from __future__ import annotations
 
+from .attention import MODES as ATTENTION_MODES, check_mode
 from .base import Simulator
 from .defaults import DATASETS, dataset_spec
 from .gt import GT
@@ -19,9 +20,12 @@ MODELS = ("hcmt", "mgn", "gt")
 
 def build_model(name: str, node_in: int, mesh_in: int, contact_in: int, out: int, *, ablation: str | None = None,
                 levels: int | None = None, L_C: int | None = None, L_H: int | None = None, hidden: int = 128,
-                heads: int = 4, clip: float = 2.0, blocks: int = 15, lpe_k: int = 8) -> Simulator:
+                heads: int = 4, clip: float = 2.0, blocks: int = 15, lpe_k: int = 8, attention: str = "paper",
+                ffn_bias: bool = True) -> Simulator:
     """HCMT needs ``levels`` (λ) and ``L_C``; ``L_H`` is optional and must equal ``2λ + 1``.
-    MGN and GT use ``blocks``; GT and HCMT use ``heads`` and ``clip``."""
+    MGN and GT use ``blocks``; GT and HCMT use ``heads`` and ``clip``; ``attention`` (``paper`` | ``official``)
+    and ``ffn_bias`` are HCMT's (the authors' code: ``official``, no FFN bias)."""
+    check_mode(attention)
     name = name.lower()
     if name == "hcmt":
         if levels is None or L_C is None:
@@ -29,7 +33,7 @@ def build_model(name: str, node_in: int, mesh_in: int, contact_in: int, out: int
         if L_H is not None and L_H != 2 * levels + 1:
             raise ValueError(f"L_H must be 2λ+1 = {2 * levels + 1} for λ={levels}, got L_H={L_H}")
         return HCMT(node_in, mesh_in, contact_in, out, L_C=L_C, levels=levels, hidden=hidden, heads=heads,
-                    clip=clip, ablation=ablation, lpe_k=lpe_k)
+                    clip=clip, ablation=ablation, lpe_k=lpe_k, attention=attention, ffn_bias=ffn_bias)
     if ablation not in (None, "", "none"):
         raise ValueError(f"ablations apply to HCMT only, got ablation={ablation!r} for model {name!r}")
     if name == "mgn":
@@ -49,5 +53,5 @@ def build_for_dataset(name: str, dataset: str, **overrides) -> Simulator:
     return build_model(name, spec["node_in"], spec["mesh_in"], spec["contact_in"], spec["out"], **kwargs)
 
 
-__all__ = ["ABLATIONS", "DATASETS", "GT", "HCMT", "MGN", "MODELS", "Normalizer", "Simulator", "build_for_dataset",
+__all__ = ["ABLATIONS", "ATTENTION_MODES", "DATASETS", "GT", "HCMT", "MGN", "MODELS", "Normalizer", "Simulator", "build_for_dataset",
            "build_model", "dataset_spec", "update_positions"]

@@ -27,6 +27,20 @@ Choices where the paper is ambiguous (documented here once for CMT, HMT and the 
 * Q, K, V, E, W carry no bias (they are matrices in the paper and in the authors' code).
 * Nodes with no incoming edge in a branch get exactly zero from that branch (an empty segment sums to zero); a
   branch with no edges at all (no contact) contributes zeros.
+
+**Two modes** (``model.attention``), both with these projections:
+
+* ``paper`` (default): the formula above, the paper's eq. 1, a per-receiver softmax.
+* ``official``: the authors' code exactly (yuyudeep/hcmt ``core_model.py``,
+  ``MultiHeadAttentionMesh.single_propagate_attention`` and ``MultiHeadAttentionCnt.propagate_attention``):
+
+  .. math::
+      w^k_{ij} = \exp\big(\operatorname{clip}(E^k\mathrm{LN}(e_{ij}) \odot Q^k\mathrm{LN}(z_i) \odot
+                 K^k\mathrm{LN}(z_j) / \sqrt{d_k}, -c, c)\big),\qquad
+      \bar z^k_i = \sum_j w^k_{ij} \odot W^k\mathrm{LN}(e_{ij}) \odot V^k\mathrm{LN}(z_j).
+
+  No normalization: the edge term sits *inside* the clip, and a sum keeps how many neighbours (e.g. contact edges)
+  contribute, which a softmax removes. Every weight lies in :math:`[e^{-c}, e^{c}]`.
 """
 from __future__ import annotations
 
@@ -36,20 +50,33 @@ from torch import Tensor, nn
 from torch_geometric.utils import scatter, softmax
 
 
+MODES = ("paper", "official")
+
+
+def check_mode(mode: str) -> str:
+    if mode not in MODES:
+        raise ValueError(f"model.attention: unknown value {mode!r}; expected one of {', '.join(MODES)}")
+    return mode
+
+
 def propagate(
-    q: Tensor, k: Tensor, v: Tensor, edge_term: Tensor, gate: Tensor, edges: Tensor, clip: float
+    q: Tensor, k: Tensor, v: Tensor, edge_term: Tensor, gate: Tensor, edges: Tensor, clip: float,
+    mode: str = "paper",
 ) -> tuple[Tensor, Tensor]:
     """One attention branch, vectorized over edges.
 
     q, k, v: ``[N, H, d_k]`` node projections; edge_term, gate: ``[E, H, d_k]`` (``E·LN(e)``, ``W·LN(e)``);
     edges: ``[2, E]`` with row 0 the sender j and row 1 the receiver i. Returns the aggregated ``[N, H, d_k]`` and
-    the softmax weights ``[E, H, d_k]``.
+    the weights ``[E, H, d_k]``: softmax weights :math:`a_{ij}` (``paper``) or unnormalized
+    :math:`w_{ij}` (``official``).
     """
     num_nodes, _, d_k = q.shape
     j, i = edges[0], edges[1]
     score = (q.index_select(0, i) * k.index_select(0, j)) / math.sqrt(d_k)
-    score = score.clamp(-clip, clip) + edge_term
-    weights = softmax(score, i, num_nodes=num_nodes, dim=0)
+    if mode == "official":
+        weights = (edge_term * score).clamp(-clip, clip).exp()
+    else:
+        weights = softmax(score.clamp(-clip, clip) + edge_term, i, num_nodes=num_nodes, dim=0)
     message = weights * gate * v.index_select(0, j)
     return scatter(message, i, dim=0, dim_size=num_nodes, reduce="sum"), weights
 
@@ -61,8 +88,9 @@ class EdgeGatedAttention(nn.Module):
     authors' code shares them; each edge type keeps its own pre-LayerNorm (in the block).
     """
 
-    def __init__(self, hidden: int = 128, heads: int = 4, clip: float = 2.0):
+    def __init__(self, hidden: int = 128, heads: int = 4, clip: float = 2.0, mode: str = "paper"):
         super().__init__()
+        self.mode = check_mode(mode)
         if hidden % heads:
             raise ValueError(f"hidden size {hidden} must be divisible by the number of heads {heads}")
         if not clip > 0:
@@ -84,8 +112,8 @@ class EdgeGatedAttention(nn.Module):
         """One branch: returns ``([N, hidden], weights [E, H, d_k])``."""
         q, k, v = qkv
         edge_term, gate = self.ew(e_ln).view(-1, 2, self.heads, self.hidden // self.heads).unbind(1)
-        out, weights = propagate(q, k, v, edge_term, gate, edges, self.clip)
+        out, weights = propagate(q, k, v, edge_term, gate, edges, self.clip, self.mode)
         return out.reshape(-1, self.hidden), weights
 
     def extra_repr(self) -> str:
-        return f"hidden={self.hidden}, heads={self.heads}, clip={self.clip}"
+        return f"hidden={self.hidden}, heads={self.heads}, clip={self.clip}, mode={self.mode}"

@@ -11,6 +11,8 @@ updated (paper: "the edge network remains unaltered").
 * **O maps the concatenation back to d**: the paper gives :math:`O\in\mathbb{R}^{2d\times 2d}`, which cannot be
   added to :math:`z_i\in\mathbb{R}^d`; the authors' code uses ``Linear(d)`` on the ``2d`` concatenation, so here
   :math:`O\in\mathbb{R}^{d\times bd}` for :math:`b` branches, without bias.
+* ``attention`` picks the weights (:mod:`hcmt.models.attention`: ``paper`` softmax or the authors' ``official``
+  unnormalized sum); ``ffn_bias=False`` drops the FFN's biases as the authors' code does.
 """
 from __future__ import annotations
 
@@ -23,7 +25,7 @@ from .mlp import ffn
 
 class TransformerBlock(nn.Module):
     def __init__(self, hidden: int = 128, heads: int = 4, clip: float = 2.0, *, edge_types: int = 1,
-                 merge_branches: bool = False):
+                 merge_branches: bool = False, attention: str = "paper", ffn_bias: bool = True):
         super().__init__()
         if edge_types < 1:
             raise ValueError(f"a block needs at least one edge type, got {edge_types}")
@@ -31,15 +33,15 @@ class TransformerBlock(nn.Module):
         branches = 1 if merge_branches else edge_types
         self.norm_node = nn.LayerNorm(hidden)
         self.norm_edges = nn.ModuleList(nn.LayerNorm(hidden) for _ in range(edge_types))
-        self.attention = EdgeGatedAttention(hidden, heads, clip)
+        self.attention = EdgeGatedAttention(hidden, heads, clip, attention)
         self.O = nn.Linear(branches * hidden, hidden, bias=False)
         self.norm_ffn = nn.LayerNorm(hidden)
-        self.ffn = ffn(hidden)
+        self.ffn = ffn(hidden, bias=ffn_bias)
 
     def forward(self, z: Tensor, edge_sets: list[tuple[Tensor, Tensor]], return_attention: bool = False):
         """z: ``[N, d]``; edge_sets: one ``(latents [E_b, d], edges [2, E_b])`` per edge type.
 
-        Returns ``z^{ℓ+1}``, and with ``return_attention`` also the list of softmax weights per branch."""
+        Returns ``z^{ℓ+1}``, and with ``return_attention`` also the list of attention weights per branch."""
         if len(edge_sets) != self.edge_types:
             raise ValueError(f"block built for {self.edge_types} edge types, got {len(edge_sets)}")
         qkv = self.attention.project_nodes(self.norm_node(z))

@@ -27,6 +27,10 @@ r"""Hierarchical Contact Mesh Transformer (paper §3.2): encoder → CMT → HMT
   edges without Delaunay: :func:`hcmt.train.trainer.uses_hierarchy` decides the hierarchy from the run's model
   arguments). The clip range ``c`` is the
   ``clip`` setting.
+
+* **The authors' variant** (``attention="official"``, ``ffn_bias=False``): their unnormalized attention sum and
+  bias-free FFNs (:mod:`hcmt.models.attention`), in every CMT and HMT block and every ablation; config
+  ``impact_plate_official``.
 """
 from __future__ import annotations
 
@@ -38,6 +42,7 @@ from hcmt.graph.batch import Graph
 from hcmt.graph.hierarchy import pool as pool_nodes, unpool
 
 from .base import Simulator
+from .attention import check_mode
 from .block import TransformerBlock
 from .lpe import LaplacianPE
 
@@ -47,12 +52,14 @@ ABLATIONS = ("late-contact", "only-cmt", "only-hmt", "lpe", "single-branch", "no
 class HMT(nn.Module):
     """The hierarchical mesh Transformer layer: ``2λ + 1`` one-branch blocks over the levels' mesh edges."""
 
-    def __init__(self, levels: int, hidden: int = 128, heads: int = 4, clip: float = 2.0):
+    def __init__(self, levels: int, hidden: int = 128, heads: int = 4, clip: float = 2.0, *,
+                 attention: str = "paper", ffn_bias: bool = True):
         super().__init__()
         if levels < 0:
             raise ValueError(f"number of levels λ must be >= 0, got {levels}")
         self.levels = levels
-        make = lambda: TransformerBlock(hidden, heads, clip, edge_types=1)  # noqa: E731
+        make = lambda: TransformerBlock(hidden, heads, clip, edge_types=1, attention=attention,  # noqa: E731
+                                        ffn_bias=ffn_bias)
         self.down = nn.ModuleList(make() for _ in range(levels))
         self.bottom = make()
         self.up = nn.ModuleList(make() for _ in range(levels))
@@ -83,7 +90,8 @@ class HMT(nn.Module):
 
 class HCMT(Simulator):
     def __init__(self, node_in: int, mesh_in: int, contact_in: int, out: int, *, L_C: int = 2, levels: int = 6,
-                 hidden: int = 128, heads: int = 4, clip: float = 2.0, ablation: str | None = None, lpe_k: int = 8):
+                 hidden: int = 128, heads: int = 4, clip: float = 2.0, ablation: str | None = None, lpe_k: int = 8,
+                 attention: str = "paper", ffn_bias: bool = True):
         super().__init__(node_in, mesh_in, contact_in, out, hidden=hidden)
         if ablation in ("", "none"):
             ablation = None
@@ -92,13 +100,16 @@ class HCMT(Simulator):
         if L_C < 0 or levels < 0:
             raise ValueError(f"L_C and λ must be >= 0, got L_C={L_C}, levels={levels}")
         self.ablation, self.L_C, self.levels, self.clip = ablation, L_C, levels, float(clip)
+        self.attention_mode, self.ffn_bias = check_mode(attention), bool(ffn_bias)
         self.L_H = 2 * levels + 1
         cmt_blocks = {"only-cmt": L_C + self.L_H, "only-hmt": 0}.get(ablation, L_C)
         self.cmt = nn.ModuleList(
-            TransformerBlock(hidden, heads, clip, edge_types=2, merge_branches=ablation == "single-branch")
+            TransformerBlock(hidden, heads, clip, edge_types=2, merge_branches=ablation == "single-branch",
+                             attention=attention, ffn_bias=ffn_bias)
             for _ in range(cmt_blocks)
         )
-        self.hmt = None if ablation == "only-cmt" else HMT(levels, hidden, heads, clip)
+        self.hmt = (None if ablation == "only-cmt"
+                    else HMT(levels, hidden, heads, clip, attention=attention, ffn_bias=ffn_bias))
         self.lpe = LaplacianPE(hidden, lpe_k) if ablation == "lpe" else None
         if not self.cmt:  # only-hmt never sees contact edges: no unused parameters
             self.contact_encoder = None

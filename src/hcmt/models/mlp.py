@@ -23,6 +23,8 @@ def mlp(in_size: int, hidden: int, out_size: int, *, layers: int = 2, layer_norm
     return nn.Sequential(*mods)
 
 
-def ffn(size: int) -> nn.Sequential:
-    """The Transformer FFN of HCMT (and of the GT baseline, paper appendix): three linear layers, two ReLUs."""
-    return nn.Sequential(nn.Linear(size, size), nn.ReLU(), nn.Linear(size, size), nn.ReLU(), nn.Linear(size, size))
+def ffn(size: int, bias: bool = True) -> nn.Sequential:
+    """The Transformer FFN of HCMT (and of the GT baseline, paper appendix): three linear layers, two ReLUs.
+    ``bias=False`` is the authors' code (``core_model.FFN``: ``snt.Linear(with_bias=False)``)."""
+    lin = lambda: nn.Linear(size, size, bias=bias)  # noqa: E731
+    return nn.Sequential(lin(), nn.ReLU(), lin(), nn.ReLU(), lin())

@@ -20,7 +20,7 @@ velocity input; inputs of the Impact Plate's density and modulus are taken per n
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 import torch
@@ -68,10 +68,28 @@ ADAPTERS = {
 }
 
 
-def get_adapter(name: str) -> Adapter:
+# ``train.contact_pairs``: which node types may form contact edges, for every model alike.
+#   all:      the adapter's own rule (Impact Plate: NORMAL, OBSTACLE and SYMMETRIC nodes of different bodies)
+#   official: OBSTACLE <-> NORMAL only, as the authors' code builds them (yuyudeep/hcmt model.py, contact_node_2D)
+CONTACT_PAIRS = {"all": None, "official": ((_O, _N),)}
+
+
+def get_adapter(name: str, contact_pairs: str = "all") -> Adapter:
+    """The dataset's adapter; ``contact_pairs="official"`` restricts contacts to OBSTACLE <-> NORMAL nodes."""
     if name not in ADAPTERS:
         raise ValueError(f"unknown dataset adapter {name!r}; expected one of {', '.join(ADAPTERS)}")
-    return ADAPTERS[name]
+    if contact_pairs not in CONTACT_PAIRS:
+        raise ValueError(f"train.contact_pairs: unknown value {contact_pairs!r}; expected one of "
+                         f"{', '.join(CONTACT_PAIRS)}")
+    adapter = ADAPTERS[name]
+    if CONTACT_PAIRS[contact_pairs] is not None:
+        adapter = replace(adapter, contact_types=CONTACT_PAIRS[contact_pairs])
+    return adapter
+
+
+def config_adapter(cfg: dict) -> Adapter:
+    """The adapter a config asks for: ``dataset`` and ``train.contact_pairs``."""
+    return get_adapter(cfg["dataset"], cfg.get("train", {}).get("contact_pairs", "all"))
 
 
 def position_mask(adapter: Adapter, node_type: Tensor, dim: int) -> Tensor:

@@ -62,14 +62,14 @@ def run_rollouts(run, data, split, limit=None, checkpoint="best") -> Path:
     """Roll a run's model out over a split; predictions go to ``RUN/rollout_<split>.h5`` (atomically)."""
     from tqdm import tqdm
 
-    from hcmt.train.adapters import get_adapter
+    from hcmt.train.adapters import config_adapter
     from hcmt.train.data import load_split
     from hcmt.train.rollout import rollout
     from hcmt.train.trainer import load_run, uses_hierarchy
 
     model, info = load_run(run, checkpoint)
     cfg = info["config"]
-    adapter = get_adapter(cfg["dataset"])
+    adapter = config_adapter(cfg)
     levels, remesh = uses_hierarchy(info["model"])
     trajs = load_split(data, split, adapter, levels, remesh, limit=limit)
     radius = float(cfg["train"]["contact_radius"])

@@ -61,4 +61,17 @@ def load_config(name_or_path: str, overrides: list[str] | None = None) -> dict:
         node[leaf] = parse_value(raw)
     for section in ("model", "train", "data"):
         cfg.setdefault(section, {})
+    check_choices(cfg, name_or_path)
     return cfg
+
+
+def check_choices(cfg: dict, source: str = "config") -> None:
+    """Keys with a fixed set of values are checked before any data is read: one line naming key, value, choices."""
+    from hcmt.models.attention import MODES
+    from hcmt.train.adapters import CONTACT_PAIRS
+
+    for section, key, allowed in (("model", "attention", MODES), ("train", "contact_pairs", tuple(CONTACT_PAIRS))):
+        value = cfg.get(section, {}).get(key)
+        if value is not None and value not in allowed:
+            raise ValueError(f"config {source}: {section}.{key}: unknown value {value!r}; expected one of "
+                             f"{', '.join(allowed)}")

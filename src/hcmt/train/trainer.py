@@ -33,7 +33,7 @@ import yaml
 from hcmt.data.format import atomic_path, read_meta
 from hcmt.graph.batch import collate
 from hcmt.models import build_model
-from hcmt.train.adapters import get_adapter, node_features, noise_mask, output_mask, target
+from hcmt.train.adapters import config_adapter, get_adapter, node_features, noise_mask, output_mask, target
 from hcmt.train.data import build_graph, load_split
 from hcmt.train.metrics import rollout_rmse
 from hcmt.train.rollout import RolloutError, rollout
@@ -50,6 +50,8 @@ def model_args(cfg: dict, model_name: str, ablation: str | None, meta: dict) -> 
         "out": adapter.out(d), "ablation": ablation, "levels": mc.get("levels", 0), "L_C": mc.get("L_C", 2),
         "L_H": mc.get("L_H"), "hidden": mc.get("hidden", 128), "heads": mc.get("heads", 4), "clip": mc.get("clip", 2.0),
         "blocks": mc.get("blocks", 15),
+        **({"attention": mc.get("attention", "paper"), "ffn_bias": bool(mc.get("ffn_bias", True))}
+           if model_name == "hcmt" else {}),
     }
 
 
@@ -81,8 +83,15 @@ def check_resume(saved: dict, run: dict, out: Path) -> None:
                          f"(see {out / 'run.yaml'}); resume with the same arguments or start a new --out")
 
 
-def learning_rate(step: int, steps: int, lr: float, lr_final: float) -> float:
-    """Exponential decay from ``lr`` at step 0 to ``lr_final`` at the last step (paper: 1e-4 -> 1e-6)."""
+def learning_rate(step: int, steps: int, lr: float, lr_final: float, decay_steps: int | None = None,
+                  decay_rate: float = 0.1) -> float:
+    """Exponential decay from ``lr`` at step 0 to ``lr_final`` at the last step (paper: 1e-4 -> 1e-6).
+
+    With ``decay_steps`` (``train.lr_decay_steps``) the decay is by step instead, without floor:
+    ``lr * decay_rate ** (step / decay_steps)``, the authors' code (run_model.py:
+    ``exponential_decay(1e-4, step, decay_steps=1e6, decay_rate=0.1)``); the run's length then does not matter."""
+    if decay_steps:
+        return lr * decay_rate ** (step / decay_steps)
     return lr * (lr_final / lr) ** min(step / max(steps, 1), 1.0)
 
 
@@ -142,7 +151,7 @@ def train(cfg: dict, data: str | Path, model_name: str, out: str | Path, *, abla
         raise ValueError("config: `dataset` (the adapter: impact_plate, deforming_plate, ...) is missing")
     steps = int(tc["steps"])
     meta = read_meta(data)
-    adapter = get_adapter(cfg["dataset"])
+    adapter = config_adapter(cfg)
     args = model_args(cfg, model_name, ablation, meta)
     ckpt_path = out / "checkpoint.pt"
     if resume and not ckpt_path.is_file():
@@ -169,6 +178,7 @@ def train(cfg: dict, data: str | Path, model_name: str, out: str | Path, *, abla
     per_epoch = max(len(frames) // (world * batch), 1)
 
     lr0, lr_final = float(tc["lr"]), float(tc.get("lr_final", tc["lr"]))
+    decay_steps, decay_rate = tc.get("lr_decay_steps"), float(tc.get("lr_decay_rate", 0.1))
     opt = torch.optim.Adam(model.parameters(), lr=lr0)
     step, best = 0, math.inf
     if resume:
@@ -230,7 +240,7 @@ def train(cfg: dict, data: str | Path, model_name: str, out: str | Path, *, abla
         pred = net(graph, accumulate=True)
         norm_tgt = model.normalize_target(tgt, accumulate=True)
         loss = ((pred - norm_tgt) ** 2 * mask).sum() / mask.sum().clamp_min(1.0)
-        lr = learning_rate(step, steps, lr0, lr_final)
+        lr = learning_rate(step, steps, lr0, lr_final, decay_steps, decay_rate)
         if step >= warmup:
             for group in opt.param_groups:
                 group["lr"] = lr

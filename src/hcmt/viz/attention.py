@@ -8,6 +8,10 @@ weight per head and channel, :mod:`hcmt.models.attention`). A map is the matrix
 reduce the heads); it keeps the softmax's property that every row with an incoming edge sums to 1, so a row of the
 image is how one node spreads its attention.
 
+HCMT with ``attention="official"`` (the authors' unnormalized :math:`w_{ij} = \exp(\mathrm{clip}(\cdot))`) has no
+such weights: for display, each head and channel of :math:`w` is divided by its sum over the receiver's incoming
+edges of the branch, :math:`w_{ij} / \sum_{j'} w_{ij'}`, so the figure is comparable; the title says so.
+
 Nodes are ordered object by object (their order within an object kept), so each object is a diagonal block and the
 contact attention lies in the off-diagonal blocks; block boundaries are drawn and labelled (the Impact Plate: the
 plate, object 0, top left; the ball bottom right, as the paper's Fig. 15 describes). HCMT gives, per CMT block,
@@ -41,6 +45,7 @@ class AttentionMaps:
     frame: int = 0
     model: str = ""
     node_type: list[np.ndarray] = field(default_factory=list)
+    normalized_for_display: bool = False  # official attention: w_ij / sum_j w_ij per receiver, not softmax weights
 
 
 def attention_matrix(weights, edges, num_nodes: int) -> sp.csr_matrix:
@@ -84,12 +89,17 @@ def maps_from_model(model, graph, object_id: np.ndarray, level_nodes: list[np.nd
                          "use an HCMT or GT run")
     _, attention = result
     sizes = [graph.num_nodes] + [len(v) for v in level_nodes]
+    official = getattr(model, "attention_mode", "paper") == "official"
     matrices, levels = {}, {}
     for name, w in attention:
         level = block_level(name)
+        if official:  # unnormalized weights: divide by the receiver's sum (per head, channel) for display
+            receiver = block_edges(name, graph)[1]
+            total = torch.zeros((sizes[level], *w.shape[1:]), dtype=w.dtype).index_add_(0, receiver, w)
+            w = w / total.index_select(0, receiver)
         matrices[name] = attention_matrix(w, block_edges(name, graph), sizes[level])
         levels[name] = level
-    return {"matrices": matrices, "levels": levels}
+    return {"matrices": matrices, "levels": levels, "normalized_for_display": official}
 
 
 def default_frame(world_pos: np.ndarray, object_id: np.ndarray, history: int) -> int:
@@ -110,14 +120,14 @@ def frame_attention(run: str | Path, data: str | Path, split: str = "test", traj
 
     from hcmt.data.format import Split
     from hcmt.graph.hierarchy import hierarchy_cache_dir
-    from hcmt.train.adapters import get_adapter, node_features
+    from hcmt.train.adapters import config_adapter, node_features
     from hcmt.train.data import build_graph, prepare_trajectory
     from hcmt.train.trainer import load_run, uses_hierarchy
     from hcmt.viz.rollouts import run_label, trajectory_index
 
     model, info = load_run(run, checkpoint)
     cfg = info["config"]
-    adapter = get_adapter(cfg["dataset"])
+    adapter = config_adapter(cfg)
     levels, remesh = uses_hierarchy(info["model"])
     with Split(data, split) as s:
         index = trajectory_index(s.names, trajectory)
@@ -138,7 +148,8 @@ def frame_attention(run: str | Path, data: str | Path, split: str = "test", traj
     maps = maps_from_model(model, graph, obj, level_nodes)
     nt = traj.static["node_type"].numpy()
     return AttentionMaps(maps["matrices"], maps["levels"], [obj] + [obj[v] for v in level_nodes],
-                         traj.name, int(frame), run_label(run), [nt] + [nt[v] for v in level_nodes])
+                         traj.name, int(frame), run_label(run), [nt] + [nt[v] for v in level_nodes],
+                         maps["normalized_for_display"])
 
 
 def object_order(object_id: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -221,7 +232,11 @@ def attention_figure(maps: AttentionMaps, panels: list[tuple[str, str]] | None =
         ax.set_ylabel("receiver i", fontsize=7)
         ax.set_title(f"{title}\n{coo.nnz} edges", fontsize=8)
     cbar = fig.colorbar(mappable, ax=fig.axes, aspect=40)
-    cbar.set_label("attention weight $a_{ij}$\n(mean over heads and channels)", fontsize=8)
+    if maps.normalized_for_display:
+        cbar.set_label("$w_{ij} / \\sum_j w_{ij}$ (official attention, normalized for display)\n"
+                       "(mean over heads and channels)", fontsize=8)
+    else:
+        cbar.set_label("attention weight $a_{ij}$\n(mean over heads and channels)", fontsize=8)
     fig.suptitle(f"Attention maps of {maps.model}, trajectory {maps.trajectory}, frame {maps.frame} "
                  "\nrow i: how receiver i spreads its attention over its senders j (each row sums to 1); "
                  "red lines: object blocks", fontsize=9)

@@ -46,7 +46,8 @@ def dataset(work: Path, spec: dict = DATASET) -> Path:
 
 
 def run_and_evaluate(work: Path, data: Path, name: str, model: str, seed: int, overrides: list[str],
-                     splits=("test",), ablation: str | None = None, config: str = "impact_plate_cpu") -> dict:
+                     splits=("test",), ablation: str | None = None, config: str = "impact_plate_cpu",
+                     details: bool = False) -> dict:
     """Train (or resume, or skip) one run, then evaluate it on each split; returns {split: metrics}."""
     run = work / "runs" / name
     out = {}
@@ -56,7 +57,7 @@ def run_and_evaluate(work: Path, data: Path, name: str, model: str, seed: int, o
         return None
     if not done:
         try:
-            _train_and_evaluate(run, data, model, seed, overrides, splits, ablation, config)
+            _train_and_evaluate(run, data, model, seed, overrides, splits, ablation, config, details)
         finally:
             (run.parent / f"{run.name}.lock").unlink(missing_ok=True)  # ours: claimed above
     for s in splits:
@@ -68,7 +69,7 @@ def run_and_evaluate(work: Path, data: Path, name: str, model: str, seed: int, o
     return out
 
 
-def _train_and_evaluate(run, data, model, seed, overrides, splits, ablation, config) -> None:
+def _train_and_evaluate(run, data, model, seed, overrides, splits, ablation, config, details=False) -> None:
     """Train the run unless trained (resuming a checkpoint), then write ``metrics_<split>.json`` per split."""
     cfg = load_config(config, overrides)
     if not (run / "train_stats.json").is_file():
@@ -80,9 +81,40 @@ def _train_and_evaluate(run, data, model, seed, overrides, splits, ablation, con
         print(f"  trained {run.name} in {time.perf_counter() - t0:.0f} s", flush=True)
     for s in splits:
         m = evaluate(run, data, s)
+        if details:
+            with atomic_path(run / f"details_{s}.json") as tmp:
+                tmp.write_text(json.dumps(rollout_details(run, data, s), indent=2))
         with atomic_path(run / f"metrics_{s}.json") as tmp:
             tmp.write_text(json.dumps(m, indent=2))
         rollout_path(run, s).unlink(missing_ok=True)
+
+
+def rollout_details(run: Path, data: Path, split: str) -> dict:
+    """Error by node group (plate: the body holding the clamped HANDLE nodes; ball: the other body) and by
+    rollout step, averaged over the split's trajectories, from the run's rollout file."""
+    import h5py
+    import numpy as np
+
+    from hcmt.data.format import NodeType, Split
+    from hcmt.graph.contact import object_ids
+    from hcmt.train.metrics import rollout_details as details
+
+    rows = []
+    with h5py.File(rollout_path(run, split), "r") as f, Split(data, split) as s:
+        index = {n: i for i, n in enumerate(s.names)}
+        for name in f.keys():
+            truth = s[index[name]]
+            obj = object_ids(np.asarray(truth["cells"]), len(truth["node_type"]))
+            plate = obj == obj[np.asarray(truth["node_type"]).reshape(-1) == NodeType.HANDLE][0]
+            groups = {"plate": plate, "ball": ~plate}
+            start = int(f[name].attrs["start"])
+            pos = details(f[name]["world_pos"][()], truth["world_pos"], start, groups)
+            st = details(f[name]["stress"][()], truth["stress"], start, groups)
+            rows.append((pos, st))
+    return {"groups": {g: {"position": float(np.mean([p["groups"][g] for p, _ in rows])),
+                           "stress": float(np.mean([t["groups"][g] for _, t in rows]))} for g in ("plate", "ball")},
+            "position_by_step": np.mean([p["by_step"] for p, _ in rows], 0).tolist(),
+            "stress_by_step": np.mean([t["by_step"] for _, t in rows], 0).tolist()}
 
 
 def claim(run: Path) -> bool:

@@ -27,6 +27,7 @@ import torch
 from torch import Tensor
 
 from hcmt.data.format import NODE_TYPE_SIZE, NodeType
+from hcmt.graph.contact import OFFICIAL_IMPACT_PLATE_TYPES
 from hcmt.models.updater import update_positions
 
 
@@ -71,7 +72,7 @@ ADAPTERS = {
 # ``train.contact_pairs``: which node types may form contact edges, for every model alike.
 #   all:      the adapter's own rule (Impact Plate: NORMAL, OBSTACLE and SYMMETRIC nodes of different bodies)
 #   official: OBSTACLE <-> NORMAL only, as the authors' code builds them (yuyudeep/hcmt model.py, contact_node_2D)
-CONTACT_PAIRS = {"all": None, "official": ((_O, _N),)}
+CONTACT_PAIRS = {"all": None, "official": OFFICIAL_IMPACT_PLATE_TYPES}
 
 
 def get_adapter(name: str, contact_pairs: str = "all") -> Adapter:

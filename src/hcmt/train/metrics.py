@@ -55,3 +55,13 @@ def summarize_runs(metrics: list[dict]) -> dict:
     for key in ("train_ms_per_step", "inference_ms_per_step"):
         out[key] = mean_std(np.nan if m.get(key) is None else m[key] for m in metrics)
     return out
+
+
+def rollout_details(pred: np.ndarray, true: np.ndarray, start: int, groups: dict[str, np.ndarray]) -> dict:
+    """Where the error sits: ``{"by_step": [T - start] error per predicted step (×10³), "groups": {name: rmse_all
+    over that group's nodes only (×10³)}}`` for one trajectory; ``groups`` maps a name to a node mask ``[N]``."""
+    e = step_rmse(pred, true)[start:] * SCALE
+    out = {"by_step": e.tolist(), "groups": {}}
+    for name, mask in groups.items():
+        out["groups"][name] = float(step_rmse(pred[:, mask], true[:, mask])[start:].mean() * SCALE)
+    return out

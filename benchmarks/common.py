@@ -95,17 +95,16 @@ def rollout_details(run: Path, data: Path, split: str) -> dict:
     import h5py
     import numpy as np
 
-    from hcmt.data.format import NodeType, Split
-    from hcmt.graph.contact import object_ids
+    from hcmt.data.format import Split
     from hcmt.train.metrics import rollout_details as details
+    from hcmt.train.predict import plate_mask
 
     rows = []
     with h5py.File(rollout_path(run, split), "r") as f, Split(data, split) as s:
         index = {n: i for i, n in enumerate(s.names)}
         for name in f.keys():
             truth = s[index[name]]
-            obj = object_ids(np.asarray(truth["cells"]), len(truth["node_type"]))
-            plate = obj == obj[np.asarray(truth["node_type"]).reshape(-1) == NodeType.HANDLE][0]
+            plate = plate_mask(truth["cells"], truth["node_type"])
             groups = {"plate": plate, "ball": ~plate}
             start = int(f[name].attrs["start"])
             pos = details(f[name]["world_pos"][()], truth["world_pos"], start, groups)

@@ -20,6 +20,9 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "rollout": ("hcmt.train.cli", "roll a trained model out over a dataset split (writes HDF5 predictions)"),
     "evaluate": ("hcmt.train.cli", "compute the paper's RMSE metrics of a run on a split (writes RUN/metrics.json)"),
     "compare": ("hcmt.train.cli", "aggregate several runs into the paper's Table 2 layout (mean +- std)"),
+    "predict": ("hcmt.train.cli", "peak stress and deflection of new Impact Plate designs from a trained model, "
+                "no solver run (--verify compares with the solver)"),
+    "models": ("hcmt.train.cli", "list the trained models shipped with hcmt (pretrained:NAME)"),
     "plot": ("hcmt.viz.cli", "draw stress contours, animations, error curves and training curves of a run"),
     "export": ("hcmt.viz.cli", "export a rollout to ParaView (VTU or XDMF time series)"),
     "demo": ("hcmt.train.demo", "quickstart: generate a small dataset, train HCMT briefly on CPU, roll out, evaluate"),

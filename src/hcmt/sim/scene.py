@@ -181,17 +181,49 @@ def simulate(design: Design, settings: Settings = Settings(), *, progress=None) 
         stress[k, :, 0] = nodal_von_mises(model, sim.x)
         if progress is not None:
             progress(k)
-    is_ball = body == 1
-    fields_ = dict(
-        mesh_pos=X.astype(np.float32), cells=cells.astype(np.int32),
-        node_type=mesh["node_type"].astype(np.int32)[:, None],
-        density=np.where(is_ball, design.ball_density, design.plate_density).astype(np.float32)[:, None],
-        modulus=np.where(is_ball, design.ball_modulus, design.plate_modulus).astype(np.float32)[:, None],
-        world_pos=world_pos, stress=stress)
+    fields_ = dict(_static_fields(design, mesh), world_pos=world_pos, stress=stress)
     attrs = {**asdict(design), "impact_speed": design.impact_speed, "formulation": settings.formulation}
     info = dict(wall_time=time.perf_counter() - start, cpu_time=time.process_time() - cpu_start, substeps=substeps * (T - 1), dt=dt, num_nodes=N,
                 num_cells=len(cells), energy=sim.energies())
     return dict(fields=fields_, attrs=attrs, info=info)
+
+
+def _static_fields(design: Design, mesh: dict) -> dict[str, np.ndarray]:
+    """The native-format static fields of a design's mesh: mesh_pos, cells, node_type, density, modulus."""
+    is_ball = mesh["body"] == 1
+    return dict(
+        mesh_pos=mesh["mesh_pos"].astype(np.float32), cells=mesh["cells"].astype(np.int32),
+        node_type=mesh["node_type"].astype(np.int32)[:, None],
+        density=np.where(is_ball, design.ball_density, design.plate_density).astype(np.float32)[:, None],
+        modulus=np.where(is_ball, design.ball_modulus, design.plate_modulus).astype(np.float32)[:, None])
+
+
+def initial_frames(design: Design, settings: Settings = Settings()) -> dict:
+    """The first two frames of a design without a solver run: what a learned model needs to start a rollout.
+
+    Frame 0 is the mesh at rest with the ball ``gap`` above the plate; frame 1 is one ``frame_dt`` later in free
+    flight, ``x^1 = x^0 - (v0 dt + g dt^2 / 2) e_y`` for the ball and ``- g dt^2 / 2`` for the plate's unclamped
+    nodes (the ball cannot reach the plate in one frame: ``v0 dt < gap`` is checked). The solver's frame 1 agrees
+    to float32 precision (tests/test_predict.py). Stress is zero in both frames. Returns ``fields`` (static fields,
+    ``world_pos [2, N, 2]``, ``stress [2, N, 1]``) and ``attrs``, as :func:`simulate`."""
+    design.validate()
+    settings.validate()
+    dt, g = settings.frame_dt, settings.gravity
+    fall = design.impact_speed * dt + 0.5 * g * dt * dt
+    if fall >= design.gap:
+        raise ValueError(f"drop_height {design.drop_height} mm: the ball ({design.impact_speed:.3g} mm/ms) would "
+                         f"cross the {design.gap} mm gap within the first frame ({dt} ms); lower drop_height or "
+                         "raise gap")
+    mesh = design_mesh(design)
+    x0 = mesh["mesh_pos"].astype(np.float64)
+    x1 = x0.copy()
+    ball = mesh["body"] == 1
+    x1[ball, 1] -= fall
+    x1[~ball & (mesh["node_type"] != HANDLE), 1] -= 0.5 * g * dt * dt
+    fields_ = dict(_static_fields(design, mesh), world_pos=np.stack([x0, x1]).astype(np.float32),
+                   stress=np.zeros((2, len(x0), 1), np.float32))
+    attrs = {**asdict(design), "impact_speed": design.impact_speed, "formulation": settings.formulation}
+    return dict(fields=fields_, attrs=attrs)
 
 
 def feature_spec(settings: Settings = Settings()) -> dict:
@@ -209,4 +241,4 @@ def feature_spec(settings: Settings = Settings()) -> dict:
 
 
 __all__ = ["Design", "Settings", "RANGES", "VARIANTS", "UNITS", "GRAVITY", "CONTACT_RADIUS", "sample_design",
-           "simulate", "feature_spec", "design_mesh"]
+           "simulate", "initial_frames", "feature_spec", "design_mesh"]

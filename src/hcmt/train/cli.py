@@ -1,8 +1,9 @@
-"""``hcmt train / rollout / evaluate / compare``."""
+"""``hcmt train / rollout / evaluate / compare / predict / models``."""
 from __future__ import annotations
 
 import argparse
 import json
+import time
 from collections import defaultdict
 from pathlib import Path
 
@@ -101,7 +102,7 @@ def _rollout_is_current(path: Path, run, data, split, limit, checkpoint) -> bool
     ckpt = ckpt if ckpt.is_file() else Path(run) / "checkpoint.pt"
     if not ckpt.is_file():
         return False
-    step = int(torch.load(ckpt, map_location="cpu", weights_only=False)["step"])
+    step = int(torch.load(ckpt, map_location="cpu", weights_only=True)["step"])
     want = rollout_key(data, split, limit, ckpt.name, step)
     with h5py.File(path, "r") as f:
         have = {k: (v.item() if hasattr(v, "item") else v) for k, v in f.attrs.items()}
@@ -214,4 +215,91 @@ def main_compare(args: argparse.Namespace) -> int:
     if args.json:
         with atomic_path(Path(args.json)) as tmp:
             tmp.write_text(json.dumps(table, indent=2))
+    return 0
+
+
+# -- predict / models ----------------------------------------------------------------------------------------------
+def configure_predict(p: argparse.ArgumentParser) -> None:
+    p.add_argument("model", help="run folder made by `hcmt train`, or pretrained:NAME (`hcmt models` lists them)")
+    p.add_argument("--design", nargs="+", action="append", default=[], metavar="KEY=VALUE",
+                   help="one design, e.g. --design thickness=0.8 drop_height=900 (repeat for more designs); "
+                        "parameters as `hcmt simulate`'s, unspecified ones at the middle of the training ranges")
+    p.add_argument("--designs", metavar="FILE.csv", help="designs from a CSV file: header of parameter names "
+                   "(optional `name` column), one design per row")
+    p.add_argument("--device", help="cpu, cuda, cuda:N (default: cuda when available)")
+    p.add_argument("--batch", type=int, default=8, help="designs rolled out together (default 8)")
+    p.add_argument("--yield-mpa", type=float, help="report the margin of the peak plate stress to this stress (MPa)")
+    p.add_argument("--verify", action="store_true", help="also run the built-in solver and report the errors and "
+                   "the speedup")
+    p.add_argument("--images", action="store_true", help="stress-contour PNG at each design's peak frame")
+    p.add_argument("--out", default="predict_out", help="folder for --images (default predict_out)")
+    p.add_argument("--json", help="write the results as JSON")
+    p.add_argument("--csv", help="write the table as CSV")
+    p.add_argument("--no-progress", action="store_true")
+
+
+def main_predict(args: argparse.Namespace) -> int:
+    import sys
+
+    from hcmt.train import predict as pr
+    from hcmt.train.run import Run
+
+    if not args.design and not args.designs:
+        raise ValueError("give designs with --design KEY=VALUE ... or --designs FILE.csv")
+    run = Run.load(args.model, args.device)
+    if run.config.get("dataset") != "impact_plate":
+        raise ValueError(f"{args.model}: predict is for Impact Plate models; this one was trained on "
+                         f"{run.config.get('dataset')!r}")
+    defaults = pr.default_design(run.meta)
+    designs = [(f"design_{i + 1}", pr.parse_design(items, defaults)) for i, items in enumerate(args.design)]
+    if args.designs:
+        designs += pr.read_designs_csv(args.designs, defaults)
+    settings = pr.settings_of(run.meta)
+    for name, d in designs:
+        for w in pr.range_warnings(d, run.ranges):
+            print(f"hcmt predict: warning: {name}: {w}", file=sys.stderr)
+    t0 = time.perf_counter()
+    preds = pr.predict(run, designs, batch=args.batch, progress=not args.no_progress)
+    wall = time.perf_counter() - t0
+    pr.add_margin(preds, args.yield_mpa)
+    truth = verified = None
+    if args.verify:
+        truth = pr.solve(designs, settings)
+        verified = pr.verify(preds, truth)
+    print(f"{run.label} ({run.source}) on {run.device}: {len(preds)} design(s), {settings.frames} frames of "
+          f"{settings.frame_dt} ms, {wall:.2f} s in all; stresses are von Mises [MPa], lengths [mm]")
+    print(pr.format_table(preds, verified))
+    if args.images:
+        for i, p in enumerate(preds):
+            path = pr.contour_picture(p, truth[i] if truth else None, run.meta, args.out, run.label)
+            print(f"contours {p.name}: {path}")
+    if args.csv:
+        print(f"wrote {pr.write_csv(preds, args.csv)}")
+    if args.json:
+        with atomic_path(Path(args.json)) as tmp:
+            tmp.write_text(json.dumps(pr.to_json(preds, verified, run.source, str(run.device)), indent=2))
+        print(f"wrote {args.json}")
+    return 0
+
+
+def configure_models(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--json", action="store_true", help="print the model cards as JSON")
+
+
+def main_models(args: argparse.Namespace) -> int:
+    from hcmt.train.run import Run, available_pretrained
+
+    shipped = available_pretrained()
+    if not shipped:
+        print("no shipped models in this installation")
+        return 0
+    cards = {}
+    for name, path in shipped.items():
+        run = Run.load(f"pretrained:{name}", "cpu")
+        cards[name] = {"file": str(path), "size_mb": path.stat().st_size / 1e6, **run.card}
+    if args.json:
+        print(json.dumps(cards, indent=2))
+        return 0
+    for name, c in cards.items():
+        print(f"pretrained:{name}  {c.get('summary', '')}  ({c['size_mb']:.1f} MB; docs/MODELS.md)")
     return 0

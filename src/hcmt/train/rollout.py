@@ -1,11 +1,18 @@
 """Autoregressive rollout: from the first frame(s), the model's own predictions feed the next step; boundary
-conditions are imposed and contact edges recomputed at every step."""
+conditions are imposed and contact edges recomputed at every step.
+
+Several trajectories roll out together (:func:`rollout_batch`): at each step their graphs are collated into one
+disconnected graph and the model runs once, so a batch costs about one model call per step on a GPU. Every model is
+node-local (a node's output depends on its own graph only; the normalizers do not accumulate in rollout), so a batch
+gives what one-by-one rollouts give, up to float summation order (tests/test_train.py).
+"""
 from __future__ import annotations
 
 import time
 
 import torch
 
+from hcmt.graph.batch import collate
 from hcmt.train.adapters import Adapter, integrate, node_features
 from hcmt.train.data import Trajectory, build_graph
 
@@ -17,33 +24,54 @@ class RolloutError(RuntimeError):
 @torch.no_grad()
 def rollout(model, adapter: Adapter, traj: Trajectory, radius: float, steps: int | None = None) -> dict:
     """Roll ``model`` out over ``traj``. Returns ``world_pos`` [T, N, d] and ``stress`` [T, N, 1] (or None) as
-    tensors whose first ``adapter.history + 1`` frames are the data's, and ``ms_per_step``."""
+    tensors whose first ``adapter.history + 1`` frames are the data's, ``ms_per_step`` and ``start`` (the first
+    predicted frame)."""
+    return rollout_batch(model, adapter, [traj], radius, steps)[0]
+
+
+@torch.no_grad()
+def rollout_batch(model, adapter: Adapter, trajs: list[Trajectory], radius: float, steps: int | None = None,
+                  progress=None) -> list[dict]:
+    """Roll out several trajectories with the same number of frames together, one batched model call per step.
+
+    Frames ``0 .. history`` of each trajectory start the rollout; later frames of ``traj.world_pos`` are read only
+    where a boundary condition sets the position (clamped, symmetry and prescribed nodes), so a trajectory whose
+    later frames hold just those values (:func:`hcmt.train.predict.design_trajectory`) rolls out the same.
+    ``progress(n)`` is called after every step. Returns one dict per trajectory, as :func:`rollout`;
+    ``ms_per_step`` is the batch's time per step divided by the number of trajectories."""
     model.eval()
     device = next(model.parameters()).device  # graphs go where the model is; results come back to the CPU
-    world = traj.world_pos
-    T = world.shape[0] if steps is None else min(world.shape[0], steps + adapter.history + 1)
+    lengths = {int(tr.world_pos.shape[0]) for tr in trajs}
+    if len(lengths) != 1:
+        raise ValueError(f"trajectories of different lengths {sorted(lengths)} cannot roll out in one batch")
+    (full,) = lengths
     h = adapter.history
-    pos_list = [world[i] for i in range(h + 1)]
-    stress_list = [traj.stress[i] for i in range(h + 1)] if traj.stress is not None else None
+    T = full if steps is None else min(full, steps + h + 1)
+    pos = [[tr.world_pos[i] for i in range(h + 1)] for tr in trajs]
+    stress = [[tr.stress[i] for i in range(h + 1)] if tr.stress is not None else None for tr in trajs]
+    sizes = [tr.num_nodes for tr in trajs]
     elapsed = 0.0
     for t in range(h, T - 1):
         start = time.perf_counter()
-        pos, prev = pos_list[-1], pos_list[-2] if h else pos_list[-1]
-        feats = node_features(adapter, traj.static, pos, prev, world[t + 1])
-        graph = build_graph(traj, pos, feats, radius).to(device)
-        out = model.denormalize(model(graph, accumulate=False)).cpu()
-        nxt, stress = integrate(adapter, out, pos, prev, world[t + 1], traj.static["node_type"])
+        graphs, inputs = [], []
+        for b, tr in enumerate(trajs):
+            x, prev = pos[b][-1], pos[b][-2] if h else pos[b][-1]
+            feats = node_features(adapter, tr.static, x, prev, tr.world_pos[t + 1])
+            graphs.append(build_graph(tr, x, feats, radius))
+            inputs.append((x, prev))
+        out = model.denormalize(model(collate(graphs).to(device), accumulate=False)).cpu()
+        for b, (tr, o) in enumerate(zip(trajs, out.split(sizes))):
+            x, prev = inputs[b]
+            nxt, s = integrate(adapter, o, x, prev, tr.world_pos[t + 1], tr.static["node_type"])
+            if not torch.isfinite(nxt).all() or (s is not None and not torch.isfinite(s).all()):
+                raise RolloutError(f"trajectory {tr.name}: the predicted state became non-finite at step {t + 1} "
+                                   f"(frame {t + 1} of {T}); the model diverged")
+            pos[b].append(nxt)
+            if stress[b] is not None:
+                stress[b].append(s if s is not None else tr.stress[t + 1])
         elapsed += time.perf_counter() - start
-        if not torch.isfinite(nxt).all() or (stress is not None and not torch.isfinite(stress).all()):
-            raise RolloutError(f"trajectory {traj.name}: the predicted state became non-finite at step {t + 1} "
-                               f"(frame {t + 1} of {T}); the model diverged")
-        pos_list.append(nxt)
-        if stress_list is not None:
-            stress_list.append(stress if stress is not None else traj.stress[t + 1])
-    steps_done = max(T - 1 - h, 1)
-    return {
-        "world_pos": torch.stack(pos_list),
-        "stress": torch.stack(stress_list) if stress_list is not None else None,
-        "ms_per_step": 1e3 * elapsed / steps_done,
-        "start": h + 1,
-    }
+        if progress is not None:
+            progress(1)
+    per_step = 1e3 * elapsed / max(T - 1 - h, 1) / len(trajs)
+    return [{"world_pos": torch.stack(p), "stress": torch.stack(s) if s is not None else None,
+             "ms_per_step": per_step, "start": h + 1} for p, s in zip(pos, stress)]

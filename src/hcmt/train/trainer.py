@@ -182,7 +182,7 @@ def train(cfg: dict, data: str | Path, model_name: str, out: str | Path, *, abla
     opt = torch.optim.Adam(model.parameters(), lr=lr0)
     step, best = 0, math.inf
     if resume:
-        state = torch.load(ckpt_path, map_location=device, weights_only=False)
+        state = torch.load(ckpt_path, map_location=device, weights_only=True)
         model.load_state_dict(state["model"])
         opt.load_state_dict(state["optimizer"])
         step, best = int(state["step"]), float(state["best"])
@@ -310,7 +310,7 @@ def load_run(run: str | Path, which: str = "best", device: str = "cpu"):
         path = run / "checkpoint.pt"
     if not path.is_file():
         raise FileNotFoundError(f"{run}: no checkpoint yet (best.pt / checkpoint.pt)")
-    state = torch.load(path, map_location=device, weights_only=False)
+    state = torch.load(path, map_location=device, weights_only=True)
     model = make_model(state["model_args"])
     model.load_state_dict(state["model"])
     model.eval()

@@ -27,7 +27,7 @@ from hcmt.viz.meshplot import (box_3d, draw_field_2d, draw_field_3d, extend_of, 
                                panel_size, scene_box)
 from hcmt.viz.rollouts import Case, Series, quantity_label
 
-STRESS_NAME = "stress"
+STRESS_NAME = "von Mises stress"
 
 
 def field_name(case: Case) -> str:
@@ -169,7 +169,7 @@ def contour_figure(case: Case, frames: list[int] | None = None, *, field: str | 
     what = "impact zoom, mesh edges in white" if zoom else "whole scene"
     if not zoom and not three_d and len(case.predictions):
         what += "; red box: the zoomed view"
-    name = "Stress" if field == "stress" else "Displacement magnitude"
+    name = "von Mises stress" if field == "stress" else "Displacement magnitude"
     fig.suptitle(f"{name} on the deformed mesh, trajectory {case.name} ({what})", fontsize=10)
     return fig
 

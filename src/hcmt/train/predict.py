@@ -1,0 +1,315 @@
+"""Design check: the peak stress and deflection of new Impact Plate designs from a learned model, no solver run.
+
+For each design (the parameters of ``hcmt simulate``, :class:`hcmt.sim.scene.Design`) the generator's scene code
+builds the mesh and the first two frames (:func:`hcmt.sim.scene.initial_frames`: the ball in free flight just above
+the plate), the model rolls out over the training data's recorded window (e.g. 52 frames of 0.002 ms), several
+designs as one batched graph per step (:func:`hcmt.train.rollout.rollout_batch`), and :func:`summarize` reads off
+
+* the peak von Mises stress in the plate and in the ball (MPa), where (the node's position, mm) and when (ms);
+* the maximum plate deflection ``max |u_y|`` over the plate's nodes and frames (mm);
+* the margin to a yield (or design) stress, ``yield - peak plate stress`` (MPa), when one is given.
+
+:func:`verify` runs the built-in solver on the same designs and compares.
+"""
+from __future__ import annotations
+
+import csv
+import time
+from dataclasses import asdict, dataclass, field, fields
+from pathlib import Path
+
+import numpy as np
+
+from hcmt.data.format import NodeType
+from hcmt.graph.contact import object_ids
+from hcmt.sim.scene import RANGES, Design, Settings, initial_frames, simulate
+from hcmt.train.data import prepare_trajectory
+from hcmt.train.metrics import rollout_rmse
+
+DESIGN_KEYS = tuple(f.name for f in fields(Design))
+
+
+@dataclass
+class Prediction:
+    """One design's predicted (or simulated) trajectory and what it was made from."""
+
+    name: str
+    design: Design
+    world_pos: np.ndarray  # [T, N, 2] mm
+    stress: np.ndarray  # [T, N, 1] MPa (von Mises)
+    mesh_pos: np.ndarray  # [N, 2]
+    cells: np.ndarray  # [C, 3]
+    node_type: np.ndarray  # [N]
+    wall_s: float  # seconds spent on this design (a batch's wall time split evenly over its designs)
+    summary: dict = field(default_factory=dict)
+
+
+# -- designs -----------------------------------------------------------------------------------------------------
+def parse_design(items: list[str], defaults: Design, where: str = "--design") -> Design:
+    """``["thickness=0.8", "drop_height=900"]`` -> a validated :class:`Design` (other parameters from
+    ``defaults``). Names as ``hcmt simulate``'s options, with ``_`` or ``-``."""
+    values = {}
+    for item in items:
+        key, sep, raw = item.partition("=")
+        key = key.strip().lstrip("-").replace("-", "_")
+        if not sep:
+            raise ValueError(f"{where} {item!r}: expected KEY=VALUE, e.g. thickness=0.8")
+        if key not in DESIGN_KEYS:
+            raise ValueError(f"{where} {item!r}: unknown parameter {key!r}; expected one of {', '.join(DESIGN_KEYS)}")
+        try:
+            values[key] = float(raw)
+        except ValueError:
+            raise ValueError(f"{where} {item!r}: {key} must be a number, got {raw!r}") from None
+    return Design(**{**asdict(defaults), **values}).validate()
+
+
+def read_designs_csv(path: str | Path, defaults: Design) -> list[tuple[str, Design]]:
+    """Designs from a CSV file: a header of parameter names (optionally a ``name`` column), one design per row."""
+    path = Path(path)
+    if not path.is_file():
+        raise FileNotFoundError(f"{path}: no such designs file")
+    with open(path, newline="") as f:
+        rows = list(csv.DictReader(f))
+    if not rows:
+        raise ValueError(f"{path}: no designs (expected a header line of parameter names and one row per design)")
+    out = []
+    for n, row in enumerate(rows, start=2):
+        name = (row.pop("name", None) or "").strip() or f"design_{n - 1}"
+        items = [f"{k}={v}" for k, v in row.items() if k is not None and v not in (None, "")]
+        out.append((name, parse_design(items, defaults, where=f"{path} line {n}:")))
+    return out
+
+
+def range_warnings(design: Design, ranges: dict[str, tuple[float, float]]) -> list[str]:
+    """One line per parameter outside the training data's range (relative tolerance 1e-6)."""
+    out = []
+    for key, (lo, hi) in ranges.items():
+        if key not in DESIGN_KEYS:
+            continue
+        v = getattr(design, key)
+        tol = 1e-6 * max(abs(lo), abs(hi), 1e-12)
+        if v < lo - tol or v > hi + tol:
+            span = f"{lo:.6g}" if lo == hi else f"{lo:.6g} .. {hi:.6g}"
+            out.append(f"{key} = {v:.6g} is outside the model's training data ({span}); expect larger errors")
+    return out
+
+
+def default_design(meta: dict | None) -> Design:
+    """The middle of the training preset's ranges (``hcmt simulate``'s defaults for that preset)."""
+    preset = ((meta or {}).get("generator") or {}).get("preset", "paper")
+    return Design(**{k: 0.5 * (lo + hi) for k, (lo, hi) in RANGES.get(preset, RANGES["paper"]).items()})
+
+
+def settings_of(meta: dict | None) -> Settings:
+    """The generator settings (frames, frame_dt, formulation, ...) the training data was made with."""
+    saved = ((meta or {}).get("generator") or {}).get("settings")
+    if not saved:
+        raise ValueError("the model's training data is not an hcmt-generated Impact Plate dataset (no generator "
+                         "settings in its meta.json): predict needs the recorded window it was trained on")
+    return Settings(**{k: v for k, v in saved.items() if k in {f.name for f in fields(Settings)}})
+
+
+# -- prediction ----------------------------------------------------------------------------------------------------
+def design_trajectory(run, name: str, design: Design, settings: Settings):
+    """The rollout input of a design: frames 0 and 1 from :func:`initial_frames`, later frames holding only what
+    the boundary conditions read (the clamped rim and the symmetry line do not move: frame 0's positions)."""
+    start = initial_frames(design, settings)
+    f = dict(start["fields"])
+    x = f["world_pos"]
+    f["world_pos"] = np.concatenate([x, np.repeat(x[:1], settings.frames - 2, axis=0)])
+    f["stress"] = np.zeros((settings.frames, x.shape[1], 1), np.float32)
+    levels, remesh = run.hierarchy
+    return prepare_trajectory(f, name, run.adapter, levels, remesh, attrs=start["attrs"]), f
+
+
+def predict(run, designs: list[tuple[str, Design]], batch: int = 8, progress: bool = True) -> list[Prediction]:
+    """Roll the run's model out over each design's recorded window, ``batch`` designs per model call."""
+    from tqdm import tqdm
+
+    from hcmt.train.rollout import rollout_batch
+
+    if batch < 1:
+        raise ValueError(f"--batch must be >= 1, got {batch}")
+    settings = settings_of(run.meta)
+    h = run.adapter.history
+    bar = tqdm(total=len(designs) * (settings.frames - 1 - h), desc="predict", unit="step",
+               disable=not progress, dynamic_ncols=True)
+    out = []
+    for first in range(0, len(designs), batch):
+        chunk = designs[first:first + batch]
+        t0 = time.perf_counter()
+        built = [design_trajectory(run, name, d, settings) for name, d in chunk]
+        results = rollout_batch(run.model, run.adapter, [tr for tr, _ in built], run.radius,
+                                progress=lambda n, k=len(chunk): bar.update(n * k))
+        wall = (time.perf_counter() - t0) / len(chunk)
+        for (name, design), (_, f), r in zip(chunk, built, results):
+            p = Prediction(name, design, r["world_pos"].numpy(), r["stress"].numpy(), f["mesh_pos"], f["cells"],
+                           f["node_type"].reshape(-1), wall)
+            p.summary = summarize(p, settings.frame_dt)
+            out.append(p)
+    bar.close()
+    return out
+
+
+def solve(designs: list[tuple[str, Design]], settings: Settings) -> list[Prediction]:
+    """The built-in FEM solver on the same designs (the reference for :func:`verify`)."""
+    out = []
+    for name, design in designs:
+        r = simulate(design, settings)
+        f = r["fields"]
+        p = Prediction(name, design, f["world_pos"], f["stress"], f["mesh_pos"], f["cells"],
+                       f["node_type"].reshape(-1), r["info"]["wall_time"])
+        p.summary = summarize(p, settings.frame_dt)
+        out.append(p)
+    return out
+
+
+# -- reading off the numbers ---------------------------------------------------------------------------------------
+def plate_mask(cells: np.ndarray, node_type: np.ndarray) -> np.ndarray:
+    """[N] bool: the plate, i.e. the body holding the clamped (HANDLE) nodes; the other body is the ball."""
+    node_type = np.asarray(node_type).reshape(-1)
+    obj = object_ids(np.asarray(cells), len(node_type))
+    handles = obj[node_type == NodeType.HANDLE]
+    if not len(handles):
+        raise ValueError("no clamped (HANDLE) nodes: cannot tell the plate from the ball")
+    return obj == handles[0]
+
+
+def summarize(p: Prediction, frame_dt: float) -> dict:
+    """Peak von Mises stress of plate and ball (MPa, where in mm, when in ms) and maximum plate deflection."""
+    plate = plate_mask(p.cells, p.node_type)
+    s = p.stress[..., 0]
+    out = {}
+    for body, mask in (("plate", plate), ("ball", ~plate)):
+        nodes = np.flatnonzero(mask)
+        t, k = np.unravel_index(np.argmax(s[:, nodes]), (s.shape[0], len(nodes)))
+        node = nodes[k]
+        out[f"peak_{body}_stress_mpa"] = float(s[t, node])
+        out[f"peak_{body}_where_mm"] = [float(v) for v in p.world_pos[t, node]]
+        out[f"peak_{body}_when_ms"] = float(t * frame_dt)
+        out[f"peak_{body}_frame"] = int(t)
+    u_y = np.abs(p.world_pos[:, plate, 1] - p.mesh_pos[None, plate, 1])
+    out["max_deflection_mm"] = float(u_y.max())
+    out["wall_s"] = float(p.wall_s)
+    return out
+
+
+def add_margin(preds: list[Prediction], yield_mpa: float | None) -> None:
+    if yield_mpa is None:
+        return
+    if not yield_mpa > 0:
+        raise ValueError(f"--yield-mpa must be > 0, got {yield_mpa}")
+    for p in preds:
+        p.summary["yield_margin_mpa"] = float(yield_mpa - p.summary["peak_plate_stress_mpa"])
+
+
+def verify(preds: list[Prediction], truth: list[Prediction]) -> dict:
+    """Per design (added to each prediction's summary under ``verify``) and summarized over designs: the
+    learned-vs-solver error of peak plate stress (%), of its location (mm), of maximum deflection (%), position
+    RMSE over the window (mm, all nodes and predicted frames) and the speedup (solver ÷ prediction wall time)."""
+    rows = []
+    for p, t in zip(preds, truth):
+        a, b = p.summary, t.summary
+        row = {
+            "solver_peak_plate_stress_mpa": b["peak_plate_stress_mpa"],
+            "solver_max_deflection_mm": b["max_deflection_mm"],
+            "peak_plate_stress_error_pct": 100.0 * (a["peak_plate_stress_mpa"] - b["peak_plate_stress_mpa"])
+            / b["peak_plate_stress_mpa"],
+            "peak_plate_location_error_mm": float(np.linalg.norm(np.subtract(a["peak_plate_where_mm"],
+                                                                             b["peak_plate_where_mm"]))),
+            "max_deflection_error_pct": 100.0 * (a["max_deflection_mm"] - b["max_deflection_mm"])
+            / b["max_deflection_mm"],
+            "position_rmse_mm": rollout_rmse(p.world_pos, t.world_pos, 2)["rmse_all"] / 1e3,
+            "solver_wall_s": t.wall_s,
+            "speedup": t.wall_s / p.wall_s,
+        }
+        p.summary["verify"] = row
+        rows.append(row)
+
+    def stats(key):
+        v = np.abs([r[key] for r in rows]) if key.endswith(("pct", "mm")) else np.array([r[key] for r in rows])
+        return {"median": float(np.median(v)), "max": float(v.max()), "mean": float(v.mean())}
+
+    keys = ("peak_plate_stress_error_pct", "peak_plate_location_error_mm", "max_deflection_error_pct",
+            "position_rmse_mm", "speedup")
+    return {"designs": len(rows), **{k: stats(k) for k in keys},
+            "note": "errors summarized as absolute values (median, max, mean); speedup = solver wall time / "
+                    "prediction wall time per design on this machine"}
+
+
+# -- output --------------------------------------------------------------------------------------------------------
+COLUMNS = [("design", "{}", "name"), ("plate MPa", "{:.1f}", "peak_plate_stress_mpa"),
+           ("at r,y mm", "{}", "peak_plate_where_mm"), ("t ms", "{:.3f}", "peak_plate_when_ms"),
+           ("ball MPa", "{:.1f}", "peak_ball_stress_mpa"), ("defl. mm", "{:.4f}", "max_deflection_mm"),
+           ("margin MPa", "{:.1f}", "yield_margin_mpa"), ("wall s", "{:.2f}", "wall_s")]
+VERIFY_COLUMNS = [("solver MPa", "{:.1f}", "solver_peak_plate_stress_mpa"),
+                  ("err %", "{:+.1f}", "peak_plate_stress_error_pct"),
+                  ("loc. err mm", "{:.2f}", "peak_plate_location_error_mm"),
+                  ("defl. err %", "{:+.1f}", "max_deflection_error_pct"),
+                  ("pos RMSE mm", "{:.4f}", "position_rmse_mm"), ("speedup", "{:.1f}x", "speedup")]
+
+
+def table_rows(preds: list[Prediction]) -> tuple[list[str], list[list[str]]]:
+    cols = [c for c in COLUMNS if c[2] != "yield_margin_mpa" or "yield_margin_mpa" in preds[0].summary]
+    vcols = VERIFY_COLUMNS if "verify" in preds[0].summary else []
+    head = [c[0] for c in cols + vcols]
+    rows = []
+    for p in preds:
+        s = {**p.summary, "name": p.name, **p.summary.get("verify", {})}
+        cells = []
+        for _, fmt, key in cols + vcols:
+            v = s[key]
+            cells.append(f"{v[0]:.2f},{v[1]:.2f}" if isinstance(v, list) else fmt.format(v))
+        rows.append(cells)
+    return head, rows
+
+
+def format_table(preds: list[Prediction], verified: dict | None = None) -> str:
+    head, rows = table_rows(preds)
+    width = [max(len(h), *(len(r[i]) for r in rows)) for i, h in enumerate(head)]
+    lines = ["  ".join(h.rjust(w) for h, w in zip(head, width))]
+    lines += ["  ".join(c.rjust(w) for c, w in zip(r, width)) for r in rows]
+    if verified:
+        v = verified
+        lines.append(
+            f"against the solver over {v['designs']} design(s): peak plate stress error median "
+            f"{v['peak_plate_stress_error_pct']['median']:.1f} % (worst {v['peak_plate_stress_error_pct']['max']:.1f} %), "
+            f"location median {v['peak_plate_location_error_mm']['median']:.2f} mm, deflection error median "
+            f"{v['max_deflection_error_pct']['median']:.1f} % (worst {v['max_deflection_error_pct']['max']:.1f} %), "
+            f"speedup median {v['speedup']['median']:.1f}x")
+    return "\n".join(lines)
+
+
+def write_csv(preds: list[Prediction], path: str | Path) -> Path:
+    from hcmt.data.format import atomic_path
+
+    head, rows = table_rows(preds)
+    path = Path(path)
+    with atomic_path(path) as tmp, open(tmp, "w", newline="") as f:
+        w = csv.writer(f)
+        w.writerow(head)
+        w.writerows(rows)
+    return path
+
+
+def to_json(preds: list[Prediction], verified: dict | None, run_source: str, device: str) -> dict:
+    return {"model": run_source, "device": device, "units": {"stress": "MPa", "length": "mm", "time": "ms"},
+            "designs": [{"name": p.name, "design": asdict(p.design), **p.summary} for p in preds],
+            **({"verify": verified} if verified else {})}
+
+
+def contour_picture(p: Prediction, truth: Prediction | None, meta: dict, out_dir: str | Path, label: str) -> Path:
+    """Stress contours at the predicted peak-plate-stress frame (impact zoom), beside the solver with ``truth``."""
+    from hcmt.viz.contours import plot_contours
+    from hcmt.viz.rollouts import Case, Series
+
+    pred = Series(f"{label} prediction", p.world_pos, p.stress, start=2)
+    if truth is not None:
+        case = Case(p.name, p.mesh_pos, p.cells, p.node_type, Series("Solver", truth.world_pos, truth.stress),
+                    [pred], meta)
+    else:
+        case = Case(p.name, p.mesh_pos, p.cells, p.node_type, pred, [], meta)
+    frame = max(int(p.summary["peak_plate_frame"]), 1)
+    paths = plot_contours(case, Path(out_dir) / p.name, [frame])
+    return paths[-1]
+

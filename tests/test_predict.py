@@ -1,0 +1,143 @@
+"""Design check (`hcmt predict`): initial state without a solver, batched prediction, verify, range warnings,
+refused designs, shipped models."""
+import json
+
+import numpy as np
+import pytest
+import torch
+
+from hcmt.cli import main as cli
+from hcmt.sim.scene import Design, Settings, initial_frames, simulate
+from hcmt.train import predict as pr
+from hcmt.train.config import load_config
+from hcmt.train.run import Run, available_pretrained
+from hcmt.train.trainer import train
+
+FRAMES = 8
+TINY = ["model.levels=1", "model.L_C=1", "model.hidden=16", "model.heads=2", "train.normalizer_steps=1",
+        "train.valid_every=0", "train.lr=1e-3", "train.steps=3", "train.checkpoint_every=3"]
+
+
+@pytest.fixture(scope="module")
+def tiny_run(tmp_path_factory):
+    """A 3-step HCMT run on 2 generated `small` trajectories of 8 frames (real generator meta and design attrs)."""
+    root = tmp_path_factory.mktemp("predict")
+    assert cli(["generate", "impact-plate", str(root / "data"), "--preset", "small", "--train", "2", "--valid", "0",
+                "--test", "1", "--seed", "3", "--frames", str(FRAMES), "--no-progress"]) == 0
+    train(load_config("impact_plate_cpu", TINY), root / "data", "hcmt", root / "run", progress=False)
+    return root / "run"
+
+
+def test_initial_frames_match_the_solver():
+    design, settings = Design(thickness=0.7, mesh_size=0.3, ball_radius=3.6, plate_half_length=12.0), Settings(frames=2)
+    start, solved = initial_frames(design, settings)["fields"], simulate(design, settings)["fields"]
+    for key in ("mesh_pos", "cells", "node_type", "density", "modulus"):
+        np.testing.assert_array_equal(start[key], solved[key])
+    moved = np.abs(solved["world_pos"][1] - solved["world_pos"][0]).max()
+    assert moved > 5e-3  # the ball falls v0 dt ~ 7.7e-3 mm in a frame: the comparison below is not vacuous
+    np.testing.assert_allclose(start["world_pos"], solved["world_pos"], rtol=0, atol=1e-6)
+    assert solved["stress"][:2].max() < 1e-2 and (start["stress"] == 0).all()
+
+
+def test_ball_crossing_the_gap_in_one_frame_is_refused():
+    with pytest.raises(ValueError, match="drop_height.*gap"):
+        initial_frames(Design(drop_height=5e5, mesh_size=0.3, ball_radius=3.6, plate_half_length=12.0))
+
+
+def test_batch_equals_one_by_one(tiny_run):
+    run = Run.load(tiny_run, "cpu")
+    designs = [(f"d{i}", pr.parse_design([f"thickness={t}", f"drop_height={h}"], pr.default_design(run.meta)))
+               for i, (t, h) in enumerate([(0.6, 600), (0.9, 950), (0.75, 700)])]
+    together = pr.predict(run, designs, batch=3, progress=False)
+    alone = pr.predict(run, designs, batch=1, progress=False)
+    assert together[0].world_pos.shape[0] == FRAMES
+    for a, b in zip(together, alone):
+        np.testing.assert_allclose(a.world_pos, b.world_pos, rtol=0, atol=1e-5)
+        np.testing.assert_allclose(a.stress, b.stress, rtol=1e-4, atol=1e-3)
+    assert not np.allclose(together[0].world_pos, together[1].world_pos)  # different designs, different results
+
+
+def test_summary_reads_peaks_off_the_trajectory():
+    """Peaks, where, when and deflection on a hand-made two-body trajectory."""
+    cells = np.array([[0, 1, 2], [3, 4, 5]])
+    node_type = np.array([3, 0, 0, 1, 1, 1])  # plate: nodes 0-2 (clamped node 0), ball: 3-5
+    mesh = np.array([[1.0, 0], [0, 0], [0, -1], [0, 1], [1, 1], [0, 2]])
+    T = 4
+    world = np.repeat(mesh[None], T, 0).copy()
+    world[2, 2, 1] -= 0.3  # plate node 2 deflects 0.3 mm at frame 2
+    stress = np.zeros((T, 6, 1))
+    stress[3, 1, 0], stress[1, 4, 0] = 250.0, 90.0
+    p = pr.Prediction("x", Design(), world, stress, mesh, cells, node_type, wall_s=1.0)
+    s = pr.summarize(p, frame_dt=0.002)
+    assert s["peak_plate_stress_mpa"] == 250.0 and s["peak_plate_where_mm"] == [0.0, 0.0]
+    assert s["peak_plate_when_ms"] == pytest.approx(0.006) and s["peak_plate_frame"] == 3
+    assert s["peak_ball_stress_mpa"] == 90.0 and s["peak_ball_when_ms"] == pytest.approx(0.002)
+    assert s["max_deflection_mm"] == pytest.approx(0.3)
+
+
+def test_cli_designs_csv_json_and_range_warning(tiny_run, tmp_path, capsys):
+    csv_file = tmp_path / "designs.csv"
+    csv_file.write_text("name,thickness,drop_height\nthin,0.55,800\nthick,1.4,800\n")
+    out = tmp_path / "res.json"
+    rc = cli(["predict", str(tiny_run), "--design", "thickness=0.7", "--designs", str(csv_file), "--json", str(out),
+              "--csv", str(tmp_path / "t.csv"), "--yield-mpa", "300", "--device", "cpu", "--no-progress"])
+    captured = capsys.readouterr()
+    assert rc == 0
+    assert "warning: thick: thickness = 1.4 is outside the model's training data" in captured.err
+    assert "design_1" in captured.out and "thin" in captured.out and "margin MPa" in captured.out
+    res = json.loads(out.read_text())
+    assert [d["name"] for d in res["designs"]] == ["design_1", "thin", "thick"]
+    keys = {"peak_plate_stress_mpa", "peak_plate_where_mm", "peak_plate_when_ms", "peak_ball_stress_mpa",
+            "peak_ball_where_mm", "peak_ball_when_ms", "max_deflection_mm", "yield_margin_mpa", "wall_s", "design"}
+    assert keys <= set(res["designs"][0])
+    d = res["designs"][0]
+    assert d["yield_margin_mpa"] == pytest.approx(300 - d["peak_plate_stress_mpa"])
+    assert res["designs"][1]["design"]["thickness"] == 0.55 and res["units"]["stress"] == "MPa"
+    assert (tmp_path / "t.csv").read_text().count("\n") == 4
+
+
+@pytest.mark.parametrize("args,message", [
+    (["--design", "thickness=-1"], "thickness must be > 0"),
+    (["--design", "thicknes=0.5"], "unknown parameter 'thicknes'"),
+    (["--design", "thickness=thin"], "thickness must be a number"),
+    (["--device", "tpu", "--design", "thickness=0.5"], "--device 'tpu'"),
+    ([], "give designs"),
+])
+def test_impossible_designs_are_refused(tiny_run, capsys, args, message):
+    assert cli(["predict", str(tiny_run), *args, "--no-progress"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and message in err[0] and "Traceback" not in err[0]
+
+
+def test_verify_compares_with_the_solver(tiny_run, tmp_path, capsys):
+    out = tmp_path / "v.json"
+    assert cli(["predict", str(tiny_run), "--design", "thickness=0.8", "--verify", "--images", "--out",
+                str(tmp_path / "img"), "--json", str(out), "--device", "cpu", "--no-progress"]) == 0
+    res = json.loads(out.read_text())
+    v = res["designs"][0]["verify"]
+    solved = simulate(Design(**res["designs"][0]["design"]), Settings(frames=FRAMES))["fields"]
+    plate = pr.plate_mask(solved["cells"], solved["node_type"])
+    assert v["solver_peak_plate_stress_mpa"] == pytest.approx(float(solved["stress"][:, plate].max()), rel=1e-6)
+    pred = res["designs"][0]["peak_plate_stress_mpa"]
+    assert v["peak_plate_stress_error_pct"] == pytest.approx(100 * (pred - v["solver_peak_plate_stress_mpa"])
+                                                             / v["solver_peak_plate_stress_mpa"])
+    assert v["speedup"] > 0 and res["verify"]["designs"] == 1
+    assert (tmp_path / "img" / "design_1" / "stress_contours_zoom.png").is_file()
+    assert "against the solver" in capsys.readouterr().out
+
+
+@pytest.mark.parametrize("name", sorted(available_pretrained()) or ["<none shipped>"])
+def test_every_shipped_model_loads_and_predicts(name):
+    if name == "<none shipped>":
+        pytest.fail("no model ships in src/hcmt/pretrained/")
+    import hcmt
+
+    run = hcmt.load_pretrained(name, device="cpu")
+    assert name.startswith(run.config["dataset"]) and run.ranges and run.card.get("steps")
+    settings = pr.settings_of(run.meta)
+    tr, _ = pr.design_trajectory(run, "d", pr.default_design(run.meta), settings)
+    from hcmt.train.rollout import rollout
+
+    r = rollout(run.model, run.adapter, tr, run.radius, steps=1)
+    assert r["world_pos"].shape[0] == 3 and torch.isfinite(r["world_pos"]).all()
+    assert (tr.world_pos.shape[0] == settings.frames)

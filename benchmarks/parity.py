@@ -34,9 +34,13 @@ def sigma_tag(s: float) -> str:
     return f"{s:.0e}".replace("-0", "-")
 
 
+def run_name(label, seed, sigma, steps) -> str:
+    return f"par_{label}_s{seed}_n{sigma_tag(sigma)}_{steps}"
+
+
 def one(work, data, label, seed, sigma, steps):
     model, overrides = VARIANTS[label]
-    name = f"par_{label}_s{seed}_n{sigma_tag(sigma)}_{steps}"
+    name = run_name(label, seed, sigma, steps)
     res = run_and_evaluate(work, data, name, model, seed,
                            [f"train.steps={steps}", f"train.noise_std={sigma}", *overrides],
                            splits=("valid", "test"), config=CONFIG, details=True)
@@ -53,24 +57,28 @@ def main() -> None:
     p.add_argument("--phase", choices=["sweep", "seeds", "all"], default="all")
     a = p.parse_args()
     data = dataset(a.work, PAPER)
-    sweep_path = RESULTS / "noise_sweep.json"
-    sweep = json.loads(sweep_path.read_text()) if sweep_path.is_file() else {}
     for label in a.models:  # phase 1: the σ sweep, seed 0
         for sigma in a.sigmas:
             print(f"sweep {label} σ={sigma}", flush=True)
-            name, res = one(a.work, data, label, a.seeds[0], sigma, a.steps)
-            if res is None:
-                continue
-            sweep.setdefault(label, {})[str(sigma)] = {
-                "run": name, "seed": a.seeds[0], "steps": a.steps,
-                **{s: {q: res[s][q] for q in ("position", "stress")} for s in ("valid", "test")}}
-            write_json("noise_sweep.json", sweep)
+            one(a.work, data, label, a.seeds[0], sigma, a.steps)
+    # the sweep's table from the runs on disk: several processes may share the work (run locks)
+    sweep = {}
+    for label in a.models:
+        for sigma in a.sigmas:
+            run = a.work / "runs" / run_name(label, a.seeds[0], sigma, a.steps)
+            if all((run / f"metrics_{s}.json").is_file() for s in ("valid", "test")):
+                m = {s: json.loads((run / f"metrics_{s}.json").read_text()) for s in ("valid", "test")}
+                sweep.setdefault(label, {})[str(sigma)] = {
+                    "run": run.name, "seed": a.seeds[0], "steps": a.steps,
+                    **{s: {q: m[s][q] for q in ("position", "stress")} for s in m}}
+    write_json("noise_sweep.json", sweep)
     if a.phase == "sweep":
         return
     table = {"config": CONFIG, "dataset": PAPER, "steps": a.steps, "models": {}}
     for label in a.models:
         tried = sweep.get(label, {})
-        if not tried:
+        if len(tried) < len(a.sigmas):  # another process is still sweeping this model: choose once it is done
+            print(f"{label}: σ sweep incomplete ({len(tried)} of {len(a.sigmas)}), seeds skipped here", flush=True)
             continue
         chosen = min(tried, key=lambda s: tried[s]["valid"]["position"]["rmse_all"])
         runs, names = [], []

@@ -112,6 +112,19 @@ def test_truncated_hdf5_gives_clear_error_and_cli_exit_code(tmp_path, meta, caps
     assert "train.h5" in capsys.readouterr().err
 
 
+@pytest.mark.parametrize("dt,message", [(None, "missing key 'dt'"), ("fast", "dt 'fast'"), (-1.0, "dt -1.0")])
+def test_meta_without_a_valid_dt_is_refused(tmp_path, meta, capsys, dt, message):
+    meta = dict(meta)
+    if dt is None:
+        meta.pop("dt", None)
+    else:
+        meta["dt"] = dt
+    (tmp_path / "meta.json").write_text(json.dumps(meta))
+    assert cli(["info", str(tmp_path)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and message in err[0] and "meta.json" in err[0]
+
+
 def test_bad_meta_is_refused(tmp_path):
     (tmp_path / "meta.json").write_text(json.dumps({"field_names": ["a"], "features": {}, "trajectory_length": 1}))
     with pytest.raises(DatasetError, match="field a"):
@@ -147,3 +160,26 @@ def test_time_axis_declared_minus_one_still_checked_and_any_per_node_field(tmp_p
     wrong = dict(t, poisson_ratio=np.full((7, 1), 0.3, np.float32))
     with pytest.raises(DatasetError, match="field poisson_ratio.*7 nodes"):
         write_split(tmp_path / "b.h5", meta, [("traj_00000", wrong, {})])
+
+
+def _edit(path, key, fn):
+    with h5py.File(path, "r+") as f:
+        value = fn(f[key][()])
+        del f[key]
+        f[key] = value
+
+
+@pytest.mark.parametrize("corrupt,message", [
+    (lambda p: _edit(p, "traj_00000/world_pos", lambda v: np.where(np.arange(v.size).reshape(v.shape) == 3, np.nan, v)),
+     "field world_pos"),
+    (lambda p: _edit(p, "traj_00000/cells", lambda v: v + 100), "cell index out of range"),
+    (lambda p: _edit(p, "traj_00000/node_type", lambda v: np.full_like(v, 42)), "unknown node type(s) [42]"),
+    (lambda p: _edit(p, "traj_00000/stress", lambda v: v[..., :0]), "field stress"),
+])
+def test_info_validates_as_training_does(tmp_path, meta, capsys, corrupt, message):
+    write_meta(tmp_path, meta)
+    path = write_split(tmp_path / "train.h5", meta, [("traj_00000", trajectory(), {})])
+    corrupt(path)
+    assert cli(["info", str(tmp_path)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and message in err[0] and "traj_00000" in err[0] and "Traceback" not in err[0]

@@ -92,6 +92,30 @@ def test_resume_after_interruption(tmp_path, monkeypatch):
         gen.generate_dataset(out, preset="small", counts=dict(train=3), seed=2, settings=SHORT, progress=False)
 
 
+def test_growing_a_dataset_adds_only_the_missing_trajectories(tmp_path):
+    grown, fresh = tmp_path / "grown", tmp_path / "fresh"
+    gen.generate_dataset(grown, preset="small", counts=dict(train=2, test=1), seed=4, settings=SHORT, progress=False)
+    before = read_all(grown, "train")
+    result = gen.generate_dataset(grown, preset="small", counts=dict(train=3, test=1), seed=4, settings=SHORT,
+                                  progress=False)
+    assert result["simulated"] == 1 and result["skipped"] == 3
+    gen.generate_dataset(fresh, preset="small", counts=dict(train=3, test=1), seed=4, settings=SHORT, progress=False)
+    after, ref = read_all(grown, "train"), read_all(fresh, "train")
+    assert len(after) == 3
+    for (fa, aa), (fb, ab) in zip(after, ref):  # identical to a fresh generation with the larger counts
+        assert aa == ab
+        np.testing.assert_array_equal(fa["world_pos"], fb["world_pos"])
+    for (fa, _), (fb, _) in zip(before, after):  # existing trajectories unchanged
+        np.testing.assert_array_equal(fa["stress"], fb["stress"])
+    with pytest.raises(DatasetError, match="would drop"):
+        gen.generate_dataset(grown, preset="small", counts=dict(train=2, test=1), seed=4, settings=SHORT,
+                             progress=False)
+    with pytest.raises(ValueError, match="nothing to generate"):
+        gen.generate_dataset(tmp_path / "none", preset="small", counts=dict(train=0, valid=0, test=0), seed=4,
+                             settings=SHORT, progress=False)
+    assert not (tmp_path / "none").exists()
+
+
 @pytest.mark.parametrize("variant, thick, high", [("test_thicker", True, False), ("test_higher", False, True),
                                                   ("test_thicker_higher", True, True)])
 def test_variant_ranges(variant, thick, high):

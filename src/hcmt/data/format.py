@@ -99,6 +99,12 @@ def check_meta(meta: Mapping, where: str | os.PathLike) -> None:
             raise DatasetError(f"type {spec.get('type')!r}; expected static or dynamic", file=where, field=name)
         if str(spec.get("dtype")) not in _DTYPES:
             raise DatasetError(f"dtype {spec.get('dtype')!r}; expected one of {sorted(_DTYPES)}", file=where, field=name)
+    if "dt" not in meta:
+        raise DatasetError("missing key 'dt' (time between frames; null when the source does not record it)",
+                           file=where)
+    dt = meta["dt"]
+    if dt is not None and (not isinstance(dt, (int, float)) or isinstance(dt, bool) or not np.isfinite(dt) or dt < 0):
+        raise DatasetError(f"dt {dt!r}: expected a non-negative number (or null when unknown)", file=where)
 
 
 def write_meta(dataset_dir: str | os.PathLike, meta: Mapping) -> Path:
@@ -256,7 +262,7 @@ class Split:
         try:
             self._file = h5py.File(self.path, "r")
             self.names = sorted(self._file.keys())
-        except OSError as exc:
+        except (OSError, KeyError, RuntimeError, ValueError) as exc:
             raise DatasetError(f"cannot be read as HDF5 (truncated or corrupt?): {exc}", file=self.path) from None
 
     def __len__(self) -> int:
@@ -276,10 +282,19 @@ class Split:
         return (self[i] for i in range(len(self)))
 
     def attrs(self, i: int) -> dict:
-        return {k: (v.item() if hasattr(v, "item") else v) for k, v in self._file[self.names[i]].attrs.items()}
+        try:
+            items = self._file[self.names[i]].attrs.items()
+            return {k: (v.item() if hasattr(v, "item") else v) for k, v in items}
+        except (OSError, KeyError, RuntimeError) as exc:
+            raise DatasetError(f"attributes cannot be read (corrupt file?): {exc}", file=self.path,
+                               trajectory=self.names[i]) from None
 
     def num_nodes(self, i: int) -> int:
-        return int(self._file[self.names[i]]["mesh_pos"].shape[0])
+        try:
+            return int(self._file[self.names[i]]["mesh_pos"].shape[0])
+        except (OSError, KeyError, RuntimeError) as exc:
+            raise DatasetError(f"cannot be read (corrupt file?): {exc}", file=self.path, trajectory=self.names[i],
+                               field="mesh_pos") from None
 
     def close(self) -> None:
         self._file.close()

@@ -10,10 +10,14 @@ from hcmt.data.format import NodeType, Split, list_splits, read_meta
 
 
 def summarize(dataset_dir: str | Path) -> str:
-    """Splits, trajectory counts, nodes min/mean/max, steps, fields, node-type counts, design-parameter ranges."""
+    """Splits, trajectory counts, nodes min/mean/max, steps, fields, node-type counts, design-parameter ranges and
+    the per-frame displacement per node type. Every trajectory is read and validated as training reads it
+    (:class:`hcmt.data.format.Split`): a bad one stops with a :class:`DatasetError` naming file, trajectory, field."""
     meta = read_meta(dataset_dir)
+    dt = meta.get("dt")
+    time_unit = meta.get("units", {}).get("time", "")
     lines = [f"dataset {dataset_dir}", f"  dimension {meta.get('dimension')}, steps {meta['trajectory_length']}, "
-             f"dt {meta.get('dt')} {meta.get('units', {}).get('time', '')}".rstrip()]
+             + (f"dt {dt} {time_unit}".rstrip() if dt is not None else "dt not recorded")]
     if meta.get("units"):
         lines.append("  units " + ", ".join(f"{k}={v}" for k, v in meta["units"].items()))
     lines.append("  fields:")
@@ -25,22 +29,28 @@ def summarize(dataset_dir: str | Path) -> str:
             if len(s) == 0:
                 lines.append(f"  split {split}: 0 trajectories")
                 continue
-            nodes = np.array([s.num_nodes(i) for i in range(len(s))])
-            types = np.zeros(len(NodeType), dtype=np.int64)
-            params: dict[str, list] = {}
+            nodes, types, params = [], np.zeros(len(NodeType), dtype=np.int64), {}
+            steps: dict[str, dict[str, list[np.ndarray]]] = {}
             for i in range(len(s)):
-                nt = s._file[s.names[i]]["node_type"][()].reshape(-1)
+                f = s[i]  # validated: shapes, dtypes, finite values, cell indices, node types
+                nt = f["node_type"].reshape(-1)
+                nodes.append(len(nt))
                 types += np.bincount(nt, minlength=len(NodeType))[: len(NodeType)]
                 for k, v in s.attrs(i).items():
                     if isinstance(v, (int, float, np.number)):
                         params.setdefault(k, []).append(float(v))
+                for field in position_fields(meta):
+                    d = np.linalg.norm(np.diff(np.asarray(f[field], np.float64), axis=0), axis=-1)  # [T-1, N]
+                    for t in np.unique(nt):
+                        steps.setdefault(field, {}).setdefault(NodeType(int(t)).name, []).append(d[:, nt == t].ravel())
+            nodes = np.array(nodes)
             lines.append(f"  split {split}: {len(s)} trajectories, nodes min/mean/max "
                          f"{nodes.min()}/{nodes.mean():.1f}/{nodes.max()}")
             lines.append("    node types (total over trajectories): "
                          + ", ".join(f"{t.name} {types[t]}" for t in NodeType if types[t]))
-            lines += displacement_lines(s, meta)
             for k, v in params.items():
                 lines.append(f"    {k:<14} {min(v):.6g} .. {max(v):.6g}")
+            lines += displacement_lines(steps, meta.get("units", {}).get("length", ""))
     return "\n".join(lines)
 
 
@@ -51,32 +61,16 @@ def position_fields(meta: dict) -> list[str]:
             and (d is None or meta["features"][n]["shape"][-1] == d)]
 
 
-def displacement_stats(split: Split, field: str) -> dict[str, dict[str, float]]:
-    """Per node type: median, 90th percentile and max of the per-frame displacement ``|x^{t+1} - x^t|`` of a
-    position field over every node and frame of the split (to choose the training noise σ against)."""
-    per_type: dict[str, list[np.ndarray]] = {}
-    for i in range(len(split)):
-        group = split._file[split.names[i]]
-        x = np.asarray(group[field][()], np.float64)
-        nt = group["node_type"][()].reshape(-1)
-        step = np.linalg.norm(np.diff(x, axis=0), axis=-1)  # [T-1, N]
-        for t in np.unique(nt):
-            name = NodeType(int(t)).name if int(t) in NodeType._value2member_map_ else str(int(t))
-            per_type.setdefault(name, []).append(step[:, nt == t].ravel())
-    out = {}
-    for name, parts in per_type.items():
-        v = np.concatenate(parts)
-        out[name] = {"median": float(np.median(v)), "p90": float(np.percentile(v, 90)), "max": float(v.max())}
-    return out
-
-
-def displacement_lines(split: Split, meta: dict) -> list[str]:
-    unit = meta.get("units", {}).get("length", "")
+def displacement_lines(steps: dict[str, dict[str, list[np.ndarray]]], unit: str) -> list[str]:
+    """Median, 90th percentile and max of the per-frame displacement ``|x^{t+1} - x^t|`` of each position field,
+    per node type, over every node and frame of a split: what the training noise σ should be compared with."""
     lines = []
-    for field in position_fields(meta):
-        lines.append(f"    per-frame displacement |{field}^(t+1) - {field}^t| {unit} (median / 90th pct / max):")
-        for name, st in displacement_stats(split, field).items():
-            lines.append(f"      {name:<10} {st['median']:.3g} / {st['p90']:.3g} / {st['max']:.3g}")
+    for field, per_type in steps.items():
+        lines.append(f"    per-frame displacement |{field}(t+1) - {field}(t)| [{unit or 'length unit'}], "
+                     "median / 90th percentile / max:")
+        for name, parts in per_type.items():
+            v = np.concatenate(parts)
+            lines.append(f"      {name:<10} {np.median(v):.3g} / {np.percentile(v, 90):.3g} / {v.max():.3g}")
     return lines
 
 

@@ -69,18 +69,34 @@ def _split_complete(path: Path, count: int) -> bool:
         return False
 
 
+def _existing(path: Path) -> int:
+    """Trajectories of a complete split file (0 when missing or unreadable)."""
+    if not path.is_file():
+        return 0
+    try:
+        with h5py.File(path, "r") as f:
+            n = int(f.attrs.get("num_trajectories", -1))
+            return n if n == len(f.keys()) else 0
+    except OSError:
+        return 0
+
+
 def _assemble(out: Path, meta: dict, split: str, count: int) -> Path:
-    """Write ``OUT/<split>.h5`` from its parts (atomically), then remove the parts."""
+    """Write ``OUT/<split>.h5`` from its parts and, when the dataset grows, the trajectories already in the old
+    split file (atomically), then remove the parts."""
     parts = out / ".parts" / split
+    old = out / f"{split}.h5"
+    have = _existing(old)
 
     def trajectories():
         for i in range(count):  # one trajectory in memory at a time
-            with h5py.File(parts / f"{i:05d}.h5", "r") as f:
+            src = parts / f"{i:05d}.h5"
+            with h5py.File(src if src.is_file() or i >= have else old, "r") as f:
                 g = f[trajectory_name(i)]
                 yield trajectory_name(i), {k: g[k][()] for k in g.keys()}, dict(g.attrs)
 
-    path = write_split(out / f"{split}.h5", meta, trajectories())
-    shutil.rmtree(parts)
+    path = write_split(old, meta, trajectories())
+    shutil.rmtree(parts, ignore_errors=True)
     return path
 
 
@@ -99,14 +115,23 @@ def generate_dataset(out, *, preset: str = "small", counts: dict[str, int], seed
         raise ValueError(f"--workers must be >= 1, got {workers}")
     settings.validate()
     counts = {k: int(v) for k, v in counts.items() if int(v) > 0}
+    if not counts:
+        raise ValueError("nothing to generate: every trajectory count (--train, --valid, --test) is 0")
     out = Path(out)
     meta = dataset_meta(preset, seed, counts, settings)
     if (out / "meta.json").is_file():
         old = read_meta(out)
-        if old.get("generator") != meta["generator"]:
-            raise DatasetError("holds a dataset generated with other settings (preset, seed, counts or solver "
-                               "settings differ); choose another output folder to generate a new one",
-                               file=out / "meta.json")
+        old_gen, new_gen = dict(old.get("generator") or {}), dict(meta["generator"])
+        old_counts, _ = old_gen.pop("counts", {}), new_gen.pop("counts")
+        if old_gen != new_gen:
+            raise DatasetError("holds a dataset generated with other settings (preset, seed or solver settings "
+                               "differ); choose another output folder to generate a new one", file=out / "meta.json")
+        fewer = {k: v for k, v in old_counts.items() if counts.get(k, 0) < v}
+        if fewer:
+            k, v = next(iter(fewer.items()))
+            raise DatasetError(f"holds {v} {k} trajectories; asking for {counts.get(k, 0)} would drop some. A dataset "
+                               "only grows (trajectory i of a split depends on seed, split and i alone): ask for at "
+                               "least as many, or choose another output folder", file=out / "meta.json")
     out.mkdir(parents=True, exist_ok=True)
     write_meta(out, meta)
 
@@ -117,8 +142,9 @@ def generate_dataset(out, *, preset: str = "small", counts: dict[str, int], seed
             shutil.rmtree(out / ".parts" / split, ignore_errors=True)
             skipped += n
             continue
+        have = _existing(out / f"{split}.h5")  # a smaller complete split file: the dataset is growing
         for i in range(n):
-            if (out / ".parts" / split / f"{i:05d}.h5").is_file():
+            if i < have or (out / ".parts" / split / f"{i:05d}.h5").is_file():
                 skipped += 1
             else:
                 todo.append((str(out), meta, preset, int(seed), split, i, asdict(settings)))

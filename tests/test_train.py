@@ -196,3 +196,74 @@ def test_error_curves_roll_out_the_trajectories_an_old_rollout_lacks(tmp_path):
     run_rollouts(tmp_path / "run", data, "test", limit=1)
     errors = rollout_errors([tmp_path / "run"], data, "test")
     assert errors["MGN"]["trajectories"] == ["traj_00000", "traj_00001"]
+
+
+def test_step_decay_is_the_authors_schedule():
+    """train.lr_decay_steps: 1e-4 * 0.1^(step / 1e6), no floor (yuyudeep/hcmt run_model.py)."""
+    from hcmt.train.trainer import learning_rate
+
+    assert learning_rate(0, 10, 1e-4, 1e-6, decay_steps=1_000_000) == pytest.approx(1e-4)
+    assert learning_rate(1_000_000, 10, 1e-4, 1e-6, decay_steps=1_000_000) == pytest.approx(1e-5)
+    assert learning_rate(3_000_000, 10, 1e-4, 1e-6, decay_steps=1_000_000) == pytest.approx(1e-7)  # below lr_final
+
+
+def test_official_contact_pairs_join_obstacle_and_normal_nodes_only(impact):
+    from hcmt.train.adapters import config_adapter
+    from hcmt.train.data import build_graph
+    from hcmt.train.adapters import node_features
+
+    radius = 10.0  # every pair of the two bodies is in range
+    graphs = {}
+    for pairs in ("all", "official"):
+        adapter = config_adapter({"dataset": "impact_plate", "train": {"contact_pairs": pairs}})
+        (traj,) = load_split(impact, "test", adapter, 0)
+        x = traj.world_pos[2]
+        graphs[pairs] = (build_graph(traj, x, node_features(adapter, traj.static, x, traj.world_pos[1], x), radius),
+                         traj.static["node_type"])
+    g, nt = graphs["official"]
+    types = {tuple(sorted(p)) for p in nt[g.contact_edges].T.tolist()}
+    assert types == {(int(NodeType.NORMAL), int(NodeType.OBSTACLE))}
+    g_all, _ = graphs["all"]
+    assert g_all.contact_edges.shape[1] > g.contact_edges.shape[1]
+
+
+@pytest.mark.parametrize("args,message", [
+    (["--set", "model.attention=softmax"], "model.attention: unknown value 'softmax'; expected one of paper, official"),
+    (["--set", "train.contact_pairs=some"], "train.contact_pairs: unknown value 'some'; expected one of all, official"),
+    (["--steps", "0"], "train.steps must be a whole number >= 1, got 0"),
+    (["--steps", "-5"], "train.steps must be a whole number >= 1, got -5"),
+])
+def test_bad_settings_are_refused_before_any_work(impact, tmp_path, capsys, args, message):
+    rc = cli(["train", "--config", "impact_plate_cpu", "--data", str(impact), "--model", "hcmt", "--out",
+              str(tmp_path / "run"), *args])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert rc == 2 and len(err) == 1 and message in err[0]
+    assert not (tmp_path / "run").exists()
+
+
+def test_interrupted_training_saves_and_says_how_to_resume(impact, tmp_path):
+    """SIGINT in the middle of training: one line naming the saved step and the resume command; resuming
+    finishes the run."""
+    import os
+    import signal
+    import time
+
+    run = tmp_path / "run"
+    cmd = [sys.executable, "-m", "hcmt", "train", "--config", "impact_plate_cpu", "--data", str(impact), "--model",
+           "mgn", "--out", str(run), "--no-progress", "--steps", "400"] + [a for t in TINY for a in ("--set", t)]
+    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            env={**os.environ, "OMP_NUM_THREADS": "1"})
+    deadline = time.time() + 120
+    while time.time() < deadline and not ((run / "log.jsonl").is_file() and (run / "log.jsonl").read_text().count("\n") >= 3):
+        time.sleep(0.05)
+    proc.send_signal(signal.SIGINT)
+    out, err = proc.communicate(timeout=120)
+    assert proc.returncode == 130, err
+    lines = err.strip().splitlines()
+    assert len(lines) == 1 and "Traceback" not in err
+    assert "checkpoint of step" in lines[0] and "--resume" in lines[0]
+    saved = torch.load(run / "checkpoint.pt", weights_only=True)["step"]
+    assert 0 < saved < 400 and f"step {saved} of 400" in lines[0]
+    assert cli(["train", "--config", "impact_plate_cpu", "--data", str(impact), "--model", "mgn", "--out", str(run),
+                "--no-progress", "--steps", "400", "--resume"] + [a for t in TINY for a in ("--set", t)]) == 0
+    assert torch.load(run / "checkpoint.pt", weights_only=True)["step"] == 400

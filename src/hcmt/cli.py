@@ -70,8 +70,34 @@ def main(argv: list[str] | None = None) -> int:
         return 0 if args.command is None else 2
     from hcmt.data.errors import DatasetError
 
+    import signal
+
+    previous = signal.signal(signal.SIGTERM, _terminate)  # SIGTERM ends a command as Ctrl-C does
     try:
         return int(args._run(args) or 0)
     except (DatasetError, CommandError, FileNotFoundError, ValueError) as exc:
         print(f"hcmt {args.command}: error: {exc}", file=sys.stderr)
         return 2
+    except OSError as exc:  # disk full, permissions, ...: the path and the system's reason
+        where = f"{exc.filename}: " if getattr(exc, "filename", None) else ""
+        print(f"hcmt {args.command}: error: {where}{exc.strerror or exc}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt as exc:
+        print(f"hcmt {args.command}: {exc or 'interrupted'}; {_resume_hint(args.command)}", file=sys.stderr)
+        return 130
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+
+
+def _terminate(signum, frame):
+    raise KeyboardInterrupt
+
+
+def _resume_hint(command: str) -> str:
+    """What an interrupted command kept and how to go on."""
+    argv = " ".join(sys.argv[1:])
+    if command == "train":
+        return "continue with: hcmt " + (argv if "--resume" in sys.argv else argv + " --resume")
+    if command == "generate":
+        return "finished trajectories are kept; the same command continues with the missing ones: hcmt " + argv
+    return "nothing half-written was left; run the command again: hcmt " + argv

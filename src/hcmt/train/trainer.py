@@ -83,6 +83,35 @@ def check_resume(saved: dict, run: dict, out: Path) -> None:
                          f"(see {out / 'run.yaml'}); resume with the same arguments or start a new --out")
 
 
+class TrainingInterrupted(KeyboardInterrupt):
+    """Training stopped on Ctrl-C / SIGTERM after saving a checkpoint; the message says where."""
+
+
+class InterruptFlag:
+    """SIGINT and SIGTERM set ``self.set`` instead of raising mid-step (a half-done optimizer step must never be
+    saved); the loop checks it after each step. Installed only in the main thread; ``restore`` puts the previous
+    handlers back."""
+
+    def __init__(self):
+        import signal
+        import threading
+
+        self.set, self._old = False, {}
+        if threading.current_thread() is threading.main_thread():
+            for sig in (signal.SIGINT, signal.SIGTERM):
+                self._old[sig] = signal.signal(sig, self._handle)
+
+    def _handle(self, signum, frame):
+        self.set = True
+
+    def restore(self) -> None:
+        import signal
+
+        for sig, handler in self._old.items():
+            signal.signal(sig, handler)
+        self._old = {}
+
+
 def learning_rate(step: int, steps: int, lr: float, lr_final: float, decay_steps: int | None = None,
                   decay_rate: float = 0.1) -> float:
     """Exponential decay from ``lr`` at step 0 to ``lr_final`` at the last step (paper: 1e-4 -> 1e-6).
@@ -149,7 +178,14 @@ def train(cfg: dict, data: str | Path, model_name: str, out: str | Path, *, abla
             raise ValueError(f"config: train.{key} is missing (see configs/impact_plate.yaml for a complete config)")
     if "dataset" not in cfg:
         raise ValueError("config: `dataset` (the adapter: impact_plate, deforming_plate, ...) is missing")
-    steps = int(tc["steps"])
+    steps = tc["steps"]
+    if isinstance(steps, bool) or not isinstance(steps, int) or steps < 1:
+        raise ValueError(f"train.steps must be a whole number >= 1, got {steps!r}")
+    batch_size = tc.get("batch_size", 1)
+    if isinstance(batch_size, bool) or not isinstance(batch_size, int) or batch_size < 1:
+        raise ValueError(f"train.batch_size must be a whole number >= 1, got {batch_size!r}")
+    if not isinstance(tc["lr"], (int, float)) or not tc["lr"] > 0:
+        raise ValueError(f"train.lr must be a number > 0, got {tc['lr']!r}")
     meta = read_meta(data)
     adapter = config_adapter(cfg)
     args = model_args(cfg, model_name, ablation, meta)
@@ -213,6 +249,7 @@ def train(cfg: dict, data: str | Path, model_name: str, out: str | Path, *, abla
 
     model.train()
     end = steps if stop_at is None else min(steps, int(stop_at))
+    interrupted = InterruptFlag()  # Ctrl-C / SIGTERM end the current step, then save and stop
     while step < end:
         epoch, pos_in_epoch = divmod(step, per_epoch)
         perm = np.random.default_rng([seed, epoch]).permutation(len(frames))
@@ -253,11 +290,11 @@ def train(cfg: dict, data: str | Path, model_name: str, out: str | Path, *, abla
         times.append(time.perf_counter() - t0)
         last_loss = float(loss.detach())
         if world > 1:  # every rank must stop together, or the others hang in the next all-reduce
-            flag = torch.tensor([0.0 if math.isfinite(last_loss) else 1.0], device=device)
+            flag = torch.tensor([0.0 if math.isfinite(last_loss) else 1.0, float(interrupted.set)], device=device)
             dist.all_reduce(flag)
-            finite = flag.item() == 0
+            finite, stop = flag[0].item() == 0, flag[1].item() > 0
         else:
-            finite = math.isfinite(last_loss)
+            finite, stop = math.isfinite(last_loss), interrupted.set
         if not finite:
             raise FloatingPointError(f"loss became non-finite at step {step} (rank {rank}: {last_loss}); lower "
                                      "train.lr or check the data")
@@ -279,8 +316,16 @@ def train(cfg: dict, data: str | Path, model_name: str, out: str | Path, *, abla
             if metrics["valid/position_rmse_all"] < best:
                 best = metrics["valid/position_rmse_all"]
                 save(out / "best.pt")
-        if rank == 0 and (step % ckpt_every == 0 or step == end):
+        if rank == 0 and (step % ckpt_every == 0 or step == end or stop):
             save(ckpt_path)
+        if stop:
+            bar.close()
+            if rank == 0:
+                writer.close()
+                log.close()
+            interrupted.restore()
+            raise TrainingInterrupted(f"interrupted: checkpoint of step {step} of {steps} saved in {ckpt_path}")
+    interrupted.restore()
     bar.close()
     summary = {"steps": step, "final_loss": last_loss, "train_ms_per_step": 1e3 * float(np.median(times)) if times else None,
                "best_valid_position_rmse_all": best if math.isfinite(best) else None, "world_size": world,
@@ -288,8 +333,9 @@ def train(cfg: dict, data: str | Path, model_name: str, out: str | Path, *, abla
     if rank == 0 and step == steps:
         if not (out / "best.pt").is_file():
             save(out / "best.pt")
-        with atomic_path(out / "train_stats.json") as tmp:
-            tmp.write_text(json.dumps(summary, indent=2))
+        with atomic_path(out / "train_stats.json") as tmp:  # standard JSON: a non-finite number becomes null
+            tmp.write_text(json.dumps({k: (None if isinstance(v, float) and not math.isfinite(v) else v)
+                                       for k, v in summary.items()}, indent=2))
     if rank == 0:
         writer.close()
         log.close()

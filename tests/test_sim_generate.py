@@ -173,3 +173,25 @@ def test_preset_node_counts():
             plate_axis = m["mesh_pos"][(m["body"] == 0) & (m["mesh_pos"][:, 0] == 0)]
             assert len(plate_axis) >= 5
     assert RANGES["paper"]["thickness"] == (0.5, 1.0)
+
+
+def test_simulate_states_its_cost_and_refuses_an_absurd_one(capsys):
+    assert main(["simulate", "--mesh-size", "0.01", "--no-progress"]) == 2
+    captured = capsys.readouterr()
+    assert "substeps" in captured.out and "estimated" in captured.out
+    err = captured.err.strip().splitlines()
+    assert len(err) == 1 and "exceeds 600 s" in err[0] and "--force" in err[0]
+
+
+def test_inverted_element_stops_the_solve_naming_the_frame(capsys):
+    assert main(["simulate", "--preset", "small", "--plate-modulus", "0.001", "--no-progress"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err[0].startswith("hcmt simulate: warning: plate_modulus = 0.001 is outside the range the solver is "
+                             "validated for (1000 .. 1e+06")
+    assert len(err) == 2 and "solve stopped at frame" in err[1] and "inverted" in err[1]
+
+
+def test_far_outside_the_validated_range_warns(capsys):
+    assert main(["simulate", "--preset", "small", "--drop-height", "1e7", "--frames", "3", "--no-progress"]) == 0
+    err = capsys.readouterr().err
+    assert "impact_speed = 442.9" in err and "validated for (0 .. 10" in err

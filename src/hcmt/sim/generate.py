@@ -22,8 +22,8 @@ import numpy as np
 
 from hcmt.data.errors import DatasetError
 from hcmt.data.format import make_meta, read_meta, write_meta, write_split
-from hcmt.sim.scene import (CONTACT_RADIUS, RANGES, UNITS, VARIANTS, Design, Settings, feature_spec, sample_design,
-                            simulate)
+from hcmt.sim.scene import (CONTACT_RADIUS, MAX_ESTIMATED_SECONDS, RANGES, UNITS, VARIANTS, Design, Settings,
+                            feature_spec, plan, sample_design, simulate, validated_warnings)
 
 #: Split names and their stable codes in the per-trajectory seed.
 SPLITS = ("train", "valid", "test", "test_thicker", "test_higher", "test_thicker_higher")
@@ -210,6 +210,12 @@ def main_generate(args) -> int:
     counts = dict(train=args.train, valid=args.valid, test=args.test)
     if args.variants:
         counts.update({v: args.variant_count for v in VARIANTS})
+    total = sum(max(int(v), 0) for v in counts.values())
+    if total:
+        cost = plan(preset_design(args.preset), _settings(args))
+        print(f"{total} trajectories of about {cost['num_nodes']} nodes and {cost['substeps']} substeps each: about "
+              f"{cost['estimated_s']:.1f} s per trajectory on one core, {total * cost['estimated_s'] / 60:.1f} "
+              f"core-minutes in all (finished trajectories are reused on a rerun)", flush=True)
     result = generate_dataset(args.out, preset=args.preset, counts=counts, seed=args.seed, workers=args.workers,
                               settings=_settings(args), progress=not args.no_progress)
     print(f"{args.out}: simulated {result['simulated']} trajectories, reused {result['skipped']}; splits: "
@@ -235,6 +241,9 @@ def configure_simulate(parser: argparse.ArgumentParser) -> None:
     for f in fields(Design):
         parser.add_argument("--" + f.name.replace("_", "-"), type=float, default=None, help=_DESIGN_HELP[f.name])
     parser.add_argument("--out", default=None, help="write the trajectory to FILE.h5 (meta.json beside it)")
+    parser.add_argument("--force", action="store_true",
+                        help=f"solve even when the estimated time exceeds {MAX_ESTIMATED_SECONDS:.0f} s")
+    parser.add_argument("--no-progress", action="store_true", help="no progress bar")
     _settings_arguments(parser)
 
 
@@ -242,7 +251,21 @@ def main_simulate(args) -> int:
     given = {f.name: getattr(args, f.name) for f in fields(Design) if getattr(args, f.name) is not None}
     design = Design(**{**asdict(preset_design(args.preset)), **given}).validate()
     settings = _settings(args)
-    result = simulate(design, settings)
+    for w in validated_warnings(design):
+        print(f"hcmt simulate: warning: {w}", file=sys.stderr)
+    cost = plan(design, settings)
+    print(f"{cost['num_nodes']} nodes, {cost['num_cells']} triangles, {cost['substeps']} substeps of "
+          f"{cost['dt']:.3e} ms: estimated {cost['estimated_s']:.1f} s on one core", flush=True)
+    if cost["estimated_s"] > MAX_ESTIMATED_SECONDS and not args.force:
+        raise ValueError(f"estimated {cost['estimated_s']:.0f} s exceeds {MAX_ESTIMATED_SECONDS:.0f} s "
+                         f"({cost['num_nodes']} nodes x {cost['substeps']} substeps; mesh_size {design.mesh_size} mm, "
+                         f"plate_poisson {design.plate_poisson}); coarsen the mesh or pass --force")
+    from tqdm import tqdm
+
+    bar = tqdm(total=settings.frames, desc="simulate", unit="frame",
+               disable=args.no_progress or cost["estimated_s"] < 5.0)
+    result = simulate(design, settings, progress=lambda k: bar.update(1))
+    bar.close()
     info, f = result["info"], result["fields"]
     print(f"simulated {settings.frames} frames ({(settings.frames - 1) * settings.frame_dt:.3f} ms) of "
           f"{info['num_nodes']} nodes / {info['num_cells']} triangles in {info['substeps']} substeps "

@@ -23,8 +23,8 @@ import numpy as np
 
 from hcmt.sim.contact import PenaltyContact
 from hcmt.sim.mesh import HANDLE, SYMMETRIC, impact_plate_mesh
-from hcmt.sim.solver import FORMULATIONS, CentralDifference, build_model, check_material, nodal_von_mises, \
-    stable_time_step
+from hcmt.sim.solver import FORMULATIONS, CentralDifference, build_model, check_material, deformation, \
+    nodal_von_mises, stable_time_step
 
 GRAVITY = 9.81e-3  # mm/ms^2
 CONTACT_RADIUS = 0.4  # mm, the learned model's contact-edge radius (paper Table 7); the initial gap must be smaller
@@ -142,6 +142,54 @@ def design_mesh(design: Design) -> dict[str, np.ndarray]:
                              plate_half_length=design.plate_half_length, gap=design.gap)
 
 
+#: cost model of the solver, fitted to its measured speed (docs/solver.md, "Speed"): per substep a fixed
+#: ~0.4 ms of Python and sparse-product overhead plus ~1e-7 s per node, on one core of the development machine
+SECONDS_PER_SUBSTEP, SECONDS_PER_NODE_SUBSTEP = 4e-4, 1e-7
+#: a design estimated to take longer than this is refused unless forced (``hcmt simulate --force``)
+MAX_ESTIMATED_SECONDS = 600.0
+#: the ranges the solver is validated for (docs/solver.md): outside them, results are not trusted
+VALIDATED = {"impact_speed": (0.0, 10.0), "plate_modulus": (1e3, 1e6), "ball_modulus": (1e3, 1e6),
+             "plate_poisson": (0.0, 0.45), "ball_poisson": (0.0, 0.45), "plate_density": (5e-4, 2e-2),
+             "ball_density": (5e-4, 2e-2)}
+
+
+class SolverError(ValueError):
+    """The solve cannot go on (an element inverted): the design is outside what the solver handles."""
+
+
+def validated_warnings(design: Design) -> list[str]:
+    """One line per parameter outside the range the solver is validated for."""
+    out = []
+    for key, (lo, hi) in VALIDATED.items():
+        v = getattr(design, key)
+        if not lo <= v <= hi:
+            unit = " mm/ms (= m/s)" if key == "impact_speed" else ""
+            out.append(f"{key} = {v:.6g}{unit} is outside the range the solver is validated for ({lo:g} .. {hi:g}; "
+                       "docs/solver.md): do not trust the result")
+    return out
+
+
+def _model(design: Design, settings: Settings, mesh: dict):
+    ball_c = mesh["cell_body"] == 1
+    return build_model(mesh["mesh_pos"], mesh["cells"],
+                       np.where(ball_c, design.ball_density, design.plate_density),
+                       np.where(ball_c, design.ball_modulus, design.plate_modulus),
+                       np.where(ball_c, design.ball_poisson, design.plate_poisson),
+                       formulation=settings.formulation, bulk_viscosity=settings.bulk_viscosity)
+
+
+def plan(design: Design, settings: Settings = Settings()) -> dict:
+    """What a solve will cost before running it: nodes, cells, substeps, time step and estimated seconds."""
+    design.validate()
+    settings.validate()
+    mesh = design_mesh(design)
+    per_frame = int(np.ceil(settings.frame_dt / stable_time_step(_model(design, settings, mesh), settings.safety)))
+    n, substeps = len(mesh["mesh_pos"]), per_frame * (settings.frames - 1)
+    return {"num_nodes": n, "num_cells": len(mesh["cells"]), "substeps": substeps,
+            "dt": settings.frame_dt / per_frame,
+            "estimated_s": substeps * (SECONDS_PER_SUBSTEP + SECONDS_PER_NODE_SUBSTEP * n)}
+
+
 def simulate(design: Design, settings: Settings = Settings(), *, progress=None) -> dict:
     """Simulate one design. Returns ``fields`` (the native-format arrays: mesh_pos, cells, node_type, density,
     modulus static; world_pos [T,N,2], stress [T,N,1] dynamic; float32/int32), ``attrs`` (the design parameters,
@@ -154,13 +202,8 @@ def simulate(design: Design, settings: Settings = Settings(), *, progress=None) 
     settings.validate()
     start, cpu_start = time.perf_counter(), time.process_time()
     mesh = design_mesh(design)
-    X, cells, body, cell_body = mesh["mesh_pos"], mesh["cells"], mesh["body"], mesh["cell_body"]
-    ball_c = cell_body == 1
-    model = build_model(X, cells,
-                        np.where(ball_c, design.ball_density, design.plate_density),
-                        np.where(ball_c, design.ball_modulus, design.plate_modulus),
-                        np.where(ball_c, design.ball_poisson, design.plate_poisson),
-                        formulation=settings.formulation, bulk_viscosity=settings.bulk_viscosity)
+    X, cells, body = mesh["mesh_pos"], mesh["cells"], mesh["body"]
+    model = _model(design, settings, mesh)
     substeps = int(np.ceil(settings.frame_dt / stable_time_step(model, settings.safety)))
     dt = settings.frame_dt / substeps  # frames land exactly on substeps
     fixed = np.zeros_like(X, dtype=bool)
@@ -178,6 +221,13 @@ def simulate(design: Design, settings: Settings = Settings(), *, progress=None) 
         if k:
             sim.step(substeps)
         world_pos[k] = sim.x
+        F11, F12, F21, F22, F33 = deformation(model, sim.x)
+        inverted = np.flatnonzero((F11 * F22 - F12 * F21) * F33 <= 0)
+        if len(inverted) or not np.isfinite(sim.x).all():
+            what = f"element {int(inverted[0])} inverted" if len(inverted) else "positions became non-finite"
+            raise SolverError(f"solve stopped at frame {k} (t = {k * settings.frame_dt:.4g} ms): {what}; the design "
+                              "is outside what the explicit solver handles (see the validated ranges in "
+                              "docs/solver.md)")
         stress[k, :, 0] = nodal_von_mises(model, sim.x)
         if progress is not None:
             progress(k)

@@ -14,6 +14,7 @@ import torch
 from hcmt.data.format import atomic_path
 from hcmt.models import ABLATIONS, MODELS
 from hcmt.train.config import load_config
+from hcmt.train.metrics import SCALE
 
 
 # -- train ---------------------------------------------------------------------------------------------------------
@@ -50,6 +51,7 @@ def _run_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--split", default="test")
     p.add_argument("--limit", type=int, help="only the first N trajectories")
     p.add_argument("--checkpoint", default="best", choices=["best", "checkpoint"])
+    p.add_argument("--device", help="cpu, cuda, cuda:N (default: cuda when available)")
 
 
 configure_rollout = _run_args
@@ -59,33 +61,35 @@ def rollout_path(run: str | Path, split: str) -> Path:
     return Path(run) / f"rollout_{split}.h5"
 
 
-def run_rollouts(run, data, split, limit=None, checkpoint="best") -> Path:
-    """Roll a run's model out over a split; predictions go to ``RUN/rollout_<split>.h5`` (atomically)."""
+def run_rollouts(run, data, split, limit=None, checkpoint="best", device=None) -> Path:
+    """Roll a run's model out over a split; predictions go to ``RUN/rollout_<split>.h5`` (atomically). The progress
+    bar counts model steps over the whole split (with an ETA)."""
     from tqdm import tqdm
 
-    from hcmt.train.adapters import config_adapter
     from hcmt.train.data import load_split
-    from hcmt.train.rollout import rollout
-    from hcmt.train.trainer import load_run, uses_hierarchy
+    from hcmt.train.rollout import rollout_batch
+    from hcmt.train.run import Run
 
-    model, info = load_run(run, checkpoint)
-    cfg = info["config"]
-    adapter = config_adapter(cfg)
-    levels, remesh = uses_hierarchy(info["model"])
-    trajs = load_split(data, split, adapter, levels, remesh, limit=limit)
-    radius = float(cfg["train"]["contact_radius"])
+    r = Run.load(run, device, checkpoint)
+    levels, remesh = r.hierarchy
+    trajs = load_split(data, split, r.adapter, levels, remesh, limit=limit)
     path = rollout_path(run, split)
+    h = r.adapter.history
+    bar = tqdm(total=sum(max(tr.num_steps - 1 - h, 0) for tr in trajs), desc=f"rollout {split}", unit="step",
+               dynamic_ncols=True)
     with atomic_path(path) as tmp, h5py.File(tmp, "w") as f:
-        for key, value in rollout_key(data, split, limit, info["checkpoint"]["file"], info["checkpoint"]["step"]).items():
+        for key, value in rollout_key(data, split, limit, r.info["checkpoint"]["file"],
+                                      r.info["checkpoint"]["step"]).items():
             f.attrs[key] = value
-        for tr in tqdm(trajs, desc=f"rollout {split}"):
-            r = rollout(model, adapter, tr, radius)
+        for tr in trajs:
+            (res,) = rollout_batch(r.model, r.adapter, [tr], r.radius, progress=bar.update)
             g = f.create_group(tr.name)
-            g["world_pos"] = r["world_pos"].numpy()
-            if r["stress"] is not None:
-                g["stress"] = r["stress"].numpy()
-            g.attrs["ms_per_step"] = r["ms_per_step"]
-            g.attrs["start"] = r["start"]
+            g["world_pos"] = res["world_pos"].numpy()
+            if res["stress"] is not None:
+                g["stress"] = res["stress"].numpy()
+            g.attrs["ms_per_step"] = res["ms_per_step"]
+            g.attrs["start"] = res["start"]
+    bar.close()
     return path
 
 
@@ -110,7 +114,7 @@ def _rollout_is_current(path: Path, run, data, split, limit, checkpoint) -> bool
 
 
 def main_rollout(args: argparse.Namespace) -> int:
-    path = run_rollouts(args.run, args.data, args.split, args.limit, args.checkpoint)
+    path = run_rollouts(args.run, args.data, args.split, args.limit, args.checkpoint, args.device)
     print(f"wrote {path}")
     return 0
 
@@ -119,14 +123,15 @@ def main_rollout(args: argparse.Namespace) -> int:
 configure_evaluate = _run_args
 
 
-def evaluate(run, data, split, limit=None, checkpoint="best") -> dict:
-    """Paper metrics of a run on a split; rolls out first if ``RUN/rollout_<split>.h5`` is missing."""
+def evaluate(run, data, split, limit=None, checkpoint="best", device=None) -> dict:
+    """Paper metrics of a run on a split; rolls out first (on ``device``, default CUDA when available) if
+    ``RUN/rollout_<split>.h5`` is missing or stale."""
     from hcmt.data.format import Split
     from hcmt.train.metrics import aggregate, rollout_rmse
 
     path = rollout_path(run, split)
     if not _rollout_is_current(path, run, data, split, limit, checkpoint):
-        run_rollouts(run, data, split, limit, checkpoint)
+        run_rollouts(run, data, split, limit, checkpoint, device)
     per_traj, ms = [], []
     with h5py.File(path, "r") as f, Split(data, split) as s:
         index = {n: i for i, n in enumerate(s.names)}
@@ -141,7 +146,11 @@ def evaluate(run, data, split, limit=None, checkpoint="best") -> dict:
             per_traj.append(row)
             ms.append(float(g.attrs["ms_per_step"]))
     means = aggregate([{k: v for k, v in r.items() if k != "trajectory"} for r in per_traj])
-    metrics = {"split": split, "trajectories": len(per_traj)}
+    from hcmt.data.format import read_meta
+
+    units = read_meta(data).get("units") or {}
+    metrics = {"split": split, "trajectories": len(per_traj), "scale": SCALE,
+               "units": {k: units[k] for k in ("length", "stress") if k in units}}
     for q in ("position", "stress"):
         if f"{q}_rmse_all" in means:
             metrics[q] = {k: means[f"{q}_{k}"] for k in ("rmse_1", "rmse_50", "rmse_all")}
@@ -154,19 +163,26 @@ def evaluate(run, data, split, limit=None, checkpoint="best") -> dict:
     return metrics
 
 
+def metric_unit(m: dict, quantity: str) -> str:
+    """The unit of a quantity's RMSE as the dataset records it (``units.length`` / ``units.stress``)."""
+    return (m.get("units") or {}).get("length" if quantity == "position" else quantity) or "data units"
+
+
 def format_metrics(m: dict) -> str:
-    lines = [f"split {m['split']}: {m['trajectories']} trajectories (RMSE x1e3)",
-             f"  {'':<9}{'rmse_1':>12}{'rmse_50':>12}{'rmse_all':>12}"]
+    """The RMSE table in the data's units (metrics.json keeps the paper's ×10³ values)."""
+    lines = [f"split {m['split']}: {m['trajectories']} trajectories, RMSE over the rollout's steps 1, 1-50 and all",
+             f"  {'':<18}{'rmse_1':>12}{'rmse_50':>12}{'rmse_all':>12}"]
     for q in ("position", "stress"):
         if q in m:
-            lines.append(f"  {q:<9}" + "".join(f"{m[q][k]:>12.4g}" for k in ("rmse_1", "rmse_50", "rmse_all")))
+            name = f"{q} [{metric_unit(m, q)}]"
+            lines.append(f"  {name:<18}" + "".join(f"{m[q][k] / SCALE:>12.4g}" for k in ("rmse_1", "rmse_50", "rmse_all")))
     lines.append(f"  inference {m['inference_ms_per_step']:.2f} ms/step"
                  + (f", training {m['train_ms_per_step']:.2f} ms/step" if m.get("train_ms_per_step") else ""))
     return "\n".join(lines)
 
 
 def main_evaluate(args: argparse.Namespace) -> int:
-    m = evaluate(args.run, args.data, args.split, args.limit, args.checkpoint)
+    m = evaluate(args.run, args.data, args.split, args.limit, args.checkpoint, args.device)
     print(format_metrics(m))
     print(f"wrote {Path(args.run) / 'metrics.json'}")
     return 0
@@ -197,7 +213,8 @@ def compare(runs: list[str]) -> dict:
 
 def format_compare(table: dict) -> str:
     head = f"{'Model':<24}{'Position RMSE-all':>24}{'Stress RMSE-all':>24}{'Position RMSE-1':>20}  seeds"
-    lines = ["RMSE x1e3, mean ± std over seeds (paper Table 2 layout)", head]
+    lines = ["RMSE x1e3 in the data's units (Impact Plate: position 1e-3 mm = µm, stress 1e-3 MPa = kPa), "
+             "mean ± std over seeds (paper Table 2 layout)", head]
     for label, row in table.items():
         def cell(q, k, w):
             if q not in row:

@@ -195,3 +195,22 @@ def test_far_outside_the_validated_range_warns(capsys):
     assert main(["simulate", "--preset", "small", "--drop-height", "1e7", "--frames", "3", "--no-progress"]) == 0
     err = capsys.readouterr().err
     assert "impact_speed = 442.9" in err and "validated for (0 .. 10" in err
+
+
+def test_disk_full_is_one_line_and_a_rerun_resumes(tmp_path, monkeypatch, capsys):
+    import shutil
+    from collections import namedtuple
+
+    real = shutil.disk_usage
+    usage = namedtuple("usage", "total used free")
+    monkeypatch.setattr(shutil, "disk_usage", lambda p: usage(1 << 30, 1 << 30, 1000))  # 1 kB free
+    out = tmp_path / "ds"
+    assert main(["generate", "impact-plate", str(out), "--train", "1", "--valid", "0", "--test", "0",
+                 "--frames", "3", "--no-progress"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "No space left on device" in err[0] and str(out) in err[0]
+    assert not list(out.rglob("*.h5")) and not list(out.rglob("*.tmp"))  # nothing half-written
+    monkeypatch.setattr(shutil, "disk_usage", real)
+    assert main(["generate", "impact-plate", str(out), "--train", "1", "--valid", "0", "--test", "0",
+                 "--frames", "3", "--no-progress"]) == 0
+    assert list_splits(out) == ["train"]

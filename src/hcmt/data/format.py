@@ -150,9 +150,26 @@ def atomic_path(path: str | os.PathLike) -> Iterator[Path]:
         yield tmp
         os.chmod(tmp, 0o644)  # mkstemp creates 0600; a dataset is meant to be shared
         os.replace(tmp, path)
+    except OSError as exc:
+        if getattr(exc, "filename", None) or exc.errno is None:
+            raise
+        raise OSError(exc.errno, exc.strerror, str(path)) from None  # name the file a full disk stopped
     finally:
         if tmp.exists():
             tmp.unlink()
+
+
+def ensure_space(path: str | os.PathLike, nbytes: int, margin: int = 1 << 20) -> None:
+    """Refuse (``OSError`` ENOSPC naming ``path``) to write ``nbytes`` where the disk has less free space, before
+    HDF5 tries: its library can crash on a full disk instead of raising. Uncompressed sizes, so conservative."""
+    import errno
+    import shutil
+
+    folder = Path(path).parent
+    free = shutil.disk_usage(folder if folder.exists() else Path.cwd()).free
+    if free < nbytes + margin:
+        raise OSError(errno.ENOSPC, f"No space left on device ({free / 1e6:.1f} MB free, about "
+                                    f"{(nbytes + margin) / 1e6:.1f} MB needed)", str(path))
 
 
 def validate_trajectory(meta: Mapping, fields: Mapping[str, np.ndarray], *, file=None, trajectory=None) -> dict:
@@ -237,6 +254,7 @@ def write_split(
             count = 0
             for name, fields, attrs in trajectories:
                 arrays = validate_trajectory(meta, fields, file=path, trajectory=name)
+                ensure_space(path, sum(v.nbytes for v in arrays.values()))
                 g = f.create_group(name)
                 for key, value in arrays.items():
                     big = value.size > 4096

@@ -11,7 +11,7 @@ import h5py
 import numpy as np
 import torch
 
-from hcmt.data.format import atomic_path
+from hcmt.data.format import atomic_path, ensure_space
 from hcmt.models import ABLATIONS, MODELS
 from hcmt.train.config import load_config
 from hcmt.train.metrics import SCALE
@@ -83,6 +83,7 @@ def run_rollouts(run, data, split, limit=None, checkpoint="best", device=None) -
             f.attrs[key] = value
         for tr in trajs:
             (res,) = rollout_batch(r.model, r.adapter, [tr], r.radius, progress=bar.update)
+            ensure_space(path, res["world_pos"].numel() * 4 * 2)
             g = f.create_group(tr.name)
             g["world_pos"] = res["world_pos"].numpy()
             if res["stress"] is not None:

@@ -125,8 +125,13 @@ def learning_rate(step: int, steps: int, lr: float, lr_final: float, decay_steps
 
 
 def save_atomic(obj, path: Path) -> None:
+    """torch.save through memory, then a plain write: a full disk raises ``OSError`` naming the path."""
+    import io
+
+    buffer = io.BytesIO()
+    torch.save(obj, buffer)
     with atomic_path(path) as tmp:
-        torch.save(obj, tmp)
+        tmp.write_bytes(buffer.getbuffer())
 
 
 def _distributed() -> tuple[int, int]:

@@ -189,7 +189,8 @@ def attention_figure(maps: AttentionMaps, panels: list[tuple[str, str]] | None =
         raise ValueError("no attention blocks to draw")
     cols = min(columns, len(panels))
     rows = int(np.ceil(len(panels) / cols))
-    fig = new_figure(3.3 * cols + 1.0, 3.3 * rows + 0.6)
+    fig = new_figure(3.3 * cols + 1.0, 3.8 * rows + 0.6)
+    fig.get_layout_engine().set(h_pad=0.12, hspace=0.06)  # room between a panel's title and the x label above
     values = np.concatenate([maps.matrices[n].data for n, _ in panels])
     positive = values[values > 0]
     lo = float(max(positive.min(), 1e-4)) if len(positive) else 1e-3

@@ -214,3 +214,23 @@ def test_disk_full_is_one_line_and_a_rerun_resumes(tmp_path, monkeypatch, capsys
     assert main(["generate", "impact-plate", str(out), "--train", "1", "--valid", "0", "--test", "0",
                  "--frames", "3", "--no-progress"]) == 0
     assert list_splits(out) == ["train"]
+
+
+def test_interrupted_generate_is_one_line_and_keeps_finished_work(tmp_path, monkeypatch, capsys):
+    real = gen._run_one
+    calls = []
+
+    def stop_on_second(task):
+        if calls:
+            raise KeyboardInterrupt
+        calls.append(task)
+        return real(task)
+
+    monkeypatch.setattr(gen, "_run_one", stop_on_second)
+    out = tmp_path / "ds"
+    args = ["generate", "impact-plate", str(out), "--train", "2", "--valid", "0", "--test", "0", "--frames", "3",
+            "--no-progress"]
+    assert main(args) == 130
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "finished trajectories are kept" in err[0] and "hcmt generate" in err[0]
+    assert [p.name for p in (out / ".parts" / "train").glob("*.h5")] == ["00000.h5"]

@@ -59,6 +59,13 @@ def _run_one(task: tuple) -> tuple[str, int, float]:
     return split, index, result["info"]["wall_time"]
 
 
+def _ignore_sigint() -> None:
+    """Pool workers leave Ctrl-C to the parent, which stops the pool and says what was kept."""
+    import signal
+
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+
 def _split_complete(path: Path, count: int) -> bool:
     if not path.is_file():
         return False
@@ -157,7 +164,7 @@ def generate_dataset(out, *, preset: str = "small", counts: dict[str, int], seed
             _run_one(task)
             bar.update(1)
     else:
-        with mp.get_context("spawn").Pool(min(int(workers), len(todo))) as pool:
+        with mp.get_context("spawn").Pool(min(int(workers), len(todo)), initializer=_ignore_sigint) as pool:
             for _ in pool.imap_unordered(_run_one, todo):
                 bar.update(1)
     bar.close()

@@ -34,6 +34,11 @@ def configure(p: argparse.ArgumentParser) -> None:
 
 
 def main(args: argparse.Namespace) -> int:
+    if args.steps is not None and not args.train:
+        from hcmt.cli import CommandError
+
+        raise CommandError("--steps sets the training length of `hcmt demo --train`; the default demo trains nothing "
+                           "(it uses the shipped model)")
     return train_demo(args) if args.train else design_demo(args)
 
 

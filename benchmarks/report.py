@@ -30,7 +30,7 @@ def accuracy(lines):
     if not acc:
         return
     any_model = next(iter(acc.values()))
-    lines += ["## Accuracy (paper Table 2)", "",
+    lines += ["## Accuracy on the `small` preset (paper Table 2 layout; the quick check)", "",
               f"Command: `python benchmarks/accuracy.py --steps {any_model['steps']} --seeds "
               f"{' '.join(map(str, any_model['seeds']))}`", "",
               f"Data: `hcmt generate impact-plate` with preset `{DATASET['preset']}` (~400-570 nodes), "
@@ -107,7 +107,7 @@ def longer(lines):
 def ablations(lines):
     abl, lev = load("ablations.json"), load("levels.json")
     if abl:
-        lines += ["## Ablations (paper Tables 3, 10-12)", "",
+        lines += ["## Ablations (paper Tables 3, 10-12)", "", "Settings of this table: the `small` preset study above (config `impact_plate_cpu`, σ = 0.003 mm from Table 8, paper attention), run before the parity study; not re-run with the σ chosen there (no budget left ""on this machine).", "", 
                   f"Command: `python benchmarks/ablations.py --steps {abl['steps']} --part ablations` (seed {abl['seed']}, "
                   "same data and budget as the accuracy study). RMSE-all ×10³.", "",
                   "| variant | position RMSE-all | stress RMSE-all |", "|---|---|---|"]
@@ -132,7 +132,7 @@ def generalization(lines):
     gen = load("generalization.json")
     if not gen:
         return
-    lines += ["## Generalization (paper Table 13)", "",
+    lines += ["## Generalization (paper Table 13)", "", "Settings of this table: the `small` preset study above (config `impact_plate_cpu`, σ = 0.003 mm from Table 8, paper attention), run before the parity study; not re-run with the σ chosen there (no budget left ""on this machine).", "", 
               f"Command: `python benchmarks/generalization.py --steps {gen['steps']} --seeds "
               f"{' '.join(map(str, gen['seeds']))}` (the accuracy runs, trained on thickness 0.5-1.0 mm and drop height "
               "500-1000 mm, evaluated on 20 trajectories of each out-of-range split). RMSE-all ×10³, mean ± std over seeds.",
@@ -220,12 +220,93 @@ def hierarchy(lines):
               f"max angle {mean('max_angle_before'):.1f}° → {mean('max_angle_after'):.1f}° (paper 120.4° → 99.4°).", ""]
 
 
+LABELS = {"hcmt": "HCMT (paper attention)", "hcmt-official": "HCMT (official attention)", "mgn": "MGN",
+          "gt": "GT"}
+
+
+def parity(lines):
+    """Issue "Parity": the `paper` preset at CPU scale, σ chosen per model on the validation split."""
+    par, sweep = load("parity_paper.json"), load("noise_sweep.json")
+    if not par or not sweep:
+        return
+    d, steps = par["dataset"], par["steps"]
+    lines += ["## Headline: HCMT vs MGN on the `paper` preset (CPU)", "",
+              f"Command: `python benchmarks/parity.py --work benchmarks/work --steps {steps}` (resumable; several "
+              "processes may share the work). Data: `hcmt generate impact-plate --preset paper` (~2,200 nodes, the "
+              f"paper's mesh size), {d['train']} train / {d['valid']} valid / {d['test']} test trajectories (seed "
+              f"{d['seed']}). Config `{par['config']}`: the paper's depths (HCMT λ 6, L_C 2, L_H 13; MGN and GT 15 "
+              f"blocks) at width 64, {steps} steps per run (equal budget), batch 1, lr 1e-3 → 1e-5, one CPU thread per "
+              "run. The training noise σ of each model is the one with the lowest validation position RMSE-all in the "
+              "sweep below (the test split is not used to choose). RMSE ×10³ on the test split (position: µm, "
+              "stress: kPa), mean ± std over seeds.", "",
+              "| model | σ (mm) | seeds | position RMSE-1 | position RMSE-all | stress RMSE-all | plate position "
+              "RMSE-all | ball position RMSE-all | train ms/step |", "|---|---|---|---|---|---|---|---|---|"]
+    m = par["models"]
+    for label, r in m.items():
+        g = r["groups"]
+        lines.append(f"| {LABELS[label]} | {r['noise_std']:g} | {len(r['seeds'])} | {pm(r['position']['rmse_1'])} | "
+                     f"{pm(r['position']['rmse_all'])} | {pm(r['stress']['rmse_all'])} | "
+                     f"{pm(g['plate']['position'])} | {pm(g['ball']['position'])} | "
+                     f"{r['train_ms_per_step']['mean']:.0f} |")
+    if "mgn" in m:
+        lines += ["", "Ratios to MGN (RMSE-all, means over seeds; the paper's Table 2: position 0.51, stress 0.41):", ""]
+        for label in ("hcmt", "hcmt-official", "gt"):
+            if label in m:
+                rp = m[label]["position"]["rmse_all"]["mean"] / m["mgn"]["position"]["rmse_all"]["mean"]
+                rs = m[label]["stress"]["rmse_all"]["mean"] / m["mgn"]["stress"]["rmse_all"]["mean"]
+                lines.append(f"- {LABELS[label]} ÷ MGN: position **{rp:.2f}**, stress **{rs:.2f}**")
+    lines += ["", "Error by rollout step (test split, mean over seeds and trajectories; position ×10³ mm):", "",
+              "| model | step 1 | step 10 | step 25 | step 50 |", "|---|---|---|---|---|"]
+    for label, r in m.items():
+        e = r["position_error_by_step"]
+        pick = [e[i] for i in (0, 9, 24, len(e) - 1)]
+        lines.append(f"| {LABELS[label]} | " + " | ".join(f"{v:.3g}" for v in pick) + " |")
+    lines += ["", "GPU rows (the `paper` preset at full width 128, at least 2 seeds): **not measured**: no GPU was "
+              "lent to the session that ran this study.", ""]
+    lines += ["### The noise sweep (validation split, seed 0)", "",
+              "Same command; each model trained once per σ. Position / stress RMSE-all ×10³ on the **validation** "
+              "split (the choice) and the test split (for reference only).", "",
+              "| model | σ (mm) | valid position | valid stress | test position | test stress |",
+              "|---|---|---|---|---|---|"]
+    for label, runs in sweep.items():
+        best = min(runs, key=lambda k: runs[k]["valid"]["position"]["rmse_all"])
+        for sigma, r in sorted(runs.items(), key=lambda kv: float(kv[0])):
+            mark = " (chosen)" if sigma == best else ""
+            lines.append(f"| {LABELS[label]} | {float(sigma):g}{mark} | {r['valid']['position']['rmse_all']:.4g} | "
+                         f"{r['valid']['stress']['rmse_all']:.4g} | {r['test']['position']['rmse_all']:.4g} | "
+                         f"{r['test']['stress']['rmse_all']:.4g} |")
+    lines.append("")
+
+
+def propagation(lines):
+    prop = load("propagation.json")
+    if not prop:
+        return
+    lines += ["### Why the hierarchy matters on `paper` and less on `small`: hops", "",
+              "Command: `python benchmarks/propagation.py --data small=DATA_SMALL --data paper=DATA_PAPER` (the test "
+              "splits of the shipped model's data and of the parity study; medians over 4 trajectories). Hops are "
+              "counted on the plate's mesh edges from the node under the impact; the stress front is the farthest "
+              "plate node above 0.5 % of the trajectory's peak von Mises stress; HCMT's reach per step is L_C plus "
+              "the median level-0 span of each HMT block's edges (down, bottom, up).", "",
+              "| preset | impact → clamp (hops) | stress front (hops / frame) | P wave (hops / frame) | MGN / GT "
+              "(hops / step) | HCMT (hops / step) | HCMT level spans |", "|---|---|---|---|---|---|---|"]
+    for preset, r in prop.items():
+        md, mo = r["median"], r["models"]
+        lines.append(f"| {preset} | {md['impact_to_clamp_hops']:.0f} | {md['front_hops_per_frame']:.1f} | "
+                     f"{md['p_wave_hops_per_frame']:.0f} | {mo['mgn_gt_hops_per_step']} | "
+                     f"{mo['hcmt']['hops_per_step']:.0f} | {', '.join(f'{x:.0f}' for x in mo['hcmt']['span_per_level'])} |")
+    lines += ["", "On `small` the front advances about as many hops per frame as MGN's blocks reach per step, so MGN "
+              "can keep up; on `paper` the front outruns MGN's 15 hops per step by a factor of 1.5-2, while HCMT's "
+              "hierarchy reaches about three times further than MGN per step. This is the regime where the paper's "
+              "margin is expected, and why the headline comparison uses the `paper` preset.", ""]
+
+
 def main() -> None:
     lines = ["# Results", "",
              "Every number below was produced by the command quoted with it, on this project's development machine "
              "(2 CPU cores, no GPU) unless stated. This file is written by `python benchmarks/report.py` from "
              "`benchmarks/results/*.json`; the paper's numbers are quoted for comparison only.", ""]
-    for section in (accuracy, longer, ablations, generalization, speed, hierarchy):
+    for section in (parity, propagation, accuracy, longer, ablations, generalization, speed, hierarchy):
         section(lines)
     DOC.parent.mkdir(exist_ok=True)
     DOC.write_text("\n".join(lines).rstrip() + "\n")

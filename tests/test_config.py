@@ -22,8 +22,8 @@ def test_paper_configs_hold_table8(name):
 
 
 def test_base_and_overrides(tmp_path):
-    c = load_config("impact_plate_cpu", ["train.lr=3e-4", "model.levels=3", "new.key=[1, 2]"])
-    assert c["train"]["lr"] == 3e-4 and c["model"]["levels"] == 3 and c["new"]["key"] == [1, 2]
+    c = load_config("impact_plate_cpu", ["train.lr=3e-4", "model.levels=3", "data.exclude_trajectories=[1, 2]"])
+    assert c["train"]["lr"] == 3e-4 and c["model"]["levels"] == 3 and c["data"]["exclude_trajectories"] == [1, 2]
     assert c["train"]["noise_std"] == 0.003  # inherited from impact_plate
     f = tmp_path / "mine.yaml"
     f.write_text("base: impact_plate\ntrain:\n  steps: 7\n")
@@ -47,3 +47,31 @@ def test_model_defaults_adapters_and_configs_agree(name):
     m, t = cfg["model"], cfg["train"]
     assert (m["L_C"], 2 * m["levels"] + 1, m["levels"]) == (spec["L_C"], spec["L_H"], spec["levels"])
     assert (t["noise_std"], t["contact_radius"], t["steps"]) == (spec["noise_std"], spec["radius"], spec["training_steps"])
+
+
+@pytest.mark.parametrize("overrides,yaml_text,message", [
+    (["train.lrr=1"], None, "config --set train.lrr=1: train.lrr: unknown key; did you mean train.lr?"),
+    (["train.lr=fast"], None, "train.lr: got 'fast'; expected a number"),
+    (["train.steps=20.5"], None, "train.steps: got 20.5; expected a whole number"),
+    (["model.attention=softmax"], None, "model.attention: unknown value 'softmax'; expected one of paper, official"),
+    ([], "base: impact_plate\ntrian:\n  steps: 3\n", "trian: unknown key; did you mean train?"),
+    ([], "base: impact_plate\ntrain:\n  steps: [3\n", "line 4, column 1: not valid YAML"),
+    ([], "base: impact_plate\nmodel:\n  hiden: 64\n", "model.hiden: unknown key; did you mean model.hidden?"),
+])
+def test_schema_refuses_unknown_keys_and_wrong_types(tmp_path, overrides, yaml_text, message):
+    from hcmt.cli import main as cli
+
+    name = "impact_plate"
+    if yaml_text is not None:
+        name = str(tmp_path / "mine.yaml")
+        (tmp_path / "mine.yaml").write_text(yaml_text)
+    with pytest.raises(ValueError) as exc:
+        load_config(name, overrides)
+    assert message in str(exc.value)
+    if yaml_text is not None:
+        assert "mine.yaml" in str(exc.value)
+
+
+def test_every_builtin_config_passes_the_schema():
+    for name in builtin_configs():
+        load_config(name)

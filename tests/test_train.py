@@ -42,7 +42,10 @@ def test_tiny_end_to_end(impact, tmp_path, model):
     m = evaluate(tmp_path / "run", impact, "test")
     assert set(m["position"]) == {"rmse_1", "rmse_50", "rmse_all"} and "stress" in m
     assert np.isfinite(m["position"]["rmse_all"]) and m["inference_ms_per_step"] > 0
-    assert json.loads((tmp_path / "run" / "metrics.json").read_text())["trajectories"] == 1
+    assert json.loads((tmp_path / "run" / "metrics_test.json").read_text())["trajectories"] == 1
+    evaluate(tmp_path / "run", impact, "valid")  # another split never overwrites the test metrics
+    assert json.loads((tmp_path / "run" / "metrics_test.json").read_text())["split"] == "test"
+    assert json.loads((tmp_path / "run" / "metrics_valid.json").read_text())["split"] == "valid"
 
 
 def test_rollout_imposes_boundary_conditions(impact, tmp_path):
@@ -136,7 +139,7 @@ def test_cli_train_rollout_evaluate_compare(impact, tmp_path, capsys):
     out = capsys.readouterr().out
     assert "HCMT" in out and "MGN" in out and "±" in out
     table = json.loads((tmp_path / "table.json").read_text())
-    hc = [json.loads((tmp_path / f"hcmt{s}" / "metrics.json").read_text())["position"]["rmse_all"] for s in (0, 1)]
+    hc = [json.loads((tmp_path / f"hcmt{s}" / "metrics_test.json").read_text())["position"]["rmse_all"] for s in (0, 1)]
     assert table["HCMT"]["position"]["rmse_all"]["n"] == 2
     assert table["HCMT"]["position"]["rmse_all"]["mean"] == pytest.approx(np.mean(hc))
     assert table["HCMT"]["position"]["rmse_all"]["std"] == pytest.approx(np.std(hc, ddof=1))

@@ -18,7 +18,7 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "hierarchy": ("hcmt.graph.report", "build the HCMT mesh hierarchy of a dataset and report its quality per level"),
     "train": ("hcmt.train.cli", "train HCMT, MeshGraphNets or Graph Transformer on a dataset"),
     "rollout": ("hcmt.train.cli", "roll a trained model out over a dataset split (writes HDF5 predictions)"),
-    "evaluate": ("hcmt.train.cli", "compute the paper's RMSE metrics of a run on a split (writes RUN/metrics.json)"),
+    "evaluate": ("hcmt.train.cli", "compute the paper's RMSE metrics of a run on a split (writes RUN/metrics_<split>.json)"),
     "compare": ("hcmt.train.cli", "aggregate several runs into the paper's Table 2 layout (mean +- std)"),
     "predict": ("hcmt.train.cli", "peak stress and deflection of new Impact Plate designs from a trained model, "
                 "no solver run (--verify compares with the solver)"),

@@ -150,7 +150,7 @@ def evaluate(run, data, split, limit=None, checkpoint="best", device=None) -> di
     from hcmt.data.format import read_meta
 
     units = read_meta(data).get("units") or {}
-    metrics = {"split": split, "trajectories": len(per_traj), "scale": SCALE,
+    metrics = {"split": split, "data": str(Path(data).resolve()), "trajectories": len(per_traj), "scale": SCALE,
                "units": {k: units[k] for k in ("length", "stress") if k in units}}
     for q in ("position", "stress"):
         if f"{q}_rmse_all" in means:
@@ -159,9 +159,13 @@ def evaluate(run, data, split, limit=None, checkpoint="best", device=None) -> di
     stats = Path(run) / "train_stats.json"
     metrics["train_ms_per_step"] = json.loads(stats.read_text()).get("train_ms_per_step") if stats.is_file() else None
     metrics["per_trajectory"] = per_traj
-    with atomic_path(Path(run) / "metrics.json") as tmp:
+    with atomic_path(metrics_path(run, split)) as tmp:  # one file per split: never overwrites another split's
         tmp.write_text(json.dumps(metrics, indent=2))
     return metrics
+
+
+def metrics_path(run, split: str) -> Path:
+    return Path(run) / f"metrics_{split}.json"
 
 
 def metric_unit(m: dict, quantity: str) -> str:
@@ -185,31 +189,37 @@ def format_metrics(m: dict) -> str:
 def main_evaluate(args: argparse.Namespace) -> int:
     m = evaluate(args.run, args.data, args.split, args.limit, args.checkpoint, args.device)
     print(format_metrics(m))
-    print(f"wrote {Path(args.run) / 'metrics.json'}")
+    print(f"wrote {metrics_path(args.run, args.split)}")
     return 0
 
 
 # -- compare -------------------------------------------------------------------------------------------------------
 def configure_compare(p: argparse.ArgumentParser) -> None:
-    p.add_argument("runs", nargs="+", help="run folders holding metrics.json (from `hcmt evaluate`)")
+    p.add_argument("runs", nargs="+", help="run folders holding metrics_<split>.json (from `hcmt evaluate`)")
+    p.add_argument("--split", default="test", help="which split's metrics to compare (default test)")
     p.add_argument("--json", help="also write the table as JSON")
 
 
-def compare(runs: list[str]) -> dict:
-    """{label: {quantity: {metric: {mean, std, n}}}} over seeds; label = model (+ ablation)."""
+def compare(runs: list[str], split: str = "test") -> dict:
+    """{label: {quantity: {metric: {mean, std, n}}}} over seeds of one split. Runs are grouped by model (+ ablation)
+    and by the dataset they were evaluated on: runs of different datasets are never averaged together (the label
+    then names the dataset)."""
     import yaml
 
     from hcmt.train.metrics import summarize_runs
 
-    groups: dict[str, list[dict]] = defaultdict(list)
+    groups: dict[tuple[str, str], list[dict]] = defaultdict(list)
     for run in runs:
-        mpath = Path(run) / "metrics.json"
+        mpath = metrics_path(run, split)
         if not mpath.is_file():
-            raise FileNotFoundError(f"{mpath}: run `hcmt evaluate {run} --data ... --split ...` first")
+            raise FileNotFoundError(f"{mpath}: run `hcmt evaluate {run} --data ... --split {split}` first")
         info = yaml.safe_load((Path(run) / "run.yaml").read_text())["model"]
         label = info["name"].upper() + (f" ({info['ablation']})" if info.get("ablation") else "")
-        groups[label].append(json.loads(mpath.read_text()))
-    return {label: summarize_runs(ms) for label, ms in groups.items()}
+        m = json.loads(mpath.read_text())
+        groups[(label, m.get("data", "?"))].append(m)
+    datasets = {d for _, d in groups}
+    return {(label if len(datasets) == 1 else f"{label} [{Path(d).name}]"): summarize_runs(ms)
+            for (label, d), ms in groups.items()}
 
 
 def format_compare(table: dict) -> str:
@@ -228,7 +238,8 @@ def format_compare(table: dict) -> str:
 
 
 def main_compare(args: argparse.Namespace) -> int:
-    table = compare(args.runs)
+    table = compare(args.runs, args.split)
+    print(f"split {args.split}; runs grouped by model and dataset")
     print(format_compare(table))
     if args.json:
         with atomic_path(Path(args.json)) as tmp:

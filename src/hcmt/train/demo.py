@@ -112,6 +112,6 @@ def train_demo(args: argparse.Namespace) -> int:
     print(f"\ndataset   {data}   (hcmt info {data})")
     print(f"run       {run}   (checkpoints, log.jsonl, tb/)")
     print(f"rollout   {run / 'rollout_test.h5'}")
-    print(f"metrics   {run / 'metrics.json'}")
+    print(f"metrics   {run / 'metrics_test.json'}")
     print(f"took {time.perf_counter() - t0:.0f} s")
     return 0

@@ -270,3 +270,27 @@ def test_interrupted_training_saves_and_says_how_to_resume(impact, tmp_path):
     assert cli(["train", "--config", "impact_plate_cpu", "--data", str(impact), "--model", "mgn", "--out", str(run),
                 "--no-progress", "--steps", "400", "--resume"] + [a for t in TINY for a in ("--set", t)]) == 0
     assert torch.load(run / "checkpoint.pt", weights_only=True)["step"] == 400
+
+
+def test_batched_rollout_equals_one_by_one(impact, tmp_path):
+    import h5py
+
+    cfg = load_config("impact_plate_cpu", TINY + ["train.steps=2"])
+    train(cfg, impact, "hcmt", tmp_path / "run", progress=False)
+    assert cli(["rollout", str(tmp_path / "run"), "--data", str(impact), "--split", "train", "--batch", "2"]) == 0
+    with h5py.File(tmp_path / "run" / "rollout_train.h5") as f:
+        batched = {k: f[k]["world_pos"][()] for k in f}
+    assert cli(["rollout", str(tmp_path / "run"), "--data", str(impact), "--split", "train"]) == 0
+    with h5py.File(tmp_path / "run" / "rollout_train.h5") as f:
+        assert len(f) == 2
+        for k in f:
+            np.testing.assert_allclose(batched[k], f[k]["world_pos"][()], rtol=0, atol=1e-5)
+
+
+def test_unknown_or_unavailable_device_is_one_line(impact, tmp_path, capsys):
+    cfg = load_config("impact_plate_cpu", TINY + ["train.steps=1"])
+    train(cfg, impact, "mgn", tmp_path / "run", progress=False)
+    for device in ("tpu", "cuda:7" if torch.cuda.is_available() else "cuda"):
+        assert cli(["evaluate", str(tmp_path / "run"), "--data", str(impact), "--device", device]) == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and f"--device {device}" in err[0].replace("'", "")

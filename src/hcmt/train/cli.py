@@ -52,6 +52,7 @@ def _run_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--limit", type=int, help="only the first N trajectories")
     p.add_argument("--checkpoint", default="best", choices=["best", "checkpoint"])
     p.add_argument("--device", help="cpu, cuda, cuda:N (default: cuda when available)")
+    p.add_argument("--batch", type=int, default=1, help="trajectories rolled out together as one batched graph")
 
 
 configure_rollout = _run_args
@@ -61,9 +62,10 @@ def rollout_path(run: str | Path, split: str) -> Path:
     return Path(run) / f"rollout_{split}.h5"
 
 
-def run_rollouts(run, data, split, limit=None, checkpoint="best", device=None) -> Path:
-    """Roll a run's model out over a split; predictions go to ``RUN/rollout_<split>.h5`` (atomically). The progress
-    bar counts model steps over the whole split (with an ETA)."""
+def run_rollouts(run, data, split, limit=None, checkpoint="best", device=None, batch: int = 1) -> Path:
+    """Roll a run's model out over a split; predictions go to ``RUN/rollout_<split>.h5`` (atomically). ``batch``
+    trajectories of equal length step together as one batched graph. The progress bar counts model steps over the
+    whole split (with an ETA)."""
     from tqdm import tqdm
 
     from hcmt.train.data import load_split
@@ -81,15 +83,24 @@ def run_rollouts(run, data, split, limit=None, checkpoint="best", device=None) -
         for key, value in rollout_key(data, split, limit, r.info["checkpoint"]["file"],
                                       r.info["checkpoint"]["step"]).items():
             f.attrs[key] = value
+        if batch < 1:
+            raise ValueError(f"--batch must be >= 1, got {batch}")
+        by_length: dict[int, list] = defaultdict(list)
         for tr in trajs:
-            (res,) = rollout_batch(r.model, r.adapter, [tr], r.radius, progress=bar.update)
-            ensure_space(path, res["world_pos"].numel() * 4 * 2)
-            g = f.create_group(tr.name)
-            g["world_pos"] = res["world_pos"].numpy()
-            if res["stress"] is not None:
-                g["stress"] = res["stress"].numpy()
-            g.attrs["ms_per_step"] = res["ms_per_step"]
-            g.attrs["start"] = res["start"]
+            by_length[tr.num_steps].append(tr)
+        for group in by_length.values():
+            for first in range(0, len(group), batch):
+                chunk = group[first:first + batch]
+                results = rollout_batch(r.model, r.adapter, chunk, r.radius,
+                                        progress=lambda n, k=len(chunk): bar.update(n * k))
+                for tr, res in zip(chunk, results):
+                    ensure_space(path, res["world_pos"].numel() * 4 * 2)
+                    g = f.create_group(tr.name)
+                    g["world_pos"] = res["world_pos"].numpy()
+                    if res["stress"] is not None:
+                        g["stress"] = res["stress"].numpy()
+                    g.attrs["ms_per_step"] = res["ms_per_step"]
+                    g.attrs["start"] = res["start"]
     bar.close()
     return path
 
@@ -115,7 +126,7 @@ def _rollout_is_current(path: Path, run, data, split, limit, checkpoint) -> bool
 
 
 def main_rollout(args: argparse.Namespace) -> int:
-    path = run_rollouts(args.run, args.data, args.split, args.limit, args.checkpoint, args.device)
+    path = run_rollouts(args.run, args.data, args.split, args.limit, args.checkpoint, args.device, args.batch)
     print(f"wrote {path}")
     return 0
 
@@ -124,7 +135,7 @@ def main_rollout(args: argparse.Namespace) -> int:
 configure_evaluate = _run_args
 
 
-def evaluate(run, data, split, limit=None, checkpoint="best", device=None) -> dict:
+def evaluate(run, data, split, limit=None, checkpoint="best", device=None, batch: int = 1) -> dict:
     """Paper metrics of a run on a split; rolls out first (on ``device``, default CUDA when available) if
     ``RUN/rollout_<split>.h5`` is missing or stale."""
     from hcmt.data.format import Split
@@ -132,7 +143,7 @@ def evaluate(run, data, split, limit=None, checkpoint="best", device=None) -> di
 
     path = rollout_path(run, split)
     if not _rollout_is_current(path, run, data, split, limit, checkpoint):
-        run_rollouts(run, data, split, limit, checkpoint, device)
+        run_rollouts(run, data, split, limit, checkpoint, device, batch)
     per_traj, ms = [], []
     with h5py.File(path, "r") as f, Split(data, split) as s:
         index = {n: i for i, n in enumerate(s.names)}
@@ -187,7 +198,7 @@ def format_metrics(m: dict) -> str:
 
 
 def main_evaluate(args: argparse.Namespace) -> int:
-    m = evaluate(args.run, args.data, args.split, args.limit, args.checkpoint, args.device)
+    m = evaluate(args.run, args.data, args.split, args.limit, args.checkpoint, args.device, args.batch)
     print(format_metrics(m))
     print(f"wrote {metrics_path(args.run, args.split)}")
     return 0

@@ -135,9 +135,16 @@ def save_atomic(obj, path: Path) -> None:
 
 
 def _distributed() -> tuple[int, int]:
+    """(rank, world size). Under torchrun: NCCL with one GPU per process; more processes than GPUs is refused with
+    one line (NCCL cannot put two ranks on one GPU); without CUDA, gloo on the CPU."""
     if "WORLD_SIZE" in os.environ and int(os.environ["WORLD_SIZE"]) > 1:  # launched by torchrun
+        world = int(os.environ["WORLD_SIZE"])
+        gpus = torch.cuda.device_count() if torch.cuda.is_available() else 0
+        if gpus and world > gpus:
+            raise ValueError(f"{world} training processes but {gpus} GPU(s): NCCL needs one GPU per process; use "
+                             f"torchrun --nproc_per_node={gpus}, or run on the CPU (CUDA_VISIBLE_DEVICES= gives gloo)")
         if not dist.is_initialized():
-            dist.init_process_group("nccl" if torch.cuda.is_available() else "gloo")
+            dist.init_process_group("nccl" if gpus else "gloo")
         return dist.get_rank(), dist.get_world_size()
     return 0, 1
 
@@ -176,7 +183,10 @@ def train(cfg: dict, data: str | Path, model_name: str, out: str | Path, *, abla
     then continues the same schedule."""
     rank, world = _distributed()
     out = Path(out)
-    device = torch.device(device or (f"cuda:{rank % torch.cuda.device_count()}" if torch.cuda.is_available() else "cpu"))
+    from hcmt.train.run import resolve_device
+
+    device = resolve_device(device) if device else (
+        torch.device(f"cuda:{rank}") if torch.cuda.is_available() else torch.device("cpu"))
     tc = cfg["train"]
     for key in ("steps", "lr", "contact_radius"):
         if key not in tc:
@@ -220,7 +230,7 @@ def train(cfg: dict, data: str | Path, model_name: str, out: str | Path, *, abla
 
     lr0, lr_final = float(tc["lr"]), float(tc.get("lr_final", tc["lr"]))
     decay_steps, decay_rate = tc.get("lr_decay_steps"), float(tc.get("lr_decay_rate", 0.1))
-    opt = torch.optim.Adam(model.parameters(), lr=lr0)
+    opt = torch.optim.Adam(model.parameters(), lr=lr0, fused=device.type == "cuda")  # one kernel per step on CUDA
     step, best = 0, math.inf
     if resume:
         state = torch.load(ckpt_path, map_location=device, weights_only=True)

@@ -1,5 +1,6 @@
 """Training, rollout and evaluation end to end on small data; resume equality; DDP; adapters; guards."""
 import json
+import os
 import subprocess
 import sys
 
@@ -85,7 +86,7 @@ def test_resume_ends_with_the_same_parameters(impact, tmp_path):
         assert torch.equal(a["model"][k], b["model"][k]), k
     with pytest.raises(ValueError, match="--resume"):
         train(cfg, impact, "hcmt", tmp_path / "straight", seed=3, progress=False)
-    with pytest.raises(ValueError, match="other config"):
+    with pytest.raises(ValueError, match=r"config\.train\.noise_std: 0\.01 \(run\) vs"):
         train(load_config("impact_plate_cpu", TINY + ["train.steps=9"]), impact, "hcmt", tmp_path / "straight",
               seed=3, progress=False, resume=True)
 
@@ -294,3 +295,30 @@ def test_unknown_or_unavailable_device_is_one_line(impact, tmp_path, capsys):
         assert cli(["evaluate", str(tmp_path / "run"), "--data", str(impact), "--device", device]) == 2
         err = capsys.readouterr().err.strip().splitlines()
         assert len(err) == 1 and f"--device {device}" in err[0].replace("'", "")
+
+
+def test_run_folder_rules(impact, tmp_path, capsys):
+    """Resume alone with the saved settings, fewer steps refused, no duplicate log steps, a lock against a second
+    writer, nothing left behind by a run that fails before its first checkpoint."""
+    run = tmp_path / "run"
+    base = ["train", "--config", "impact_plate_cpu", "--data", str(impact), "--model", "mgn", "--out", str(run),
+            "--no-progress"] + [a for t in TINY for a in ("--set", t)]
+    assert cli(base + ["--steps", "3"]) == 0
+    assert cli(["train", "--resume", "--out", str(run), "--steps", "5", "--no-progress"]) == 0
+    assert torch.load(run / "checkpoint.pt", weights_only=True)["step"] == 5
+    steps = [json.loads(l)["step"] for l in (run / "log.jsonl").read_text().splitlines()
+             if "loss" in json.loads(l)]
+    assert steps == [1, 2, 3, 4, 5]
+    capsys.readouterr()
+    assert cli(["train", "--resume", "--out", str(run), "--steps", "2", "--no-progress"]) == 2
+    assert "has done 5 steps" in capsys.readouterr().err
+    assert cli(base + ["--steps", "6", "--resume", "--set", "train.lr=0.5"]) == 2
+    assert "config.train.lr: 0.001 (run) vs 0.5 (now)" in capsys.readouterr().err
+    (run / ".lock").write_text(str(os.getpid()))  # a live process holds the run
+    assert cli(["train", "--resume", "--out", str(run), "--steps", "6", "--no-progress"]) == 2
+    assert "being written by another training process" in capsys.readouterr().err
+    (run / ".lock").unlink()
+    bad = tmp_path / "bad"
+    assert cli(["train", "--config", "impact_plate_cpu", "--data", str(tmp_path / "nowhere"), "--model", "mgn",
+                "--out", str(bad), "--no-progress"]) == 2
+    assert not bad.exists()

@@ -19,14 +19,15 @@ from hcmt.train.metrics import SCALE
 
 # -- train ---------------------------------------------------------------------------------------------------------
 def configure_train(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--config", required=True, help="built-in config name (impact_plate, impact_plate_cpu, ...) or a YAML file")
-    p.add_argument("--data", required=True, help="native dataset folder")
-    p.add_argument("--model", required=True, choices=MODELS)
+    p.add_argument("--config", help="built-in config name (impact_plate, impact_plate_cpu, ...) or a YAML file")
+    p.add_argument("--data", help="native dataset folder")
+    p.add_argument("--model", choices=MODELS)
     p.add_argument("--ablation", choices=ABLATIONS, help="HCMT ablation (paper Tables 3, 10-12)")
     p.add_argument("--steps", type=int, help="training steps (overrides train.steps)")
-    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--seed", type=int, help="random seed (default 0)")
     p.add_argument("--out", required=True, help="run folder")
-    p.add_argument("--resume", action="store_true", help="continue the run in --out from its last checkpoint")
+    p.add_argument("--resume", action="store_true", help="continue the run in --out from its last checkpoint; "
+                   "`--resume --out RUN` alone uses the run's saved settings (--steps may extend it)")
     p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                    help="override any config key, e.g. --set train.lr=3e-4 --set model.levels=4")
     p.add_argument("--device", help="cpu, cuda, cuda:1 (default: cuda if available)")
@@ -34,11 +35,36 @@ def configure_train(p: argparse.ArgumentParser) -> None:
 
 
 def main_train(args: argparse.Namespace) -> int:
+    import yaml
+
+    from hcmt.train.config import check_schema, parse_value
     from hcmt.train.trainer import train
 
     overrides = list(args.set) + ([f"train.steps={args.steps}"] if args.steps is not None else [])
-    cfg = load_config(args.config, overrides)
-    summary = train(cfg, args.data, args.model, args.out, ablation=args.ablation, seed=args.seed,
+    saved_path = Path(args.out) / "run.yaml"
+    if args.resume and saved_path.is_file() and not args.config:  # resume with the run's saved settings
+        saved = yaml.safe_load(saved_path.read_text())
+        cfg = saved["config"]
+        for item in overrides:
+            key, _, raw = item.partition("=")
+            *parents, leaf = key.split(".")
+            node = cfg
+            for part in parents:
+                node = node.setdefault(part, {})
+            node[leaf] = parse_value(raw)
+        check_schema(cfg, f"{saved_path} with --set")
+        data = args.data or saved["data"]
+        model = args.model or saved["model"]["name"]
+        ablation = args.ablation if args.ablation is not None else saved["model"].get("ablation")
+        seed = args.seed if args.seed is not None else saved.get("seed", 0)
+    else:
+        missing = [f"--{k}" for k in ("config", "data", "model") if getattr(args, k) is None]
+        if missing:
+            raise ValueError(f"{', '.join(missing)} required (only `--resume --out RUN` of an existing run may leave "
+                             "them out)")
+        cfg, data, model, ablation = load_config(args.config, overrides), args.data, args.model, args.ablation
+        seed = args.seed if args.seed is not None else 0
+    summary = train(cfg, data, model, args.out, ablation=ablation, seed=seed,
                     resume=args.resume, device=args.device, progress=not args.no_progress)
     print(json.dumps(summary, indent=2))
     return 0

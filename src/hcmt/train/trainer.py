@@ -77,10 +77,20 @@ def check_resume(saved: dict, run: dict, out: Path) -> None:
         return r
 
     a, b = strip(saved), strip(run)
-    changed = [k for k in ("model", "config", "seed", "world_size") if a.get(k, b[k]) != b[k]]
+    changed = []
+    for k in ("model", "config", "seed", "world_size"):
+        changed += _differences(a.get(k, b[k]), b[k], k)
     if changed:
-        raise ValueError(f"{out}: --resume with other {', '.join(changed)} than the run was started with "
-                         f"(see {out / 'run.yaml'}); resume with the same arguments or start a new --out")
+        raise ValueError(f"{out}: --resume with other settings than the run was started with: {'; '.join(changed)} "
+                         f"(see {out / 'run.yaml'}); `hcmt train --resume --out {out}` alone resumes with the saved "
+                         "settings")
+
+
+def _differences(a, b, key: str) -> list[str]:
+    """``key.sub: saved -> now`` for every leaf that differs."""
+    if isinstance(a, dict) and isinstance(b, dict):
+        return [d for k in sorted(set(a) | set(b)) for d in _differences(a.get(k), b.get(k), f"{key}.{k}")]
+    return [] if a == b else [f"{key}: {a!r} (run) vs {b!r} (now)"]
 
 
 class TrainingInterrupted(KeyboardInterrupt):
@@ -180,9 +190,59 @@ def train(cfg: dict, data: str | Path, model_name: str, out: str | Path, *, abla
     """Train one model; returns a summary (final loss, steps, ms per step, best validation metric).
 
     ``stop_at`` ends this call after that global step (checkpointed), as an interruption would; ``resume=True``
-    then continues the same schedule."""
-    rank, world = _distributed()
+    then continues the same schedule. The run folder is locked while training (a second process writing the same
+    ``out`` is refused at once), and a run that fails before its first checkpoint leaves nothing behind."""
     out = Path(out)
+    rank = int(os.environ.get("RANK", 0))
+    created = not out.exists()
+    if rank != 0:
+        return _train(cfg, data, model_name, out, ablation=ablation, seed=seed, resume=resume, device=device,
+                      progress=progress, stop_at=stop_at)
+    out.mkdir(parents=True, exist_ok=True)
+    lock = _lock(out)
+    try:
+        return _train(cfg, data, model_name, out, ablation=ablation, seed=seed, resume=resume, device=device,
+                      progress=progress, stop_at=stop_at)
+    except BaseException:
+        if not (out / "checkpoint.pt").is_file():  # nothing worth keeping: leave no run folder behind
+            if created:
+                import shutil
+
+                lock.unlink(missing_ok=True)
+                shutil.rmtree(out, ignore_errors=True)
+            elif not resume:
+                (out / "run.yaml").unlink(missing_ok=True)
+        raise
+    finally:
+        lock.unlink(missing_ok=True)
+
+
+def _lock(out: Path) -> Path:
+    """``RUN/.lock`` holding our pid; a lock whose process is gone is taken over."""
+    lock = out / ".lock"
+    for _ in range(2):
+        try:
+            fd = os.open(lock, os.O_CREAT | os.O_EXCL | os.O_WRONLY)
+        except FileExistsError:
+            try:
+                pid = int(lock.read_text() or 0)
+                os.kill(pid, 0)
+            except (ProcessLookupError, ValueError):
+                lock.unlink(missing_ok=True)  # stale
+                continue
+            except PermissionError:
+                pass
+            raise ValueError(f"{out} is being written by another training process (pid {pid}, {lock}); wait for "
+                             "it or choose another --out") from None
+        with os.fdopen(fd, "w") as f:
+            f.write(str(os.getpid()))
+        return lock
+    raise ValueError(f"{out}: cannot take the run lock {lock}")
+
+
+def _train(cfg: dict, data: str | Path, model_name: str, out: Path, *, ablation: str | None, seed: int,
+           resume: bool, device: str | None, progress: bool, stop_at: int | None) -> dict:
+    rank, world = _distributed()
     from hcmt.train.run import resolve_device
 
     device = resolve_device(device) if device else (
@@ -237,6 +297,13 @@ def train(cfg: dict, data: str | Path, model_name: str, out: str | Path, *, abla
         model.load_state_dict(state["model"])
         opt.load_state_dict(state["optimizer"])
         step, best = int(state["step"]), float(state["best"])
+        if step > steps:
+            raise ValueError(f"{out}: --resume with train.steps {steps}, but the run has done {step} steps; a run "
+                             "only grows (give --steps >= the steps done)")
+        if rank == 0 and (out / "log.jsonl").is_file():  # drop what was logged after the checkpoint: no duplicates
+            kept = [l for l in (out / "log.jsonl").read_text().splitlines() if l and json.loads(l)["step"] <= step]
+            with atomic_path(out / "log.jsonl") as tmp:
+                tmp.write_text("".join(l + "\n" for l in kept))
     net = model
     if world > 1:
         net = torch.nn.parallel.DistributedDataParallel(model, device_ids=[device.index] if device.type == "cuda" else None)

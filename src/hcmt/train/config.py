@@ -85,7 +85,8 @@ SCHEMA: dict[str, dict[str, tuple]] = {
               "lr_decay_steps": (_INT, None), "lr_decay_rate": (_FLOAT, None), "noise_std": (_FLOAT, None),
               "noise_gamma": (_FLOAT, None), "contact_radius": (_FLOAT, None), "normalizer_steps": (_INT, None),
               "log_every": (_INT, None), "checkpoint_every": (_INT, None), "valid_every": (_INT, None),
-              "valid_trajectories": (_INT, None), "contact_pairs": (_STR, ("all", "official"))},
+              "valid_trajectories": (_INT, None), "contact_pairs": (_STR, ("all", "official")),
+              "workers": (_INT, None)},
     "data": {"exclude_trajectories": ("a list of trajectory indices", None)},
 }
 TOP = {"dataset": (_STR, ("impact_plate", "deforming_plate", "sphere_simple", "deformable_plate"))}

@@ -13,8 +13,9 @@ import time
 import torch
 
 from hcmt.graph.batch import collate
-from hcmt.train.adapters import Adapter, integrate, node_features
-from hcmt.train.data import Trajectory, build_graph
+from hcmt.train.adapters import Adapter, integrate
+from hcmt.train.data import Trajectory
+from hcmt.train.frames import input_graph
 
 
 class RolloutError(RuntimeError):
@@ -56,8 +57,7 @@ def rollout_batch(model, adapter: Adapter, trajs: list[Trajectory], radius: floa
         graphs, inputs = [], []
         for b, tr in enumerate(trajs):
             x, prev = pos[b][-1], pos[b][-2] if h else pos[b][-1]
-            feats = node_features(adapter, tr.static, x, prev, tr.world_pos[t + 1])
-            graphs.append(build_graph(tr, x, feats, radius))
+            graphs.append(input_graph(tr, x, prev, tr.world_pos[t + 1], radius))
             inputs.append((x, prev))
         out = model.denormalize(model(collate(graphs).to(device), accumulate=False)).cpu()
         for b, (tr, o) in enumerate(zip(trajs, out.split(sizes))):

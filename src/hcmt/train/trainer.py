@@ -31,10 +31,10 @@ import torch.distributed as dist
 import yaml
 
 from hcmt.data.format import atomic_path, read_meta
-from hcmt.graph.batch import collate
 from hcmt.models import build_model
-from hcmt.train.adapters import config_adapter, get_adapter, node_features, noise_mask, output_mask, target
-from hcmt.train.data import build_graph, load_split
+from hcmt.train.adapters import config_adapter, get_adapter
+from hcmt.train.data import load_split
+from hcmt.train.frames import FrameDataset, StepSampler, collate_samples, step_seed
 from hcmt.train.metrics import rollout_rmse
 from hcmt.train.rollout import RolloutError, rollout
 
@@ -159,10 +159,11 @@ def _distributed() -> tuple[int, int]:
     return 0, 1
 
 
-def frame_index(trajs, history: int) -> np.ndarray:
-    """All training frames as (trajectory, t) rows with x^{t-history} .. x^{t+1} in range."""
-    rows = [(i, t) for i, tr in enumerate(trajs) for t in range(history, tr.num_steps - 1)]
-    return np.asarray(rows, np.int64)
+def _ignore_sigint(worker_id: int) -> None:
+    """DataLoader workers leave Ctrl-C to the training process, which finishes the step and saves."""
+    import signal
+
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
 
 
 def validate(model, adapter, trajs, radius) -> dict:
@@ -281,12 +282,13 @@ def _train(cfg: dict, data: str | Path, model_name: str, out: Path, *, ablation:
     model = make_model(args).to(device)
     levels, remesh = uses_hierarchy(args)
     exclude = cfg.get("data", {}).get("exclude_trajectories")
-    train_trajs = load_split(data, "train", adapter, levels, remesh, exclude=exclude)
+    radius = float(tc["contact_radius"])
+    noise_std, gamma = float(tc.get("noise_std", 0.0)), float(tc.get("noise_gamma", 1.0))
+    frames = FrameDataset(data, "train", adapter, levels, remesh, radius, noise_std, gamma, seed, exclude)
     valid_trajs = (load_split(data, "valid", adapter, levels, remesh, limit=int(tc.get("valid_trajectories", 2)))
                    if (Path(data) / "valid.h5").is_file() else [])
-    frames = frame_index(train_trajs, adapter.history)
     batch = int(tc.get("batch_size", 1))
-    per_epoch = max(len(frames) // (world * batch), 1)
+    workers = int(tc.get("workers", 0))
 
     lr0, lr_final = float(tc["lr"]), float(tc.get("lr_final", tc["lr"]))
     decay_steps, decay_rate = tc.get("lr_decay_steps"), float(tc.get("lr_decay_rate", 0.1))
@@ -308,8 +310,6 @@ def _train(cfg: dict, data: str | Path, model_name: str, out: Path, *, ablation:
     if world > 1:
         net = torch.nn.parallel.DistributedDataParallel(model, device_ids=[device.index] if device.type == "cuda" else None)
 
-    radius = float(tc["contact_radius"])
-    noise_std, gamma = float(tc.get("noise_std", 0.0)), float(tc.get("noise_gamma", 1.0))
     warmup = int(tc.get("normalizer_steps", 0))
     log_every, ckpt_every = int(tc.get("log_every", 100)), int(tc.get("checkpoint_every", 1000))
     valid_every = int(tc.get("valid_every", 0))
@@ -332,30 +332,15 @@ def _train(cfg: dict, data: str | Path, model_name: str, out: Path, *, ablation:
     model.train()
     end = steps if stop_at is None else min(steps, int(stop_at))
     interrupted = InterruptFlag()  # Ctrl-C / SIGTERM end the current step, then save and stop
+    # graphs are built by DataLoader workers (train.workers; 0: in this process), in step order
+    loader = iter(torch.utils.data.DataLoader(
+        frames, batch_sampler=StepSampler(frames, batch, seed, step, end, world, rank), collate_fn=collate_samples,
+        num_workers=workers, worker_init_fn=_ignore_sigint if workers else None))
     while step < end:
-        epoch, pos_in_epoch = divmod(step, per_epoch)
-        perm = np.random.default_rng([seed, epoch]).permutation(len(frames))
-        first = (pos_in_epoch * world + rank) * batch  # this rank's share of the step's global batch
-        picks = perm[first:first + batch]
-        step_seed = int(np.random.SeedSequence([seed, step, rank]).generate_state(1)[0])
-        gen = torch.Generator().manual_seed(step_seed)  # training noise
-        torch.manual_seed(step_seed)  # anything drawing from the global generator (LPE sign flips)
         t0 = time.perf_counter()
-        graphs, targets, masks = [], [], []
-        for ti, t in frames[picks]:
-            tr = train_trajs[ti]
-            w = tr.world_pos
-            pos, prev, nxt = w[t], w[t - adapter.history], w[t + 1]
-            noise = torch.randn(pos.shape, generator=gen) * noise_std * noise_mask(tr.static["node_type"])
-            pos = pos + noise
-            feats = node_features(adapter, tr.static, pos, prev, nxt)
-            graphs.append(build_graph(tr, pos, feats, radius))
-            tgt_next = nxt + (1.0 - gamma) * noise
-            targets.append(target(adapter, pos, prev, tgt_next, tr.stress[t + 1] if tr.stress is not None else None))
-            masks.append(output_mask(adapter, tr.static["node_type"], pos.shape[1]))
-        graph = collate(graphs).to(device)
-        tgt = torch.cat(targets).to(device)
-        mask = torch.cat(masks).to(device)
+        graph, tgt, mask = next(loader)
+        torch.manual_seed(step_seed(seed, step, rank))  # anything drawing from the global generator (LPE sign flips)
+        graph, tgt, mask = graph.to(device), tgt.to(device), mask.to(device)
         pred = net(graph, accumulate=True)
         norm_tgt = model.normalize_target(tgt, accumulate=True)
         loss = ((pred - norm_tgt) ** 2 * mask).sum() / mask.sum().clamp_min(1.0)

@@ -120,8 +120,9 @@ def frame_attention(run: str | Path, data: str | Path, split: str = "test", traj
 
     from hcmt.data.format import Split
     from hcmt.graph.hierarchy import hierarchy_cache_dir
-    from hcmt.train.adapters import config_adapter, node_features
-    from hcmt.train.data import build_graph, prepare_trajectory
+    from hcmt.train.adapters import config_adapter
+    from hcmt.train.data import prepare_trajectory
+    from hcmt.train.frames import input_graph
     from hcmt.train.trainer import load_run, uses_hierarchy
     from hcmt.viz.rollouts import run_label, trajectory_index
 
@@ -142,8 +143,7 @@ def frame_attention(run: str | Path, data: str | Path, split: str = "test", traj
     if not h <= frame <= T - 2:
         raise ValueError(f"frame {frame} out of range: a graph needs frames {h}..{T - 2} of trajectory {traj.name} "
                          f"(the previous frame as input, the next one for prescribed nodes)")
-    feats = node_features(adapter, traj.static, world[frame], world[frame - h], world[frame + 1])
-    graph = build_graph(traj, world[frame], feats, float(cfg["train"]["contact_radius"]))
+    graph = input_graph(traj, world[frame], world[frame - h], world[frame + 1], float(cfg["train"]["contact_radius"]))
     level_nodes = [np.asarray(v) for v in traj.hierarchy.nodes[1:]]
     maps = maps_from_model(model, graph, obj, level_nodes)
     nt = traj.static["node_type"].numpy()

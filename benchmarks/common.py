@@ -15,7 +15,7 @@ from pathlib import Path
 
 from hcmt.cli import main as hcmt
 from hcmt.data.format import atomic_path
-from hcmt.train.cli import evaluate, rollout_path
+from hcmt.train.run import evaluate, rollout_path
 from hcmt.train.config import load_config
 from hcmt.train.trainer import train
 

@@ -25,7 +25,7 @@ from common import write_json
 from hcmt.data.format import Split
 from hcmt.sim.scene import Design
 from hcmt.train import predict as pr
-from hcmt.train.cli import evaluate
+from hcmt.train.run import evaluate
 from hcmt.train.run import PRETRAINED_DIR, Run
 
 

@@ -11,7 +11,7 @@ import torch
 from hcmt.cli import main as cli
 from hcmt.data.format import NodeType, open_split
 from hcmt.train.adapters import get_adapter
-from hcmt.train.cli import evaluate
+from hcmt.train.run import evaluate
 from hcmt.train.config import load_config
 from hcmt.train.data import load_split
 from hcmt.train.rollout import RolloutError, rollout
@@ -192,7 +192,7 @@ def test_dataset_without_the_adapters_fields_is_refused(tmp_path):
 
 
 def test_error_curves_roll_out_the_trajectories_an_old_rollout_lacks(tmp_path):
-    from hcmt.train.cli import run_rollouts
+    from hcmt.train.run import run_rollouts
     from hcmt.viz.curves import rollout_errors
 
     data = write_impact_like(tmp_path / "data", n_test=2)

@@ -93,7 +93,7 @@ def test_contours_share_one_scale_per_row_with_units(data, tmp_path):
         na, nb = a.collections[0].norm, b.collections[0].norm
         assert (na.vmin, na.vmax) == (nb.vmin, nb.vmax) == (0.0, pytest.approx(case.truth.stress[f].max()))
         assert np.allclose(a.collections[0].get_array(), case.truth.stress[f, :, 0])
-    assert [c.get_ylabel() for c in colourbars(fig)] == ["stress [MPa]", "stress [MPa]"]
+    assert [c.get_ylabel() for c in colourbars(fig)] == ["von Mises stress [MPa]", "von Mises stress [MPa]"]
     assert axes[-1].get_xlabel() == "x [mm]" and axes[0].get_ylabel() == "y [mm]"
     assert [sf._suptitle.get_text() for sf in fig.subfigs] == ["frame 2, t = 0.004 ms", "frame 5, t = 0.01 ms"]
     fig = contour_figure(case, [5], zoom=True)  # (the whole-scene view marks the zoom window on the truth only)
@@ -109,7 +109,7 @@ def test_contours_share_one_scale_per_row_with_units(data, tmp_path):
     a, b = panels(fig)
     assert not np.allclose(_panel_mean(fig, a), _panel_mean(fig, b), atol=5.0)
     (cbar,) = colourbars(fig)
-    assert cbar.get_ylabel() == "stress [MPa]" and "RMSE" in b.get_title()
+    assert cbar.get_ylabel() == "von Mises stress [MPa]" and "RMSE" in b.get_title()
     assert cbar._colorbar.extend == "max"
 
 
@@ -117,7 +117,7 @@ def test_contours_without_units_or_stress_say_so(tmp_path):
     data = impact_dataset(tmp_path / "data", units=False)
     case = load_case([], data)
     fig = contour_figure(case, [3])
-    assert [a.get_ylabel() for a in colourbars(fig)] == ["stress (unit not in meta.json)"]
+    assert [a.get_ylabel() for a in colourbars(fig)] == ["von Mises stress (unit not in meta.json)"]
     case.truth.stress = None
     fig = contour_figure(case, [3], zoom=True)
     assert [a.get_ylabel() for a in colourbars(fig)] == ["displacement magnitude (unit not in meta.json)"]

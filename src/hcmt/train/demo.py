@@ -76,7 +76,7 @@ def train_demo(args: argparse.Namespace) -> int:
 
     from hcmt.cli import CommandError
     from hcmt.cli import main as hcmt
-    from hcmt.train.cli import evaluate, format_metrics
+    from hcmt.train.run import evaluate, format_metrics
     from hcmt.train.config import load_config
     from hcmt.train.trainer import train
 

@@ -13,11 +13,16 @@ trajectories), "card" (how it was made)}``; it loads with ``torch.load(weights_o
 from __future__ import annotations
 
 import json
+from collections import defaultdict
 from dataclasses import dataclass, field
 from pathlib import Path
 
+import h5py
 import numpy as np
 import torch
+
+from hcmt.data.format import atomic_path, ensure_space
+from hcmt.train.metrics import SCALE
 
 PRETRAINED_DIR = Path(__file__).resolve().parent.parent / "pretrained"
 
@@ -125,6 +130,23 @@ class Run:
         return DISPLAY_NAMES.get(args["name"], args["name"].upper()) + (
             f" ({args['ablation']})" if args.get("ablation") else "")
 
+    # -- using it ---------------------------------------------------------------------------------------------------
+    def rollout(self, data: str | Path, split: str = "test", limit: int | None = None, batch: int = 1) -> Path:
+        """Roll out over a split of a dataset; returns ``RUN/rollout_<split>.h5`` (run folders only)."""
+        return run_rollouts(self._folder(), data, split, limit, self.info["checkpoint"]["file"].removesuffix(".pt"),
+                            str(self.device), batch)
+
+    def evaluate(self, data: str | Path, split: str = "test", limit: int | None = None, batch: int = 1) -> dict:
+        """The paper's RMSE metrics on a split (``RUN/metrics_<split>.json``); rolls out first when needed."""
+        return evaluate(self._folder(), data, split, limit, self.info["checkpoint"]["file"].removesuffix(".pt"),
+                        str(self.device), batch)
+
+    def _folder(self) -> Path:
+        if self.source.startswith("pretrained:"):
+            raise ValueError(f"{self.source}: a shipped model has no run folder to write rollouts to; use "
+                             "hcmt.predict_designs for designs, or train a run")
+        return Path(self.source)
+
     # -- packaging -------------------------------------------------------------------------------------------------
     def save_pretrained(self, path: str | Path, card: dict, half: bool = True) -> Path:
         """Write this run as one shipped-model file (fp16 weights with ``half``), atomically."""
@@ -161,3 +183,168 @@ def _data_facts(data: str | None) -> tuple[dict | None, dict[str, tuple[float, f
                         ranges.setdefault(k, []).append(float(v))
     return json.loads(json.dumps(meta)), {k: (min(v), max(v)) for k, v in ranges.items()}
 
+
+# -- rollout files, evaluation, comparison ------------------------------------------------------------------------
+def rollout_path(run: str | Path, split: str) -> Path:
+    return Path(run) / f"rollout_{split}.h5"
+
+
+def run_rollouts(run, data, split, limit=None, checkpoint="best", device=None, batch: int = 1) -> Path:
+    """Roll a run's model out over a split; predictions go to ``RUN/rollout_<split>.h5`` (atomically). ``batch``
+    trajectories of equal length step together as one batched graph. The progress bar counts model steps over the
+    whole split (with an ETA)."""
+    from tqdm import tqdm
+
+    from hcmt.train.data import load_split
+    from hcmt.train.rollout import rollout_batch
+
+    r = Run.load(run, device, checkpoint)
+    levels, remesh = r.hierarchy
+    trajs = load_split(data, split, r.adapter, levels, remesh, limit=limit)
+    path = rollout_path(run, split)
+    h = r.adapter.history
+    bar = tqdm(total=sum(max(tr.num_steps - 1 - h, 0) for tr in trajs), desc=f"rollout {split}", unit="step",
+               dynamic_ncols=True)
+    with atomic_path(path) as tmp, h5py.File(tmp, "w") as f:
+        for key, value in rollout_key(data, split, limit, r.info["checkpoint"]["file"],
+                                      r.info["checkpoint"]["step"]).items():
+            f.attrs[key] = value
+        if batch < 1:
+            raise ValueError(f"--batch must be >= 1, got {batch}")
+        by_length: dict[int, list] = defaultdict(list)
+        for tr in trajs:
+            by_length[tr.num_steps].append(tr)
+        for group in by_length.values():
+            for first in range(0, len(group), batch):
+                chunk = group[first:first + batch]
+                results = rollout_batch(r.model, r.adapter, chunk, r.radius,
+                                        progress=lambda n, k=len(chunk): bar.update(n * k))
+                for tr, res in zip(chunk, results):
+                    ensure_space(path, res["world_pos"].numel() * 4 * 2)
+                    g = f.create_group(tr.name)
+                    g["world_pos"] = res["world_pos"].numpy()
+                    if res["stress"] is not None:
+                        g["stress"] = res["stress"].numpy()
+                    g.attrs["ms_per_step"] = res["ms_per_step"]
+                    g.attrs["start"] = res["start"]
+    bar.close()
+    return path
+
+
+def rollout_key(data, split, limit, checkpoint_file, step) -> dict:
+    """What a rollout file was made from; :func:`evaluate` redoes the rollout when any of it changed."""
+    return {"data": str(Path(data).resolve()), "split": split, "limit": -1 if limit is None else int(limit),
+            "checkpoint": checkpoint_file, "checkpoint_step": int(step)}
+
+
+def _rollout_is_current(path: Path, run, data, split, limit, checkpoint) -> bool:
+    if not path.is_file():
+        return False
+    ckpt = Path(run) / f"{checkpoint}.pt"
+    ckpt = ckpt if ckpt.is_file() else Path(run) / "checkpoint.pt"
+    if not ckpt.is_file():
+        return False
+    step = int(torch.load(ckpt, map_location="cpu", weights_only=True)["step"])
+    want = rollout_key(data, split, limit, ckpt.name, step)
+    with h5py.File(path, "r") as f:
+        have = {k: (v.item() if hasattr(v, "item") else v) for k, v in f.attrs.items()}
+    return all(have.get(k) == v for k, v in want.items())
+
+
+def evaluate(run, data, split, limit=None, checkpoint="best", device=None, batch: int = 1) -> dict:
+    """Paper metrics of a run on a split; rolls out first (on ``device``, default CUDA when available) if
+    ``RUN/rollout_<split>.h5`` is missing or stale."""
+    from hcmt.data.format import Split
+    from hcmt.train.metrics import aggregate, rollout_rmse
+
+    path = rollout_path(run, split)
+    if not _rollout_is_current(path, run, data, split, limit, checkpoint):
+        run_rollouts(run, data, split, limit, checkpoint, device, batch)
+    per_traj, ms = [], []
+    with h5py.File(path, "r") as f, Split(data, split) as s:
+        index = {n: i for i, n in enumerate(s.names)}
+        for name in f.keys():
+            truth = s[index[name]]
+            g = f[name]
+            start = int(g.attrs["start"])
+            row = {"trajectory": name}
+            row.update({f"position_{k}": v for k, v in rollout_rmse(g["world_pos"][()], truth["world_pos"], start).items()})
+            if "stress" in g and "stress" in truth:
+                row.update({f"stress_{k}": v for k, v in rollout_rmse(g["stress"][()], truth["stress"], start).items()})
+            per_traj.append(row)
+            ms.append(float(g.attrs["ms_per_step"]))
+    means = aggregate([{k: v for k, v in r.items() if k != "trajectory"} for r in per_traj])
+    from hcmt.data.format import read_meta
+
+    units = read_meta(data).get("units") or {}
+    metrics = {"split": split, "data": str(Path(data).resolve()), "trajectories": len(per_traj), "scale": SCALE,
+               "units": {k: units[k] for k in ("length", "stress") if k in units}}
+    for q in ("position", "stress"):
+        if f"{q}_rmse_all" in means:
+            metrics[q] = {k: means[f"{q}_{k}"] for k in ("rmse_1", "rmse_50", "rmse_all")}
+    metrics["inference_ms_per_step"] = float(np.median(ms))
+    stats = Path(run) / "train_stats.json"
+    metrics["train_ms_per_step"] = json.loads(stats.read_text()).get("train_ms_per_step") if stats.is_file() else None
+    metrics["per_trajectory"] = per_traj
+    with atomic_path(metrics_path(run, split)) as tmp:  # one file per split: never overwrites another split's
+        tmp.write_text(json.dumps(metrics, indent=2))
+    return metrics
+
+
+def metrics_path(run, split: str) -> Path:
+    return Path(run) / f"metrics_{split}.json"
+
+
+def metric_unit(m: dict, quantity: str) -> str:
+    """The unit of a quantity's RMSE as the dataset records it (``units.length`` / ``units.stress``)."""
+    return (m.get("units") or {}).get("length" if quantity == "position" else quantity) or "data units"
+
+
+def format_metrics(m: dict) -> str:
+    """The RMSE table in the data's units (metrics.json keeps the paper's ×10³ values)."""
+    lines = [f"split {m['split']}: {m['trajectories']} trajectories, RMSE over the rollout's steps 1, 1-50 and all",
+             f"  {'':<18}{'rmse_1':>12}{'rmse_50':>12}{'rmse_all':>12}"]
+    for q in ("position", "stress"):
+        if q in m:
+            name = f"{q} [{metric_unit(m, q)}]"
+            lines.append(f"  {name:<18}" + "".join(f"{m[q][k] / SCALE:>12.4g}" for k in ("rmse_1", "rmse_50", "rmse_all")))
+    lines.append(f"  inference {m['inference_ms_per_step']:.2f} ms/step"
+                 + (f", training {m['train_ms_per_step']:.2f} ms/step" if m.get("train_ms_per_step") else ""))
+    return "\n".join(lines)
+
+
+def compare(runs: list[str], split: str = "test") -> dict:
+    """{label: {quantity: {metric: {mean, std, n}}}} over seeds of one split. Runs are grouped by model (+ ablation)
+    and by the dataset they were evaluated on: runs of different datasets are never averaged together (the label
+    then names the dataset)."""
+    import yaml
+
+    from hcmt.train.metrics import summarize_runs
+
+    groups: dict[tuple[str, str], list[dict]] = defaultdict(list)
+    for run in runs:
+        mpath = metrics_path(run, split)
+        if not mpath.is_file():
+            raise FileNotFoundError(f"{mpath}: run `hcmt evaluate {run} --data ... --split {split}` first")
+        info = yaml.safe_load((Path(run) / "run.yaml").read_text())["model"]
+        label = info["name"].upper() + (f" ({info['ablation']})" if info.get("ablation") else "")
+        m = json.loads(mpath.read_text())
+        groups[(label, m.get("data", "?"))].append(m)
+    datasets = {d for _, d in groups}
+    return {(label if len(datasets) == 1 else f"{label} [{Path(d).name}]"): summarize_runs(ms)
+            for (label, d), ms in groups.items()}
+
+
+def format_compare(table: dict) -> str:
+    head = f"{'Model':<24}{'Position RMSE-all':>24}{'Stress RMSE-all':>24}{'Position RMSE-1':>20}  seeds"
+    lines = ["RMSE x1e3 in the data's units (Impact Plate: position 1e-3 mm = µm, stress 1e-3 MPa = kPa), "
+             "mean ± std over seeds (paper Table 2 layout)", head]
+    for label, row in table.items():
+        def cell(q, k, w):
+            if q not in row:
+                return f"{'-':>{w}}"
+            return f"{row[q][k]['mean']:>{w - 10}.4g} ± {row[q][k]['std']:<7.3g}"
+        n = row["inference_ms_per_step"]["n"]
+        lines.append(f"{label:<24}{cell('position', 'rmse_all', 24)}{cell('stress', 'rmse_all', 24)}"
+                     f"{cell('position', 'rmse_1', 20)}  {n}")
+    return "\n".join(lines)

@@ -157,7 +157,7 @@ def main_export(args: argparse.Namespace) -> int:
     import h5py
 
     from hcmt.data.format import Split
-    from hcmt.train.cli import rollout_path, run_rollouts
+    from hcmt.train.run import rollout_path, run_rollouts
     from hcmt.viz.export import export_case
     from hcmt.viz.rollouts import load_case, unique_labels
 

@@ -27,7 +27,7 @@ def rollout_errors(runs: list[str | Path], data: str | Path, split: str = "test"
     """Per-step RMSE of every run: ``{label: {"position": [n, T], "stress": [n, T] (if any), "start": int,
     "trajectories": names}}`` over the trajectories all runs have rolled out (rolling out the first ``limit``, or
     all, where a run has no rollout file yet)."""
-    from hcmt.train.cli import rollout_path, run_rollouts
+    from hcmt.train.run import rollout_path, run_rollouts
 
     labels = labels or unique_labels(runs)
     with Split(data, split) as s:

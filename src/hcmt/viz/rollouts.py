@@ -1,7 +1,7 @@
 """What the pictures show: one trajectory's ground truth beside the rollouts of one or more runs.
 
 A run's predictions live in ``RUN/rollout_<split>.h5`` (one group per trajectory, written by
-:func:`hcmt.train.cli.run_rollouts`); when that file is missing, or lacks the trajectory asked for, it is rolled out
+:func:`hcmt.train.run.run_rollouts`); when that file is missing, or lacks the trajectory asked for, it is rolled out
 first. Every series is checked against the dataset (node count, dimension, frame count) so a rollout of another
 dataset is refused rather than drawn on the wrong mesh.
 """
@@ -106,7 +106,7 @@ def unique_labels(runs: list[str | Path]) -> list[str]:
 
 def rollout_file(run: str | Path, data: str | Path, split: str, name: str, index: int) -> Path:
     """``RUN/rollout_<split>.h5``, rolled out first (up to trajectory ``index``) when it lacks ``name``."""
-    from hcmt.train.cli import rollout_path, run_rollouts
+    from hcmt.train.run import rollout_path, run_rollouts
 
     path = rollout_path(run, split)
     if path.is_file():

@@ -5,7 +5,9 @@ The Python API (imported lazily, so ``import hcmt`` and ``hcmt --help`` stay fas
 * :class:`hcmt.Run` (``Run.load(path_or_"pretrained:NAME", device=None)``): a trained model, its config and data facts;
 * :func:`hcmt.load_pretrained` (``NAME``): a model shipped inside the package, offline;
 * :func:`hcmt.predict_designs`: peak stress and deflection of Impact Plate designs, no solver run;
-* :class:`hcmt.Design`: the parameters of one Impact Plate design.
+* :class:`hcmt.Design`: the parameters of one Impact Plate design;
+* :func:`hcmt.load_dataset` (a native dataset folder), :func:`hcmt.train` (``config, data, model, out, **options``),
+  :class:`hcmt.FrameDataset` (training frames for a ``DataLoader``), :func:`hcmt.load_config`.
 """
 
 __version__ = "0.1.0"
@@ -14,8 +16,26 @@ _LAZY = {
     "Run": ("hcmt.train.run", "Run"),
     "available_pretrained": ("hcmt.train.run", "available_pretrained"),
     "Design": ("hcmt.sim.scene", "Design"),
+    "Settings": ("hcmt.sim.scene", "Settings"),
+    "generate_dataset": ("hcmt.sim.generate", "generate_dataset"),
     "predict_designs": ("hcmt.train.predict", "predict"),
+    "load_dataset": ("hcmt.data.format", "load_dataset"),
+    "FrameDataset": ("hcmt.train.frames", "FrameDataset"),
+    "load_config": ("hcmt.train.config", "load_config"),
 }
+
+
+def train(config, data, model: str, out, **options):
+    """Train ``model`` (``hcmt``, ``mgn``, ``gt``) on the native dataset ``data`` into the run folder ``out``.
+    ``config`` is a config dict, a built-in config name or a YAML path; ``options``: ``ablation``, ``seed``,
+    ``resume``, ``device``, ``progress``, and ``overrides`` (a list of ``section.key=value``). Returns the training
+    summary; :meth:`hcmt.Run.load` (``out``) gives the trained model."""
+    from hcmt.train.config import load_config
+    from hcmt.train.trainer import train as _train
+
+    overrides = options.pop("overrides", None)
+    cfg = config if isinstance(config, dict) else load_config(str(config), overrides)
+    return _train(cfg, data, model, out, **options)
 
 
 def load_pretrained(name: str, device: str | None = None):
@@ -35,4 +55,5 @@ def __getattr__(name):
     raise AttributeError(f"module 'hcmt' has no attribute {name!r}")
 
 
-__all__ = ["Design", "Run", "__version__", "available_pretrained", "load_pretrained", "predict_designs"]
+__all__ = ["Design", "FrameDataset", "Run", "Settings", "__version__", "generate_dataset", "available_pretrained", "load_config", "load_dataset",
+           "load_pretrained", "predict_designs", "train"]

@@ -328,5 +328,26 @@ class Split:
         self.close()
 
 
+class NativeDataset:
+    """A native dataset folder: ``meta`` (meta.json), ``splits`` (names), ``ds["train"]`` a :class:`Split` (items are
+    validated trajectories: ``ds["train"][0]["world_pos"]`` ``[T, N, d]``)."""
+
+    def __init__(self, path: str | os.PathLike):
+        self.path = Path(path)
+        self.meta = read_meta(self.path)
+        self.splits = list_splits(self.path)
+
+    def __getitem__(self, split: str) -> Split:
+        return Split(self.path, split, self.meta)
+
+    def __repr__(self) -> str:
+        return f"NativeDataset({str(self.path)!r}, splits={self.splits})"
+
+
+def load_dataset(path: str | os.PathLike) -> NativeDataset:
+    """Open a native dataset folder (meta.json checked; splits read on access)."""
+    return NativeDataset(path)
+
+
 def open_split(dataset_dir: str | os.PathLike, split: str) -> Split:
     return Split(dataset_dir, split)

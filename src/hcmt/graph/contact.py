@@ -31,9 +31,10 @@ from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 from torch import Tensor
 
+from hcmt.data.format import NodeType
 from hcmt.graph.edges import cells_to_edges, unique_sorted
 
-OBSTACLE, NORMAL = 1, 0
+OBSTACLE, NORMAL = int(NodeType.OBSTACLE), int(NodeType.NORMAL)
 #: The official HCMT code's Impact Plate rule: contact edges between OBSTACLE (ball) and NORMAL (plate) nodes.
 OFFICIAL_IMPACT_PLATE_TYPES: tuple[tuple[int, int], ...] = ((OBSTACLE, NORMAL),)
 

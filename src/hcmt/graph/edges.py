@@ -55,12 +55,6 @@ def unique_sorted(a: np.ndarray) -> np.ndarray:
     return a[np.r_[True, a[1:] != a[:-1]]] if len(a) else a
 
 
-def edges_to_pairs(edges: np.ndarray) -> np.ndarray:
-    """``[2, E]`` bidirectional edges -> ``[E/2, 2]`` undirected pairs with ``i < j``."""
-    edges = np.asarray(edges)
-    return edges[:, edges[0] < edges[1]].T
-
-
 def relative(pos: Tensor, edges: Tensor) -> Tensor:
     """``pos[sender] - pos[receiver]`` for ``[2, E]`` edges, with its norm appended: ``[E, d + 1]``."""
     d = pos[edges[0]] - pos[edges[1]]

@@ -11,9 +11,11 @@ on ``x = 0`` (plate and ball) SYMMETRIC 7 (x fixed), plate nodes on ``x = L`` HA
 from __future__ import annotations
 
 import numpy as np
+
+from hcmt.data.format import NodeType
 from scipy.spatial import Delaunay
 
-NORMAL, OBSTACLE, HANDLE, SYMMETRIC = 0, 1, 3, 7
+NORMAL, OBSTACLE, HANDLE, SYMMETRIC = NodeType.NORMAL, NodeType.OBSTACLE, NodeType.HANDLE, NodeType.SYMMETRIC
 
 #: Preset meshes: ``paper`` about 2,200 nodes (paper Table 6: 2,208), ``small`` about 400-600 nodes (CPU training).
 PRESETS: dict[str, dict[str, float]] = {

@@ -55,17 +55,21 @@ class Adapter:
         return dim + int(self.stress_output)
 
 
-_N, _O, _H, _S = int(NodeType.NORMAL), int(NodeType.OBSTACLE), int(NodeType.HANDLE), int(NodeType.SYMMETRIC)
+
+def _pairs(*names: tuple[str, str]) -> tuple[tuple[int, int], ...]:
+    return tuple((int(NodeType[a]), int(NodeType[b])) for a, b in names)
+
 
 ADAPTERS = {
     "impact_plate": Adapter("impact_plate", ("density", "modulus"), True, False, True, 1, (), False,
                             # ball <-> plate between different objects. The official code links OBSTACLE -> NORMAL
                             # only; here SYMMETRIC nodes (on both bodies' symmetry line) take part too, so the
                             # contact at x = 0 -- where the ball first touches -- is seen (hcmt's choice)
-                            ((_O, _N), (_O, _S), (_S, _N), (_S, _S))),
-    "deforming_plate": Adapter("deforming_plate", (), False, True, True, 1, (_O,), False, None),
+                            _pairs(("OBSTACLE", "NORMAL"), ("OBSTACLE", "SYMMETRIC"), ("SYMMETRIC", "NORMAL"),
+                                   ("SYMMETRIC", "SYMMETRIC"))),
+    "deforming_plate": Adapter("deforming_plate", (), False, True, True, 1, (int(NodeType.OBSTACLE),), False, None),
     "sphere_simple": Adapter("sphere_simple", (), True, False, False, 2, (), True, None),
-    "deformable_plate": Adapter("deformable_plate", ("poisson_ratio",), False, False, False, 1, (_O,), False, None),
+    "deformable_plate": Adapter("deformable_plate", ("poisson_ratio",), False, False, False, 1, (int(NodeType.OBSTACLE),), False, None),
 }
 
 
@@ -97,8 +101,8 @@ def position_mask(adapter: Adapter, node_type: Tensor, dim: int) -> Tensor:
     """[N, dim] float: 1 where the position channel is predicted, 0 where a boundary condition sets it."""
     nt = node_type.reshape(-1)
     mask = torch.ones(nt.shape[0], dim, dtype=torch.float32, device=nt.device)
-    mask[torch.isin(nt, torch.tensor((_H, *adapter.prescribed), dtype=nt.dtype))] = 0.0
-    mask[nt == _S, 0] = 0.0  # symmetry line: x is fixed
+    mask[torch.isin(nt, torch.tensor((int(NodeType.HANDLE), *adapter.prescribed), dtype=nt.dtype))] = 0.0
+    mask[nt == int(NodeType.SYMMETRIC), 0] = 0.0  # symmetry line: x is fixed
     return mask
 
 
@@ -146,7 +150,7 @@ def integrate(adapter: Adapter, output: Tensor, pos: Tensor, prev: Tensor, true_
 
 def noise_mask(node_type: Tensor) -> Tensor:
     """Training noise goes on NORMAL nodes only (MeshGraphNets / the official HCMT code)."""
-    return (node_type.reshape(-1) == _N)[:, None]
+    return (node_type.reshape(-1) == int(NodeType.NORMAL))[:, None]
 
 
 def exclude_trajectories(names: list[str], excluded: list[int] | None) -> np.ndarray:

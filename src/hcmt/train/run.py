@@ -131,6 +131,13 @@ class Run:
             f" ({args['ablation']})" if args.get("ablation") else "")
 
     # -- using it ---------------------------------------------------------------------------------------------------
+    def design(self, **params):
+        """An Impact Plate :class:`~hcmt.sim.scene.Design`: ``params`` over the middle of the training preset's
+        ranges (``hcmt simulate``'s defaults for that preset), validated."""
+        from hcmt.train.predict import default_design, parse_design
+
+        return parse_design([f"{k}={v}" for k, v in params.items()], default_design(self.meta), where="design")
+
     def rollout(self, data: str | Path, split: str = "test", limit: int | None = None, batch: int = 1) -> Path:
         """Roll out over a split of a dataset; returns ``RUN/rollout_<split>.h5`` (run folders only)."""
         return run_rollouts(self._folder(), data, split, limit, self.info["checkpoint"]["file"].removesuffix(".pt"),

@@ -80,6 +80,8 @@ def _train_and_evaluate(run, data, model, seed, overrides, splits, ablation, con
               progress=False)
         print(f"  trained {run.name} in {time.perf_counter() - t0:.0f} s", flush=True)
     for s in splits:
+        if (run / f"metrics_{s}.json").is_file():  # evaluated before (e.g. the sweep's validation split)
+            continue
         m = evaluate(run, data, s)
         if details:
             with atomic_path(run / f"details_{s}.json") as tmp:

@@ -38,12 +38,12 @@ def run_name(label, seed, sigma, steps) -> str:
     return f"par_{label}_s{seed}_n{sigma_tag(sigma)}_{steps}"
 
 
-def one(work, data, label, seed, sigma, steps):
+def one(work, data, label, seed, sigma, steps, splits):
     model, overrides = VARIANTS[label]
     name = run_name(label, seed, sigma, steps)
     res = run_and_evaluate(work, data, name, model, seed,
                            [f"train.steps={steps}", f"train.noise_std={sigma}", *overrides],
-                           splits=("valid", "test"), config=CONFIG, details=True)
+                           splits=splits, config=CONFIG, details=True)
     return name, res
 
 
@@ -60,14 +60,15 @@ def main() -> None:
     for label in a.models:  # phase 1: the σ sweep, seed 0
         for sigma in a.sigmas:
             print(f"sweep {label} σ={sigma}", flush=True)
-            one(a.work, data, label, a.seeds[0], sigma, a.steps)
+            one(a.work, data, label, a.seeds[0], sigma, a.steps, ("valid",))  # choosing needs valid only
     # the sweep's table from the runs on disk: several processes may share the work (run locks)
     sweep = {}
     for label in a.models:
         for sigma in a.sigmas:
             run = a.work / "runs" / run_name(label, a.seeds[0], sigma, a.steps)
-            if all((run / f"metrics_{s}.json").is_file() for s in ("valid", "test")):
-                m = {s: json.loads((run / f"metrics_{s}.json").read_text()) for s in ("valid", "test")}
+            if (run / "metrics_valid.json").is_file():
+                m = {s: json.loads((run / f"metrics_{s}.json").read_text()) for s in ("valid", "test")
+                     if (run / f"metrics_{s}.json").is_file()}
                 sweep.setdefault(label, {})[str(sigma)] = {
                     "run": run.name, "seed": a.seeds[0], "steps": a.steps,
                     **{s: {q: m[s][q] for q in ("position", "stress")} for s in m}}
@@ -75,30 +76,32 @@ def main() -> None:
     if a.phase == "sweep":
         return
     table = {"config": CONFIG, "dataset": PAPER, "steps": a.steps, "models": {}}
+    chosen = {}
     for label in a.models:
         tried = sweep.get(label, {})
         if len(tried) < len(a.sigmas):  # another process is still sweeping this model: choose once it is done
             print(f"{label}: σ sweep incomplete ({len(tried)} of {len(a.sigmas)}), seeds skipped here", flush=True)
             continue
-        chosen = min(tried, key=lambda s: tried[s]["valid"]["position"]["rmse_all"])
-        runs, names = [], []
-        for seed in a.seeds:
-            print(f"{label} seed {seed} σ={chosen}", flush=True)
-            name, res = one(a.work, data, label, seed, float(chosen), a.steps)
+        chosen[label] = float(min(tried, key=lambda s: tried[s]["valid"]["position"]["rmse_all"]))
+    done: dict[str, list] = {label: [] for label in chosen}
+    for seed in a.seeds:  # seed by seed, so an interrupted study has every model at the same number of seeds
+        for label, sigma in chosen.items():
+            print(f"{label} seed {seed} σ={sigma}", flush=True)
+            name, res = one(a.work, data, label, seed, sigma, a.steps, ("test",))
             if res is not None:
-                runs.append(res["test"])
-                names.append(name)
+                done[label].append((seed, name, res["test"]))
+    for label, runs in done.items():
         if not runs:
             continue
-        row = summarize_runs(runs)
-        row.update(noise_std=float(chosen), seeds=a.seeds[: len(runs)], runs=names)
-        details = [json.loads((a.work / "runs" / n / "details_test.json").read_text()) for n in names]
+        row = summarize_runs([r for _, _, r in runs])
+        row.update(noise_std=chosen[label], seeds=[s for s, _, _ in runs], runs=[n for _, n, _ in runs])
+        details = [json.loads((a.work / "runs" / n / "details_test.json").read_text()) for _, n, _ in runs]
         row["groups"] = {g: {q: mean_std(d["groups"][g][q] for d in details) for q in details[0]["groups"][g]}
                          for g in details[0]["groups"]}
         row["position_error_by_step"] = np.mean([d["position_by_step"] for d in details], 0).tolist()
         row["stress_error_by_step"] = np.mean([d["stress_by_step"] for d in details], 0).tolist()
         table["models"][label] = row
-        write_json("parity_paper.json", table)
+    write_json("parity_paper.json", table)
     m = table["models"]
     for label in ("hcmt", "hcmt-official", "gt"):
         if label in m and "mgn" in m:

@@ -19,6 +19,7 @@ rank 0 while the others wait in the next all-reduce (keep them shorter than the 
 from __future__ import annotations
 
 import json
+import logging
 import math
 import os
 import sys
@@ -37,6 +38,8 @@ from hcmt.train.data import load_split
 from hcmt.train.frames import FrameDataset, StepSampler, collate_samples, step_seed
 from hcmt.train.metrics import rollout_rmse
 from hcmt.train.rollout import RolloutError, rollout
+
+logger = logging.getLogger("hcmt.train")  # rank-zero messages (hcmt.train.trainer.rank_zero_logging)
 
 
 def model_args(cfg: dict, model_name: str, ablation: str | None, meta: dict) -> dict:
@@ -241,13 +244,21 @@ def _lock(out: Path) -> Path:
     raise ValueError(f"{out}: cannot take the run lock {lock}")
 
 
-def _train(cfg: dict, data: str | Path, model_name: str, out: Path, *, ablation: str | None, seed: int,
-           resume: bool, device: str | None, progress: bool, stop_at: int | None) -> dict:
-    rank, world = _distributed()
-    from hcmt.train.run import resolve_device
+def rank_zero_logging(rank: int, out: Path) -> logging.Handler | None:
+    """Rank 0 logs INFO messages of ``hcmt.*`` to ``RUN/train.log`` (the terminal keeps its progress bar and
+    warnings); other ranks log warnings only. Returns the handler to remove at the end."""
+    root = logging.getLogger("hcmt")
+    if rank != 0:
+        root.setLevel(logging.WARNING)
+        return None
+    root.setLevel(logging.INFO)
+    handler = logging.FileHandler(out / "train.log")
+    handler.setFormatter(logging.Formatter("%(asctime)s %(levelname)s %(message)s"))
+    root.addHandler(handler)
+    return handler
 
-    device = resolve_device(device) if device else (
-        torch.device(f"cuda:{rank}") if torch.cuda.is_available() else torch.device("cpu"))
+
+def _check_train_config(cfg: dict) -> None:
     tc = cfg["train"]
     for key in ("steps", "lr", "contact_radius"):
         if key not in tc:
@@ -262,153 +273,217 @@ def _train(cfg: dict, data: str | Path, model_name: str, out: Path, *, ablation:
         raise ValueError(f"train.batch_size must be a whole number >= 1, got {batch_size!r}")
     if not isinstance(tc["lr"], (int, float)) or not tc["lr"] > 0:
         raise ValueError(f"train.lr must be a number > 0, got {tc['lr']!r}")
-    meta = read_meta(data)
-    adapter = config_adapter(cfg)
-    args = model_args(cfg, model_name, ablation, meta)
-    ckpt_path = out / "checkpoint.pt"
-    if resume and not ckpt_path.is_file():
-        raise FileNotFoundError(f"{ckpt_path}: nothing to resume; start without --resume")
-    if not resume and ckpt_path.is_file():
-        raise ValueError(f"{out} already holds a run; pass --resume to continue it or choose another --out")
-    run = {"model": args, "config": cfg, "data": str(Path(data).resolve()), "seed": seed, "world_size": world}
-    if resume and (out / "run.yaml").is_file():
-        check_resume(yaml.safe_load((out / "run.yaml").read_text()), run, out)
-    if rank == 0:
-        out.mkdir(parents=True, exist_ok=True)
-        with atomic_path(out / "run.yaml") as tmp:
-            tmp.write_text(yaml.safe_dump(run, sort_keys=False))
 
-    torch.manual_seed(seed)  # parameter initialization
-    model = make_model(args).to(device)
-    levels, remesh = uses_hierarchy(args)
-    exclude = cfg.get("data", {}).get("exclude_trajectories")
-    radius = float(tc["contact_radius"])
-    noise_std, gamma = float(tc.get("noise_std", 0.0)), float(tc.get("noise_gamma", 1.0))
-    frames = FrameDataset(data, "train", adapter, levels, remesh, radius, noise_std, gamma, seed, exclude)
-    valid_trajs = (load_split(data, "valid", adapter, levels, remesh, limit=int(tc.get("valid_trajectories", 2)))
-                   if (Path(data) / "valid.h5").is_file() else [])
-    batch = int(tc.get("batch_size", 1))
-    workers = int(tc.get("workers", 0))
 
-    lr0, lr_final = float(tc["lr"]), float(tc.get("lr_final", tc["lr"]))
-    decay_steps, decay_rate = tc.get("lr_decay_steps"), float(tc.get("lr_decay_rate", 0.1))
-    opt = torch.optim.Adam(model.parameters(), lr=lr0, fused=device.type == "cuda")  # one kernel per step on CUDA
-    step, best = 0, math.inf
-    if resume:
-        state = torch.load(ckpt_path, map_location=device, weights_only=True)
-        model.load_state_dict(state["model"])
-        opt.load_state_dict(state["optimizer"])
-        step, best = int(state["step"]), float(state["best"])
-        if step > steps:
-            raise ValueError(f"{out}: --resume with train.steps {steps}, but the run has done {step} steps; a run "
-                             "only grows (give --steps >= the steps done)")
-        if rank == 0 and (out / "log.jsonl").is_file():  # drop what was logged after the checkpoint: no duplicates
-            kept = [l for l in (out / "log.jsonl").read_text().splitlines() if l and json.loads(l)["step"] <= step]
-            with atomic_path(out / "log.jsonl") as tmp:
+class Trainer:
+    """One training run in four parts a reader can follow: :meth:`__init__` (setup: config, run folder, model,
+    data, optimizer, resume), :meth:`step` (one optimizer step on one batch), :meth:`validate` (validation
+    rollouts, best.pt) and :meth:`save` (checkpoints); :meth:`run` loops over them."""
+
+    def __init__(self, cfg: dict, data, model_name: str, out: Path, *, ablation, seed: int, resume: bool, device,
+                 progress: bool):
+        from hcmt.train.run import resolve_device
+
+        self.rank, self.world = _distributed()
+        self.device = resolve_device(device) if device else (
+            torch.device(f"cuda:{self.rank}") if torch.cuda.is_available() else torch.device("cpu"))
+        _check_train_config(cfg)
+        self.cfg, self.tc, self.out, self.seed, self.model_name = cfg, cfg["train"], out, seed, model_name
+        tc = self.tc
+        self.steps = int(tc["steps"])
+        meta = read_meta(data)
+        self.adapter = config_adapter(cfg)
+        self.args = model_args(cfg, model_name, ablation, meta)
+        self.ckpt_path = out / "checkpoint.pt"
+        if resume and not self.ckpt_path.is_file():
+            raise FileNotFoundError(f"{self.ckpt_path}: nothing to resume; start without --resume")
+        if not resume and self.ckpt_path.is_file():
+            raise ValueError(f"{out} already holds a run; pass --resume to continue it or choose another --out")
+        run = {"model": self.args, "config": cfg, "data": str(Path(data).resolve()), "seed": seed,
+               "world_size": self.world}
+        if resume and (out / "run.yaml").is_file():
+            check_resume(yaml.safe_load((out / "run.yaml").read_text()), run, out)
+        if self.rank == 0:
+            out.mkdir(parents=True, exist_ok=True)
+            with atomic_path(out / "run.yaml") as tmp:
+                tmp.write_text(yaml.safe_dump(run, sort_keys=False))
+
+        torch.manual_seed(seed)  # parameter initialization
+        self.model = make_model(self.args).to(self.device)
+        levels, remesh = uses_hierarchy(self.args)
+        self.radius = float(tc["contact_radius"])
+        self.frames = FrameDataset(data, "train", self.adapter, levels, remesh, self.radius,
+                                   float(tc.get("noise_std", 0.0)), float(tc.get("noise_gamma", 1.0)), seed,
+                                   cfg.get("data", {}).get("exclude_trajectories"))
+        self.valid_trajs = (load_split(data, "valid", self.adapter, levels, remesh,
+                                       limit=int(tc.get("valid_trajectories", 2)))
+                            if (Path(data) / "valid.h5").is_file() else [])
+        self.opt = torch.optim.Adam(self.model.parameters(), lr=float(tc["lr"]),
+                                    fused=self.device.type == "cuda")  # one kernel per step on CUDA
+        self.step_count, self.best = 0, math.inf
+        if resume:
+            self._resume()
+        self.net = self.model
+        if self.world > 1:
+            self.net = torch.nn.parallel.DistributedDataParallel(
+                self.model, device_ids=[self.device.index] if self.device.type == "cuda" else None)
+        self.writer = self.log = None
+        if self.rank == 0:
+            from torch.utils.tensorboard import SummaryWriter
+
+            self.writer = SummaryWriter(str(out / "tb"), purge_step=self.step_count if resume else None)
+            self.log = open(out / "log.jsonl", "a")
+        self.progress = progress
+        self._handler = rank_zero_logging(self.rank, out)
+        logger.info("%s: %s on %s, %d training frames, steps %d -> %d", out, model_name, self.device,
+                    len(self.frames), self.step_count, self.steps)
+
+    def _resume(self) -> None:
+        state = torch.load(self.ckpt_path, map_location=self.device, weights_only=True)
+        self.model.load_state_dict(state["model"])
+        self.opt.load_state_dict(state["optimizer"])
+        self.step_count, self.best = int(state["step"]), float(state["best"])
+        if self.step_count > self.steps:
+            raise ValueError(f"{self.out}: --resume with train.steps {self.steps}, but the run has done "
+                             f"{self.step_count} steps; a run only grows (give --steps >= the steps done)")
+        log = self.out / "log.jsonl"
+        if self.rank == 0 and log.is_file():  # drop what was logged after the checkpoint: no duplicate steps
+            kept = [l for l in log.read_text().splitlines() if l and json.loads(l)["step"] <= self.step_count]
+            with atomic_path(log) as tmp:
                 tmp.write_text("".join(l + "\n" for l in kept))
-    net = model
-    if world > 1:
-        net = torch.nn.parallel.DistributedDataParallel(model, device_ids=[device.index] if device.type == "cuda" else None)
 
-    warmup = int(tc.get("normalizer_steps", 0))
-    log_every, ckpt_every = int(tc.get("log_every", 100)), int(tc.get("checkpoint_every", 1000))
-    valid_every = int(tc.get("valid_every", 0))
-    writer = log = None
-    if rank == 0:
-        from torch.utils.tensorboard import SummaryWriter
+    def learning_rate(self, step: int) -> float:
+        tc = self.tc
+        lr0 = float(tc["lr"])
+        return learning_rate(step, self.steps, lr0, float(tc.get("lr_final", lr0)), tc.get("lr_decay_steps"),
+                             float(tc.get("lr_decay_rate", 0.1)))
 
-        writer = SummaryWriter(str(out / "tb"), purge_step=step if resume else None)
-        log = open(out / "log.jsonl", "a")
-    from tqdm import tqdm
-
-    bar = tqdm(total=steps, initial=step, disable=not progress or rank != 0, desc=f"train {model_name}",
-               dynamic_ncols=True, mininterval=0.1 if sys.stderr.isatty() else 30.0)
-    times, last_loss = [], float("nan")
-
-    def save(path):
-        save_atomic({"model": model.state_dict(), "optimizer": opt.state_dict(), "step": step, "best": best,
-                     "model_args": args}, path)
-
-    model.train()
-    end = steps if stop_at is None else min(steps, int(stop_at))
-    interrupted = InterruptFlag()  # Ctrl-C / SIGTERM end the current step, then save and stop
-    # graphs are built by DataLoader workers (train.workers; 0: in this process), in step order
-    loader = iter(torch.utils.data.DataLoader(
-        frames, batch_sampler=StepSampler(frames, batch, seed, step, end, world, rank), collate_fn=collate_samples,
-        num_workers=workers, worker_init_fn=_ignore_sigint if workers else None))
-    while step < end:
-        t0 = time.perf_counter()
-        graph, tgt, mask = next(loader)
-        torch.manual_seed(step_seed(seed, step, rank))  # anything drawing from the global generator (LPE sign flips)
-        graph, tgt, mask = graph.to(device), tgt.to(device), mask.to(device)
-        pred = net(graph, accumulate=True)
-        norm_tgt = model.normalize_target(tgt, accumulate=True)
+    def step(self, graph, tgt, mask) -> tuple[float, float]:
+        """One training step (normalizer statistics only during the first ``normalizer_steps``): (loss, lr)."""
+        torch.manual_seed(step_seed(self.seed, self.step_count, self.rank))  # global draws (LPE sign flips)
+        graph, tgt, mask = graph.to(self.device), tgt.to(self.device), mask.to(self.device)
+        pred = self.net(graph, accumulate=True)
+        norm_tgt = self.model.normalize_target(tgt, accumulate=True)
         loss = ((pred - norm_tgt) ** 2 * mask).sum() / mask.sum().clamp_min(1.0)
-        lr = learning_rate(step, steps, lr0, lr_final, decay_steps, decay_rate)
-        if step >= warmup:
-            for group in opt.param_groups:
+        lr = self.learning_rate(self.step_count)
+        if self.step_count >= int(self.tc.get("normalizer_steps", 0)):
+            for group in self.opt.param_groups:
                 group["lr"] = lr
-            opt.zero_grad(set_to_none=True)
+            self.opt.zero_grad(set_to_none=True)
             loss.backward()
-            opt.step()
-        elif world > 1:  # keep DDP's reducer in step: a zero-gradient backward
+            self.opt.step()
+        elif self.world > 1:  # keep DDP's reducer in step: a zero-gradient backward
             (loss * 0).backward()
-        step += 1
-        times.append(time.perf_counter() - t0)
-        last_loss = float(loss.detach())
-        if world > 1:  # every rank must stop together, or the others hang in the next all-reduce
-            flag = torch.tensor([0.0 if math.isfinite(last_loss) else 1.0, float(interrupted.set)], device=device)
-            dist.all_reduce(flag)
-            finite, stop = flag[0].item() == 0, flag[1].item() > 0
-        else:
-            finite, stop = math.isfinite(last_loss), interrupted.set
-        if not finite:
-            raise FloatingPointError(f"loss became non-finite at step {step} (rank {rank}: {last_loss}); lower "
-                                     "train.lr or check the data")
-        bar.update(1)
-        if rank == 0 and (step % log_every == 0 or step == steps):
-            bar.set_postfix(loss=f"{last_loss:.4g}", lr=f"{lr:.2e}")
-            rec = {"step": step, "loss": last_loss, "lr": lr, "ms_per_step": 1e3 * float(np.median(times[-log_every:]))}
-            writer.add_scalar("train/loss", last_loss, step)
-            writer.add_scalar("train/lr", rec["lr"], step)
-            log.write(json.dumps(rec) + "\n")
-            log.flush()
-        if rank == 0 and valid_trajs and valid_every and (step % valid_every == 0 or step == steps):
-            metrics = validate(model, adapter, valid_trajs, radius)
-            model.train()
-            for k, v in metrics.items():
-                writer.add_scalar(k, v, step)
-            log.write(json.dumps({"step": step, **metrics}) + "\n")
-            log.flush()
-            if metrics["valid/position_rmse_all"] < best:
-                best = metrics["valid/position_rmse_all"]
-                save(out / "best.pt")
-        if rank == 0 and (step % ckpt_every == 0 or step == end or stop):
-            save(ckpt_path)
-        if stop:
+        self.step_count += 1
+        return float(loss.detach()), lr
+
+    def validate(self) -> None:
+        """Validation rollouts (rank 0); a better position RMSE-all writes best.pt."""
+        metrics = validate(self.model, self.adapter, self.valid_trajs, self.radius)
+        self.model.train()
+        for k, v in metrics.items():
+            self.writer.add_scalar(k, v, self.step_count)
+        self._record({"step": self.step_count, **metrics})
+        logger.info("step %d: %s", self.step_count, ", ".join(f"{k} {v:.4g}" for k, v in metrics.items()))
+        if metrics["valid/position_rmse_all"] < self.best:
+            self.best = metrics["valid/position_rmse_all"]
+            self.save(self.out / "best.pt")
+
+    def save(self, path: Path) -> None:
+        save_atomic({"model": self.model.state_dict(), "optimizer": self.opt.state_dict(), "step": self.step_count,
+                     "best": self.best, "model_args": self.args}, path)
+
+    def _record(self, rec: dict) -> None:
+        self.log.write(json.dumps(rec) + "\n")
+        self.log.flush()
+
+    def _stop_together(self, loss: float, interrupted: bool) -> tuple[bool, bool]:
+        """(finite, stop) agreed by every rank, or the others would hang in the next all-reduce."""
+        if self.world == 1:
+            return math.isfinite(loss), interrupted
+        flag = torch.tensor([0.0 if math.isfinite(loss) else 1.0, float(interrupted)], device=self.device)
+        dist.all_reduce(flag)
+        return flag[0].item() == 0, flag[1].item() > 0
+
+    def run(self, stop_at: int | None = None) -> dict:
+        from tqdm import tqdm
+
+        tc, rank = self.tc, self.rank
+        log_every, ckpt_every = int(tc.get("log_every", 100)), int(tc.get("checkpoint_every", 1000))
+        valid_every = int(tc.get("valid_every", 0))
+        end = self.steps if stop_at is None else min(self.steps, int(stop_at))
+        bar = tqdm(total=self.steps, initial=self.step_count, disable=not self.progress or rank != 0,
+                   desc=f"train {self.model_name}", dynamic_ncols=True,
+                   mininterval=0.1 if sys.stderr.isatty() else 30.0)
+        workers = int(tc.get("workers", 0))
+        # graphs are built by DataLoader workers (train.workers; 0: in this process), in step order
+        loader = iter(torch.utils.data.DataLoader(
+            self.frames, batch_sampler=StepSampler(self.frames, int(tc.get("batch_size", 1)), self.seed,
+                                                   self.step_count, end, self.world, rank),
+            collate_fn=collate_samples, num_workers=workers, worker_init_fn=_ignore_sigint if workers else None))
+        times, loss = [], float("nan")
+        interrupted = InterruptFlag()  # Ctrl-C / SIGTERM end the current step, then save and stop
+        self.model.train()
+        try:
+            while self.step_count < end:
+                t0 = time.perf_counter()
+                loss, lr = self.step(*next(loader))
+                times.append(time.perf_counter() - t0)
+                finite, stop = self._stop_together(loss, interrupted.set)
+                step = self.step_count
+                if not finite:
+                    raise FloatingPointError(f"loss became non-finite at step {step} (rank {rank}: {loss}); lower "
+                                             "train.lr or check the data")
+                bar.update(1)
+                if rank == 0 and (step % log_every == 0 or step == self.steps):
+                    bar.set_postfix(loss=f"{loss:.4g}", lr=f"{lr:.2e}")
+                    self.writer.add_scalar("train/loss", loss, step)
+                    self.writer.add_scalar("train/lr", lr, step)
+                    self._record({"step": step, "loss": loss, "lr": lr,
+                                  "ms_per_step": 1e3 * float(np.median(times[-log_every:]))})
+                if rank == 0 and self.valid_trajs and valid_every and (step % valid_every == 0 or step == self.steps):
+                    self.validate()
+                if rank == 0 and (step % ckpt_every == 0 or step == end or stop):
+                    self.save(self.ckpt_path)
+                if stop:
+                    logger.info("interrupted at step %d: checkpoint saved", step)
+                    raise TrainingInterrupted(f"interrupted: checkpoint of step {step} of {self.steps} saved in "
+                                              f"{self.ckpt_path}")
+        finally:
+            interrupted.restore()
             bar.close()
             if rank == 0:
-                writer.close()
-                log.close()
-            interrupted.restore()
-            raise TrainingInterrupted(f"interrupted: checkpoint of step {step} of {steps} saved in {ckpt_path}")
-    interrupted.restore()
-    bar.close()
-    summary = {"steps": step, "final_loss": last_loss, "train_ms_per_step": 1e3 * float(np.median(times)) if times else None,
-               "best_valid_position_rmse_all": best if math.isfinite(best) else None, "world_size": world,
-               "device": str(device)}
-    if rank == 0 and step == steps:
-        if not (out / "best.pt").is_file():
-            save(out / "best.pt")
-        with atomic_path(out / "train_stats.json") as tmp:  # standard JSON: a non-finite number becomes null
-            tmp.write_text(json.dumps({k: (None if isinstance(v, float) and not math.isfinite(v) else v)
-                                       for k, v in summary.items()}, indent=2))
-    if rank == 0:
-        writer.close()
-        log.close()
-    if world > 1:
-        dist.barrier()
-    return summary
+                self.writer.close()
+                self.log.close()
+        summary = self._finish(times, loss)
+        if self._handler is not None:
+            logging.getLogger("hcmt").removeHandler(self._handler)
+            self._handler.close()
+        return summary
+
+    def _finish(self, times: list[float], loss: float) -> dict:
+        summary = {"steps": self.step_count, "final_loss": loss,
+                   "train_ms_per_step": 1e3 * float(np.median(times)) if times else None,
+                   "best_valid_position_rmse_all": self.best if math.isfinite(self.best) else None,
+                   "world_size": self.world, "device": str(self.device)}
+        if self.rank == 0 and self.step_count == self.steps:
+            if not (self.out / "best.pt").is_file():
+                self.save(self.out / "best.pt")
+            with atomic_path(self.out / "train_stats.json") as tmp:  # standard JSON: non-finite numbers -> null
+                tmp.write_text(json.dumps({k: (None if isinstance(v, float) and not math.isfinite(v) else v)
+                                           for k, v in summary.items()}, indent=2))
+            logger.info("%s: finished %d steps, %.1f ms per step", self.out, self.step_count,
+                        summary["train_ms_per_step"] or float("nan"))
+        if self.world > 1:
+            dist.barrier()
+        return summary
+
+
+def _train(cfg: dict, data: str | Path, model_name: str, out: Path, *, ablation: str | None, seed: int,
+           resume: bool, device: str | None, progress: bool, stop_at: int | None) -> dict:
+    trainer = Trainer(cfg, data, model_name, out, ablation=ablation, seed=seed, resume=resume, device=device,
+                      progress=progress)
+    return trainer.run(stop_at)
 
 
 def load_run(run: str | Path, which: str = "best", device: str = "cpu"):

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 import torch
 
-from hcmt.models import ABLATIONS, DATASETS, build_for_dataset, build_model, dataset_spec, update_positions
+from hcmt.models import ABLATIONS, DATASET_NAMES, build_for_dataset, build_model, dataset_spec, update_positions
 from hcmt.models.lpe import LaplacianPE, laplacian_pe
 from hcmt.models.normalizer import Normalizer
 
@@ -121,7 +121,8 @@ def test_second_order_update_reproduces_constant_acceleration():
 
 # -- factory and the paper's tables ----------------------------------------------------------------------------------
 def test_table8_depths_are_consistent():
-    for name, spec in DATASETS.items():
+    for name in DATASET_NAMES:
+        spec = dataset_spec(name)
         assert spec["L_H"] == 2 * spec["levels"] + 1, name
         assert spec["L_C"] + spec["L_H"] == 15, name  # paper: L = L_C + L_H = 15
 

@@ -1,14 +1,14 @@
 """Learned simulators: HCMT (the paper's model), MeshGraphNets and Graph Transformer baselines.
 
 ``build_model(name, node_in, mesh_in, contact_in, out, ...)`` makes one; ``build_for_dataset(name, dataset)`` fills
-the widths and the Table 8 depths from :data:`DATASETS`. Every model maps a :class:`hcmt.graph.batch.Graph` to a
+the widths (the dataset's adapter) and the Table 8 depths (its config). Every model maps a :class:`hcmt.graph.batch.Graph` to a
 normalized output ``[N, out]`` and owns its normalizers (``normalize_target``, ``denormalize``).
 """
 from __future__ import annotations
 
 from .attention import MODES as ATTENTION_MODES, check_mode
 from .base import Simulator
-from .defaults import DATASETS, dataset_spec
+from .defaults import DATASET_NAMES, dataset_spec
 from .gt import GT
 from .hcmt import ABLATIONS, HCMT
 from .mgn import MGN
@@ -53,5 +53,5 @@ def build_for_dataset(name: str, dataset: str, **overrides) -> Simulator:
     return build_model(name, spec["node_in"], spec["mesh_in"], spec["contact_in"], spec["out"], **kwargs)
 
 
-__all__ = ["ABLATIONS", "ATTENTION_MODES", "DATASETS", "GT", "HCMT", "MGN", "MODELS", "Normalizer", "Simulator", "build_for_dataset",
+__all__ = ["ABLATIONS", "ATTENTION_MODES", "DATASET_NAMES", "GT", "HCMT", "MGN", "MODELS", "Normalizer", "Simulator", "build_for_dataset",
            "build_model", "dataset_spec", "update_positions"]

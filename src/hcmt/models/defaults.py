@@ -1,5 +1,6 @@
-"""Per-dataset settings from the paper: Table 8 (L_C, L_H, λ, noise, contact radius γ, training steps) and
-Table 9 (node inputs f_i and outputs o_i), as plain dicts.
+"""Per-dataset settings of the paper, read from their one home: Table 8 (depths L_C, λ, noise, contact radius γ,
+training steps) from the dataset's config (``configs/<dataset>.yaml``), Table 9 (inputs, outputs, widths, integration
+order) from its adapter (:mod:`hcmt.train.adapters`).
 
 Feature widths follow Table 9: node type is a one-hot of width 9 (MeshGraphNets' enum + SYMMETRIC); mesh edges
 carry ``u_ij, |u_ij|`` in mesh space and ``x_ij, |x_ij|`` in world space (``mesh_dim + 1 + dim + 1``); contact
@@ -7,44 +8,20 @@ edges ``x_iq, |x_iq|`` (``dim + 1``). ``integration`` is the updater's order (1:
 """
 from __future__ import annotations
 
-NODE_TYPE_WIDTH = 9
-
-DATASETS: dict[str, dict] = {
-    "impact_plate": dict(
-        L_C=2, L_H=13, levels=6, noise_std=0.003, radius=0.4, training_steps=2_000_000, dim=2, mesh_dim=2,
-        node_inputs={"node_type": NODE_TYPE_WIDTH, "velocity": 2, "density": 1, "modulus": 1},
-        outputs={"velocity": 2, "stress": 1}, integration=1,
-    ),
-    "deforming_plate": dict(
-        L_C=10, L_H=5, levels=2, noise_std=0.003, radius=0.03, training_steps=10_000_000, dim=3, mesh_dim=3,
-        # Table 9 lists node type only; the pusher's prescribed velocity is added as in MeshGraphNets, since
-        # nothing else tells the model how the obstacle moves (hcmt.train.adapters, the same choice)
-        node_inputs={"node_type": NODE_TYPE_WIDTH, "obstacle_velocity": 3},
-        outputs={"velocity": 3, "stress": 1}, integration=1,
-    ),
-    "sphere_simple": dict(
-        L_C=6, L_H=9, levels=4, noise_std=0.001, radius=0.05, training_steps=10_000_000, dim=3, mesh_dim=2,
-        node_inputs={"node_type": NODE_TYPE_WIDTH, "velocity": 3},
-        outputs={"acceleration": 3}, integration=2,
-    ),
-    "deformable_plate": dict(
-        L_C=12, L_H=3, levels=1, noise_std=0.001, radius=0.08, training_steps=675_000, dim=2, mesh_dim=2,
-        node_inputs={"node_type": NODE_TYPE_WIDTH, "poisson_ratio": 1},
-        outputs={"velocity": 2}, integration=1,
-    ),
-}
+DATASET_NAMES = ("impact_plate", "deforming_plate", "sphere_simple", "deformable_plate")
 
 
 def dataset_spec(name: str) -> dict:
-    """The dataset's settings plus the derived widths ``node_in``, ``mesh_in``, ``contact_in``, ``out``."""
+    """Table 8 and 9 of one dataset: ``L_C, L_H, levels, noise_std, radius, training_steps, dim, mesh_dim,
+    integration, node_in, mesh_in, contact_in, out``."""
+    from hcmt.train.adapters import get_adapter
+    from hcmt.train.config import load_config
+
     key = name.replace("-", "_").lower()
-    if key not in DATASETS:
-        raise ValueError(f"unknown dataset {name!r}; expected one of {', '.join(DATASETS)}")
-    spec = dict(DATASETS[key])
-    spec.update(
-        node_in=sum(spec["node_inputs"].values()),
-        mesh_in=spec["mesh_dim"] + 1 + spec["dim"] + 1,
-        contact_in=spec["dim"] + 1,
-        out=sum(spec["outputs"].values()),
-    )
-    return spec
+    if key not in DATASET_NAMES:
+        raise ValueError(f"unknown dataset {name!r}; expected one of {', '.join(DATASET_NAMES)}")
+    cfg, adapter = load_config(key), get_adapter(key)
+    m, t = cfg["model"], cfg["train"]
+    return dict(L_C=m["L_C"], levels=m["levels"], L_H=2 * m["levels"] + 1, noise_std=t["noise_std"],
+                radius=t["contact_radius"], training_steps=t["steps"], dim=adapter.dim, mesh_dim=adapter.mesh_dim,
+                integration=adapter.order, **adapter.widths())

@@ -34,6 +34,8 @@ from hcmt.models.updater import update_positions
 @dataclass(frozen=True)
 class Adapter:
     name: str
+    dim: int  # world dimension d
+    mesh_dim: int  # mesh-space dimension (2 for cloth in 3-D)
     node_fields: tuple[str, ...]  # static per-node fields appended to the node features
     velocity_input: bool  # x^t − x^{t−1} among the inputs
     obstacle_velocity_input: bool  # prescribed nodes' next displacement among the inputs (MGN deforming plate)
@@ -54,6 +56,13 @@ class Adapter:
     def out(self, dim: int) -> int:
         return dim + int(self.stress_output)
 
+    def widths(self, dim: int | None = None, mesh_dim: int | None = None) -> dict[str, int]:
+        """The model's input/output widths (Table 9), computed here once: node inputs, mesh-edge features
+        ``u_ij, |u_ij|, x_ij, |x_ij|`` (``mesh_dim + 1 + dim + 1``), contact features ``x_iq, |x_iq|`` and outputs.
+        ``dim``/``mesh_dim`` default to the dataset's; a dataset's meta.json may give them."""
+        d, m = dim or self.dim, mesh_dim or self.mesh_dim
+        return {"node_in": self.node_in(d), "mesh_in": m + 1 + d + 1, "contact_in": d + 1, "out": self.out(d)}
+
 
 
 def _pairs(*names: tuple[str, str]) -> tuple[tuple[int, int], ...]:
@@ -61,15 +70,17 @@ def _pairs(*names: tuple[str, str]) -> tuple[tuple[int, int], ...]:
 
 
 ADAPTERS = {
-    "impact_plate": Adapter("impact_plate", ("density", "modulus"), True, False, True, 1, (), False,
+    "impact_plate": Adapter("impact_plate", 2, 2, ("density", "modulus"), True, False, True, 1, (), False,
                             # ball <-> plate between different objects. The official code links OBSTACLE -> NORMAL
                             # only; here SYMMETRIC nodes (on both bodies' symmetry line) take part too, so the
                             # contact at x = 0 -- where the ball first touches -- is seen (hcmt's choice)
                             _pairs(("OBSTACLE", "NORMAL"), ("OBSTACLE", "SYMMETRIC"), ("SYMMETRIC", "NORMAL"),
                                    ("SYMMETRIC", "SYMMETRIC"))),
-    "deforming_plate": Adapter("deforming_plate", (), False, True, True, 1, (int(NodeType.OBSTACLE),), False, None),
-    "sphere_simple": Adapter("sphere_simple", (), True, False, False, 2, (), True, None),
-    "deformable_plate": Adapter("deformable_plate", ("poisson_ratio",), False, False, False, 1, (int(NodeType.OBSTACLE),), False, None),
+    "deforming_plate": Adapter("deforming_plate", 3, 3, (), False, True, True, 1, (int(NodeType.OBSTACLE),), False,
+                               None),
+    "sphere_simple": Adapter("sphere_simple", 3, 2, (), True, False, False, 2, (), True, None),
+    "deformable_plate": Adapter("deformable_plate", 2, 2, ("poisson_ratio",), False, False, False, 1,
+                                (int(NodeType.OBSTACLE),), False, None),
 }
 
 

@@ -43,14 +43,12 @@ logger = logging.getLogger("hcmt.train")  # rank-zero messages (hcmt.train.train
 
 
 def model_args(cfg: dict, model_name: str, ablation: str | None, meta: dict) -> dict:
-    """Constructor arguments of the model, from the config and the dataset's dimensions."""
+    """Constructor arguments of the model, from the config and the dataset's dimensions (meta.json)."""
     adapter = get_adapter(cfg["dataset"])
-    d = int(meta["dimension"])
-    m = int(meta["features"]["mesh_pos"]["shape"][-1])
+    widths = adapter.widths(int(meta["dimension"]), int(meta["features"]["mesh_pos"]["shape"][-1]))
     mc = cfg["model"]
     return {
-        "name": model_name, "node_in": adapter.node_in(d), "mesh_in": m + d + 2, "contact_in": d + 1,
-        "out": adapter.out(d), "ablation": ablation, "levels": mc.get("levels", 0), "L_C": mc.get("L_C", 2),
+        "name": model_name, **widths, "ablation": ablation, "levels": mc.get("levels", 0), "L_C": mc.get("L_C", 2),
         "L_H": mc.get("L_H"), "hidden": mc.get("hidden", 128), "heads": mc.get("heads", 4), "clip": mc.get("clip", 2.0),
         "blocks": mc.get("blocks", 15),
         **({"attention": mc.get("attention", "paper"), "ffn_bias": bool(mc.get("ffn_bias", True))}

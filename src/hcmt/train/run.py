@@ -213,7 +213,7 @@ def run_rollouts(run, data, split, limit=None, checkpoint="best", device=None, b
     bar = tqdm(total=sum(max(tr.num_steps - 1 - h, 0) for tr in trajs), desc=f"rollout {split}", unit="step",
                dynamic_ncols=True)
     with atomic_path(path) as tmp, h5py.File(tmp, "w") as f:
-        for key, value in rollout_key(data, split, limit, r.info["checkpoint"]["file"],
+        for key, value in rollout_key(data, split, r.info["checkpoint"]["file"],
                                       r.info["checkpoint"]["step"]).items():
             f.attrs[key] = value
         if batch < 1:
@@ -238,24 +238,42 @@ def run_rollouts(run, data, split, limit=None, checkpoint="best", device=None, b
     return path
 
 
-def rollout_key(data, split, limit, checkpoint_file, step) -> dict:
-    """What a rollout file was made from; :func:`evaluate` redoes the rollout when any of it changed."""
-    return {"data": str(Path(data).resolve()), "split": split, "limit": -1 if limit is None else int(limit),
-            "checkpoint": checkpoint_file, "checkpoint_step": int(step)}
+def rollout_key(data, split, checkpoint_file, step) -> dict:
+    """What a rollout file was made from: dataset, split and checkpoint (file and step)."""
+    return {"data": str(Path(data).resolve()), "split": split, "checkpoint": checkpoint_file,
+            "checkpoint_step": int(step)}
 
 
-def _rollout_is_current(path: Path, run, data, split, limit, checkpoint) -> bool:
-    if not path.is_file():
-        return False
+def rollout_for(run, data, split: str, need: int | None = None, checkpoint: str = "best", device=None,
+                batch: int = 1) -> Path:
+    """The one rollout-cache rule, used by evaluation and every picture: ``RUN/rollout_<split>.h5`` is reused when
+    it was made from this dataset, split and checkpoint (same step) and holds the first ``need`` trajectories of
+    the split (all when ``need`` is None); otherwise it is rolled out again, never with fewer trajectories than the
+    file had. A rollout file in a folder without checkpoints (predictions brought from elsewhere) is used as it is
+    when it holds the trajectories asked for."""
+    from hcmt.data.format import Split
+
+    path = rollout_path(run, split)
     ckpt = Path(run) / f"{checkpoint}.pt"
     ckpt = ckpt if ckpt.is_file() else Path(run) / "checkpoint.pt"
-    if not ckpt.is_file():
-        return False
-    step = int(torch.load(ckpt, map_location="cpu", weights_only=True)["step"])
-    want = rollout_key(data, split, limit, ckpt.name, step)
-    with h5py.File(path, "r") as f:
-        have = {k: (v.item() if hasattr(v, "item") else v) for k, v in f.attrs.items()}
-    return all(have.get(k) == v for k, v in want.items())
+    with Split(data, split) as s:
+        names = s.names
+    want = len(names) if need is None else min(int(need), len(names))
+    have = 0
+    if path.is_file() and not ckpt.is_file():  # predictions without a checkpoint to check them against: use them
+        with h5py.File(path, "r") as f:
+            if set(names[:want]) <= set(f.keys()):
+                return path
+    if path.is_file() and ckpt.is_file():
+        step = int(torch.load(ckpt, map_location="cpu", weights_only=True)["step"])
+        with h5py.File(path, "r") as f:
+            attrs = {k: (v.item() if hasattr(v, "item") else v) for k, v in f.attrs.items()}
+            if all(attrs.get(k) == v for k, v in rollout_key(data, split, ckpt.name, step).items()):
+                have = len(f.keys())
+                if set(names[:want]) <= set(f.keys()):
+                    return path
+    limit = max(want, have)
+    return run_rollouts(run, data, split, limit if limit < len(names) else None, checkpoint, device, batch)
 
 
 def evaluate(run, data, split, limit=None, checkpoint="best", device=None, batch: int = 1) -> dict:
@@ -264,13 +282,11 @@ def evaluate(run, data, split, limit=None, checkpoint="best", device=None, batch
     from hcmt.data.format import Split
     from hcmt.train.metrics import aggregate, rollout_rmse
 
-    path = rollout_path(run, split)
-    if not _rollout_is_current(path, run, data, split, limit, checkpoint):
-        run_rollouts(run, data, split, limit, checkpoint, device, batch)
+    path = rollout_for(run, data, split, limit, checkpoint, device, batch)
     per_traj, ms = [], []
     with h5py.File(path, "r") as f, Split(data, split) as s:
         index = {n: i for i, n in enumerate(s.names)}
-        for name in f.keys():
+        for name in s.names[:limit]:  # the first `limit` trajectories (all when None), however many the file holds
             truth = s[index[name]]
             g = f[name]
             start = int(g.attrs["start"])

@@ -154,10 +154,8 @@ def configure_export(p: argparse.ArgumentParser) -> None:
 
 
 def main_export(args: argparse.Namespace) -> int:
-    import h5py
-
     from hcmt.data.format import Split
-    from hcmt.train.run import rollout_path, run_rollouts
+    from hcmt.train.run import rollout_for
     from hcmt.viz.export import export_case
     from hcmt.viz.rollouts import load_case, unique_labels
 
@@ -167,13 +165,7 @@ def main_export(args: argparse.Namespace) -> int:
         names = list(s.names)
     if args.trajectory == "all":
         for run in args.runs:  # roll the whole split out once rather than trajectory by trajectory
-            path = rollout_path(run, args.split)
-            have = set()
-            if path.is_file():
-                with h5py.File(path, "r") as f:
-                    have = set(f.keys())
-            if not set(names) <= have:
-                run_rollouts(run, args.data, args.split)
+            rollout_for(run, args.data, args.split)
         picks = names
     else:
         picks = [args.trajectory]

@@ -27,18 +27,10 @@ def rollout_errors(runs: list[str | Path], data: str | Path, split: str = "test"
     """Per-step RMSE of every run: ``{label: {"position": [n, T], "stress": [n, T] (if any), "start": int,
     "trajectories": names}}`` over the trajectories all runs have rolled out (rolling out the first ``limit``, or
     all, where a run has no rollout file yet)."""
-    from hcmt.train.run import rollout_path, run_rollouts
+    from hcmt.train.run import rollout_for
 
     labels = labels or unique_labels(runs)
-    with Split(data, split) as s:
-        wanted = len(s) if limit is None else min(int(limit), len(s))
-    paths = []
-    for run in runs:
-        path = rollout_path(run, split)
-        if path.is_file():
-            with h5py.File(path, "r") as f:
-                enough = len(f.keys()) >= wanted
-        paths.append(path if path.is_file() and enough else run_rollouts(run, data, split, limit=limit))
+    paths = [rollout_for(run, data, split, need=limit) for run in runs]
     names = None
     for path in paths:
         with h5py.File(path, "r") as f:

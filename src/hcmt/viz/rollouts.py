@@ -105,15 +105,11 @@ def unique_labels(runs: list[str | Path]) -> list[str]:
 
 
 def rollout_file(run: str | Path, data: str | Path, split: str, name: str, index: int) -> Path:
-    """``RUN/rollout_<split>.h5``, rolled out first (up to trajectory ``index``) when it lacks ``name``."""
-    from hcmt.train.run import rollout_path, run_rollouts
+    """``RUN/rollout_<split>.h5`` holding trajectory ``name`` (position ``index``), by the one cache rule
+    :func:`hcmt.train.run.rollout_for`."""
+    from hcmt.train.run import rollout_for
 
-    path = rollout_path(run, split)
-    if path.is_file():
-        with h5py.File(path, "r") as f:
-            if name in f:
-                return path
-    return run_rollouts(run, data, split, limit=index + 1)
+    return rollout_for(run, data, split, need=index + 1)
 
 
 def trajectory_index(names: list[str], trajectory: int | str) -> int:

@@ -85,7 +85,7 @@ def main() -> None:
         res["cuda_device"] = torch.cuda.get_device_name()
     feats = torch.zeros(n, 13)
     mp = torch.from_numpy(pos).float()
-    res["frame_graph_ms"] = median_ms(lambda: frame_graph(feats, mp, wt, None, h, None, a.radius), a.repeats,
+    res["frame_graph_ms"] = median_ms(lambda: frame_graph(feats, mp, wt, h, a.radius), a.repeats,
                                       "frame_graph_ms")
     res["cpu_ms"] = dict(CPU_MS)
     res["load_average_1min"] = os.getloadavg()[0]

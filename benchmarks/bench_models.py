@@ -35,7 +35,7 @@ def impact_plate_graph(seed: int = 0):
     world_pos = mesh_pos + torch.from_numpy(rng.normal(scale=0.01, size=mesh_pos.shape)).float()
     one_hot = torch.nn.functional.one_hot(torch.from_numpy(mesh["node_type"]), 9).float()
     feats = torch.cat([one_hot, torch.from_numpy(rng.normal(size=(len(mesh_pos), 4))).float()], 1)
-    return frame_graph(feats, mesh_pos, world_pos, None, hierarchy, None, spec["radius"])
+    return frame_graph(feats, mesh_pos, world_pos, hierarchy, spec["radius"])
 
 
 def _sync(device):

@@ -127,7 +127,7 @@ def _one(model_name: str, target: int, reps: int) -> dict:
     times = []
     for i in range(reps + 1):
         t0 = time.perf_counter()
-        g = frame_graph(feats, mesh_pos, world, None, h, None, 0.4)
+        g = frame_graph(feats, mesh_pos, world, h, 0.4)
         loss = ((model(g, accumulate=True) - model.normalize_target(target_out, accumulate=True)) ** 2).mean()
         opt.zero_grad()
         loss.backward()

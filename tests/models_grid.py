@@ -121,4 +121,4 @@ def paper_graph(seed: int = 0, levels: int = 6) -> Graph:
     n = mesh_pos.shape[0]
     one_hot = torch.nn.functional.one_hot(torch.from_numpy(mesh["node_type"]), 9).float()
     rest = torch.from_numpy(rng.normal(size=(n, 4))).float()
-    return frame_graph(torch.cat([one_hot, rest], 1), mesh_pos, world_pos, None, hierarchy, None, 0.4)
+    return frame_graph(torch.cat([one_hot, rest], 1), mesh_pos, world_pos, hierarchy, 0.4)

@@ -60,8 +60,6 @@ def test_dataset_spec_holds_tables_8_and_9(name):
     ([], "base: impact_plate\nmodel:\n  hiden: 64\n", "model.hiden: unknown key; did you mean model.hidden?"),
 ])
 def test_schema_refuses_unknown_keys_and_wrong_types(tmp_path, overrides, yaml_text, message):
-    from hcmt.cli import main as cli
-
     name = "impact_plate"
     if yaml_text is not None:
         name = str(tmp_path / "mine.yaml")

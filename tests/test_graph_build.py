@@ -5,6 +5,7 @@ import torch
 from graph_meshes import cloth, impact_plate, plate_and_ball
 from hcmt.graph.batch import collate
 from hcmt.graph.build import frame_graph
+from hcmt.graph.edges import mesh_edge_features
 from hcmt.graph.contact import OFFICIAL_IMPACT_PLATE_TYPES, contact_edges, near_pairs
 from hcmt.graph.hierarchy import build_hierarchy
 
@@ -14,7 +15,7 @@ def _frame(m, h, shift=0.0, **kw):
     world = m["mesh_pos"].copy()
     world[h.object_id == 1, 1] -= shift  # move the ball down
     return frame_graph(torch.ones(n, 4), torch.from_numpy(m["mesh_pos"]).float(), torch.from_numpy(world).float(),
-                       None, h, None, 0.4, **kw)
+                       h, 0.4, **kw)
 
 
 def test_frame_graph_levels_and_features():
@@ -67,18 +68,18 @@ def test_cloth_frame_has_two_dimensional_mesh_space_and_self_contacts():
     mesh_pos, cells, world = cloth(16, fold=True)
     h = build_hierarchy(mesh_pos, cells, None, 2)
     excl = torch.from_numpy(near_pairs(h.edges[0], len(mesh_pos), 3))
-    g = frame_graph(torch.zeros(len(mesh_pos), 3), torch.from_numpy(mesh_pos), torch.from_numpy(world), None, h,
-                    None, 0.06, self_contact=True, exclude=excl)
-    default = frame_graph(torch.zeros(len(mesh_pos), 3), torch.from_numpy(mesh_pos), torch.from_numpy(world), None,
-                          h, None, 0.06, self_contact=True)  # excludes pairs within 3 mesh hops by default
+    g = frame_graph(torch.zeros(len(mesh_pos), 3), torch.from_numpy(mesh_pos), torch.from_numpy(world), h,
+                    0.06, self_contact=True, exclude=excl)
+    default = frame_graph(torch.zeros(len(mesh_pos), 3), torch.from_numpy(mesh_pos), torch.from_numpy(world),
+                          h, 0.06, self_contact=True)  # excludes pairs within 3 mesh hops by default
     assert torch.equal(default.contact_edges, g.contact_edges)
     mesh = set(map(tuple, h.edges[0].T.tolist()))
     assert not mesh & set(map(tuple, g.contact_edges.T.tolist()))
     assert g.mesh_features.shape[1] == 2 + 1 + 3 + 1
     assert all(f.shape[1] == 7 for f in g.level_features)
     assert g.contact_edges.shape[1] > 0 and g.contact_features.shape[1] == 4
-    none = frame_graph(torch.zeros(len(mesh_pos), 3), torch.from_numpy(mesh_pos), torch.from_numpy(world), None, h,
-                       None, 0.06)  # without self-contact a single object touches nothing
+    none = frame_graph(torch.zeros(len(mesh_pos), 3), torch.from_numpy(mesh_pos), torch.from_numpy(world), h,
+                       0.06)  # without self-contact a single object touches nothing
     assert none.contact_edges.shape == (2, 0) and none.contact_features.shape == (0, 4)
 
 
@@ -87,9 +88,8 @@ def test_cached_mesh_space_features_follow_the_mesh_positions():
     h = build_hierarchy(m["mesh_pos"], m["cells"], m["node_type"], 2)
     n = len(m["mesh_pos"])
     u = torch.from_numpy(m["mesh_pos"])
-    a = frame_graph(torch.zeros(n, 1), u, u, None, h, None, 0.1)
-    b = frame_graph(torch.zeros(n, 1), u, u, torch.from_numpy(h.edges[0]), h, None, 0.1)  # explicit mesh edges
-    torch.testing.assert_close(a.mesh_features, b.mesh_features)
-    scaled = frame_graph(torch.zeros(n, 1), 2 * u, u, None, h, None, 0.1)  # other mesh positions: not stale
+    a = frame_graph(torch.zeros(n, 1), u, u, h, 0.1)
+    torch.testing.assert_close(a.mesh_features, mesh_edge_features(u, u, torch.from_numpy(h.edges[0])))
+    scaled = frame_graph(torch.zeros(n, 1), 2 * u, u, h, 0.1)  # other mesh positions: not stale
     torch.testing.assert_close(scaled.mesh_features[:, :3], 2 * a.mesh_features[:, :3])
     torch.testing.assert_close(scaled.level_features[1][:, :3], 2 * a.level_features[1][:, :3])

@@ -17,7 +17,7 @@ from torch import Tensor
 
 from hcmt.graph.batch import Graph
 from hcmt.graph.contact import contact_edges, near_pairs
-from hcmt.graph.edges import contact_edge_features, mesh_edge_features, relative
+from hcmt.graph.edges import contact_edge_features, relative
 from hcmt.graph.hierarchy import Hierarchy
 
 
@@ -37,24 +37,21 @@ def hierarchy_tensors(hierarchy: Hierarchy, device) -> dict:
     return cached
 
 
-def frame_graph(node_features: Tensor, mesh_pos: Tensor, world_pos: Tensor, mesh_edges: Tensor | None,
-                hierarchy: Hierarchy, object_id: Tensor | None, radius: float, self_contact: bool = False, *,
-                node_type: Tensor | None = None, type_pairs: Iterable[tuple[int, int]] | None = None,
-                self_contact_hops: int = 3, exclude: Tensor | None = None, contact_method: str = "auto") -> Graph:
-    """The graph of one frame.
+def frame_graph(node_features: Tensor, mesh_pos: Tensor, world_pos: Tensor, hierarchy: Hierarchy, radius: float,
+                self_contact: bool = False, *, node_type: Tensor | None = None,
+                type_pairs: Iterable[tuple[int, int]] | None = None, self_contact_hops: int = 3,
+                exclude: Tensor | None = None, contact_method: str = "auto") -> Graph:
+    """The graph of one frame: the hierarchy's mesh edges and objects, contact edges found at ``world_pos``.
 
     ``node_features`` ``[N, F]`` (raw), ``mesh_pos`` ``[N, d_mesh]``, ``world_pos`` ``[N, d_world]``;
-    ``mesh_edges`` ``[2, E]`` (None: the hierarchy's level-0 edges); ``object_id`` ``[N]`` (None: the
-    hierarchy's); ``radius`` the contact radius gamma. Contact rules (``type_pairs``; ``self_contact``, which
+    ``radius`` the contact radius gamma. Contact rules (``type_pairs``; ``self_contact``, which
     excludes the pairs within ``self_contact_hops`` hops of the hierarchy's mesh edges unless ``exclude`` keys
     are given) as in :func:`hcmt.graph.contact.contact_edges`. All tensors end up on ``world_pos``'s device.
     """
     device = world_pos.device
     h = hierarchy_tensors(hierarchy, device)
     mesh_pos = mesh_pos.to(device=device, dtype=world_pos.dtype)
-    own_edges = mesh_edges is None
-    mesh_edges = h["edges"][0] if own_edges else mesh_edges.to(device)
-    object_id = h["object_id"] if object_id is None else object_id.to(device)
+    mesh_edges, object_id = h["edges"][0], h["object_id"]
     if self_contact and exclude is None:
         key = f"near_{self_contact_hops}"
         if key not in h:  # static: computed once per hierarchy and device
@@ -65,10 +62,7 @@ def frame_graph(node_features: Tensor, mesh_pos: Tensor, world_pos: Tensor, mesh
                              self_contact=self_contact, exclude=exclude, method=contact_method)
     mesh_part = _mesh_space_features(h, mesh_pos)
     world_part = [relative(world_pos, e) for e in h["edges_level0"][1:]]
-    if own_edges:
-        mesh_features = torch.cat([mesh_part[0], relative(world_pos, mesh_edges)], dim=-1)
-    else:
-        mesh_features = mesh_edge_features(mesh_pos, world_pos, mesh_edges)
+    mesh_features = torch.cat([mesh_part[0], relative(world_pos, mesh_edges)], dim=-1)
     return Graph(
         node_features=node_features.to(device),
         mesh_edges=mesh_edges,

@@ -5,12 +5,7 @@ from __future__ import annotations
 import argparse
 import json
 import time
-from collections import defaultdict
 from pathlib import Path
-
-import h5py
-import numpy as np
-import torch
 
 from hcmt.data.format import atomic_path
 from hcmt.models import ABLATIONS, MODELS

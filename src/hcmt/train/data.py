@@ -80,6 +80,6 @@ def load_split(dataset: str | Path, split: str, adapter: Adapter, levels: int, r
 def build_graph(traj: Trajectory, pos: Tensor, node_feats: Tensor, radius: float) -> Graph:
     """The model input for one frame at world positions ``pos`` [N, d] (contact edges found anew)."""
     a = traj.adapter
-    return frame_graph(node_feats, traj.static["mesh_pos"], pos.detach() if pos.requires_grad else pos, None,
-                       traj.hierarchy, None, radius, a.self_contact, node_type=traj.static["node_type"],
+    return frame_graph(node_feats, traj.static["mesh_pos"], pos.detach() if pos.requires_grad else pos,
+                       traj.hierarchy, radius, a.self_contact, node_type=traj.static["node_type"],
                        type_pairs=a.contact_types)

@@ -116,7 +116,6 @@ def default_frame(world_pos: np.ndarray, object_id: np.ndarray, history: int) ->
 def frame_attention(run: str | Path, data: str | Path, split: str = "test", trajectory: int | str = 0,
                     frame: int | None = None, checkpoint: str = "best") -> AttentionMaps:
     """Attention maps of a run's model on one ground-truth frame (default: the impact, :func:`default_frame`)."""
-    import torch
 
     from hcmt.data.format import Split
     from hcmt.graph.hierarchy import hierarchy_cache_dir

@@ -231,3 +231,16 @@ def test_cuda_matches_cpu(name, kw):
         cpu = model(g)
         gpu = model.cuda()(g.to("cuda")).cpu()
     torch.testing.assert_close(gpu, cpu, rtol=1e-3, atol=1e-4)
+
+
+@pytest.mark.parametrize("name,kw", BATCHED, ids=["hcmt", "mgn", "gt", "hcmt-official"])
+def test_activation_checkpointing_gives_the_same_gradients(name, kw):
+    g = grid_graph(9, 9, levels=2, node_in=NODE_IN, contacts=12)
+    grads = []
+    for flag in (False, True):
+        model = make(name, **kw).train()
+        model.checkpoint_blocks = flag
+        model(g, accumulate=False).square().mean().backward()
+        grads.append({n: p.grad.clone() for n, p in model.named_parameters()})
+    for n in grads[0]:
+        torch.testing.assert_close(grads[1][n], grads[0][n], rtol=1e-5, atol=1e-7)

@@ -322,3 +322,10 @@ def test_run_folder_rules(impact, tmp_path, capsys):
     assert cli(["train", "--config", "impact_plate_cpu", "--data", str(tmp_path / "nowhere"), "--model", "mgn",
                 "--out", str(bad), "--no-progress"]) == 2
     assert not bad.exists()
+
+
+def test_bf16_and_checkpointed_blocks_train(impact, tmp_path):
+    cfg = load_config("impact_plate_cpu", TINY + ["train.steps=2", "train.precision=bf16",
+                                                  "train.checkpoint_blocks=true"])
+    s = train(cfg, impact, "hcmt", tmp_path / "run", progress=False)
+    assert s["steps"] == 2 and np.isfinite(s["final_loss"])

@@ -9,6 +9,7 @@ Layer", "Decoder and Updater"; MeshGraphNets' encode-process-decode).
 """
 from __future__ import annotations
 
+import torch
 from torch import Tensor, nn
 
 from hcmt.data.errors import DatasetError
@@ -19,7 +20,21 @@ from .normalizer import Normalizer
 
 
 class Simulator(nn.Module):
-    """Encoder, decoder and normalizers; subclasses define ``forward(graph, accumulate=None) -> [N, out]``."""
+    """Encoder, decoder and normalizers; subclasses define ``forward(graph, accumulate=None) -> [N, out]``.
+
+    ``checkpoint_blocks = True`` (``train.checkpoint_blocks``) recomputes each processor block's activations in
+    the backward pass instead of keeping them (:func:`torch.utils.checkpoint.checkpoint`): memory for depth, the
+    same gradients (tests/test_models_invariants.py)."""
+
+    checkpoint_blocks: bool = False
+
+    def run_block(self, block, *args):
+        """``block(*args)``, with activation checkpointing while training when ``checkpoint_blocks`` is set."""
+        if self.checkpoint_blocks and self.training and torch.is_grad_enabled():
+            from torch.utils.checkpoint import checkpoint
+
+            return checkpoint(block, *args, use_reentrant=False)
+        return block(*args)
 
     def __init__(self, node_in: int, mesh_in: int, contact_in: int, out: int, *, hidden: int = 128):
         super().__init__()

@@ -84,6 +84,6 @@ class GT(Simulator):
                 h, e, w = layer(h, e, edges, return_attention=True)
                 attention.append((f"gt{n}", w))
             else:
-                h, e = layer(h, e, edges)
+                h, e = self.run_block(layer, h, e, edges)
         out = self.decoder(h)
         return (out, attention) if return_attention else out

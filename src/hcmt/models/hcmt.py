@@ -65,14 +65,15 @@ class HMT(nn.Module):
         self.up = nn.ModuleList(make() for _ in range(levels))
 
     def forward(self, h: Tensor, latents: list[Tensor], edges: list[Tensor], pool: list[Tensor],
-                attention: list | None = None) -> Tensor:
+                attention: list | None = None, run_block=None) -> Tensor:
         """latents/edges: level 0..λ encoded mesh-edge features and edges; pool: λ kept-index tensors.
         With ``attention`` (a list), appends each block's ``(name, weights)``."""
         saved = []
+        call = run_block or (lambda block, *args: block(*args))  # the model's (maybe checkpointed) block call
 
         def run(block, h, level, name):
             if attention is None:
-                return block(h, [(latents[level], edges[level])])
+                return call(block, h, [(latents[level], edges[level])])
             h, w = block(h, [(latents[level], edges[level])], return_attention=True)
             attention.append((name, w[0]))
             return h
@@ -152,7 +153,7 @@ class HCMT(Simulator):
             for n, block in enumerate(self.cmt):
                 sets = [(latents[0], graph.mesh_edges), (contact, graph.contact_edges)]
                 if attention is None:
-                    z = block(z, sets)
+                    z = self.run_block(block, z, sets)
                 else:
                     z, w = block(z, sets, return_attention=True)
                     names = ["mesh+contact"] if len(w) == 1 else ["mesh", "contact"]
@@ -160,7 +161,7 @@ class HCMT(Simulator):
             return z
 
         def hmt(z):
-            return z if self.hmt is None else self.hmt(z, latents, edges, pool, attention)
+            return z if self.hmt is None else self.hmt(z, latents, edges, pool, attention, self.run_block)
 
         z = cmt(hmt(z)) if self.ablation == "late-contact" else hmt(cmt(z))
         out = self.decoder(z)

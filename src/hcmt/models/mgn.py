@@ -60,5 +60,5 @@ class MGN(Simulator):
         e = self.encode_mesh(graph.mesh_features, acc)
         s = self.encode_contact(graph, acc)
         for block in self.blocks:
-            z, e, s = block(z, e, graph.mesh_edges, s, graph.contact_edges)
+            z, e, s = self.run_block(block, z, e, graph.mesh_edges, s, graph.contact_edges)
         return self.decoder(z)

@@ -308,6 +308,8 @@ class Trainer:
 
         torch.manual_seed(seed)  # parameter initialization
         self.model = make_model(self.args).to(self.device)
+        self.model.checkpoint_blocks = bool(tc.get("checkpoint_blocks", False))  # memory for recomputation
+        self.bf16 = tc.get("precision", "fp32") == "bf16"  # autocast forward and loss in bfloat16
         levels, remesh = uses_hierarchy(self.args)
         self.radius = float(tc["contact_radius"])
         self.frames = FrameDataset(data, "train", self.adapter, levels, remesh, self.radius,
@@ -360,9 +362,10 @@ class Trainer:
         """One training step (normalizer statistics only during the first ``normalizer_steps``): (loss, lr)."""
         torch.manual_seed(step_seed(self.seed, self.step_count, self.rank))  # global draws (LPE sign flips)
         graph, tgt, mask = graph.to(self.device), tgt.to(self.device), mask.to(self.device)
-        pred = self.net(graph, accumulate=True)
-        norm_tgt = self.model.normalize_target(tgt, accumulate=True)
-        loss = ((pred - norm_tgt) ** 2 * mask).sum() / mask.sum().clamp_min(1.0)
+        with torch.autocast(self.device.type, dtype=torch.bfloat16, enabled=self.bf16):
+            pred = self.net(graph, accumulate=True)
+            norm_tgt = self.model.normalize_target(tgt, accumulate=True)
+            loss = ((pred.float() - norm_tgt.float()) ** 2 * mask).sum() / mask.sum().clamp_min(1.0)
         lr = self.learning_rate(self.step_count)
         if self.step_count >= int(self.tc.get("normalizer_steps", 0)):
             for group in self.opt.param_groups:

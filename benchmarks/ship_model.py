@@ -53,7 +53,7 @@ def main() -> None:
         "steps": int(stats["steps"]), "device": stats.get("device"), "train_ms_per_step": stats["train_ms_per_step"],
         "train_wall_s": wall, "data_command": a.data_command, "train_command": a.command,
         "checkpoint": run.info["checkpoint"], "seed": run.info.get("seed"), "machine": platform.processor() or
-        platform.machine(), "torch": torch.__version__,
+        platform.machine(), "torch": str(torch.__version__),
     }
     path = run.save_pretrained(PRETRAINED_DIR / f"{a.name}.pt", card)
     print(f"wrote {path} ({path.stat().st_size / 1e6:.2f} MB)")

@@ -165,7 +165,8 @@ class Run:
         state = {k: (v.half() if half and v.dtype == torch.float32 else v).cpu()
                  for k, v in self.model.state_dict().items()}
         pack = {"model_args": self.info["model"], "model": state, "config": self.config, "meta": self.meta,
-                "ranges": {k: [float(a), float(b)] for k, (a, b) in self.ranges.items()}, "card": card}
+                "ranges": {k: [float(a), float(b)] for k, (a, b) in self.ranges.items()},
+                "card": json.loads(json.dumps(card, default=str))}  # plain types: loads with weights_only=True
         path = Path(path)
         path.parent.mkdir(parents=True, exist_ok=True)
         with atomic_path(path) as tmp:

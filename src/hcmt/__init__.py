@@ -25,19 +25,6 @@ _LAZY = {
 }
 
 
-def train(config, data, model: str, out, **options):
-    """Train ``model`` (``hcmt``, ``mgn``, ``gt``) on the native dataset ``data`` into the run folder ``out``.
-    ``config`` is a config dict, a built-in config name or a YAML path; ``options``: ``ablation``, ``seed``,
-    ``resume``, ``device``, ``progress``, and ``overrides`` (a list of ``section.key=value``). Returns the training
-    summary; :meth:`hcmt.Run.load` (``out``) gives the trained model."""
-    from hcmt.train.config import load_config
-    from hcmt.train.trainer import train as _train
-
-    overrides = options.pop("overrides", None)
-    cfg = config if isinstance(config, dict) else load_config(str(config), overrides)
-    return _train(cfg, data, model, out, **options)
-
-
 def load_pretrained(name: str, device: str | None = None):
     """The shipped model ``name`` (e.g. ``impact_plate_small``) as a :class:`hcmt.Run`; ``hcmt models`` lists
     them. Loaded from the package, never downloaded."""
@@ -47,6 +34,10 @@ def load_pretrained(name: str, device: str | None = None):
 
 
 def __getattr__(name):
+    if name == "train":  # the subpackage hcmt.train, callable as hcmt.train(config, data, model, out, ...)
+        import importlib
+
+        return importlib.import_module("hcmt.train")
     if name in _LAZY:
         import importlib
 
@@ -55,5 +46,5 @@ def __getattr__(name):
     raise AttributeError(f"module 'hcmt' has no attribute {name!r}")
 
 
-__all__ = ["Design", "FrameDataset", "Run", "Settings", "__version__", "generate_dataset", "available_pretrained", "load_config", "load_dataset",
-           "load_pretrained", "predict_designs", "train"]
+__all__ = ["Design", "FrameDataset", "Run", "Settings", "__version__", "available_pretrained", "generate_dataset",
+           "load_config", "load_dataset", "load_pretrained", "predict_designs", "train"]

@@ -43,15 +43,18 @@ def main() -> None:
     torch.set_num_threads(a.threads)
     run = Run.load(a.run, "cpu")
     stats = json.loads((a.run / "train_stats.json").read_text())
-    # run.yaml is written when training starts, train_stats.json when it ends
-    wall = (a.run / "train_stats.json").stat().st_mtime - (a.run / "run.yaml").stat().st_mtime
+    # training time from the log (median step time of every logged interval x its steps): a resumed run's
+    # files do not tell when it started
+    log = [json.loads(l) for l in (a.run / "log.jsonl").read_text().splitlines()]
+    logged = [r for r in log if "ms_per_step" in r]
+    wall = sum(r["ms_per_step"] / 1e3 * (r["step"] - p["step"]) for p, r in zip([{"step": 0}] + logged, logged))
     args = run.info["model"]
     card = {
         "summary": f"HCMT (hidden {args['hidden']}, λ {args['levels']}, L_C {args['L_C']}) trained "
                    f"{stats['steps']} steps on {run.meta['generator']['counts']['train']} generated "
                    f"`{run.meta['generator']['preset']}` Impact Plate trajectories",
         "steps": int(stats["steps"]), "device": stats.get("device"), "train_ms_per_step": stats["train_ms_per_step"],
-        "train_wall_s": wall, "data_command": a.data_command, "train_command": a.command,
+        "train_wall_s_from_log": wall, "data_command": a.data_command, "train_command": a.command,
         "checkpoint": run.info["checkpoint"], "seed": run.info.get("seed"), "machine": platform.processor() or
         platform.machine(), "torch": str(torch.__version__),
     }

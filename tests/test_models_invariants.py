@@ -244,3 +244,20 @@ def test_activation_checkpointing_gives_the_same_gradients(name, kw):
         grads.append({n: p.grad.clone() for n, p in model.named_parameters()})
     for n in grads[0]:
         torch.testing.assert_close(grads[1][n], grads[0][n], rtol=1e-5, atol=1e-7)
+
+
+def test_official_attention_maps_are_normalized_per_receiver_for_display():
+    import numpy as np
+
+    from hcmt.viz.attention import maps_from_model
+
+    g = grid_graph(9, 9, levels=2, node_in=NODE_IN, contacts=12)
+    model = warm(make("hcmt", levels=2, L_C=1, attention="official"), g)
+    levels = [np.arange(len(g.pool[0]))]  # level-0 index of level-1 nodes: any ids of the right count
+    levels.append(np.arange(len(g.pool[1])))
+    maps = maps_from_model(model, g, np.zeros(g.num_nodes, np.int64), levels)
+    assert maps["normalized_for_display"]
+    for name, m in maps["matrices"].items():
+        rows = np.asarray(m.sum(1)).ravel()
+        has = np.diff(m.indptr) > 0
+        np.testing.assert_allclose(rows[has], 1.0, rtol=1e-5)

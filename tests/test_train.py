@@ -329,3 +329,28 @@ def test_bf16_and_checkpointed_blocks_train(impact, tmp_path):
                                                   "train.checkpoint_blocks=true"])
     s = train(cfg, impact, "hcmt", tmp_path / "run", progress=False)
     assert s["steps"] == 2 and np.isfinite(s["final_loss"])
+
+
+def test_dataloader_workers_change_no_result(impact, tmp_path):
+    """train.workers builds graphs in DataLoader processes; the parameters end bit for bit as with 0 workers
+    (noise and data order are functions of the step, not of the process)."""
+    params = []
+    for workers in (0, 2):
+        cfg = load_config("impact_plate_cpu", TINY + ["train.steps=4", "train.noise_std=0.01", "train.batch_size=2",
+                                                      f"train.workers={workers}"])
+        train(cfg, impact, "hcmt", tmp_path / f"w{workers}", seed=2, progress=False)
+        params.append(torch.load(tmp_path / f"w{workers}" / "checkpoint.pt", weights_only=True)["model"])
+    assert all(torch.equal(params[0][k], params[1][k]) for k in params[0])
+
+
+def test_frame_dataset_pickles_without_its_trajectories(impact):
+    import pickle
+
+    from hcmt.train.frames import FrameDataset
+
+    ds = FrameDataset(impact, "train", get_adapter("impact_plate"), 1, True, 0.3, noise_std=0.01, seed=1)
+    graph, target, mask = ds[0]
+    clone = pickle.loads(pickle.dumps(ds))
+    assert clone._trajs is None  # reopened lazily in the worker
+    g2, t2, m2 = clone[0]
+    assert torch.equal(target, t2) and torch.equal(graph.node_features, g2.node_features) and len(ds) == len(clone)

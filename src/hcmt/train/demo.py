@@ -35,9 +35,7 @@ def configure(p: argparse.ArgumentParser) -> None:
 
 def main(args: argparse.Namespace) -> int:
     if args.steps is not None and not args.train:
-        from hcmt.cli import CommandError
-
-        raise CommandError("--steps sets the training length of `hcmt demo --train`; the default demo trains nothing "
+        raise ValueError("--steps sets the training length of `hcmt demo --train`; the default demo trains nothing "
                            "(it uses the shipped model)")
     return train_demo(args) if args.train else design_demo(args)
 
@@ -74,24 +72,20 @@ def design_demo(args: argparse.Namespace) -> int:
 def train_demo(args: argparse.Namespace) -> int:
     import torch
 
-    from hcmt.cli import CommandError
-    from hcmt.cli import main as hcmt
+    from hcmt.sim.generate import generate_dataset
     from hcmt.train.run import evaluate, format_metrics
     from hcmt.train.config import load_config
     from hcmt.train.trainer import train
 
     if args.steps is not None and args.steps < 1:
-        raise CommandError(f"--steps must be >= 1, got {args.steps}")
+        raise ValueError(f"--steps must be >= 1, got {args.steps}")
     out = Path(args.out)
     data, run = out / "impact_plate_small", out / "run_hcmt"
     t0 = time.perf_counter()
     if not (data / "test.h5").is_file() or (data / ".parts").exists():  # the generator resumes where it stopped
         print(f"[1/3] generating the small Impact Plate dataset in {data}")
-        rc = hcmt(["generate", "impact-plate", str(data), "--preset", "small", "--train",
-                   str(args.train_trajectories), "--valid", "1", "--test", str(args.test), "--seed", str(args.seed),
-                   "--workers", str(args.workers)])
-        if rc:
-            return rc
+        generate_dataset(data, preset="small", counts=dict(train=args.train_trajectories, valid=1, test=args.test),
+                         seed=args.seed, workers=args.workers)
     else:
         print(f"[1/3] reusing the dataset in {data}")
     cfg = load_config("demo", [f"train.steps={args.steps}"] if args.steps else [])

@@ -38,9 +38,14 @@ def run_name(label, seed, sigma, steps) -> str:
     return f"par_{label}_s{seed}_n{sigma_tag(sigma)}_{steps}"
 
 
+TABLE_ONLY = False  # --table-only: collect finished runs, train nothing
+
+
 def one(work, data, label, seed, sigma, steps, splits):
     model, overrides = VARIANTS[label]
     name = run_name(label, seed, sigma, steps)
+    if TABLE_ONLY and not all((work / "runs" / name / f"metrics_{s}.json").is_file() for s in splits):
+        return name, None
     res = run_and_evaluate(work, data, name, model, seed,
                            [f"train.steps={steps}", f"train.noise_std={sigma}", *overrides],
                            splits=splits, config=CONFIG, details=True)
@@ -55,8 +60,11 @@ def main() -> None:
     p.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2])
     p.add_argument("--models", nargs="+", default=list(VARIANTS), choices=list(VARIANTS))
     p.add_argument("--phase", choices=["sweep", "seeds", "all"], default="all")
+    p.add_argument("--table-only", action="store_true", help="write the tables from the finished runs; train nothing")
     a = p.parse_args()
-    data = dataset(a.work, PAPER)
+    global TABLE_ONLY
+    TABLE_ONLY = a.table_only
+    data = a.work / f"impact_plate_{PAPER['preset']}_{PAPER['train']}" if a.table_only else dataset(a.work, PAPER)
     for label in a.models:  # phase 1: the σ sweep, seed 0
         for sigma in a.sigmas:
             print(f"sweep {label} σ={sigma}", flush=True)

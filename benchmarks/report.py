@@ -267,7 +267,8 @@ def parity(lines):
         ro, rp = ratio("hcmt-official", "position"), ratio("hcmt", "position")
         lines += ["", "### What the headline says", "",
                   f"- With the authors' attention HCMT is {side(ro)} MGN on position ({ro:.2f}; stress "
-                  f"{ratio('hcmt-official', 'stress'):.2f}); with the paper's softmax it is {side(rp)} ({rp:.2f}; "
+                  f"{ratio('hcmt-official', 'stress'):.2f}); with the paper's softmax it is {side(rp).removesuffix(' of')} "
+                  f"({rp:.2f}; "
                   f"stress {ratio('hcmt', 'stress'):.2f}). The differences are of the size of the seed spread (one "
                   f"std over seeds is {spread('hcmt-official'):.2f} resp. {spread('hcmt'):.2f} of MGN's mean): at "
                   "this budget the data do not separate the models, and the paper's 0.51 / 0.41 is not reproduced.",

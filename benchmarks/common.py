@@ -14,7 +14,7 @@ from pathlib import Path
 
 
 from hcmt.cli import main as hcmt
-from hcmt.data.format import atomic_path
+from hcmt.data.format import atomic_path, take_lock
 from hcmt.train.run import evaluate, rollout_path
 from hcmt.train.config import load_config
 from hcmt.train.trainer import train
@@ -121,23 +121,7 @@ def rollout_details(run: Path, data: Path, split: str) -> dict:
 def claim(run: Path) -> bool:
     """Let several benchmark processes share the work: the first to create ``RUN.lock`` (holding its pid) owns
     the run; a lock whose process is gone is taken over."""
-    lock = run.parent / f"{run.name}.lock"
-    lock.parent.mkdir(parents=True, exist_ok=True)
-    for _ in range(2):
-        try:
-            fd = os.open(lock, os.O_CREAT | os.O_EXCL | os.O_WRONLY)
-        except FileExistsError:
-            try:
-                pid = int(lock.read_text() or 0)
-                os.kill(pid, 0)
-                return pid == os.getpid()
-            except (ProcessLookupError, ValueError):
-                lock.unlink(missing_ok=True)  # stale: its process is gone
-                continue
-        with os.fdopen(fd, "w") as f:
-            f.write(str(os.getpid()))
-        return True
-    return False
+    return take_lock(run.parent / f"{run.name}.lock") in (None, os.getpid())
 
 
 def write_json(name: str, obj) -> Path:

@@ -159,6 +159,30 @@ def atomic_path(path: str | os.PathLike) -> Iterator[Path]:
             tmp.unlink()
 
 
+def take_lock(lock: str | os.PathLike) -> int | None:
+    """Create ``lock`` holding this process's pid. Returns None when taken, else the pid of the live process that
+    already holds it (possibly this one); a lock whose process is gone is taken over."""
+    lock = Path(lock)
+    lock.parent.mkdir(parents=True, exist_ok=True)
+    for _ in range(2):
+        try:
+            fd = os.open(lock, os.O_CREAT | os.O_EXCL | os.O_WRONLY)
+        except FileExistsError:
+            try:
+                pid = int(lock.read_text() or 0)
+                os.kill(pid, 0)
+            except (ProcessLookupError, ValueError):
+                lock.unlink(missing_ok=True)  # stale: its process is gone
+                continue
+            except PermissionError:  # alive, another user's
+                pass
+            return pid
+        with os.fdopen(fd, "w") as f:
+            f.write(str(os.getpid()))
+        return None
+    raise OSError(f"{lock}: cannot take the lock")
+
+
 def ensure_space(path: str | os.PathLike, nbytes: int, margin: int = 1 << 20) -> None:
     """Refuse (``OSError`` ENOSPC naming ``path``) to write ``nbytes`` where the disk has less free space, before
     HDF5 tries: its library can crash on a full disk instead of raising. Uncompressed sizes, so conservative."""

@@ -220,26 +220,15 @@ def train(cfg: dict, data: str | Path, model_name: str, out: str | Path, *, abla
 
 
 def _lock(out: Path) -> Path:
-    """``RUN/.lock`` holding our pid; a lock whose process is gone is taken over."""
+    """``RUN/.lock`` holding our pid (:func:`hcmt.data.format.take_lock`); a second writer is refused."""
+    from hcmt.data.format import take_lock
+
     lock = out / ".lock"
-    for _ in range(2):
-        try:
-            fd = os.open(lock, os.O_CREAT | os.O_EXCL | os.O_WRONLY)
-        except FileExistsError:
-            try:
-                pid = int(lock.read_text() or 0)
-                os.kill(pid, 0)
-            except (ProcessLookupError, ValueError):
-                lock.unlink(missing_ok=True)  # stale
-                continue
-            except PermissionError:
-                pass
-            raise ValueError(f"{out} is being written by another training process (pid {pid}, {lock}); wait for "
-                             "it or choose another --out") from None
-        with os.fdopen(fd, "w") as f:
-            f.write(str(os.getpid()))
-        return lock
-    raise ValueError(f"{out}: cannot take the run lock {lock}")
+    holder = take_lock(lock)
+    if holder is not None:
+        raise ValueError(f"{out} is being written by another training process (pid {holder}, {lock}); wait for "
+                         "it or choose another --out")
+    return lock
 
 
 def rank_zero_logging(rank: int, out: Path) -> logging.Handler | None:

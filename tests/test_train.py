@@ -75,10 +75,11 @@ def test_non_finite_guard_names_trajectory_and_step(impact, tmp_path):
 
 
 def test_resume_ends_with_the_same_parameters(impact, tmp_path):
+    """Bit for bit on the CPU (CUDA: test_resume_on_cuda)."""
     cfg = load_config("impact_plate_cpu", TINY + ["train.steps=6", "train.noise_std=0.01"])
-    train(cfg, impact, "hcmt", tmp_path / "straight", seed=3, progress=False)
-    train(cfg, impact, "hcmt", tmp_path / "resumed", seed=3, progress=False, stop_at=3)
-    train(cfg, impact, "hcmt", tmp_path / "resumed", seed=3, progress=False, resume=True)
+    train(cfg, impact, "hcmt", tmp_path / "straight", seed=3, progress=False, device="cpu")
+    train(cfg, impact, "hcmt", tmp_path / "resumed", seed=3, progress=False, stop_at=3, device="cpu")
+    train(cfg, impact, "hcmt", tmp_path / "resumed", seed=3, progress=False, resume=True, device="cpu")
     a = torch.load(tmp_path / "straight" / "checkpoint.pt", weights_only=False)
     b = torch.load(tmp_path / "resumed" / "checkpoint.pt", weights_only=False)
     assert a["step"] == b["step"] == 6
@@ -291,10 +292,16 @@ def test_batched_rollout_equals_one_by_one(impact, tmp_path):
 def test_unknown_or_unavailable_device_is_one_line(impact, tmp_path, capsys):
     cfg = load_config("impact_plate_cpu", TINY + ["train.steps=1"])
     train(cfg, impact, "mgn", tmp_path / "run", progress=False)
+    run, data, out = str(tmp_path / "run"), str(impact), str(tmp_path / "out")
     for device in ("tpu", "cuda:7" if torch.cuda.is_available() else "cuda"):
-        assert cli(["evaluate", str(tmp_path / "run"), "--data", str(impact), "--device", device]) == 2
-        err = capsys.readouterr().err.strip().splitlines()
-        assert len(err) == 1 and f"--device {device}" in err[0].replace("'", "")
+        for cmd in (["evaluate", run, "--data", data], ["plot", run, "--data", data, "--out", out, "--only", "errors"],
+                    ["export", run, "--data", data, "--out", out]):
+            assert cli(cmd + ["--device", device]) == 2, cmd
+            err = capsys.readouterr().err.strip().splitlines()
+            assert len(err) == 1 and f"--device {device}" in err[0].replace("'", ""), (cmd, err)
+    assert not (tmp_path / "run" / "rollout_test.h5").exists()  # refused before any rollout
+    assert cli(["export", run, "--data", data, "--out", out, "--device", "cpu"]) == 0
+    assert (tmp_path / "run" / "rollout_test.h5").is_file() and list((tmp_path / "out").rglob("*.pvd"))
 
 
 def test_run_folder_rules(impact, tmp_path, capsys):
@@ -354,3 +361,63 @@ def test_frame_dataset_pickles_without_its_trajectories(impact):
     assert clone._trajs is None  # reopened lazily in the worker
     g2, t2, m2 = clone[0]
     assert torch.equal(target, t2) and torch.equal(graph.node_features, g2.node_features) and len(ds) == len(clone)
+
+
+def test_compiled_padded_training_matches_eager(impact, tmp_path, monkeypatch):
+    """train.compile trains on padded graphs through torch.compile; the parameters end as the eager run's.
+    torch.compile runs with the eager backend here (Dynamo traces the model, no C++/Triton build: seconds, not
+    minutes), which checks the padding, the eager normalizer accumulation and the tracing."""
+    compile_ = torch.compile
+    calls = []
+    monkeypatch.setattr(torch, "compile", lambda model, **kw: calls.append(kw) or compile_(model, backend="eager",
+                                                                                       dynamic=False))
+    params = {}
+    for mode in ("none", "reduce-overhead"):
+        cfg = load_config("impact_plate_cpu", TINY + ["train.steps=5", "train.noise_std=0.01", "train.batch_size=2",
+                                                      f"train.compile={mode}"])
+        train(cfg, impact, "hcmt", tmp_path / mode, seed=2, progress=False, device="cpu")
+        params[mode] = torch.load(tmp_path / mode / "checkpoint.pt", weights_only=True)["model"]
+    assert calls == [{"mode": "reduce-overhead", "dynamic": False}]
+    assert params["none"].keys() == params["reduce-overhead"].keys()
+    moved = 0
+    for k, v in params["none"].items():
+        torch.testing.assert_close(params["reduce-overhead"][k], v, rtol=1e-5, atol=1e-6, msg=k)
+        moved += k.endswith("count") and v.item() > 0
+    assert moved  # the normalizers did accumulate (the comparison covers their statistics)
+
+
+def test_compile_refuses_lpe_and_deterministic_is_scoped(impact, tmp_path):
+    cfg = load_config("impact_plate_cpu", TINY + ["train.steps=1", "train.compile=default"])
+    with pytest.raises(ValueError, match="lpe ablation"):
+        train(cfg, impact, "hcmt", tmp_path / "lpe", ablation="lpe", progress=False, device="cpu")
+    seen = []
+    from hcmt.train import trainer as tr
+
+    step = tr.Trainer.step
+    tr_step = lambda self, *a: seen.append(torch.are_deterministic_algorithms_enabled()) or step(self, *a)  # noqa
+    cfg = load_config("impact_plate_cpu", TINY + ["train.steps=2", "train.deterministic=true"])
+    try:
+        tr.Trainer.step = tr_step
+        train(cfg, impact, "hcmt", tmp_path / "det", progress=False, device="cpu")
+    finally:
+        tr.Trainer.step = step
+    assert seen == [True, True] and not torch.are_deterministic_algorithms_enabled()
+
+
+@pytest.mark.skipif(not torch.cuda.is_available(), reason="needs a CUDA GPU")
+@pytest.mark.parametrize("deterministic", [True, False])
+def test_resume_on_cuda(impact, tmp_path, deterministic):
+    """On CUDA, scatter sums are not reproducible by default: a resumed run matches within a tolerance;
+    with train.deterministic it matches bit for bit."""
+    cfg = load_config("impact_plate_cpu", TINY + ["train.steps=6", "train.noise_std=0.01",
+                                                  f"train.deterministic={str(deterministic).lower()}"])
+    train(cfg, impact, "hcmt", tmp_path / "straight", seed=3, progress=False, device="cuda")
+    train(cfg, impact, "hcmt", tmp_path / "resumed", seed=3, progress=False, device="cuda", stop_at=3)
+    train(cfg, impact, "hcmt", tmp_path / "resumed", seed=3, progress=False, device="cuda", resume=True)
+    a = torch.load(tmp_path / "straight" / "checkpoint.pt", weights_only=True)["model"]
+    b = torch.load(tmp_path / "resumed" / "checkpoint.pt", weights_only=True)["model"]
+    for k in a:
+        if deterministic:
+            assert torch.equal(a[k], b[k]), k
+        else:
+            torch.testing.assert_close(b[k], a[k], rtol=1e-4, atol=1e-5, msg=k)

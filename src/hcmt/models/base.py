@@ -56,13 +56,30 @@ class Simulator(nn.Module):
     def _accumulating(self, accumulate: bool | None) -> bool:
         return self.training if accumulate is None else bool(accumulate)
 
-    def normalize_target(self, target: Tensor, accumulate: bool | None = None) -> Tensor:
-        """Targets in the units the loss compares with ``forward``'s output (MGN: the output normalizer)."""
-        return self.output_normalizer(target, self._accumulating(accumulate))
+    def normalize_target(self, target: Tensor, accumulate: bool | None = None, mask: Tensor | None = None) -> Tensor:
+        """Targets in the units the loss compares with ``forward``'s output (MGN: the output normalizer); ``mask``
+        the graph's ``node_mask`` of a padded graph."""
+        return self.output_normalizer(target, self._accumulating(accumulate), mask)
 
     def denormalize(self, output: Tensor) -> Tensor:
         """``forward``'s normalized output back to physical units."""
         return self.output_normalizer.inverse(output)
+
+    @torch.no_grad()
+    def accumulate(self, graph: Graph, target: Tensor) -> None:
+        """Add one training batch to every normalizer the model uses, exactly as ``forward(graph,
+        accumulate=True)`` and ``normalize_target(target, accumulate=True)`` would. A compiled step calls this
+        eagerly and then the compiled ``forward`` without accumulation, so the compiled graph mutates no buffer
+        (CUDA graphs can replay it); padded graphs' dummy rows are left out through their masks."""
+        self.node_normalizer.accumulate(graph.node_features, graph.node_mask)
+        self.mesh_normalizer.accumulate(*self.mesh_inputs(graph))
+        if self.contact_encoder is not None:
+            self.contact_normalizer.accumulate(graph.contact_features, graph.contact_mask)
+        self.output_normalizer.accumulate(target, graph.node_mask)
+
+    def mesh_inputs(self, graph: Graph) -> tuple[Tensor, Tensor | None]:
+        """The raw mesh-edge features the mesh normalizer sees in one call, and their mask (HCMT: every level's)."""
+        return graph.mesh_features, graph.mesh_mask
 
     # -- encoders ------------------------------------------------------------------------------------------------
     def check_graph(self, graph: Graph) -> None:
@@ -80,10 +97,10 @@ class Simulator(nn.Module):
                 raise DatasetError(f"expected edges [2, E], got {tuple(e.shape)}", field=name)
 
     def encode_nodes(self, graph: Graph, accumulate: bool) -> Tensor:
-        return self.node_encoder(self.node_normalizer(graph.node_features, accumulate))
+        return self.node_encoder(self.node_normalizer(graph.node_features, accumulate, graph.node_mask))
 
-    def encode_mesh(self, features: Tensor, accumulate: bool) -> Tensor:
-        return self.mesh_encoder(self.mesh_normalizer(features, accumulate))
+    def encode_mesh(self, features: Tensor, mask: Tensor | None = None, *, accumulate: bool) -> Tensor:
+        return self.mesh_encoder(self.mesh_normalizer(features, accumulate, mask))
 
     def encode_contact(self, graph: Graph, accumulate: bool) -> Tensor:
-        return self.contact_encoder(self.contact_normalizer(graph.contact_features, accumulate))
+        return self.contact_encoder(self.contact_normalizer(graph.contact_features, accumulate, graph.contact_mask))

@@ -76,7 +76,7 @@ class GT(Simulator):
         self.check_graph(graph)
         acc = self._accumulating(accumulate)
         h = self.encode_nodes(graph, acc)
-        e = torch.cat([self.encode_mesh(graph.mesh_features, acc), self.encode_contact(graph, acc)])
+        e = torch.cat([self.encode_mesh(*self.mesh_inputs(graph), accumulate=acc), self.encode_contact(graph, acc)])
         edges = torch.cat([graph.mesh_edges, graph.contact_edges], dim=1)
         attention = []
         for n, layer in enumerate(self.layers):

@@ -133,6 +133,12 @@ class HCMT(Simulator):
                                    f"got {tuple(f.shape)}", field="level_features")
         return pool, edges, feats
 
+    def mesh_inputs(self, graph: Graph) -> tuple[Tensor, Tensor | None]:
+        """Level 0's and every pooled level's raw mesh-edge features, in one tensor, and their mask."""
+        level_feats = self._levels(graph)[2]
+        mask = None if graph.mesh_mask is None else torch.cat([graph.mesh_mask, *graph.level_masks[: len(level_feats)]])
+        return torch.cat([graph.mesh_features, *level_feats]), mask
+
     def forward(self, graph: Graph, accumulate: bool | None = None, return_attention: bool = False):
         """Normalized output ``[N, out]``; with ``return_attention`` also a list of ``(block name, weights)``
         with weights ``[E, H, d_k]`` per branch (CMT: ``cmt{ℓ}.mesh`` / ``cmt{ℓ}.contact``)."""
@@ -144,7 +150,7 @@ class HCMT(Simulator):
             z = z + self.lpe(graph.mesh_edges, graph.num_nodes, graph.batch)
         # one normalizer/encoder call for the mesh edges of every level (ε_mesh is shared across levels)
         sizes = [graph.mesh_features.shape[0]] + [f.shape[0] for f in level_feats]
-        latents = list(self.encode_mesh(torch.cat([graph.mesh_features, *level_feats]), acc).split(sizes))
+        latents = list(self.encode_mesh(*self.mesh_inputs(graph), accumulate=acc).split(sizes))
         edges = [graph.mesh_edges, *level_edges]
         contact = self.encode_contact(graph, acc) if len(self.cmt) else None
         attention = [] if return_attention else None

@@ -57,7 +57,7 @@ class MGN(Simulator):
         self.check_graph(graph)
         acc = self._accumulating(accumulate)
         z = self.encode_nodes(graph, acc)
-        e = self.encode_mesh(graph.mesh_features, acc)
+        e = self.encode_mesh(*self.mesh_inputs(graph), accumulate=acc)
         s = self.encode_contact(graph, acc)
         for block in self.blocks:
             z, e, s = self.run_block(block, z, e, graph.mesh_edges, s, graph.contact_edges)

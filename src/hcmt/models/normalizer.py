@@ -28,9 +28,22 @@ class Normalizer(nn.Module):
             raise ValueError(f"Normalizer expects features [rows, {self.size}], got shape {tuple(x.shape)}")
 
     @torch.no_grad()
-    def accumulate(self, x: Tensor) -> None:
-        """Add the rows of ``x`` to the statistics (no-op once ``max_accumulations`` is reached or x is empty)."""
+    def accumulate(self, x: Tensor, mask: Tensor | None = None) -> None:
+        """Add the rows of ``x`` to the statistics (no-op once ``max_accumulations`` is reached or x is empty).
+
+        ``mask`` ``[rows]`` (1 real, 0 dummy; padded graphs) adds only the real rows, without a Python branch on
+        tensor values, so a compiled step does not break its graph here; the statistics are those of the real
+        rows alone (a mask of zeros counts as empty)."""
         self._check(x)
+        if mask is not None:
+            real = mask.to(torch.float64)
+            on = ((self.num_accumulations < self.max_accumulations) & (real.sum() > 0)).to(torch.float64)
+            x64 = x.detach().to(torch.float64) * real[:, None]
+            self.count += on * real.sum()
+            self.sum += on * x64.sum(0)
+            self.sum_squared += on * (x64 * x64).sum(0)
+            self.num_accumulations += on
+            return
         if x.shape[0] == 0 or self.num_accumulations >= self.max_accumulations:
             return
         x64 = x.detach().to(torch.float64)
@@ -48,10 +61,10 @@ class Normalizer(nn.Module):
         std = var.sqrt().clamp(min=self.std_epsilon)
         return torch.where(self.count > 0, std, torch.ones_like(std)).float()
 
-    def forward(self, x: Tensor, accumulate: bool = False) -> Tensor:
-        """Normalize ``x`` (after adding it to the statistics when ``accumulate``)."""
+    def forward(self, x: Tensor, accumulate: bool = False, mask: Tensor | None = None) -> Tensor:
+        """Normalize ``x`` (after adding its rows, or its ``mask``ed rows, to the statistics when ``accumulate``)."""
         if accumulate:
-            self.accumulate(x)
+            self.accumulate(x, mask)
         else:
             self._check(x)
         return (x - self.mean().to(x.dtype)) / self.std().to(x.dtype)

@@ -86,7 +86,9 @@ SCHEMA: dict[str, dict[str, tuple]] = {
               "noise_gamma": (_FLOAT, None), "contact_radius": (_FLOAT, None), "normalizer_steps": (_INT, None),
               "log_every": (_INT, None), "checkpoint_every": (_INT, None), "valid_every": (_INT, None),
               "valid_trajectories": (_INT, None), "contact_pairs": (_STR, ("all", "official")),
-              "workers": (_INT, None), "checkpoint_blocks": (_BOOL, None), "precision": (_STR, ("fp32", "bf16"))},
+              "workers": (_INT, None), "checkpoint_blocks": (_BOOL, None), "precision": (_STR, ("fp32", "bf16")),
+              "compile": (_STR, ("none", "default", "reduce-overhead", "max-autotune")),
+              "deterministic": (_BOOL, None)},
     "data": {"exclude_trajectories": ("a list of trajectory indices", None)},
 }
 TOP = {"dataset": (_STR, ("impact_plate", "deforming_plate", "sphere_simple", "deformable_plate"))}

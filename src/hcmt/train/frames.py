@@ -21,7 +21,7 @@ import torch
 from torch import Tensor
 from torch.utils.data import Dataset, Sampler
 
-from hcmt.graph.batch import Graph, collate
+from hcmt.graph.batch import Graph, PadSizes, collate, pad_graph
 from hcmt.train.adapters import Adapter, node_features, noise_mask, output_mask, target
 from hcmt.train.data import Trajectory, build_graph, load_split
 
@@ -105,6 +105,27 @@ def collate_samples(items: list[tuple[Graph, Tensor, Tensor]]) -> tuple[Graph, T
     """A step's samples as one batched graph with concatenated targets and masks."""
     graphs, targets, masks = zip(*items)
     return collate(list(graphs)), torch.cat(targets), torch.cat(masks)
+
+
+def pad_sizes(dataset: FrameDataset, batch: int) -> PadSizes:
+    """Static sizes that hold any training batch of ``batch`` frames of ``dataset`` (``train.compile``): the mesh
+    and hierarchy of every trajectory are fixed, so the largest trajectory bounds every level."""
+    a = dataset.adapter
+    graphs = []
+    for tr in dataset.trajectories:
+        pos = tr.world_pos[a.history]
+        graphs.append(input_graph(tr, pos, tr.world_pos[0], tr.world_pos[a.history + 1], dataset.radius))
+    return PadSizes.of(graphs, batch)
+
+
+def collate_padded(items: list[tuple[Graph, Tensor, Tensor]], sizes: PadSizes) -> tuple[Graph, Tensor, Tensor]:
+    """:func:`collate_samples`, then dummy rows up to ``sizes`` (:func:`hcmt.graph.batch.pad_graph`); the
+    targets and the loss mask get zero rows, so the loss is the unpadded one."""
+    graph, tgt, mask = collate_samples(items)
+    padded = pad_graph(graph, sizes)
+    extra = padded.num_nodes - graph.num_nodes
+    return padded, torch.cat([tgt, tgt.new_zeros((extra, tgt.shape[1]))]), torch.cat(
+        [mask, mask.new_zeros((extra, mask.shape[1]))])
 
 
 class StepSampler(Sampler):

@@ -15,9 +15,19 @@ CPU and NCCL on GPU; each rank takes its share of the shared permutation. DDP br
 every forward, so the normalizers' statistics are rank 0's (a sample of the data, like any running statistic) and
 every rank normalizes its inputs alike; a non-finite loss on any rank stops all of them. Validation rollouts run on
 rank 0 while the others wait in the next all-reduce (keep them shorter than the backend's timeout).
+
+Speed options (``train.*``; the defaults are the exact eager step): ``workers`` (graphs built by DataLoader
+processes), ``precision: bf16`` (autocast), ``checkpoint_blocks`` (activation checkpointing per block),
+``compile`` (``torch.compile`` of the model on **padded** graphs: every batch is brought to static sizes by
+:func:`hcmt.graph.batch.pad_graph` in the DataLoader, contact edges to a few bucket sizes, so the compiled step sees
+few shapes and CUDA graphs (``reduce-overhead``) can replay it; the normalizers accumulate eagerly before the
+compiled forward, which then mutates no buffer), ``deterministic`` (deterministic CUDA kernels and cuBLAS
+workspace: a resumed CUDA run ends bit for bit like an unbroken one, at a cost in speed; CPU runs are exact
+without it).
 """
 from __future__ import annotations
 
+import functools
 import json
 import logging
 import math
@@ -35,7 +45,7 @@ from hcmt.data.format import atomic_path, read_meta
 from hcmt.models import build_model
 from hcmt.train.adapters import config_adapter, get_adapter
 from hcmt.train.data import load_split
-from hcmt.train.frames import FrameDataset, StepSampler, collate_samples, step_seed
+from hcmt.train.frames import FrameDataset, StepSampler, collate_padded, collate_samples, pad_sizes, step_seed
 from hcmt.train.metrics import rollout_rmse
 from hcmt.train.rollout import RolloutError, rollout
 
@@ -295,6 +305,15 @@ class Trainer:
             with atomic_path(out / "run.yaml") as tmp:
                 tmp.write_text(yaml.safe_dump(run, sort_keys=False))
 
+        self.compile = tc.get("compile", "none")
+        if self.compile != "none" and self.args.get("ablation") == "lpe":
+            raise ValueError("train.compile: the lpe ablation computes its eigenvectors per graph outside the model's "
+                             "tensors; use train.compile=none with it")
+        if tc.get("deterministic", False):
+            # cuBLAS needs this workspace setting for reproducible matmuls (read when its handle is created)
+            os.environ.setdefault("CUBLAS_WORKSPACE_CONFIG", ":4096:8")
+            torch.use_deterministic_algorithms(True)
+            torch.backends.cudnn.benchmark = False
         torch.manual_seed(seed)  # parameter initialization
         self.model = make_model(self.args).to(self.device)
         self.model.checkpoint_blocks = bool(tc.get("checkpoint_blocks", False))  # memory for recomputation
@@ -316,6 +335,11 @@ class Trainer:
         if self.world > 1:
             self.net = torch.nn.parallel.DistributedDataParallel(
                 self.model, device_ids=[self.device.index] if self.device.type == "cuda" else None)
+        self.pad = None
+        if self.compile != "none":  # static shapes: padded batches, one compiled graph per contact bucket
+            self.pad = pad_sizes(self.frames, int(tc.get("batch_size", 1)))
+            self.net = torch.compile(self.net, mode=None if self.compile == "default" else self.compile,
+                                     dynamic=False)
         self.writer = self.log = None
         if self.rank == 0:
             from torch.utils.tensorboard import SummaryWriter
@@ -352,8 +376,13 @@ class Trainer:
         torch.manual_seed(step_seed(self.seed, self.step_count, self.rank))  # global draws (LPE sign flips)
         graph, tgt, mask = graph.to(self.device), tgt.to(self.device), mask.to(self.device)
         with torch.autocast(self.device.type, dtype=torch.bfloat16, enabled=self.bf16):
-            pred = self.net(graph, accumulate=True)
-            norm_tgt = self.model.normalize_target(tgt, accumulate=True)
+            if self.pad is None:
+                pred = self.net(graph, accumulate=True)
+                norm_tgt = self.model.normalize_target(tgt, accumulate=True)
+            else:  # compiled: the same statistics, accumulated eagerly, then a forward that mutates no buffer
+                self.model.accumulate(graph, tgt)
+                pred = self.net(graph, accumulate=False)
+                norm_tgt = self.model.normalize_target(tgt, accumulate=False)
             loss = ((pred.float() - norm_tgt.float()) ** 2 * mask).sum() / mask.sum().clamp_min(1.0)
         lr = self.learning_rate(self.step_count)
         if self.step_count >= int(self.tc.get("normalizer_steps", 0)):
@@ -410,7 +439,8 @@ class Trainer:
         loader = iter(torch.utils.data.DataLoader(
             self.frames, batch_sampler=StepSampler(self.frames, int(tc.get("batch_size", 1)), self.seed,
                                                    self.step_count, end, self.world, rank),
-            collate_fn=collate_samples, num_workers=workers, worker_init_fn=_ignore_sigint if workers else None))
+            collate_fn=collate_samples if self.pad is None else functools.partial(collate_padded, sizes=self.pad),
+            num_workers=workers, worker_init_fn=_ignore_sigint if workers else None))
         times, loss = [], float("nan")
         interrupted = InterruptFlag()  # Ctrl-C / SIGTERM end the current step, then save and stop
         self.model.train()
@@ -471,9 +501,13 @@ class Trainer:
 
 def _train(cfg: dict, data: str | Path, model_name: str, out: Path, *, ablation: str | None, seed: int,
            resume: bool, device: str | None, progress: bool, stop_at: int | None) -> dict:
-    trainer = Trainer(cfg, data, model_name, out, ablation=ablation, seed=seed, resume=resume, device=device,
-                      progress=progress)
-    return trainer.run(stop_at)
+    deterministic = torch.are_deterministic_algorithms_enabled()
+    try:
+        trainer = Trainer(cfg, data, model_name, out, ablation=ablation, seed=seed, resume=resume, device=device,
+                          progress=progress)
+        return trainer.run(stop_at)
+    finally:  # train.deterministic holds for this run only
+        torch.use_deterministic_algorithms(deterministic)
 
 
 def load_run(run: str | Path, which: str = "best", device: str = "cpu"):

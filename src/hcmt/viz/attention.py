@@ -82,12 +82,13 @@ def maps_from_model(model, graph, object_id: np.ndarray, level_nodes: list[np.nd
     ``level_nodes[l]``: the level-0 index of every level-``l`` node (``l >= 1``)."""
     import torch
 
+    device = next(model.parameters()).device
     with torch.no_grad():
-        result = model(graph, accumulate=False, return_attention=True)
+        result = model(graph.to(device), accumulate=False, return_attention=True)
     if not isinstance(result, tuple):
         raise ValueError(f"{type(model).__name__} has no attention to show (MeshGraphNets is not a Transformer); "
                          "use an HCMT or GT run")
-    _, attention = result
+    attention = [(name, w.cpu()) for name, w in result[1]]
     sizes = [graph.num_nodes] + [len(v) for v in level_nodes]
     official = getattr(model, "attention_mode", "paper") == "official"
     matrices, levels = {}, {}
@@ -114,7 +115,7 @@ def default_frame(world_pos: np.ndarray, object_id: np.ndarray, history: int) ->
 
 
 def frame_attention(run: str | Path, data: str | Path, split: str = "test", trajectory: int | str = 0,
-                    frame: int | None = None, checkpoint: str = "best") -> AttentionMaps:
+                    frame: int | None = None, checkpoint: str = "best", device=None) -> AttentionMaps:
     """Attention maps of a run's model on one ground-truth frame (default: the impact, :func:`default_frame`)."""
 
     from hcmt.data.format import Split
@@ -125,7 +126,9 @@ def frame_attention(run: str | Path, data: str | Path, split: str = "test", traj
     from hcmt.train.trainer import load_run, uses_hierarchy
     from hcmt.viz.rollouts import run_label, trajectory_index
 
-    model, info = load_run(run, checkpoint)
+    from hcmt.train.run import resolve_device
+
+    model, info = load_run(run, checkpoint, device=str(resolve_device(device)))
     cfg = info["config"]
     adapter = config_adapter(cfg)
     levels, remesh = uses_hierarchy(info["model"])

@@ -48,6 +48,7 @@ def _common(p: argparse.ArgumentParser) -> None:
     p.add_argument("--data", required=True, help="native dataset folder")
     p.add_argument("--out", required=True, help="output folder")
     p.add_argument("--split", default="test")
+    p.add_argument("--device", help="where missing rollouts run: cpu, cuda, cuda:N (default: cuda when available)")
 
 
 # -- plot ----------------------------------------------------------------------------------------------------------
@@ -82,7 +83,7 @@ def main_plot(args: argparse.Namespace) -> int:
     written, notes = [], []
     case = None
     if {"contours", "animation", "hierarchy"} & set(only):
-        case = load_case(args.runs, args.data, args.split, args.trajectory, labels)
+        case = load_case(args.runs, args.data, args.split, args.trajectory, labels, args.device)
     if "contours" in only:
         from hcmt.viz.contours import plot_contours
 
@@ -95,7 +96,7 @@ def main_plot(args: argparse.Namespace) -> int:
         from hcmt.data.format import read_meta
         from hcmt.viz.curves import plot_error_curves, rollout_errors
 
-        errors = rollout_errors(args.runs, args.data, args.split, labels, limit=args.limit)
+        errors = rollout_errors(args.runs, args.data, args.split, labels, limit=args.limit, device=args.device)
         written.append(plot_error_curves(errors, read_meta(args.data), out / "rollout_error.png"))
     if "training" in only:
         from hcmt.data.format import read_meta
@@ -134,7 +135,8 @@ def main_plot(args: argparse.Namespace) -> int:
             if name not in ("hcmt", "gt"):
                 notes.append(f"attention: {label} ({run}) is not a Transformer; skipped")
                 continue
-            maps = frame_attention(run, args.data, args.split, args.trajectory, args.attention_frame)
+            maps = frame_attention(run, args.data, args.split, args.trajectory, args.attention_frame,
+                                   device=args.device)
             maps.model = label
             written.append(plot_attention(maps, out / f"attention_{_slug(label)}.png"))
     for path in written:
@@ -165,13 +167,13 @@ def main_export(args: argparse.Namespace) -> int:
         names = list(s.names)
     if args.trajectory == "all":
         for run in args.runs:  # roll the whole split out once rather than trajectory by trajectory
-            rollout_for(run, args.data, args.split)
+            rollout_for(run, args.data, args.split, device=args.device)
         picks = names
     else:
         picks = [args.trajectory]
     labels = unique_labels(args.runs)
     for t in picks:
-        case = load_case(args.runs, args.data, args.split, t, labels)
+        case = load_case(args.runs, args.data, args.split, t, labels, args.device)
         frames = list(range(0, case.num_frames, args.stride))
         for path in export_case(case, args.out, args.format, frames):
             print(f"wrote {path}")

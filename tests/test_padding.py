@@ -1,0 +1,119 @@
+"""Padded graphs (static shapes for compiled steps, ``train.compile``): dummy rows change no output, no gradient,
+no normalizer statistic, for every model and both attention modes, on single and batched graphs."""
+from __future__ import annotations
+
+import pytest
+import torch
+
+from hcmt.graph.batch import PadSizes, bucket, collate, pad_graph
+from hcmt.models import build_model
+from models_grid import grid_graph
+
+NODE_IN, MESH_IN, CONTACT_IN, OUT = 5, 6, 3, 3
+CONFIGS = [
+    ("hcmt", dict(levels=2, L_C=1)),
+    ("hcmt", dict(levels=2, L_C=1, attention="official", ffn_bias=False)),
+    ("hcmt", dict(levels=2, L_C=1, ablation="late-contact")),
+    ("hcmt", dict(levels=2, L_C=1, ablation="single-branch")),
+    ("mgn", dict(blocks=3)),
+    ("gt", dict(blocks=3)),
+]
+IDS = ["hcmt", "hcmt-official", "hcmt-late-contact", "hcmt-single-branch", "mgn", "gt"]
+
+
+def make(name, **kw):
+    torch.manual_seed(0)
+    return build_model(name, NODE_IN, MESH_IN, CONTACT_IN, OUT, hidden=32, heads=4, **kw)
+
+
+def loss_and_grads(model, graph, target, real: int):
+    """One training step's loss (normalizers accumulating) and the gradient of every parameter."""
+    model.train()
+    model.zero_grad()
+    pred = model(graph, accumulate=True)[:real]
+    tgt = model.normalize_target(target, accumulate=True)
+    loss = ((pred - tgt) ** 2).mean()
+    loss.backward()
+    return pred.detach(), {n: p.grad.clone() for n, p in model.named_parameters() if p.grad is not None}
+
+
+@pytest.mark.parametrize("name,kw", CONFIGS, ids=IDS)
+def test_padding_changes_no_output_gradient_or_statistic(name, kw):
+    graphs = [grid_graph(7, 8, levels=2, node_in=NODE_IN, contacts=9, seed=1),
+              grid_graph(6, 9, levels=2, node_in=NODE_IN, contacts=5, seed=2)]
+    g = collate(graphs)
+    sizes = PadSizes.of(graphs, batch=2)
+    padded = pad_graph(g, sizes)
+    assert padded.num_nodes == sizes.nodes > g.num_nodes  # padding is really there
+    assert padded.contact_edges.shape[1] == bucket(g.contact_edges.shape[1]) > g.contact_edges.shape[1]
+    target = torch.randn(g.num_nodes, OUT, generator=torch.Generator().manual_seed(5))
+    target_padded = torch.cat([target, torch.zeros(padded.num_nodes - g.num_nodes, OUT)])
+
+    a, b = make(name, **kw), make(name, **kw)
+    # the target normalizer of the padded model sees the padded target with the node mask
+    b.normalize_target = (lambda t, accumulate=None, f=b.normalize_target:
+                          f(target_padded, accumulate, padded.node_mask)[: g.num_nodes])
+    out_a, grads_a = loss_and_grads(a, g, target, g.num_nodes)
+    out_b, grads_b = loss_and_grads(b, padded, target, g.num_nodes)
+    assert out_a.abs().max() > 1e-3  # not vacuous
+    torch.testing.assert_close(out_b, out_a, rtol=1e-5, atol=1e-6)
+    assert grads_a.keys() == grads_b.keys() and len(grads_a) == len(list(a.parameters()))
+    for n in grads_a:
+        torch.testing.assert_close(grads_b[n], grads_a[n], rtol=1e-4, atol=1e-6, msg=n)
+    for (n, x), (_, y) in zip(a.named_buffers(), b.named_buffers()):  # normalizer statistics of real rows only
+        torch.testing.assert_close(y, x, rtol=1e-12, atol=1e-9, msg=n)
+    # eval mode, statistics frozen: the same again
+    a.eval(), b.eval()
+    with torch.no_grad():
+        torch.testing.assert_close(b(padded)[: g.num_nodes], a(g), rtol=1e-5, atol=1e-6)
+
+
+def test_dummy_rows_touch_only_dummy_nodes():
+    g = grid_graph(6, 6, levels=2, node_in=NODE_IN, contacts=4, seed=3)
+    p = pad_graph(g, PadSizes.of([g]))
+    n = g.num_nodes
+    for edges, mask in ((p.mesh_edges, p.mesh_mask), (p.contact_edges, p.contact_mask)):
+        dummy = edges[:, mask == 0]
+        assert dummy.numel() and (dummy == n).all()
+        assert (edges[:, mask == 1] < n).all()
+    counts = [n] + [int(q.shape[0]) for q in g.pool]
+    for l in range(g.num_levels):
+        kept = p.pool[l]
+        assert (kept[: counts[l + 1]] == g.pool[l]).all() and (kept[counts[l + 1]:] == counts[l]).all()
+        assert (p.level_edges[l][:, p.level_masks[l] == 0] == counts[l + 1]).all()
+
+
+def test_bucket_sizes_and_refusals():
+    assert bucket(0) == 64 and bucket(64) == 64 and bucket(65) == 80 and bucket(100) == 112
+    sizes = [bucket(n) for n in range(1, 5000)]
+    assert all(s >= n and (s <= 64 or s <= 1.25 * n + 1) for n, s in zip(range(1, 5000), sizes))
+    assert len(set(sizes)) <= 4 * 7 + 1  # four sizes per octave: few shapes to compile
+    g = grid_graph(6, 6, levels=2, node_in=NODE_IN, contacts=4)
+    with pytest.raises(ValueError, match="do not fit"):
+        pad_graph(g, PadSizes(g.num_nodes, 10_000, PadSizes.of([g]).levels))
+    with pytest.raises(ValueError, match="padded already"):
+        pad_graph(pad_graph(g, PadSizes.of([g])), PadSizes.of([g]))
+
+
+@pytest.mark.parametrize("name,kw", CONFIGS + [("hcmt", dict(levels=2, L_C=1, ablation="only-hmt"))],
+                         ids=IDS + ["hcmt-only-hmt"])
+@pytest.mark.parametrize("padded", [False, True], ids=["plain", "padded"])
+def test_eager_accumulate_equals_accumulating_forward(name, kw, padded):
+    """What a compiled step does (``model.accumulate`` then ``forward`` without accumulation) leaves the same
+    statistics and gives the same output as ``forward(accumulate=True)`` + ``normalize_target``."""
+    g = grid_graph(7, 7, levels=2, node_in=NODE_IN, contacts=6, seed=4)
+    target = torch.randn(g.num_nodes, OUT, generator=torch.Generator().manual_seed(1))
+    if padded:
+        g = pad_graph(g, PadSizes.of([g]))
+        target = torch.cat([target, torch.zeros(g.num_nodes - target.shape[0], OUT)])
+    a, b = make(name, **kw).train(), make(name, **kw).train()
+    with torch.no_grad():
+        out_a = a(g, accumulate=True)
+        a.normalize_target(target, accumulate=True, mask=g.node_mask)
+        b.accumulate(g, target)
+        out_b = b(g, accumulate=False)
+    torch.testing.assert_close(out_b, out_a)
+    stats = {n: x for n, x in a.named_buffers()}
+    assert any(n.endswith("count") and x.item() > 0 for n, x in stats.items())
+    for n, y in b.named_buffers():
+        assert torch.equal(y, stats[n]), n

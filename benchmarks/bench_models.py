@@ -9,6 +9,13 @@ A train step is forward + MSE loss on normalized targets + backward + Adam step;
 eval mode. Models are timed in interleaved rounds (one step of each per round) so that load drift on a shared
 machine hits them alike; the median over rounds is reported. The paper measured 51.12 ms (HCMT) and 51.56 ms (MGN)
 per training step on its GPU (appendix, Table 10).
+
+``--compile``: also the trainer's compiled step (``train.compile``): the graph padded to static sizes
+(:func:`hcmt.graph.batch.pad_graph`), normalizers accumulated eagerly, then ``torch.compile`` (mode
+``reduce-overhead``, i.e. CUDA graphs, on CUDA; inductor's default on the CPU) of forward + backward, Adam fused on
+CUDA. The compile time (first calls) is reported apart. ``--batches 1 8 32``: training throughput, paper-size
+samples per second, for batches of that many copies of the graph (HCMT and MGN; eager, and compiled with
+``--compile``).
 """
 from __future__ import annotations
 
@@ -41,6 +48,82 @@ def impact_plate_graph(seed: int = 0):
 def _sync(device):
     if device.type == "cuda":
         torch.cuda.synchronize(device)
+
+
+def _step_fn(model, graph, target, opt, compiled):
+    """The trainer's step: eager (accumulating forward) or compiled (eager accumulation, compiled forward)."""
+    net = model
+    if compiled:
+        net = torch.compile(model, mode="reduce-overhead" if graph.node_features.is_cuda else None, dynamic=False)
+
+    def step():
+        model.train()
+        if compiled:
+            model.accumulate(graph, target)
+            out, tgt = net(graph, accumulate=False), model.normalize_target(target, accumulate=False)
+        else:
+            out, tgt = model(graph, accumulate=True), model.normalize_target(target, accumulate=True)
+        loss = (out - tgt).square().mean()
+        opt.zero_grad(set_to_none=True)
+        loss.backward()
+        opt.step()
+
+    def infer():
+        model.eval()
+        with torch.no_grad():
+            net(graph, accumulate=False)
+
+    return step, infer
+
+
+def bench_modes(device: torch.device, steps: int, batches: list[int], compile_: bool, warmup: int = 3) -> dict:
+    """Eager vs compiled train step and inference (batch 1), and throughput per batch size, HCMT and MGN."""
+    from hcmt.graph.batch import PadSizes, collate, pad_graph
+
+    base = impact_plate_graph()
+    out_dim = dataset_spec("impact_plate")["out"]
+    modes = ["eager", "compiled"] if compile_ else ["eager"]
+    rows = []
+    for name in ("hcmt", "mgn"):
+        for batch in batches:
+            g = collate([base] * batch)
+            target = torch.randn(g.num_nodes, out_dim)
+            for mode in modes:
+                torch.manual_seed(0)
+                model = build_for_dataset(name, "impact_plate").to(device)
+                opt = torch.optim.Adam(model.parameters(), lr=1e-4, fused=device.type == "cuda")
+                graph, tgt = g, target
+                if mode == "compiled":
+                    graph = pad_graph(g, PadSizes.of([g]))
+                    tgt = torch.cat([target, target.new_zeros((graph.num_nodes - g.num_nodes, out_dim))])
+                graph, tgt = graph.to(device), tgt.to(device)
+                step, infer = _step_fn(model, graph, tgt, opt, mode == "compiled")
+                row = {"model": name, "mode": mode, "batch": batch, "nodes": g.num_nodes}
+                for kind, fn in (("train", step), ("inference", infer)):
+                    if kind == "inference" and batch != 1:
+                        continue
+                    _sync(device)
+                    t0 = time.perf_counter()
+                    for _ in range(warmup):
+                        fn()
+                    _sync(device)
+                    row[f"{kind}_warmup_s"] = time.perf_counter() - t0  # includes compilation when compiled
+                    times = []
+                    for _ in range(steps):
+                        _sync(device)
+                        t0 = time.perf_counter()
+                        fn()
+                        _sync(device)
+                        times.append(1000 * (time.perf_counter() - t0))
+                    row[f"{kind}_ms"] = statistics.median(times)
+                row["samples_per_s"] = 1000 * batch / row["train_ms"]
+                rows.append(row)
+                print(f"{name:5} {mode:8} batch {batch:3}: train {row['train_ms']:9.1f} ms "
+                      f"({row['samples_per_s']:7.2f} samples/s)"
+                      + (f", inference {row['inference_ms']:8.1f} ms" if "inference_ms" in row else "")
+                      + f", warm-up {row['train_warmup_s']:.1f} s", flush=True)
+    return {"device": str(device) if device.type == "cpu" else torch.cuda.get_device_name(device),
+            "threads": torch.get_num_threads(), "nodes": base.num_nodes, "steps": steps, "rows": rows}
 
 
 def bench(device: torch.device, steps: int, warmup: int = 3) -> dict:
@@ -97,6 +180,8 @@ def main(argv=None) -> int:
     p.add_argument("--threads", type=int, default=None, help="torch CPU threads (default: torch's)")
     p.add_argument("--device", choices=("cpu", "cuda", "all"), default="all")
     p.add_argument("--json", default=None, help="also write the results to this JSON file")
+    p.add_argument("--compile", action="store_true", help="eager vs compiled step (HCMT, MGN)")
+    p.add_argument("--batches", type=int, nargs="+", help="training throughput at these batch sizes (HCMT, MGN)")
     args = p.parse_args(argv)
     if args.threads:
         torch.set_num_threads(args.threads)
@@ -106,6 +191,13 @@ def main(argv=None) -> int:
     elif args.device == "cuda":
         p.error("no CUDA device available")
     results = []
+    if args.compile or args.batches:
+        for device in devices:
+            results.append(bench_modes(device, args.steps, args.batches or [1], args.compile))
+        if args.json:
+            with open(args.json, "w") as f:
+                json.dump(results, f, indent=2)
+        return 0
     for device in devices:
         torch.manual_seed(0)
         r = bench(device, args.steps)

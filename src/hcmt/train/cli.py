@@ -75,13 +75,21 @@ def _run_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--checkpoint", default="best", choices=["best", "checkpoint"])
     p.add_argument("--device", help="cpu, cuda, cuda:N (default: cuda when available)")
     p.add_argument("--batch", type=int, default=1, help="trajectories rolled out together as one batched graph")
+    _compile_arg(p)
+
+
+def _compile_arg(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--compile", default="none", choices=["none", "default", "reduce-overhead", "max-autotune"],
+                   help="torch.compile the model on padded graphs (reduce-overhead: CUDA graphs); the first steps "
+                        "compile (tens of seconds), later ones replay (default none)")
 
 
 configure_rollout = _run_args
 
 
 def main_rollout(args: argparse.Namespace) -> int:
-    path = run_rollouts(args.run, args.data, args.split, args.limit, args.checkpoint, args.device, args.batch)
+    path = run_rollouts(args.run, args.data, args.split, args.limit, args.checkpoint, args.device, args.batch,
+                        args.compile)
     print(f"wrote {path}")
     return 0
 
@@ -91,7 +99,8 @@ configure_evaluate = _run_args
 
 
 def main_evaluate(args: argparse.Namespace) -> int:
-    m = evaluate(args.run, args.data, args.split, args.limit, args.checkpoint, args.device, args.batch)
+    m = evaluate(args.run, args.data, args.split, args.limit, args.checkpoint, args.device, args.batch,
+                 args.compile)
     print(format_metrics(m))
     print(f"wrote {metrics_path(args.run, args.split)}")
     return 0
@@ -124,6 +133,7 @@ def configure_predict(p: argparse.ArgumentParser) -> None:
                    "(optional `name` column), one design per row")
     p.add_argument("--device", help="cpu, cuda, cuda:N (default: cuda when available)")
     p.add_argument("--batch", type=int, default=8, help="designs rolled out together (default 8)")
+    _compile_arg(p)
     p.add_argument("--yield-mpa", type=float, help="report the margin of the peak plate stress to this stress (MPa)")
     p.add_argument("--verify", action="store_true", help="also run the built-in solver and report the errors and "
                    "the speedup")
@@ -155,7 +165,7 @@ def main_predict(args: argparse.Namespace) -> int:
         for w in pr.range_warnings(d, run.ranges):
             print(f"hcmt predict: warning: {name}: {w}", file=sys.stderr)
     t0 = time.perf_counter()
-    preds = pr.predict(run, designs, batch=args.batch, progress=not args.no_progress)
+    preds = pr.predict(run, designs, batch=args.batch, progress=not args.no_progress, compile=args.compile)
     wall = time.perf_counter() - t0
     pr.add_margin(preds, args.yield_mpa)
     truth = verified = None

@@ -122,8 +122,10 @@ def design_trajectory(run, name: str, design: Design, settings: Settings):
     return prepare_trajectory(f, name, run.adapter, levels, remesh, attrs=start["attrs"]), f
 
 
-def predict(run, designs: list[tuple[str, Design]], batch: int = 8, progress: bool = True) -> list[Prediction]:
-    """Roll the run's model out over each design's recorded window, ``batch`` designs per model call."""
+def predict(run, designs: list[tuple[str, Design]], batch: int = 8, progress: bool = True,
+            compile: str = "none") -> list[Prediction]:
+    """Roll the run's model out over each design's recorded window, ``batch`` designs per model call
+    (``compile``: as :func:`hcmt.train.rollout.rollout_batch`)."""
     from tqdm import tqdm
 
     from hcmt.train.rollout import rollout_batch
@@ -139,7 +141,7 @@ def predict(run, designs: list[tuple[str, Design]], batch: int = 8, progress: bo
         chunk = designs[first:first + batch]
         t0 = time.perf_counter()
         built = [design_trajectory(run, name, d, settings) for name, d in chunk]
-        results = rollout_batch(run.model, run.adapter, [tr for tr, _ in built], run.radius,
+        results = rollout_batch(run.model, run.adapter, [tr for tr, _ in built], run.radius, compile=compile,
                                 progress=lambda n, k=len(chunk): bar.update(n * k))
         wall = (time.perf_counter() - t0) / len(chunk)
         for (name, design), (_, f), r in zip(chunk, built, results):

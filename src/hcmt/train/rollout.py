@@ -5,6 +5,10 @@ Several trajectories roll out together (:func:`rollout_batch`): at each step the
 disconnected graph and the model runs once, so a batch costs about one model call per step on a GPU. Every model is
 node-local (a node's output depends on its own graph only; the normalizers do not accumulate in rollout), so a batch
 gives what one-by-one rollouts give, up to float summation order (tests/test_train.py).
+
+``compile`` (``--compile`` of ``hcmt rollout / evaluate / predict``) runs the model through ``torch.compile`` on
+padded graphs (:func:`hcmt.graph.batch.pad_graph`): the mesh and hierarchy of a batch never change along a rollout
+and contact edges are padded to bucket sizes, so after the first steps every step replays a compiled graph.
 """
 from __future__ import annotations
 
@@ -12,7 +16,7 @@ import time
 
 import torch
 
-from hcmt.graph.batch import collate
+from hcmt.graph.batch import PadSizes, collate, pad_graph
 from hcmt.train.adapters import Adapter, integrate
 from hcmt.train.data import Trajectory
 from hcmt.train.frames import input_graph
@@ -23,24 +27,28 @@ class RolloutError(RuntimeError):
 
 
 @torch.no_grad()
-def rollout(model, adapter: Adapter, traj: Trajectory, radius: float, steps: int | None = None) -> dict:
+def rollout(model, adapter: Adapter, traj: Trajectory, radius: float, steps: int | None = None,
+            compile: str = "none") -> dict:
     """Roll ``model`` out over ``traj``. Returns ``world_pos`` [T, N, d] and ``stress`` [T, N, 1] (or None) as
     tensors whose first ``adapter.history + 1`` frames are the data's, ``ms_per_step`` and ``start`` (the first
     predicted frame)."""
-    return rollout_batch(model, adapter, [traj], radius, steps)[0]
+    return rollout_batch(model, adapter, [traj], radius, steps, compile=compile)[0]
 
 
 @torch.no_grad()
 def rollout_batch(model, adapter: Adapter, trajs: list[Trajectory], radius: float, steps: int | None = None,
-                  progress=None) -> list[dict]:
+                  progress=None, compile: str = "none") -> list[dict]:
     """Roll out several trajectories with the same number of frames together, one batched model call per step.
 
     Frames ``0 .. history`` of each trajectory start the rollout; later frames of ``traj.world_pos`` are read only
     where a boundary condition sets the position (clamped, symmetry and prescribed nodes), so a trajectory whose
     later frames hold just those values (:func:`hcmt.train.predict.design_trajectory`) rolls out the same.
     ``progress(n)`` is called after every step. Returns one dict per trajectory, as :func:`rollout`;
-    ``ms_per_step`` is the batch's time per step divided by the number of trajectories."""
+    ``ms_per_step`` is the batch's time per step divided by the number of trajectories (compilation included)."""
     model.eval()
+    net, pad = model, None
+    if compile != "none":
+        net = torch.compile(model, mode=None if compile == "default" else compile, dynamic=False)
     device = next(model.parameters()).device  # graphs go where the model is; results come back to the CPU
     lengths = {int(tr.world_pos.shape[0]) for tr in trajs}
     if len(lengths) != 1:
@@ -59,7 +67,12 @@ def rollout_batch(model, adapter: Adapter, trajs: list[Trajectory], radius: floa
             x, prev = pos[b][-1], pos[b][-2] if h else pos[b][-1]
             graphs.append(input_graph(tr, x, prev, tr.world_pos[t + 1], radius))
             inputs.append((x, prev))
-        out = model.denormalize(model(collate(graphs).to(device), accumulate=False)).cpu()
+        graph = collate(graphs)
+        real = graph.num_nodes
+        if net is not model:  # static sizes: the batch's mesh and hierarchy, contact edges in buckets
+            pad = pad or PadSizes.of([graph])
+            graph = pad_graph(graph, pad)
+        out = model.denormalize(net(graph.to(device), accumulate=False)[:real]).cpu()
         for b, (tr, o) in enumerate(zip(trajs, out.split(sizes))):
             x, prev = inputs[b]
             nxt, s = integrate(adapter, o, x, prev, tr.world_pos[t + 1], tr.static["node_type"])

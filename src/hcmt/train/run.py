@@ -138,15 +138,17 @@ class Run:
 
         return parse_design([f"{k}={v}" for k, v in params.items()], default_design(self.meta), where="design")
 
-    def rollout(self, data: str | Path, split: str = "test", limit: int | None = None, batch: int = 1) -> Path:
+    def rollout(self, data: str | Path, split: str = "test", limit: int | None = None, batch: int = 1,
+                compile: str = "none") -> Path:
         """Roll out over a split of a dataset; returns ``RUN/rollout_<split>.h5`` (run folders only)."""
         return run_rollouts(self._folder(), data, split, limit, self.info["checkpoint"]["file"].removesuffix(".pt"),
-                            str(self.device), batch)
+                            str(self.device), batch, compile)
 
-    def evaluate(self, data: str | Path, split: str = "test", limit: int | None = None, batch: int = 1) -> dict:
+    def evaluate(self, data: str | Path, split: str = "test", limit: int | None = None, batch: int = 1,
+                 compile: str = "none") -> dict:
         """The paper's RMSE metrics on a split (``RUN/metrics_<split>.json``); rolls out first when needed."""
         return evaluate(self._folder(), data, split, limit, self.info["checkpoint"]["file"].removesuffix(".pt"),
-                        str(self.device), batch)
+                        str(self.device), batch, compile)
 
     def _folder(self) -> Path:
         if self.source.startswith("pretrained:"):
@@ -197,7 +199,8 @@ def rollout_path(run: str | Path, split: str) -> Path:
     return Path(run) / f"rollout_{split}.h5"
 
 
-def run_rollouts(run, data, split, limit=None, checkpoint="best", device=None, batch: int = 1) -> Path:
+def run_rollouts(run, data, split, limit=None, checkpoint="best", device=None, batch: int = 1,
+                 compile: str = "none") -> Path:
     """Roll a run's model out over a split; predictions go to ``RUN/rollout_<split>.h5`` (atomically). ``batch``
     trajectories of equal length step together as one batched graph. The progress bar counts model steps over the
     whole split (with an ETA)."""
@@ -225,7 +228,7 @@ def run_rollouts(run, data, split, limit=None, checkpoint="best", device=None, b
         for group in by_length.values():
             for first in range(0, len(group), batch):
                 chunk = group[first:first + batch]
-                results = rollout_batch(r.model, r.adapter, chunk, r.radius,
+                results = rollout_batch(r.model, r.adapter, chunk, r.radius, compile=compile,
                                         progress=lambda n, k=len(chunk): bar.update(n * k))
                 for tr, res in zip(chunk, results):
                     ensure_space(path, res["world_pos"].numel() * 4 * 2)
@@ -246,7 +249,7 @@ def rollout_key(data, split, checkpoint_file, step) -> dict:
 
 
 def rollout_for(run, data, split: str, need: int | None = None, checkpoint: str = "best", device=None,
-                batch: int = 1) -> Path:
+                batch: int = 1, compile: str = "none") -> Path:
     """The one rollout-cache rule, used by evaluation and every picture: ``RUN/rollout_<split>.h5`` is reused when
     it was made from this dataset, split and checkpoint (same step) and holds the first ``need`` trajectories of
     the split (all when ``need`` is None); otherwise it is rolled out again, never with fewer trajectories than the
@@ -274,16 +277,17 @@ def rollout_for(run, data, split: str, need: int | None = None, checkpoint: str 
                 if set(names[:want]) <= set(f.keys()):
                     return path
     limit = max(want, have)
-    return run_rollouts(run, data, split, limit if limit < len(names) else None, checkpoint, device, batch)
+    return run_rollouts(run, data, split, limit if limit < len(names) else None, checkpoint, device, batch, compile)
 
 
-def evaluate(run, data, split, limit=None, checkpoint="best", device=None, batch: int = 1) -> dict:
+def evaluate(run, data, split, limit=None, checkpoint="best", device=None, batch: int = 1,
+             compile: str = "none") -> dict:
     """Paper metrics of a run on a split; rolls out first (on ``device``, default CUDA when available) if
     ``RUN/rollout_<split>.h5`` is missing or stale."""
     from hcmt.data.format import Split
     from hcmt.train.metrics import aggregate, rollout_rmse
 
-    path = rollout_for(run, data, split, limit, checkpoint, device, batch)
+    path = rollout_for(run, data, split, limit, checkpoint, device, batch, compile)
     per_traj, ms = [], []
     with h5py.File(path, "r") as f, Split(data, split) as s:
         index = {n: i for i, n in enumerate(s.names)}

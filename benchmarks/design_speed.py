@@ -32,6 +32,8 @@ def main() -> None:
     p.add_argument("--threads", type=int, default=1)
     p.add_argument("--seed", type=int, default=123)
     p.add_argument("--json", default="design_speed_cpu.json")
+    p.add_argument("--compile", nargs="+", default=["none"], help="inference modes to time (none, default, "
+                   "reduce-overhead): each batch size is timed in each mode")
     a = p.parse_args()
     torch.set_num_threads(a.threads)
     run = Run.load(a.model, a.device)
@@ -43,17 +45,18 @@ def main() -> None:
     truth = pr.solve(designs, settings)
     solver = np.array([t.wall_s for t in truth])
     rows = {}
-    for batch in a.batches:
+    for batch, mode in ((b, m) for m in a.compile for b in a.batches):
         t1 = time.perf_counter()
-        preds = pr.predict(run, designs, batch=batch, progress=False)
+        preds = pr.predict(run, designs, batch=batch, progress=False, compile=mode)
         wall = time.perf_counter() - t1
         per = wall / len(designs)
-        rows[str(batch)] = {"wall_s": wall, "per_design_s": per, "speedup_median_solver": float(np.median(solver) / per),
+        key = str(batch) if mode == "none" else f"{batch} compile={mode}"
+        rows[key] = {"wall_s": wall, "per_design_s": per, "speedup_median_solver": float(np.median(solver) / per),
                             "peak_stress_error_pct_median": float(np.median(np.abs(
                                 [100 * (q.summary["peak_plate_stress_mpa"] - t.summary["peak_plate_stress_mpa"])
                                  / t.summary["peak_plate_stress_mpa"] for q, t in zip(preds, truth)])))}
-        print(f"batch {batch}: {per:.3f} s per design ({wall:.1f} s for {len(designs)}); solver median "
-              f"{np.median(solver):.3f} s: speedup {rows[str(batch)]['speedup_median_solver']:.2f}x", flush=True)
+        print(f"batch {key}: {per:.3f} s per design ({wall:.1f} s for {len(designs)}, compilation included); solver "
+              f"median {np.median(solver):.3f} s: speedup {rows[key]['speedup_median_solver']:.2f}x", flush=True)
     dev = str(run.device)
     name = torch.cuda.get_device_name(run.device) if run.device.type == "cuda" else (platform.processor() or
                                                                                         platform.machine())
@@ -61,7 +64,7 @@ def main() -> None:
            "solver_s_median": float(np.median(solver)), "solver_s_total": float(solver.sum()), "batches": rows,
            "wall_total_s": time.perf_counter() - t0,
            "command": f"python benchmarks/design_speed.py --model {a.model} --designs {a.designs} --batches "
-                      + " ".join(map(str, a.batches)) + f" --threads {a.threads}"}
+                      + " ".join(map(str, a.batches)) + f" --threads {a.threads} --compile " + " ".join(a.compile)}
     print(f"wrote {write_json(a.json, out)}")
 
 

@@ -2,7 +2,8 @@
 time and peak memory grow with node count.
 
     python benchmarks/speed.py rollout --n 3 [--run RUN]        # paper preset: solver s/trajectory vs HCMT/MGN rollout
-    python benchmarks/speed.py scaling [--sizes 1000 2000 4000 8000 16000 32000 64000]
+    python benchmarks/speed.py scaling [--sizes 1000 2000 4000 8000 16000 32000 64000] [--models hcmt mgn]
+                                       [--checkpoint-blocks] [--device cpu|cuda] [--json speed_scaling.json]
 
 ``rollout``: simulates ``n`` paper-preset designs with the generator's solver (timed), then rolls HCMT and MGN out
 over the same trajectories (timed per step: graph building, contact search and the model, no I/O). With ``--run``
@@ -103,10 +104,13 @@ def mesh_with_nodes(target: int) -> dict:
 MEMORY_CAP_GB = 12  # per measurement process: a size that needs more fails cleanly instead of meeting the OOM killer
 
 
-def _one(model_name: str, target: int, reps: int) -> dict:
-    """One (model, size) measurement; run in its own process."""
-    cap = MEMORY_CAP_GB << 30
-    resource.setrlimit(resource.RLIMIT_AS, (cap, cap))
+def _one(model_name: str, target: int, reps: int, checkpoint_blocks: bool = False, device: str = "cpu") -> dict:
+    """One (model, size) measurement; run in its own process. ``checkpoint_blocks``: activation checkpointing per
+    block (``train.checkpoint_blocks``). On CUDA the peak is the allocator's (``max_memory_allocated``)."""
+    dev = torch.device(device)
+    if dev.type == "cpu":  # CUDA reserves address space far beyond its use: cap the CPU runs only
+        cap = MEMORY_CAP_GB << 30
+        resource.setrlimit(resource.RLIMIT_AS, (cap, cap))
     from hcmt.graph.build import frame_graph
 
     mesh = mesh_with_nodes(target)
@@ -121,51 +125,63 @@ def _one(model_name: str, target: int, reps: int) -> dict:
     feats = torch.cat([torch.nn.functional.one_hot(torch.from_numpy(mesh["node_type"]), 9).float(),
                        torch.from_numpy(rng.normal(size=(n, 4))).float()], 1)
     torch.manual_seed(0)
-    model = build_for_dataset(model_name, "impact_plate")
-    opt = torch.optim.Adam(model.parameters(), 1e-4)
-    target_out = torch.randn(n, 3)
+    model = build_for_dataset(model_name, "impact_plate").to(dev)
+    model.checkpoint_blocks = checkpoint_blocks
+    opt = torch.optim.Adam(model.parameters(), 1e-4, fused=dev.type == "cuda")
+    target_out = torch.randn(n, 3, device=dev)
     times = []
     for i in range(reps + 1):
         t0 = time.perf_counter()
-        g = frame_graph(feats, mesh_pos, world, h, 0.4)
+        g = frame_graph(feats, mesh_pos, world, h, 0.4).to(dev)
         loss = ((model(g, accumulate=True) - model.normalize_target(target_out, accumulate=True)) ** 2).mean()
         opt.zero_grad()
         loss.backward()
         opt.step()
+        if dev.type == "cuda":
+            torch.cuda.synchronize(dev)
         if i:  # the first step warms up allocators
             times.append(1e3 * (time.perf_counter() - t0))
+    peak = (torch.cuda.max_memory_allocated(dev) / 2**20 if dev.type == "cuda"
+            else resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024)
     return {"model": model_name, "nodes": n, "edges": int(g.mesh_edges.shape[1]), "train_ms": statistics.median(times),
-            "hierarchy_ms": hierarchy_ms, "peak_rss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024}
+            "hierarchy_ms": hierarchy_ms, "peak_mb": peak, "peak_kb_per_node": peak * 1024 / n,
+            "checkpoint_blocks": checkpoint_blocks, "device": device if dev.type == "cpu"
+            else torch.cuda.get_device_name(dev)}
 
 
 def _scaling(args) -> None:
     """Resumable: rows already in speed_scaling.json are kept, the file is rewritten after every new row."""
     from common import RESULTS
 
-    old = RESULTS / "speed_scaling.json"
+    old = RESULTS / args.json
     rows = json.loads(old.read_text())["rows"] if old.is_file() else []
+    ckpt = bool(args.checkpoint_blocks)
     for size in args.sizes:
-        for model in ("hcmt", "mgn"):
-            if any(r["model"] == model and r.get("target_nodes", r.get("nodes")) == size for r in rows):
+        for model in args.models:
+            if any(r["model"] == model and r.get("target_nodes", r.get("nodes")) == size
+                   and r.get("checkpoint_blocks", False) == ckpt and r.get("device", "cpu") in (args.device, None)
+                   for r in rows):
                 continue
-            out = subprocess.run([sys.executable, __file__, "one", model, str(size), "--reps", str(args.reps)],
+            out = subprocess.run([sys.executable, __file__, "one", model, str(size), "--reps", str(args.reps),
+                                  "--device", args.device] + (["--checkpoint-blocks"] if ckpt else []),
                                  capture_output=True, text=True, env={**os.environ, "PYTHONUNBUFFERED": "1"})
             if out.returncode:
                 err = out.stderr.strip().splitlines()[-1] if out.stderr.strip() else f"exit {out.returncode}"
-                rows.append({"model": model, "target_nodes": size, "failed": err[-300:]})
+                rows.append({"model": model, "target_nodes": size, "failed": err[-300:], "checkpoint_blocks": ckpt,
+                             "device": args.device})
                 print(json.dumps(rows[-1]), flush=True)
-                write_json("speed_scaling.json", {"rows": rows, "exponent": {}, "threads": torch.get_num_threads()})
+                write_json(args.json, {"rows": rows, "exponent": {}, "threads": torch.get_num_threads()})
                 continue
             rows.append({"target_nodes": size, **json.loads(out.stdout.strip().splitlines()[-1])})
             print(json.dumps(rows[-1]), flush=True)
-            write_json("speed_scaling.json", {"rows": rows, "exponent": {}, "threads": torch.get_num_threads()})
+            write_json(args.json, {"rows": rows, "exponent": {}, "threads": torch.get_num_threads()})
     fits = {}
     for model in ("hcmt", "mgn"):
-        r = [x for x in rows if x["model"] == model and "train_ms" in x]
+        r = [x for x in rows if x["model"] == model and "train_ms" in x and not x.get("checkpoint_blocks")]
         if len(r) >= 2:
             k, _ = np.polyfit(np.log([x["nodes"] for x in r]), np.log([x["train_ms"] for x in r]), 1)
             fits[model] = float(k)
-    path = write_json("speed_scaling.json", {"rows": rows, "exponent": fits, "threads": torch.get_num_threads()})
+    path = write_json(args.json, {"rows": rows, "exponent": fits, "threads": torch.get_num_threads()})
     print(f"time ∝ N^k: {fits}\nwrote {path}")
 
 
@@ -179,17 +195,23 @@ def main() -> None:
     s = sub.add_parser("scaling")
     s.add_argument("--sizes", type=int, nargs="+", default=[1000, 2000, 4000, 8000, 16000, 32000, 64000])
     s.add_argument("--reps", type=int, default=3)
+    s.add_argument("--models", nargs="+", default=["hcmt", "mgn"])
+    s.add_argument("--checkpoint-blocks", action="store_true", help="activation checkpointing per block")
+    s.add_argument("--device", default="cpu")
+    s.add_argument("--json", default="speed_scaling.json", help="under benchmarks/results (resumed if present)")
     o = sub.add_parser("one")
     o.add_argument("model")
     o.add_argument("size", type=int)
     o.add_argument("--reps", type=int, default=3)
+    o.add_argument("--checkpoint-blocks", action="store_true")
+    o.add_argument("--device", default="cpu")
     a = p.parse_args()
     if a.what == "rollout":
         _rollout(a)
     elif a.what == "scaling":
         _scaling(a)
     else:
-        print(json.dumps(_one(a.model, a.size, a.reps)))
+        print(json.dumps(_one(a.model, a.size, a.reps, a.checkpoint_blocks, a.device)))
 
 
 if __name__ == "__main__":

@@ -173,7 +173,11 @@ def gpu_path(lines):
                   f"({entry['device']}, {entry['threads']} thread, paper-size graph of {entry['nodes']} nodes; batch B "
                   "= B copies of it; the trainer's step: eager, or padded + eager normalizer accumulation + "
                   "`torch.compile` (inductor) of forward and backward; median of the timed steps; warm-up = the first "
-                  "3 steps, compilation included).", "",
+                  "3 steps, compilation included). Measured while a training run held the machine's other core, so the "
+                  "absolute times are above the one-thread table above; eager and compiled ran in the same process, "
+                  "one after the other, under the same load. The compiled step is faster for HCMT on this CPU but "
+                  "costs minutes of compilation per shape and agrees with the eager step to float tolerance, not "
+                  "bit for bit: `train.compile` stays off by default.", "",
                   "| model | mode | batch | train ms/step | samples/s | inference ms | warm-up s |",
                   "|---|---|---|---|---|---|---|"]
         for r in entry["rows"]:

@@ -207,6 +207,25 @@ def gpu_path(lines):
                   "are not reached (rows above), and on a GPU they are not measured.", ""]
 
 
+def cpu_ab(lines):
+    runs = {(side, i): load(f"cpu_ab_{side}_{i}.json") for side in ("old", "new") for i in (1, 2)}
+    if not all(runs.values()):
+        return
+    lines += ["### The CPU is not slower", "",
+              "Command: `git worktree add --detach ../old c18dfe3 && PYTHON=.venv/bin/python bash benchmarks/cpu_ab.sh "
+              "../old .` (c18dfe3: the last commit before the compiled/padded paths; old and new alternate, twice, "
+              "one thread each, while a training run held the other core). Paper-size graph, eager, median of 5 "
+              "steps, ms:", "", "| model | train old | train new | new ÷ old | inference old | inference new | new ÷ old |",
+              "|---|---|---|---|---|---|---|"]
+    for m in ("hcmt", "mgn", "gt"):
+        for i in (1, 2):
+            a, b = runs[("old", i)][0]["models"][m], runs[("new", i)][0]["models"][m]
+            lines.append(f"| {m.upper()} (round {i}) | {a['train_ms']:.0f} | {b['train_ms']:.0f} | "
+                         f"{b['train_ms'] / a['train_ms']:.2f} | {a['inference_ms']:.0f} | {b['inference_ms']:.0f} | "
+                         f"{b['inference_ms'] / a['inference_ms']:.2f} |")
+    lines.append("")
+
+
 def speed(lines):
     models, roll, scal = load("models_cpu.json"), load("speed_rollout.json"), load("speed_scaling.json")
     if models or roll or scal:
@@ -433,7 +452,7 @@ def main() -> None:
              "Every number below was produced by the command quoted with it, on this project's development machine "
              "(2 CPU cores, no GPU) unless stated. This file is written by `python benchmarks/report.py` from "
              "`benchmarks/results/*.json`; the paper's numbers are quoted for comparison only.", ""]
-    for section in (parity, propagation, accuracy, longer, ablations, generalization, speed, gpu_path, hierarchy):
+    for section in (parity, propagation, accuracy, longer, ablations, generalization, speed, gpu_path, cpu_ab, hierarchy):
         section(lines)
     DOC.parent.mkdir(exist_ok=True)
     DOC.write_text("\n".join(lines).rstrip() + "\n")

@@ -30,6 +30,7 @@ import torch
 from hcmt.graph.build import frame_graph
 from hcmt.graph.hierarchy import build_hierarchy
 from hcmt.models import build_for_dataset, dataset_spec
+from hcmt.models.base import compile_simulator
 from hcmt.sim.mesh import preset_mesh
 
 
@@ -50,11 +51,11 @@ def _sync(device):
         torch.cuda.synchronize(device)
 
 
-def _step_fn(model, graph, target, opt, compiled):
+def _step_fn(model, graph, target, opt, compiled, mask):
     """The trainer's step: eager (accumulating forward) or compiled (eager accumulation, compiled forward)."""
     net = model
     if compiled:
-        net = torch.compile(model, mode="reduce-overhead" if graph.node_features.is_cuda else None, dynamic=False)
+        net = compile_simulator(model, "reduce-overhead" if graph.node_features.is_cuda else "default")
 
     def step():
         model.train()
@@ -63,7 +64,7 @@ def _step_fn(model, graph, target, opt, compiled):
             out, tgt = net(graph, accumulate=False), model.normalize_target(target, accumulate=False)
         else:
             out, tgt = model(graph, accumulate=True), model.normalize_target(target, accumulate=True)
-        loss = (out - tgt).square().mean()
+        loss = ((out - tgt).square() * mask).sum() / mask.sum()
         opt.zero_grad(set_to_none=True)
         loss.backward()
         opt.step()
@@ -97,7 +98,9 @@ def bench_modes(device: torch.device, steps: int, batches: list[int], compile_: 
                     graph = pad_graph(g, PadSizes.of([g]))
                     tgt = torch.cat([target, target.new_zeros((graph.num_nodes - g.num_nodes, out_dim))])
                 graph, tgt = graph.to(device), tgt.to(device)
-                step, infer = _step_fn(model, graph, tgt, opt, mode == "compiled")
+                mask = (graph.node_mask if graph.node_mask is not None
+                        else torch.ones(graph.num_nodes, device=device))[:, None]  # the loss over real rows only
+                step, infer = _step_fn(model, graph, tgt, opt, mode == "compiled", mask)
                 row = {"model": name, "mode": mode, "batch": batch, "nodes": g.num_nodes}
                 for kind, fn in (("train", step), ("inference", infer)):
                     if kind == "inference" and batch != 1:

@@ -290,7 +290,14 @@ def speed(lines):
             if pairs:
                 lines += ["Checkpointing against the plain step at the same size: " + "; ".join(
                     f"{a['nodes']} nodes: peak {peak(b) / peak(a):.2f}×, time {b['train_ms'] / a['train_ms']:.2f}×"
-                    for a, b in pairs) + " (peak RSS includes the process's fixed cost, ~0.5 GB).", ""]
+                    for a, b in pairs) + " (peak RSS includes the process's fixed cost, ~0.5 GB; the plain rows were "
+                    "measured in an earlier session, the checkpointed ones while a training run held the other core, "
+                    "so the time ratios are indicative only).", ""]
+            last = max((r for r in ckpt if "train_ms" in r), key=lambda r: r["nodes"], default=None)
+            if last:
+                lines += [f"At {peak(last) * 1024 / last['nodes']:.0f} kB per node ({last['nodes']} nodes), a "
+                          f"250,000-node HCMT step would need about {peak(last) / last['nodes'] * 250_000 / 1024:.0f} GB "
+                          "(extrapolated, not measured: no machine here holds it; the issue's 80 GB GPU would).", ""]
 
 
 def hierarchy(lines):

@@ -177,7 +177,8 @@ def _scaling(args) -> None:
             write_json(args.json, {"rows": rows, "exponent": {}, "threads": torch.get_num_threads()})
     fits = {}
     for model in ("hcmt", "mgn"):
-        r = [x for x in rows if x["model"] == model and "train_ms" in x and not x.get("checkpoint_blocks")]
+        r = [x for x in rows if x["model"] == model and "train_ms" in x and not x.get("checkpoint_blocks")
+             and x.get("device", "cpu") in (args.device, None)]
         if len(r) >= 2:
             k, _ = np.polyfit(np.log([x["nodes"] for x in r]), np.log([x["train_ms"] for x in r]), 1)
             fits[model] = float(k)

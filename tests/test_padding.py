@@ -117,3 +117,27 @@ def test_eager_accumulate_equals_accumulating_forward(name, kw, padded):
     assert any(n.endswith("count") and x.item() > 0 for n, x in stats.items())
     for n, y in b.named_buffers():
         assert torch.equal(y, stats[n]), n
+
+
+def test_compile_helper_holds_the_buckets_and_refuses_unknown_modes(monkeypatch):
+    import torch._dynamo
+
+    from hcmt.models.base import compile_simulator
+
+    seen = []
+    monkeypatch.setattr(torch, "compile", lambda m, **kw: seen.append(kw) or m)
+    model = make("mgn", blocks=1)
+    with torch._dynamo.config.patch(recompile_limit=8):  # restored afterwards
+        assert compile_simulator(model, "default") is model and seen == [{"mode": None, "dynamic": False}]
+        assert torch._dynamo.config.recompile_limit >= 64  # Dynamo would fall back to eager after 8 shapes
+    with pytest.raises(ValueError, match="compile mode 'fast'"):
+        compile_simulator(model, "fast")
+
+
+def test_pad_sizes_are_bucket_sizes():
+    """Every padded size is a bucket size, so meshes of similar size (other designs) mostly share shapes."""
+    a, b = (grid_graph(10, c, levels=2, node_in=NODE_IN, contacts=3) for c in (10, 11))
+    sa, sb = PadSizes.of([a]), PadSizes.of([b])
+    sizes = [sa.nodes, sa.mesh, *[x for lv in sa.levels for x in lv]]
+    assert all(bucket(x) == x for x in sizes)
+    assert (sa.nodes, sa.mesh) == (sb.nodes, sb.mesh) and a.num_nodes != b.num_nodes

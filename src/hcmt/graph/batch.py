@@ -116,9 +116,10 @@ class PadSizes:
     @staticmethod
     def of(graphs: list[Graph], batch: int = 1) -> "PadSizes":
         """Sizes that hold a batch of ``batch`` of the largest of ``graphs`` (each size its own maximum), with one
-        dummy node per level to spare."""
+        dummy node per level to spare, rounded up to :func:`bucket` sizes so that batches of other meshes (other
+        designs, the last smaller batch of a rollout) mostly land on shapes already compiled."""
         def most(f):
-            return batch * max(f(g) for g in graphs) + 1
+            return bucket(batch * max(f(g) for g in graphs) + 1)
         levels = tuple((most(lambda g, l=l: int(g.pool[l].shape[0])), most(lambda g, l=l: g.level_edges[l].shape[1]))
                        for l in range(min(g.num_levels for g in graphs)))
         return PadSizes(most(lambda g: g.num_nodes), most(lambda g: g.mesh_edges.shape[1]), levels)

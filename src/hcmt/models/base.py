@@ -19,6 +19,21 @@ from .mlp import mlp
 from .normalizer import Normalizer
 
 
+COMPILE_MODES = ("none", "default", "reduce-overhead", "max-autotune")
+
+
+def compile_simulator(model: nn.Module, mode: str) -> nn.Module:
+    """``torch.compile`` of a model that will see padded graphs (:func:`hcmt.graph.batch.pad_graph`): static
+    shapes (``dynamic=False``), one compiled graph per bucketed shape; Dynamo's recompile limit (8 by default, after
+    which it silently runs eager) is raised to hold the few dozen buckets a run meets."""
+    if mode not in COMPILE_MODES[1:]:
+        raise ValueError(f"compile mode {mode!r}: expected one of {', '.join(COMPILE_MODES[1:])}")
+    import torch._dynamo
+
+    torch._dynamo.config.recompile_limit = max(torch._dynamo.config.recompile_limit, 64)
+    return torch.compile(model, mode=None if mode == "default" else mode, dynamic=False)
+
+
 class Simulator(nn.Module):
     """Encoder, decoder and normalizers; subclasses define ``forward(graph, accumulate=None) -> [N, out]``.
 

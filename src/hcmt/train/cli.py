@@ -9,6 +9,7 @@ from pathlib import Path
 
 from hcmt.data.format import atomic_path
 from hcmt.models import ABLATIONS, MODELS
+from hcmt.models.base import COMPILE_MODES
 from hcmt.train.config import load_config
 from hcmt.train.run import compare, evaluate, format_compare, format_metrics, metrics_path, run_rollouts
 
@@ -79,7 +80,7 @@ def _run_args(p: argparse.ArgumentParser) -> None:
 
 
 def _compile_arg(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--compile", default="none", choices=["none", "default", "reduce-overhead", "max-autotune"],
+    p.add_argument("--compile", default="none", choices=COMPILE_MODES,
                    help="torch.compile the model on padded graphs (reduce-overhead: CUDA graphs); the first steps "
                         "compile (tens of seconds), later ones replay (default none)")
 

@@ -8,6 +8,8 @@ from pathlib import Path
 
 import yaml
 
+from hcmt.models.base import COMPILE_MODES
+
 CONFIG_DIR = Path(__file__).resolve().parent.parent / "configs"
 
 
@@ -87,7 +89,7 @@ SCHEMA: dict[str, dict[str, tuple]] = {
               "log_every": (_INT, None), "checkpoint_every": (_INT, None), "valid_every": (_INT, None),
               "valid_trajectories": (_INT, None), "contact_pairs": (_STR, ("all", "official")),
               "workers": (_INT, None), "checkpoint_blocks": (_BOOL, None), "precision": (_STR, ("fp32", "bf16")),
-              "compile": (_STR, ("none", "default", "reduce-overhead", "max-autotune")),
+              "compile": (_STR, COMPILE_MODES),
               "deterministic": (_BOOL, None)},
     "data": {"exclude_trajectories": ("a list of trajectory indices", None)},
 }

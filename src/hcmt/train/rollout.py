@@ -17,6 +17,7 @@ import time
 import torch
 
 from hcmt.graph.batch import PadSizes, collate, pad_graph
+from hcmt.models.base import compile_simulator
 from hcmt.train.adapters import Adapter, integrate
 from hcmt.train.data import Trajectory
 from hcmt.train.frames import input_graph
@@ -48,7 +49,7 @@ def rollout_batch(model, adapter: Adapter, trajs: list[Trajectory], radius: floa
     model.eval()
     net, pad = model, None
     if compile != "none":
-        net = torch.compile(model, mode=None if compile == "default" else compile, dynamic=False)
+        net = compile_simulator(model, compile)
     device = next(model.parameters()).device  # graphs go where the model is; results come back to the CPU
     lengths = {int(tr.world_pos.shape[0]) for tr in trajs}
     if len(lengths) != 1:

@@ -21,9 +21,11 @@ processes), ``precision: bf16`` (autocast), ``checkpoint_blocks`` (activation ch
 ``compile`` (``torch.compile`` of the model on **padded** graphs: every batch is brought to static sizes by
 :func:`hcmt.graph.batch.pad_graph` in the DataLoader, contact edges to a few bucket sizes, so the compiled step sees
 few shapes and CUDA graphs (``reduce-overhead``) can replay it; the normalizers accumulate eagerly before the
-compiled forward, which then mutates no buffer), ``deterministic`` (deterministic CUDA kernels and cuBLAS
-workspace: a resumed CUDA run ends bit for bit like an unbroken one, at a cost in speed; CPU runs are exact
-without it).
+compiled forward, which then mutates no buffer; under DDP every rank then normalizes with rank 0's statistics
+of the step, as DDP broadcasts buffers), ``deterministic`` (deterministic CUDA kernels and cuBLAS workspace: a
+resumed CUDA run ends bit for bit like an unbroken one, at a cost in speed; CPU runs are exact without it; the
+cuBLAS setting is read when CUDA is first used, so in a process that used CUDA before, export
+``CUBLAS_WORKSPACE_CONFIG=:4096:8`` before starting it).
 """
 from __future__ import annotations
 
@@ -43,6 +45,7 @@ import yaml
 
 from hcmt.data.format import atomic_path, read_meta
 from hcmt.models import build_model
+from hcmt.models.base import compile_simulator
 from hcmt.train.adapters import config_adapter, get_adapter
 from hcmt.train.data import load_split
 from hcmt.train.frames import FrameDataset, StepSampler, collate_padded, collate_samples, pad_sizes, step_seed
@@ -338,8 +341,7 @@ class Trainer:
         self.pad = None
         if self.compile != "none":  # static shapes: padded batches, one compiled graph per contact bucket
             self.pad = pad_sizes(self.frames, int(tc.get("batch_size", 1)))
-            self.net = torch.compile(self.net, mode=None if self.compile == "default" else self.compile,
-                                     dynamic=False)
+            self.net = compile_simulator(self.net, self.compile)
         self.writer = self.log = None
         if self.rank == 0:
             from torch.utils.tensorboard import SummaryWriter
@@ -501,13 +503,15 @@ class Trainer:
 
 def _train(cfg: dict, data: str | Path, model_name: str, out: Path, *, ablation: str | None, seed: int,
            resume: bool, device: str | None, progress: bool, stop_at: int | None) -> dict:
-    deterministic = torch.are_deterministic_algorithms_enabled()
+    deterministic = (torch.are_deterministic_algorithms_enabled(),
+                     torch.is_deterministic_algorithms_warn_only_enabled(), torch.backends.cudnn.benchmark)
     try:
         trainer = Trainer(cfg, data, model_name, out, ablation=ablation, seed=seed, resume=resume, device=device,
                           progress=progress)
         return trainer.run(stop_at)
     finally:  # train.deterministic holds for this run only
-        torch.use_deterministic_algorithms(deterministic)
+        torch.use_deterministic_algorithms(deterministic[0], warn_only=deterministic[1])
+        torch.backends.cudnn.benchmark = deterministic[2]
 
 
 def load_run(run: str | Path, which: str = "best", device: str = "cpu"):

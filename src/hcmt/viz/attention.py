@@ -128,7 +128,8 @@ def frame_attention(run: str | Path, data: str | Path, split: str = "test", traj
 
     from hcmt.train.run import resolve_device
 
-    model, info = load_run(run, checkpoint, device=str(resolve_device(device)))
+    model, info = load_run(run, checkpoint)
+    model = model.to(resolve_device(device))
     cfg = info["config"]
     adapter = config_adapter(cfg)
     levels, remesh = uses_hierarchy(info["model"])

@@ -297,7 +297,7 @@ def speed(lines):
             if last:
                 lines += [f"At {peak(last) * 1024 / last['nodes']:.0f} kB per node ({last['nodes']} nodes), a "
                           f"250,000-node HCMT step would need about {peak(last) / last['nodes'] * 250_000 / 1024:.0f} GB "
-                          "(extrapolated, not measured: no machine here holds it; the issue's 80 GB GPU would).", ""]
+                          "(extrapolated from the CPU, not measured; GPU memory per node is not measured either).", ""]
 
 
 def hierarchy(lines):

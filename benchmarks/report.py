@@ -204,7 +204,7 @@ def gpu_path(lines):
                          f"{r['peak_stress_error_pct_median']:.1f} |")
         lines += ["", "The 64-design sweep (the first half of it while `benchmarks/ship_model.py` used the other core) "
                   "is slower per design in one batch of 64 than one by one: on one CPU thread a batch brings no "
-                  "parallelism and its 30,000-node graph runs out of cache; batching pays where a step is "
+                  "parallelism and its ~30,000-node graph likely no longer fits the cache; batching pays where a step is "
                   "launch-bound, on a GPU.", "", "The issue's goals (≥ 40× for one paper design, ≥ 400× for a 64-design sweep, ≤ 12 ms per "
                   "paper-size train step, ≥ 1,000 samples/s, ≤ 3 ms inference) are GPU goals; on this 2-core CPU they "
                   "are not reached (rows above), and on a GPU they are not measured.", ""]

@@ -31,26 +31,22 @@ class Normalizer(nn.Module):
     def accumulate(self, x: Tensor, mask: Tensor | None = None) -> None:
         """Add the rows of ``x`` to the statistics (no-op once ``max_accumulations`` is reached or x is empty).
 
-        ``mask`` ``[rows]`` (1 real, 0 dummy; padded graphs) adds only the real rows, without a Python branch on
-        tensor values, so a compiled step does not break its graph here; the statistics are those of the real
-        rows alone (a mask of zeros counts as empty)."""
+        ``mask`` ``[rows]`` (1 real, 0 dummy; padded graphs) adds only the real rows (a mask of zeros counts as
+        empty). One branch-free path for both: no Python test of a tensor's value, so a CUDA step does not wait for
+        the device here and a compiled step does not break its graph."""
         self._check(x)
-        if mask is not None:
-            real = mask.to(torch.float64)
-            on = ((self.num_accumulations < self.max_accumulations) & (real.sum() > 0)).to(torch.float64)
-            x64 = x.detach().to(torch.float64) * real[:, None]
-            self.count += on * real.sum()
-            self.sum += on * x64.sum(0)
-            self.sum_squared += on * (x64 * x64).sum(0)
-            self.num_accumulations += on
-            return
-        if x.shape[0] == 0 or self.num_accumulations >= self.max_accumulations:
-            return
         x64 = x.detach().to(torch.float64)
-        self.count += x64.shape[0]
-        self.sum += x64.sum(0)
-        self.sum_squared += (x64 * x64).sum(0)
-        self.num_accumulations += 1
+        if mask is None:
+            rows = torch.tensor(float(x.shape[0]), dtype=torch.float64, device=x.device)
+        else:
+            real = mask.to(torch.float64)
+            x64, rows = x64 * real[:, None], real.sum()
+        on = (self.num_accumulations < self.max_accumulations) & (rows > 0)
+        zero = x64.new_zeros(())
+        self.count += torch.where(on, rows, zero)
+        self.sum += torch.where(on, x64.sum(0), zero)
+        self.sum_squared += torch.where(on, (x64 * x64).sum(0), zero)
+        self.num_accumulations += on.to(torch.float64)
 
     def mean(self) -> Tensor:
         return (self.sum / self.count.clamp(min=1.0)).float()

@@ -79,7 +79,7 @@ def _step_fn(model, graph, target, opt, compiled, mask):
 
 def bench_modes(device: torch.device, steps: int, batches: list[int], compile_: bool, warmup: int = 3) -> dict:
     """Eager vs compiled train step and inference (batch 1), and throughput per batch size, HCMT and MGN."""
-    from hcmt.graph.batch import PadSizes, collate, pad_graph
+    from hcmt.graph.batch import PadSizes, collate, pad_graph, pad_rows
 
     base = impact_plate_graph()
     out_dim = dataset_spec("impact_plate")["out"]
@@ -96,7 +96,7 @@ def bench_modes(device: torch.device, steps: int, batches: list[int], compile_: 
                 graph, tgt = g, target
                 if mode == "compiled":
                     graph = pad_graph(g, PadSizes.of([g]))
-                    tgt = torch.cat([target, target.new_zeros((graph.num_nodes - g.num_nodes, out_dim))])
+                    tgt = pad_rows(target, graph.num_nodes)[0]
                 graph, tgt = graph.to(device), tgt.to(device)
                 mask = (graph.node_mask if graph.node_mask is not None
                         else torch.ones(graph.num_nodes, device=device))[:, None]  # the loss over real rows only

@@ -441,3 +441,16 @@ def test_resume_on_cuda(impact, tmp_path, deterministic):
             assert torch.equal(a[k], b[k]), k
         else:
             torch.testing.assert_close(b[k], a[k], rtol=1e-4, atol=1e-5, msg=k)
+
+
+def test_pad_sizes_from_the_hierarchies_equal_those_of_the_frames_graphs(impact):
+    """train.compile sizes its padding from each trajectory's hierarchy, without building a graph per trajectory:
+    the same sizes as the built graphs give."""
+    from hcmt.graph.batch import PadSizes
+    from hcmt.train.frames import FrameDataset, input_graph, pad_sizes
+
+    ds = FrameDataset(impact, "train", get_adapter("impact_plate"), 1, True, 0.3)
+    graphs = [input_graph(tr, tr.world_pos[1], tr.world_pos[0], tr.world_pos[2], 0.3) for tr in ds.trajectories]
+    assert graphs[0].num_levels == 1
+    for batch in (1, 3):
+        assert pad_sizes(ds, batch) == PadSizes.of(graphs, batch)

@@ -115,14 +115,31 @@ class PadSizes:
 
     @staticmethod
     def of(graphs: list[Graph], batch: int = 1) -> "PadSizes":
-        """Sizes that hold a batch of ``batch`` of the largest of ``graphs`` (each size its own maximum), with one
-        dummy node per level to spare, rounded up to :func:`bucket` sizes so that batches of other meshes (other
-        designs, the last smaller batch of a rollout) mostly land on shapes already compiled."""
-        def most(f):
-            return bucket(batch * max(f(g) for g in graphs) + 1)
-        levels = tuple((most(lambda g, l=l: int(g.pool[l].shape[0])), most(lambda g, l=l: g.level_edges[l].shape[1]))
-                       for l in range(min(g.num_levels for g in graphs)))
-        return PadSizes(most(lambda g: g.num_nodes), most(lambda g: g.mesh_edges.shape[1]), levels)
+        """Sizes that hold a batch of ``batch`` of the largest of ``graphs``."""
+        return PadSizes.fit([(g.num_nodes, int(g.mesh_edges.shape[1]),
+                              [(int(p.shape[0]), int(e.shape[1])) for p, e in zip(g.pool, g.level_edges)])
+                             for g in graphs], batch)
+
+    @staticmethod
+    def fit(counts: list[tuple[int, int, list[tuple[int, int]]]], batch: int = 1) -> "PadSizes":
+        """Sizes that hold a batch of ``batch`` of the largest of several graphs given by their counts ``(nodes,
+        mesh edges, [(level nodes, level edges), ...])`` (each size its own maximum), with one dummy node per level
+        to spare, rounded up to :func:`bucket` sizes so that batches of other meshes (other designs, the last
+        smaller batch of a rollout) mostly land on shapes already compiled."""
+        def most(values):
+            return bucket(batch * max(values) + 1)
+        levels = tuple((most([c[2][l][0] for c in counts]), most([c[2][l][1] for c in counts]))
+                       for l in range(min(len(c[2]) for c in counts)))
+        return PadSizes(most([c[0] for c in counts]), most([c[1] for c in counts]), levels)
+
+
+def pad_rows(x: Tensor, size: int, what: str = "rows") -> tuple[Tensor, Tensor]:
+    """``x`` ``[R, ...]`` with zero rows appended up to ``size``, and its mask ``[size]`` (1 real, 0 dummy)."""
+    extra = size - x.shape[0]
+    if extra < 0:
+        raise ValueError(f"{what}: {x.shape[0]} rows exceed the padded size {size}")
+    mask = torch.cat([x.new_ones(x.shape[0]), x.new_zeros(extra)])
+    return torch.cat([x, x.new_zeros((extra, *x.shape[1:]))]), mask
 
 
 def pad_graph(g: Graph, sizes: PadSizes) -> Graph:
@@ -139,28 +156,21 @@ def pad_graph(g: Graph, sizes: PadSizes) -> Graph:
         if n >= t:
             raise ValueError(f"level {level}: {n} nodes do not fit the padded size {t} (one dummy node needed)")
 
-    def rows(x: Tensor, size: int, what: str) -> tuple[Tensor, Tensor]:
-        extra = size - x.shape[0]
-        if extra < 0:
-            raise ValueError(f"{what}: {x.shape[0]} rows exceed the padded size {size}")
-        mask = torch.cat([x.new_ones(x.shape[0]), x.new_zeros(extra)])
-        return torch.cat([x, x.new_zeros((extra, *x.shape[1:]))]), mask
-
     def edges(e: Tensor, size: int, dummy: int, what: str) -> Tensor:
         if size < e.shape[1]:
             raise ValueError(f"{what}: {e.shape[1]} edges exceed the padded size {size}")
         return torch.cat([e, e.new_full((2, size - e.shape[1]), dummy)], dim=1)
 
-    node_features, node_mask = rows(g.node_features, sizes.nodes, "nodes")
-    mesh_features, mesh_mask = rows(g.mesh_features, sizes.mesh, "mesh edges")
+    node_features, node_mask = pad_rows(g.node_features, sizes.nodes, "nodes")
+    mesh_features, mesh_mask = pad_rows(g.mesh_features, sizes.mesh, "mesh edges")
     c = bucket(g.contact_edges.shape[1])
-    contact_features, contact_mask = rows(g.contact_features, c, "contact edges")
+    contact_features, contact_mask = pad_rows(g.contact_features, c, "contact edges")
     pool, level_edges, level_features, level_masks = [], [], [], []
     for l in range(g.num_levels):
         n_up, (n_pad, e_pad) = counts[l], sizes.levels[l]
         pool.append(torch.cat([g.pool[l], g.pool[l].new_full((n_pad - counts[l + 1],), n_up)]))
         level_edges.append(edges(g.level_edges[l], e_pad, counts[l + 1], f"level {l + 1} edges"))
-        f, m = rows(g.level_features[l], e_pad, f"level {l + 1} edges")
+        f, m = pad_rows(g.level_features[l], e_pad, f"level {l + 1} edges")
         level_features.append(f)
         level_masks.append(m)
     batch = None if g.batch is None else torch.cat(

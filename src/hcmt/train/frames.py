@@ -21,7 +21,7 @@ import torch
 from torch import Tensor
 from torch.utils.data import Dataset, Sampler
 
-from hcmt.graph.batch import Graph, PadSizes, collate, pad_graph
+from hcmt.graph.batch import Graph, PadSizes, collate, pad_graph, pad_rows
 from hcmt.train.adapters import Adapter, node_features, noise_mask, output_mask, target
 from hcmt.train.data import Trajectory, build_graph, load_split
 
@@ -109,13 +109,14 @@ def collate_samples(items: list[tuple[Graph, Tensor, Tensor]]) -> tuple[Graph, T
 
 def pad_sizes(dataset: FrameDataset, batch: int) -> PadSizes:
     """Static sizes that hold any training batch of ``batch`` frames of ``dataset`` (``train.compile``): the mesh
-    and hierarchy of every trajectory are fixed, so the largest trajectory bounds every level."""
-    a = dataset.adapter
-    graphs = []
+    and hierarchy of every trajectory are fixed (a frame's graph takes its mesh edges, pooling and level edges
+    from the trajectory's hierarchy), so the largest trajectory bounds every level."""
+    counts = []
     for tr in dataset.trajectories:
-        pos = tr.world_pos[a.history]
-        graphs.append(input_graph(tr, pos, tr.world_pos[0], tr.world_pos[a.history + 1], dataset.radius))
-    return PadSizes.of(graphs, batch)
+        h = tr.hierarchy
+        counts.append((tr.num_nodes, int(h.edges[0].shape[1]),
+                       [(len(h.pool[l]), int(h.edges[l + 1].shape[1])) for l in range(h.levels)]))
+    return PadSizes.fit(counts, batch)
 
 
 def collate_padded(items: list[tuple[Graph, Tensor, Tensor]], sizes: PadSizes) -> tuple[Graph, Tensor, Tensor]:
@@ -123,9 +124,7 @@ def collate_padded(items: list[tuple[Graph, Tensor, Tensor]], sizes: PadSizes) -
     targets and the loss mask get zero rows, so the loss is the unpadded one."""
     graph, tgt, mask = collate_samples(items)
     padded = pad_graph(graph, sizes)
-    extra = padded.num_nodes - graph.num_nodes
-    return padded, torch.cat([tgt, tgt.new_zeros((extra, tgt.shape[1]))]), torch.cat(
-        [mask, mask.new_zeros((extra, mask.shape[1]))])
+    return padded, pad_rows(tgt, padded.num_nodes)[0], pad_rows(mask, padded.num_nodes)[0]
 
 
 class StepSampler(Sampler):

@@ -81,8 +81,9 @@ def _run_args(p: argparse.ArgumentParser) -> None:
 
 def _compile_arg(p: argparse.ArgumentParser) -> None:
     p.add_argument("--compile", default="none", choices=COMPILE_MODES,
-                   help="torch.compile the model on padded graphs (reduce-overhead: CUDA graphs); the first steps "
-                        "compile (tens of seconds), later ones replay (default none)")
+                   help="torch.compile the model on padded graphs (reduce-overhead: CUDA graphs); the first step of "
+                        "each new shape compiles (minutes for a paper-size HCMT on one CPU thread), later ones replay "
+                        "(default none)")
 
 
 configure_rollout = _run_args

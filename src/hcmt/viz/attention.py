@@ -117,16 +117,14 @@ def default_frame(world_pos: np.ndarray, object_id: np.ndarray, history: int) ->
 def frame_attention(run: str | Path, data: str | Path, split: str = "test", trajectory: int | str = 0,
                     frame: int | None = None, checkpoint: str = "best", device=None) -> AttentionMaps:
     """Attention maps of a run's model on one ground-truth frame (default: the impact, :func:`default_frame`)."""
-
     from hcmt.data.format import Split
     from hcmt.graph.hierarchy import hierarchy_cache_dir
     from hcmt.train.adapters import config_adapter
     from hcmt.train.data import prepare_trajectory
     from hcmt.train.frames import input_graph
     from hcmt.train.trainer import load_run, uses_hierarchy
-    from hcmt.viz.rollouts import run_label, trajectory_index
-
     from hcmt.train.run import resolve_device
+    from hcmt.viz.rollouts import run_label, trajectory_index
 
     model, info = load_run(run, checkpoint)
     model = model.to(resolve_device(device))

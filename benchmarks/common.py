@@ -32,7 +32,7 @@ DATASET = dict(preset="small", train=40, valid=4, test=10, seed=2024, variants=2
 
 
 def dataset(work: Path, spec: dict = DATASET) -> Path:
-    data = work / f"impact_plate_{spec['preset']}_{spec['train']}"
+    data = work / (f"impact_plate_{spec['preset']}_{spec['train']}" + (f"_{spec['frames']}" if spec.get("frames") else ""))
     complete = all((data / f"{s}.h5").is_file() for s in ("train", "valid", "test")) and not (data / ".parts").exists()
     if not complete:  # the generator resumes an interrupted run, reusing finished trajectories
         args = ["generate", "impact-plate", str(data), "--preset", spec["preset"], "--train", str(spec["train"]),
@@ -40,6 +40,8 @@ def dataset(work: Path, spec: dict = DATASET) -> Path:
                 "--workers", "2", "--no-progress"]
         if spec.get("variants"):
             args += ["--variants", "--variant-count", str(spec["variants"])]
+        if spec.get("frames"):
+            args += ["--frames", str(spec["frames"])]
         if hcmt(args):
             sys.exit("dataset generation failed")
     return data
@@ -47,7 +49,7 @@ def dataset(work: Path, spec: dict = DATASET) -> Path:
 
 def run_and_evaluate(work: Path, data: Path, name: str, model: str, seed: int, overrides: list[str],
                      splits=("test",), ablation: str | None = None, config: str = "impact_plate_cpu",
-                     details: bool = False) -> dict:
+                     details: bool = False, keep_rollouts: bool = False) -> dict:
     """Train (or resume, or skip) one run, then evaluate it on each split; returns {split: metrics}."""
     run = work / "runs" / name
     out = {}
@@ -57,7 +59,7 @@ def run_and_evaluate(work: Path, data: Path, name: str, model: str, seed: int, o
         return None
     if not done:
         try:
-            _train_and_evaluate(run, data, model, seed, overrides, splits, ablation, config, details)
+            _train_and_evaluate(run, data, model, seed, overrides, splits, ablation, config, details, keep_rollouts)
         finally:
             (run.parent / f"{run.name}.lock").unlink(missing_ok=True)  # ours: claimed above
     for s in splits:
@@ -69,7 +71,8 @@ def run_and_evaluate(work: Path, data: Path, name: str, model: str, seed: int, o
     return out
 
 
-def _train_and_evaluate(run, data, model, seed, overrides, splits, ablation, config, details=False) -> None:
+def _train_and_evaluate(run, data, model, seed, overrides, splits, ablation, config, details=False,
+                        keep_rollouts=False) -> None:
     """Train the run unless trained (resuming a checkpoint), then write ``metrics_<split>.json`` per split."""
     cfg = load_config(config, overrides)
     if not (run / "train_stats.json").is_file():
@@ -88,7 +91,8 @@ def _train_and_evaluate(run, data, model, seed, overrides, splits, ablation, con
                 tmp.write_text(json.dumps(rollout_details(run, data, s), indent=2))
         with atomic_path(run / f"metrics_{s}.json") as tmp:
             tmp.write_text(json.dumps(m, indent=2))
-        rollout_path(run, s).unlink(missing_ok=True)
+        if not keep_rollouts:
+            rollout_path(run, s).unlink(missing_ok=True)
 
 
 def rollout_details(run: Path, data: Path, split: str) -> dict:

@@ -38,8 +38,9 @@ def trajectory_name(index: int) -> str:
     return f"traj_{index:05d}"
 
 
-def dataset_meta(preset: str, seed: int, counts: dict[str, int], settings: Settings) -> dict:
-    generator = dict(name="hcmt impact-plate", preset=preset, seed=int(seed), counts=dict(counts),
+def dataset_meta(preset: str, seed: int, counts: dict[str, int], settings: Settings, edge_fraction: float = 0.0) -> dict:
+    extra = {"edge_fraction": float(edge_fraction)} if edge_fraction else {}  # absent: datasets made before it
+    generator = dict(name="hcmt impact-plate", preset=preset, seed=int(seed), counts=dict(counts), **extra,
                      settings=asdict(settings), ranges={k: list(v) for k, v in RANGES[preset].items()},
                      variants={k: {p: list(r) for p, r in v.items()} for k, v in VARIANTS.items()},
                      contact_radius=CONTACT_RADIUS)
@@ -51,7 +52,8 @@ def _run_one(task: tuple) -> tuple[str, int, float]:
     """Worker: simulate one trajectory and write its part file atomically (spawn-safe, top level)."""
     out, meta, preset, seed, split, index, settings = task
     variant = split if split in VARIANTS else None
-    design = sample_design(trajectory_rng(seed, split, index), preset, variant)
+    edges = float(meta["generator"].get("edge_fraction", 0.0)) if split == "train" else 0.0
+    design = sample_design(trajectory_rng(seed, split, index), preset, variant, edges)
     result = simulate(design, Settings(**settings))
     part = Path(out) / ".parts" / split / f"{index:05d}.h5"
     part.parent.mkdir(parents=True, exist_ok=True)
@@ -108,9 +110,12 @@ def _assemble(out: Path, meta: dict, split: str, count: int) -> Path:
 
 
 def generate_dataset(out, *, preset: str = "small", counts: dict[str, int], seed: int = 0, workers: int = 1,
-                     settings: Settings = Settings(), progress: bool = True) -> dict:
+                     settings: Settings = Settings(), progress: bool = True, edge_fraction: float = 0.0) -> dict:
     """Generate (or finish) an Impact Plate dataset in ``out``. ``counts`` maps split names (of :data:`SPLITS`) to
-    trajectory counts. Returns ``{"simulated": n, "skipped": n, "splits": {split: path}}``."""
+    trajectory counts; ``edge_fraction`` of the training designs are drawn at the ranges' edges (thin plates, high
+    drops: :data:`hcmt.sim.scene.EDGES`). Returns ``{"simulated": n, "skipped": n, "splits": {split: path}}``."""
+    if not 0.0 <= float(edge_fraction) <= 1.0:
+        raise ValueError(f"--edge-fraction must be in [0, 1], got {edge_fraction}")
     if preset not in RANGES:
         raise ValueError(f"unknown preset {preset!r}; expected one of {sorted(RANGES)}")
     for split, n in counts.items():
@@ -125,7 +130,7 @@ def generate_dataset(out, *, preset: str = "small", counts: dict[str, int], seed
     if not counts:
         raise ValueError("nothing to generate: every trajectory count (--train, --valid, --test) is 0")
     out = Path(out)
-    meta = dataset_meta(preset, seed, counts, settings)
+    meta = dataset_meta(preset, seed, counts, settings, edge_fraction)
     if (out / "meta.json").is_file():
         old = read_meta(out)
         old_gen, new_gen = dict(old.get("generator") or {}), dict(meta["generator"])
@@ -208,6 +213,9 @@ def configure_generate(parser: argparse.ArgumentParser) -> None:
                         help="also write test_thicker, test_higher, test_thicker_higher (generalization splits)")
     parser.add_argument("--variant-count", type=int, default=50, help="trajectories per variant split (default 50)")
     parser.add_argument("--seed", type=int, default=0, help="dataset seed (default 0)")
+    parser.add_argument("--edge-fraction", type=float, default=0.0,
+                        help="share of training designs drawn at the ranges' edges where models fail first: thin "
+                             "plates (lowest fifth of the thickness range) or high drops (top fifth); default 0")
     parser.add_argument("--workers", type=int, default=1, help="worker processes (default 1)")
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
     _settings_arguments(parser)
@@ -224,7 +232,8 @@ def main_generate(args) -> int:
               f"{cost['estimated_s']:.1f} s per trajectory on one core, {total * cost['estimated_s'] / 60:.1f} "
               f"core-minutes in all (finished trajectories are reused on a rerun)", flush=True)
     result = generate_dataset(args.out, preset=args.preset, counts=counts, seed=args.seed, workers=args.workers,
-                              settings=_settings(args), progress=not args.no_progress)
+                              settings=_settings(args), progress=not args.no_progress,
+                              edge_fraction=args.edge_fraction)
     print(f"{args.out}: simulated {result['simulated']} trajectories, reused {result['skipped']}; splits: "
           + ", ".join(f"{k} ({counts[k]})" for k in result["splits"]))
     return 0

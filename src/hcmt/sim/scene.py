@@ -124,9 +124,17 @@ VARIANTS: dict[str, dict[str, tuple[float, float]]] = {
 }
 
 
-def sample_design(rng: np.random.Generator, preset: str = "small", variant: str | None = None) -> Design:
+#: ``edge_fraction``: the share of designs drawn at the edges of the ranges where learned models fail first,
+#: half with a thin plate (the lowest fifth of the thickness range), half with a high drop (the top fifth)
+EDGES = {"thickness": (0.0, 0.2), "drop_height": (0.8, 1.0)}
+
+
+def sample_design(rng: np.random.Generator, preset: str = "small", variant: str | None = None,
+                  edge_fraction: float = 0.0) -> Design:
     """Draw one design: every parameter of ``RANGES[preset]`` uniform (in a fixed order), the variant's ranges
-    replacing the training ones."""
+    replacing the training ones. With ``edge_fraction`` > 0, that share of designs then has its thickness or its
+    drop height redrawn inside :data:`EDGES` (draws after the uniform ones: a design with ``edge_fraction`` 0 is
+    the same as before)."""
     if preset not in RANGES:
         raise ValueError(f"unknown preset {preset!r}; expected one of {sorted(RANGES)}")
     if variant is not None and variant not in VARIANTS:
@@ -134,7 +142,12 @@ def sample_design(rng: np.random.Generator, preset: str = "small", variant: str 
     ranges = {**RANGES[preset], **(VARIANTS[variant] if variant else {})}
     names = sorted(ranges)
     u = rng.random(len(names))
-    return Design(**{k: float(ranges[k][0] + (ranges[k][1] - ranges[k][0]) * ui) for k, ui in zip(names, u)})
+    values = {k: float(ranges[k][0] + (ranges[k][1] - ranges[k][0]) * ui) for k, ui in zip(names, u)}
+    if edge_fraction > 0 and rng.random() < edge_fraction:
+        key = sorted(EDGES)[int(rng.random() < 0.5)]
+        (lo, hi), (a, b) = ranges[key], EDGES[key]
+        values[key] = float(lo + (hi - lo) * (a + (b - a) * rng.random()))
+    return Design(**values)
 
 
 def design_mesh(design: Design) -> dict[str, np.ndarray]:

@@ -103,9 +103,39 @@ def get_adapter(name: str, contact_pairs: str = "all") -> Adapter:
     return adapter
 
 
+#: ``model.target``: the kinematic quantity the model predicts, and its updater's order.
+#:   velocity:     x^{t+1} − x^t, first-order update (the paper's Table 9 for Impact Plate / Deforming Plate)
+#:   acceleration: x^{t+1} − 2x^t + x^{t−1}, second-order update (MeshGraphNets' cloth, Sphere Simple's Table 9)
+TARGETS = {"velocity": 1, "acceleration": 2}
+#: the noise correction γ of each target when ``train.noise_gamma`` is not set: 1 for velocity (GNS /
+#: MeshGraphNets' plates: the next step undoes the whole noise), 0.1 for acceleration (MeshGraphNets' cloth)
+DEFAULT_GAMMA = {"velocity": 1.0, "acceleration": 0.1}
+#: ``train.noise_nodes``: which nodes get training noise.
+#:   normal:    NORMAL nodes only (MeshGraphNets and the authors' HCMT code)
+#:   predicted: every position channel the model predicts (the ball's OBSTACLE nodes too; the symmetry line's y)
+NOISE_NODES = ("normal", "predicted")
+
+
 def config_adapter(cfg: dict) -> Adapter:
-    """The adapter a config asks for: ``dataset`` and ``train.contact_pairs``."""
-    return get_adapter(cfg["dataset"], cfg.get("train", {}).get("contact_pairs", "all"))
+    """The adapter a config asks for: ``dataset``, ``train.contact_pairs`` and ``model.target`` (absent: the
+    dataset's own, Table 9)."""
+    adapter = get_adapter(cfg["dataset"], cfg.get("train", {}).get("contact_pairs", "all"))
+    kind = (cfg.get("model") or {}).get("target")
+    if kind is None:
+        return adapter
+    if kind not in TARGETS:
+        raise ValueError(f"model.target: unknown value {kind!r}; expected one of {', '.join(TARGETS)}")
+    return replace(adapter, order=TARGETS[kind])
+
+
+def target_name(adapter: Adapter) -> str:
+    return "velocity" if adapter.order == 1 else "acceleration"
+
+
+def noise_gamma(cfg: dict, adapter: Adapter) -> float:
+    """γ of ``train.noise_gamma``, or the target's default (:data:`DEFAULT_GAMMA`)."""
+    gamma = (cfg.get("train") or {}).get("noise_gamma")
+    return float(DEFAULT_GAMMA[target_name(adapter)] if gamma is None else gamma)
 
 
 def position_mask(adapter: Adapter, node_type: Tensor, dim: int) -> Tensor:
@@ -159,9 +189,15 @@ def integrate(adapter: Adapter, output: Tensor, pos: Tensor, prev: Tensor, true_
     return nxt, (rest[:, :1] if adapter.stress_output else None)
 
 
-def noise_mask(node_type: Tensor) -> Tensor:
-    """Training noise goes on NORMAL nodes only (MeshGraphNets / the official HCMT code)."""
-    return (node_type.reshape(-1) == int(NodeType.NORMAL))[:, None]
+def noise_mask(adapter: Adapter, node_type: Tensor, dim: int, nodes: str = "normal") -> Tensor:
+    """[N, dim] float: where training noise goes (``train.noise_nodes``, :data:`NOISE_NODES`): NORMAL nodes only
+    (MeshGraphNets / the official HCMT code), or every predicted position channel (:func:`position_mask`)."""
+    if nodes == "predicted":
+        return position_mask(adapter, node_type, dim)
+    if nodes != "normal":
+        raise ValueError(f"train.noise_nodes: unknown value {nodes!r}; expected one of {', '.join(NOISE_NODES)}")
+    normal = (node_type.reshape(-1) == int(NodeType.NORMAL)).float()[:, None]
+    return normal.expand(-1, dim)
 
 
 def exclude_trajectories(names: list[str], excluded: list[int] | None) -> np.ndarray:

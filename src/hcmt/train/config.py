@@ -82,7 +82,7 @@ _INT, _FLOAT, _BOOL, _STR = "a whole number", "a number", "true or false", "a st
 SCHEMA: dict[str, dict[str, tuple]] = {
     "model": {"hidden": (_INT, None), "heads": (_INT, None), "L_C": (_INT, None), "levels": (_INT, None),
               "L_H": (_INT, None), "clip": (_FLOAT, None), "blocks": (_INT, None), "ffn_bias": (_BOOL, None),
-              "attention": (_STR, ("paper", "official"))},
+              "attention": (_STR, ("paper", "official")), "target": (_STR, ("velocity", "acceleration"))},
     "train": {"steps": (_INT, None), "batch_size": (_INT, None), "lr": (_FLOAT, None), "lr_final": (_FLOAT, None),
               "lr_decay_steps": (_INT, None), "lr_decay_rate": (_FLOAT, None), "noise_std": (_FLOAT, None),
               "noise_gamma": (_FLOAT, None), "contact_radius": (_FLOAT, None), "normalizer_steps": (_INT, None),
@@ -90,7 +90,8 @@ SCHEMA: dict[str, dict[str, tuple]] = {
               "valid_trajectories": (_INT, None), "contact_pairs": (_STR, ("all", "official")),
               "workers": (_INT, None), "checkpoint_blocks": (_BOOL, None), "precision": (_STR, ("fp32", "bf16")),
               "compile": (_STR, COMPILE_MODES),
-              "deterministic": (_BOOL, None)},
+              "deterministic": (_BOOL, None), "noise_nodes": (_STR, ("normal", "predicted")),
+              "pushforward": (_FLOAT, None), "pushforward_start": (_INT, None)},
     "data": {"exclude_trajectories": ("a list of trajectory indices", None)},
 }
 TOP = {"dataset": (_STR, ("impact_plate", "deforming_plate", "sphere_simple", "deformable_plate"))}
@@ -137,10 +138,12 @@ def check_schema(cfg: dict, source: str = "config") -> None:
                 raise _unknown(f"{top}.{key}", [f"{top}.{k}" for k in SCHEMA[top]]
                                + [f"{s}.{k}" for s in SCHEMA for k in SCHEMA[s] if s != top], source)
             kind, allowed = SCHEMA[top][key]
-            if v is None and key in ("L_H", "lr_decay_steps"):
+            if v is None and key in ("L_H", "lr_decay_steps", "noise_gamma", "target"):
                 continue
             if not _ok(kind, v):
                 raise ValueError(f"config {source}: {top}.{key}: got {v!r}; expected {kind}")
             if allowed and v not in allowed:
                 raise ValueError(f"config {source}: {top}.{key}: unknown value {v!r}; expected one of "
                                  f"{', '.join(allowed)}")
+            if key == "pushforward" and not 0 <= v <= 1:
+                raise ValueError(f"config {source}: train.pushforward: got {v!r}; expected a probability in [0, 1]")

@@ -4,8 +4,12 @@ as a ``torch.utils.data.Dataset`` for ``DataLoader`` workers.
 
 * :func:`input_graph`: the model input at positions ``x^t`` (Table 9 node inputs through the dataset's adapter,
   mesh and contact edges of that frame, the hierarchy);
-* :func:`training_sample`: ``(graph, target, mask)`` of frame ``t`` with training noise on NORMAL nodes and the
-  target corrected by ``(1 - γ) · noise`` (GNS / MeshGraphNets);
+* :func:`training_sample`: ``(graph, target, mask)`` of frame ``t`` with training noise (``train.noise_nodes``:
+  NORMAL nodes, or every predicted node) and the target corrected by ``(1 - γ) · noise`` (GNS / MeshGraphNets);
+* :func:`pushforward_sample`: the same frame whose input ``x^t`` is the model's own one-step prediction from the
+  noised frame ``t − 1`` (no gradient), the target landing on the data's ``x^{t+1}`` (the pushforward trick,
+  Brandstetter, Worrall & Welling, "Message Passing Neural PDE Solvers", ICLR 2022: training inputs drawn from the
+  distribution of the model's own rollout states, against rollout drift);
 * :class:`FrameDataset`: item ``i`` is training frame ``i`` (``frames[i] = (trajectory, t)``), with noise drawn
   from a generator seeded by ``(seed, i)``; the trainer instead asks for ``(i, step, rank, previous)`` keys
   (:class:`StepSampler`), which draw the noise exactly as the training loop always has (one generator per step,
@@ -22,7 +26,7 @@ from torch import Tensor
 from torch.utils.data import Dataset, Sampler
 
 from hcmt.graph.batch import Graph, PadSizes, collate, pad_graph, pad_rows
-from hcmt.train.adapters import Adapter, node_features, noise_mask, output_mask, target
+from hcmt.train.adapters import Adapter, integrate, node_features, noise_mask, output_mask, target
 from hcmt.train.data import Trajectory, build_graph, load_split
 
 
@@ -33,15 +37,40 @@ def input_graph(traj: Trajectory, pos: Tensor, prev: Tensor, next_prescribed: Te
     return build_graph(traj, pos, feats, radius)
 
 
-def training_sample(traj: Trajectory, t: int, noise: Tensor, gamma: float, radius: float) -> tuple[Graph, Tensor, Tensor]:
-    """``(graph, target [N, out], loss mask [N, out])`` of frame ``t`` with ``noise`` ``[N, d]`` added to ``x^t``."""
+def training_sample(traj: Trajectory, t: int, noise: Tensor, gamma: float, radius: float, drift: Tensor | None = None,
+                    prev: Tensor | None = None) -> tuple[Graph, Tensor, Tensor]:
+    """``(graph, target [N, out], loss mask [N, out])`` of frame ``t`` with ``noise`` ``[N, d]`` added to ``x^t``.
+
+    ``drift`` (pushforward) is a further offset of ``x^t`` that the target corrects entirely, ``prev`` replaces the
+    data's ``x^{t−1}``."""
     a = traj.adapter
     w = traj.world_pos
-    pos, prev, nxt = w[t] + noise, w[t - a.history], w[t + 1]
+    pos, nxt = w[t] + noise, w[t + 1]
+    prev = w[t - a.history] if prev is None else prev
+    if drift is not None:
+        pos = pos + drift
     graph = input_graph(traj, pos, prev, nxt, radius)
     stress = traj.stress[t + 1] if traj.stress is not None else None
     tgt = target(a, pos, prev, nxt + (1.0 - gamma) * noise, stress)
     return graph, tgt, output_mask(a, traj.static["node_type"], pos.shape[1])
+
+
+@torch.no_grad()
+def pushforward_sample(model, traj: Trajectory, t: int, noise: Tensor, prev_noise: Tensor, gamma: float,
+                       radius: float) -> tuple[Graph, Tensor, Tensor]:
+    """:func:`training_sample` of frame ``t`` (``t − 1 >= history``) whose ``x^t`` is the model's prediction from
+    frame ``t − 1`` with ``prev_noise``, plus ``noise``; ``x^{t−1}`` is that noised input (as in a rollout). The
+    prediction carries no gradient; boundary-condition nodes take the data's values."""
+    a, w = traj.adapter, traj.world_pos
+    x, before = w[t - 1] + prev_noise, w[t - 1 - a.history]
+    graph = input_graph(traj, x, before, w[t], radius)
+    device = next(model.parameters()).device
+    was_training = model.training
+    model.eval()
+    out = model.denormalize(model(graph.to(device), accumulate=False)).float().cpu()
+    model.train(was_training)
+    pred, _ = integrate(a, out, x, before, w[t], traj.static["node_type"])
+    return training_sample(traj, t, noise, gamma, radius, drift=pred - w[t], prev=x)
 
 
 def step_seed(seed: int, step: int, rank: int) -> int:
@@ -53,15 +82,19 @@ class FrameDataset(Dataset):
     """The training frames ``(trajectory, t)`` of one split, each turned into ``(graph, target, mask)``.
 
     ``data`` a native dataset folder; ``adapter`` the dataset's (:func:`hcmt.train.adapters.config_adapter`);
-    ``levels``/``remesh`` the hierarchy the model needs; ``radius`` the contact radius γ; ``noise_std`` σ on NORMAL
-    nodes and ``gamma`` the target correction; ``seed`` for the noise. Works with ``DataLoader(num_workers=N)``.
+    ``levels``/``remesh`` the hierarchy the model needs; ``radius`` the contact radius γ; ``noise_std`` σ on the
+    ``noise_nodes`` (``normal`` or ``predicted``) and ``gamma`` the target correction; ``seed`` for the noise.
+    Works with ``DataLoader(num_workers=N)``. :meth:`pushforward_item` builds an item with the model's help (in
+    the training process).
     """
 
     def __init__(self, data: str | Path, split: str, adapter: Adapter, levels: int, remesh: bool, radius: float,
-                 noise_std: float = 0.0, gamma: float = 1.0, seed: int = 0, exclude: list[int] | None = None):
+                 noise_std: float = 0.0, gamma: float = 1.0, seed: int = 0, exclude: list[int] | None = None,
+                 noise_nodes: str = "normal"):
         self.data, self.split, self.adapter = Path(data), split, adapter
         self.levels, self.remesh, self.radius = levels, remesh, float(radius)
         self.noise_std, self.gamma, self.seed, self.exclude = float(noise_std), float(gamma), int(seed), exclude
+        self.noise_nodes = noise_nodes
         self._trajs: list[Trajectory] | None = None
         self.frames = np.asarray([(i, t) for i, tr in enumerate(self.trajectories)
                                   for t in range(adapter.history, tr.num_steps - 1)], np.int64).reshape(-1, 2)
@@ -87,6 +120,25 @@ class FrameDataset(Dataset):
     def __getitem__(self, key) -> tuple[Graph, Tensor, Tensor]:
         """``i`` (frame ``i``, noise seeded by ``(seed, i)``) or ``(i, step, rank, previous)`` (the trainer's key:
         noise drawn from the step's generator after the draws of the step's ``previous`` frames' node counts)."""
+        tr, t, noise, _ = self._draw(key)
+        return training_sample(tr, t, noise, self.gamma, self.radius)
+
+    def pushforward_item(self, key, model, probability: float) -> tuple[Graph, Tensor, Tensor]:
+        """Item ``key`` as :meth:`__getitem__` (the same noise), except that with ``probability`` (drawn from the
+        item's generator after its noise) and where frame ``t − 1`` has its history, it is a
+        :func:`pushforward_sample` from frame ``t − 1``."""
+        tr, t, noise, gen = self._draw(key)
+        u = float(torch.rand((), generator=gen))
+        if u < probability and t - 1 >= self.adapter.history:
+            return pushforward_sample(model, tr, t, noise, self._noise(tr, gen), self.gamma, self.radius)
+        return training_sample(tr, t, noise, self.gamma, self.radius)
+
+    def _noise(self, tr: Trajectory, gen: torch.Generator) -> Tensor:
+        d = tr.world_pos.shape[-1]
+        return (torch.randn((tr.num_nodes, d), generator=gen) * self.noise_std
+                * noise_mask(self.adapter, tr.static["node_type"], d, self.noise_nodes))
+
+    def _draw(self, key) -> tuple[Trajectory, int, Tensor, torch.Generator]:
         if isinstance(key, (int, np.integer)):
             i, gen, previous = int(key), torch.Generator().manual_seed(step_seed(self.seed, int(key), 0)), ()
         else:
@@ -97,8 +149,7 @@ class FrameDataset(Dataset):
         d = tr.world_pos.shape[-1]
         for n in previous:  # replay the draws of the frames before this one in the step's batch
             torch.randn((n, d), generator=gen)
-        noise = torch.randn((tr.num_nodes, d), generator=gen) * self.noise_std * noise_mask(tr.static["node_type"])
-        return training_sample(tr, t, noise, self.gamma, self.radius)
+        return tr, t, self._noise(tr, gen), gen
 
 
 def collate_samples(items: list[tuple[Graph, Tensor, Tensor]]) -> tuple[Graph, Tensor, Tensor]:

@@ -46,7 +46,7 @@ import yaml
 from hcmt.data.format import atomic_path, read_meta
 from hcmt.models import build_model
 from hcmt.models.base import compile_simulator
-from hcmt.train.adapters import config_adapter, get_adapter
+from hcmt.train.adapters import config_adapter, get_adapter, noise_gamma
 from hcmt.train.data import load_split
 from hcmt.train.frames import FrameDataset, StepSampler, collate_padded, collate_samples, pad_sizes, step_seed
 from hcmt.train.metrics import rollout_rmse
@@ -324,8 +324,11 @@ class Trainer:
         levels, remesh = uses_hierarchy(self.args)
         self.radius = float(tc["contact_radius"])
         self.frames = FrameDataset(data, "train", self.adapter, levels, remesh, self.radius,
-                                   float(tc.get("noise_std", 0.0)), float(tc.get("noise_gamma", 1.0)), seed,
-                                   cfg.get("data", {}).get("exclude_trajectories"))
+                                   float(tc.get("noise_std", 0.0)), noise_gamma(cfg, self.adapter), seed,
+                                   cfg.get("data", {}).get("exclude_trajectories"), tc.get("noise_nodes", "normal"))
+        # pushforward: with this probability a frame's input is the model's own prediction (frames.pushforward_item)
+        self.pushforward = float(tc.get("pushforward", 0.0))
+        self.pushforward_start = int(tc.get("pushforward_start", 0))
         self.valid_trajs = (load_split(data, "valid", self.adapter, levels, remesh,
                                        limit=int(tc.get("valid_trajectories", 2)))
                             if (Path(data) / "valid.h5").is_file() else [])
@@ -366,6 +369,11 @@ class Trainer:
             kept = [l for l in log.read_text().splitlines() if l and json.loads(l)["step"] <= self.step_count]
             with atomic_path(log) as tmp:
                 tmp.write_text("".join(l + "\n" for l in kept))
+
+    def _pushforward_probability(self) -> float:
+        """``train.pushforward`` from ``train.pushforward_start`` on (and never while only the normalizers learn)."""
+        start = max(self.pushforward_start, int(self.tc.get("normalizer_steps", 0)))
+        return self.pushforward if self.step_count >= start else 0.0
 
     def learning_rate(self, step: int) -> float:
         tc = self.tc
@@ -437,12 +445,16 @@ class Trainer:
                    desc=f"train {self.model_name}", dynamic_ncols=True,
                    mininterval=0.1 if sys.stderr.isatty() else 30.0)
         workers = int(tc.get("workers", 0))
-        # graphs are built by DataLoader workers (train.workers; 0: in this process), in step order
-        loader = iter(torch.utils.data.DataLoader(
-            self.frames, batch_sampler=StepSampler(self.frames, int(tc.get("batch_size", 1)), self.seed,
-                                                   self.step_count, end, self.world, rank),
-            collate_fn=collate_samples if self.pad is None else functools.partial(collate_padded, sizes=self.pad),
-            num_workers=workers, worker_init_fn=_ignore_sigint if workers else None))
+        sampler = StepSampler(self.frames, int(tc.get("batch_size", 1)), self.seed, self.step_count, end, self.world,
+                              rank)
+        collate = collate_samples if self.pad is None else functools.partial(collate_padded, sizes=self.pad)
+        if self.pushforward > 0:  # items need the model: built in this process, each just before its step
+            loader = (collate([self.frames.pushforward_item(key, self.model, self._pushforward_probability())
+                               for key in keys]) for keys in sampler)
+        else:  # graphs are built by DataLoader workers (train.workers; 0: in this process), in step order
+            loader = iter(torch.utils.data.DataLoader(
+                self.frames, batch_sampler=sampler, collate_fn=collate, num_workers=workers,
+                worker_init_fn=_ignore_sigint if workers else None))
         times, loss = [], float("nan")
         interrupted = InterruptFlag()  # Ctrl-C / SIGTERM end the current step, then save and stop
         self.model.train()

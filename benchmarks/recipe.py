@@ -19,7 +19,8 @@ from pathlib import Path
 import numpy as np
 from common import RESULTS, dataset, run_and_evaluate, write_json
 
-from hcmt.train.metrics import mean_std, summarize_runs
+from hcmt.train.metrics import mean_std
+from hcmt.train.run import evaluate
 
 # 40 / 4 / 12 designs of the `small` preset over a 90-frame window (0.178 ms: the whole impact of every design of
 # the ranges, docs/RESULTS.md "Window"); another seed than any other study's
@@ -52,8 +53,62 @@ def train_all(work: Path, data: Path, steps: int, seeds: list[int], labels: list
                              keep_rollouts=True)
 
 
+#: validation criteria of :func:`choose`: (key path in a run's summary, larger is better)
+CRITERIA = (("rebound_agreement", True), ("peak_plate_stress_error_pct", False), ("max_deflection_error_pct", False),
+            ("position_rmse_all", False))
+
+
+def run_summary(run: Path, data: Path, split: str) -> dict:
+    """The run's metrics on a split with the physics metrics (recomputed from the kept rollout when the metrics
+    file predates them)."""
+    m = json.loads((run / f"metrics_{split}.json").read_text())
+    if "physics" not in m:
+        m = evaluate(run, data, split)
+    p = m["physics"]
+    out = {"position_rmse_all": m["position"]["rmse_all"], "stress_rmse_all": m["stress"]["rmse_all"],
+           "rebound_agreement": p["rebound_agreement"], "model_rebounds": p["model_rebounds"],
+           "solver_rebounds": p["solver_rebounds"],
+           "far_deflection_error_um": p["far_deflection_error_um"]["median"],
+           "train_ms_per_step": json.loads((run / "train_stats.json").read_text())["train_ms_per_step"],
+           "inference_ms_per_step": m["inference_ms_per_step"], "error_by_step": m["error_by_step"]}
+    for key in ("peak_plate_stress_error_pct", "peak_ball_stress_error_pct", "peak_plate_frame_error",
+                "max_deflection_error_pct"):
+        out[key] = p[key]["median_abs"]
+        out[f"{key}_signed"] = p[key]["median"]
+        out[f"{key}_worst"] = p[key]["worst"]
+    return out
+
+
+def choose(valid: dict[str, dict]) -> tuple[str, dict]:
+    """The recipe with the lowest sum of ranks over :data:`CRITERIA` (means over seeds, validation split)."""
+    ranks = {label: 0.0 for label in valid}
+    for key, larger in CRITERIA:
+        order = sorted(valid, key=lambda lab: -valid[lab][key]["mean"] if larger else valid[lab][key]["mean"])
+        for r, label in enumerate(order):
+            ranks[label] += r
+    return min(ranks, key=ranks.get), ranks
+
+
 def table(work: Path, steps: int, seeds: list[int], labels: list[str]) -> Path:
-    raise NotImplementedError("the table is written by a later version of this script")
+    data = work / f"impact_plate_{DATA['preset']}_{DATA['train']}_{DATA['frames']}"
+    rows: dict[str, dict] = {}
+    for label in labels:
+        runs = [work / "runs" / run_name(label, s, steps) for s in seeds]
+        runs = [r for r in runs if all((r / f"metrics_{sp}.json").is_file() for sp in SPLITS)]
+        if not runs:
+            continue
+        rows[label] = {"overrides": RECIPES[label], "seeds": len(runs), "runs": [r.name for r in runs]}
+        for split in SPLITS:
+            per_run = [run_summary(r, data, split) for r in runs]
+            row = {k: mean_std(p[k] for p in per_run) for k in per_run[0] if k != "error_by_step"}
+            row["error_by_step"] = {k: np.mean([p["error_by_step"][k] for p in per_run], 0).tolist()
+                                    for k in per_run[0]["error_by_step"]}
+            rows[label][split] = row
+    full = [lab for lab in rows if rows[lab]["seeds"] == max(r["seeds"] for r in rows.values())]
+    chosen, ranks = choose({lab: rows[lab]["valid"] for lab in full}) if full else (None, {})
+    return write_json("recipe_small.json", {"dataset": DATA, "config": CONFIG, "base": BASE, "steps": steps,
+                                            "criteria": [k for k, _ in CRITERIA], "rank_sums": ranks,
+                                            "chosen": chosen, "recipes": rows})
 
 
 def main() -> None:

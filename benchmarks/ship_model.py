@@ -72,7 +72,7 @@ def main() -> None:
     preds = pr.predict(shipped, designs, batch=a.batch, progress=False)
     predict_wall = time.perf_counter() - t0
     truth = pr.solve(designs, settings)
-    verified = pr.verify(preds, truth)
+    verified = pr.verify_designs(preds, truth)
     print(pr.format_table(preds, verified))
     single = pr.predict(shipped, designs[:1], batch=1, progress=False)[0]
     out = {"name": a.name, "file_mb": path.stat().st_size / 1e6, "card": card,

@@ -22,6 +22,8 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "compare": ("hcmt.train.cli", "aggregate several runs into the paper's Table 2 layout (mean +- std)"),
     "predict": ("hcmt.train.cli", "peak stress and deflection of new Impact Plate designs from a trained model, "
                 "no solver run (--verify compares with the solver)"),
+    "sweep": ("hcmt.train.cli", "one design parameter varied over a range, predicted in one batch: trend, limit "
+              "for a yield stress, and with --verify the solver's"),
     "models": ("hcmt.train.cli", "list the trained models shipped with hcmt (pretrained:NAME)"),
     "plot": ("hcmt.viz.cli", "draw stress contours, animations, error curves and training curves of a run"),
     "export": ("hcmt.viz.cli", "export a rollout to ParaView (VTU or XDMF time series)"),

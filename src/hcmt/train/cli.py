@@ -1,4 +1,4 @@
-"""``hcmt train / rollout / evaluate / compare / predict / models``: argument parsing and printing only; the
+"""``hcmt train / rollout / evaluate / compare / predict / sweep / models``: argument parsing and printing only; the
 library functions live in :mod:`hcmt.train.run`, :mod:`hcmt.train.trainer` and :mod:`hcmt.train.predict`."""
 from __future__ import annotations
 
@@ -141,6 +141,7 @@ def configure_predict(p: argparse.ArgumentParser) -> None:
                    "the speedup")
     p.add_argument("--images", action="store_true", help="stress-contour PNG at each design's peak frame")
     p.add_argument("--out", default="predict_out", help="folder for --images (default predict_out)")
+    p.add_argument("--force", action="store_true", help="run even designs estimated to take over 600 s")
     p.add_argument("--json", help="write the results as JSON")
     p.add_argument("--csv", help="write the table as CSV")
     p.add_argument("--no-progress", action="store_true")
@@ -150,33 +151,23 @@ def main_predict(args: argparse.Namespace) -> int:
     import sys
 
     from hcmt.train import predict as pr
-    from hcmt.train.run import Run
 
     if not args.design and not args.designs:
         raise ValueError("give designs with --design KEY=VALUE ... or --designs FILE.csv")
-    run = Run.load(args.model, args.device)
-    if run.config.get("dataset") != "impact_plate":
-        raise ValueError(f"{args.model}: predict is for Impact Plate models; this one was trained on "
-                         f"{run.config.get('dataset')!r}")
+    run = _design_run(args)
     defaults = pr.default_design(run.meta)
     designs = [(f"design_{i + 1}", pr.parse_design(items, defaults)) for i, items in enumerate(args.design)]
     if args.designs:
         designs += pr.read_designs_csv(args.designs, defaults)
-    settings = pr.settings_of(run.meta)
     for name, d in designs:
         for w in pr.range_warnings(d, run.ranges):
             print(f"hcmt predict: warning: {name}: {w}", file=sys.stderr)
-    t0 = time.perf_counter()
-    preds = pr.predict(run, designs, batch=args.batch, progress=not args.no_progress, compile=args.compile)
-    wall = time.perf_counter() - t0
-    pr.add_margin(preds, args.yield_mpa)
-    truth = verified = None
-    if args.verify:
-        truth = pr.solve(designs, settings)
-        verified = pr.verify(preds, truth)
-    print(f"{run.label} ({run.source}) on {run.device}: {len(preds)} design(s), {settings.frames} frames of "
-          f"{settings.frame_dt} ms, {wall:.2f} s in all; stresses are von Mises [MPa], lengths [mm]")
-    print(pr.format_table(preds, verified))
+    check = pr.check_designs(run, designs, batch=args.batch, verify=args.verify, yield_mpa=args.yield_mpa,
+                             compile=args.compile, progress=not args.no_progress, force=args.force)
+    preds, truth = check.preds, check.truth
+    print(f"{run.label} ({run.source}) on {run.device}: {len(preds)} design(s), {check.settings.frames} frames of "
+          f"{check.settings.frame_dt} ms, {check.wall_s:.2f} s in all; stresses are von Mises [MPa], lengths [mm]")
+    print(pr.format_table(preds, check.verified))
     if args.images:
         for i, p in enumerate(preds):
             path = pr.contour_picture(p, truth[i] if truth else None, run.meta, args.out, run.label)
@@ -185,7 +176,72 @@ def main_predict(args: argparse.Namespace) -> int:
         print(f"wrote {pr.write_csv(preds, args.csv)}")
     if args.json:
         with atomic_path(Path(args.json)) as tmp:
-            tmp.write_text(json.dumps(pr.to_json(preds, verified, run.source, str(run.device)), indent=2))
+            tmp.write_text(json.dumps(pr.to_json(preds, check.verified, run.source, str(run.device)), indent=2))
+        print(f"wrote {args.json}")
+    return 0
+
+
+def _design_run(args):
+    """The Impact Plate model of ``predict`` / ``sweep``."""
+    from hcmt.train.run import Run
+
+    run = Run.load(args.model, args.device)
+    if run.config.get("dataset") != "impact_plate":
+        raise ValueError(f"{args.model}: predict is for Impact Plate models; this one was trained on "
+                         f"{run.config.get('dataset')!r}")
+    return run
+
+
+# -- sweep ---------------------------------------------------------------------------------------------------------
+def configure_sweep(p: argparse.ArgumentParser) -> None:
+    p.add_argument("model", help="run folder made by `hcmt train`, or pretrained:NAME (`hcmt models` lists them)")
+    p.add_argument("--vary", required=True, metavar="PARAM=LO:HI:N",
+                   help="the parameter swept and its range, e.g. thickness=0.5:1.0:6 (N points, ends included)")
+    p.add_argument("--design", nargs="+", default=[], metavar="KEY=VALUE",
+                   help="the other parameters, e.g. --design drop_height=750 (default: the middle of the training "
+                        "ranges)")
+    p.add_argument("--verify", action="store_true", help="also run the solver on every point and compare trends")
+    p.add_argument("--yield-mpa", type=float, help="report the smallest / largest parameter value that keeps the "
+                   "peak plate stress below this stress (MPa), for model and solver")
+    p.add_argument("--device", help="cpu, cuda, cuda:N (default: cuda when available)")
+    p.add_argument("--batch", type=int, help="designs per model call (default: the whole sweep in one batch)")
+    _compile_arg(p)
+    p.add_argument("--force", action="store_true", help="run even designs estimated to take over 600 s")
+    p.add_argument("--out", default="sweep_out", help="folder for the plot (default sweep_out)")
+    p.add_argument("--json", help="write the points (as predict's JSON, each with its verify block) and the "
+                   "analysis as JSON")
+    p.add_argument("--csv", help="write the points as CSV")
+    p.add_argument("--no-progress", action="store_true")
+
+
+def main_sweep(args: argparse.Namespace) -> int:
+    import sys
+
+    from hcmt.train import predict as pr
+    from hcmt.train import sweep as sw
+
+    param, lo, hi, n = sw.parse_vary(args.vary)
+    if args.yield_mpa is not None and not args.yield_mpa > 0:
+        raise ValueError(f"--yield-mpa must be > 0, got {args.yield_mpa}")
+    run = _design_run(args)
+    base = pr.parse_design(args.design, pr.default_design(run.meta))
+    designs = sw.sweep_designs(base, param, lo, hi, n)
+    for w in sorted({w for _, d in designs for w in pr.range_warnings(d, run.ranges)} - set(
+            w for w in pr.range_warnings(base, run.ranges) if not w.startswith(param))):
+        print(f"hcmt sweep: warning: {w}", file=sys.stderr)
+    check, analysis = sw.sweep(run, param, lo, hi, n, base, verify=args.verify, yield_mpa=args.yield_mpa,
+                               batch=args.batch, progress=not args.no_progress, compile=args.compile,
+                               force=args.force)
+    print(f"{run.label} ({run.source}) on {run.device}: {param} from {lo:g} to {hi:g} in {n} points, "
+          f"{check.wall_s:.2f} s in all; stresses are von Mises [MPa], lengths [mm]")
+    print(pr.format_table(check.preds, check.verified))
+    print(sw.format_analysis(analysis))
+    print(f"plot: {sw.plot_sweep(check, analysis, args.out, run.label)}")
+    if args.csv:
+        print(f"wrote {pr.write_csv(check.preds, args.csv)}")
+    if args.json:
+        with atomic_path(Path(args.json)) as tmp:
+            tmp.write_text(json.dumps(sw.sweep_json(check, analysis, run.source, str(run.device)), indent=2))
         print(f"wrote {args.json}")
     return 0
 

@@ -54,11 +54,10 @@ def design_demo(args: argparse.Namespace) -> int:
     settings = pr.settings_of(run.meta)
     print(f"[2/3] predicting {len(designs)} new designs on {run.device} (thickness mm, drop height mm: "
           + ", ".join(f"{d.thickness:g}/{d.drop_height:g}" for _, d in designs) + ")")
-    preds = pr.predict(run, designs, batch=len(designs))
     print(f"[3/3] simulating the same designs with the built-in FEM solver ({settings.frames} frames of "
           f"{settings.frame_dt} ms each)")
-    truth = pr.solve(designs, settings)
-    verified = pr.verify(preds, truth)
+    check = pr.check_designs(run, designs, batch=len(designs), verify=True, progress=False)
+    preds, truth, verified = check.preds, check.truth, check.verified
     print("\nvon Mises stresses in MPa, lengths in mm; 'err' columns compare the model with the solver")
     print(pr.format_table(preds, verified))
     picture = pr.contour_picture(preds[1], truth[1], run.meta, Path(args.out), run.label)

@@ -7,10 +7,21 @@ initial condition, the error at step ``t`` is the RMSE over nodes of the error v
 
 and ``rmse_h`` is its mean over steps 1..h (``rmse_all``: over every predicted step). Trajectory values are then
 averaged over trajectories. The paper reports them ×10³ (``SCALE``); :func:`rollout_rmse` returns them so scaled.
+
+Beside them, what an engineer reads from an Impact Plate rollout (:func:`impact_metrics` per trajectory,
+:func:`summarize_impact` over trajectories): whether the ball rebounds (the sign of its mean vertical velocity over
+the window's last step, model vs solver), the peak plate and ball von Mises stress (signed error %), the frame of
+the plate's peak (error in frames), the maximum plate deflection ``max |u_y|`` (error %) and the far-field
+deflection error (plate nodes beyond half the plate's radius: mean |u_y error| over nodes and predicted frames, in
+µm and in % of the solver's largest far-field deflection); and the error by step split into the ball, the contact
+zone (plate nodes within half the radius) and the far plate (:func:`impact_groups`).
 """
 from __future__ import annotations
 
 import numpy as np
+
+from hcmt.data.format import NodeType
+from hcmt.graph.contact import object_ids
 
 SCALE = 1e3
 HORIZONS = {"rmse_1": 1, "rmse_50": 50, "rmse_all": None}
@@ -65,3 +76,91 @@ def rollout_details(pred: np.ndarray, true: np.ndarray, start: int, groups: dict
     for name, mask in groups.items():
         out["groups"][name] = float(step_rmse(pred[:, mask], true[:, mask])[start:].mean() * SCALE)
     return out
+
+
+# -- Impact Plate: the physics an engineer reads ------------------------------------------------------------------
+def plate_mask(cells: np.ndarray, node_type: np.ndarray) -> np.ndarray:
+    """[N] bool: the plate, i.e. the body holding the clamped (HANDLE) nodes; the other body is the ball."""
+    node_type = np.asarray(node_type).reshape(-1)
+    obj = object_ids(np.asarray(cells), len(node_type))
+    handles = obj[node_type == NodeType.HANDLE]
+    if not len(handles):
+        raise ValueError("no clamped (HANDLE) nodes: cannot tell the plate from the ball")
+    return obj == handles[0]
+
+
+def impact_groups(rest: np.ndarray, plate: np.ndarray) -> dict[str, np.ndarray]:
+    """Node masks ``ball``, ``contact`` (plate nodes with ``r = |x| <=`` half the plate's radius) and ``far``
+    (plate nodes beyond it), ``rest`` the [N, 2] positions at rest (frame 0)."""
+    r = np.abs(rest[:, 0])
+    half = 0.5 * r[plate].max()
+    return {"ball": ~plate, "contact": plate & (r <= half), "far": plate & (r > half)}
+
+
+def impact_metrics(pred_pos, pred_stress, true_pos, true_stress, plate: np.ndarray, start: int = 2) -> dict:
+    """One Impact Plate trajectory, model (``pred_*``) against solver (``true_*``): positions [T, N, 2] mm,
+    stress [T, N, 1] MPa, ``plate`` [N] bool (:func:`plate_mask`), ``start`` the first predicted frame."""
+    pp, tp = np.asarray(pred_pos, np.float64), np.asarray(true_pos, np.float64)
+    ps, ts = np.asarray(pred_stress, np.float64)[..., 0], np.asarray(true_stress, np.float64)[..., 0]
+    ball = ~plate
+    out = {}
+    for who, x in (("model", pp), ("solver", tp)):
+        out[f"{who}_ball_vy_end"] = float((x[-1, ball, 1] - x[-2, ball, 1]).mean())  # mm per frame
+    out["model_rebounds"] = out["model_ball_vy_end"] > 0
+    out["solver_rebounds"] = out["solver_ball_vy_end"] > 0
+    out["rebound_agrees"] = out["model_rebounds"] == out["solver_rebounds"]
+    for body, mask in (("plate", plate), ("ball", ball)):
+        a, b = ps[:, mask].max(), ts[:, mask].max()
+        out[f"peak_{body}_stress_mpa"], out[f"solver_peak_{body}_stress_mpa"] = float(a), float(b)
+        out[f"peak_{body}_stress_error_pct"] = float(100.0 * (a - b) / b)
+    out["peak_plate_frame_error"] = int(ps[:, plate].max(1).argmax() - ts[:, plate].max(1).argmax())
+    u_pred, u_true = pp[:, plate, 1] - tp[0, plate, 1], tp[:, plate, 1] - tp[0, plate, 1]
+    a, b = np.abs(u_pred).max(), np.abs(u_true).max()
+    out["max_deflection_mm"], out["solver_max_deflection_mm"] = float(a), float(b)
+    out["max_deflection_error_pct"] = float(100.0 * (a - b) / b)
+    far = impact_groups(tp[0], plate)["far"][plate]
+    err = np.abs(u_pred[start:, far] - u_true[start:, far])
+    out["far_deflection_error_um"] = float(err.mean() * 1e3)
+    out["far_deflection_error_pct"] = float(100.0 * err.mean() / max(np.abs(u_true[:, far]).max(), 1e-12))
+    return out
+
+
+#: per-trajectory signed errors summarized by :func:`summarize_impact`
+SIGNED = ("peak_plate_stress_error_pct", "peak_ball_stress_error_pct", "peak_plate_frame_error",
+          "max_deflection_error_pct")
+
+
+def summarize_impact(rows: list[dict]) -> dict:
+    """Over trajectories: rebound agreement (fraction, and how many rebound in model and solver); for each signed
+    error the median of |error|, the median signed error, the 90th percentile of |error| and the worst (the signed
+    error of largest magnitude); the far-field deflection error's median and worst."""
+    out = {"trajectories": len(rows),
+           "rebound_agreement": float(np.mean([r["rebound_agrees"] for r in rows])),
+           "model_rebounds": int(sum(r["model_rebounds"] for r in rows)),
+           "solver_rebounds": int(sum(r["solver_rebounds"] for r in rows))}
+    for key in SIGNED:
+        v = np.asarray([r[key] for r in rows], np.float64)
+        out[key] = {"median_abs": float(np.median(np.abs(v))), "median": float(np.median(v)),
+                    "p90_abs": float(np.percentile(np.abs(v), 90)), "worst": float(v[np.argmax(np.abs(v))])}
+    for key in ("far_deflection_error_um", "far_deflection_error_pct"):
+        v = np.asarray([r[key] for r in rows], np.float64)
+        out[key] = {"median": float(np.median(v)), "worst": float(v.max())}
+    return out
+
+
+def format_physics(p: dict) -> list[str]:
+    """The lines of :func:`summarize_impact` for a terminal."""
+    def err(key, unit=" %"):
+        e = p[key]
+        return (f"median {e['median_abs']:.1f}{unit} (signed {e['median']:+.1f}{unit}, p90 {e['p90_abs']:.1f}{unit}, "
+                f"worst {e['worst']:+.1f}{unit})")
+    n = p["trajectories"]
+    return [f"  physics over {n} trajectories: rebound agreement {p['rebound_agreement'] * n:.0f}/{n} (the ball "
+            f"rebounds in {p['model_rebounds']} predictions, {p['solver_rebounds']} solver runs)",
+            f"    peak plate stress error {err('peak_plate_stress_error_pct')}",
+            f"    time of the plate's peak, frames off: {err('peak_plate_frame_error', '')}",
+            f"    max deflection error {err('max_deflection_error_pct')}",
+            f"    far-field deflection error median {p['far_deflection_error_um']['median']:.1f} µm "
+            f"({p['far_deflection_error_pct']['median']:.0f} % of the solver's far-field peak), worst "
+            f"{p['far_deflection_error_um']['worst']:.1f} µm",
+            f"    ball peak stress error {err('peak_ball_stress_error_pct')}"]

@@ -9,22 +9,22 @@ designs as one batched graph per step (:func:`hcmt.train.rollout.rollout_batch`)
 * the maximum plate deflection ``max |u_y|`` over the plate's nodes and frames (mm);
 * the margin to a yield (or design) stress, ``yield - peak plate stress`` (MPa), when one is given.
 
-:func:`verify` runs the built-in solver on the same designs and compares.
+:func:`verify_designs` compares them with the built-in solver on the same designs; :func:`check_designs` is the
+whole sequence (cost check, prediction with range warnings, margin, verification) that ``hcmt predict``, ``hcmt
+sweep`` and ``hcmt demo`` share.
 """
 from __future__ import annotations
 
 import csv
 import time
-from dataclasses import asdict, dataclass, field, fields
+from dataclasses import asdict, dataclass, field, fields, replace
 from pathlib import Path
 
 import numpy as np
 
-from hcmt.data.format import NodeType
-from hcmt.graph.contact import object_ids
 from hcmt.sim.scene import RANGES, Design, Settings, initial_frames, simulate
 from hcmt.train.data import prepare_trajectory
-from hcmt.train.metrics import rollout_rmse
+from hcmt.train.metrics import format_physics, impact_metrics, plate_mask, rollout_rmse, summarize_impact
 
 DESIGN_KEYS = tuple(f.name for f in fields(Design))
 
@@ -153,6 +153,71 @@ def predict(run, designs: list[tuple[str, Design]], batch: int = 8, progress: bo
     return out
 
 
+@dataclass
+class Check:
+    """The result of :func:`check_designs`: predictions, the solver's runs and their comparison (``verify``)."""
+
+    preds: list[Prediction]
+    truth: list[Prediction] | None
+    verified: dict | None
+    settings: Settings
+    wall_s: float
+
+
+#: a design's mesh larger than this many times the training data's largest is estimated before any work
+MESH_FACTOR = 4.0
+
+
+def cost_check(run, designs: list[tuple[str, Design]], settings: Settings, verify: bool, force: bool) -> None:
+    """Refuse designs whose meshes are far beyond the training data's (more than :data:`MESH_FACTOR` times the
+    nodes the same design has at the training data's finest ``mesh_size``) when the estimated time (the learned
+    rollout's, plus the solver's for ``verify``, :func:`hcmt.sim.scene.plan`) exceeds ``MAX_ESTIMATED_SECONDS``
+    (600 s), unless ``force``; as ``hcmt simulate`` does."""
+    from hcmt.sim.scene import MAX_ESTIMATED_SECONDS, plan
+
+    finest = run.ranges.get("mesh_size", (None, None))[0]
+    for name, d in designs:
+        if finest is None or d.mesh_size >= finest:
+            continue
+        cost = plan(d, settings)
+        trained = plan(replace(d, mesh_size=finest), settings)["num_nodes"]
+        if cost["num_nodes"] <= MESH_FACTOR * trained:
+            continue
+        # learned rollout: ~1e-4 s per node and step on one CPU thread (HCMT width 64; docs/MODELS.md)
+        estimate = 1e-4 * cost["num_nodes"] * (settings.frames - 2) + (cost["estimated_s"] if verify else 0.0)
+        if estimate > MAX_ESTIMATED_SECONDS and not force:
+            raise ValueError(f"{name}: {cost['num_nodes']} nodes at mesh_size {d.mesh_size:g} mm ({trained} at the "
+                             f"training data's finest, {finest:g} mm): estimated {estimate:.0f} s "
+                             f"{'(model and solver)' if verify else '(model rollout)'} exceeds "
+                             f"{MAX_ESTIMATED_SECONDS:.0f} s; coarsen the mesh or pass --force")
+
+
+def check_designs(run, designs: list[tuple[str, Design]], *, batch: int = 8, verify: bool = False,
+                  yield_mpa: float | None = None, compile: str = "none", progress: bool = True,
+                  force: bool = False) -> Check:
+    """The design check, the one sequence behind ``hcmt predict``, ``hcmt sweep`` and ``hcmt demo``: cost check,
+    prediction (range warnings and the model's name recorded in each summary), yield margin, and with ``verify``
+    the solver on the same designs and the comparison."""
+    if yield_mpa is not None and not (np.isfinite(yield_mpa) and yield_mpa > 0):
+        raise ValueError(f"--yield-mpa must be a number > 0, got {yield_mpa}")
+    if batch < 1:
+        raise ValueError(f"--batch must be >= 1, got {batch}")
+    settings = settings_of(run.meta)
+    cost_check(run, designs, settings, verify, force)
+    t0 = time.perf_counter()
+    preds = predict(run, designs, batch=batch, progress=progress, compile=compile)
+    wall = time.perf_counter() - t0
+    for p in preds:
+        p.summary["model"] = run.source
+        p.summary["warnings"] = range_warnings(p.design, run.ranges)
+    add_margin(preds, yield_mpa)
+    truth = verified = None
+    if verify:
+        truth = solve(designs, settings)
+        verified = verify_designs(preds, truth)
+    return Check(preds, truth, verified, settings, wall)
+
+
 def solve(designs: list[tuple[str, Design]], settings: Settings) -> list[Prediction]:
     """The built-in FEM solver on the same designs (the reference for :func:`verify`)."""
     out = []
@@ -167,16 +232,6 @@ def solve(designs: list[tuple[str, Design]], settings: Settings) -> list[Predict
 
 
 # -- reading off the numbers ---------------------------------------------------------------------------------------
-def plate_mask(cells: np.ndarray, node_type: np.ndarray) -> np.ndarray:
-    """[N] bool: the plate, i.e. the body holding the clamped (HANDLE) nodes; the other body is the ball."""
-    node_type = np.asarray(node_type).reshape(-1)
-    obj = object_ids(np.asarray(cells), len(node_type))
-    handles = obj[node_type == NodeType.HANDLE]
-    if not len(handles):
-        raise ValueError("no clamped (HANDLE) nodes: cannot tell the plate from the ball")
-    return obj == handles[0]
-
-
 def summarize(p: Prediction, frame_dt: float) -> dict:
     """Peak von Mises stress of plate and ball (MPa, where in mm, when in ms) and maximum plate deflection."""
     plate = plate_mask(p.cells, p.node_type)
@@ -205,11 +260,11 @@ def add_margin(preds: list[Prediction], yield_mpa: float | None) -> None:
         p.summary["yield_margin_mpa"] = float(yield_mpa - p.summary["peak_plate_stress_mpa"])
 
 
-def verify(preds: list[Prediction], truth: list[Prediction]) -> dict:
+def verify_designs(preds: list[Prediction], truth: list[Prediction]) -> dict:
     """Per design (added to each prediction's summary under ``verify``) and summarized over designs: the
     learned-vs-solver error of peak plate stress (%), of its location (mm), of maximum deflection (%), position
     RMSE over the window (mm, all nodes and predicted frames) and the speedup (solver ÷ prediction wall time)."""
-    rows = []
+    rows, physics = [], []
     for p, t in zip(preds, truth):
         a, b = p.summary, t.summary
         row = {
@@ -225,6 +280,11 @@ def verify(preds: list[Prediction], truth: list[Prediction]) -> dict:
             "solver_wall_s": t.wall_s,
             "speedup": t.wall_s / p.wall_s,
         }
+        phys = impact_metrics(p.world_pos, p.stress, t.world_pos, t.stress, plate_mask(t.cells, t.node_type), 2)
+        physics.append(phys)
+        row.update({k: phys[k] for k in ("model_rebounds", "solver_rebounds", "rebound_agrees",
+                                         "peak_plate_frame_error", "peak_ball_stress_error_pct",
+                                         "far_deflection_error_um")})
         p.summary["verify"] = row
         rows.append(row)
 
@@ -234,7 +294,7 @@ def verify(preds: list[Prediction], truth: list[Prediction]) -> dict:
 
     keys = ("peak_plate_stress_error_pct", "peak_plate_location_error_mm", "max_deflection_error_pct",
             "position_rmse_mm", "speedup")
-    return {"designs": len(rows), **{k: stats(k) for k in keys},
+    return {"designs": len(rows), **{k: stats(k) for k in keys}, "physics": summarize_impact(physics),
             "note": "errors summarized as absolute values (median, max, mean); speedup = solver wall time / "
                     "prediction wall time per design on this machine"}
 
@@ -279,6 +339,7 @@ def format_table(preds: list[Prediction], verified: dict | None = None) -> str:
             f"location median {v['peak_plate_location_error_mm']['median']:.2f} mm, deflection error median "
             f"{v['max_deflection_error_pct']['median']:.1f} % (worst {v['max_deflection_error_pct']['max']:.1f} %), "
             f"speedup median {v['speedup']['median']:.1f}x")
+        lines += [line[2:] for line in format_physics(v["physics"])]
     return "\n".join(lines)
 
 

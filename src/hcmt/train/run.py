@@ -22,7 +22,7 @@ import numpy as np
 import torch
 
 from hcmt.data.format import atomic_path, ensure_space
-from hcmt.train.metrics import SCALE
+from hcmt.train.metrics import SCALE, format_physics, impact_groups, impact_metrics, plate_mask, step_rmse, summarize_impact
 
 PRETRAINED_DIR = Path(__file__).resolve().parent.parent / "pretrained"
 
@@ -287,8 +287,11 @@ def evaluate(run, data, split, limit=None, checkpoint="best", device=None, batch
     from hcmt.data.format import Split
     from hcmt.train.metrics import aggregate, rollout_rmse
 
+    from hcmt.data.format import read_meta
+
+    meta = read_meta(data)
     path = rollout_for(run, data, split, limit, checkpoint, device, batch, compile)
-    per_traj, ms = [], []
+    per_traj, ms, physics, by_step = [], [], [], defaultdict(list)
     with h5py.File(path, "r") as f, Split(data, split) as s:
         index = {n: i for i, n in enumerate(s.names)}
         for name in s.names[:limit]:  # the first `limit` trajectories (all when None), however many the file holds
@@ -301,10 +304,13 @@ def evaluate(run, data, split, limit=None, checkpoint="best", device=None, batch
                 row.update({f"stress_{k}": v for k, v in rollout_rmse(g["stress"][()], truth["stress"], start).items()})
             per_traj.append(row)
             ms.append(float(g.attrs["ms_per_step"]))
+            if meta.get("dataset") == "impact_plate" and "stress" in g and "stress" in truth:
+                phys, steps = impact_physics(g["world_pos"][()], g["stress"][()], truth, start)
+                physics.append(phys)
+                for key, curve in steps.items():
+                    by_step[key].append(curve)
     means = aggregate([{k: v for k, v in r.items() if k != "trajectory"} for r in per_traj])
-    from hcmt.data.format import read_meta
-
-    units = read_meta(data).get("units") or {}
+    units = meta.get("units") or {}
     metrics = {"split": split, "data": str(Path(data).resolve()), "trajectories": len(per_traj), "scale": SCALE,
                "units": {k: units[k] for k in ("length", "stress") if k in units}}
     for q in ("position", "stress"):
@@ -313,10 +319,27 @@ def evaluate(run, data, split, limit=None, checkpoint="best", device=None, batch
     metrics["inference_ms_per_step"] = float(np.median(ms))
     stats = Path(run) / "train_stats.json"
     metrics["train_ms_per_step"] = json.loads(stats.read_text()).get("train_ms_per_step") if stats.is_file() else None
+    if physics:
+        metrics["physics"] = summarize_impact(physics)
+        metrics["error_by_step"] = {k: np.mean(v, 0).tolist() for k, v in by_step.items()}
+        for row, phys in zip(per_traj, physics):
+            row["physics"] = phys
     metrics["per_trajectory"] = per_traj
     with atomic_path(metrics_path(run, split)) as tmp:  # one file per split: never overwrites another split's
         tmp.write_text(json.dumps(metrics, indent=2))
     return metrics
+
+
+def impact_physics(pos, stress, truth: dict, start: int) -> tuple[dict, dict]:
+    """(:func:`hcmt.train.metrics.impact_metrics`, the position and stress error by step (×10³) of the ball, the
+    contact zone and the far plate) of one Impact Plate rollout against its trajectory ``truth``."""
+    plate = plate_mask(truth["cells"], truth["node_type"])
+    groups = impact_groups(np.asarray(truth["world_pos"][0]), plate)
+    steps = {}
+    for q, pred, true in (("position", pos, truth["world_pos"]), ("stress", stress, truth["stress"])):
+        for g, mask in groups.items():
+            steps[f"{q}_{g}"] = (step_rmse(pred[:, mask], true[:, mask])[start:] * SCALE).tolist()
+    return impact_metrics(pos, stress, truth["world_pos"], truth["stress"], plate, start), steps
 
 
 def metrics_path(run, split: str) -> Path:
@@ -338,6 +361,8 @@ def format_metrics(m: dict) -> str:
             lines.append(f"  {name:<18}" + "".join(f"{m[q][k] / SCALE:>12.4g}" for k in ("rmse_1", "rmse_50", "rmse_all")))
     lines.append(f"  inference {m['inference_ms_per_step']:.2f} ms/step"
                  + (f", training {m['train_ms_per_step']:.2f} ms/step" if m.get("train_ms_per_step") else ""))
+    if "physics" in m:
+        lines += format_physics(m["physics"])
     return "\n".join(lines)
 
 

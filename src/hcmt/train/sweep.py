@@ -1,0 +1,197 @@
+"""Design sweeps: one parameter varied over a range, every point predicted in one batch (``hcmt sweep``).
+
+An engineer's questions of a sweep are the trend and the limit: does the peak plate stress (and the maximum
+deflection) rise or fall with the parameter, steadily or not, and which value is the smallest (or largest) that
+keeps the peak below a yield stress ``Y``? :func:`sweep` answers them for the model and, with ``verify``, for the
+solver on the same points, and says whether the two agree:
+
+* trend: the sign of ``last − first`` and whether the series is monotonic (every step of the same sign, steps
+  smaller than ``TREND_TOL`` of the series' range counting as flat);
+* limit: the parameter values whose peak is below ``Y``; the call is the smallest passing value when passing
+  values lie above failing ones (thickness), the largest when below (drop height); the model's call agrees when it
+  is within one sweep step of the solver's.
+"""
+from __future__ import annotations
+
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+
+from hcmt.sim.scene import Design
+from hcmt.train.predict import DESIGN_KEYS, Check, check_designs, to_json
+
+#: steps smaller than this share of a series' range count as flat in the monotonicity test
+TREND_TOL = 0.02
+QUANTITIES = {"peak_plate_stress_mpa": "peak plate stress (MPa)", "max_deflection_mm": "max deflection (mm)"}
+
+
+def parse_vary(text: str) -> tuple[str, float, float, int]:
+    """``PARAM=LO:HI:N`` -> (param, lo, hi, n); one line naming what is wrong otherwise."""
+    key, sep, spec = text.partition("=")
+    key = key.strip().replace("-", "_")
+    parts = spec.split(":")
+    if not sep or len(parts) != 3:
+        raise ValueError(f"--vary {text!r}: expected PARAM=LO:HI:N, e.g. thickness=0.5:1.0:6")
+    if key not in DESIGN_KEYS:
+        raise ValueError(f"--vary {text!r}: unknown parameter {key!r}; expected one of {', '.join(DESIGN_KEYS)}")
+    try:
+        lo, hi = float(parts[0]), float(parts[1])
+    except ValueError:
+        raise ValueError(f"--vary {text!r}: LO and HI must be numbers") from None
+    if not (np.isfinite(lo) and np.isfinite(hi)) or not lo < hi:
+        raise ValueError(f"--vary {text!r}: expected finite LO < HI, got {parts[0]} and {parts[1]}")
+    try:
+        n = int(parts[2])
+    except ValueError:
+        raise ValueError(f"--vary {text!r}: N must be a whole number, got {parts[2]!r}") from None
+    if not 2 <= n <= 256:
+        raise ValueError(f"--vary {text!r}: N must be between 2 and 256, got {n}")
+    return key, lo, hi, n
+
+
+def sweep_designs(base: Design, param: str, lo: float, hi: float, n: int) -> list[tuple[str, Design]]:
+    """The sweep's designs, each validated before any work (an impossible value is refused in one line)."""
+    out = []
+    for v in np.linspace(lo, hi, n):
+        try:
+            out.append((f"{param}={v:.6g}", replace(base, **{param: float(v)}).validate()))
+        except ValueError as exc:
+            raise ValueError(f"--vary {param}={lo:g}:{hi:g}:{n}: the point {param}={v:.6g} is impossible: {exc}") \
+                from None
+    return out
+
+
+def trend(values: np.ndarray) -> dict:
+    """``{"sign": -1 | 0 | 1 (last − first), "monotonic": bool, "change_pct": (last − first) / first}``."""
+    v = np.asarray(values, np.float64)
+    span = max(float(v.max() - v.min()), 1e-300)
+    steps = np.diff(v)
+    steps = steps[np.abs(steps) > TREND_TOL * span]
+    sign = int(np.sign(v[-1] - v[0])) if abs(v[-1] - v[0]) > TREND_TOL * span else 0
+    return {"sign": sign, "monotonic": bool(np.all(steps > 0) or np.all(steps < 0)),
+            "change_pct": float(100.0 * (v[-1] - v[0]) / v[0]) if v[0] else None}
+
+
+def limit_call(params: np.ndarray, peaks: np.ndarray, yield_mpa: float) -> dict:
+    """Which parameter values keep the peak below ``yield_mpa``, and the call: the smallest passing value when the
+    passing values lie at the top of the range, the largest when at the bottom (``None``: none or all pass)."""
+    ok = np.asarray(peaks) < yield_mpa
+    out = {"passing": [float(p) for p in np.asarray(params)[ok]], "call": None, "call_index": None, "side": None}
+    if ok.all() or not ok.any():
+        out["side"] = "all pass" if ok.all() else "none pass"
+        return out
+    idx = np.flatnonzero(ok)
+    if ok[-1]:  # passing at the high end: the smallest value from which every larger one passes
+        first = int(idx[-1])
+        while first > 0 and ok[first - 1]:
+            first -= 1
+        out.update(call=float(params[first]), call_index=first, side="minimum")
+    else:
+        last = int(idx[0])
+        while last + 1 < len(ok) and ok[last + 1]:
+            last += 1
+        out.update(call=float(params[last]), call_index=last, side="maximum")
+    return out
+
+
+def analyse(check: Check, param: str, yield_mpa: float | None) -> dict:
+    """Trends (model, and solver with ``verify``), their agreement, and the limit calls."""
+    params = np.array([getattr(p.design, param) for p in check.preds])
+    out = {"param": param, "values": params.tolist(), "trend": {}, "limit": None}
+    series = {"model": [p.summary for p in check.preds]}
+    if check.truth is not None:
+        series["solver"] = [t.summary for t in check.truth]
+    for q in QUANTITIES:
+        row = {who: trend([s[q] for s in rows]) for who, rows in series.items()}
+        if "solver" in row:
+            row["agree"] = row["model"]["sign"] == row["solver"]["sign"] and (
+                row["model"]["monotonic"] == row["solver"]["monotonic"])
+        out["trend"][q] = row
+    if yield_mpa is not None:
+        calls = {who: limit_call(params, np.array([s["peak_plate_stress_mpa"] for s in rows]), yield_mpa)
+                 for who, rows in series.items()}
+        if "solver" in calls:
+            a, b = calls["model"], calls["solver"]
+            if a["call_index"] is not None and b["call_index"] is not None:
+                calls["within_one_step"] = a["side"] == b["side"] and abs(a["call_index"] - b["call_index"]) <= 1
+            else:
+                calls["within_one_step"] = a["side"] == b["side"]
+            calls["unsafe"] = _unsafe(a, b)
+        out["limit"] = {"yield_mpa": yield_mpa, **calls}
+    return out
+
+
+def _unsafe(model: dict, solver: dict) -> bool:
+    """The model passes a parameter value that the solver fails."""
+    return bool(set(model["passing"]) - set(solver["passing"]))
+
+
+def sweep(run, param: str, lo: float, hi: float, n: int, base: Design, *, verify: bool = False,
+          yield_mpa: float | None = None, batch: int | None = None, progress: bool = True, compile: str = "none",
+          force: bool = False) -> tuple[Check, dict]:
+    """Predict a one-parameter sweep in one batch (``batch`` designs per model call, default all) and analyse it."""
+    designs = sweep_designs(base, param, lo, hi, n)
+    check = check_designs(run, designs, batch=batch or n, verify=verify, yield_mpa=yield_mpa, progress=progress,
+                          compile=compile, force=force)
+    return check, analyse(check, param, yield_mpa)
+
+
+def format_analysis(a: dict) -> str:
+    word = {1: "rises", -1: "falls", 0: "is flat"}
+    lines = []
+    for q, label in QUANTITIES.items():
+        row = a["trend"][q]
+        parts = []
+        for who in ("model", "solver"):
+            if who in row:
+                t = row[who]
+                change = f" ({t['change_pct']:+.1f} %)" if t["change_pct"] is not None else ""
+                parts.append(f"{who} {word[t['sign']]}{change}{'' if t['monotonic'] else ', not monotonic'}")
+        agree = "" if "agree" not in row else ("  -> trends agree" if row["agree"] else "  -> TRENDS DISAGREE")
+        lines.append(f"{label} against {a['param']}: " + "; ".join(parts) + agree)
+    lim = a["limit"]
+    if lim:
+        for who in ("model", "solver"):
+            if who in lim:
+                c = lim[who]
+                text = (f"{c['side']} {a['param']} {c['call']:.6g}" if c["call"] is not None else c["side"])
+                lines.append(f"below {lim['yield_mpa']:g} MPa, {who}: {text}")
+        if "within_one_step" in lim:
+            lines.append("limit calls " + ("agree within one sweep step" if lim["within_one_step"] else
+                                           "DIFFER by more than one sweep step")
+                         + ("; the model passes a value the solver fails (UNSAFE)" if lim["unsafe"] else ""))
+    return "\n".join(lines)
+
+
+def sweep_json(check: Check, analysis: dict, run_source: str, device: str) -> dict:
+    return {**to_json(check.preds, check.verified, run_source, device), "sweep": analysis}
+
+
+def plot_sweep(check: Check, analysis: dict, out_dir: str | Path, label: str) -> Path:
+    """Peak plate stress and maximum deflection against the swept parameter: model, and the solver with verify."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from hcmt.data.format import atomic_path
+
+    x = np.array(analysis["values"])
+    fig, axes = plt.subplots(1, 2, figsize=(10, 4), constrained_layout=True)
+    for ax, (q, name) in zip(axes, QUANTITIES.items()):
+        ax.plot(x, [p.summary[q] for p in check.preds], "o-", label=label)
+        if check.truth is not None:
+            ax.plot(x, [t.summary[q] for t in check.truth], "s--", color="k", label="Solver")
+        if q == "peak_plate_stress_mpa" and analysis["limit"]:
+            ax.axhline(analysis["limit"]["yield_mpa"], color="r", lw=1, label=f"Y = {analysis['limit']['yield_mpa']:g}")
+        ax.set_xlabel(analysis["param"])
+        ax.set_ylabel(name)
+        ax.grid(alpha=0.3)
+        ax.legend()
+    path = Path(out_dir) / f"sweep_{analysis['param']}.png"
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with atomic_path(path) as tmp:
+        fig.savefig(tmp, dpi=120, format="png")
+    plt.close(fig)
+    return path

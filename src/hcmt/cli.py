@@ -31,6 +31,46 @@ COMMANDS: dict[str, tuple[str, str]] = {
 }
 
 
+#: commands that compute with torch: they take ``--threads``
+THREADED = ("generate", "simulate", "hierarchy", "train", "rollout", "evaluate", "predict", "sweep", "plot", "export",
+            "demo")
+
+
+def threads_arg(text: str) -> int | str:
+    if text == "auto":
+        return text
+    try:
+        n = int(text)
+    except ValueError:
+        n = 0
+    if n < 1:
+        raise argparse.ArgumentTypeError(f"expected a whole number >= 1 or auto, got {text!r}")
+    return n
+
+
+def auto_threads() -> int:
+    """The CPU cores not already busy: cores minus the 1-minute load average (at least 1). On a machine whose other
+    cores run another job this is 1 thread, never the oversubscribed default that made a design take 10x longer
+    (docs/RESULTS.md, "Threads")."""
+    import os
+
+    cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
+    try:
+        busy = os.getloadavg()[0]
+    except OSError:  # no load average on this platform
+        busy = 0.0
+    return max(1, min(cores, int(cores - busy + 0.5)))
+
+
+def set_threads(threads: int | str) -> int:
+    """Apply ``--threads`` to torch's intra-op pool; returns the number set."""
+    import torch
+
+    n = auto_threads() if threads == "auto" else int(threads)
+    torch.set_num_threads(n)
+    return n
+
+
 class CommandError(Exception):
     """An error the user can fix; printed as one line, exit status 2."""
 
@@ -51,6 +91,10 @@ def build_parser() -> argparse.ArgumentParser:
             mod = importlib.import_module(module)
             configure = getattr(mod, f"configure_{name}", None) or mod.configure
             configure(p)
+            if name in THREADED:
+                p.add_argument("--threads", type=threads_arg, default="auto", metavar="N",
+                               help="CPU threads for torch (default auto: the cores not busy with other work, "
+                                    "from the load average)")
             p.set_defaults(_run=getattr(mod, f"main_{name}", None) or mod.main)
     return parser
 
@@ -76,6 +120,8 @@ def main(argv: list[str] | None = None) -> int:
 
     previous = signal.signal(signal.SIGTERM, _terminate)  # SIGTERM ends a command as Ctrl-C does
     try:
+        if getattr(args, "threads", None) is not None:
+            set_threads(args.threads)
         return int(args._run(args) or 0)
     except (DatasetError, CommandError, FileNotFoundError, ValueError) as exc:
         print(f"hcmt {args.command}: error: {exc}", file=sys.stderr)

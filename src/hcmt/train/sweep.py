@@ -53,7 +53,7 @@ def parse_vary(text: str) -> tuple[str, float, float, int]:
 def sweep_designs(base: Design, param: str, lo: float, hi: float, n: int) -> list[tuple[str, Design]]:
     """The sweep's designs, each validated before any work (an impossible value is refused in one line)."""
     out = []
-    for v in np.linspace(lo, hi, n):
+    for v in np.round(np.linspace(lo, hi, n), 12):  # 0.9, not 0.8999999999999999
         try:
             out.append((f"{param}={v:.6g}", replace(base, **{param: float(v)}).validate()))
         except ValueError as exc:

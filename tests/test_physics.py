@@ -253,3 +253,62 @@ def test_threads_option_sets_torchs_pool(tmp_path, capsys):
     with pytest.raises(SystemExit) as exit_:  # argparse: usage and one error line, status 2
         cli(["evaluate", str(tmp_path), "--data", str(tmp_path), "--threads", "zero"])
     assert exit_.value.code == 2 and "--threads: expected a whole number >= 1 or auto" in capsys.readouterr().err
+
+
+# -- the authors' training loop ----------------------------------------------------------------------------------
+def test_keras_epsilon_hat_adam_equals_the_keras_update():
+    from hcmt.train.trainer import keras_epsilon
+
+    g = torch.Generator().manual_seed(0)
+    theta0 = torch.randn(5, generator=g, dtype=torch.float64)
+    grads = [torch.randn(5, generator=g, dtype=torch.float64) * 1e-6 for _ in range(4)]  # ε matters at this scale
+    p = torch.nn.Parameter(theta0.clone())
+    opt = torch.optim.Adam([p], lr=1e-3, eps=1e-7)
+    lr, b1, b2, eps_hat = 1e-3, 0.9, 0.999, 1e-7
+    theta, m, v = theta0.clone(), torch.zeros(5, dtype=torch.float64), torch.zeros(5, dtype=torch.float64)
+    for t, grad in enumerate(grads, start=1):
+        opt.param_groups[0]["eps"] = keras_epsilon(eps_hat, b2, t)
+        p.grad = grad.clone()
+        opt.step()
+        m, v = b1 * m + (1 - b1) * grad, b2 * v + (1 - b2) * grad ** 2  # Keras (TF2 optimizer) update
+        theta = theta - lr * (1 - b2 ** t) ** 0.5 / (1 - b1 ** t) * m / (v.sqrt() + eps_hat)
+    torch.testing.assert_close(p.detach(), theta, rtol=1e-12, atol=1e-15)
+    plain = torch.nn.Parameter(theta0.clone())  # PyTorch's ε form differs visibly: the option is not vacuous
+    opt2 = torch.optim.Adam([plain], lr=1e-3, eps=1e-7)
+    for grad in grads:
+        plain.grad = grad.clone()
+        opt2.step()
+    assert (plain.detach() - theta).abs().max() > 1e-6
+
+
+def _trainer(data, out, overrides, model="hcmt"):
+    from hcmt.train.trainer import Trainer
+
+    cfg = load_config("impact_plate_cpu", TINY + overrides)
+    return Trainer(cfg, data, model, out, ablation=None, seed=0, resume=False, device="cpu", progress=False)
+
+
+def test_official_loop_options_normalizers_and_loss(data, tmp_path):
+    from hcmt.train.frames import collate_samples
+
+    warm = _trainer(data, tmp_path / "a", ["train.normalizer_steps=2", "train.normalizer_warmup=nodes"])
+    batch = collate_samples([warm.frames[0]])
+    warm.step(*batch)
+    m = warm.model
+    assert m.node_normalizer.count > 0 and m.mesh_normalizer.count == 0 and m.output_normalizer.count == 0
+    # mesh edges twice: level 0's rows enter the mesh normalizer once more
+    once = _trainer(data, tmp_path / "b", ["train.normalizer_steps=0"])
+    twice = _trainer(data, tmp_path / "c", ["train.normalizer_steps=0", "train.mesh_edges_twice=true"])
+    graph = batch[0]
+    assert graph.level_edges  # HCMT with a hierarchy: the option applies
+    l_once, _ = once.step(*batch)
+    twice.step(*batch)
+    extra = graph.mesh_features.shape[0]
+    assert float(twice.model.mesh_normalizer.count - once.model.mesh_normalizer.count) == extra
+    torch.testing.assert_close(twice.model.mesh_normalizer.sum - once.model.mesh_normalizer.sum,
+                               graph.mesh_features.double().sum(0))
+    # loss over N nodes (the authors') against over the unmasked entries (hcmt): same error, other denominator
+    nodes = _trainer(data, tmp_path / "d", ["train.normalizer_steps=0", "train.loss_denominator=nodes"])
+    l_nodes, _ = nodes.step(*batch)
+    mask = batch[2]
+    assert l_nodes == pytest.approx(l_once * float(mask.sum()) / graph.num_nodes, rel=1e-5)

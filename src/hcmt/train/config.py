@@ -91,7 +91,10 @@ SCHEMA: dict[str, dict[str, tuple]] = {
               "workers": (_INT, None), "checkpoint_blocks": (_BOOL, None), "precision": (_STR, ("fp32", "bf16")),
               "compile": (_STR, COMPILE_MODES),
               "deterministic": (_BOOL, None), "noise_nodes": (_STR, ("normal", "predicted")),
-              "pushforward": (_FLOAT, None), "pushforward_start": (_INT, None)},
+              "pushforward": (_FLOAT, None), "pushforward_start": (_INT, None),
+              "normalizer_warmup": (_STR, ("all", "nodes")), "mesh_edges_twice": (_BOOL, None),
+              "loss_denominator": (_STR, ("masked", "nodes")), "adam_epsilon": (_FLOAT, None),
+              "adam_epsilon_hat": (_BOOL, None)},
     "data": {"exclude_trajectories": ("a list of trajectory indices", None)},
 }
 TOP = {"dataset": (_STR, ("impact_plate", "deforming_plate", "sphere_simple", "deformable_plate"))}

@@ -148,6 +148,14 @@ def learning_rate(step: int, steps: int, lr: float, lr_final: float, decay_steps
     return lr * (lr_final / lr) ** min(step / max(steps, 1), 1.0)
 
 
+def keras_epsilon(epsilon_hat: float, beta2: float, t: int) -> float:
+    """PyTorch Adam's ε that reproduces TF/Keras Adam's ``epsilon`` ε̂ at optimizer step ``t`` (1-based).
+
+    Keras updates ``θ −= lr·sqrt(1−β₂ᵗ)/(1−β₁ᵗ) · m / (sqrt(v) + ε̂)``, PyTorch ``θ −= lr · m̂ / (sqrt(v̂) + ε)``
+    with ``m̂ = m/(1−β₁ᵗ)``, ``v̂ = v/(1−β₂ᵗ)``: equal for ``ε = ε̂ / sqrt(1 − β₂ᵗ)``."""
+    return epsilon_hat / math.sqrt(1.0 - beta2 ** t)
+
+
 def save_atomic(obj, path: Path) -> None:
     """torch.save through memory, then a plain write: a full disk raises ``OSError`` naming the path."""
     import io
@@ -332,7 +340,7 @@ class Trainer:
         self.valid_trajs = (load_split(data, "valid", self.adapter, levels, remesh,
                                        limit=int(tc.get("valid_trajectories", 2)))
                             if (Path(data) / "valid.h5").is_file() else [])
-        self.opt = torch.optim.Adam(self.model.parameters(), lr=float(tc["lr"]),
+        self.opt = torch.optim.Adam(self.model.parameters(), lr=float(tc["lr"]), eps=float(tc.get("adam_epsilon", 1e-8)),
                                     fused=self.device.type == "cuda")  # one kernel per step on CUDA
         self.step_count, self.best = 0, math.inf
         if resume:
@@ -370,6 +378,19 @@ class Trainer:
             with atomic_path(log) as tmp:
                 tmp.write_text("".join(l + "\n" for l in kept))
 
+    def _loss_denominator(self, graph, mask) -> torch.Tensor:
+        """``train.loss_denominator``: ``masked`` (hcmt: the number of unmasked entries, a mean over what is
+        predicted) or ``nodes`` (the authors' model.py: ``reduce_mean`` over all N nodes of the masked error summed
+        over channels)."""
+        if self.tc.get("loss_denominator", "masked") == "nodes":
+            n = graph.node_mask.sum() if graph.node_mask is not None else torch.tensor(float(graph.num_nodes))
+            return n.to(mask.device, torch.float32).clamp_min(1.0)
+        return mask.sum().clamp_min(1.0)
+
+    def _epsilon_hat(self) -> float:
+        t = self.step_count - int(self.tc.get("normalizer_steps", 0)) + 1  # this optimizer step, 1-based
+        return keras_epsilon(float(self.tc.get("adam_epsilon", 1e-7)), self.opt.param_groups[0]["betas"][1], t)
+
     def _pushforward_probability(self) -> float:
         """``train.pushforward`` from ``train.pushforward_start`` on (and never while only the normalizers learn)."""
         start = max(self.pushforward_start, int(self.tc.get("normalizer_steps", 0)))
@@ -385,19 +406,29 @@ class Trainer:
         """One training step (normalizer statistics only during the first ``normalizer_steps``): (loss, lr)."""
         torch.manual_seed(step_seed(self.seed, self.step_count, self.rank))  # global draws (LPE sign flips)
         graph, tgt, mask = graph.to(self.device), tgt.to(self.device), mask.to(self.device)
+        tc, warmup = self.tc, self.step_count < int(self.tc.get("normalizer_steps", 0))
+        # the authors' loop (run_model.py) accumulates only the node normalizer while warming up
+        accumulate = not (warmup and tc.get("normalizer_warmup", "all") == "nodes")
         with torch.autocast(self.device.type, dtype=torch.bfloat16, enabled=self.bf16):
+            if not accumulate:
+                self.model.node_normalizer.accumulate(graph.node_features, graph.node_mask)
+            elif tc.get("mesh_edges_twice", False) and graph.level_edges:  # the authors' HCMT: level 0 twice
+                self.model.mesh_normalizer.accumulate(graph.mesh_features, graph.mesh_mask)
             if self.pad is None:
-                pred = self.net(graph, accumulate=True)
-                norm_tgt = self.model.normalize_target(tgt, accumulate=True)
+                pred = self.net(graph, accumulate=accumulate)
+                norm_tgt = self.model.normalize_target(tgt, accumulate=accumulate)
             else:  # compiled: the same statistics, accumulated eagerly, then a forward that mutates no buffer
-                self.model.accumulate(graph, tgt)
+                if accumulate:
+                    self.model.accumulate(graph, tgt)
                 pred = self.net(graph, accumulate=False)
                 norm_tgt = self.model.normalize_target(tgt, accumulate=False)
-            loss = ((pred.float() - norm_tgt.float()) ** 2 * mask).sum() / mask.sum().clamp_min(1.0)
+            loss = ((pred.float() - norm_tgt.float()) ** 2 * mask).sum() / self._loss_denominator(graph, mask)
         lr = self.learning_rate(self.step_count)
-        if self.step_count >= int(self.tc.get("normalizer_steps", 0)):
+        if not warmup:
             for group in self.opt.param_groups:
                 group["lr"] = lr
+                if tc.get("adam_epsilon_hat", False):  # TF/Keras Adam's ε̂ (see _epsilon_hat)
+                    group["eps"] = self._epsilon_hat()
             self.opt.zero_grad(set_to_none=True)
             loss.backward()
             self.opt.step()

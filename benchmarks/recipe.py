@@ -36,6 +36,11 @@ RECIPES = {
     "vel-normal-pf": ["train.pushforward=0.5", "train.pushforward_start=1000"],
     "acc-predicted-pf": ["model.target=acceleration", "train.noise_nodes=predicted", "train.pushforward=0.5",
                          "train.pushforward_start=1000"],
+    # hcmt's edge deformation features (model.deformation), aimed at the plate's missing restoring force
+    "vel-normal-def": ["model.deformation=true"],
+    "acc-predicted-def": ["model.target=acceleration", "train.noise_nodes=predicted", "model.deformation=true"],
+    "acc-predicted-pf-def": ["model.target=acceleration", "train.noise_nodes=predicted", "train.pushforward=0.5",
+                             "train.pushforward_start=1000", "model.deformation=true"],
 }
 SPLITS = ("valid", "test")
 

@@ -312,3 +312,26 @@ def test_official_loop_options_normalizers_and_loss(data, tmp_path):
     l_nodes, _ = nodes.step(*batch)
     mask = batch[2]
     assert l_nodes == pytest.approx(l_once * float(mask.sum()) / graph.num_nodes, rel=1e-5)
+
+
+def test_deformation_features_are_the_edges_strain_and_zero_at_rest(data):
+    from hcmt.graph.build import frame_graph
+
+    adapter = config_adapter({"dataset": "impact_plate", "model": {"deformation": True}})
+    plain = get_adapter("impact_plate")
+    assert adapter.widths()["mesh_in"] == plain.widths()["mesh_in"] + 3
+    ds = FrameDataset(data, "train", plain, 1, True, 0.4)
+    tr = ds.trajectories[0]
+    mesh = tr.static["mesh_pos"]
+    feats = torch.zeros(tr.num_nodes, 3)
+    rest = frame_graph(feats, mesh, mesh.clone(), tr.hierarchy, 0.4, deformation=True)
+    assert rest.mesh_features.shape[1] == adapter.widths()["mesh_in"]
+    assert rest.mesh_features[:, 6:].abs().max() == 0 and all(f[:, 6:].abs().max() == 0 for f in rest.level_features)
+    moved = mesh.clone()
+    moved[:, 1] += 1e-3 * mesh[:, 0] ** 2  # a bent plate
+    g = frame_graph(feats, mesh, moved, tr.hierarchy, 0.4, deformation=True)
+    s, r = g.mesh_edges
+    torch.testing.assert_close(g.mesh_features[:, 6:8], (moved[s] - moved[r]) - (mesh[s] - mesh[r]))
+    torch.testing.assert_close(g.mesh_features[:, 8], (moved[s] - moved[r]).norm(dim=1) - (mesh[s] - mesh[r]).norm(dim=1))
+    with pytest.raises(ValueError, match="deformation.*dimension"):
+        config_adapter({"dataset": "sphere_simple", "model": {"deformation": True}})

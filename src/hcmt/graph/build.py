@@ -40,13 +40,14 @@ def hierarchy_tensors(hierarchy: Hierarchy, device) -> dict:
 def frame_graph(node_features: Tensor, mesh_pos: Tensor, world_pos: Tensor, hierarchy: Hierarchy, radius: float,
                 self_contact: bool = False, *, node_type: Tensor | None = None,
                 type_pairs: Iterable[tuple[int, int]] | None = None, self_contact_hops: int = 3,
-                exclude: Tensor | None = None, contact_method: str = "auto") -> Graph:
+                exclude: Tensor | None = None, contact_method: str = "auto", deformation: bool = False) -> Graph:
     """The graph of one frame: the hierarchy's mesh edges and objects, contact edges found at ``world_pos``.
 
     ``node_features`` ``[N, F]`` (raw), ``mesh_pos`` ``[N, d_mesh]``, ``world_pos`` ``[N, d_world]``;
     ``radius`` the contact radius gamma. Contact rules (``type_pairs``; ``self_contact``, which
     excludes the pairs within ``self_contact_hops`` hops of the hierarchy's mesh edges unless ``exclude`` keys
     are given) as in :func:`hcmt.graph.contact.contact_edges`. All tensors end up on ``world_pos``'s device.
+    ``deformation`` appends :func:`deformation_features` to every level's edge features (``model.deformation``).
     """
     device = world_pos.device
     h = hierarchy_tensors(hierarchy, device)
@@ -62,7 +63,7 @@ def frame_graph(node_features: Tensor, mesh_pos: Tensor, world_pos: Tensor, hier
                              self_contact=self_contact, exclude=exclude, method=contact_method)
     mesh_part = _mesh_space_features(h, mesh_pos)
     world_part = [relative(world_pos, e) for e in h["edges_level0"][1:]]
-    mesh_features = torch.cat([mesh_part[0], relative(world_pos, mesh_edges)], dim=-1)
+    mesh_features = _edge_features(mesh_part[0], relative(world_pos, mesh_edges), deformation)
     return Graph(
         node_features=node_features.to(device),
         mesh_edges=mesh_edges,
@@ -71,8 +72,24 @@ def frame_graph(node_features: Tensor, mesh_pos: Tensor, world_pos: Tensor, hier
         contact_features=contact_edge_features(world_pos, contacts),
         pool=list(h["pool"]),
         level_edges=list(h["edges"][1:]),
-        level_features=[torch.cat([u, x], dim=-1) for u, x in zip(mesh_part[1:], world_part)],
+        level_features=[_edge_features(u, x, deformation) for u, x in zip(mesh_part[1:], world_part)],
     )
+
+
+def deformation_features(mesh_part: Tensor, world_part: Tensor) -> Tensor:
+    """``[x_ij − u_ij, |x_ij| − |u_ij|]`` ``[E, d + 1]`` from ``[u_ij, |u_ij|]`` and ``[x_ij, |x_ij|]``: the edge's
+    deformation and its stretch, zero at rest. hcmt's option ``model.deformation`` (not in the paper): in ``x_ij``
+    and ``u_ij`` alone a plate's bending strain (1e-4 of an edge's length) is a difference of two inputs each
+    normalized to O(1), which the encoder must learn to resolve; given explicitly, the normalizer scales it to O(1)
+    so the restoring force of a deflected plate can be read directly."""
+    if mesh_part.shape[-1] != world_part.shape[-1]:
+        raise ValueError("model.deformation needs mesh and world spaces of one dimension (not cloth)")
+    return world_part - mesh_part
+
+
+def _edge_features(mesh_part: Tensor, world_part: Tensor, deformation: bool) -> Tensor:
+    parts = [mesh_part, world_part] + ([deformation_features(mesh_part, world_part)] if deformation else [])
+    return torch.cat(parts, dim=-1)
 
 
 def _mesh_space_features(h: dict, mesh_pos: Tensor) -> list[Tensor]:

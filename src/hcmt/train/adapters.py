@@ -44,6 +44,7 @@ class Adapter:
     prescribed: tuple[int, ...]  # node types whose positions come from the data
     self_contact: bool
     contact_types: tuple[tuple[int, int], ...] | None  # allowed (type, type) contact pairs; None: any two objects
+    deformation: bool = False  # model.deformation: edge deformation x_ij − u_ij among the edge features
 
     @property
     def history(self) -> int:
@@ -61,7 +62,8 @@ class Adapter:
         ``u_ij, |u_ij|, x_ij, |x_ij|`` (``mesh_dim + 1 + dim + 1``), contact features ``x_iq, |x_iq|`` and outputs.
         ``dim``/``mesh_dim`` default to the dataset's; a dataset's meta.json may give them."""
         d, m = dim or self.dim, mesh_dim or self.mesh_dim
-        return {"node_in": self.node_in(d), "mesh_in": m + 1 + d + 1, "contact_in": d + 1, "out": self.out(d)}
+        mesh_in = m + 1 + d + 1 + (d + 1 if self.deformation else 0)
+        return {"node_in": self.node_in(d), "mesh_in": mesh_in, "contact_in": d + 1, "out": self.out(d)}
 
 
 
@@ -117,10 +119,16 @@ NOISE_NODES = ("normal", "predicted")
 
 
 def config_adapter(cfg: dict) -> Adapter:
-    """The adapter a config asks for: ``dataset``, ``train.contact_pairs`` and ``model.target`` (absent: the
-    dataset's own, Table 9)."""
+    """The adapter a config asks for: ``dataset``, ``train.contact_pairs``, ``model.target`` (absent: the
+    dataset's own, Table 9) and ``model.deformation``."""
     adapter = get_adapter(cfg["dataset"], cfg.get("train", {}).get("contact_pairs", "all"))
-    kind = (cfg.get("model") or {}).get("target")
+    mc = cfg.get("model") or {}
+    if mc.get("deformation", False):
+        if adapter.mesh_dim != adapter.dim:
+            raise ValueError(f"model.deformation: {adapter.name} has a {adapter.mesh_dim}-D mesh space in a "
+                             f"{adapter.dim}-D world; edge deformation needs both of one dimension")
+        adapter = replace(adapter, deformation=True)
+    kind = mc.get("target")
     if kind is None:
         return adapter
     if kind not in TARGETS:

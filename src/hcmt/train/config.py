@@ -82,7 +82,8 @@ _INT, _FLOAT, _BOOL, _STR = "a whole number", "a number", "true or false", "a st
 SCHEMA: dict[str, dict[str, tuple]] = {
     "model": {"hidden": (_INT, None), "heads": (_INT, None), "L_C": (_INT, None), "levels": (_INT, None),
               "L_H": (_INT, None), "clip": (_FLOAT, None), "blocks": (_INT, None), "ffn_bias": (_BOOL, None),
-              "attention": (_STR, ("paper", "official")), "target": (_STR, ("velocity", "acceleration"))},
+              "attention": (_STR, ("paper", "official")), "target": (_STR, ("velocity", "acceleration")),
+              "deformation": (_BOOL, None)},
     "train": {"steps": (_INT, None), "batch_size": (_INT, None), "lr": (_FLOAT, None), "lr_final": (_FLOAT, None),
               "lr_decay_steps": (_INT, None), "lr_decay_rate": (_FLOAT, None), "noise_std": (_FLOAT, None),
               "noise_gamma": (_FLOAT, None), "contact_radius": (_FLOAT, None), "normalizer_steps": (_INT, None),

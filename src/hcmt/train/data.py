@@ -82,4 +82,4 @@ def build_graph(traj: Trajectory, pos: Tensor, node_feats: Tensor, radius: float
     a = traj.adapter
     return frame_graph(node_feats, traj.static["mesh_pos"], pos.detach() if pos.requires_grad else pos,
                        traj.hierarchy, radius, a.self_contact, node_type=traj.static["node_type"],
-                       type_pairs=a.contact_types)
+                       type_pairs=a.contact_types, deformation=a.deformation)

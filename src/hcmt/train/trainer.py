@@ -46,7 +46,7 @@ import yaml
 from hcmt.data.format import atomic_path, read_meta
 from hcmt.models import build_model
 from hcmt.models.base import compile_simulator
-from hcmt.train.adapters import config_adapter, get_adapter, noise_gamma
+from hcmt.train.adapters import config_adapter, noise_gamma
 from hcmt.train.data import load_split
 from hcmt.train.frames import FrameDataset, StepSampler, collate_padded, collate_samples, pad_sizes, step_seed
 from hcmt.train.metrics import rollout_rmse
@@ -57,7 +57,7 @@ logger = logging.getLogger("hcmt.train")  # rank-zero messages (hcmt.train.train
 
 def model_args(cfg: dict, model_name: str, ablation: str | None, meta: dict) -> dict:
     """Constructor arguments of the model, from the config and the dataset's dimensions (meta.json)."""
-    adapter = get_adapter(cfg["dataset"])
+    adapter = config_adapter(cfg)
     widths = adapter.widths(int(meta["dimension"]), int(meta["features"]["mesh_pos"]["shape"][-1]))
     mc = cfg["model"]
     return {

@@ -27,7 +27,8 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "models": ("hcmt.train.cli", "list the trained models shipped with hcmt (pretrained:NAME)"),
     "plot": ("hcmt.viz.cli", "draw stress contours, animations, error curves and training curves of a run"),
     "export": ("hcmt.viz.cli", "export a rollout to ParaView (VTU or XDMF time series)"),
-    "demo": ("hcmt.train.demo", "quickstart: generate a small dataset, train HCMT briefly on CPU, roll out, evaluate"),
+    "demo": ("hcmt.train.demo", "quickstart: the shipped HCMT model predicts three new Impact Plate designs beside the "
+             "built-in solver (--train: generate, train on the CPU, evaluate, from nothing)"),
 }
 
 
@@ -131,7 +132,8 @@ def main(argv: list[str] | None = None) -> int:
         print(f"hcmt {args.command}: error: {where}{exc.strerror or exc}", file=sys.stderr)
         return 2
     except KeyboardInterrupt as exc:
-        print(f"hcmt {args.command}: {exc or 'interrupted'}; {_resume_hint(args.command)}", file=sys.stderr)
+        print(f"hcmt {args.command}: {str(exc) or 'interrupted'}; {_resume_hint(args.command)}",
+              file=sys.stderr)
         return 130
     finally:
         signal.signal(signal.SIGTERM, previous)

@@ -11,7 +11,8 @@ from hcmt.data.format import atomic_path
 from hcmt.models import ABLATIONS, MODELS
 from hcmt.models.base import COMPILE_MODES
 from hcmt.train.config import load_config
-from hcmt.train.run import compare, evaluate, format_compare, format_metrics, metrics_path, run_rollouts
+from hcmt.train.run import (check_options, compare, evaluate, format_compare, format_metrics, metrics_path,
+                            run_rollouts)
 
 
 # -- train ---------------------------------------------------------------------------------------------------------
@@ -77,6 +78,19 @@ def _run_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--device", help="cpu, cuda, cuda:N (default: cuda when available)")
     p.add_argument("--batch", type=int, default=1, help="trajectories rolled out together as one batched graph")
     _compile_arg(p)
+    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+
+
+def _dataset_warnings(args) -> None:
+    """One line per mismatch between ``--data`` and the run's training data (another dt is refused)."""
+    import sys
+
+    from hcmt.train.run import Run, check_dataset
+
+    run = Run.load(args.run, "cpu", args.checkpoint)
+    own = run.info.get("data")
+    for w in check_dataset(run.meta, args.data, own, args.split):
+        print(f"hcmt {args.command}: warning: {w}", file=sys.stderr)
 
 
 def _compile_arg(p: argparse.ArgumentParser) -> None:
@@ -90,8 +104,10 @@ configure_rollout = _run_args
 
 
 def main_rollout(args: argparse.Namespace) -> int:
+    check_options(args.device, args.batch, args.compile)
+    _dataset_warnings(args)
     path = run_rollouts(args.run, args.data, args.split, args.limit, args.checkpoint, args.device, args.batch,
-                        args.compile)
+                        args.compile, progress=not args.no_progress)
     print(f"wrote {path}")
     return 0
 
@@ -101,10 +117,12 @@ configure_evaluate = _run_args
 
 
 def main_evaluate(args: argparse.Namespace) -> int:
+    check_options(args.device, args.batch, args.compile)
+    _dataset_warnings(args)
     m = evaluate(args.run, args.data, args.split, args.limit, args.checkpoint, args.device, args.batch,
-                 args.compile)
+                 args.compile, progress=not args.no_progress)
     print(format_metrics(m))
-    print(f"wrote {metrics_path(args.run, args.split)}")
+    print(f"wrote {metrics_path(args.run, args.split, args.data)}")
     return 0
 
 

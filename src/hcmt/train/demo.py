@@ -1,4 +1,5 @@
-"""``hcmt demo``: the quickstart.
+"""``hcmt demo``: the quickstart (the shipped model's design check beside the solver; ``--train``: the whole
+pipeline from nothing).
 
 Default: the trained HCMT model shipped with hcmt (``pretrained:impact_plate_small``) predicts three new Impact Plate
 designs (thickness and drop height not in its training data) from their parameters alone, then the built-in FEM
@@ -31,6 +32,7 @@ def configure(p: argparse.ArgumentParser) -> None:
     p.add_argument("--test", type=int, default=2, help="--train: test trajectories to generate")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--workers", type=int, default=2)
+    p.add_argument("--no-progress", action="store_true", help="no progress bars")
 
 
 def main(args: argparse.Namespace) -> int:
@@ -84,7 +86,7 @@ def train_demo(args: argparse.Namespace) -> int:
     if not (data / "test.h5").is_file() or (data / ".parts").exists():  # the generator resumes where it stopped
         print(f"[1/3] generating the small Impact Plate dataset in {data}")
         generate_dataset(data, preset="small", counts=dict(train=args.train_trajectories, valid=1, test=args.test),
-                         seed=args.seed, workers=args.workers)
+                         seed=args.seed, workers=args.workers, progress=not args.no_progress)
     else:
         print(f"[1/3] reusing the dataset in {data}")
     cfg = load_config("demo", [f"train.steps={args.steps}"] if args.steps else [])
@@ -95,12 +97,12 @@ def train_demo(args: argparse.Namespace) -> int:
         print(f"[2/3] reusing the trained model in {run} ({done} steps; --steps N with N > {done} trains more)")
     elif ckpt.is_file():
         print(f"[2/3] training HCMT {want - done} more steps on the CPU (to {want}) -> {run}")
-        train(cfg, data, "hcmt", run, seed=args.seed, resume=True, device="cpu")
+        train(cfg, data, "hcmt", run, seed=args.seed, resume=True, device="cpu", progress=not args.no_progress)
     else:
         print(f"[2/3] training HCMT afresh for {want} steps on the CPU -> {run}")
-        train(cfg, data, "hcmt", run, seed=args.seed, device="cpu")
+        train(cfg, data, "hcmt", run, seed=args.seed, device="cpu", progress=not args.no_progress)
     print("[3/3] rolling out and evaluating on the test split")
-    metrics = evaluate(run, data, "test")
+    metrics = evaluate(run, data, "test", progress=not args.no_progress)
     print(format_metrics(metrics))
     print(f"\ndataset   {data}   (hcmt info {data})")
     print(f"run       {run}   (checkpoints, log.jsonl, tb/)")

@@ -47,7 +47,7 @@ class Prediction:
 # -- designs -----------------------------------------------------------------------------------------------------
 def parse_design(items: list[str], defaults: Design, where: str = "--design") -> Design:
     """``["thickness=0.8", "drop_height=900"]`` -> a validated :class:`Design` (other parameters from
-    ``defaults``). Names as ``hcmt simulate``'s options, with ``_`` or ``-``."""
+    ``defaults``). Names as ``hcmt simulate``'s options, with ``_`` or ``-``; values finite numbers."""
     values = {}
     for item in items:
         key, sep, raw = item.partition("=")
@@ -56,26 +56,60 @@ def parse_design(items: list[str], defaults: Design, where: str = "--design") ->
             raise ValueError(f"{where} {item!r}: expected KEY=VALUE, e.g. thickness=0.8")
         if key not in DESIGN_KEYS:
             raise ValueError(f"{where} {item!r}: unknown parameter {key!r}; expected one of {', '.join(DESIGN_KEYS)}")
-        try:
-            values[key] = float(raw)
-        except ValueError:
-            raise ValueError(f"{where} {item!r}: {key} must be a number, got {raw!r}") from None
-    return Design(**{**asdict(defaults), **values}).validate()
+        values[key] = _number(raw, f"{where} {item!r}: {key}")
+    try:
+        return Design(**{**asdict(defaults), **values}).validate()
+    except ValueError as exc:
+        raise ValueError(f"{where} {exc}") from None
+
+
+def _number(raw: str, what: str) -> float:
+    try:
+        v = float(raw)
+    except ValueError:
+        raise ValueError(f"{what} must be a number, got {raw.strip()!r}") from None
+    if not np.isfinite(v):
+        raise ValueError(f"{what} must be a finite number, got {raw.strip()!r}")
+    return v
 
 
 def read_designs_csv(path: str | Path, defaults: Design) -> list[tuple[str, Design]]:
-    """Designs from a CSV file: a header of parameter names (optionally a ``name`` column), one design per row."""
+    """Designs from a CSV file: a header of parameter names (optionally a ``name`` column), one design per row,
+    every column present and numeric in every row (blank lines are skipped; a UTF-8 BOM and CRLF line ends are
+    fine). Anything else is refused naming the file, the line and the column."""
     path = Path(path)
     if not path.is_file():
         raise FileNotFoundError(f"{path}: no such designs file")
-    with open(path, newline="") as f:
-        rows = list(csv.DictReader(f))
+    try:
+        text = path.read_text(encoding="utf-8-sig")
+    except UnicodeDecodeError as exc:
+        raise ValueError(f"{path}: not a UTF-8 text file ({exc.reason} at byte {exc.start})") from None
+    rows = [(n, r) for n, r in enumerate(csv.reader(text.splitlines()), start=1) if any(c.strip() for c in r)]
     if not rows:
         raise ValueError(f"{path}: no designs (expected a header line of parameter names and one row per design)")
+    (head_line, head), body = rows[0], rows[1:]
+    header = [h.strip().replace("-", "_") for h in head]
+    for col, h in enumerate(header, start=1):
+        if h != "name" and h not in DESIGN_KEYS:
+            raise ValueError(f"{path} line {head_line}, column {col}: unknown column {h!r} in the header; expected "
+                             f"`name` or parameters of {', '.join(DESIGN_KEYS)}")
+    if len(set(header)) != len(header):
+        raise ValueError(f"{path} line {head_line}: a column appears twice in the header")
+    if not body:
+        raise ValueError(f"{path}: a header but no designs (one row per design after the header)")
     out = []
-    for n, row in enumerate(rows, start=2):
-        name = (row.pop("name", None) or "").strip() or f"design_{n - 1}"
-        items = [f"{k}={v}" for k, v in row.items() if k is not None and v not in (None, "")]
+    for n, row in body:
+        if len(row) != len(header):
+            raise ValueError(f"{path} line {n}: {len(row)} values for {len(header)} columns "
+                             f"({', '.join(header)})")
+        name, items = f"design_{len(out) + 1}", []
+        for col, (h, v) in enumerate(zip(header, row), start=1):
+            if h == "name":
+                name = v.strip() or name
+                continue
+            if not v.strip():
+                raise ValueError(f"{path} line {n}, column {col} ({h}): missing value")
+            items.append(f"{h}={_number(v, f'{path} line {n}, column {col} ({h})')}")
         out.append((name, parse_design(items, defaults, where=f"{path} line {n}:")))
     return out
 
@@ -343,10 +377,31 @@ def format_table(preds: list[Prediction], verified: dict | None = None) -> str:
     return "\n".join(lines)
 
 
+def csv_rows(preds: list[Prediction]) -> tuple[list[str], list[list]]:
+    """One row per design for a machine: the design's parameters, every summary quantity as its own numeric column
+    at full precision (positions split into r and y), the verify block's columns, the model and the warnings."""
+    head = ["name", *DESIGN_KEYS]
+    keys = [k for k in preds[0].summary if k not in ("verify", "warnings", "model")]
+    vkeys = list(preds[0].summary.get("verify", {}))
+    for k in keys:
+        head += [k.replace("where_mm", "r_mm"), k.replace("where_mm", "y_mm")] if k.endswith("where_mm") else [k]
+    head += [f"verify_{k}" for k in vkeys] + ["model", "warnings"]
+    rows = []
+    for p in preds:
+        row = [p.name, *(getattr(p.design, k) for k in DESIGN_KEYS)]
+        for k in keys:
+            v = p.summary.get(k)
+            row += list(v) if isinstance(v, list) else [v]
+        row += [p.summary["verify"].get(k) for k in vkeys] if vkeys else []
+        row += [p.summary.get("model", ""), "; ".join(p.summary.get("warnings", []))]
+        rows.append([repr(v) if isinstance(v, float) else v for v in row])  # repr: every digit of a float
+    return head, rows
+
+
 def write_csv(preds: list[Prediction], path: str | Path) -> Path:
     from hcmt.data.format import atomic_path
 
-    head, rows = table_rows(preds)
+    head, rows = csv_rows(preds)
     path = Path(path)
     with atomic_path(path) as tmp, open(tmp, "w", newline="") as f:
         w = csv.writer(f)
@@ -362,7 +417,8 @@ def to_json(preds: list[Prediction], verified: dict | None, run_source: str, dev
 
 
 def contour_picture(p: Prediction, truth: Prediction | None, meta: dict, out_dir: str | Path, label: str) -> Path:
-    """Stress contours at the predicted peak-plate-stress frame (impact zoom), beside the solver with ``truth``."""
+    """Stress contours (impact zoom) at the predicted peak-plate-stress frame, and with ``truth`` beside the solver
+    at the solver's own peak frame too (one row each, the earlier first, one row when they coincide)."""
     from hcmt.viz.contours import plot_contours
     from hcmt.viz.rollouts import Case, Series
 
@@ -372,7 +428,9 @@ def contour_picture(p: Prediction, truth: Prediction | None, meta: dict, out_dir
                     [pred], meta)
     else:
         case = Case(p.name, p.mesh_pos, p.cells, p.node_type, pred, [], meta)
-    frame = max(int(p.summary["peak_plate_frame"]), 1)
-    paths = plot_contours(case, Path(out_dir) / p.name, [frame])
+    frames = {max(int(p.summary["peak_plate_frame"]), 1)}
+    if truth is not None:
+        frames.add(max(int(truth.summary["peak_plate_frame"]), 1))
+    paths = plot_contours(case, Path(out_dir) / p.name, sorted(frames))
     return paths[-1]
 

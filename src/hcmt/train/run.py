@@ -195,33 +195,80 @@ def _data_facts(data: str | None) -> tuple[dict | None, dict[str, tuple[float, f
 
 
 # -- rollout files, evaluation, comparison ------------------------------------------------------------------------
-def rollout_path(run: str | Path, split: str) -> Path:
-    return Path(run) / f"rollout_{split}.h5"
+def _run_data(run) -> str | None:
+    """The resolved training-data path recorded in ``RUN/run.yaml`` (None when not recorded)."""
+    import yaml
+
+    path = Path(run) / "run.yaml"
+    return yaml.safe_load(path.read_text()).get("data") if path.is_file() else None
+
+
+def data_key(run, data) -> str:
+    """``""`` when ``data`` is the run's own training dataset (or not given), else ``"@<dataset folder name>"``:
+    the suffix of the rollout and metrics files of another dataset, so evaluating one never overwrites the
+    run's own."""
+    if data is None:
+        return ""
+    own = _run_data(run)
+    return "" if own is None or str(Path(data).resolve()) == str(Path(own).resolve()) else f"@{Path(data).name}"
+
+
+def rollout_path(run: str | Path, split: str, data=None) -> Path:
+    return Path(run) / f"rollout_{split}{data_key(run, data)}.h5"
+
+
+def check_dataset(train_meta: dict | None, data, train_data=None, split: str | None = None) -> list[str]:
+    """Whether ``data`` suits a model trained on ``train_meta`` (the training data's meta.json): a different frame
+    interval ``dt`` is refused (``ValueError``: a model steps one training interval at a time); another generator
+    preset, or node counts outside the training data's (when ``train_data`` and ``split`` are given) give one
+    warning line each (returned)."""
+    from hcmt.data.format import Split, read_meta
+
+    if train_meta is None:
+        return []
+    meta = read_meta(data)
+    a, b = train_meta.get("dt"), meta.get("dt")
+    if a is not None and b is not None and not np.isclose(float(a), float(b), rtol=1e-6, atol=0):
+        raise ValueError(f"{data}: frames {b} apart (dt), but the model was trained on frames {a} apart; a model "
+                         f"steps one training interval at a time: use data recorded at dt {a}")
+    out = []
+    pa, pb = ((m.get("generator") or {}).get("preset") for m in (train_meta, meta))
+    if pa and pb and pa != pb:
+        out.append(f"{data} is a `{pb}` dataset; the model was trained on `{pa}` data: expect larger errors")
+    if train_data is not None and split is not None and (Path(train_data) / "train.h5").is_file():
+        with Split(train_data, "train") as s:
+            trained = [s.num_nodes(i) for i in range(len(s))]
+        with Split(data, split) as s:
+            now = [s.num_nodes(i) for i in range(len(s))]
+        if now and trained and (min(now) < 0.9 * min(trained) or max(now) > 1.1 * max(trained)):
+            out.append(f"{data} {split}: {min(now)}-{max(now)} nodes per trajectory, the training data "
+                       f"{min(trained)}-{max(trained)}: expect larger errors")
+    return out
 
 
 def run_rollouts(run, data, split, limit=None, checkpoint="best", device=None, batch: int = 1,
-                 compile: str = "none") -> Path:
-    """Roll a run's model out over a split; predictions go to ``RUN/rollout_<split>.h5`` (atomically). ``batch``
-    trajectories of equal length step together as one batched graph. The progress bar counts model steps over the
-    whole split (with an ETA)."""
+                 compile: str = "none", *, progress: bool = True) -> Path:
+    """Roll a run's model out over a split; predictions go to ``RUN/rollout_<split>.h5`` (``rollout_<split>@<data
+    name>.h5`` for a dataset other than the run's own), atomically. ``batch`` trajectories of equal length step
+    together as one batched graph. The progress bar counts model steps over the whole split (with an ETA)."""
     from tqdm import tqdm
 
     from hcmt.train.data import load_split
     from hcmt.train.rollout import rollout_batch
 
+    check_options(device, batch, compile)
     r = Run.load(run, device, checkpoint)
+    check_dataset(r.meta, data)
     levels, remesh = r.hierarchy
     trajs = load_split(data, split, r.adapter, levels, remesh, limit=limit)
-    path = rollout_path(run, split)
+    path = rollout_path(run, split, data)
     h = r.adapter.history
     bar = tqdm(total=sum(max(tr.num_steps - 1 - h, 0) for tr in trajs), desc=f"rollout {split}", unit="step",
-               dynamic_ncols=True)
+               dynamic_ncols=True, disable=not progress)
     with atomic_path(path) as tmp, h5py.File(tmp, "w") as f:
         for key, value in rollout_key(data, split, r.info["checkpoint"]["file"],
                                       r.info["checkpoint"]["step"]).items():
             f.attrs[key] = value
-        if batch < 1:
-            raise ValueError(f"--batch must be >= 1, got {batch}")
         by_length: dict[int, list] = defaultdict(list)
         for tr in trajs:
             by_length[tr.num_steps].append(tr)
@@ -248,16 +295,29 @@ def rollout_key(data, split, checkpoint_file, step) -> dict:
             "checkpoint_step": int(step)}
 
 
+def check_options(device=None, batch: int = 1, compile: str = "none") -> None:
+    """Refuse bad rollout options in one line before any cache is consulted or work done."""
+    from hcmt.models.base import COMPILE_MODES
+
+    resolve_device(device)
+    if isinstance(batch, bool) or not isinstance(batch, int) or batch < 1:
+        raise ValueError(f"--batch must be a whole number >= 1, got {batch}")
+    if compile not in COMPILE_MODES:
+        raise ValueError(f"--compile must be one of {', '.join(COMPILE_MODES)}, got {compile!r}")
+
+
 def rollout_for(run, data, split: str, need: int | None = None, checkpoint: str = "best", device=None,
-                batch: int = 1, compile: str = "none") -> Path:
+                batch: int = 1, compile: str = "none", *, progress: bool = True) -> Path:
     """The one rollout-cache rule, used by evaluation and every picture: ``RUN/rollout_<split>.h5`` is reused when
     it was made from this dataset, split and checkpoint (same step) and holds the first ``need`` trajectories of
     the split (all when ``need`` is None); otherwise it is rolled out again, never with fewer trajectories than the
     file had. A rollout file in a folder without checkpoints (predictions brought from elsewhere) is used as it is
-    when it holds the trajectories asked for."""
+    when it holds the trajectories asked for. Options are checked first, whatever the cache holds; the file of
+    a dataset other than the run's own is ``rollout_<split>@<data name>.h5``."""
     from hcmt.data.format import Split
 
-    path = rollout_path(run, split)
+    check_options(device, batch, compile)
+    path = rollout_path(run, split, data)
     ckpt = Path(run) / f"{checkpoint}.pt"
     ckpt = ckpt if ckpt.is_file() else Path(run) / "checkpoint.pt"
     with Split(data, split) as s:
@@ -277,20 +337,25 @@ def rollout_for(run, data, split: str, need: int | None = None, checkpoint: str 
                 if set(names[:want]) <= set(f.keys()):
                     return path
     limit = max(want, have)
-    return run_rollouts(run, data, split, limit if limit < len(names) else None, checkpoint, device, batch, compile)
+    return run_rollouts(run, data, split, limit if limit < len(names) else None, checkpoint, device, batch, compile,
+                        progress=progress)
 
 
 def evaluate(run, data, split, limit=None, checkpoint="best", device=None, batch: int = 1,
-             compile: str = "none") -> dict:
-    """Paper metrics of a run on a split; rolls out first (on ``device``, default CUDA when available) if
-    ``RUN/rollout_<split>.h5`` is missing or stale."""
-    from hcmt.data.format import Split
+             compile: str = "none", *, progress: bool = True) -> dict:
+    """Paper metrics (and for Impact Plate the physics metrics) of a run on a split, written to
+    ``RUN/metrics_<split>.json`` (``metrics_<split>@<data name>.json`` for a dataset other than the run's own);
+    rolls out first (on ``device``, default CUDA when available) if the rollout file is missing or stale. A
+    dataset of another frame interval is refused; other mismatches with the training data are recorded under
+    ``warnings``."""
+    from hcmt.data.format import Split, read_meta
     from hcmt.train.metrics import aggregate, rollout_rmse
 
-    from hcmt.data.format import read_meta
-
+    check_options(device, batch, compile)
+    own = _run_data(run)
+    warnings = check_dataset(_data_facts(own)[0] if own else None, data, own, split)
     meta = read_meta(data)
-    path = rollout_for(run, data, split, limit, checkpoint, device, batch, compile)
+    path = rollout_for(run, data, split, limit, checkpoint, device, batch, compile, progress=progress)
     per_traj, ms, physics, by_step = [], [], [], defaultdict(list)
     with h5py.File(path, "r") as f, Split(data, split) as s:
         index = {n: i for i, n in enumerate(s.names)}
@@ -312,7 +377,7 @@ def evaluate(run, data, split, limit=None, checkpoint="best", device=None, batch
     means = aggregate([{k: v for k, v in r.items() if k != "trajectory"} for r in per_traj])
     units = meta.get("units") or {}
     metrics = {"split": split, "data": str(Path(data).resolve()), "trajectories": len(per_traj), "scale": SCALE,
-               "units": {k: units[k] for k in ("length", "stress") if k in units}}
+               "units": {k: units[k] for k in ("length", "stress") if k in units}, "warnings": warnings}
     for q in ("position", "stress"):
         if f"{q}_rmse_all" in means:
             metrics[q] = {k: means[f"{q}_{k}"] for k in ("rmse_1", "rmse_50", "rmse_all")}
@@ -325,7 +390,7 @@ def evaluate(run, data, split, limit=None, checkpoint="best", device=None, batch
         for row, phys in zip(per_traj, physics):
             row["physics"] = phys
     metrics["per_trajectory"] = per_traj
-    with atomic_path(metrics_path(run, split)) as tmp:  # one file per split: never overwrites another split's
+    with atomic_path(metrics_path(run, split, data)) as tmp:  # one file per split: never overwrites another split's
         tmp.write_text(json.dumps(metrics, indent=2))
     return metrics
 
@@ -342,8 +407,8 @@ def impact_physics(pos, stress, truth: dict, start: int) -> tuple[dict, dict]:
     return impact_metrics(pos, stress, truth["world_pos"], truth["stress"], plate, start), steps
 
 
-def metrics_path(run, split: str) -> Path:
-    return Path(run) / f"metrics_{split}.json"
+def metrics_path(run, split: str, data=None) -> Path:
+    return Path(run) / f"metrics_{split}{data_key(run, data)}.json"
 
 
 def metric_unit(m: dict, quantity: str) -> str:

@@ -49,6 +49,7 @@ def _common(p: argparse.ArgumentParser) -> None:
     p.add_argument("--out", required=True, help="output folder")
     p.add_argument("--split", default="test")
     p.add_argument("--device", help="where missing rollouts run: cpu, cuda, cuda:N (default: cuda when available)")
+    p.add_argument("--no-progress", action="store_true", help="no progress bar")
 
 
 # -- plot ----------------------------------------------------------------------------------------------------------
@@ -83,7 +84,8 @@ def main_plot(args: argparse.Namespace) -> int:
     written, notes = [], []
     case = None
     if {"contours", "animation", "hierarchy"} & set(only):
-        case = load_case(args.runs, args.data, args.split, args.trajectory, labels, args.device)
+        case = load_case(args.runs, args.data, args.split, args.trajectory, labels, args.device,
+                         progress=not args.no_progress)
     if "contours" in only:
         from hcmt.viz.contours import plot_contours
 
@@ -96,7 +98,8 @@ def main_plot(args: argparse.Namespace) -> int:
         from hcmt.data.format import read_meta
         from hcmt.viz.curves import plot_error_curves, rollout_errors
 
-        errors = rollout_errors(args.runs, args.data, args.split, labels, limit=args.limit, device=args.device)
+        errors = rollout_errors(args.runs, args.data, args.split, labels, limit=args.limit, device=args.device,
+                                progress=not args.no_progress)
         written.append(plot_error_curves(errors, read_meta(args.data), out / "rollout_error.png"))
     if "training" in only:
         from hcmt.data.format import read_meta
@@ -167,13 +170,13 @@ def main_export(args: argparse.Namespace) -> int:
         names = list(s.names)
     if args.trajectory == "all":
         for run in args.runs:  # roll the whole split out once rather than trajectory by trajectory
-            rollout_for(run, args.data, args.split, device=args.device)
+            rollout_for(run, args.data, args.split, device=args.device, progress=not args.no_progress)
         picks = names
     else:
         picks = [args.trajectory]
     labels = unique_labels(args.runs)
     for t in picks:
-        case = load_case(args.runs, args.data, args.split, t, labels, args.device)
+        case = load_case(args.runs, args.data, args.split, t, labels, args.device, progress=not args.no_progress)
         frames = list(range(0, case.num_frames, args.stride))
         for path in export_case(case, args.out, args.format, frames):
             print(f"wrote {path}")

@@ -74,7 +74,16 @@ def shared_norm(case: Case, frames: list[int], field: str) -> tuple[colors.Norma
     lo, hi = field_limits([field_values(case.truth, f, field) for f in frames])
     norm = colors.Normalize(lo, hi)
     preds = [field_values(s, f, field) for s in case.predictions for f in frames]
+    if lo >= 0:  # a non-negative quantity (von Mises, a norm): a model's values below 0 get no "below 0" arrow
+        preds = [np.maximum(p, 0.0) for p in preds]
     return norm, extend_of(norm, preds)
+
+
+def axis_names(case: Case) -> tuple[str, str]:
+    """``("r", "y")`` for an axisymmetric scene (the Impact Plate generator's default; the tables say r), else
+    ``("x", "y")``."""
+    settings = ((case.meta or {}).get("generator") or {}).get("settings") or {}
+    return ("r" if settings.get("formulation") == "axisymmetric" else "x"), "y"
 
 
 def view_box(case: Case, frames: list[int]) -> tuple[float, float, float, float]:
@@ -151,9 +160,9 @@ def contour_figure(case: Case, frames: list[int] | None = None, *, field: str | 
                         ax.add_patch(Rectangle((zw[0], zw[2]), zw[1] - zw[0], zw[3] - zw[2], fill=False,
                                                ec="red", lw=1.0))
                 ax.tick_params(labelsize=7)
-                ax.set_xlabel(quantity_label("x", length), fontsize=8)
+                ax.set_xlabel(quantity_label(axis_names(case)[0], length), fontsize=8)
                 if c == 0:
-                    ax.set_ylabel(quantity_label("y", length), fontsize=8)
+                    ax.set_ylabel(quantity_label(axis_names(case)[1], length), fontsize=8)
                 else:
                     ax.tick_params(labelleft=False)
             title = s.label

@@ -23,14 +23,14 @@ QUANTITIES = ("position", "stress")
 
 
 def rollout_errors(runs: list[str | Path], data: str | Path, split: str = "test", labels: list[str] | None = None,
-                   limit: int | None = None, device=None) -> dict[str, dict]:
+                   limit: int | None = None, device=None, *, progress: bool = True) -> dict[str, dict]:
     """Per-step RMSE of every run: ``{label: {"position": [n, T], "stress": [n, T] (if any), "start": int,
     "trajectories": names}}`` over the trajectories all runs have rolled out (rolling out the first ``limit``, or
     all, where a run has no rollout file yet)."""
     from hcmt.train.run import rollout_for
 
     labels = labels or unique_labels(runs)
-    paths = [rollout_for(run, data, split, need=limit, device=device) for run in runs]
+    paths = [rollout_for(run, data, split, need=limit, device=device, progress=progress) for run in runs]
     names = None
     for path in paths:
         with h5py.File(path, "r") as f:

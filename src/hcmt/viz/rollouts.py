@@ -104,12 +104,13 @@ def unique_labels(runs: list[str | Path]) -> list[str]:
     return [f"{lab} ({Path(r).name})" if labels.count(lab) > 1 else lab for lab, r in zip(labels, runs)]
 
 
-def rollout_file(run: str | Path, data: str | Path, split: str, name: str, index: int, device=None) -> Path:
+def rollout_file(run: str | Path, data: str | Path, split: str, name: str, index: int, device=None, *,
+                 progress: bool = True) -> Path:
     """``RUN/rollout_<split>.h5`` holding trajectory ``name`` (position ``index``), by the one cache rule
     :func:`hcmt.train.run.rollout_for`."""
     from hcmt.train.run import rollout_for
 
-    return rollout_for(run, data, split, need=index + 1, device=device)
+    return rollout_for(run, data, split, need=index + 1, device=device, progress=progress)
 
 
 def trajectory_index(names: list[str], trajectory: int | str) -> int:
@@ -144,7 +145,7 @@ def read_series(path: Path, name: str, label: str, truth: Series, run: Path | No
 
 
 def load_case(runs: list[str | Path], data: str | Path, split: str = "test", trajectory: int | str = 0,
-              labels: list[str] | None = None, device=None) -> Case:
+              labels: list[str] | None = None, device=None, *, progress: bool = True) -> Case:
     """The ground truth of one trajectory and every run's rollout of it (rolled out on ``device`` when missing)."""
     meta = read_meta(data)
     with Split(data, split, meta) as s:
@@ -157,6 +158,6 @@ def load_case(runs: list[str | Path], data: str | Path, split: str = "test", tra
                 fields={k: v for k, v in fields.items() if k not in ("world_pos", "stress", "mesh_pos", "cells")})
     labels = labels or (unique_labels(runs) if runs else [])
     for run, label in zip(runs, labels):
-        path = rollout_file(run, data, split, name, index, device)
+        path = rollout_file(run, data, split, name, index, device, progress=progress)
         case.predictions.append(read_series(path, name, label, truth, Path(run)))
     return case

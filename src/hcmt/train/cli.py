@@ -275,13 +275,31 @@ def main_models(args: argparse.Namespace) -> int:
     if not shipped:
         print("no shipped models in this installation")
         return 0
+    from hcmt.train import predict as pr
+
     cards = {}
     for name, path in shipped.items():
         run = Run.load(f"pretrained:{name}", "cpu")
-        cards[name] = {"file": str(path), "size_mb": path.stat().st_size / 1e6, **run.card}
+        defaults = pr.default_design(run.meta)
+        settings = pr.settings_of(run.meta)
+        cards[name] = {"file": str(path), "size_mb": path.stat().st_size / 1e6, **run.card,
+                       "window": {"frames": settings.frames, "frame_dt_ms": settings.frame_dt},
+                       "design_parameters": {k: {"training_range": list(run.ranges[k]) if k in run.ranges else None,
+                                                 "default": getattr(defaults, k)} for k in pr.DESIGN_KEYS}}
     if args.json:
         print(json.dumps(cards, indent=2))
         return 0
     for name, c in cards.items():
         print(f"pretrained:{name}  {c.get('summary', '')}  ({c['size_mb']:.1f} MB; docs/MODELS.md)")
+        w = c["window"]
+        print(f"  window: {w['frames']} frames of {w['frame_dt_ms']} ms; design parameters (a --designs CSV's "
+              "columns; unset ones take the default):")
+        for k, d in c["design_parameters"].items():
+            rng = d["training_range"]
+            trained = "not varied in training" if rng is None or rng[0] == rng[1] else f"trained {rng[0]:.6g} .. {rng[1]:.6g}"
+            print(f"    {k:<18} default {d['default']:<10.6g} {trained}")
+        if c.get("confidence"):
+            print("  measured error by region (docs/MODELS.md): "
+                  + "; ".join(f"{r['label']}: peak plate stress median {r['peak_plate_stress_error_pct_median']:.1f} %"
+                              for r in c["confidence"]))
     return 0

@@ -22,7 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
-from hcmt.sim.scene import RANGES, Design, Settings, initial_frames, simulate
+from hcmt.sim.scene import EDGES, RANGES, Design, Settings, initial_frames, simulate
 from hcmt.train.data import prepare_trajectory
 from hcmt.train.metrics import format_physics, impact_metrics, plate_mask, rollout_rmse, summarize_impact
 
@@ -126,6 +126,34 @@ def range_warnings(design: Design, ranges: dict[str, tuple[float, float]]) -> li
             span = f"{lo:.6g}" if lo == hi else f"{lo:.6g} .. {hi:.6g}"
             out.append(f"{key} = {v:.6g} is outside the model's training data ({span}); expect larger errors")
     return out
+
+
+def region_of(design: Design, ranges: dict[str, tuple[float, float]]) -> str:
+    """Where a design lies in the training ranges, for the model card's measured error by region: ``thin``
+    (thickness in the lowest fifth of its range), ``high`` (drop height in the top fifth), ``thin+high``,
+    ``inside``, or ``outside`` (a parameter outside the training ranges). The fifths are those of the generator's
+    ``--edge-fraction`` (:data:`hcmt.sim.scene.EDGES`)."""
+    if range_warnings(design, ranges):
+        return "outside"
+    parts = []
+    for key, name in (("thickness", "thin"), ("drop_height", "high")):
+        if key in ranges:
+            lo, hi = ranges[key]
+            a, b = EDGES[key]
+            u = (getattr(design, key) - lo) / max(hi - lo, 1e-12)
+            if a <= u <= b and (a > 0 or b < 1):
+                parts.append(name)
+    return "+".join(parts) or "inside"
+
+
+def confidence(design: Design, run) -> dict | None:
+    """The model card's measured error for the design's region (:func:`region_of`), or None when the card has
+    none: ``{"region", "label", "designs", "peak_plate_stress_error_pct_median", ...}``."""
+    regions = {r["region"]: r for r in (run.card or {}).get("confidence", [])}
+    region = region_of(design, run.ranges)
+    if region == "outside":
+        return {"region": region, "label": "outside the training ranges", "designs": 0}
+    return regions.get(region)
 
 
 def default_design(meta: dict | None) -> Design:
@@ -244,6 +272,7 @@ def check_designs(run, designs: list[tuple[str, Design]], *, batch: int = 8, ver
     for p in preds:
         p.summary["model"] = run.source
         p.summary["warnings"] = range_warnings(p.design, run.ranges)
+        p.summary["confidence"] = confidence(p.design, run)
     add_margin(preds, yield_mpa)
     truth = verified = None
     if verify:
@@ -360,6 +389,21 @@ def table_rows(preds: list[Prediction]) -> tuple[list[str], list[list[str]]]:
     return head, rows
 
 
+def _weak(p: Prediction) -> list[str]:
+    """A line when the design lies where the model card measured large errors (or outside the ranges)."""
+    c = p.summary.get("confidence")
+    if not c:
+        return []
+    if c["region"] == "outside":
+        return [f"{p.name}: outside the training ranges: the model card has no measured error there; verify with "
+                "the solver (--verify)"]
+    med, worst = c["peak_plate_stress_error_pct_median"], c["peak_plate_stress_error_pct_worst"]
+    if med <= 10.0 and abs(worst) <= 25.0:
+        return []
+    return [f"{p.name}: {c['label']}: the model card measured a median peak plate stress error of {med:.1f} % "
+            f"(worst {worst:+.1f} %) over {c['designs']} such designs; low confidence, verify with the solver"]
+
+
 def format_table(preds: list[Prediction], verified: dict | None = None) -> str:
     head, rows = table_rows(preds)
     width = [max(len(h), *(len(r[i]) for r in rows)) for i, h in enumerate(head)]
@@ -374,6 +418,7 @@ def format_table(preds: list[Prediction], verified: dict | None = None) -> str:
             f"{v['max_deflection_error_pct']['median']:.1f} % (worst {v['max_deflection_error_pct']['max']:.1f} %), "
             f"speedup median {v['speedup']['median']:.1f}x")
         lines += [line[2:] for line in format_physics(v["physics"])]
+    lines += [f"note: {w}" for p in preds for w in _weak(p)]
     return "\n".join(lines)
 
 
@@ -381,7 +426,7 @@ def csv_rows(preds: list[Prediction]) -> tuple[list[str], list[list]]:
     """One row per design for a machine: the design's parameters, every summary quantity as its own numeric column
     at full precision (positions split into r and y), the verify block's columns, the model and the warnings."""
     head = ["name", *DESIGN_KEYS]
-    keys = [k for k in preds[0].summary if k not in ("verify", "warnings", "model")]
+    keys = [k for k in preds[0].summary if k not in ("verify", "warnings", "model", "confidence")]
     vkeys = list(preds[0].summary.get("verify", {}))
     for k in keys:
         head += [k.replace("where_mm", "r_mm"), k.replace("where_mm", "y_mm")] if k.endswith("where_mm") else [k]
@@ -393,7 +438,7 @@ def csv_rows(preds: list[Prediction]) -> tuple[list[str], list[list]]:
             v = p.summary.get(k)
             row += list(v) if isinstance(v, list) else [v]
         row += [p.summary["verify"].get(k) for k in vkeys] if vkeys else []
-        row += [p.summary.get("model", ""), "; ".join(p.summary.get("warnings", []))]
+        row += [p.summary.get("model", ""), "; ".join(p.summary.get("warnings", []) + _weak(p))]
         rows.append([repr(v) if isinstance(v, float) else v for v in row])  # repr: every digit of a float
     return head, rows
 

@@ -17,6 +17,7 @@ import json
 from pathlib import Path
 
 import numpy as np
+from scipy.stats import rankdata
 from common import RESULTS, dataset, run_and_evaluate, write_json
 
 from hcmt.train.metrics import mean_std
@@ -85,13 +86,15 @@ def run_summary(run: Path, data: Path, split: str) -> dict:
 
 
 def choose(valid: dict[str, dict]) -> tuple[str, dict]:
-    """The recipe with the lowest sum of ranks over :data:`CRITERIA` (means over seeds, validation split)."""
-    ranks = {label: 0.0 for label in valid}
+    """The recipe with the lowest sum of ranks over :data:`CRITERIA` (means over seeds, validation split); tied
+    values share their average rank (scipy.stats.rankdata)."""
+    labels = list(valid)
+    ranks = np.zeros(len(labels))
     for key, larger in CRITERIA:
-        order = sorted(valid, key=lambda lab: -valid[lab][key]["mean"] if larger else valid[lab][key]["mean"])
-        for r, label in enumerate(order):
-            ranks[label] += r
-    return min(ranks, key=ranks.get), ranks
+        v = np.array([valid[lab][key]["mean"] for lab in labels])
+        ranks += rankdata(-v if larger else v)
+    sums = {lab: float(r) for lab, r in zip(labels, ranks)}
+    return min(sums, key=sums.get), sums
 
 
 def table(work: Path, steps: int, seeds: list[int], labels: list[str]) -> Path:

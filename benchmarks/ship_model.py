@@ -5,8 +5,9 @@
 
 1. writes ``src/hcmt/pretrained/NAME.pt`` (fp16 weights, config, training-data meta and design ranges, card);
 2. evaluates the run on the test split with the paper's metrics (fp32 checkpoint);
-3. ``--verify`` over the test split's designs (held out from training): the *shipped* fp16 model predicts each
-   design from its parameters, the built-in solver simulates it again on this machine, errors and speedup;
+3. verifies ``--designs`` held-out designs of a fresh seed (``--design-seed``): the model card's measured error
+   by region (``confidence``), then the *shipped* fp16 model against the solver (errors, physics, speedup), and
+   a thickness and a drop-height sweep with ``--verify`` (trend signs, the minimum-thickness call);
 4. writes benchmarks/results/model_NAME.json (docs/MODELS.md quotes it).
 """
 from __future__ import annotations
@@ -14,17 +15,15 @@ from __future__ import annotations
 import argparse
 import json
 import platform
-import time
-from dataclasses import fields
 from pathlib import Path
 
 import numpy as np
 import torch
 from common import write_json
 
-from hcmt.data.format import Split
-from hcmt.sim.scene import Design
+from hcmt.sim.scene import sample_design
 from hcmt.train import predict as pr
+from hcmt.train import sweep as sw
 from hcmt.train.run import evaluate
 from hcmt.train.run import PRETRAINED_DIR, Run
 
@@ -34,7 +33,9 @@ def main() -> None:
     p.add_argument("run", type=Path)
     p.add_argument("--data", type=Path, required=True)
     p.add_argument("--name", required=True)
-    p.add_argument("--designs", type=int, default=24)
+    p.add_argument("--designs", type=int, default=30, help="held-out designs of a fresh seed to verify")
+    p.add_argument("--design-seed", type=int, default=90210, help="seed of the verification designs")
+    p.add_argument("--yield-mpa", type=float, default=703.0, help="limit of the sweeps' minimum-thickness call")
     p.add_argument("--batch", type=int, default=8)
     p.add_argument("--threads", type=int, default=1)
     p.add_argument("--command", default="", help="the training command (recorded in the card)")
@@ -52,40 +53,65 @@ def main() -> None:
     card = {
         "summary": f"HCMT (hidden {args['hidden']}, λ {args['levels']}, L_C {args['L_C']}) trained "
                    f"{stats['steps']} steps on {run.meta['generator']['counts']['train']} generated "
-                   f"`{run.meta['generator']['preset']}` Impact Plate trajectories",
+                   f"`{run.meta['generator']['preset']}` Impact Plate trajectories of "
+                   f"{run.meta['generator']['settings']['frames']} frames",
+        "recipe": {k: run.config["model" if k in ("target", "deformation", "attention") else "train"].get(k)
+                   for k in ("target", "deformation", "attention", "noise_std", "noise_nodes", "pushforward",
+                             "pushforward_start")},
+        "frame_dt_ms": run.meta.get("dt"),
         "steps": int(stats["steps"]), "device": stats.get("device"), "train_ms_per_step": stats["train_ms_per_step"],
         "train_wall_s_from_log": wall, "data_command": a.data_command, "train_command": a.command,
         "checkpoint": run.info["checkpoint"], "seed": run.info.get("seed"), "machine": platform.processor() or
         platform.machine(), "torch": str(torch.__version__),
     }
+    metrics = evaluate(a.run, a.data, "test", progress=False)
+    # held-out designs of a fresh seed (uniform inside the training ranges; no study or training used the seed)
+    rng = np.random.default_rng(a.design_seed)
+    designs = [(f"fresh_{i:02d}", sample_design(rng, run.meta["generator"]["preset"])) for i in range(a.designs)]
+    preliminary = Run.load(a.run, "cpu")
+    check = pr.check_designs(preliminary, designs, batch=a.batch, verify=True, progress=False)
+    print(pr.format_table(check.preds, check.verified))
+    regions = {}
+    for p in check.preds:
+        regions.setdefault(pr.region_of(p.design, preliminary.ranges), []).append(p.summary["verify"])
+    labels = {"inside": "inside the ranges' edges", "thin": "thin plates (lowest fifth of thickness)",
+              "high": "high drops (top fifth of drop height)", "thin+high": "thin plates dropped from high"}
+    card["confidence"] = [
+        {"region": k, "label": labels.get(k, k), "designs": len(rows),
+         "peak_plate_stress_error_pct_median": float(np.median([abs(r["peak_plate_stress_error_pct"]) for r in rows])),
+         "peak_plate_stress_error_pct_worst": float(max((r["peak_plate_stress_error_pct"] for r in rows), key=abs)),
+         "max_deflection_error_pct_median": float(np.median([abs(r["max_deflection_error_pct"]) for r in rows])),
+         "rebound_agreement": float(np.mean([r["rebound_agrees"] for r in rows]))}
+        for k, rows in sorted(regions.items())]
+    card["verify_designs"] = {"seed": a.design_seed, "count": a.designs}
     path = run.save_pretrained(PRETRAINED_DIR / f"{a.name}.pt", card)
     print(f"wrote {path} ({path.stat().st_size / 1e6:.2f} MB)")
-
-    metrics = evaluate(a.run, a.data, "test")
     shipped = Run.load(f"pretrained:{a.name}", "cpu")
-    keys = {f.name for f in fields(Design)}
-    with Split(a.data, "test") as s:
-        designs = [(s.names[i], Design(**{k: float(v) for k, v in s.attrs(i).items() if k in keys}))
-                   for i in range(min(a.designs, len(s)))]
-    settings = pr.settings_of(shipped.meta)
-    t0 = time.perf_counter()
-    preds = pr.predict(shipped, designs, batch=a.batch, progress=False)
-    predict_wall = time.perf_counter() - t0
-    truth = pr.solve(designs, settings)
-    verified = pr.verify_designs(preds, truth)
-    print(pr.format_table(preds, verified))
+    check = pr.check_designs(shipped, designs, batch=a.batch, verify=True, progress=False)  # the fp16 file itself
+    print(pr.format_table(check.preds, check.verified))
+    sweeps = {}
+    for vary, fixed in (("thickness=0.5:1.0:6", ["drop_height=750"]), ("drop_height=520:990:6", ["thickness=0.75"])):
+        param, lo, hi, n = sw.parse_vary(vary)
+        base = pr.parse_design(fixed, pr.default_design(shipped.meta))
+        sc, analysis = sw.sweep(shipped, param, lo, hi, n, base, verify=True, yield_mpa=a.yield_mpa, progress=False)
+        print(sw.format_analysis(analysis))
+        sweeps[vary] = {"design": fixed, **analysis,
+                        "model_peak": [q.summary["peak_plate_stress_mpa"] for q in sc.preds],
+                        "solver_peak": [t.summary["peak_plate_stress_mpa"] for t in sc.truth],
+                        "model_deflection": [q.summary["max_deflection_mm"] for q in sc.preds],
+                        "solver_deflection": [t.summary["max_deflection_mm"] for t in sc.truth]}
     single = pr.predict(shipped, designs[:1], batch=1, progress=False)[0]
     out = {"name": a.name, "file_mb": path.stat().st_size / 1e6, "card": card,
            "test_metrics": {k: metrics[k] for k in ("split", "trajectories", "position", "stress",
-                                                    "inference_ms_per_step")},
-           "verify": verified, "per_design": [{"name": p.name, **p.summary} for p in preds],
-           "predict_wall_s_total": predict_wall, "batch": a.batch, "threads": a.threads,
+                                                    "inference_ms_per_step", "physics")},
+           "verify": check.verified, "per_design": [{"name": q.name, **q.summary} for q in check.preds],
+           "sweeps": sweeps, "predict_wall_s_total": check.wall_s, "batch": a.batch, "threads": a.threads,
            "single_design_wall_s": single.wall_s,
-           "solver_wall_s_median": float(np.median([t.wall_s for t in truth])),
+           "solver_wall_s_median": float(np.median([t.wall_s for t in check.truth])),
            "device": "cpu: " + (platform.processor() or platform.machine()),
            "command": "python benchmarks/ship_model.py " + " ".join(
                [str(a.run), "--data", str(a.data), "--name", a.name, "--designs", str(a.designs), "--batch",
-                str(a.batch)])}
+                str(a.batch), "--design-seed", str(a.design_seed)])}
     print(f"wrote {write_json(f'model_{a.name}.json', out)}")
 
 

@@ -211,7 +211,7 @@ def test_no_progress_is_everywhere(command, capsys):
     out = capsys.readouterr().out
     assert "--no-progress" in out and "--threads" in out
     if command == "demo":
-        assert "shipped HCMT model" in out
+        assert "shipped HCMT model beside the solver" in out
 
 
 # -- 12. pictures ----------------------------------------------------------------------------------------------

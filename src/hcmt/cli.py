@@ -27,8 +27,8 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "models": ("hcmt.train.cli", "list the trained models shipped with hcmt (pretrained:NAME)"),
     "plot": ("hcmt.viz.cli", "draw stress contours, animations, error curves and training curves of a run"),
     "export": ("hcmt.viz.cli", "export a rollout to ParaView (VTU or XDMF time series)"),
-    "demo": ("hcmt.train.demo", "quickstart: the shipped HCMT model predicts three new Impact Plate designs beside the "
-             "built-in solver (--train: generate, train on the CPU, evaluate, from nothing)"),
+    "demo": ("hcmt.train.demo", "quickstart: the shipped HCMT model beside the solver on three new designs "
+             "(--train: the whole pipeline)"),
 }
 
 

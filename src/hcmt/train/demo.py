@@ -64,8 +64,11 @@ def design_demo(args: argparse.Namespace) -> int:
     print(pr.format_table(preds, verified))
     picture = pr.contour_picture(preds[1], truth[1], run.meta, Path(args.out), run.label)
     print(f"\ncontours at the peak frame, solver beside prediction: {picture}")
-    print("your own designs:  hcmt predict pretrained:impact_plate_small --design thickness=0.7 drop_height=900 "
+    print("your own designs:  hcmt predict pretrained:impact_plate_small --design thickness=0.8 drop_height=700 "
           "--verify")
+    print("a sweep:           hcmt sweep pretrained:impact_plate_small --vary thickness=0.5:1.0:6 --design "
+          "drop_height=750 --yield-mpa 703 --verify")
+    print("where the model is weak: `hcmt models` (measured error by region) and docs/MODELS.md")
     print(f"took {time.perf_counter() - t0:.0f} s")
     return 0
 

@@ -1,0 +1,44 @@
+"""Does the recorded window hold the whole impact? The solver on the corners of the `small` preset's ranges
+(thickness 0.5-1.0 mm, drop height 500-1,000 mm, ball radius 3.5 and 4.25 mm; other parameters at mid-range),
+101 frames of 0.002 ms: the frame of the plate's peak stress, of the ball's rebound (vertical velocity > 0) and
+of the maximum deflection, and how far the peak within 52 frames (the old window) falls below the true one.
+
+    python benchmarks/window.py          # writes benchmarks/results/window.json
+"""
+from __future__ import annotations
+
+import numpy as np
+import torch
+from common import write_json
+
+from hcmt.sim.scene import RANGES, Design, Settings, simulate
+from hcmt.train.metrics import plate_mask
+
+CORNERS = [(0.5, 500), (0.5, 1000), (0.6, 1000), (0.75, 750), (1.0, 1000), (1.0, 500)]
+
+
+def main() -> None:
+    torch.set_num_threads(1)
+    mid = {k: (a + b) / 2 for k, (a, b) in RANGES["small"].items()}
+    rows = []
+    for th, height in CORNERS:
+        for radius in (3.5, 4.25):
+            d = Design(**{**mid, "thickness": th, "drop_height": height, "ball_radius": radius})
+            f = simulate(d, Settings(frames=101))["fields"]
+            w, s = f["world_pos"], f["stress"][..., 0]
+            plate = plate_mask(f["cells"], f["node_type"])
+            peak = s[:, plate].max(1)
+            vy = w[1:, ~plate, 1].mean(1) - w[:-1, ~plate, 1].mean(1)
+            up = np.flatnonzero(vy > 0)
+            defl = -(w[:, plate, 1] - w[0, plate, 1]).min(1)
+            rows.append({"thickness": th, "drop_height": height, "ball_radius": radius,
+                         "peak_frame": int(peak.argmax()), "peak_mpa": float(peak.max()),
+                         "peak_within_52_mpa": float(peak[:52].max()), "rebound_frame": int(up[0]) if len(up) else None,
+                         "max_deflection_frame": int(defl.argmax())})
+            print(rows[-1], flush=True)
+    write_json("window.json", {"frames": 101, "frame_dt_ms": 0.002, "designs": rows,
+                               "command": "python benchmarks/window.py"})
+
+
+if __name__ == "__main__":
+    main()

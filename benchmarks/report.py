@@ -520,6 +520,33 @@ def recipe(lines):
     for lab, e in steps.items():
         cell = lambda k: " / ".join(f"{e[k][i]:.0f}" for i in (9, 39, len(e[k]) - 1))
         lines.append(f"| {lab} | {cell('position_ball')} | {cell('position_contact')} | {cell('position_far')} |")
+    chosen, today = t["chosen"], "vel-normal"
+    if chosen in t["recipes"] and today in t["recipes"] and chosen != today:
+        a, b = t["recipes"][chosen]["test"], t["recipes"][today]["test"]
+        ea, eb = steps[chosen], steps[today]
+        lines += ["", f"**What the study says** (test split, means over seeds). The chosen recipe against today's: "
+                  f"rebound agreement {a['rebound_agreement']['mean']:.2f} against {b['rebound_agreement']['mean']:.2f}, "
+                  f"max deflection error {a['max_deflection_error_pct']['mean']:.0f} % against "
+                  f"{b['max_deflection_error_pct']['mean']:.0f} %, far-field deflection error "
+                  f"{a['far_deflection_error_um']['mean']:.0f} against {b['far_deflection_error_um']['mean']:.0f} µm, "
+                  f"position RMSE-all {a['position_rmse_all']['mean']:.0f} against {b['position_rmse_all']['mean']:.0f}. "
+                  "The acceleration target alone gets the rebound (every acceleration recipe rebounds in every test "
+                  "design) but the plate then sinks: max deflection error "
+                  f"{t['recipes']['acc-normal']['test']['max_deflection_error_pct']['mean']:.0f} % (acc-normal). What "
+                  "drives the deflection error is the contact zone's drift, not the ball: at the last step today's "
+                  f"contact-zone error is {eb['position_contact'][-1]:.0f} ×10⁻³ mm and the far plate's "
+                  f"{eb['position_far'][-1]:.0f}, the chosen recipe's {ea['position_contact'][-1]:.0f} and "
+                  f"{ea['position_far'][-1]:.0f}. The plate's restoring force is a bending strain of ~1e-4 of an edge's "
+                  "length, invisible in the normalized x_ij and u_ij; the edge deformation features make it visible, "
+                  "and with the acceleration target, noise on every predicted node and pushforward (training on the "
+                  "model's own states) the plate springs back. Deformation features with today's velocity target "
+                  "fail (vel-normal-def): the ball does not rebound and the peak stress is over-predicted by "
+                  f"{t['recipes']['vel-normal-def']['test']['peak_plate_stress_error_pct_signed']['mean']:.0f} %. "
+                  "Pushforward alone (vel-normal-pf, acc-predicted-pf) changes little: its best validation checkpoint "
+                  "often comes before pushforward starts (step 1,000 of 3,000, validated every 1,000 steps), so a "
+                  "3,000-step run shows it only in combination. The time of the peak stays off by "
+                  f"{a['peak_plate_frame_error']['mean']:.0f} frames (median over designs, mean over seeds): the "
+                  "peak plateau is flat over many frames, so a few MPa move its frame far."]
     lines.append("")
 
 

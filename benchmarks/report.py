@@ -550,12 +550,24 @@ def recipe(lines):
     lines.append("")
 
 
+def threads(lines):
+    t = load("threads.json")
+    if not t:
+        return
+    lines += ["## Threads", "", f"`{t['command']}`: `hcmt predict pretrained:impact_plate_small` in a fresh process "
+              f"while {t['other_job']} holds one of the {t['cores']} cores; median of 3 runs, wall time of the whole "
+              f"command (start-up included). {t['note']}.", "", "| setting | median s |", "|---|---|"]
+    for k, r in t["results"].items():
+        lines.append(f"| {k} | {r['median_s']:.2f} |")
+    lines.append("")
+
+
 def main() -> None:
     lines = ["# Results", "",
              "Every number below was produced by the command quoted with it, on this project's development machine "
              "(2 CPU cores, no GPU) unless stated. This file is written by `python benchmarks/report.py` from "
              "`benchmarks/results/*.json`; the paper's numbers are quoted for comparison only.", ""]
-    for section in (recipe, parity, propagation, accuracy, longer, ablations, generalization, speed, gpu_path, cpu_ab, hierarchy):
+    for section in (recipe, threads, parity, propagation, accuracy, longer, ablations, generalization, speed, gpu_path, cpu_ab, hierarchy):
         section(lines)
     DOC.parent.mkdir(exist_ok=True)
     DOC.write_text("\n".join(lines).rstrip() + "\n")

@@ -562,12 +562,33 @@ def threads(lines):
     lines.append("")
 
 
+def gpu_check(lines):
+    """benchmarks/gpu_check.py's JSON (copied to benchmarks/results/gpu_check.json from a GPU machine)."""
+    d = load("gpu_check.json")
+    lines += ["## GPU check", ""]
+    if not d or d.get("smoke"):
+        lines += ["`PYTHONPATH=src python benchmarks/gpu_check.py --out OUT` has not run on a GPU yet (no GPU lent): "
+                  "every GPU goal (train step ≤ 12 ms, ≥ 1,000 samples/s, inference ≤ 3 ms, rollout ≥ 40× / ≥ 400× "
+                  "the solver, 250k nodes) is **not measured**.", ""]
+        return
+    lines += [f"`benchmarks/gpu_check.py` on {d['device']} (torch {d['torch']}, budget {d['budget_s']:.0f} s).", "",
+              "| model | mode | batch | train ms | samples/s | inference ms |", "|---|---|---|---|---|---|"]
+    for r in d["steps"].get("train step", {}).get("rows", []):
+        inf = f"{r['inference_ms']:.2f}" if "inference_ms" in r else ""
+        lines.append(f"| {r['model']} | {r['mode']} | {r['batch']} | {r['train_ms']:.2f} | {r['samples_per_s']:.0f} | "
+                     f"{inf} |")
+    for name in ("rollout vs solver", "memory", "deterministic resume", "accuracy", "cuda tests"):
+        if name in d["steps"]:
+            lines += ["", f"**{name}**: `{json.dumps({k: v for k, v in d['steps'][name].items() if k != 'rows'})}`"]
+    lines += [""] + [f"- skipped: {s}" for s in d["skipped"]] + [""]
+
+
 def main() -> None:
     lines = ["# Results", "",
              "Every number below was produced by the command quoted with it, on this project's development machine "
              "(2 CPU cores, no GPU) unless stated. This file is written by `python benchmarks/report.py` from "
              "`benchmarks/results/*.json`; the paper's numbers are quoted for comparison only.", ""]
-    for section in (recipe, threads, parity, propagation, accuracy, longer, ablations, generalization, speed, gpu_path, cpu_ab, hierarchy):
+    for section in (recipe, threads, parity, propagation, accuracy, longer, ablations, generalization, speed, gpu_path, cpu_ab, gpu_check, hierarchy):
         section(lines)
     DOC.parent.mkdir(exist_ok=True)
     DOC.write_text("\n".join(lines).rstrip() + "\n")

@@ -4,15 +4,15 @@ from __future__ import annotations
 
 import argparse
 import json
-import time
+import sys
 from pathlib import Path
 
 from hcmt.data.format import atomic_path
 from hcmt.models import ABLATIONS, MODELS
 from hcmt.models.base import COMPILE_MODES
 from hcmt.train.config import load_config
-from hcmt.train.run import (check_options, compare, evaluate, format_compare, format_metrics, metrics_path,
-                            run_rollouts)
+from hcmt.train.run import (check_options, compare, dataset_warnings, evaluate, format_compare, format_metrics,
+                            metrics_path, run_rollouts)
 
 
 # -- train ---------------------------------------------------------------------------------------------------------
@@ -81,15 +81,8 @@ def _run_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
 
 
-def _dataset_warnings(args) -> None:
-    """One line per mismatch between ``--data`` and the run's training data (another dt is refused)."""
-    import sys
-
-    from hcmt.train.run import Run, check_dataset
-
-    run = Run.load(args.run, "cpu", args.checkpoint)
-    own = run.info.get("data")
-    for w in check_dataset(run.meta, args.data, own, args.split):
+def _print_warnings(args, warnings: list[str]) -> None:
+    for w in warnings:
         print(f"hcmt {args.command}: warning: {w}", file=sys.stderr)
 
 
@@ -105,7 +98,7 @@ configure_rollout = _run_args
 
 def main_rollout(args: argparse.Namespace) -> int:
     check_options(args.device, args.batch, args.compile)
-    _dataset_warnings(args)
+    _print_warnings(args, dataset_warnings(args.run, args.data, args.split))
     path = run_rollouts(args.run, args.data, args.split, args.limit, args.checkpoint, args.device, args.batch,
                         args.compile, progress=not args.no_progress)
     print(f"wrote {path}")
@@ -117,10 +110,9 @@ configure_evaluate = _run_args
 
 
 def main_evaluate(args: argparse.Namespace) -> int:
-    check_options(args.device, args.batch, args.compile)
-    _dataset_warnings(args)
     m = evaluate(args.run, args.data, args.split, args.limit, args.checkpoint, args.device, args.batch,
                  args.compile, progress=not args.no_progress)
+    _print_warnings(args, m["warnings"])
     print(format_metrics(m))
     print(f"wrote {metrics_path(args.run, args.split, args.data)}")
     return 0
@@ -166,8 +158,6 @@ def configure_predict(p: argparse.ArgumentParser) -> None:
 
 
 def main_predict(args: argparse.Namespace) -> int:
-    import sys
-
     from hcmt.train import predict as pr
 
     if not args.design and not args.designs:
@@ -233,19 +223,14 @@ def configure_sweep(p: argparse.ArgumentParser) -> None:
 
 
 def main_sweep(args: argparse.Namespace) -> int:
-    import sys
-
     from hcmt.train import predict as pr
     from hcmt.train import sweep as sw
 
     param, lo, hi, n = sw.parse_vary(args.vary)
-    if args.yield_mpa is not None and not args.yield_mpa > 0:
-        raise ValueError(f"--yield-mpa must be > 0, got {args.yield_mpa}")
     run = _design_run(args)
     base = pr.parse_design(args.design, pr.default_design(run.meta))
     designs = sw.sweep_designs(base, param, lo, hi, n)
-    for w in sorted({w for _, d in designs for w in pr.range_warnings(d, run.ranges)} - set(
-            w for w in pr.range_warnings(base, run.ranges) if not w.startswith(param))):
+    for w in sorted({w for _, d in designs for w in pr.range_warnings(d, run.ranges)}):  # each distinct one once
         print(f"hcmt sweep: warning: {w}", file=sys.stderr)
     check, analysis = sw.sweep(run, param, lo, hi, n, base, verify=args.verify, yield_mpa=args.yield_mpa,
                                batch=args.batch, progress=not args.no_progress, compile=args.compile,

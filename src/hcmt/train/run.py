@@ -246,6 +246,16 @@ def check_dataset(train_meta: dict | None, data, train_data=None, split: str | N
     return out
 
 
+def dataset_warnings(run, data, split: str) -> list[str]:
+    """:func:`check_dataset` of ``data`` against a run folder's training data (named in ``run.yaml``; nothing to
+    compare when it is gone): raises for another ``dt``, returns the warning lines."""
+    from hcmt.data.format import read_meta
+
+    own = _run_data(run)
+    meta = read_meta(own) if own and (Path(own) / "meta.json").is_file() else None
+    return check_dataset(meta, data, own, split)
+
+
 def run_rollouts(run, data, split, limit=None, checkpoint="best", device=None, batch: int = 1,
                  compile: str = "none", *, progress: bool = True) -> Path:
     """Roll a run's model out over a split; predictions go to ``RUN/rollout_<split>.h5`` (``rollout_<split>@<data
@@ -352,8 +362,7 @@ def evaluate(run, data, split, limit=None, checkpoint="best", device=None, batch
     from hcmt.train.metrics import aggregate, rollout_rmse
 
     check_options(device, batch, compile)
-    own = _run_data(run)
-    warnings = check_dataset(_data_facts(own)[0] if own else None, data, own, split)
+    warnings = dataset_warnings(run, data, split)
     meta = read_meta(data)
     path = rollout_for(run, data, split, limit, checkpoint, device, batch, compile, progress=progress)
     per_traj, ms, physics, by_step = [], [], [], defaultdict(list)

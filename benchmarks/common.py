@@ -32,7 +32,8 @@ DATASET = dict(preset="small", train=40, valid=4, test=10, seed=2024, variants=2
 
 
 def dataset(work: Path, spec: dict = DATASET) -> Path:
-    data = work / (f"impact_plate_{spec['preset']}_{spec['train']}" + (f"_{spec['frames']}" if spec.get("frames") else ""))
+    data = work / (f"impact_plate_{spec['preset']}_{spec['train']}" + (f"_{spec['frames']}" if spec.get("frames") else "")
+                   + (f"_dt{spec['frame_dt']:g}" if spec.get("frame_dt") else ""))
     complete = all((data / f"{s}.h5").is_file() for s in ("train", "valid", "test")) and not (data / ".parts").exists()
     if not complete:  # the generator resumes an interrupted run, reusing finished trajectories
         args = ["generate", "impact-plate", str(data), "--preset", spec["preset"], "--train", str(spec["train"]),
@@ -42,6 +43,8 @@ def dataset(work: Path, spec: dict = DATASET) -> Path:
             args += ["--variants", "--variant-count", str(spec["variants"])]
         if spec.get("frames"):
             args += ["--frames", str(spec["frames"])]
+        if spec.get("frame_dt"):
+            args += ["--frame-dt", repr(spec["frame_dt"])]
         if hcmt(args):
             sys.exit("dataset generation failed")
     return data

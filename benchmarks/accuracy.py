@@ -14,7 +14,7 @@ from pathlib import Path
 from common import dataset, fmt, run_and_evaluate, write_json
 
 from hcmt.models import MODELS
-from hcmt.train.metrics import summarize_runs
+from hcmt.inference.metrics import summarize_runs
 
 
 def main() -> None:

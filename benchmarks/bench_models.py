@@ -29,7 +29,7 @@ import torch
 
 from hcmt.graph.build import frame_graph
 from hcmt.graph.hierarchy import build_hierarchy
-from hcmt.models import build_for_dataset, dataset_spec
+from hcmt.physics.adapters import build_for_dataset, dataset_spec
 from hcmt.models.base import compile_simulator
 from hcmt.sim.mesh import preset_mesh
 

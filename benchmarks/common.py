@@ -15,9 +15,10 @@ from pathlib import Path
 
 from hcmt.cli import main as hcmt
 from hcmt.data.format import atomic_path, take_lock
-from hcmt.train.run import evaluate, rollout_path
-from hcmt.train.config import load_config
-from hcmt.train.trainer import train
+from hcmt.inference.evaluate import evaluate
+from hcmt.inference.run import Run, RunFolder
+from hcmt.config import load_config
+from hcmt.training.trainer import train
 
 import torch
 
@@ -88,14 +89,14 @@ def _train_and_evaluate(run, data, model, seed, overrides, splits, ablation, con
     for s in splits:
         if (run / f"metrics_{s}.json").is_file():  # evaluated before (e.g. the sweep's validation split)
             continue
-        m = evaluate(run, data, s)
+        m = evaluate(Run.load(run, "cpu"), data, s, progress=False)
         if details:
             with atomic_path(run / f"details_{s}.json") as tmp:
                 tmp.write_text(json.dumps(rollout_details(run, data, s), indent=2))
         with atomic_path(run / f"metrics_{s}.json") as tmp:
             tmp.write_text(json.dumps(m, indent=2))
         if not keep_rollouts:
-            rollout_path(run, s).unlink(missing_ok=True)
+            RunFolder(run).rollout_path(s).unlink(missing_ok=True)
 
 
 def rollout_details(run: Path, data: Path, split: str) -> dict:
@@ -105,11 +106,11 @@ def rollout_details(run: Path, data: Path, split: str) -> dict:
     import numpy as np
 
     from hcmt.data.format import Split
-    from hcmt.train.metrics import rollout_details as details
-    from hcmt.train.predict import plate_mask
+    from hcmt.inference.metrics import rollout_details as details
+    from hcmt.inference.metrics import plate_mask
 
     rows = []
-    with h5py.File(rollout_path(run, split), "r") as f, Split(data, split) as s:
+    with h5py.File(RunFolder(run).rollout_path(split), "r") as f, Split(data, split) as s:
         index = {n: i for i, n in enumerate(s.names)}
         for name in f.keys():
             truth = s[index[name]]

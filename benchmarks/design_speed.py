@@ -19,8 +19,8 @@ import torch
 from common import write_json
 
 from hcmt.sim.scene import sample_design
-from hcmt.train import predict as pr
-from hcmt.train.run import Run
+from hcmt.design import predict as pr
+from hcmt.inference.run import Run
 
 
 def main() -> None:

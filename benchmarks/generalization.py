@@ -12,7 +12,7 @@ from pathlib import Path
 
 from common import dataset, run_and_evaluate, write_json
 
-from hcmt.train.metrics import summarize_runs
+from hcmt.inference.metrics import summarize_runs
 
 SPLITS = ("test", "test_thicker", "test_higher", "test_thicker_higher")
 

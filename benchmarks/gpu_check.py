@@ -33,7 +33,7 @@ from speed import _one  # noqa: E402
 
 from hcmt.data.format import atomic_path  # noqa: E402
 from hcmt.graph.batch import collate  # noqa: E402
-from hcmt.models import build_for_dataset, dataset_spec  # noqa: E402
+from hcmt.physics.adapters import build_for_dataset, dataset_spec  # noqa: E402
 
 
 class Check:
@@ -146,8 +146,8 @@ def train_step(c: Check) -> dict:
 
 def rollout_vs_solver(c: Check) -> dict:
     from hcmt.sim.scene import sample_design
-    from hcmt.train import predict as pr
-    from hcmt.train.run import Run
+    from hcmt.design import predict as pr
+    from hcmt.inference.run import Run
 
     import numpy as np
 
@@ -205,8 +205,8 @@ def _train_args(c: Check, data: Path, model: str, seed: int, out: Path, steps: i
 def deterministic_resume(c: Check) -> dict:
     """A run stopped half-way and resumed ends with the parameters of one that never stopped
     (``train.deterministic``: exact on CUDA too)."""
-    from hcmt.train.config import load_config
-    from hcmt.train.trainer import train
+    from hcmt.config import load_config
+    from hcmt.training.trainer import train
 
     data = _generate(c, c.out / "mini")
     steps = 4 if c.smoke else 40
@@ -242,11 +242,12 @@ def accuracy(c: Check) -> dict:
             runs.append((model, seed, out))
     for p in procs:
         p.wait(timeout=max(c.left(), 10))
-    from hcmt.train.run import evaluate
+    from hcmt.inference.evaluate import evaluate
+    from hcmt.inference.run import Run
 
     rows = []
     for model, seed, out in runs:
-        m = evaluate(out, data, "test", device=str(c.device), batch=16, progress=False)
+        m = evaluate(Run.load(out, str(c.device)), data, "test", batch=16, progress=False)
         rows.append({"model": model, "seed": seed, "position_rmse_all": m["position"]["rmse_all"],
                      "stress_rmse_all": m["stress"]["rmse_all"], "physics": m.get("physics")})
     mean = {k: statistics.mean(r["position_rmse_all"] for r in rows if r["model"] == k) for k in ("hcmt", "mgn")}

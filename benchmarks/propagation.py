@@ -30,7 +30,7 @@ from common import write_json
 
 from hcmt.data.format import NodeType, Split
 from hcmt.graph.hierarchy import build_hierarchy
-from hcmt.train.predict import plate_mask
+from hcmt.inference.metrics import plate_mask
 
 
 def hop_matrix(edges: np.ndarray, n: int, sources: np.ndarray) -> np.ndarray:

@@ -20,8 +20,9 @@ import numpy as np
 from scipy.stats import rankdata
 from common import RESULTS, dataset, run_and_evaluate, write_json
 
-from hcmt.train.metrics import mean_std
-from hcmt.train.run import evaluate
+from hcmt.inference.metrics import mean_std
+from hcmt.inference.evaluate import evaluate
+from hcmt.inference.run import Run
 
 # 40 / 4 / 12 designs of the `small` preset over a 90-frame window (0.178 ms: the whole impact of every design of
 # the ranges, docs/RESULTS.md "Window"); another seed than any other study's
@@ -69,7 +70,7 @@ def run_summary(run: Path, data: Path, split: str) -> dict:
     file predates them)."""
     m = json.loads((run / f"metrics_{split}.json").read_text())
     if "physics" not in m:
-        m = evaluate(run, data, split)
+        m = evaluate(Run.load(run, "cpu"), data, split, progress=False)
     p = m["physics"]
     out = {"position_rmse_all": m["position"]["rmse_all"], "stress_rmse_all": m["stress"]["rmse_all"],
            "rebound_agreement": p["rebound_agreement"], "model_rebounds": p["model_rebounds"],

@@ -22,10 +22,10 @@ import torch
 from common import write_json
 
 from hcmt.sim.scene import sample_design
-from hcmt.train import predict as pr
-from hcmt.train import sweep as sw
-from hcmt.train.run import evaluate
-from hcmt.train.run import PRETRAINED_DIR, Run
+from hcmt.design import predict as pr
+from hcmt.design import sweep as sw
+from hcmt.inference.evaluate import evaluate
+from hcmt.inference.run import PRETRAINED_DIR, Run
 
 
 def main() -> None:
@@ -64,7 +64,7 @@ def main() -> None:
         "checkpoint": run.info["checkpoint"], "seed": run.info.get("seed"), "machine": platform.processor() or
         platform.machine(), "torch": str(torch.__version__),
     }
-    metrics = evaluate(a.run, a.data, "test", progress=False)
+    metrics = evaluate(run, a.data, "test", progress=False)
     # held-out designs of a fresh seed (uniform inside the training ranges; no study or training used the seed)
     rng = np.random.default_rng(a.design_seed)
     designs = [(f"fresh_{i:02d}", sample_design(rng, run.meta["generator"]["preset"])) for i in range(a.designs)]
@@ -92,7 +92,7 @@ def main() -> None:
     sweeps = {}
     for vary, fixed in (("thickness=0.5:1.0:6", ["drop_height=750"]), ("drop_height=520:990:6", ["thickness=0.75"])):
         param, lo, hi, n = sw.parse_vary(vary)
-        base = pr.parse_design(fixed, pr.default_design(shipped.meta))
+        base = pr.parse_design(fixed, pr.middle_design(shipped.meta))
         sc, analysis = sw.sweep(shipped, param, lo, hi, n, base, verify=True, yield_mpa=a.yield_mpa, progress=False)
         print(sw.format_analysis(analysis))
         sweeps[vary] = {"design": fixed, **analysis,

@@ -36,17 +36,17 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from common import write_json  # noqa: E402
 
 from hcmt.graph.hierarchy import build_hierarchy  # noqa: E402
-from hcmt.models import build_for_dataset  # noqa: E402
+from hcmt.physics.adapters import build_for_dataset  # noqa: E402
 from hcmt.sim.mesh import impact_plate_mesh  # noqa: E402
 
 
 def _rollout(args) -> None:
     from hcmt.sim.generate import trajectory_rng
     from hcmt.sim.scene import Settings, sample_design, simulate
-    from hcmt.train.adapters import get_adapter
-    from hcmt.train.data import prepare_trajectory
-    from hcmt.train.rollout import rollout
-    from hcmt.train.trainer import load_run
+    from hcmt.physics.adapters import get_adapter
+    from hcmt.physics.trajectory import prepare_trajectory
+    from hcmt.inference.rollout import rollout
+    from hcmt.inference.run import load_run
 
     adapter = get_adapter("impact_plate")
     models = {}

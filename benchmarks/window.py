@@ -12,7 +12,7 @@ import torch
 from common import write_json
 
 from hcmt.sim.scene import RANGES, Design, Settings, simulate
-from hcmt.train.metrics import plate_mask
+from hcmt.inference.metrics import plate_mask
 
 CORNERS = [(0.5, 500), (0.5, 1000), (0.6, 1000), (0.75, 750), (1.0, 1000), (1.0, 500)]
 

@@ -1,6 +1,6 @@
 import pytest
 
-from hcmt.train.config import builtin_configs, load_config
+from hcmt.config import builtin_configs, load_config
 
 TABLE8 = {  # dataset: (L_C, L_H, lambda, noise std, gamma, steps)
     "impact_plate": (2, 13, 6, 0.003, 0.4, 2_000_000),
@@ -16,7 +16,7 @@ def test_paper_configs_hold_table8(name):
     m, t = c["model"], c["train"]
     L_H = 2 * m["levels"] + 1  # derived, as the paper's L_H = 2λ + 1
     assert (m["L_C"], L_H, m["levels"], t["noise_std"], t["contact_radius"], t["steps"]) == TABLE8[name]
-    assert m["L_C"] + L_H == 15 and "L_H" not in m
+    assert m["L_C"] + L_H == 15 and m["L_H"] is None  # not set: the schema's default, derived from λ
     assert (t["lr"], t["lr_final"], t["batch_size"], m["hidden"], m["heads"]) == (1e-4, 1e-6, 1, 128, 4)
     assert f"{name}_cpu" in builtin_configs()
 
@@ -42,7 +42,7 @@ TABLE9 = {"impact_plate": (9 + 2 + 1 + 1, 2 + 1 + 2 + 1, 3, 3, 1), "deforming_pl
 @pytest.mark.parametrize("name", TABLE8)
 def test_dataset_spec_holds_tables_8_and_9(name):
     """One source per dataset: Table 8 from its config, Table 9 from its adapter; both against the paper."""
-    from hcmt.models import dataset_spec
+    from hcmt.physics.adapters import dataset_spec
 
     spec = dataset_spec(name)
     assert (spec["node_in"], spec["mesh_in"], spec["contact_in"], spec["out"], spec["integration"]) == TABLE9[name]

@@ -11,10 +11,10 @@ import pytest
 
 from hcmt.cli import main as cli
 from hcmt.sim.scene import Design
-from hcmt.train import predict as pr
-from hcmt.train.config import load_config
-from hcmt.train.run import Run
-from hcmt.train.trainer import train
+from hcmt.design import predict as pr
+from hcmt.config import load_config
+from hcmt.inference.run import Run
+from hcmt.training.trainer import train
 
 FRAMES = 6
 TINY = ["model.levels=1", "model.L_C=1", "model.hidden=16", "model.heads=2", "train.normalizer_steps=1",
@@ -93,7 +93,7 @@ def test_fuzz_designs_csv(setup, tmp_path, capsys):
         path = tmp_path / f"f{case}.csv"
         path.write_text(text, encoding="utf-8")
         try:
-            designs = pr.read_designs_csv(path, pr.default_design(run.meta))
+            designs = pr.read_designs_csv(path, pr.middle_design(run.meta))
         except ValueError as exc:
             assert "\n" not in str(exc) and str(path) in str(exc)
             continue
@@ -161,11 +161,11 @@ def test_predict_refuses_a_mesh_far_beyond_the_training_data(setup):
     from hcmt.sim.scene import Settings
 
     run = Run.load(setup / "run", "cpu")
-    fine = [("fine", pr.parse_design(["mesh_size=0.01"], pr.default_design(run.meta)))]
+    fine = [("fine", pr.parse_design(["mesh_size=0.01"], pr.middle_design(run.meta)))]
     with pytest.raises(ValueError, match=r"fine: .* nodes at mesh_size 0.01 .*exceeds 600 s.*--force"):
         pr.cost_check(run, fine, Settings(frames=90), verify=False, force=False)
     pr.cost_check(run, fine, Settings(frames=90), verify=False, force=True)  # forced: no refusal
-    pr.cost_check(run, [("ok", pr.default_design(run.meta))], Settings(frames=90), verify=True, force=False)
+    pr.cost_check(run, [("ok", pr.middle_design(run.meta))], Settings(frames=90), verify=True, force=False)
 
 
 # -- 6. Ctrl-C -------------------------------------------------------------------------------------------------
@@ -220,7 +220,7 @@ def test_pictures_name_r_and_stress_has_no_below_zero_arrow(setup):
     from hcmt.viz.rollouts import load_case
 
     run = setup / "run"
-    case = load_case([run], setup / "data", "test", 0, progress=False)
+    case = load_case([Run.load(run, "cpu")], setup / "data", "test", 0, progress=False)
     assert axis_names(case) == ("r", "y")  # the generator's axisymmetric scene
     case.predictions[0].stress = case.predictions[0].stress - 50.0  # a model predicting negative von Mises
     norm, extend = shared_norm(case, [FRAMES - 1], "stress")
@@ -228,12 +228,10 @@ def test_pictures_name_r_and_stress_has_no_below_zero_arrow(setup):
 
 
 def test_contour_pair_shows_both_peaks(setup, monkeypatch):
-    import hcmt.viz.contours as contours
-
     seen = {}
-    monkeypatch.setattr(contours, "plot_contours", lambda case, out, frames: seen.setdefault("f", frames) or [out])
+    monkeypatch.setattr(pr, "plot_contours", lambda case, out, frames: seen.setdefault("f", frames) or [out])
     run = Run.load(setup / "run", "cpu")
-    check = pr.check_designs(run, [("d", pr.parse_design(["thickness=0.7"], pr.default_design(run.meta)))],
+    check = pr.check_designs(run, [("d", pr.parse_design(["thickness=0.7"], pr.middle_design(run.meta)))],
                              verify=True, progress=False)
     p, t = check.preds[0], check.truth[0]
     pr.contour_picture(p, t, run.meta, setup / "img", "MGN")

@@ -2,7 +2,7 @@
 import numpy as np
 import pytest
 
-from hcmt.train.metrics import aggregate, mean_std, rollout_rmse, step_rmse
+from hcmt.inference.metrics import aggregate, mean_std, rollout_rmse, step_rmse
 
 
 def test_step_rmse_by_hand():

@@ -1,7 +1,6 @@
 """Model invariants: permutation equivariance, per-receiver softmax, gradients, batching, empty edge sets."""
 from __future__ import annotations
 
-import re
 
 import pytest
 import torch
@@ -75,19 +74,17 @@ def test_attention_weights_sum_to_one_per_receiver_head_and_branch():
     model = warm(make("hcmt", levels=2, L_C=2), g)
     with torch.no_grad():
         _, maps = model(g, return_attention=True)
-    names = [n for n, _ in maps]
+    names = [m.name for m in maps]
     assert names[:4] == ["cmt0.mesh", "cmt0.contact", "cmt1.mesh", "cmt1.contact"]
     assert len(maps) == 4 + model.L_H
     level_edges = [g.mesh_edges, *g.level_edges]
     level_n = [g.num_nodes] + [len(p) for p in g.pool]
-    for name, w in maps:
-        if name.endswith(".contact"):
-            edges, n = g.contact_edges, g.num_nodes
-        elif name.startswith("cmt"):
-            edges, n = g.mesh_edges, g.num_nodes
-        else:
-            level = int(re.search(r"(\d+)$", name).group(1))  # hmt.down{l} / hmt.bottom{λ} / hmt.up{l}
-            edges, n = level_edges[level], level_n[level]
+    # the contract: each map names its level and carries the very edges its weights belong to
+    assert [m.level for m in maps[4:]] == [0, 1, 2, 1, 0]  # hmt.down0, down1, bottom2, up1, up0
+    for m in maps:
+        expected = g.contact_edges if m.name.endswith(".contact") else level_edges[m.level]
+        assert torch.equal(m.edge_index, expected) and m.normalized
+        edges, n, w = m.edge_index, level_n[m.level], m.weights
         assert w.shape == (edges.shape[1], 4, 8)
         sums = torch.zeros(n, 4, 8).index_add_(0, edges[1], w)
         has_in = torch.bincount(edges[1], minlength=n) > 0
@@ -255,7 +252,7 @@ def test_official_attention_maps_are_normalized_per_receiver_for_display():
     model = warm(make("hcmt", levels=2, L_C=1, attention="official"), g)
     levels = [np.arange(len(g.pool[0]))]  # level-0 index of level-1 nodes: any ids of the right count
     levels.append(np.arange(len(g.pool[1])))
-    maps = maps_from_model(model, g, np.zeros(g.num_nodes, np.int64), levels)
+    maps = maps_from_model(model, g)
     assert maps["normalized_for_display"]
     for name, m in maps["matrices"].items():
         rows = np.asarray(m.sum(1)).ravel()

@@ -7,7 +7,9 @@ import numpy as np
 import pytest
 import torch
 
-from hcmt.models import ABLATIONS, DATASET_NAMES, build_for_dataset, build_model, dataset_spec, update_positions
+from hcmt.config import DATASET_NAMES
+from hcmt.models import ABLATIONS, build_model, update_positions
+from hcmt.physics.adapters import build_for_dataset, dataset_spec
 from hcmt.models.lpe import LaplacianPE, laplacian_pe
 from hcmt.models.normalizer import Normalizer
 

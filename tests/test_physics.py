@@ -8,14 +8,15 @@ import torch
 
 from hcmt.cli import main as cli
 from hcmt.data.format import NodeType
-from hcmt.train import sweep as sw
-from hcmt.train.adapters import (config_adapter, get_adapter, integrate, noise_gamma, noise_mask, position_mask,
+from hcmt.design import sweep as sw
+from hcmt.physics.adapters import (config_adapter, get_adapter, integrate, noise_gamma, noise_mask, position_mask,
                                  target)
-from hcmt.train.config import load_config
-from hcmt.train.frames import FrameDataset
-from hcmt.train.metrics import impact_metrics, summarize_impact
-from hcmt.train.run import Run
-from hcmt.train.trainer import train
+from hcmt.config import load_config
+from hcmt.training.dataset import FrameDataset
+from hcmt.inference.metrics import impact_metrics, summarize_impact
+from hcmt.inference.evaluate import evaluate
+from hcmt.inference.run import Run
+from hcmt.training.trainer import train
 
 FRAMES = 8
 TINY = ["model.levels=1", "model.L_C=1", "model.hidden=16", "model.heads=2", "train.normalizer_steps=1",
@@ -97,7 +98,7 @@ def test_pushforward_input_is_the_models_prediction_and_the_target_lands_on_the_
     graph, tgt, mask = ds.pushforward_item(key, run.model, 1.0)
     w = tr.world_pos
     with torch.no_grad():  # the model's own step from frame t-1
-        from hcmt.train.frames import input_graph
+        from hcmt.physics.frames import input_graph
 
         out = run.model.denormalize(run.model(input_graph(tr, w[t - 1], w[t - 2], w[t], run.radius),
                                               accumulate=False))
@@ -184,7 +185,7 @@ def test_summarize_impact_medians_percentiles_and_the_signed_worst():
 
 def test_evaluate_reports_physics_and_errors_by_body(data, tmp_path):
     train(load_config("impact_plate_cpu", TINY), data, "mgn", tmp_path / "run", progress=False)
-    m = Run.load(tmp_path / "run", "cpu").evaluate(data, "test")
+    m = evaluate(Run.load(tmp_path / "run", "cpu"), data, "test")
     p = m["physics"]
     assert p["trajectories"] == 1 and 0 <= p["rebound_agreement"] <= 1
     assert set(m["error_by_step"]) == {f"{q}_{g}" for q in ("position", "stress") for g in ("ball", "contact", "far")}
@@ -257,7 +258,7 @@ def test_threads_option_sets_torchs_pool(tmp_path, capsys):
 
 # -- the authors' training loop ----------------------------------------------------------------------------------
 def test_keras_epsilon_hat_adam_equals_the_keras_update():
-    from hcmt.train.trainer import keras_epsilon
+    from hcmt.training.schedule import keras_epsilon
 
     g = torch.Generator().manual_seed(0)
     theta0 = torch.randn(5, generator=g, dtype=torch.float64)
@@ -282,14 +283,14 @@ def test_keras_epsilon_hat_adam_equals_the_keras_update():
 
 
 def _trainer(data, out, overrides, model="hcmt"):
-    from hcmt.train.trainer import Trainer
+    from hcmt.training.trainer import Trainer
 
     cfg = load_config("impact_plate_cpu", TINY + overrides)
     return Trainer(cfg, data, model, out, ablation=None, seed=0, resume=False, device="cpu", progress=False)
 
 
 def test_official_loop_options_normalizers_and_loss(data, tmp_path):
-    from hcmt.train.frames import collate_samples
+    from hcmt.training.dataset import collate_samples
 
     warm = _trainer(data, tmp_path / "a", ["train.normalizer_steps=2", "train.normalizer_warmup=nodes"])
     batch = collate_samples([warm.frames[0]])

@@ -8,10 +8,10 @@ import torch
 
 from hcmt.cli import main as cli
 from hcmt.sim.scene import Design, Settings, initial_frames, simulate
-from hcmt.train import predict as pr
-from hcmt.train.config import load_config
-from hcmt.train.run import Run, available_pretrained
-from hcmt.train.trainer import train
+from hcmt.design import predict as pr
+from hcmt.config import load_config
+from hcmt.inference.run import Run, available_pretrained
+from hcmt.training.trainer import train
 
 FRAMES = 8
 TINY = ["model.levels=1", "model.L_C=1", "model.hidden=16", "model.heads=2", "train.normalizer_steps=1",
@@ -46,7 +46,7 @@ def test_ball_crossing_the_gap_in_one_frame_is_refused():
 
 def test_batch_equals_one_by_one(tiny_run):
     run = Run.load(tiny_run, "cpu")
-    designs = [(f"d{i}", pr.parse_design([f"thickness={t}", f"drop_height={h}"], pr.default_design(run.meta)))
+    designs = [(f"d{i}", pr.parse_design([f"thickness={t}", f"drop_height={h}"], pr.middle_design(run.meta)))
                for i, (t, h) in enumerate([(0.6, 600), (0.9, 950), (0.75, 700)])]
     together = pr.predict(run, designs, batch=3, progress=False)
     alone = pr.predict(run, designs, batch=1, progress=False)
@@ -135,8 +135,8 @@ def test_every_shipped_model_loads_and_predicts(name):
     run = hcmt.load_pretrained(name, device="cpu")
     assert name.startswith(run.config["dataset"]) and run.ranges and run.card.get("steps")
     settings = pr.settings_of(run.meta)
-    tr, _ = pr.design_trajectory(run, "d", pr.default_design(run.meta), settings)
-    from hcmt.train.rollout import rollout
+    tr, _ = pr.design_trajectory(run, "d", pr.middle_design(run.meta), settings)
+    from hcmt.inference.rollout import rollout
 
     r = rollout(run.model, run.adapter, tr, run.radius, steps=1)
     assert r["world_pos"].shape[0] == 3 and torch.isfinite(r["world_pos"]).all()

@@ -10,12 +10,14 @@ import torch
 
 from hcmt.cli import main as cli
 from hcmt.data.format import NodeType, open_split
-from hcmt.train.adapters import get_adapter
-from hcmt.train.run import evaluate
-from hcmt.train.config import load_config
-from hcmt.train.data import load_split
-from hcmt.train.rollout import RolloutError, rollout
-from hcmt.train.trainer import load_run, train
+from hcmt.physics.adapters import get_adapter
+from hcmt.inference.evaluate import evaluate
+from hcmt.inference.run import Run
+from hcmt.config import load_config
+from hcmt.physics.trajectory import load_split
+from hcmt.inference.rollout import RolloutError, rollout
+from hcmt.inference.run import load_run
+from hcmt.training.trainer import train
 
 from layouts import deforming_plate_tfrecord, ggns_pickles, sphere_simple_tfrecord, write_impact_like
 
@@ -40,11 +42,11 @@ def test_tiny_end_to_end(impact, tmp_path, model):
     logs = [json.loads(l) for l in (tmp_path / "run" / "log.jsonl").read_text().splitlines()]
     assert [r["step"] for r in logs if "loss" in r] == [1, 2, 3, 4]
     assert any("valid/position_rmse_all" in r for r in logs)
-    m = evaluate(tmp_path / "run", impact, "test")
+    m = evaluate(Run.load(tmp_path / "run", "cpu"), impact, "test")
     assert set(m["position"]) == {"rmse_1", "rmse_50", "rmse_all"} and "stress" in m
     assert np.isfinite(m["position"]["rmse_all"]) and m["inference_ms_per_step"] > 0
     assert json.loads((tmp_path / "run" / "metrics_test.json").read_text())["trajectories"] == 1
-    evaluate(tmp_path / "run", impact, "valid")  # another split never overwrites the test metrics
+    evaluate(Run.load(tmp_path / "run", "cpu"), impact, "valid")  # another split never overwrites the test metrics
     assert json.loads((tmp_path / "run" / "metrics_test.json").read_text())["split"] == "test"
     assert json.loads((tmp_path / "run" / "metrics_valid.json").read_text())["split"] == "valid"
 
@@ -113,7 +115,7 @@ def test_adapters_on_official_layouts(tmp_path, kind):
     cfg = load_config(f"{kind}_cpu", TINY + ["train.steps=2", f"train.contact_radius={radius}",
                                               "data.exclude_trajectories=[]"])
     train(cfg, tmp_path / "data", "hcmt", tmp_path / "run", progress=False)
-    m = evaluate(tmp_path / "run", tmp_path / "data", "test")
+    m = evaluate(Run.load(tmp_path / "run", "cpu"), tmp_path / "data", "test")
     assert np.isfinite(m["position"]["rmse_all"])
     assert ("stress" in m) == get_adapter(kind).stress_output
     # prescribed obstacles and handles follow the data exactly
@@ -156,7 +158,7 @@ def test_graph_batching_trains(impact, tmp_path):
 
 
 def test_learning_rate_decays_from_lr_to_lr_final():
-    from hcmt.train.trainer import learning_rate
+    from hcmt.training.schedule import learning_rate
 
     assert learning_rate(0, 100, 1e-4, 1e-6) == pytest.approx(1e-4)
     assert learning_rate(50, 100, 1e-4, 1e-6) == pytest.approx(1e-5)
@@ -168,12 +170,12 @@ def test_evaluate_rolls_out_again_after_more_training(impact, tmp_path):
 
     cfg = load_config("impact_plate_cpu", TINY + ["train.steps=2"])
     train(cfg, impact, "mgn", tmp_path / "run", progress=False)
-    evaluate(tmp_path / "run", impact, "test", checkpoint="checkpoint")
+    evaluate(Run.load(tmp_path / "run", "cpu", "checkpoint"), impact, "test")
     with h5py.File(tmp_path / "run" / "rollout_test.h5") as f:
         assert f.attrs["checkpoint_step"] == 2
     longer = load_config("impact_plate_cpu", TINY + ["train.steps=4"])  # resume may extend the schedule
     train(longer, impact, "mgn", tmp_path / "run", progress=False, resume=True)
-    evaluate(tmp_path / "run", impact, "test", checkpoint="checkpoint")
+    evaluate(Run.load(tmp_path / "run", "cpu", "checkpoint"), impact, "test")
     with h5py.File(tmp_path / "run" / "rollout_test.h5") as f:
         assert f.attrs["checkpoint_step"] == 4
 
@@ -193,19 +195,20 @@ def test_dataset_without_the_adapters_fields_is_refused(tmp_path):
 
 
 def test_error_curves_roll_out_the_trajectories_an_old_rollout_lacks(tmp_path):
-    from hcmt.train.run import run_rollouts
+    from hcmt.inference.evaluate import run_rollouts
     from hcmt.viz.curves import rollout_errors
 
     data = write_impact_like(tmp_path / "data", n_test=2)
     train(load_config("impact_plate_cpu", TINY + ["train.steps=1"]), data, "mgn", tmp_path / "run", progress=False)
-    run_rollouts(tmp_path / "run", data, "test", limit=1)
-    errors = rollout_errors([tmp_path / "run"], data, "test")
+    run = Run.load(tmp_path / "run", "cpu")
+    run_rollouts(run, data, "test", limit=1)
+    errors = rollout_errors([run], data, "test")
     assert errors["MGN"]["trajectories"] == ["traj_00000", "traj_00001"]
 
 
 def test_step_decay_is_the_authors_schedule():
     """train.lr_decay_steps: 1e-4 * 0.1^(step / 1e6), no floor (yuyudeep/hcmt run_model.py)."""
-    from hcmt.train.trainer import learning_rate
+    from hcmt.training.schedule import learning_rate
 
     assert learning_rate(0, 10, 1e-4, 1e-6, decay_steps=1_000_000) == pytest.approx(1e-4)
     assert learning_rate(1_000_000, 10, 1e-4, 1e-6, decay_steps=1_000_000) == pytest.approx(1e-5)
@@ -213,9 +216,9 @@ def test_step_decay_is_the_authors_schedule():
 
 
 def test_official_contact_pairs_join_obstacle_and_normal_nodes_only(impact):
-    from hcmt.train.adapters import config_adapter
-    from hcmt.train.data import build_graph
-    from hcmt.train.adapters import node_features
+    from hcmt.physics.adapters import config_adapter
+    from hcmt.physics.trajectory import build_graph
+    from hcmt.physics.adapters import node_features
 
     radius = 10.0  # every pair of the two bodies is in range
     graphs = {}
@@ -373,7 +376,7 @@ def test_dataloader_workers_change_no_result(impact, tmp_path):
 def test_frame_dataset_pickles_without_its_trajectories(impact):
     import pickle
 
-    from hcmt.train.frames import FrameDataset
+    from hcmt.training.dataset import FrameDataset
 
     ds = FrameDataset(impact, "train", get_adapter("impact_plate"), 1, True, 0.3, noise_std=0.01, seed=1)
     graph, target, mask = ds[0]
@@ -411,7 +414,7 @@ def test_compile_refuses_lpe_and_deterministic_is_scoped(impact, tmp_path):
     with pytest.raises(ValueError, match="lpe ablation"):
         train(cfg, impact, "hcmt", tmp_path / "lpe", ablation="lpe", progress=False, device="cpu")
     seen = []
-    from hcmt.train import trainer as tr
+    from hcmt.training import trainer as tr
 
     step = tr.Trainer.step
     tr_step = lambda self, *a: seen.append(torch.are_deterministic_algorithms_enabled()) or step(self, *a)  # noqa
@@ -447,7 +450,8 @@ def test_pad_sizes_from_the_hierarchies_equal_those_of_the_frames_graphs(impact)
     """train.compile sizes its padding from each trajectory's hierarchy, without building a graph per trajectory:
     the same sizes as the built graphs give."""
     from hcmt.graph.batch import PadSizes
-    from hcmt.train.frames import FrameDataset, input_graph, pad_sizes
+    from hcmt.physics.frames import input_graph
+    from hcmt.training.dataset import FrameDataset, pad_sizes
 
     ds = FrameDataset(impact, "train", get_adapter("impact_plate"), 1, True, 0.3)
     graphs = [input_graph(tr, tr.world_pos[1], tr.world_pos[0], tr.world_pos[2], 0.3) for tr in ds.trajectories]

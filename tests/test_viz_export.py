@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 
 from hcmt.cli import main as cli
+from hcmt.inference.run import RunFolder
 from hcmt.data.errors import DatasetError
 from hcmt.viz.export import export_case
 from hcmt.viz.rollouts import Case, Series, load_case
@@ -30,7 +31,7 @@ def read_pvd(path):
 
 def test_vtu_series_holds_the_rollout(setup, tmp_path):
     data, run = setup
-    case = load_case([run], data, "test", 0)
+    case = load_case([RunFolder(run)], data, "test", 0)
     opened = export_case(case, tmp_path, "vtu")
     assert [p.name for p in opened] == ["traj_00000_truth.pvd", "traj_00000_mgn.pvd"]
     pred, truth = case.predictions[0], case.truth
@@ -59,7 +60,7 @@ def test_vtu_series_holds_the_rollout(setup, tmp_path):
 
 def test_xdmf_series_reads_back(setup, tmp_path):
     data, run = setup
-    case = load_case([run], data, "test", 0)
+    case = load_case([RunFolder(run)], data, "test", 0)
     paths = export_case(case, tmp_path, "xdmf", frames=[0, 3, 5])
     assert (tmp_path / "traj_00000_mgn.h5").is_file()  # beside the .xdmf, wherever the working folder is
     pred = case.predictions[0]
@@ -108,5 +109,5 @@ def test_rollout_of_another_dataset_is_refused(setup, tmp_path):
         del f["traj_00000/world_pos"]
         f["traj_00000/world_pos"] = np.zeros((6, 7, 2), np.float32)
     with pytest.raises(DatasetError, match="another dataset"):
-        load_case([run], data, "test", 0)
+        load_case([RunFolder(run)], data, "test", 0)
     assert cli(["export", str(run), "--data", str(data), "--out", str(tmp_path / "x"), "--trajectory", "9"]) == 2

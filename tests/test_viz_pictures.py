@@ -8,11 +8,12 @@ import scipy.sparse as sp
 from PIL import Image
 
 from hcmt.cli import main as cli
+from hcmt.inference.run import Run, RunFolder
 from hcmt.data.format import read_meta
 from hcmt.graph.contact import object_ids
 from hcmt.graph.hierarchy import build_hierarchy
-from hcmt.train.config import load_config
-from hcmt.train.trainer import train
+from hcmt.config import load_config
+from hcmt.training.trainer import train
 from hcmt.viz.animation import animate, animation_frames
 from hcmt.viz.attention import attention_matrix, frame_attention, object_order, plot_attention
 from hcmt.viz.contours import contour_figure
@@ -83,7 +84,7 @@ def _panel_mean(fig, ax):
 
 def test_contours_share_one_scale_per_row_with_units(data, tmp_path):
     run = fake_run(tmp_path / "run", data, stress_offset=0.0, shift=np.zeros(2, np.float32))
-    case = load_case([run], data)
+    case = load_case([RunFolder(run)], data)
     fig = contour_figure(case, [2, 5])
     fig.canvas.draw()
     axes = panels(fig)
@@ -144,7 +145,7 @@ def test_contours_of_a_3d_mesh(tmp_path):
 
 # -- animation -------------------------------------------------------------------------------------------------------
 def test_animation_has_one_image_per_drawn_frame(data, tmp_path):
-    case = load_case([fake_run(tmp_path / "run", data)], data)
+    case = load_case([RunFolder(fake_run(tmp_path / "run", data))], data)
     assert animation_frames(6) == [0, 1, 2, 3, 4, 5] and animation_frames(6, 4) == [0, 4, 5]
     long = animation_frames(1000)
     assert len(long) <= 100 and long[-1] == 999 and len(set(np.diff(long[:-1]))) == 1
@@ -164,7 +165,7 @@ def test_animation_has_one_image_per_drawn_frame(data, tmp_path):
 # -- curves ----------------------------------------------------------------------------------------------------------
 def test_error_curves_show_the_known_errors(data, tmp_path):
     runs = [fake_run(tmp_path / "a", data), fake_run(tmp_path / "b", data, model="hcmt", shift=2 * SHIFT)]
-    errors = rollout_errors(runs, data)
+    errors = rollout_errors([RunFolder(r) for r in runs], data)
     assert list(errors) == ["MGN", "HCMT"]
     for label, factor in (("MGN", 1), ("HCMT", 2)):
         e = errors[label]
@@ -186,7 +187,7 @@ def test_training_curves_read_the_log(tmp_path):
     train_cols, valid = read_log(run)
     assert train_cols["step"].tolist() == [1, 2, 3] and train_cols["loss"].tolist() == [1.0, 0.25, 1 / 3]
     assert valid["valid/position_rmse_all"].tolist() == [40.0]
-    fig_path = plot_training_curves([run], {"units": {"length": "mm", "stress": "MPa"}}, tmp_path / "t.png")
+    fig_path = plot_training_curves([RunFolder(run)], {"units": {"length": "mm", "stress": "MPa"}}, tmp_path / "t.png")
     assert_nontrivial(fig_path)
     (run / "log.jsonl").write_text("{not json\n")
     with pytest.raises(ValueError, match="line 1"):
@@ -233,11 +234,11 @@ def test_attention_matrix_rows_are_receivers():
 
 
 def test_attention_maps_of_a_trained_hcmt(data, hcmt_run, tmp_path):
-    maps = frame_attention(hcmt_run, data, "test", 0, frame=3)
+    maps = frame_attention(Run.load(hcmt_run, "cpu"), data, "test", 0, frame=3)
     assert {"cmt0.mesh", "cmt0.contact", "hmt.down0", "hmt.bottom1", "hmt.up0"} <= set(maps.matrices)
     n0 = len(maps.object_id[0])
     for name, m in maps.matrices.items():
-        level = maps.levels[name]
+        level = maps.blocks[name].level
         assert m.shape == (len(maps.object_id[level]),) * 2
         rows = np.asarray(m.sum(1)).ravel()
         has = np.diff(m.indptr) > 0
@@ -249,7 +250,7 @@ def test_attention_maps_of_a_trained_hcmt(data, hcmt_run, tmp_path):
     path = plot_attention(maps, tmp_path / "att.png")
     assert_nontrivial(path)
     with pytest.raises(ValueError, match="frame 5 out of range"):
-        frame_attention(hcmt_run, data, "test", 0, frame=5)
+        frame_attention(Run.load(hcmt_run, "cpu"), data, "test", 0, frame=5)
 
 
 # -- the command -----------------------------------------------------------------------------------------------------

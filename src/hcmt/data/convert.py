@@ -16,6 +16,7 @@ from hcmt.data.errors import DatasetError
 from hcmt.data.format import make_meta, write_meta, write_split
 from hcmt.data.ggns import ggns_features, ggns_to_native, load_ggns_pickle
 from hcmt.data.tfrecord import iter_tfrecord, read_tf_meta
+from hcmt.data.info import summarize
 
 _PICKLE_SUFFIXES = (".pkl", ".pickle", ".pk")
 
@@ -109,8 +110,6 @@ def configure(parser: argparse.ArgumentParser) -> None:
 
 def main(args: argparse.Namespace) -> int:
     meta = convert(args.src, args.out)
-    from hcmt.data.info import summarize
-
     print(f"converted {args.src} -> {args.out}")
     print(summarize(args.out))
     return 0 if meta else 1

@@ -20,6 +20,8 @@ from pathlib import Path
 
 import numpy as np
 
+from hcmt.data.errors import DatasetError
+from hcmt.data.format import open_split
 from hcmt.graph.hierarchy import Hierarchy, cached_hierarchy, hierarchy_cache_dir
 from hcmt.graph.quality import quality_summary
 from hcmt.graph.remesh import clique_cells, two_hop_edges
@@ -97,9 +99,6 @@ def format_table(rows: list[dict]) -> str:
 
 
 def main(args: argparse.Namespace) -> int:
-    from hcmt.data.errors import DatasetError
-    from hcmt.data.format import open_split
-
     if args.levels < 0:
         raise ValueError(f"--levels must be >= 0, got {args.levels}")
     reader = open_split(args.dataset, args.split)

@@ -1,21 +1,40 @@
 """Learned simulators: HCMT (the paper's model), MeshGraphNets and Graph Transformer baselines.
 
-``build_model(name, node_in, mesh_in, contact_in, out, ...)`` makes one; ``build_for_dataset(name, dataset)`` fills
-the widths (the dataset's adapter) and the Table 8 depths (its config). Every model maps a :class:`hcmt.graph.batch.Graph` to a
+``build_model(name, node_in, mesh_in, contact_in, out, ...)`` makes one; :data:`REGISTRY` says, per model name, its
+display label, whether it needs the mesh hierarchy and whether it returns attention maps;
+:func:`hcmt.physics.adapters.build_for_dataset` fills the widths (Table 9) and depths (Table 8) of a dataset. Every model maps a :class:`hcmt.graph.batch.Graph` to a
 normalized output ``[N, out]`` and owns its normalizers (``normalize_target``, ``denormalize``).
 """
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 from .attention import MODES as ATTENTION_MODES, check_mode
-from .base import Simulator
-from .defaults import DATASET_NAMES, dataset_spec
+from .base import Simulator, resolve_device
 from .gt import GT
 from .hcmt import ABLATIONS, HCMT
 from .mgn import MGN
 from .normalizer import Normalizer
 from .updater import update_positions
 
-MODELS = ("hcmt", "mgn", "gt")
+
+
+@dataclass(frozen=True)
+class ModelInfo:
+    """What the rest of hcmt needs to know of a model without building it."""
+
+    label: str  # the display label everywhere (tables, legends, titles)
+    needs_hierarchy: bool  # HCMT: the mesh hierarchy (unless an ablation drops it)
+    has_attention: bool  # returns attention maps (``return_attention=True``)
+
+
+#: one table of the models: name -> :class:`ModelInfo`
+REGISTRY: dict[str, ModelInfo] = {
+    "hcmt": ModelInfo("HCMT", True, True),
+    "mgn": ModelInfo("MGN", False, False),
+    "gt": ModelInfo("GT (Graph Transformer)", False, True),  # "GT" alone reads as "ground truth" beside it
+}
+MODELS = tuple(REGISTRY)
 
 
 def build_model(name: str, node_in: int, mesh_in: int, contact_in: int, out: int, *, ablation: str | None = None,
@@ -43,15 +62,19 @@ def build_model(name: str, node_in: int, mesh_in: int, contact_in: int, out: int
     raise ValueError(f"unknown model {name!r}; expected one of {', '.join(MODELS)}")
 
 
-def build_for_dataset(name: str, dataset: str, **overrides) -> Simulator:
-    """``build_model`` with the dataset's widths (Table 9) and depths (Table 8); keywords override them."""
-    spec = dataset_spec(dataset)
-    kwargs = dict(levels=spec["levels"], L_C=spec["L_C"], L_H=spec["L_H"]) if name.lower() == "hcmt" else {}
-    kwargs.update(overrides)
-    if "levels" in overrides and "L_H" not in overrides:
-        kwargs.pop("L_H", None)
-    return build_model(name, spec["node_in"], spec["mesh_in"], spec["contact_in"], spec["out"], **kwargs)
+def make_model(args: dict) -> Simulator:
+    """A model from its saved constructor arguments (``run.yaml``'s ``model``, a checkpoint's ``model_args``)."""
+    args = dict(args)
+    return build_model(args.pop("name"), args.pop("node_in"), args.pop("mesh_in"), args.pop("contact_in"),
+                       args.pop("out"), **args)
 
 
-__all__ = ["ABLATIONS", "ATTENTION_MODES", "DATASET_NAMES", "GT", "HCMT", "MGN", "MODELS", "Normalizer", "Simulator", "build_for_dataset",
-           "build_model", "dataset_spec", "update_positions"]
+def uses_hierarchy(args: dict) -> tuple[int, bool]:
+    """(levels, remesh) of the hierarchy a model needs; MGN and GT need none, only-cmt none either."""
+    if not REGISTRY[args["name"]].needs_hierarchy or args.get("ablation") == "only-cmt":
+        return 0, True
+    return int(args["levels"]), args.get("ablation") != "no-remesh"
+
+
+__all__ = ["ABLATIONS", "ATTENTION_MODES", "GT", "HCMT", "MGN", "MODELS", "REGISTRY", "ModelInfo", "Normalizer",
+           "Simulator", "build_model", "make_model", "resolve_device", "update_positions", "uses_hierarchy"]

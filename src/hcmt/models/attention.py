@@ -45,12 +45,33 @@ Choices where the paper is ambiguous (documented here once for CMT, HMT and the 
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 from torch import Tensor, nn
 from torch_geometric.utils import scatter, softmax
 
 
 MODES = ("paper", "official")
+
+
+@dataclass
+class AttentionMap:
+    """One block's attention weights as data (PyG's ``(edge_index, alpha)`` convention): what a model returns
+    with ``return_attention=True``, what pictures draw without knowing the model.
+
+    ``name``: the block and branch (``cmt0.mesh``, ``cmt0.contact``, ``hmt.down1``, ``gt3``); ``level``: the
+    hierarchy level of its nodes (0: the mesh); ``edge_index`` ``[2, E]`` (row 0 sender j, row 1 receiver i) on
+    that level's nodes; ``weights`` ``[E, H, d_k]`` (or ``[E, H]``), :math:`a^k_{ij}`; ``normalized``: whether the
+    weights of a receiver sum to 1 (softmax; False for the authors' unnormalized ``official`` attention)."""
+
+    name: str
+    level: int
+    edge_index: Tensor
+    weights: Tensor
+    normalized: bool = True
+    stage: str = ""  # cmt | hmt.down | hmt.bottom | hmt.up | gt
+    block: int = 0  # the block's number within its stage (HMT: its level)
+    branch: str = "mesh"  # the edges: mesh | contact | mesh+contact
 
 
 def check_mode(mode: str) -> str:

@@ -12,6 +12,7 @@ from __future__ import annotations
 import torch
 from torch import Tensor, nn
 
+from hcmt.config import COMPILE_MODES
 from hcmt.data.errors import DatasetError
 from hcmt.graph.batch import Graph
 
@@ -19,7 +20,24 @@ from .mlp import mlp
 from .normalizer import Normalizer
 
 
-COMPILE_MODES = ("none", "default", "reduce-overhead", "max-autotune")
+def resolve_device(device: str | None = None) -> torch.device:
+    """``None``: CUDA when available, else the CPU. An unknown device, or CUDA on a CPU-only torch, is refused with
+    one line (``ValueError``)."""
+    if device is None:
+        return torch.device("cuda" if torch.cuda.is_available() else "cpu")
+    try:
+        dev = torch.device(device)
+    except (RuntimeError, ValueError):
+        raise ValueError(f"--device {device!r}: not a device; expected cpu, cuda or cuda:N") from None
+    if dev.type == "cuda":
+        if not torch.cuda.is_available():
+            raise ValueError(f"--device {device}: this torch has no usable CUDA device (torch {torch.__version__}); "
+                             "use --device cpu")
+        if dev.index is not None and dev.index >= torch.cuda.device_count():
+            raise ValueError(f"--device {device}: only {torch.cuda.device_count()} CUDA device(s) here")
+    elif dev.type != "cpu":
+        raise ValueError(f"--device {device}: unsupported device type {dev.type!r}; expected cpu or cuda")
+    return dev
 
 
 def compile_simulator(model: nn.Module, mode: str) -> nn.Module:

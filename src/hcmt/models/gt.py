@@ -26,6 +26,7 @@ from torch_geometric.utils import scatter, softmax
 
 from hcmt.graph.batch import Graph
 
+from .attention import AttentionMap
 from .base import Simulator
 from .mlp import ffn
 
@@ -72,7 +73,8 @@ class GT(Simulator):
         self.layers = nn.ModuleList(GTLayer(hidden, heads, clip, update_edges=n < blocks - 1) for n in range(blocks))
 
     def forward(self, graph: Graph, accumulate: bool | None = None, return_attention: bool = False):
-        """Normalized output ``[N, out]`` (and the per-layer ``[E_mesh + E_contact, H]`` weights on request)."""
+        """Normalized output ``[N, out]`` (and with ``return_attention`` one
+        :class:`~hcmt.models.attention.AttentionMap` per layer, over mesh and contact edges together)."""
         self.check_graph(graph)
         acc = self._accumulating(accumulate)
         h = self.encode_nodes(graph, acc)
@@ -82,7 +84,7 @@ class GT(Simulator):
         for n, layer in enumerate(self.layers):
             if return_attention:
                 h, e, w = layer(h, e, edges, return_attention=True)
-                attention.append((f"gt{n}", w))
+                attention.append(AttentionMap(f"gt{n}", 0, edges, w, True, "gt", n, "mesh+contact"))
             else:
                 h, e = self.run_block(layer, h, e, edges)
         out = self.decoder(h)

@@ -24,7 +24,7 @@ r"""Hierarchical Contact Mesh Transformer (paper §3.2): encoder → CMT → HMT
   depth :math:`L = 15` of the paper is kept; no hierarchy), ``only-hmt`` (HMT alone, :math:`L_H` blocks, contact
   edges unused), ``lpe`` (+ Laplacian eigenvector PE, :mod:`hcmt.models.lpe`), ``single-branch`` (CMT blocks put
   mesh and contact edges in one softmax), ``no-remesh`` (the model is unchanged: the graph builder makes the coarse
-  edges without Delaunay: :func:`hcmt.train.trainer.uses_hierarchy` decides the hierarchy from the run's model
+  edges without Delaunay: :func:`hcmt.training.trainer.uses_hierarchy` decides the hierarchy from the run's model
   arguments). The clip range ``c`` is the
   ``clip`` setting.
 
@@ -42,7 +42,7 @@ from hcmt.graph.batch import Graph
 from hcmt.graph.hierarchy import pool as pool_nodes, unpool
 
 from .base import Simulator
-from .attention import check_mode
+from .attention import AttentionMap, check_mode
 from .block import TransformerBlock
 from .lpe import LaplacianPE
 
@@ -67,7 +67,7 @@ class HMT(nn.Module):
     def forward(self, h: Tensor, latents: list[Tensor], edges: list[Tensor], pool: list[Tensor],
                 attention: list | None = None, run_block=None) -> Tensor:
         """latents/edges: level 0..λ encoded mesh-edge features and edges; pool: λ kept-index tensors.
-        With ``attention`` (a list), appends each block's ``(name, weights)``."""
+        With ``attention`` (a list), appends each block's :class:`~hcmt.models.attention.AttentionMap`."""
         saved = []
         call = run_block or (lambda block, *args: block(*args))  # the model's (maybe checkpointed) block call
 
@@ -75,17 +75,18 @@ class HMT(nn.Module):
             if attention is None:
                 return call(block, h, [(latents[level], edges[level])])
             h, w = block(h, [(latents[level], edges[level])], return_attention=True)
-            attention.append((name, w[0]))
+            attention.append(AttentionMap(f"{name}{level}", level, edges[level], w[0], block.attention.mode == "paper",
+                                          name, level))
             return h
 
         for level, block in enumerate(self.down):
-            h = run(block, h, level, f"hmt.down{level}")
+            h = run(block, h, level, "hmt.down")
             saved.append(h)
             h = pool_nodes(h, pool[level])
-        h = run(self.bottom, h, self.levels, f"hmt.bottom{self.levels}")
+        h = run(self.bottom, h, self.levels, "hmt.bottom")
         for level in reversed(range(self.levels)):
             h = unpool(h, saved[level], pool[level])
-            h = run(self.up[level], h, level, f"hmt.up{level}")
+            h = run(self.up[level], h, level, "hmt.up")
         return h
 
 
@@ -140,8 +141,9 @@ class HCMT(Simulator):
         return torch.cat([graph.mesh_features, *level_feats]), mask
 
     def forward(self, graph: Graph, accumulate: bool | None = None, return_attention: bool = False):
-        """Normalized output ``[N, out]``; with ``return_attention`` also a list of ``(block name, weights)``
-        with weights ``[E, H, d_k]`` per branch (CMT: ``cmt{ℓ}.mesh`` / ``cmt{ℓ}.contact``)."""
+        """Normalized output ``[N, out]``; with ``return_attention`` also a list of
+        :class:`~hcmt.models.attention.AttentionMap`, one per block and branch (CMT: ``cmt{ℓ}.mesh`` /
+        ``cmt{ℓ}.contact`` on level 0; HMT: ``hmt.down{l}`` / ``hmt.bottom{λ}`` / ``hmt.up{l}`` on level ``l``)."""
         self.check_graph(graph)
         acc = self._accumulating(accumulate)
         pool, level_edges, level_feats = self._levels(graph)
@@ -162,8 +164,16 @@ class HCMT(Simulator):
                     z = self.run_block(block, z, sets)
                 else:
                     z, w = block(z, sets, return_attention=True)
-                    names = ["mesh+contact"] if len(w) == 1 else ["mesh", "contact"]
-                    attention.extend((f"cmt{n}.{b}", wb) for b, wb in zip(names, w))
+                    normalized = self.attention_mode == "paper"
+                    if len(w) == 1:  # one branch over mesh and contact edges together
+                        both = torch.cat([graph.mesh_edges, graph.contact_edges], dim=1)
+                        attention.append(AttentionMap(f"cmt{n}.mesh+contact", 0, both, w[0], normalized, "cmt", n,
+                                                      "mesh+contact"))
+                    else:
+                        attention.extend([
+                            AttentionMap(f"cmt{n}.mesh", 0, graph.mesh_edges, w[0], normalized, "cmt", n),
+                            AttentionMap(f"cmt{n}.contact", 0, graph.contact_edges, w[1], normalized, "cmt", n,
+                                         "contact")])
             return z
 
         def hmt(z):

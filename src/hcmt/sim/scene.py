@@ -17,7 +17,7 @@ a steel ball (7.75-8.0e-3 g/mm^3, 190-210 GPa, nu 0.3) of radius 3-4 mm; the pla
 from __future__ import annotations
 
 import time
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, fields
 
 import numpy as np
 
@@ -305,3 +305,42 @@ def feature_spec(settings: Settings = Settings()) -> dict:
 
 __all__ = ["Design", "Settings", "RANGES", "VARIANTS", "UNITS", "GRAVITY", "CONTACT_RADIUS", "sample_design",
            "simulate", "initial_frames", "feature_spec", "design_mesh"]
+
+
+DESIGN_KEYS = tuple(f.name for f in fields(Design))
+
+
+def middle_design(meta: dict | None) -> Design:
+    """The middle of the training preset's ranges (``hcmt simulate``'s defaults for that preset) of a
+    dataset's meta.json (``paper`` when it names none)."""
+    preset = ((meta or {}).get("generator") or {}).get("preset", "paper")
+    return Design(**{k: 0.5 * (lo + hi) for k, (lo, hi) in RANGES.get(preset, RANGES["paper"]).items()})
+
+
+def parse_design(items: list[str], defaults: Design, where: str = "--design") -> Design:
+    """``["thickness=0.8", "drop_height=900"]`` -> a validated :class:`Design` (other parameters from
+    ``defaults``). Names as ``hcmt simulate``'s options, with ``_`` or ``-``; values finite numbers."""
+    values = {}
+    for item in items:
+        key, sep, raw = item.partition("=")
+        key = key.strip().lstrip("-").replace("-", "_")
+        if not sep:
+            raise ValueError(f"{where} {item!r}: expected KEY=VALUE, e.g. thickness=0.8")
+        if key not in DESIGN_KEYS:
+            raise ValueError(f"{where} {item!r}: unknown parameter {key!r}; expected one of {', '.join(DESIGN_KEYS)}")
+        values[key] = parse_number(raw, f"{where} {item!r}: {key}")
+    try:
+        return Design(**{**asdict(defaults), **values}).validate()
+    except ValueError as exc:
+        raise ValueError(f"{where} {exc}") from None
+
+
+def parse_number(raw: str, what: str) -> float:
+    """A finite number from text, or one line naming ``what``."""
+    try:
+        v = float(raw)
+    except ValueError:
+        raise ValueError(f"{what} must be a number, got {raw.strip()!r}") from None
+    if not np.isfinite(v):
+        raise ValueError(f"{what} must be a finite number, got {raw.strip()!r}")
+    return v

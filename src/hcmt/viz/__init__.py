@@ -8,5 +8,5 @@
 * :mod:`~hcmt.viz.hierarchy`: level-wise meshes (Fig. 4), before/after remeshing (Fig. 10);
 * :mod:`~hcmt.viz.attention`: CMT/HMT attention maps as sparse matrices (Fig. 6, 15-18);
 * :mod:`~hcmt.viz.export`: VTU (+ .pvd) or XDMF time series through meshio;
-* :mod:`~hcmt.viz.cli`: the two commands.
+* :mod:`~hcmt.cli.viz`: the two commands.
 """

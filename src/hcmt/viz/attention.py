@@ -22,24 +22,34 @@ and contact edges together.
 """
 from __future__ import annotations
 
-import re
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
 import scipy.sparse as sp
 from matplotlib import colors
 
-from hcmt.viz.meshplot import new_figure
+import torch
+
+from hcmt.data.format import NodeType, Split
+from hcmt.graph.hierarchy import hierarchy_cache_dir
+from hcmt.inference.run import Run
+from hcmt.models import REGISTRY
+from hcmt.models.attention import AttentionMap
+from hcmt.physics.frames import input_graph
+from hcmt.physics.trajectory import prepare_trajectory
+from hcmt.viz.meshplot import closest_pair, new_figure
+from hcmt.viz.rollouts import trajectory_index
 
 
 @dataclass
 class AttentionMaps:
-    """The maps of one frame: ``matrices[name]`` a CSR ``[N_l, N_l]`` (row receiver, column sender) on level
-    ``levels[name]``; ``object_id[l]`` the object of every level-``l`` node."""
+    """The maps of one frame: ``matrices[name]`` a CSR ``[N_l, N_l]`` (row receiver, column sender) of the block
+    ``blocks[name]`` (an :class:`~hcmt.models.attention.AttentionMap` without its tensors: level, stage, block,
+    branch); ``object_id[l]`` the object of every level-``l`` node."""
 
     matrices: dict[str, sp.csr_matrix]
-    levels: dict[str, int]
+    blocks: dict[str, AttentionMap]
     object_id: list[np.ndarray]
     trajectory: str = ""
     frame: int = 0
@@ -59,54 +69,29 @@ def attention_matrix(weights, edges, num_nodes: int) -> sp.csr_matrix:
     return sp.coo_matrix((w, (e[1], e[0])), shape=(num_nodes, num_nodes)).tocsr()
 
 
-def block_level(name: str) -> int:
-    """Hierarchy level of a block's attention: CMT and GT blocks work on level 0, ``hmt.down2`` on level 2."""
-    m = re.fullmatch(r"hmt\.(?:down|up|bottom)(\d+)", name)
-    return int(m.group(1)) if m else 0
-
-
-def block_edges(name: str, graph) -> "torch.Tensor":  # noqa: F821
-    """The edges ``[2, E]`` a block's weights belong to, in the order the model concatenates them."""
-    import torch
-
-    if name.endswith(".contact"):
-        return graph.contact_edges
-    if name.endswith(".mesh+contact") or re.fullmatch(r"gt\d+", name):
-        return torch.cat([graph.mesh_edges, graph.contact_edges], dim=1)
-    level = block_level(name)
-    return graph.mesh_edges if level == 0 else graph.level_edges[level - 1]
-
-
-def maps_from_model(model, graph, object_id: np.ndarray, level_nodes: list[np.ndarray]) -> dict:
-    """Run ``model`` on ``graph`` with ``return_attention=True``; returns ``{name: CSR}`` and ``{name: level}``.
-    ``level_nodes[l]``: the level-0 index of every level-``l`` node (``l >= 1``)."""
-    import torch
-
+def maps_from_model(model, graph) -> dict:
+    """Run ``model`` on ``graph`` with ``return_attention=True``: ``{"matrices": {name: CSR}, "blocks": {name:
+    AttentionMap without weights}, "normalized_for_display"}`` from the model's
+    :class:`~hcmt.models.attention.AttentionMap` list (each names its level and carries its edges)."""
     device = next(model.parameters()).device
     with torch.no_grad():
-        result = model(graph.to(device), accumulate=False, return_attention=True)
-    if not isinstance(result, tuple):
-        raise ValueError(f"{type(model).__name__} has no attention to show (MeshGraphNets is not a Transformer); "
-                         "use an HCMT or GT run")
-    attention = [(name, w.cpu()) for name, w in result[1]]
-    sizes = [graph.num_nodes] + [len(v) for v in level_nodes]
-    official = getattr(model, "attention_mode", "paper") == "official"
-    matrices, levels = {}, {}
-    for name, w in attention:
-        level = block_level(name)
-        if official:  # unnormalized weights: divide by the receiver's sum (per head, channel) for display
-            receiver = block_edges(name, graph)[1]
-            total = torch.zeros((sizes[level], *w.shape[1:]), dtype=w.dtype).index_add_(0, receiver, w)
+        _, attention = model(graph.to(device), accumulate=False, return_attention=True)
+    sizes = [graph.num_nodes] + [len(p) for p in graph.pool]
+    matrices, blocks, rescaled = {}, {}, False
+    for m in attention:
+        w, edges = m.weights.cpu(), m.edge_index.cpu()
+        if not m.normalized:  # unnormalized weights: divide by the receiver's sum (per head, channel) for display
+            receiver = edges[1]
+            total = torch.zeros((sizes[m.level], *w.shape[1:]), dtype=w.dtype).index_add_(0, receiver, w)
             w = w / total.index_select(0, receiver)
-        matrices[name] = attention_matrix(w, block_edges(name, graph), sizes[level])
-        levels[name] = level
-    return {"matrices": matrices, "levels": levels, "normalized_for_display": official}
+            rescaled = True
+        matrices[m.name] = attention_matrix(w, edges, sizes[m.level])
+        blocks[m.name] = replace(m, weights=None, edge_index=None)
+    return {"matrices": matrices, "blocks": blocks, "normalized_for_display": rescaled}
 
 
 def default_frame(world_pos: np.ndarray, object_id: np.ndarray, history: int) -> int:
     """The ground-truth frame where two objects come closest (the impact), kept where a graph can be built."""
-    from hcmt.viz.meshplot import closest_pair
-
     gaps = []
     for f in range(len(world_pos)):  # one KD-tree query per frame
         pair = closest_pair(world_pos[f], object_id)
@@ -114,23 +99,14 @@ def default_frame(world_pos: np.ndarray, object_id: np.ndarray, history: int) ->
     return int(np.clip(np.argmin(gaps), history, len(world_pos) - 2))
 
 
-def frame_attention(run: str | Path, data: str | Path, split: str = "test", trajectory: int | str = 0,
-                    frame: int | None = None, checkpoint: str = "best", device=None) -> AttentionMaps:
+def frame_attention(run: Run, data: str | Path, split: str = "test", trajectory: int | str = 0,
+                    frame: int | None = None) -> AttentionMaps:
     """Attention maps of a run's model on one ground-truth frame (default: the impact, :func:`default_frame`)."""
-    from hcmt.data.format import Split
-    from hcmt.graph.hierarchy import hierarchy_cache_dir
-    from hcmt.train.adapters import config_adapter
-    from hcmt.train.data import prepare_trajectory
-    from hcmt.train.frames import input_graph
-    from hcmt.train.trainer import load_run, uses_hierarchy
-    from hcmt.train.run import resolve_device
-    from hcmt.viz.rollouts import run_label, trajectory_index
-
-    model, info = load_run(run, checkpoint)
-    model = model.to(resolve_device(device))
-    cfg = info["config"]
-    adapter = config_adapter(cfg)
-    levels, remesh = uses_hierarchy(info["model"])
+    if not REGISTRY[run.info["model"]["name"]].has_attention:
+        raise ValueError(f"{run.label} has no attention to show (MeshGraphNets is not a Transformer); use an HCMT "
+                         "or GT run")
+    adapter = run.adapter
+    levels, remesh = run.hierarchy_spec
     with Split(data, split) as s:
         index = trajectory_index(s.names, trajectory)
         traj = prepare_trajectory(s[index], s.names[index], adapter, levels, remesh, hierarchy_cache_dir(data),
@@ -144,12 +120,12 @@ def frame_attention(run: str | Path, data: str | Path, split: str = "test", traj
     if not h <= frame <= T - 2:
         raise ValueError(f"frame {frame} out of range: a graph needs frames {h}..{T - 2} of trajectory {traj.name} "
                          f"(the previous frame as input, the next one for prescribed nodes)")
-    graph = input_graph(traj, world[frame], world[frame - h], world[frame + 1], float(cfg["train"]["contact_radius"]))
+    graph = input_graph(traj, world[frame], world[frame - h], world[frame + 1], run.radius)
     level_nodes = [np.asarray(v) for v in traj.hierarchy.nodes[1:]]
-    maps = maps_from_model(model, graph, obj, level_nodes)
+    maps = maps_from_model(run.model, graph)
     nt = traj.static["node_type"].numpy()
-    return AttentionMaps(maps["matrices"], maps["levels"], [obj] + [obj[v] for v in level_nodes],
-                         traj.name, int(frame), run_label(run), [nt] + [nt[v] for v in level_nodes],
+    return AttentionMaps(maps["matrices"], maps["blocks"], [obj] + [obj[v] for v in level_nodes],
+                         traj.name, int(frame), run.label, [nt] + [nt[v] for v in level_nodes],
                          maps["normalized_for_display"])
 
 
@@ -163,22 +139,17 @@ def object_order(object_id: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 def default_panels(maps: AttentionMaps) -> list[tuple[str, str]]:
     """(block name, panel title) of the figure: the first CMT block's branches and each level's first HMT block
     (Fig. 15), or the first and last GT layers."""
-    names = list(maps.matrices)
-    panels = []
-    for n in names:
-        m = re.fullmatch(r"cmt(\d+)\.(contact|mesh|mesh\+contact)", n)
-        if m and m.group(1) == "0":
-            panels.append((n, f"{m.group(2).capitalize()} of CMT (block 0)"))
-    panels.sort(key=lambda p: 0 if p[0].endswith("contact") and "+" not in p[0] else 1)
-    levels = sorted({maps.levels[n] for n in names if n.startswith("hmt.")})
-    for l in levels:
-        first = next(n for n in names if n.startswith("hmt.") and maps.levels[n] == l)
-        panels.append((first, f"Level {l} of HMT ({first.split('.')[1].rstrip('0123456789')} block)"))
-    gts = [n for n in names if re.fullmatch(r"gt\d+", n)]
-    if gts:
-        panels += [(gts[0], f"GT layer {gts[0][2:]} (mesh and contact)")]
-        if len(gts) > 1:
-            panels.append((gts[-1], f"GT layer {gts[-1][2:]} (mesh and contact)"))
+    blocks = list(maps.blocks.values())
+    first_cmt = [b for b in blocks if b.stage == "cmt" and b.block == 0]
+    first_cmt.sort(key=lambda b: 0 if b.branch == "contact" else 1)
+    panels = [(b.name, f"{b.branch.capitalize()} of CMT (block 0)") for b in first_cmt]
+    hmt = [b for b in blocks if b.stage.startswith("hmt.")]
+    for level in sorted({b.level for b in hmt}):
+        first = next(b for b in hmt if b.level == level)
+        panels.append((first.name, f"Level {level} of HMT ({first.stage.split('.')[1]} block)"))
+    gts = [b for b in blocks if b.stage == "gt"]
+    for b in (gts[:1] + gts[-1:]) if len(gts) > 1 else gts:
+        panels.append((b.name, f"GT layer {b.block} (mesh and contact)"))
     return panels
 
 
@@ -196,12 +167,10 @@ def attention_figure(maps: AttentionMaps, panels: list[tuple[str, str]] | None =
     positive = values[values > 0]
     lo = float(max(positive.min(), 1e-4)) if len(positive) else 1e-3
     norm = colors.LogNorm(vmin=min(lo, 0.5), vmax=1.0)
-    from hcmt.data.format import NodeType
-
     mappable = None
     for k, (name, title) in enumerate(panels):
         ax = fig.add_subplot(rows, cols, k + 1)
-        level = maps.levels[name]
+        level = maps.blocks[name].level
         obj = maps.object_id[level]
         n = len(obj)
         order, bounds = object_order(obj)
@@ -209,7 +178,7 @@ def attention_figure(maps: AttentionMaps, panels: list[tuple[str, str]] | None =
         rank[order] = np.arange(n)
         coo = maps.matrices[name].tocoo()
         size = float(np.clip((200.0 / max(n, 1)) ** 2, 1.0, 25.0))  # about one node's width, at least a point
-        if name.endswith(".contact"):
+        if maps.blocks[name].branch == "contact":
             size = max(size, 6.0)  # contact edges are few: make them visible
         mappable = ax.scatter(rank[coo.col], rank[coo.row], c=coo.data, s=size, marker="s", linewidths=0,
                               norm=norm, cmap="viridis")

@@ -21,7 +21,7 @@ import numpy as np
 from matplotlib import colors
 from matplotlib.patches import Rectangle
 
-from hcmt.train.metrics import step_rmse
+from hcmt.inference.metrics import step_rmse
 
 from hcmt.viz.meshplot import (box_3d, draw_field_2d, draw_field_3d, extend_of, field_limits, impact_window, new_figure,
                                panel_size, scene_box)

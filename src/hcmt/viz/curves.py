@@ -1,6 +1,6 @@
 """Charts: rollout error per step for one or more runs, and training curves from ``RUN/log.jsonl``.
 
-The per-step error is the paper's (:func:`hcmt.train.metrics.step_rmse`): at step ``t``,
+The per-step error is the paper's (:func:`hcmt.inference.metrics.step_rmse`): at step ``t``,
 ``e_t = sqrt(mean_i ||pred_t,i - true_t,i||^2)`` over the nodes, drawn in physical units (the tables' x10^3
 scaling is for printing numbers, not for axes), averaged over the trajectories every run has rolled out, with the
 band between the best and the worst trajectory when there are several. Steps before a run's first predicted frame
@@ -15,22 +15,22 @@ import h5py
 import numpy as np
 
 from hcmt.data.format import Split, read_meta
-from hcmt.train.metrics import SCALE, step_rmse
+from hcmt.inference.metrics import SCALE, step_rmse
 from hcmt.viz.meshplot import new_figure
+from hcmt.inference.evaluate import rollout_file
+from hcmt.inference.run import Run, RunFolder
 from hcmt.viz.rollouts import quantity_label, unique_labels
 
 QUANTITIES = ("position", "stress")
 
 
-def rollout_errors(runs: list[str | Path], data: str | Path, split: str = "test", labels: list[str] | None = None,
-                   limit: int | None = None, device=None, *, progress: bool = True) -> dict[str, dict]:
+def rollout_errors(runs: list[Run | RunFolder], data: str | Path, split: str = "test", labels: list[str] | None = None,
+                   limit: int | None = None, *, progress: bool = True) -> dict[str, dict]:
     """Per-step RMSE of every run: ``{label: {"position": [n, T], "stress": [n, T] (if any), "start": int,
     "trajectories": names}}`` over the trajectories all runs have rolled out (rolling out the first ``limit``, or
     all, where a run has no rollout file yet)."""
-    from hcmt.train.run import rollout_for
-
     labels = labels or unique_labels(runs)
-    paths = [rollout_for(run, data, split, need=limit, device=device, progress=progress) for run in runs]
+    paths = [rollout_file(run, data, split, need=limit, progress=progress) for run in runs]
     names = None
     for path in paths:
         with h5py.File(path, "r") as f:
@@ -133,13 +133,13 @@ def running_mean(y: np.ndarray, window: int) -> np.ndarray:
     return (c[n] - c[lo]) / (n - lo)
 
 
-def plot_training_curves(runs: list[str | Path], meta: dict, path: str | Path, labels: list[str] | None = None,
+def plot_training_curves(runs: list[RunFolder], meta: dict, path: str | Path, labels: list[str] | None = None,
                          dpi: int = 150) -> Path:
     """Training loss, learning rate and the validation rollout RMSE-all (position, and stress when logged) against
     the step, one line per run. The validation metrics are logged x10^3 (the paper's tables) and drawn in physical
     units."""
     labels = labels or unique_labels(runs)
-    logs = [read_log(r) for r in runs]
+    logs = [read_log(r.path) for r in runs]
     has_stress = any("valid/stress_rmse_all" in v for _, v in logs)
     panels = ["loss", "lr", "valid/position_rmse_all"] + (["valid/stress_rmse_all"] if has_stress else [])
     units = meta.get("units") or {}

@@ -17,6 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
+from hcmt.data.format import NodeType
 from hcmt.graph.hierarchy import Hierarchy
 from hcmt.graph.quality import quality_summary
 from hcmt.graph.remesh import clique_cells, two_hop_edges
@@ -35,7 +36,6 @@ def object_legend(fig, object_id: np.ndarray, node_type: np.ndarray | None) -> N
     """Legend naming each object by its most common node type (``NORMAL`` plate, ``OBSTACLE`` ball)."""
     from matplotlib.lines import Line2D
 
-    from hcmt.data.format import NodeType
 
     handles = []
     for o in np.unique(object_id)[: len(OBJECT_COLOURS)]:  # a handful of objects

@@ -1,7 +1,7 @@
 """What the pictures show: one trajectory's ground truth beside the rollouts of one or more runs.
 
 A run's predictions live in ``RUN/rollout_<split>.h5`` (one group per trajectory, written by
-:func:`hcmt.train.run.run_rollouts`); when that file is missing, or lacks the trajectory asked for, it is rolled out
+:func:`hcmt.inference.evaluate.run_rollouts`); when that file is missing, or lacks the trajectory asked for, it is rolled out
 first. Every series is checked against the dataset (node count, dimension, frame count) so a rollout of another
 dataset is refused rather than drawn on the wrong mesh.
 """
@@ -12,11 +12,12 @@ from pathlib import Path
 
 import h5py
 import numpy as np
-import yaml
 
 from hcmt.data.errors import DatasetError
 from hcmt.data.format import Split, read_meta
 from hcmt.graph.contact import object_ids
+from hcmt.inference.evaluate import rollout_file
+from hcmt.inference.run import Run, RunFolder
 
 
 @dataclass
@@ -83,34 +84,10 @@ def quantity_label(name: str, unit: str | None) -> str:
     return f"{name} [{unit}]" if unit else f"{name} (unit not in meta.json)"
 
 
-#: the paper's model names; "GT" alone would read as "ground truth" beside the ground truth
-DISPLAY_NAMES = {"hcmt": "HCMT", "mgn": "MGN", "gt": "GT (Graph Transformer)"}
-
-
-def run_label(run: str | Path) -> str:
-    """The model's name as the paper writes it (``HCMT``, ``MGN``, ``GT (Graph Transformer)``), with its
-    ablation."""
-    path = Path(run) / "run.yaml"
-    if not path.is_file():
-        raise FileNotFoundError(f"{path}: not a run folder (made by `hcmt train --out RUN`)")
-    info = yaml.safe_load(path.read_text()).get("model", {})
-    label = DISPLAY_NAMES.get(info.get("name"), str(info.get("name", Path(run).name)).upper())
-    return label + (f" ({info['ablation']})" if info.get("ablation") else "")
-
-
-def unique_labels(runs: list[str | Path]) -> list[str]:
+def unique_labels(runs: list[Run | RunFolder]) -> list[str]:
     """Run labels, with the run folder's name added where two runs would otherwise share one."""
-    labels = [run_label(r) for r in runs]
-    return [f"{lab} ({Path(r).name})" if labels.count(lab) > 1 else lab for lab, r in zip(labels, runs)]
-
-
-def rollout_file(run: str | Path, data: str | Path, split: str, name: str, index: int, device=None, *,
-                 progress: bool = True) -> Path:
-    """``RUN/rollout_<split>.h5`` holding trajectory ``name`` (position ``index``), by the one cache rule
-    :func:`hcmt.train.run.rollout_for`."""
-    from hcmt.train.run import rollout_for
-
-    return rollout_for(run, data, split, need=index + 1, device=device, progress=progress)
+    labels = [r.label for r in runs]
+    return [f"{lab} ({Path(r.source).name})" if labels.count(lab) > 1 else lab for lab, r in zip(labels, runs)]
 
 
 def trajectory_index(names: list[str], trajectory: int | str) -> int:
@@ -144,9 +121,10 @@ def read_series(path: Path, name: str, label: str, truth: Series, run: Path | No
     return Series(label, pos, stress, start, run)
 
 
-def load_case(runs: list[str | Path], data: str | Path, split: str = "test", trajectory: int | str = 0,
-              labels: list[str] | None = None, device=None, *, progress: bool = True) -> Case:
-    """The ground truth of one trajectory and every run's rollout of it (rolled out on ``device`` when missing)."""
+def load_case(runs: list[Run | RunFolder], data: str | Path, split: str = "test", trajectory: int | str = 0,
+              labels: list[str] | None = None, *, progress: bool = True) -> Case:
+    """The ground truth of one trajectory and every run's rollout of it (rolled out when missing, by the one cache
+    rule :func:`hcmt.inference.evaluate.rollout_for`; a bare :class:`RunFolder`'s file as it is)."""
     meta = read_meta(data)
     with Split(data, split, meta) as s:
         index = trajectory_index(s.names, trajectory)
@@ -158,6 +136,6 @@ def load_case(runs: list[str | Path], data: str | Path, split: str = "test", tra
                 fields={k: v for k, v in fields.items() if k not in ("world_pos", "stress", "mesh_pos", "cells")})
     labels = labels or (unique_labels(runs) if runs else [])
     for run, label in zip(runs, labels):
-        path = rollout_file(run, data, split, name, index, device, progress=progress)
-        case.predictions.append(read_series(path, name, label, truth, Path(run)))
+        path = rollout_file(run, data, split, need=index + 1, progress=progress)
+        case.predictions.append(read_series(path, name, label, truth, Path(run.source)))
     return case

@@ -34,6 +34,7 @@ import json
 import logging
 import math
 import os
+import shutil
 import sys
 import time
 from pathlib import Path
@@ -41,170 +42,24 @@ from pathlib import Path
 import numpy as np
 import torch
 import torch.distributed as dist
-import yaml
+from torch.utils.tensorboard import SummaryWriter
+from tqdm import tqdm
 
+from hcmt.config import check_train_config, complete_config
 from hcmt.data.format import atomic_path, read_meta
-from hcmt.models import build_model
+from hcmt.inference.evaluate import validation_rmse
+from hcmt.inference.run import RunFolder
+from hcmt.models import make_model, resolve_device, uses_hierarchy
 from hcmt.models.base import compile_simulator
-from hcmt.train.adapters import config_adapter, noise_gamma
-from hcmt.train.data import load_split
-from hcmt.train.frames import FrameDataset, StepSampler, collate_padded, collate_samples, pad_sizes, step_seed
-from hcmt.train.metrics import rollout_rmse
-from hcmt.train.rollout import RolloutError, rollout
+from hcmt.physics.adapters import config_adapter, model_args, noise_gamma
+from hcmt.physics.frames import step_seed
+from hcmt.physics.trajectory import load_split
+from hcmt.training.dataset import FrameDataset, StepSampler, collate_padded, collate_samples, pad_sizes
+from hcmt.training.runtime import (InterruptFlag, TrainingInterrupted, check_resume, distributed, ignore_sigint,
+                                   lock_run, rank_zero_logging, save_atomic, stop_together)
+from hcmt.training.schedule import keras_epsilon, learning_rate
 
-logger = logging.getLogger("hcmt.train")  # rank-zero messages (hcmt.train.trainer.rank_zero_logging)
-
-
-def model_args(cfg: dict, model_name: str, ablation: str | None, meta: dict) -> dict:
-    """Constructor arguments of the model, from the config and the dataset's dimensions (meta.json)."""
-    adapter = config_adapter(cfg)
-    widths = adapter.widths(int(meta["dimension"]), int(meta["features"]["mesh_pos"]["shape"][-1]))
-    mc = cfg["model"]
-    return {
-        "name": model_name, **widths, "ablation": ablation, "levels": mc.get("levels", 0), "L_C": mc.get("L_C", 2),
-        "L_H": mc.get("L_H"), "hidden": mc.get("hidden", 128), "heads": mc.get("heads", 4), "clip": mc.get("clip", 2.0),
-        "blocks": mc.get("blocks", 15),
-        **({"attention": mc.get("attention", "paper"), "ffn_bias": bool(mc.get("ffn_bias", True))}
-           if model_name == "hcmt" else {}),
-    }
-
-
-def make_model(args: dict):
-    args = dict(args)
-    return build_model(args.pop("name"), args.pop("node_in"), args.pop("mesh_in"), args.pop("contact_in"),
-                       args.pop("out"), **args)
-
-
-def uses_hierarchy(args: dict) -> tuple[int, bool]:
-    """(levels, remesh) of the hierarchy a model needs; MGN and GT need none, only-cmt none either."""
-    if args["name"] != "hcmt" or args.get("ablation") == "only-cmt":
-        return 0, True
-    return int(args["levels"]), args.get("ablation") != "no-remesh"
-
-
-def check_resume(saved: dict, run: dict, out: Path) -> None:
-    """An exact continuation needs the settings the run started with; only ``train.steps`` may grow (the
-    learning-rate schedule then stretches to the new length)."""
-    def strip(r):
-        r = yaml.safe_load(yaml.safe_dump(r))
-        r["config"]["train"].pop("steps", None)
-        return r
-
-    a, b = strip(saved), strip(run)
-    changed = []
-    for k in ("model", "config", "seed", "world_size"):
-        changed += _differences(a.get(k, b[k]), b[k], k)
-    if changed:
-        raise ValueError(f"{out}: --resume with other settings than the run was started with: {'; '.join(changed)} "
-                         f"(see {out / 'run.yaml'}); `hcmt train --resume --out {out}` alone resumes with the saved "
-                         "settings")
-
-
-def _differences(a, b, key: str) -> list[str]:
-    """``key.sub: saved -> now`` for every leaf that differs."""
-    if isinstance(a, dict) and isinstance(b, dict):
-        return [d for k in sorted(set(a) | set(b)) for d in _differences(a.get(k), b.get(k), f"{key}.{k}")]
-    return [] if a == b else [f"{key}: {a!r} (run) vs {b!r} (now)"]
-
-
-class TrainingInterrupted(KeyboardInterrupt):
-    """Training stopped on Ctrl-C / SIGTERM after saving a checkpoint; the message says where."""
-
-
-class InterruptFlag:
-    """SIGINT and SIGTERM set ``self.set`` instead of raising mid-step (a half-done optimizer step must never be
-    saved); the loop checks it after each step. Installed only in the main thread; ``restore`` puts the previous
-    handlers back."""
-
-    def __init__(self):
-        import signal
-        import threading
-
-        self.set, self._old = False, {}
-        if threading.current_thread() is threading.main_thread():
-            for sig in (signal.SIGINT, signal.SIGTERM):
-                self._old[sig] = signal.signal(sig, self._handle)
-
-    def _handle(self, signum, frame):
-        self.set = True
-
-    def restore(self) -> None:
-        import signal
-
-        for sig, handler in self._old.items():
-            signal.signal(sig, handler)
-        self._old = {}
-
-
-def learning_rate(step: int, steps: int, lr: float, lr_final: float, decay_steps: int | None = None,
-                  decay_rate: float = 0.1) -> float:
-    """Exponential decay from ``lr`` at step 0 to ``lr_final`` at the last step (paper: 1e-4 -> 1e-6).
-
-    With ``decay_steps`` (``train.lr_decay_steps``) the decay is by step instead, without floor:
-    ``lr * decay_rate ** (step / decay_steps)``, the authors' code (run_model.py:
-    ``exponential_decay(1e-4, step, decay_steps=1e6, decay_rate=0.1)``); the run's length then does not matter."""
-    if decay_steps:
-        return lr * decay_rate ** (step / decay_steps)
-    return lr * (lr_final / lr) ** min(step / max(steps, 1), 1.0)
-
-
-def keras_epsilon(epsilon_hat: float, beta2: float, t: int) -> float:
-    """PyTorch Adam's ε that reproduces TF/Keras Adam's ``epsilon`` ε̂ at optimizer step ``t`` (1-based).
-
-    Keras updates ``θ −= lr·sqrt(1−β₂ᵗ)/(1−β₁ᵗ) · m / (sqrt(v) + ε̂)``, PyTorch ``θ −= lr · m̂ / (sqrt(v̂) + ε)``
-    with ``m̂ = m/(1−β₁ᵗ)``, ``v̂ = v/(1−β₂ᵗ)``: equal for ``ε = ε̂ / sqrt(1 − β₂ᵗ)``."""
-    return epsilon_hat / math.sqrt(1.0 - beta2 ** t)
-
-
-def save_atomic(obj, path: Path) -> None:
-    """torch.save through memory, then a plain write: a full disk raises ``OSError`` naming the path."""
-    import io
-
-    buffer = io.BytesIO()
-    torch.save(obj, buffer)
-    with atomic_path(path) as tmp:
-        tmp.write_bytes(buffer.getbuffer())
-
-
-def _distributed() -> tuple[int, int]:
-    """(rank, world size). Under torchrun: NCCL with one GPU per process; more processes than GPUs is refused with
-    one line (NCCL cannot put two ranks on one GPU); without CUDA, gloo on the CPU."""
-    if "WORLD_SIZE" in os.environ and int(os.environ["WORLD_SIZE"]) > 1:  # launched by torchrun
-        world = int(os.environ["WORLD_SIZE"])
-        gpus = torch.cuda.device_count() if torch.cuda.is_available() else 0
-        if gpus and world > gpus:
-            raise ValueError(f"{world} training processes but {gpus} GPU(s): NCCL needs one GPU per process; use "
-                             f"torchrun --nproc_per_node={gpus}, or run on the CPU (CUDA_VISIBLE_DEVICES= gives gloo)")
-        if not dist.is_initialized():
-            dist.init_process_group("nccl" if gpus else "gloo")
-        return dist.get_rank(), dist.get_world_size()
-    return 0, 1
-
-
-def _ignore_sigint(worker_id: int) -> None:
-    """DataLoader workers leave Ctrl-C to the training process, which finishes the step and saves."""
-    import signal
-
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
-
-
-def validate(model, adapter, trajs, radius) -> dict:
-    """Mean RMSE-all of validation rollouts; a diverging rollout counts as infinite error (early training)."""
-    pos, stress = [], []
-    for tr in trajs:
-        try:
-            r = rollout(model, adapter, tr, radius)
-        except RolloutError:
-            pos.append(math.inf)
-            stress.append(math.inf)
-            continue
-        pos.append(rollout_rmse(r["world_pos"].numpy(), tr.world_pos.numpy(), r["start"])["rmse_all"])
-        if r["stress"] is not None:
-            stress.append(rollout_rmse(r["stress"].numpy(), tr.stress.numpy(), r["start"])["rmse_all"])
-    out = {"valid/position_rmse_all": float(np.mean(pos))}
-    if stress:
-        out["valid/stress_rmse_all"] = float(np.mean(stress))
-    return out
+logger = logging.getLogger("hcmt.train")  # rank-zero messages (hcmt.training.trainer.rank_zero_logging)
 
 
 def train(cfg: dict, data: str | Path, model_name: str, out: str | Path, *, ablation: str | None = None,
@@ -222,15 +77,13 @@ def train(cfg: dict, data: str | Path, model_name: str, out: str | Path, *, abla
         return _train(cfg, data, model_name, out, ablation=ablation, seed=seed, resume=resume, device=device,
                       progress=progress, stop_at=stop_at)
     out.mkdir(parents=True, exist_ok=True)
-    lock = _lock(out)
+    lock = lock_run(out)
     try:
         return _train(cfg, data, model_name, out, ablation=ablation, seed=seed, resume=resume, device=device,
                       progress=progress, stop_at=stop_at)
     except BaseException:
         if not (out / "checkpoint.pt").is_file():  # nothing worth keeping: leave no run folder behind
             if created:
-                import shutil
-
                 lock.unlink(missing_ok=True)
                 shutil.rmtree(out, ignore_errors=True)
             elif not resume:
@@ -240,49 +93,6 @@ def train(cfg: dict, data: str | Path, model_name: str, out: str | Path, *, abla
         lock.unlink(missing_ok=True)
 
 
-def _lock(out: Path) -> Path:
-    """``RUN/.lock`` holding our pid (:func:`hcmt.data.format.take_lock`); a second writer is refused."""
-    from hcmt.data.format import take_lock
-
-    lock = out / ".lock"
-    holder = take_lock(lock)
-    if holder is not None:
-        raise ValueError(f"{out} is being written by another training process (pid {holder}, {lock}); wait for "
-                         "it or choose another --out")
-    return lock
-
-
-def rank_zero_logging(rank: int, out: Path) -> logging.Handler | None:
-    """Rank 0 logs INFO messages of ``hcmt.*`` to ``RUN/train.log`` (the terminal keeps its progress bar and
-    warnings); other ranks log warnings only. Returns the handler to remove at the end."""
-    root = logging.getLogger("hcmt")
-    if rank != 0:
-        root.setLevel(logging.WARNING)
-        return None
-    root.setLevel(logging.INFO)
-    handler = logging.FileHandler(out / "train.log")
-    handler.setFormatter(logging.Formatter("%(asctime)s %(levelname)s %(message)s"))
-    root.addHandler(handler)
-    return handler
-
-
-def _check_train_config(cfg: dict) -> None:
-    tc = cfg["train"]
-    for key in ("steps", "lr", "contact_radius"):
-        if key not in tc:
-            raise ValueError(f"config: train.{key} is missing (see configs/impact_plate.yaml for a complete config)")
-    if "dataset" not in cfg:
-        raise ValueError("config: `dataset` (the adapter: impact_plate, deforming_plate, ...) is missing")
-    steps = tc["steps"]
-    if isinstance(steps, bool) or not isinstance(steps, int) or steps < 1:
-        raise ValueError(f"train.steps must be a whole number >= 1, got {steps!r}")
-    batch_size = tc.get("batch_size", 1)
-    if isinstance(batch_size, bool) or not isinstance(batch_size, int) or batch_size < 1:
-        raise ValueError(f"train.batch_size must be a whole number >= 1, got {batch_size!r}")
-    if not isinstance(tc["lr"], (int, float)) or not tc["lr"] > 0:
-        raise ValueError(f"train.lr must be a number > 0, got {tc['lr']!r}")
-
-
 class Trainer:
     """One training run in four parts a reader can follow: :meth:`__init__` (setup: config, run folder, model,
     data, optimizer, resume), :meth:`step` (one optimizer step on one batch), :meth:`validate` (validation
@@ -290,12 +100,11 @@ class Trainer:
 
     def __init__(self, cfg: dict, data, model_name: str, out: Path, *, ablation, seed: int, resume: bool, device,
                  progress: bool):
-        from hcmt.train.run import resolve_device
-
-        self.rank, self.world = _distributed()
+        self.rank, self.world = distributed()
         self.device = resolve_device(device) if device else (
             torch.device(f"cuda:{self.rank}") if torch.cuda.is_available() else torch.device("cpu"))
-        _check_train_config(cfg)
+        cfg = complete_config(cfg)  # a partial config dict (the API) gets the schema's defaults
+        check_train_config(cfg)
         self.cfg, self.tc, self.out, self.seed, self.model_name = cfg, cfg["train"], out, seed, model_name
         tc = self.tc
         self.steps = int(tc["steps"])
@@ -309,38 +118,38 @@ class Trainer:
             raise ValueError(f"{out} already holds a run; pass --resume to continue it or choose another --out")
         run = {"model": self.args, "config": cfg, "data": str(Path(data).resolve()), "seed": seed,
                "world_size": self.world}
-        if resume and (out / "run.yaml").is_file():
-            check_resume(yaml.safe_load((out / "run.yaml").read_text()), run, out)
+        self.folder = RunFolder(out, must_exist=False)
+        if resume and self.folder.info is not None:
+            check_resume(self.folder.info, run, out)
         if self.rank == 0:
             out.mkdir(parents=True, exist_ok=True)
-            with atomic_path(out / "run.yaml") as tmp:
-                tmp.write_text(yaml.safe_dump(run, sort_keys=False))
+            self.folder.write_info(run)
 
-        self.compile = tc.get("compile", "none")
+        self.compile = tc["compile"]
         if self.compile != "none" and self.args.get("ablation") == "lpe":
             raise ValueError("train.compile: the lpe ablation computes its eigenvectors per graph outside the model's "
                              "tensors; use train.compile=none with it")
-        if tc.get("deterministic", False):
+        if tc["deterministic"]:
             # cuBLAS needs this workspace setting for reproducible matmuls (read when its handle is created)
             os.environ.setdefault("CUBLAS_WORKSPACE_CONFIG", ":4096:8")
             torch.use_deterministic_algorithms(True)
             torch.backends.cudnn.benchmark = False
         torch.manual_seed(seed)  # parameter initialization
         self.model = make_model(self.args).to(self.device)
-        self.model.checkpoint_blocks = bool(tc.get("checkpoint_blocks", False))  # memory for recomputation
-        self.bf16 = tc.get("precision", "fp32") == "bf16"  # autocast forward and loss in bfloat16
+        self.model.checkpoint_blocks = tc["checkpoint_blocks"]  # memory for recomputation
+        self.bf16 = tc["precision"] == "bf16"  # autocast forward and loss in bfloat16
         levels, remesh = uses_hierarchy(self.args)
         self.radius = float(tc["contact_radius"])
         self.frames = FrameDataset(data, "train", self.adapter, levels, remesh, self.radius,
-                                   float(tc.get("noise_std", 0.0)), noise_gamma(cfg, self.adapter), seed,
-                                   cfg.get("data", {}).get("exclude_trajectories"), tc.get("noise_nodes", "normal"))
+                                   float(tc["noise_std"]), noise_gamma(cfg, self.adapter), seed,
+                                   cfg["data"]["exclude_trajectories"], tc["noise_nodes"])
         # pushforward: with this probability a frame's input is the model's own prediction (frames.pushforward_item)
-        self.pushforward = float(tc.get("pushforward", 0.0))
-        self.pushforward_start = int(tc.get("pushforward_start", 0))
+        self.pushforward = float(tc["pushforward"])
+        self.pushforward_start = int(tc["pushforward_start"])
         self.valid_trajs = (load_split(data, "valid", self.adapter, levels, remesh,
-                                       limit=int(tc.get("valid_trajectories", 2)))
+                                       limit=int(tc["valid_trajectories"]))
                             if (Path(data) / "valid.h5").is_file() else [])
-        self.opt = torch.optim.Adam(self.model.parameters(), lr=float(tc["lr"]), eps=float(tc.get("adam_epsilon", 1e-8)),
+        self.opt = torch.optim.Adam(self.model.parameters(), lr=float(tc["lr"]), eps=float(tc["adam_epsilon"] or 1e-8),
                                     fused=self.device.type == "cuda")  # one kernel per step on CUDA
         self.step_count, self.best = 0, math.inf
         if resume:
@@ -351,12 +160,10 @@ class Trainer:
                 self.model, device_ids=[self.device.index] if self.device.type == "cuda" else None)
         self.pad = None
         if self.compile != "none":  # static shapes: padded batches, one compiled graph per contact bucket
-            self.pad = pad_sizes(self.frames, int(tc.get("batch_size", 1)))
+            self.pad = pad_sizes(self.frames, int(tc["batch_size"]))
             self.net = compile_simulator(self.net, self.compile)
         self.writer = self.log = None
         if self.rank == 0:
-            from torch.utils.tensorboard import SummaryWriter
-
             self.writer = SummaryWriter(str(out / "tb"), purge_step=self.step_count if resume else None)
             self.log = open(out / "log.jsonl", "a")
         self.progress = progress
@@ -382,37 +189,37 @@ class Trainer:
         """``train.loss_denominator``: ``masked`` (hcmt: the number of unmasked entries, a mean over what is
         predicted) or ``nodes`` (the authors' model.py: ``reduce_mean`` over all N nodes of the masked error summed
         over channels)."""
-        if self.tc.get("loss_denominator", "masked") == "nodes":
+        if self.tc["loss_denominator"] == "nodes":
             n = graph.node_mask.sum() if graph.node_mask is not None else torch.tensor(float(graph.num_nodes))
             return n.to(mask.device, torch.float32).clamp_min(1.0)
         return mask.sum().clamp_min(1.0)
 
     def _epsilon_hat(self) -> float:
-        t = self.step_count - int(self.tc.get("normalizer_steps", 0)) + 1  # this optimizer step, 1-based
-        return keras_epsilon(float(self.tc.get("adam_epsilon", 1e-7)), self.opt.param_groups[0]["betas"][1], t)
+        t = self.step_count - int(self.tc["normalizer_steps"]) + 1  # this optimizer step, 1-based
+        return keras_epsilon(float(self.tc["adam_epsilon"] or 1e-7), self.opt.param_groups[0]["betas"][1], t)
 
     def _pushforward_probability(self) -> float:
         """``train.pushforward`` from ``train.pushforward_start`` on (and never while only the normalizers learn)."""
-        start = max(self.pushforward_start, int(self.tc.get("normalizer_steps", 0)))
+        start = max(self.pushforward_start, int(self.tc["normalizer_steps"]))
         return self.pushforward if self.step_count >= start else 0.0
 
     def learning_rate(self, step: int) -> float:
         tc = self.tc
         lr0 = float(tc["lr"])
-        return learning_rate(step, self.steps, lr0, float(tc.get("lr_final", lr0)), tc.get("lr_decay_steps"),
-                             float(tc.get("lr_decay_rate", 0.1)))
+        return learning_rate(step, self.steps, lr0, float(tc["lr_final"] or lr0), tc["lr_decay_steps"],
+                             float(tc["lr_decay_rate"]))
 
     def step(self, graph, tgt, mask) -> tuple[float, float]:
         """One training step (normalizer statistics only during the first ``normalizer_steps``): (loss, lr)."""
         torch.manual_seed(step_seed(self.seed, self.step_count, self.rank))  # global draws (LPE sign flips)
         graph, tgt, mask = graph.to(self.device), tgt.to(self.device), mask.to(self.device)
-        tc, warmup = self.tc, self.step_count < int(self.tc.get("normalizer_steps", 0))
+        tc, warmup = self.tc, self.step_count < int(self.tc["normalizer_steps"])
         # the authors' loop (run_model.py) accumulates only the node normalizer while warming up
-        accumulate = not (warmup and tc.get("normalizer_warmup", "all") == "nodes")
+        accumulate = not (warmup and tc["normalizer_warmup"] == "nodes")
         with torch.autocast(self.device.type, dtype=torch.bfloat16, enabled=self.bf16):
             if not accumulate:
                 self.model.node_normalizer.accumulate(graph.node_features, graph.node_mask)
-            elif tc.get("mesh_edges_twice", False) and graph.level_edges:  # the authors' HCMT: level 0 twice
+            elif tc["mesh_edges_twice"] and graph.level_edges:  # the authors' HCMT: level 0 twice
                 self.model.mesh_normalizer.accumulate(graph.mesh_features, graph.mesh_mask)
             if self.pad is None:
                 pred = self.net(graph, accumulate=accumulate)
@@ -427,7 +234,7 @@ class Trainer:
         if not warmup:
             for group in self.opt.param_groups:
                 group["lr"] = lr
-                if tc.get("adam_epsilon_hat", False):  # TF/Keras Adam's ε̂ (see _epsilon_hat)
+                if tc["adam_epsilon_hat"]:  # TF/Keras Adam's ε̂ (see _epsilon_hat)
                     group["eps"] = self._epsilon_hat()
             self.opt.zero_grad(set_to_none=True)
             loss.backward()
@@ -439,7 +246,7 @@ class Trainer:
 
     def validate(self) -> None:
         """Validation rollouts (rank 0); a better position RMSE-all writes best.pt."""
-        metrics = validate(self.model, self.adapter, self.valid_trajs, self.radius)
+        metrics = validation_rmse(self.model, self.adapter, self.valid_trajs, self.radius)
         self.model.train()
         for k, v in metrics.items():
             self.writer.add_scalar(k, v, self.step_count)
@@ -457,26 +264,16 @@ class Trainer:
         self.log.write(json.dumps(rec) + "\n")
         self.log.flush()
 
-    def _stop_together(self, loss: float, interrupted: bool) -> tuple[bool, bool]:
-        """(finite, stop) agreed by every rank, or the others would hang in the next all-reduce."""
-        if self.world == 1:
-            return math.isfinite(loss), interrupted
-        flag = torch.tensor([0.0 if math.isfinite(loss) else 1.0, float(interrupted)], device=self.device)
-        dist.all_reduce(flag)
-        return flag[0].item() == 0, flag[1].item() > 0
-
     def run(self, stop_at: int | None = None) -> dict:
-        from tqdm import tqdm
-
         tc, rank = self.tc, self.rank
-        log_every, ckpt_every = int(tc.get("log_every", 100)), int(tc.get("checkpoint_every", 1000))
-        valid_every = int(tc.get("valid_every", 0))
+        log_every, ckpt_every = int(tc["log_every"]), int(tc["checkpoint_every"])
+        valid_every = int(tc["valid_every"])
         end = self.steps if stop_at is None else min(self.steps, int(stop_at))
         bar = tqdm(total=self.steps, initial=self.step_count, disable=not self.progress or rank != 0,
                    desc=f"train {self.model_name}", dynamic_ncols=True,
                    mininterval=0.1 if sys.stderr.isatty() else 30.0)
-        workers = int(tc.get("workers", 0))
-        sampler = StepSampler(self.frames, int(tc.get("batch_size", 1)), self.seed, self.step_count, end, self.world,
+        workers = int(tc["workers"])
+        sampler = StepSampler(self.frames, int(tc["batch_size"]), self.seed, self.step_count, end, self.world,
                               rank)
         collate = collate_samples if self.pad is None else functools.partial(collate_padded, sizes=self.pad)
         if self.pushforward > 0:  # items need the model: built in this process, each just before its step
@@ -485,7 +282,7 @@ class Trainer:
         else:  # graphs are built by DataLoader workers (train.workers; 0: in this process), in step order
             loader = iter(torch.utils.data.DataLoader(
                 self.frames, batch_sampler=sampler, collate_fn=collate, num_workers=workers,
-                worker_init_fn=_ignore_sigint if workers else None))
+                worker_init_fn=ignore_sigint if workers else None))
         times, loss = [], float("nan")
         interrupted = InterruptFlag()  # Ctrl-C / SIGTERM end the current step, then save and stop
         self.model.train()
@@ -494,7 +291,7 @@ class Trainer:
                 t0 = time.perf_counter()
                 loss, lr = self.step(*next(loader))
                 times.append(time.perf_counter() - t0)
-                finite, stop = self._stop_together(loss, interrupted.set)
+                finite, stop = stop_together(self.world, self.device, loss, interrupted.set)
                 step = self.step_count
                 if not finite:
                     raise FloatingPointError(f"loss became non-finite at step {step} (rank {rank}: {loss}); lower "
@@ -555,23 +352,3 @@ def _train(cfg: dict, data: str | Path, model_name: str, out: Path, *, ablation:
     finally:  # train.deterministic holds for this run only
         torch.use_deterministic_algorithms(deterministic[0], warn_only=deterministic[1])
         torch.backends.cudnn.benchmark = deterministic[2]
-
-
-def load_run(run: str | Path, which: str = "best", device: str = "cpu"):
-    """(model, run dict) of a run folder; ``which`` is ``best`` or ``checkpoint``."""
-    run = Path(run)
-    info_path = run / "run.yaml"
-    if not info_path.is_file():
-        raise FileNotFoundError(f"{info_path}: not a run folder (made by `hcmt train --out RUN`)")
-    info = yaml.safe_load(info_path.read_text())
-    path = run / f"{which}.pt"
-    if not path.is_file():
-        path = run / "checkpoint.pt"
-    if not path.is_file():
-        raise FileNotFoundError(f"{run}: no checkpoint yet (best.pt / checkpoint.pt)")
-    state = torch.load(path, map_location=device, weights_only=True)
-    model = make_model(state["model_args"])
-    model.load_state_dict(state["model"])
-    model.eval()
-    info["checkpoint"] = {"file": path.name, "step": int(state["step"])}
-    return model, info

@@ -1,8 +1,13 @@
-"""Training, rollout, evaluation and the design check. The package itself is callable, so that ``hcmt.train`` is
-both this subpackage and the API function ``hcmt.train(config, data, model, out, **options)`` (importing a
-subpackage binds its name on the parent package; a callable module keeps the two the same object)."""
-import sys
-import types
+"""Training: the frames of a split as a ``Dataset`` (:mod:`~hcmt.training.dataset`), the loop
+(:mod:`~hcmt.training.trainer`), its schedule and its process plumbing (:mod:`~hcmt.training.runtime`), and
+:func:`train`, the API entry (``hcmt.train``)."""
+from __future__ import annotations
+
+import shutil
+from pathlib import Path
+
+from hcmt.config import load_config
+from hcmt.training.trainer import train as run_training
 
 
 def train(config, data, model: str, out, *, overrides=None, resume: bool = False, overwrite: bool = False,
@@ -12,12 +17,6 @@ def train(config, data, model: str, out, *, overrides=None, resume: bool = False
     ``section.key=value``; ``resume=True`` continues the run in ``out``, ``overwrite=True`` deletes it and starts
     afresh (otherwise a folder holding a run is refused); ``options``: ``ablation``, ``seed``, ``device``,
     ``progress``. Returns the training summary; :meth:`hcmt.Run.load` (``out``) gives the trained model."""
-    import shutil
-    from pathlib import Path
-
-    from hcmt.train.config import load_config
-    from hcmt.train.trainer import train as run_training
-
     if resume and overwrite:
         raise ValueError("hcmt.train: resume=True and overwrite=True contradict each other; choose one")
     out = Path(out)
@@ -31,9 +30,4 @@ def train(config, data, model: str, out, *, overrides=None, resume: bool = False
     return run_training(cfg, data, model, out, resume=resume, **options)
 
 
-class _CallableModule(types.ModuleType):
-    def __call__(self, *args, **kwargs):
-        return train(*args, **kwargs)
-
-
-sys.modules[__name__].__class__ = _CallableModule
+__all__ = ["train"]

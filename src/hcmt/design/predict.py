@@ -3,7 +3,7 @@
 For each design (the parameters of ``hcmt simulate``, :class:`hcmt.sim.scene.Design`) the generator's scene code
 builds the mesh and the first two frames (:func:`hcmt.sim.scene.initial_frames`: the ball in free flight just above
 the plate), the model rolls out over the training data's recorded window (e.g. 52 frames of 0.002 ms), several
-designs as one batched graph per step (:func:`hcmt.train.rollout.rollout_batch`), and :func:`summarize` reads off
+designs as one batched graph per step (:func:`hcmt.inference.rollout.rollout_batch`), and :func:`summarize` reads off
 
 * the peak von Mises stress in the plate and in the ball (MPa), where (the node's position, mm) and when (ms);
 * the maximum plate deflection ``max |u_y|`` over the plate's nodes and frames (mm);
@@ -22,11 +22,20 @@ from pathlib import Path
 
 import numpy as np
 
-from hcmt.sim.scene import EDGES, RANGES, Design, Settings, initial_frames, simulate
-from hcmt.train.data import prepare_trajectory
-from hcmt.train.metrics import format_physics, impact_metrics, plate_mask, rollout_rmse, summarize_impact
+from tqdm import tqdm
 
-DESIGN_KEYS = tuple(f.name for f in fields(Design))
+from hcmt.data.format import atomic_path
+from hcmt.inference.metrics import format_physics, impact_metrics, plate_mask, rollout_rmse, summarize_impact
+from hcmt.inference.rollout import rollout_batch
+from hcmt.physics.trajectory import prepare_trajectory
+from hcmt.sim.scene import (DESIGN_KEYS, EDGES, MAX_ESTIMATED_SECONDS, Design, Settings, initial_frames,
+                            middle_design, parse_design, parse_number, plan, simulate)
+from hcmt.viz.contours import plot_contours
+from hcmt.viz.rollouts import Case, Series
+
+__all__ = ["DESIGN_KEYS", "Check", "Prediction", "check_designs", "middle_design", "parse_design", "predict",
+           "read_designs_csv", "verify_designs"]
+
 
 
 @dataclass
@@ -45,34 +54,6 @@ class Prediction:
 
 
 # -- designs -----------------------------------------------------------------------------------------------------
-def parse_design(items: list[str], defaults: Design, where: str = "--design") -> Design:
-    """``["thickness=0.8", "drop_height=900"]`` -> a validated :class:`Design` (other parameters from
-    ``defaults``). Names as ``hcmt simulate``'s options, with ``_`` or ``-``; values finite numbers."""
-    values = {}
-    for item in items:
-        key, sep, raw = item.partition("=")
-        key = key.strip().lstrip("-").replace("-", "_")
-        if not sep:
-            raise ValueError(f"{where} {item!r}: expected KEY=VALUE, e.g. thickness=0.8")
-        if key not in DESIGN_KEYS:
-            raise ValueError(f"{where} {item!r}: unknown parameter {key!r}; expected one of {', '.join(DESIGN_KEYS)}")
-        values[key] = _number(raw, f"{where} {item!r}: {key}")
-    try:
-        return Design(**{**asdict(defaults), **values}).validate()
-    except ValueError as exc:
-        raise ValueError(f"{where} {exc}") from None
-
-
-def _number(raw: str, what: str) -> float:
-    try:
-        v = float(raw)
-    except ValueError:
-        raise ValueError(f"{what} must be a number, got {raw.strip()!r}") from None
-    if not np.isfinite(v):
-        raise ValueError(f"{what} must be a finite number, got {raw.strip()!r}")
-    return v
-
-
 def read_designs_csv(path: str | Path, defaults: Design) -> list[tuple[str, Design]]:
     """Designs from a CSV file: a header of parameter names (optionally a ``name`` column), one design per row,
     every column present and numeric in every row (blank lines are skipped; a UTF-8 BOM and CRLF line ends are
@@ -109,7 +90,7 @@ def read_designs_csv(path: str | Path, defaults: Design) -> list[tuple[str, Desi
                 continue
             if not v.strip():
                 raise ValueError(f"{path} line {n}, column {col} ({h}): missing value")
-            items.append(f"{h}={_number(v, f'{path} line {n}, column {col} ({h})')}")
+            items.append(f"{h}={parse_number(v, f'{path} line {n}, column {col} ({h})')}")
         out.append((name, parse_design(items, defaults, where=f"{path} line {n}:")))
     return out
 
@@ -156,12 +137,6 @@ def confidence(design: Design, run) -> dict | None:
     return regions.get(region)
 
 
-def default_design(meta: dict | None) -> Design:
-    """The middle of the training preset's ranges (``hcmt simulate``'s defaults for that preset)."""
-    preset = ((meta or {}).get("generator") or {}).get("preset", "paper")
-    return Design(**{k: 0.5 * (lo + hi) for k, (lo, hi) in RANGES.get(preset, RANGES["paper"]).items()})
-
-
 def settings_of(meta: dict | None) -> Settings:
     """The generator settings (frames, frame_dt, formulation, ...) the training data was made with."""
     saved = ((meta or {}).get("generator") or {}).get("settings")
@@ -180,18 +155,14 @@ def design_trajectory(run, name: str, design: Design, settings: Settings):
     x = f["world_pos"]
     f["world_pos"] = np.concatenate([x, np.repeat(x[:1], settings.frames - 2, axis=0)])
     f["stress"] = np.zeros((settings.frames, x.shape[1], 1), np.float32)
-    levels, remesh = run.hierarchy
+    levels, remesh = run.hierarchy_spec
     return prepare_trajectory(f, name, run.adapter, levels, remesh, attrs=start["attrs"]), f
 
 
 def predict(run, designs: list[tuple[str, Design]], batch: int = 8, progress: bool = True,
             compile: str = "none") -> list[Prediction]:
     """Roll the run's model out over each design's recorded window, ``batch`` designs per model call
-    (``compile``: as :func:`hcmt.train.rollout.rollout_batch`)."""
-    from tqdm import tqdm
-
-    from hcmt.train.rollout import rollout_batch
-
+    (``compile``: as :func:`hcmt.inference.rollout.rollout_batch`)."""
     if batch < 1:
         raise ValueError(f"--batch must be >= 1, got {batch}")
     settings = settings_of(run.meta)
@@ -235,8 +206,6 @@ def cost_check(run, designs: list[tuple[str, Design]], settings: Settings, verif
     nodes the same design has at the training data's finest ``mesh_size``) when the estimated time (the learned
     rollout's, plus the solver's for ``verify``, :func:`hcmt.sim.scene.plan`) exceeds ``MAX_ESTIMATED_SECONDS``
     (600 s), unless ``force``; as ``hcmt simulate`` does."""
-    from hcmt.sim.scene import MAX_ESTIMATED_SECONDS, plan
-
     finest = run.ranges.get("mesh_size", (None, None))[0]
     for name, d in designs:
         if finest is None or d.mesh_size >= finest:
@@ -444,8 +413,6 @@ def csv_rows(preds: list[Prediction]) -> tuple[list[str], list[list]]:
 
 
 def write_csv(preds: list[Prediction], path: str | Path) -> Path:
-    from hcmt.data.format import atomic_path
-
     head, rows = csv_rows(preds)
     path = Path(path)
     with atomic_path(path) as tmp, open(tmp, "w", newline="") as f:
@@ -464,9 +431,6 @@ def to_json(preds: list[Prediction], verified: dict | None, run_source: str, dev
 def contour_picture(p: Prediction, truth: Prediction | None, meta: dict, out_dir: str | Path, label: str) -> Path:
     """Stress contours (impact zoom) at the predicted peak-plate-stress frame, and with ``truth`` beside the solver
     at the solver's own peak frame too (one row each, the earlier first, one row when they coincide)."""
-    from hcmt.viz.contours import plot_contours
-    from hcmt.viz.rollouts import Case, Series
-
     pred = Series(f"{label} prediction", p.world_pos, p.stress, start=2)
     if truth is not None:
         case = Case(p.name, p.mesh_pos, p.cells, p.node_type, Series("Solver", truth.world_pos, truth.stress),

@@ -1,5 +1,5 @@
-"""``hcmt train / rollout / evaluate / compare / predict / sweep / models``: argument parsing and printing only; the
-library functions live in :mod:`hcmt.train.run`, :mod:`hcmt.train.trainer` and :mod:`hcmt.train.predict`."""
+"""``hcmt predict / sweep / models``: argument parsing and printing only; the library functions live in
+:mod:`hcmt.design.predict` and :mod:`hcmt.design.sweep`."""
 from __future__ import annotations
 
 import argparse
@@ -7,132 +7,11 @@ import json
 import sys
 from pathlib import Path
 
+from hcmt.cli.train import compile_arg
 from hcmt.data.format import atomic_path
-from hcmt.models import ABLATIONS, MODELS
-from hcmt.models.base import COMPILE_MODES
-from hcmt.train.config import load_config
-from hcmt.train.run import (check_options, compare, dataset_warnings, evaluate, format_compare, format_metrics,
-                            metrics_path, run_rollouts)
-
-
-# -- train ---------------------------------------------------------------------------------------------------------
-def configure_train(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--config", help="built-in config name (impact_plate, impact_plate_cpu, ...) or a YAML file")
-    p.add_argument("--data", help="native dataset folder")
-    p.add_argument("--model", choices=MODELS)
-    p.add_argument("--ablation", choices=ABLATIONS, help="HCMT ablation (paper Tables 3, 10-12)")
-    p.add_argument("--steps", type=int, help="training steps (overrides train.steps)")
-    p.add_argument("--seed", type=int, help="random seed (default 0)")
-    p.add_argument("--out", required=True, help="run folder")
-    p.add_argument("--resume", action="store_true", help="continue the run in --out from its last checkpoint; "
-                   "`--resume --out RUN` alone uses the run's saved settings (--steps may extend it)")
-    p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
-                   help="override any config key, e.g. --set train.lr=3e-4 --set model.levels=4")
-    p.add_argument("--device", help="cpu, cuda, cuda:1 (default: cuda if available)")
-    p.add_argument("--no-progress", action="store_true", help="no progress bar")
-
-
-def main_train(args: argparse.Namespace) -> int:
-    import yaml
-
-    from hcmt.train.config import check_schema, parse_value
-    from hcmt.train.trainer import train
-
-    overrides = list(args.set) + ([f"train.steps={args.steps}"] if args.steps is not None else [])
-    saved_path = Path(args.out) / "run.yaml"
-    if args.resume and saved_path.is_file() and not args.config:  # resume with the run's saved settings
-        saved = yaml.safe_load(saved_path.read_text())
-        cfg = saved["config"]
-        for item in overrides:
-            key, _, raw = item.partition("=")
-            *parents, leaf = key.split(".")
-            node = cfg
-            for part in parents:
-                node = node.setdefault(part, {})
-            node[leaf] = parse_value(raw)
-        check_schema(cfg, f"{saved_path} with --set")
-        data = args.data or saved["data"]
-        model = args.model or saved["model"]["name"]
-        ablation = args.ablation if args.ablation is not None else saved["model"].get("ablation")
-        seed = args.seed if args.seed is not None else saved.get("seed", 0)
-    else:
-        missing = [f"--{k}" for k in ("config", "data", "model") if getattr(args, k) is None]
-        if missing:
-            raise ValueError(f"{', '.join(missing)} required (only `--resume --out RUN` of an existing run may leave "
-                             "them out)")
-        cfg, data, model, ablation = load_config(args.config, overrides), args.data, args.model, args.ablation
-        seed = args.seed if args.seed is not None else 0
-    summary = train(cfg, data, model, args.out, ablation=ablation, seed=seed,
-                    resume=args.resume, device=args.device, progress=not args.no_progress)
-    print(json.dumps(summary, indent=2))
-    return 0
-
-
-# -- rollout -------------------------------------------------------------------------------------------------------
-def _run_args(p: argparse.ArgumentParser) -> None:
-    p.add_argument("run", help="run folder made by `hcmt train`")
-    p.add_argument("--data", required=True, help="native dataset folder")
-    p.add_argument("--split", default="test")
-    p.add_argument("--limit", type=int, help="only the first N trajectories")
-    p.add_argument("--checkpoint", default="best", choices=["best", "checkpoint"])
-    p.add_argument("--device", help="cpu, cuda, cuda:N (default: cuda when available)")
-    p.add_argument("--batch", type=int, default=1, help="trajectories rolled out together as one batched graph")
-    _compile_arg(p)
-    p.add_argument("--no-progress", action="store_true", help="no progress bar")
-
-
-def _print_warnings(args, warnings: list[str]) -> None:
-    for w in warnings:
-        print(f"hcmt {args.command}: warning: {w}", file=sys.stderr)
-
-
-def _compile_arg(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--compile", default="none", choices=COMPILE_MODES,
-                   help="torch.compile the model on padded graphs (reduce-overhead: CUDA graphs); the first step of "
-                        "each new shape compiles (minutes for a paper-size HCMT on one CPU thread), later ones replay "
-                        "(default none)")
-
-
-configure_rollout = _run_args
-
-
-def main_rollout(args: argparse.Namespace) -> int:
-    check_options(args.device, args.batch, args.compile)
-    _print_warnings(args, dataset_warnings(args.run, args.data, args.split))
-    path = run_rollouts(args.run, args.data, args.split, args.limit, args.checkpoint, args.device, args.batch,
-                        args.compile, progress=not args.no_progress)
-    print(f"wrote {path}")
-    return 0
-
-
-# -- evaluate ------------------------------------------------------------------------------------------------------
-configure_evaluate = _run_args
-
-
-def main_evaluate(args: argparse.Namespace) -> int:
-    m = evaluate(args.run, args.data, args.split, args.limit, args.checkpoint, args.device, args.batch,
-                 args.compile, progress=not args.no_progress)
-    _print_warnings(args, m["warnings"])
-    print(format_metrics(m))
-    print(f"wrote {metrics_path(args.run, args.split, args.data)}")
-    return 0
-
-
-# -- compare -------------------------------------------------------------------------------------------------------
-def configure_compare(p: argparse.ArgumentParser) -> None:
-    p.add_argument("runs", nargs="+", help="run folders holding metrics_<split>.json (from `hcmt evaluate`)")
-    p.add_argument("--split", default="test", help="which split's metrics to compare (default test)")
-    p.add_argument("--json", help="also write the table as JSON")
-
-
-def main_compare(args: argparse.Namespace) -> int:
-    table = compare(args.runs, args.split)
-    print(f"split {args.split}; runs grouped by model and dataset")
-    print(format_compare(table))
-    if args.json:
-        with atomic_path(Path(args.json)) as tmp:
-            tmp.write_text(json.dumps(table, indent=2))
-    return 0
+from hcmt.design import predict as pr
+from hcmt.design import sweep as sw
+from hcmt.inference.run import Run, available_pretrained
 
 
 # -- predict / models ----------------------------------------------------------------------------------------------
@@ -145,7 +24,7 @@ def configure_predict(p: argparse.ArgumentParser) -> None:
                    "(optional `name` column), one design per row")
     p.add_argument("--device", help="cpu, cuda, cuda:N (default: cuda when available)")
     p.add_argument("--batch", type=int, default=8, help="designs rolled out together (default 8)")
-    _compile_arg(p)
+    compile_arg(p)
     p.add_argument("--yield-mpa", type=float, help="report the margin of the peak plate stress to this stress (MPa)")
     p.add_argument("--verify", action="store_true", help="also run the built-in solver and report the errors and "
                    "the speedup")
@@ -158,12 +37,10 @@ def configure_predict(p: argparse.ArgumentParser) -> None:
 
 
 def main_predict(args: argparse.Namespace) -> int:
-    from hcmt.train import predict as pr
-
     if not args.design and not args.designs:
         raise ValueError("give designs with --design KEY=VALUE ... or --designs FILE.csv")
     run = _design_run(args)
-    defaults = pr.default_design(run.meta)
+    defaults = pr.middle_design(run.meta)
     designs = [(f"design_{i + 1}", pr.parse_design(items, defaults)) for i, items in enumerate(args.design)]
     if args.designs:
         designs += pr.read_designs_csv(args.designs, defaults)
@@ -191,8 +68,6 @@ def main_predict(args: argparse.Namespace) -> int:
 
 def _design_run(args):
     """The Impact Plate model of ``predict`` / ``sweep``."""
-    from hcmt.train.run import Run
-
     run = Run.load(args.model, args.device)
     if run.config.get("dataset") != "impact_plate":
         raise ValueError(f"{args.model}: predict is for Impact Plate models; this one was trained on "
@@ -213,7 +88,7 @@ def configure_sweep(p: argparse.ArgumentParser) -> None:
                    "peak plate stress below this stress (MPa), for model and solver")
     p.add_argument("--device", help="cpu, cuda, cuda:N (default: cuda when available)")
     p.add_argument("--batch", type=int, help="designs per model call (default: the whole sweep in one batch)")
-    _compile_arg(p)
+    compile_arg(p)
     p.add_argument("--force", action="store_true", help="run even designs estimated to take over 600 s")
     p.add_argument("--out", default="sweep_out", help="folder for the plot (default sweep_out)")
     p.add_argument("--json", help="write the points (as predict's JSON, each with its verify block) and the "
@@ -223,12 +98,9 @@ def configure_sweep(p: argparse.ArgumentParser) -> None:
 
 
 def main_sweep(args: argparse.Namespace) -> int:
-    from hcmt.train import predict as pr
-    from hcmt.train import sweep as sw
-
     param, lo, hi, n = sw.parse_vary(args.vary)
     run = _design_run(args)
-    base = pr.parse_design(args.design, pr.default_design(run.meta))
+    base = pr.parse_design(args.design, pr.middle_design(run.meta))
     designs = sw.sweep_designs(base, param, lo, hi, n)
     for w in sorted({w for _, d in designs for w in pr.range_warnings(d, run.ranges)}):  # each distinct one once
         print(f"hcmt sweep: warning: {w}", file=sys.stderr)
@@ -254,18 +126,14 @@ def configure_models(p: argparse.ArgumentParser) -> None:
 
 
 def main_models(args: argparse.Namespace) -> int:
-    from hcmt.train.run import Run, available_pretrained
-
     shipped = available_pretrained()
     if not shipped:
         print("no shipped models in this installation")
         return 0
-    from hcmt.train import predict as pr
-
     cards = {}
     for name, path in shipped.items():
         run = Run.load(f"pretrained:{name}", "cpu")
-        defaults = pr.default_design(run.meta)
+        defaults = pr.middle_design(run.meta)
         settings = pr.settings_of(run.meta)
         cards[name] = {"file": str(path), "size_mb": path.stat().st_size / 1e6, **run.card,
                        "window": {"frames": settings.frames, "frame_dt_ms": settings.frame_dt},

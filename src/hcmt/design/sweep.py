@@ -19,7 +19,8 @@ from pathlib import Path
 import numpy as np
 
 from hcmt.sim.scene import Design
-from hcmt.train.predict import DESIGN_KEYS, Check, check_designs, to_json
+from hcmt.data.format import atomic_path
+from hcmt.design.predict import DESIGN_KEYS, Check, check_designs, to_json
 
 #: steps smaller than this share of a series' range count as flat in the monotonicity test
 TREND_TOL = 0.02
@@ -174,8 +175,6 @@ def plot_sweep(check: Check, analysis: dict, out_dir: str | Path, label: str) ->
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-
-    from hcmt.data.format import atomic_path
 
     x = np.array(analysis["values"])
     fig, axes = plt.subplots(1, 2, figsize=(10, 4), constrained_layout=True)

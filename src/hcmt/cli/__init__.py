@@ -8,7 +8,12 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import os
+import signal
 import sys
+
+from hcmt.config import VERSION
+from hcmt.data.errors import DatasetError
 
 COMMANDS: dict[str, tuple[str, str]] = {
     "generate": ("hcmt.sim.generate", "generate a dataset with the built-in FEM solver (impact-plate)"),
@@ -16,18 +21,18 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "convert": ("hcmt.data.convert", "convert a MeshGraphNets/HCMT TFRecord or Deformable Plate pickle dataset to native HDF5"),
     "info": ("hcmt.data.info", "summarize a native dataset: splits, trajectories, nodes, fields, design parameters"),
     "hierarchy": ("hcmt.graph.report", "build the HCMT mesh hierarchy of a dataset and report its quality per level"),
-    "train": ("hcmt.train.cli", "train HCMT, MeshGraphNets or Graph Transformer on a dataset"),
-    "rollout": ("hcmt.train.cli", "roll a trained model out over a dataset split (writes HDF5 predictions)"),
-    "evaluate": ("hcmt.train.cli", "compute the paper's RMSE metrics of a run on a split (writes RUN/metrics_<split>.json)"),
-    "compare": ("hcmt.train.cli", "aggregate several runs into the paper's Table 2 layout (mean +- std)"),
-    "predict": ("hcmt.train.cli", "peak stress and deflection of new Impact Plate designs from a trained model, "
+    "train": ("hcmt.cli.train", "train HCMT, MeshGraphNets or Graph Transformer on a dataset"),
+    "rollout": ("hcmt.cli.train", "roll a trained model out over a dataset split (writes HDF5 predictions)"),
+    "evaluate": ("hcmt.cli.train", "compute the paper's RMSE metrics of a run on a split (writes RUN/metrics_<split>.json)"),
+    "compare": ("hcmt.cli.train", "aggregate several runs into the paper's Table 2 layout (mean +- std)"),
+    "predict": ("hcmt.cli.design", "peak stress and deflection of new Impact Plate designs from a trained model, "
                 "no solver run (--verify compares with the solver)"),
-    "sweep": ("hcmt.train.cli", "one design parameter varied over a range, predicted in one batch: trend, limit "
+    "sweep": ("hcmt.cli.design", "one design parameter varied over a range, predicted in one batch: trend, limit "
               "for a yield stress, and with --verify the solver's"),
-    "models": ("hcmt.train.cli", "list the trained models shipped with hcmt (pretrained:NAME)"),
-    "plot": ("hcmt.viz.cli", "draw stress contours, animations, error curves and training curves of a run"),
-    "export": ("hcmt.viz.cli", "export a rollout to ParaView (VTU or XDMF time series)"),
-    "demo": ("hcmt.train.demo", "quickstart: the shipped HCMT model beside the solver on three new designs "
+    "models": ("hcmt.cli.design", "list the trained models shipped with hcmt (pretrained:NAME)"),
+    "plot": ("hcmt.cli.viz", "draw stress contours, animations, error curves and training curves of a run"),
+    "export": ("hcmt.cli.viz", "export a rollout to ParaView (VTU or XDMF time series)"),
+    "demo": ("hcmt.cli.demo", "quickstart: the shipped HCMT model beside the solver on three new designs "
              "(--train: the whole pipeline)"),
 }
 
@@ -53,8 +58,6 @@ def auto_threads() -> int:
     """The CPU cores not already busy: cores minus the 1-minute load average (at least 1). On a machine whose other
     cores run another job this is 1 thread, never the oversubscribed default that made a design take 10x longer
     (docs/RESULTS.md, "Threads")."""
-    import os
-
     cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
     try:
         busy = os.getloadavg()[0]
@@ -65,7 +68,7 @@ def auto_threads() -> int:
 
 def set_threads(threads: int | str) -> int:
     """Apply ``--threads`` to torch's intra-op pool; returns the number set."""
-    import torch
+    import torch  # heavy: loaded only by commands that compute, so `hcmt --help` stays fast
 
     n = auto_threads() if threads == "auto" else int(threads)
     torch.set_num_threads(n)
@@ -81,9 +84,7 @@ def build_parser() -> argparse.ArgumentParser:
         prog="hcmt", description="Learned simulation of flexible bodies in contact: the Hierarchical Contact Mesh "
         "Transformer (ICLR 2024), its baselines, and a built-in FEM generator of ground truth.",
         epilog="`hcmt COMMAND --help` gives each command's options.")
-    from hcmt import __version__
-
-    parser.add_argument("--version", action="version", version=f"hcmt {__version__}")
+    parser.add_argument("--version", action="version", version=f"hcmt {VERSION}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", title="commands")
     requested = _requested_command(sys.argv[1:])
     for name, (module, help_text) in COMMANDS.items():
@@ -115,9 +116,6 @@ def main(argv: list[str] | None = None) -> int:
     if not getattr(args, "_run", None):
         parser.print_help()
         return 0 if args.command is None else 2
-    from hcmt.data.errors import DatasetError
-
-    import signal
 
     previous = signal.signal(signal.SIGTERM, _terminate)  # SIGTERM ends a command as Ctrl-C does
     try:

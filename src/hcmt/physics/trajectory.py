@@ -14,7 +14,7 @@ from hcmt.data.format import Split
 from hcmt.graph.batch import Graph
 from hcmt.graph.build import frame_graph
 from hcmt.graph.hierarchy import Hierarchy, cached_hierarchy, hierarchy_cache_dir
-from hcmt.train.adapters import Adapter, exclude_trajectories
+from hcmt.physics.adapters import Adapter, exclude_trajectories
 
 
 @dataclass

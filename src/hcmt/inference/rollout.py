@@ -18,9 +18,9 @@ import torch
 
 from hcmt.graph.batch import PadSizes, collate, pad_graph
 from hcmt.models.base import compile_simulator
-from hcmt.train.adapters import Adapter, integrate
-from hcmt.train.data import Trajectory
-from hcmt.train.frames import input_graph
+from hcmt.physics.adapters import Adapter, integrate
+from hcmt.physics.trajectory import Trajectory
+from hcmt.physics.frames import input_graph
 
 
 class RolloutError(RuntimeError):
@@ -43,7 +43,7 @@ def rollout_batch(model, adapter: Adapter, trajs: list[Trajectory], radius: floa
 
     Frames ``0 .. history`` of each trajectory start the rollout; later frames of ``traj.world_pos`` are read only
     where a boundary condition sets the position (clamped, symmetry and prescribed nodes), so a trajectory whose
-    later frames hold just those values (:func:`hcmt.train.predict.design_trajectory`) rolls out the same.
+    later frames hold just those values (:func:`hcmt.design.predict.design_trajectory`) rolls out the same.
     ``progress(n)`` is called after every step. Returns one dict per trajectory, as :func:`rollout`;
     ``ms_per_step`` is the batch's time per step divided by the number of trajectories (compilation included)."""
     model.eval()

@@ -21,6 +21,19 @@ import argparse
 import re
 from pathlib import Path
 
+from hcmt.data.format import Split, read_meta
+from hcmt.graph.hierarchy import cached_hierarchy, hierarchy_cache_dir
+from hcmt.inference.evaluate import rollout_file
+from hcmt.inference.run import Run, RunFolder
+from hcmt.models import REGISTRY, uses_hierarchy
+from hcmt.viz.animation import animate
+from hcmt.viz.attention import frame_attention, plot_attention
+from hcmt.viz.contours import plot_contours
+from hcmt.viz.curves import plot_error_curves, plot_training_curves, rollout_errors
+from hcmt.viz.export import export_case
+from hcmt.viz.hierarchy import plot_hierarchy
+from hcmt.viz.rollouts import load_case, unique_labels
+
 PICTURES = ("contours", "animation", "errors", "training", "hierarchy", "attention")
 
 
@@ -72,54 +85,46 @@ def _slug(label: str) -> str:
     return re.sub(r"[^a-z0-9]+", "_", label.lower()).strip("_")
 
 
+def _load_runs(args) -> list[Run | RunFolder]:
+    """Every run folder loaded once (model on ``--device``): the handle the pictures take; a folder without a
+    checkpoint (predictions brought from elsewhere) as a bare :class:`RunFolder` whose rollout files are used."""
+    out = []
+    for r in args.runs:
+        folder = RunFolder(r)
+        out.append(Run.load(r, args.device) if folder.checkpoint().is_file() else folder)
+    return out
+
+
 def main_plot(args: argparse.Namespace) -> int:
-    import yaml
-
-    from hcmt.viz.rollouts import load_case, unique_labels
-
     only = _only(args.only)
     frames = _frames(args.frames)
     out = Path(args.out)
-    labels = unique_labels(args.runs)
+    runs = _load_runs(args)
+    labels = unique_labels(runs)
     written, notes = [], []
     case = None
     if {"contours", "animation", "hierarchy"} & set(only):
-        case = load_case(args.runs, args.data, args.split, args.trajectory, labels, args.device,
-                         progress=not args.no_progress)
+        case = load_case(runs, args.data, args.split, args.trajectory, labels, progress=not args.no_progress)
     if "contours" in only:
-        from hcmt.viz.contours import plot_contours
-
         written += plot_contours(case, out, frames, cmap=args.cmap, scale=args.scale)
     if "animation" in only:
-        from hcmt.viz.animation import animate
-
         written.append(animate(case, out / "rollout.gif", fps=args.fps, stride=args.stride, cmap=args.cmap))
     if "errors" in only:
-        from hcmt.data.format import read_meta
-        from hcmt.viz.curves import plot_error_curves, rollout_errors
-
-        errors = rollout_errors(args.runs, args.data, args.split, labels, limit=args.limit, device=args.device,
-                                progress=not args.no_progress)
+        errors = rollout_errors(runs, args.data, args.split, labels, limit=args.limit, progress=not args.no_progress)
         written.append(plot_error_curves(errors, read_meta(args.data), out / "rollout_error.png"))
     if "training" in only:
-        from hcmt.data.format import read_meta
-        from hcmt.viz.curves import plot_training_curves
-
-        logged = [(r, lab) for r, lab in zip(args.runs, labels) if (Path(r) / "log.jsonl").is_file()]
+        folders = [r.folder if isinstance(r, Run) else r for r in runs]
+        logged = [(f, lab) for f, lab in zip(folders, labels) if f is not None and f.log.is_file()]
         if logged:
             written.append(plot_training_curves([r for r, _ in logged], read_meta(args.data),
                                                 out / "training_curves.png", [lab for _, lab in logged]))
         else:
             notes.append("training curves: no run has a log.jsonl")
     if "hierarchy" in only:
-        from hcmt.graph.hierarchy import cached_hierarchy, hierarchy_cache_dir
-        from hcmt.train.trainer import uses_hierarchy
-        from hcmt.viz.hierarchy import plot_hierarchy
-
         levels, remesh = args.levels, True
         if levels is None:
-            for run in args.runs:
-                lv, rm = uses_hierarchy(yaml.safe_load((Path(run) / "run.yaml").read_text())["model"])
+            for run in runs:
+                lv, rm = uses_hierarchy(run.info["model"])
                 if lv:
                     levels, remesh = lv, rm
                     break
@@ -131,15 +136,14 @@ def main_plot(args: argparse.Namespace) -> int:
         else:
             notes.append("hierarchy: no run uses a mesh hierarchy; pass --levels N to draw one")
     if "attention" in only:
-        from hcmt.viz.attention import frame_attention, plot_attention
-
-        for run, label in zip(args.runs, labels):
-            name = yaml.safe_load((Path(run) / "run.yaml").read_text())["model"]["name"]
-            if name not in ("hcmt", "gt"):
-                notes.append(f"attention: {label} ({run}) is not a Transformer; skipped")
+        for run, label in zip(runs, labels):
+            if not isinstance(run, Run):
+                notes.append(f"attention: {label} ({run.source}) has no checkpoint; skipped")
                 continue
-            maps = frame_attention(run, args.data, args.split, args.trajectory, args.attention_frame,
-                                   device=args.device)
+            if not REGISTRY[run.info["model"]["name"]].has_attention:
+                notes.append(f"attention: {label} ({run.source}) is not a Transformer; skipped")
+                continue
+            maps = frame_attention(run, args.data, args.split, args.trajectory, args.attention_frame)
             maps.model = label
             written.append(plot_attention(maps, out / f"attention_{_slug(label)}.png"))
     for path in written:
@@ -159,24 +163,20 @@ def configure_export(p: argparse.ArgumentParser) -> None:
 
 
 def main_export(args: argparse.Namespace) -> int:
-    from hcmt.data.format import Split
-    from hcmt.train.run import rollout_for
-    from hcmt.viz.export import export_case
-    from hcmt.viz.rollouts import load_case, unique_labels
-
     if args.stride < 1:
         raise ValueError(f"--stride must be >= 1, got {args.stride}")
     with Split(args.data, args.split) as s:
         names = list(s.names)
+    runs = _load_runs(args)
     if args.trajectory == "all":
-        for run in args.runs:  # roll the whole split out once rather than trajectory by trajectory
-            rollout_for(run, args.data, args.split, device=args.device, progress=not args.no_progress)
+        for run in runs:  # roll the whole split out once rather than trajectory by trajectory
+            rollout_file(run, args.data, args.split, progress=not args.no_progress)
         picks = names
     else:
         picks = [args.trajectory]
-    labels = unique_labels(args.runs)
+    labels = unique_labels(runs)
     for t in picks:
-        case = load_case(args.runs, args.data, args.split, t, labels, args.device, progress=not args.no_progress)
+        case = load_case(runs, args.data, args.split, t, labels, progress=not args.no_progress)
         frames = list(range(0, case.num_frames, args.stride))
         for path in export_case(case, args.out, args.format, frames):
             print(f"wrote {path}")

@@ -16,6 +16,15 @@ import argparse
 import time
 from pathlib import Path
 
+import torch
+
+from hcmt.config import load_config
+from hcmt.design import predict as pr
+from hcmt.inference.evaluate import evaluate, format_metrics
+from hcmt.inference.run import Run
+from hcmt.sim.generate import generate_dataset
+from hcmt.training.trainer import train
+
 #: three designs inside the shipped model's training ranges, chosen by hand (not sampled from its data)
 DEMO_DESIGNS = [{"thickness": 0.6, "drop_height": 600.0}, {"thickness": 0.8, "drop_height": 850.0},
                 {"thickness": 0.95, "drop_height": 950.0}]
@@ -43,14 +52,11 @@ def main(args: argparse.Namespace) -> int:
 
 
 def design_demo(args: argparse.Namespace) -> int:
-    from hcmt.train import predict as pr
-    from hcmt.train.run import Run
-
     t0 = time.perf_counter()
     run = Run.load(args.model, args.device)
     card = run.card
     print(f"[1/3] {run.label} model {run.source}: {card.get('summary', 'trained run')}")
-    defaults = pr.default_design(run.meta)
+    defaults = pr.middle_design(run.meta)
     designs = [(f"design_{i + 1}", pr.parse_design([f"{k}={v}" for k, v in d.items()], defaults))
                for i, d in enumerate(DEMO_DESIGNS)]
     settings = pr.settings_of(run.meta)
@@ -74,13 +80,6 @@ def design_demo(args: argparse.Namespace) -> int:
 
 
 def train_demo(args: argparse.Namespace) -> int:
-    import torch
-
-    from hcmt.sim.generate import generate_dataset
-    from hcmt.train.run import evaluate, format_metrics
-    from hcmt.train.config import load_config
-    from hcmt.train.trainer import train
-
     if args.steps is not None and args.steps < 1:
         raise ValueError(f"--steps must be >= 1, got {args.steps}")
     out = Path(args.out)
@@ -105,7 +104,7 @@ def train_demo(args: argparse.Namespace) -> int:
         print(f"[2/3] training HCMT afresh for {want} steps on the CPU -> {run}")
         train(cfg, data, "hcmt", run, seed=args.seed, device="cpu", progress=not args.no_progress)
     print("[3/3] rolling out and evaluating on the test split")
-    metrics = evaluate(run, data, "test", progress=not args.no_progress)
+    metrics = evaluate(Run.load(run, "cpu"), data, "test", progress=not args.no_progress)
     print(format_metrics(metrics))
     print(f"\ndataset   {data}   (hcmt info {data})")
     print(f"run       {run}   (checkpoints, log.jsonl, tb/)")

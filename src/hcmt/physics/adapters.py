@@ -26,8 +26,10 @@ import numpy as np
 import torch
 from torch import Tensor
 
+from hcmt.config import DATASET_NAMES, load_config
 from hcmt.data.format import NODE_TYPE_SIZE, NodeType
 from hcmt.graph.contact import OFFICIAL_IMPACT_PLATE_TYPES
+from hcmt.models import Simulator, build_model
 from hcmt.models.updater import update_positions
 
 
@@ -217,3 +219,43 @@ def exclude_trajectories(names: list[str], excluded: list[int] | None) -> np.nda
     keep = np.ones(len(names), bool)
     keep[excluded] = False
     return np.flatnonzero(keep)
+
+
+def model_args(cfg: dict, model_name: str, ablation: str | None, meta: dict) -> dict:
+    """Constructor arguments of the model (saved in ``run.yaml``), from the config and the dataset's dimensions
+    (meta.json)."""
+    adapter = config_adapter(cfg)
+    widths = adapter.widths(int(meta["dimension"]), int(meta["features"]["mesh_pos"]["shape"][-1]))
+    mc = cfg["model"]
+    return {
+        "name": model_name, **widths, "ablation": ablation, "levels": mc["levels"], "L_C": mc["L_C"],
+        "L_H": mc["L_H"], "hidden": mc["hidden"], "heads": mc["heads"], "clip": mc["clip"], "blocks": mc["blocks"],
+        **({"attention": mc["attention"], "ffn_bias": bool(mc["ffn_bias"])} if model_name == "hcmt" else {}),
+    }
+
+
+def dataset_spec(name: str) -> dict:
+    """Table 8 and 9 of one dataset, read from their one home: the depths, noise, contact radius and steps from
+    the dataset's config (``configs/<dataset>.yaml``), the widths and integration order from its adapter:
+    ``L_C, L_H, levels, noise_std, radius, training_steps, dim, mesh_dim, integration, node_in, mesh_in,
+    contact_in, out``. Node type is a one-hot of width 9 (MeshGraphNets' enum + SYMMETRIC); mesh edges carry
+    ``u_ij, |u_ij|, x_ij, |x_ij|``, contact edges ``x_iq, |x_iq|``; ``integration`` 1 velocity, 2 acceleration."""
+    key = name.replace("-", "_").lower()
+    if key not in DATASET_NAMES:
+        raise ValueError(f"unknown dataset {name!r}; expected one of {', '.join(DATASET_NAMES)}")
+    cfg, adapter = load_config(key), get_adapter(key)
+    m, t = cfg["model"], cfg["train"]
+    return dict(L_C=m["L_C"], levels=m["levels"], L_H=2 * m["levels"] + 1, noise_std=t["noise_std"],
+                radius=t["contact_radius"], training_steps=t["steps"], dim=adapter.dim, mesh_dim=adapter.mesh_dim,
+                integration=adapter.order, **adapter.widths())
+
+
+def build_for_dataset(name: str, dataset: str, **overrides) -> Simulator:
+    """:func:`hcmt.models.build_model` with the dataset's widths (Table 9) and depths (Table 8); keywords override
+    them."""
+    spec = dataset_spec(dataset)
+    kwargs = dict(levels=spec["levels"], L_C=spec["L_C"], L_H=spec["L_H"]) if name.lower() == "hcmt" else {}
+    kwargs.update(overrides)
+    if "levels" in overrides and "L_H" not in overrides:
+        kwargs.pop("L_H", None)
+    return build_model(name, spec["node_in"], spec["mesh_in"], spec["contact_in"], spec["out"], **kwargs)

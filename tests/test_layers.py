@@ -1,0 +1,117 @@
+"""The package's layers import only downward (issue "Layers that point one way").
+
+The import graph is built from the source: every ``import hcmt...`` / ``from hcmt... import`` / relative import,
+wherever it stands (module top, function body, ``if TYPE_CHECKING``). A module may import its own layer's modules
+and any layer below; ``hcmt/__init__.py`` (the lazy public API, PEP 562) and ``hcmt/__main__.py`` stand above all.
+Imports of hcmt modules inside functions are refused too: they only ever dodged a cycle.
+"""
+from __future__ import annotations
+
+import ast
+from pathlib import Path
+
+import pytest
+
+SRC = Path(__file__).resolve().parent.parent / "src" / "hcmt"
+
+#: layer of each top-level module or subpackage of hcmt, bottom (0) to top; equal numbers may not import each other
+LAYERS = {"config": 0, "data": 1, "sim": 2, "graph": 2, "models": 3, "physics": 4, "inference": 5, "training": 6,
+          "viz": 6, "design": 7, "cli": 8}
+
+
+def module_name(path: Path) -> str:
+    parts = path.relative_to(SRC.parent).with_suffix("").parts
+    return ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
+
+
+def imports(path: Path) -> list[tuple[str, int, bool]]:
+    """(imported hcmt module, line, inside a function) of every import in the file."""
+    tree = ast.parse(path.read_text(), str(path))
+    package = module_name(path) if path.name == "__init__.py" else module_name(path).rpartition(".")[0]
+    out = []
+
+    def visit(node, in_function: bool):
+        for child in ast.iter_child_nodes(node):
+            inner = in_function or isinstance(child, (ast.FunctionDef, ast.AsyncFunctionDef, ast.Lambda))
+            if isinstance(child, ast.Import):
+                out.extend((a.name, child.lineno, in_function) for a in child.names if a.name.split(".")[0] == "hcmt")
+            elif isinstance(child, ast.ImportFrom):
+                if child.level:
+                    base = package.split(".")[: len(package.split(".")) - child.level + 1]
+                    name = ".".join(base + ([child.module] if child.module else []))
+                else:
+                    name = child.module or ""
+                if name.split(".")[0] == "hcmt":
+                    out.append((name, child.lineno, in_function))
+            visit(child, inner)
+
+    visit(tree, False)
+    return out
+
+
+def layer_of(module: str) -> str | None:
+    parts = module.split(".")
+    return parts[1] if len(parts) > 1 else None
+
+
+def violations() -> list[str]:
+    bad = []
+    for path in sorted(SRC.rglob("*.py")):
+        me = module_name(path)
+        mine = layer_of(me)
+        for target, line, in_function in imports(path):
+            where = f"{path.relative_to(SRC.parent)}:{line} imports {target}"
+            if mine in (None, "__main__"):  # the public API and `python -m hcmt`: above every layer
+                continue
+            if mine not in LAYERS:
+                bad.append(f"{where}: {mine} is in no layer (add it to LAYERS)")
+                continue
+            theirs = layer_of(target)
+            if theirs is None:
+                bad.append(f"{where}: the top-level package (the lazy API) is for users, not for hcmt's modules")
+            elif theirs not in LAYERS:
+                bad.append(f"{where}: {theirs} is in no layer")
+            elif theirs != mine and LAYERS[theirs] >= LAYERS[mine]:
+                bad.append(f"{where}: {mine} (layer {LAYERS[mine]}) may not import {theirs} (layer {LAYERS[theirs]})")
+            elif in_function:
+                bad.append(f"{where} inside a function: import hcmt modules at the top of the module")
+    return bad
+
+
+def test_every_layer_imports_only_downward():
+    assert violations() == []
+
+
+def test_every_package_has_a_layer():
+    packages = {p.name for p in SRC.iterdir() if p.is_dir() and (p / "__init__.py").is_file()}
+    modules = {p.stem for p in SRC.glob("*.py") if p.stem not in ("__init__", "__main__")}
+    assert packages | modules == set(LAYERS)
+
+
+def test_the_checker_sees_violations(tmp_path, monkeypatch):
+    """The test above can fail: an upward import, a function-level import and a relative one are each caught."""
+    fake = tmp_path / "hcmt"
+    (fake / "models").mkdir(parents=True)
+    (fake / "inference").mkdir()
+    (fake / "models" / "__init__.py").write_text("from hcmt.inference.run import Run\n")
+    (fake / "models" / "m.py").write_text("def f():\n    from ..physics import adapters\n")
+    (fake / "inference" / "__init__.py").write_text("def g():\n    import hcmt.models\n")
+    (fake / "inference" / "ok.py").write_text("from hcmt.models import build_model\nfrom . import metrics\n")
+    monkeypatch.setattr(__import__(__name__), "SRC", fake)
+    found = violations()
+    assert any("models/__init__.py:1 imports hcmt.inference.run: models (layer 3) may not import inference" in v
+               for v in found)
+    assert any("models/m.py:2 imports hcmt.physics" in v for v in found)
+    assert any("inference/__init__.py:2 imports hcmt.models inside a function" in v for v in found)
+    assert not any("ok.py" in v for v in found)
+
+
+@pytest.mark.parametrize("module", ["hcmt.config", "hcmt.models", "hcmt.physics.adapters", "hcmt.inference.run",
+                                    "hcmt.training", "hcmt.viz.rollouts", "hcmt.design.predict", "hcmt.cli"])
+def test_each_layer_imports_alone(module):
+    """Each module imports in a fresh interpreter (no cycle hidden by import order)."""
+    import subprocess
+    import sys
+
+    r = subprocess.run([sys.executable, "-c", f"import {module}"], capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr

@@ -18,7 +18,7 @@ from hcmt.data.format import atomic_path, take_lock
 from hcmt.inference.evaluate import evaluate
 from hcmt.inference.run import Run, RunFolder
 from hcmt.config import load_config
-from hcmt.training.trainer import train
+from hcmt.training import train
 
 import torch
 

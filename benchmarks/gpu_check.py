@@ -206,7 +206,7 @@ def deterministic_resume(c: Check) -> dict:
     """A run stopped half-way and resumed ends with the parameters of one that never stopped
     (``train.deterministic``: exact on CUDA too)."""
     from hcmt.config import load_config
-    from hcmt.training.trainer import train
+    from hcmt.training import train
 
     data = _generate(c, c.out / "mini")
     steps = 4 if c.smoke else 40

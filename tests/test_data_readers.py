@@ -1,5 +1,4 @@
 """Readers for the published datasets, on small files written in the exact official layouts."""
-import json
 import pickle
 
 import numpy as np

@@ -12,17 +12,14 @@ import pytest
 from hcmt.cli import main as cli
 from hcmt.sim.scene import Design
 from hcmt.design import predict as pr
-from hcmt.config import load_config
 from hcmt.inference.run import Run
-from hcmt.training.trainer import train
+from hcmt.training import train
 
 FRAMES = 6
-TINY = ["model.levels=1", "model.L_C=1", "model.hidden=16", "model.heads=2", "train.normalizer_steps=1",
-        "train.valid_every=0", "train.lr=1e-3", "train.steps=2", "train.checkpoint_every=2"]
 
 
 @pytest.fixture(scope="module")
-def setup(tmp_path_factory):
+def setup(tmp_path_factory, tiny_config):
     root = tmp_path_factory.mktemp("safety")
     gen = ["generate", "impact-plate", "--preset", "small", "--train", "2", "--valid", "0", "--test", "1",
            "--no-progress"]
@@ -30,7 +27,8 @@ def setup(tmp_path_factory):
     assert cli([*gen[:2], str(root / "other"), *gen[2:], "--seed", "2", "--frames", str(FRAMES)]) == 0
     assert cli([*gen[:2], str(root / "coarse_dt"), *gen[2:], "--seed", "1", "--frames", "4",
                 "--frame-dt", "0.004"]) == 0
-    train(load_config("impact_plate_cpu", TINY), root / "data", "mgn", root / "run", progress=False)
+    train(tiny_config("train.steps=2", "train.checkpoint_every=2"), root / "data", "mgn", root / "run",
+          progress=False)
     return root
 
 

@@ -10,11 +10,12 @@ import pytest
 from hcmt.cli import main as cli
 from hcmt.data.format import open_split
 
+from conftest import TINY
 from layouts import sphere_simple_tfrecord, write_impact_like
 
 CASES = 14  # per file kind: flips at random offsets, then truncations
-TINY = ["model.levels=1", "model.L_C=1", "model.hidden=8", "model.heads=2", "model.blocks=1",
-        "train.normalizer_steps=0", "train.valid_every=0", "train.lr=1e-3", "train.contact_radius=0.3"]
+# this file's runs: conftest's TINY, then these (narrower, one MGN block, no normalizer warm-up)
+EXTRA = ["model.hidden=8", "model.blocks=1", "train.normalizer_steps=0", "train.contact_radius=0.3"]
 
 
 class Hang(Exception):
@@ -74,7 +75,8 @@ def clean(tmp_path_factory):
     root = tmp_path_factory.mktemp("fuzz")
     data = write_impact_like(root / "data", n_train=1, n_valid=1, n_test=1, steps=4)
     assert cli(["train", "--config", "impact_plate_cpu", "--data", str(data), "--model", "mgn", "--out",
-                str(root / "run"), "--no-progress", "--steps", "1"] + [a for t in TINY for a in ("--set", t)]) == 0
+                str(root / "run"), "--no-progress", "--steps", "1"]
+               + [a for t in TINY + EXTRA for a in ("--set", t)]) == 0
     return root
 
 
@@ -95,7 +97,7 @@ def test_fuzz_native_split(clean, tmp_path, capsys):
         shutil.copy(data / "test.h5", data / "train.h5")
         rc, err = bounded(["train", "--config", "impact_plate_cpu", "--data", str(data), "--model", "mgn", "--out",
                            str(tmp_path / f"run_{label}"), "--no-progress", "--steps", "1"]
-                          + [a for t in TINY for a in ("--set", t)], capsys)
+                          + [a for t in TINY + EXTRA for a in ("--set", t)], capsys)
         check(rc, err, f"train {label}")
         run = tmp_path / f"eval_{label}"
         shutil.copytree(clean / "run", run)

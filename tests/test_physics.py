@@ -16,11 +16,10 @@ from hcmt.training.dataset import FrameDataset
 from hcmt.inference.metrics import impact_metrics, summarize_impact
 from hcmt.inference.evaluate import evaluate
 from hcmt.inference.run import Run
-from hcmt.training.trainer import train
+from hcmt.training import train
 
 FRAMES = 8
-TINY = ["model.levels=1", "model.L_C=1", "model.hidden=16", "model.heads=2", "train.normalizer_steps=1",
-        "train.valid_every=0", "train.lr=1e-3", "train.steps=4", "train.checkpoint_every=2"]
+EXTRA = ["train.steps=4", "train.checkpoint_every=2"]  # this file's runs: conftest's TINY, then these
 
 
 @pytest.fixture(scope="module")
@@ -83,8 +82,8 @@ def test_noise_on_predicted_nodes_moves_the_ball_in_training_samples(data):
     assert (tb[ball, :2] - clean[ball]).abs().max() > 1e-4
 
 
-def test_pushforward_input_is_the_models_prediction_and_the_target_lands_on_the_data(data, tmp_path):
-    cfg = load_config("impact_plate_cpu", TINY)
+def test_pushforward_input_is_the_models_prediction_and_the_target_lands_on_the_data(data, tmp_path, tiny_config):
+    cfg = tiny_config(*EXTRA)
     train(cfg, data, "mgn", tmp_path / "run", progress=False)
     run = Run.load(tmp_path / "run", "cpu")
     adapter = run.adapter
@@ -108,9 +107,9 @@ def test_pushforward_input_is_the_models_prediction_and_the_target_lands_on_the_
     torch.testing.assert_close(pred + tgt[:, :2], w[t + 1], rtol=0, atol=1e-6)
 
 
-def test_pushforward_training_resumes_exactly(data, tmp_path):
-    cfg = load_config("impact_plate_cpu", TINY + ["train.pushforward=0.5", "model.target=acceleration",
-                                                  "train.noise_nodes=predicted", "train.noise_std=1e-3"])
+def test_pushforward_training_resumes_exactly(data, tmp_path, tiny_config):
+    cfg = tiny_config(*EXTRA, "train.pushforward=0.5", "model.target=acceleration", "train.noise_nodes=predicted",
+                      "train.noise_std=1e-3")
     train(cfg, data, "mgn", tmp_path / "once", progress=False)
     train(cfg, data, "mgn", tmp_path / "twice", progress=False, stop_at=2)
     train(cfg, data, "mgn", tmp_path / "twice", progress=False, resume=True)
@@ -183,8 +182,8 @@ def test_summarize_impact_medians_percentiles_and_the_signed_worst():
     assert s["peak_plate_frame_error"]["worst"] == 4
 
 
-def test_evaluate_reports_physics_and_errors_by_body(data, tmp_path):
-    train(load_config("impact_plate_cpu", TINY), data, "mgn", tmp_path / "run", progress=False)
+def test_evaluate_reports_physics_and_errors_by_body(data, tmp_path, tiny_config):
+    train(tiny_config(*EXTRA), data, "mgn", tmp_path / "run", progress=False)
     m = evaluate(Run.load(tmp_path / "run", "cpu"), data, "test")
     p = m["physics"]
     assert p["trajectories"] == 1 and 0 <= p["rebound_agreement"] <= 1
@@ -215,8 +214,8 @@ def test_bad_vary_is_refused_in_one_line(text, message):
         sw.parse_vary(text)
 
 
-def test_sweep_with_an_impossible_point_is_refused_before_any_work(data, tmp_path, capsys):
-    train(load_config("impact_plate_cpu", TINY), data, "mgn", tmp_path / "run", progress=False)
+def test_sweep_with_an_impossible_point_is_refused_before_any_work(data, tmp_path, capsys, tiny_config):
+    train(tiny_config(*EXTRA), data, "mgn", tmp_path / "run", progress=False)
     rc = cli(["sweep", str(tmp_path / "run"), "--vary", "thickness=-0.5:1:3", "--device", "cpu", "--out",
               str(tmp_path / "out")])
     err = capsys.readouterr().err.strip().splitlines()
@@ -224,8 +223,8 @@ def test_sweep_with_an_impossible_point_is_refused_before_any_work(data, tmp_pat
     assert not (tmp_path / "out").exists()
 
 
-def test_sweep_cli_verifies_trends_and_the_limit(data, tmp_path, capsys):
-    train(load_config("impact_plate_cpu", TINY), data, "mgn", tmp_path / "run", progress=False)
+def test_sweep_cli_verifies_trends_and_the_limit(data, tmp_path, capsys, tiny_config):
+    train(tiny_config(*EXTRA), data, "mgn", tmp_path / "run", progress=False)
     rc = cli(["sweep", str(tmp_path / "run"), "--vary", "thickness=0.6:1.2:3", "--design", "drop_height=700",
               "--verify", "--yield-mpa", "300", "--device", "cpu", "--no-progress", "--threads", "1",
               "--out", str(tmp_path / "out"), "--json", str(tmp_path / "s.json"), "--csv", str(tmp_path / "s.csv")])
@@ -282,24 +281,25 @@ def test_keras_epsilon_hat_adam_equals_the_keras_update():
     assert (plain.detach() - theta).abs().max() > 1e-6
 
 
-def _trainer(data, out, overrides, model="hcmt"):
+def _trainer(cfg, data, out, model="hcmt"):
     from hcmt.training.trainer import Trainer
 
-    cfg = load_config("impact_plate_cpu", TINY + overrides)
     return Trainer(cfg, data, model, out, ablation=None, seed=0, resume=False, device="cpu", progress=False)
 
 
-def test_official_loop_options_normalizers_and_loss(data, tmp_path):
+def test_official_loop_options_normalizers_and_loss(data, tmp_path, tiny_config):
     from hcmt.training.dataset import collate_samples
 
-    warm = _trainer(data, tmp_path / "a", ["train.normalizer_steps=2", "train.normalizer_warmup=nodes"])
+    warm = _trainer(tiny_config(*EXTRA, "train.normalizer_steps=2", "train.normalizer_warmup=nodes"), data,
+                    tmp_path / "a")
     batch = collate_samples([warm.frames[0]])
     warm.step(*batch)
     m = warm.model
     assert m.node_normalizer.count > 0 and m.mesh_normalizer.count == 0 and m.output_normalizer.count == 0
     # mesh edges twice: level 0's rows enter the mesh normalizer once more
-    once = _trainer(data, tmp_path / "b", ["train.normalizer_steps=0"])
-    twice = _trainer(data, tmp_path / "c", ["train.normalizer_steps=0", "train.mesh_edges_twice=true"])
+    once = _trainer(tiny_config(*EXTRA, "train.normalizer_steps=0"), data, tmp_path / "b")
+    twice = _trainer(tiny_config(*EXTRA, "train.normalizer_steps=0", "train.mesh_edges_twice=true"), data,
+                     tmp_path / "c")
     graph = batch[0]
     assert graph.level_edges  # HCMT with a hierarchy: the option applies
     l_once, _ = once.step(*batch)
@@ -309,7 +309,8 @@ def test_official_loop_options_normalizers_and_loss(data, tmp_path):
     torch.testing.assert_close(twice.model.mesh_normalizer.sum - once.model.mesh_normalizer.sum,
                                graph.mesh_features.double().sum(0))
     # loss over N nodes (the authors') against over the unmasked entries (hcmt): same error, other denominator
-    nodes = _trainer(data, tmp_path / "d", ["train.normalizer_steps=0", "train.loss_denominator=nodes"])
+    nodes = _trainer(tiny_config(*EXTRA, "train.normalizer_steps=0", "train.loss_denominator=nodes"), data,
+                     tmp_path / "d")
     l_nodes, _ = nodes.step(*batch)
     mask = batch[2]
     assert l_nodes == pytest.approx(l_once * float(mask.sum()) / graph.num_nodes, rel=1e-5)

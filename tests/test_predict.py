@@ -9,22 +9,20 @@ import torch
 from hcmt.cli import main as cli
 from hcmt.sim.scene import Design, Settings, initial_frames, simulate
 from hcmt.design import predict as pr
-from hcmt.config import load_config
 from hcmt.inference.run import Run, available_pretrained
-from hcmt.training.trainer import train
+from hcmt.training import train
 
 FRAMES = 8
-TINY = ["model.levels=1", "model.L_C=1", "model.hidden=16", "model.heads=2", "train.normalizer_steps=1",
-        "train.valid_every=0", "train.lr=1e-3", "train.steps=3", "train.checkpoint_every=3"]
 
 
 @pytest.fixture(scope="module")
-def tiny_run(tmp_path_factory):
+def tiny_run(tmp_path_factory, tiny_config):
     """A 3-step HCMT run on 2 generated `small` trajectories of 8 frames (real generator meta and design attrs)."""
     root = tmp_path_factory.mktemp("predict")
     assert cli(["generate", "impact-plate", str(root / "data"), "--preset", "small", "--train", "2", "--valid", "0",
                 "--test", "1", "--seed", "3", "--frames", str(FRAMES), "--no-progress"]) == 0
-    train(load_config("impact_plate_cpu", TINY), root / "data", "hcmt", root / "run", progress=False)
+    train(tiny_config("train.steps=3", "train.checkpoint_every=3"), root / "data", "hcmt", root / "run",
+          progress=False)
     return root / "run"
 
 

@@ -13,17 +13,18 @@ from hcmt.data.format import NodeType, open_split
 from hcmt.physics.adapters import get_adapter
 from hcmt.inference.evaluate import evaluate
 from hcmt.inference.run import Run
-from hcmt.config import load_config
 from hcmt.physics.trajectory import load_split
 from hcmt.inference.rollout import RolloutError, rollout
 from hcmt.inference.run import load_run
-from hcmt.training.trainer import train
+from hcmt.training import train
 
+from conftest import TINY
 from layouts import deforming_plate_tfrecord, ggns_pickles, sphere_simple_tfrecord, write_impact_like
 
-TINY = ["model.levels=1", "model.L_C=1", "model.hidden=16", "model.heads=2", "model.blocks=2",
-        "train.normalizer_steps=1", "train.log_every=1", "train.checkpoint_every=2", "train.valid_every=3",
-        "train.valid_trajectories=1", "train.lr=1e-3", "train.contact_radius=0.3"]
+# this file's runs: conftest's TINY, then these (MGN/GT at 2 blocks, a log line every step, a checkpoint every 2,
+# validation on one trajectory every 3, contact radius 0.3)
+EXTRA = ["model.blocks=2", "train.log_every=1", "train.checkpoint_every=2", "train.valid_every=3",
+         "train.valid_trajectories=1", "train.contact_radius=0.3"]
 
 
 @pytest.fixture(scope="module")
@@ -32,8 +33,8 @@ def impact(tmp_path_factory):
 
 
 @pytest.mark.parametrize("model", ["hcmt", "mgn", "gt"])
-def test_tiny_end_to_end(impact, tmp_path, model):
-    cfg = load_config("impact_plate_cpu", TINY + ["train.steps=4"])
+def test_tiny_end_to_end(impact, tmp_path, model, tiny_config):
+    cfg = tiny_config(*EXTRA, "train.steps=4")
     summary = train(cfg, impact, model, tmp_path / "run", seed=1, progress=False)
     assert summary["steps"] == 4 and np.isfinite(summary["final_loss"])
     for f in ("run.yaml", "checkpoint.pt", "best.pt", "log.jsonl", "train_stats.json"):
@@ -51,8 +52,8 @@ def test_tiny_end_to_end(impact, tmp_path, model):
     assert json.loads((tmp_path / "run" / "metrics_valid.json").read_text())["split"] == "valid"
 
 
-def test_rollout_imposes_boundary_conditions(impact, tmp_path):
-    cfg = load_config("impact_plate_cpu", TINY + ["train.steps=2"])
+def test_rollout_imposes_boundary_conditions(impact, tmp_path, tiny_config):
+    cfg = tiny_config(*EXTRA, "train.steps=2")
     train(cfg, impact, "mgn", tmp_path / "run", progress=False)
     model, info = load_run(tmp_path / "run")
     (traj,) = load_split(impact, "test", get_adapter("impact_plate"), 0)
@@ -65,8 +66,8 @@ def test_rollout_imposes_boundary_conditions(impact, tmp_path):
     assert not torch.equal(pred[2:, nt == NodeType.NORMAL], true[2:, nt == NodeType.NORMAL])
 
 
-def test_non_finite_guard_names_trajectory_and_step(impact, tmp_path):
-    cfg = load_config("impact_plate_cpu", TINY + ["train.steps=2"])
+def test_non_finite_guard_names_trajectory_and_step(impact, tmp_path, tiny_config):
+    cfg = tiny_config(*EXTRA, "train.steps=2")
     train(cfg, impact, "mgn", tmp_path / "run", progress=False)
     model, _ = load_run(tmp_path / "run")
     with torch.no_grad():
@@ -76,9 +77,9 @@ def test_non_finite_guard_names_trajectory_and_step(impact, tmp_path):
         rollout(model, get_adapter("impact_plate"), traj, 0.3)
 
 
-def test_resume_ends_with_the_same_parameters(impact, tmp_path):
+def test_resume_ends_with_the_same_parameters(impact, tmp_path, tiny_config):
     """Bit for bit on the CPU (CUDA: test_resume_on_cuda)."""
-    cfg = load_config("impact_plate_cpu", TINY + ["train.steps=6", "train.noise_std=0.01"])
+    cfg = tiny_config(*EXTRA, "train.steps=6", "train.noise_std=0.01")
     train(cfg, impact, "hcmt", tmp_path / "straight", seed=3, progress=False, device="cpu")
     train(cfg, impact, "hcmt", tmp_path / "resumed", seed=3, progress=False, stop_at=3, device="cpu")
     train(cfg, impact, "hcmt", tmp_path / "resumed", seed=3, progress=False, resume=True, device="cpu")
@@ -87,17 +88,17 @@ def test_resume_ends_with_the_same_parameters(impact, tmp_path):
     assert a["step"] == b["step"] == 6
     for k in a["model"]:
         assert torch.equal(a["model"][k], b["model"][k]), k
-    with pytest.raises(ValueError, match="--resume"):
+    with pytest.raises(ValueError, match="already holds a run; pass resume=True"):
         train(cfg, impact, "hcmt", tmp_path / "straight", seed=3, progress=False)
     with pytest.raises(ValueError, match=r"config\.train\.noise_std: 0\.01 \(run\) vs"):
-        train(load_config("impact_plate_cpu", TINY + ["train.steps=9"]), impact, "hcmt", tmp_path / "straight",
+        train(tiny_config(*EXTRA, "train.steps=9"), impact, "hcmt", tmp_path / "straight",
               seed=3, progress=False, resume=True)
 
 
 def test_two_process_ddp(impact, tmp_path):
     cmd = [sys.executable, "-m", "torch.distributed.run", "--nproc_per_node=2", "--master_port=29533", "-m", "hcmt",
            "train", "--config", "impact_plate_cpu", "--data", str(impact), "--model", "hcmt", "--steps", "3",
-           "--out", str(tmp_path / "ddp"), "--no-progress"] + sum((["--set", s] for s in TINY), [])
+           "--out", str(tmp_path / "ddp"), "--no-progress"] + sum((["--set", s] for s in TINY + EXTRA), [])
     r = subprocess.run(cmd, capture_output=True, text=True, timeout=300)
     assert r.returncode == 0, r.stderr[-3000:]
     stats = json.loads((tmp_path / "ddp" / "train_stats.json").read_text())
@@ -105,15 +106,15 @@ def test_two_process_ddp(impact, tmp_path):
 
 
 @pytest.mark.parametrize("kind", ["deforming_plate", "sphere_simple", "deformable_plate"])
-def test_adapters_on_official_layouts(tmp_path, kind):
+def test_adapters_on_official_layouts(tmp_path, kind, tiny_config):
     src = tmp_path / "src"
     {"deforming_plate": deforming_plate_tfrecord, "sphere_simple": sphere_simple_tfrecord,
      "deformable_plate": ggns_pickles}[kind](src)
     assert cli(["convert", str(src), str(tmp_path / "data")]) == 0
     radius = {"deforming_plate": 0.03, "sphere_simple": 0.05, "deformable_plate": 0.08}[kind]
     # the paper's excluded Deforming Plate trajectories 173 and 233 do not exist in a 2-trajectory file
-    cfg = load_config(f"{kind}_cpu", TINY + ["train.steps=2", f"train.contact_radius={radius}",
-                                              "data.exclude_trajectories=[]"])
+    cfg = tiny_config(*EXTRA, "train.steps=2", f"train.contact_radius={radius}", "data.exclude_trajectories=[]",
+                      base=f"{kind}_cpu")
     train(cfg, tmp_path / "data", "hcmt", tmp_path / "run", progress=False)
     m = evaluate(Run.load(tmp_path / "run", "cpu"), tmp_path / "data", "test")
     assert np.isfinite(m["position"]["rmse_all"])
@@ -132,7 +133,7 @@ def test_cli_train_rollout_evaluate_compare(impact, tmp_path, capsys):
     for model, seed in (("hcmt", 0), ("hcmt", 1), ("mgn", 0)):
         run = tmp_path / f"{model}{seed}"
         args = ["train", "--config", "impact_plate_cpu", "--data", str(impact), "--model", model, "--steps", "2",
-                "--seed", str(seed), "--out", str(run), "--no-progress"] + sum((["--set", s] for s in TINY), [])
+                "--seed", str(seed), "--out", str(run), "--no-progress"] + sum((["--set", s] for s in TINY + EXTRA), [])
         assert cli(args) == 0
         assert cli(["rollout", str(run), "--data", str(impact), "--split", "test"]) == 0
         assert (run / "rollout_test.h5").is_file()
@@ -150,9 +151,9 @@ def test_cli_train_rollout_evaluate_compare(impact, tmp_path, capsys):
     assert cli(["compare", str(tmp_path)]) == 2  # not a run: clear error
 
 
-def test_graph_batching_trains(impact, tmp_path):
+def test_graph_batching_trains(impact, tmp_path, tiny_config):
     """batch_size > 1 collates several frames (from different trajectories) into one disconnected graph."""
-    cfg = load_config("impact_plate_cpu", TINY + ["train.steps=2", "train.batch_size=2"])
+    cfg = tiny_config(*EXTRA, "train.steps=2", "train.batch_size=2")
     s = train(cfg, impact, "hcmt", tmp_path / "run", progress=False)
     assert s["steps"] == 2 and np.isfinite(s["final_loss"])
 
@@ -165,41 +166,41 @@ def test_learning_rate_decays_from_lr_to_lr_final():
     assert learning_rate(100, 100, 1e-4, 1e-6) == pytest.approx(1e-6)
 
 
-def test_evaluate_rolls_out_again_after_more_training(impact, tmp_path):
+def test_evaluate_rolls_out_again_after_more_training(impact, tmp_path, tiny_config):
     import h5py
 
-    cfg = load_config("impact_plate_cpu", TINY + ["train.steps=2"])
+    cfg = tiny_config(*EXTRA, "train.steps=2")
     train(cfg, impact, "mgn", tmp_path / "run", progress=False)
     evaluate(Run.load(tmp_path / "run", "cpu", "checkpoint"), impact, "test")
     with h5py.File(tmp_path / "run" / "rollout_test.h5") as f:
         assert f.attrs["checkpoint_step"] == 2
-    longer = load_config("impact_plate_cpu", TINY + ["train.steps=4"])  # resume may extend the schedule
+    longer = tiny_config(*EXTRA, "train.steps=4")  # resume may extend the schedule
     train(longer, impact, "mgn", tmp_path / "run", progress=False, resume=True)
     evaluate(Run.load(tmp_path / "run", "cpu", "checkpoint"), impact, "test")
     with h5py.File(tmp_path / "run" / "rollout_test.h5") as f:
         assert f.attrs["checkpoint_step"] == 4
 
 
-def test_dataset_without_the_adapters_fields_is_refused(tmp_path):
+def test_dataset_without_the_adapters_fields_is_refused(tmp_path, tiny_config):
     from hcmt.data.errors import DatasetError
 
     src = tmp_path / "src"
     sphere_simple_tfrecord(src)
     assert cli(["convert", str(src), str(tmp_path / "data")]) == 0
-    cfg = load_config("impact_plate_cpu", TINY + ["train.steps=1"])  # Impact Plate needs density, modulus, stress
+    cfg = tiny_config(*EXTRA, "train.steps=1")  # Impact Plate needs density, modulus, stress
     with pytest.raises(DatasetError, match=r"impact_plate adapter .* needs fields \['density', 'modulus', 'stress'\]"):
         train(cfg, tmp_path / "data", "mgn", tmp_path / "run", progress=False)
     with pytest.raises(ValueError, match="out of range"):
-        train(load_config("sphere_simple_cpu", TINY + ["train.steps=1", "data.exclude_trajectories=[5]"]),
+        train(tiny_config(*EXTRA, "train.steps=1", "data.exclude_trajectories=[5]", base="sphere_simple_cpu"),
               tmp_path / "data", "mgn", tmp_path / "run2", progress=False)
 
 
-def test_error_curves_roll_out_the_trajectories_an_old_rollout_lacks(tmp_path):
+def test_error_curves_roll_out_the_trajectories_an_old_rollout_lacks(tmp_path, tiny_config):
     from hcmt.inference.evaluate import run_rollouts
     from hcmt.viz.curves import rollout_errors
 
     data = write_impact_like(tmp_path / "data", n_test=2)
-    train(load_config("impact_plate_cpu", TINY + ["train.steps=1"]), data, "mgn", tmp_path / "run", progress=False)
+    train(tiny_config(*EXTRA, "train.steps=1"), data, "mgn", tmp_path / "run", progress=False)
     run = Run.load(tmp_path / "run", "cpu")
     run_rollouts(run, data, "test", limit=1)
     errors = rollout_errors([run], data, "test")
@@ -258,7 +259,8 @@ def test_interrupted_training_saves_and_says_how_to_resume(impact, tmp_path):
 
     run = tmp_path / "run"
     cmd = [sys.executable, "-m", "hcmt", "train", "--config", "impact_plate_cpu", "--data", str(impact), "--model",
-           "mgn", "--out", str(run), "--no-progress", "--steps", "400"] + [a for t in TINY for a in ("--set", t)]
+           "mgn", "--out", str(run), "--no-progress", "--steps", "400"]
+    cmd += [a for t in TINY + EXTRA for a in ("--set", t)]
     proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
                             env={**os.environ, "OMP_NUM_THREADS": "1"})
     deadline = time.time() + 120
@@ -273,14 +275,14 @@ def test_interrupted_training_saves_and_says_how_to_resume(impact, tmp_path):
     saved = torch.load(run / "checkpoint.pt", weights_only=True)["step"]
     assert 0 < saved < 400 and f"step {saved} of 400" in lines[0]
     assert cli(["train", "--config", "impact_plate_cpu", "--data", str(impact), "--model", "mgn", "--out", str(run),
-                "--no-progress", "--steps", "400", "--resume"] + [a for t in TINY for a in ("--set", t)]) == 0
+                "--no-progress", "--steps", "400", "--resume"] + [a for t in TINY + EXTRA for a in ("--set", t)]) == 0
     assert torch.load(run / "checkpoint.pt", weights_only=True)["step"] == 400
 
 
-def test_batched_rollout_equals_one_by_one(impact, tmp_path):
+def test_batched_rollout_equals_one_by_one(impact, tmp_path, tiny_config):
     import h5py
 
-    cfg = load_config("impact_plate_cpu", TINY + ["train.steps=2"])
+    cfg = tiny_config(*EXTRA, "train.steps=2")
     train(cfg, impact, "hcmt", tmp_path / "run", progress=False)
     assert cli(["rollout", str(tmp_path / "run"), "--data", str(impact), "--split", "train", "--batch", "2"]) == 0
     with h5py.File(tmp_path / "run" / "rollout_train.h5") as f:
@@ -292,12 +294,12 @@ def test_batched_rollout_equals_one_by_one(impact, tmp_path):
             np.testing.assert_allclose(batched[k], f[k]["world_pos"][()], rtol=0, atol=1e-5)
 
 
-def test_compiled_padded_rollout_equals_plain(impact, tmp_path, monkeypatch):
+def test_compiled_padded_rollout_equals_plain(impact, tmp_path, monkeypatch, tiny_config):
     """--compile rolls out on padded graphs through torch.compile (eager backend here: Dynamo traces, nothing is
     built); the trajectories equal the plain rollout's."""
     import h5py
 
-    cfg = load_config("impact_plate_cpu", TINY + ["train.steps=2"])
+    cfg = tiny_config(*EXTRA, "train.steps=2")
     train(cfg, impact, "gt", tmp_path / "run", progress=False, device="cpu")
     compile_ = torch.compile
     monkeypatch.setattr(torch, "compile", lambda model, **kw: compile_(model, backend="eager", dynamic=False))
@@ -312,8 +314,8 @@ def test_compiled_padded_rollout_equals_plain(impact, tmp_path, monkeypatch):
         np.testing.assert_allclose(out["default"][k], out["none"][k], rtol=0, atol=1e-5)
 
 
-def test_unknown_or_unavailable_device_is_one_line(impact, tmp_path, capsys):
-    cfg = load_config("impact_plate_cpu", TINY + ["train.steps=1"])
+def test_unknown_or_unavailable_device_is_one_line(impact, tmp_path, capsys, tiny_config):
+    cfg = tiny_config(*EXTRA, "train.steps=1")
     train(cfg, impact, "mgn", tmp_path / "run", progress=False)
     run, data, out = str(tmp_path / "run"), str(impact), str(tmp_path / "out")
     for device in ("tpu", "cuda:7" if torch.cuda.is_available() else "cuda"):
@@ -332,7 +334,7 @@ def test_run_folder_rules(impact, tmp_path, capsys):
     writer, nothing left behind by a run that fails before its first checkpoint."""
     run = tmp_path / "run"
     base = ["train", "--config", "impact_plate_cpu", "--data", str(impact), "--model", "mgn", "--out", str(run),
-            "--no-progress"] + [a for t in TINY for a in ("--set", t)]
+            "--no-progress"] + [a for t in TINY + EXTRA for a in ("--set", t)]
     assert cli(base + ["--steps", "3"]) == 0
     assert cli(["train", "--resume", "--out", str(run), "--steps", "5", "--no-progress"]) == 0
     assert torch.load(run / "checkpoint.pt", weights_only=True)["step"] == 5
@@ -354,20 +356,19 @@ def test_run_folder_rules(impact, tmp_path, capsys):
     assert not bad.exists()
 
 
-def test_bf16_and_checkpointed_blocks_train(impact, tmp_path):
-    cfg = load_config("impact_plate_cpu", TINY + ["train.steps=2", "train.precision=bf16",
-                                                  "train.checkpoint_blocks=true"])
+def test_bf16_and_checkpointed_blocks_train(impact, tmp_path, tiny_config):
+    cfg = tiny_config(*EXTRA, "train.steps=2", "train.precision=bf16", "train.checkpoint_blocks=true")
     s = train(cfg, impact, "hcmt", tmp_path / "run", progress=False)
     assert s["steps"] == 2 and np.isfinite(s["final_loss"])
 
 
-def test_dataloader_workers_change_no_result(impact, tmp_path):
+def test_dataloader_workers_change_no_result(impact, tmp_path, tiny_config):
     """train.workers builds graphs in DataLoader processes; the parameters end bit for bit as with 0 workers
     (noise and data order are functions of the step, not of the process)."""
     params = []
     for workers in (0, 2):
-        cfg = load_config("impact_plate_cpu", TINY + ["train.steps=4", "train.noise_std=0.01", "train.batch_size=2",
-                                                      f"train.workers={workers}"])
+        cfg = tiny_config(*EXTRA, "train.steps=4", "train.noise_std=0.01", "train.batch_size=2",
+                          f"train.workers={workers}")
         train(cfg, impact, "hcmt", tmp_path / f"w{workers}", seed=2, progress=False)
         params.append(torch.load(tmp_path / f"w{workers}" / "checkpoint.pt", weights_only=True)["model"])
     assert all(torch.equal(params[0][k], params[1][k]) for k in params[0])
@@ -386,7 +387,7 @@ def test_frame_dataset_pickles_without_its_trajectories(impact):
     assert torch.equal(target, t2) and torch.equal(graph.node_features, g2.node_features) and len(ds) == len(clone)
 
 
-def test_compiled_padded_training_matches_eager(impact, tmp_path, monkeypatch):
+def test_compiled_padded_training_matches_eager(impact, tmp_path, monkeypatch, tiny_config):
     """train.compile trains on padded graphs through torch.compile; the parameters end as the eager run's.
     torch.compile runs with the eager backend here (Dynamo traces the model, no C++/Triton build: seconds, not
     minutes), which checks the padding, the eager normalizer accumulation and the tracing."""
@@ -396,8 +397,8 @@ def test_compiled_padded_training_matches_eager(impact, tmp_path, monkeypatch):
                                                                                        dynamic=False))
     params = {}
     for mode in ("none", "reduce-overhead"):
-        cfg = load_config("impact_plate_cpu", TINY + ["train.steps=5", "train.noise_std=0.01", "train.batch_size=2",
-                                                      f"train.compile={mode}"])
+        cfg = tiny_config(*EXTRA, "train.steps=5", "train.noise_std=0.01", "train.batch_size=2",
+                          f"train.compile={mode}")
         train(cfg, impact, "hcmt", tmp_path / mode, seed=2, progress=False, device="cpu")
         params[mode] = torch.load(tmp_path / mode / "checkpoint.pt", weights_only=True)["model"]
     assert calls == [{"mode": "reduce-overhead", "dynamic": False}]
@@ -409,8 +410,8 @@ def test_compiled_padded_training_matches_eager(impact, tmp_path, monkeypatch):
     assert moved  # the normalizers did accumulate (the comparison covers their statistics)
 
 
-def test_compile_refuses_lpe_and_deterministic_is_scoped(impact, tmp_path):
-    cfg = load_config("impact_plate_cpu", TINY + ["train.steps=1", "train.compile=default"])
+def test_compile_refuses_lpe_and_deterministic_is_scoped(impact, tmp_path, tiny_config):
+    cfg = tiny_config(*EXTRA, "train.steps=1", "train.compile=default")
     with pytest.raises(ValueError, match="lpe ablation"):
         train(cfg, impact, "hcmt", tmp_path / "lpe", ablation="lpe", progress=False, device="cpu")
     seen = []
@@ -418,7 +419,7 @@ def test_compile_refuses_lpe_and_deterministic_is_scoped(impact, tmp_path):
 
     step = tr.Trainer.step
     tr_step = lambda self, *a: seen.append(torch.are_deterministic_algorithms_enabled()) or step(self, *a)  # noqa
-    cfg = load_config("impact_plate_cpu", TINY + ["train.steps=2", "train.deterministic=true"])
+    cfg = tiny_config(*EXTRA, "train.steps=2", "train.deterministic=true")
     try:
         tr.Trainer.step = tr_step
         train(cfg, impact, "hcmt", tmp_path / "det", progress=False, device="cpu")
@@ -429,11 +430,11 @@ def test_compile_refuses_lpe_and_deterministic_is_scoped(impact, tmp_path):
 
 @pytest.mark.skipif(not torch.cuda.is_available(), reason="needs a CUDA GPU")
 @pytest.mark.parametrize("deterministic", [True, False])
-def test_resume_on_cuda(impact, tmp_path, deterministic):
+def test_resume_on_cuda(impact, tmp_path, deterministic, tiny_config):
     """On CUDA, scatter sums are not reproducible by default: a resumed run matches within a tolerance;
     with train.deterministic it matches bit for bit."""
-    cfg = load_config("impact_plate_cpu", TINY + ["train.steps=6", "train.noise_std=0.01",
-                                                  f"train.deterministic={str(deterministic).lower()}"])
+    cfg = tiny_config(*EXTRA, "train.steps=6", "train.noise_std=0.01",
+                      f"train.deterministic={str(deterministic).lower()}")
     train(cfg, impact, "hcmt", tmp_path / "straight", seed=3, progress=False, device="cuda")
     train(cfg, impact, "hcmt", tmp_path / "resumed", seed=3, progress=False, device="cuda", stop_at=3)
     train(cfg, impact, "hcmt", tmp_path / "resumed", seed=3, progress=False, device="cuda", resume=True)

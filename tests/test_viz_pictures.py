@@ -4,7 +4,6 @@ import json
 
 import numpy as np
 import pytest
-import scipy.sparse as sp
 from PIL import Image
 
 from hcmt.cli import main as cli
@@ -12,8 +11,7 @@ from hcmt.inference.run import Run, RunFolder
 from hcmt.data.format import read_meta
 from hcmt.graph.contact import object_ids
 from hcmt.graph.hierarchy import build_hierarchy
-from hcmt.config import load_config
-from hcmt.training.trainer import train
+from hcmt.training import train
 from hcmt.viz.animation import animate, animation_frames
 from hcmt.viz.attention import attention_matrix, frame_attention, object_order, plot_attention
 from hcmt.viz.contours import contour_figure
@@ -25,10 +23,6 @@ from hcmt.viz.rollouts import Series, load_case
 from layouts import impact_like
 from viz_runs import SHIFT, STRESS_OFFSET, fake_run, impact_dataset
 
-TINY = ["model.levels=1", "model.L_C=1", "model.hidden=16", "model.heads=2", "model.blocks=2",
-        "train.normalizer_steps=1", "train.log_every=1", "train.checkpoint_every=2", "train.valid_every=2",
-        "train.valid_trajectories=1", "train.lr=1e-3", "train.contact_radius=0.3", "train.steps=2"]
-
 
 @pytest.fixture(scope="module")
 def data(tmp_path_factory):
@@ -36,9 +30,11 @@ def data(tmp_path_factory):
 
 
 @pytest.fixture(scope="module")
-def hcmt_run(data, tmp_path_factory):
+def hcmt_run(data, tmp_path_factory, tiny_config):
     run = tmp_path_factory.mktemp("runs") / "hcmt"
-    train(load_config("impact_plate_cpu", TINY), data, "hcmt", run, seed=0, progress=False)
+    cfg = tiny_config("model.blocks=2", "train.log_every=1", "train.checkpoint_every=2", "train.valid_every=2",
+                      "train.valid_trajectories=1", "train.contact_radius=0.3", "train.steps=2")
+    train(cfg, data, "hcmt", run, seed=0, progress=False)
     return run
 
 

@@ -23,7 +23,7 @@ from hcmt.design import predict as pr
 from hcmt.inference.evaluate import evaluate, format_metrics
 from hcmt.inference.run import Run
 from hcmt.sim.generate import generate_dataset
-from hcmt.training.trainer import train
+from hcmt.training import train
 
 #: three designs inside the shipped model's training ranges, chosen by hand (not sampled from its data)
 DEMO_DESIGNS = [{"thickness": 0.6, "drop_height": 600.0}, {"thickness": 0.8, "drop_height": 850.0},

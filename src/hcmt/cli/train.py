@@ -12,7 +12,7 @@ from hcmt.data.format import atomic_path
 from hcmt.inference.evaluate import check_options, compare, evaluate, format_compare, format_metrics, run_rollouts
 from hcmt.inference.run import Run, RunFolder, dataset_warnings
 from hcmt.models import ABLATIONS, MODELS
-from hcmt.training.trainer import train
+from hcmt.training import train
 
 
 # -- train ---------------------------------------------------------------------------------------------------------
@@ -35,6 +35,8 @@ def configure_train(p: argparse.ArgumentParser) -> None:
 def main_train(args: argparse.Namespace) -> int:
     overrides = list(args.set) + ([f"train.steps={args.steps}"] if args.steps is not None else [])
     folder = RunFolder(args.out, must_exist=False)
+    if not args.resume and (folder.info is not None or folder.checkpoint("checkpoint").is_file()):
+        raise ValueError(f"{args.out} already holds a run; pass --resume to continue it or choose another --out")
     if args.resume and folder.info is not None and not args.config:  # resume with the run's saved settings
         saved = folder.info
         cfg = complete_config(apply_overrides(saved["config"], overrides))  # the one --set path

@@ -13,6 +13,7 @@ trajectories), "card" (how it was made)}``; it loads with ``torch.load(weights_o
 from __future__ import annotations
 
 import json
+import math
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -76,6 +77,12 @@ class RunFolder:
 
     def train_stats(self) -> dict | None:
         return json.loads(self.stats_path.read_text()) if self.stats_path.is_file() else None
+
+    def write_stats(self, summary: dict) -> None:
+        """``train_stats.json`` (standard JSON: non-finite numbers become null), atomically."""
+        with atomic_path(self.stats_path) as tmp:
+            tmp.write_text(json.dumps({k: (None if isinstance(v, float) and not math.isfinite(v) else v)
+                                       for k, v in summary.items()}, indent=2))
 
     def write_info(self, info: dict) -> None:
         with atomic_path(self.run_yaml) as tmp:

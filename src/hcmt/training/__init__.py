@@ -1,22 +1,30 @@
 """Training: the frames of a split as a ``Dataset`` (:mod:`~hcmt.training.dataset`), the loop
-(:mod:`~hcmt.training.trainer`), its schedule and its process plumbing (:mod:`~hcmt.training.runtime`), and
-:func:`train`, the API entry (``hcmt.train``)."""
+(:class:`~hcmt.training.trainer.Trainer`), its schedule and its process plumbing (:mod:`~hcmt.training.runtime`),
+and :func:`train`, the one entry (``hcmt.train``, ``hcmt train``)."""
 from __future__ import annotations
 
+import os
 import shutil
 from pathlib import Path
 
 from hcmt.config import load_config
-from hcmt.training.trainer import train as run_training
+from hcmt.training.runtime import deterministic_scope, lock_run
+from hcmt.training.trainer import Trainer
 
 
 def train(config, data, model: str, out, *, overrides=None, resume: bool = False, overwrite: bool = False,
-          **options):
-    """Train ``model`` (``hcmt``, ``mgn``, ``gt``) on the native dataset ``data`` into the run folder ``out``.
+          ablation: str | None = None, seed: int = 0, device: str | None = None, progress: bool = True,
+          stop_at: int | None = None) -> dict:
+    """Train ``model`` (``hcmt``, ``mgn``, ``gt``) on the native dataset ``data`` into the run folder ``out``;
+    returns the training summary (final loss, steps, ms per step, best validation metric); :meth:`hcmt.Run.load`
+    (``out``) gives the trained model.
+
     ``config`` is a config dict, a built-in config name or a YAML path; ``overrides`` a list of
-    ``section.key=value``; ``resume=True`` continues the run in ``out``, ``overwrite=True`` deletes it and starts
-    afresh (otherwise a folder holding a run is refused); ``options``: ``ablation``, ``seed``, ``device``,
-    ``progress``. Returns the training summary; :meth:`hcmt.Run.load` (``out``) gives the trained model."""
+    ``section.key=value``; ``resume=True`` continues the run in ``out`` exactly, ``overwrite=True`` deletes it and
+    starts afresh (otherwise a folder holding a run is refused). ``stop_at`` ends this call after that global step
+    (checkpointed), as an interruption would. The run folder is locked while training (a second process writing
+    the same ``out`` is refused at once), and a run that fails before its first checkpoint leaves nothing
+    behind."""
     if resume and overwrite:
         raise ValueError("hcmt.train: resume=True and overwrite=True contradict each other; choose one")
     out = Path(out)
@@ -27,7 +35,29 @@ def train(config, data, model: str, out, *, overrides=None, resume: bool = False
                              "overwrite=True to delete it and start afresh, or another out folder")
         shutil.rmtree(out)
     cfg = config if isinstance(config, dict) else load_config(str(config), overrides)
-    return run_training(cfg, data, model, out, resume=resume, **options)
+
+    def run() -> dict:
+        with deterministic_scope():  # train.deterministic holds for this run only
+            return Trainer(cfg, data, model, out, ablation=ablation, seed=seed, resume=resume, device=device,
+                           progress=progress).run(stop_at)
+
+    if int(os.environ.get("RANK", 0)) != 0:  # torchrun's other ranks: rank 0 owns the folder
+        return run()
+    created = not out.exists()
+    out.mkdir(parents=True, exist_ok=True)
+    lock = lock_run(out)
+    try:
+        return run()
+    except BaseException:
+        if not (out / "checkpoint.pt").is_file():  # nothing worth keeping: leave no run folder behind
+            if created:
+                lock.unlink(missing_ok=True)
+                shutil.rmtree(out, ignore_errors=True)
+            elif not resume:
+                (out / "run.yaml").unlink(missing_ok=True)
+        raise
+    finally:
+        lock.unlink(missing_ok=True)
 
 
-__all__ = ["train"]
+__all__ = ["Trainer", "train"]

@@ -9,6 +9,8 @@ item ``i`` is training frame ``i`` (``frames[i] = (trajectory, t)``), with noise
 """
 from __future__ import annotations
 
+import functools
+import signal
 from pathlib import Path
 
 import numpy as np
@@ -144,3 +146,21 @@ class StepSampler(Sampler):
             picks = perm[first:first + self.batch]
             sizes = [self.dataset.num_nodes(i) for i in picks]
             yield [(int(i), step, self.rank, tuple(sizes[:k])) for k, i in enumerate(picks)]
+
+
+def step_loader(frames: FrameDataset, sampler: StepSampler, pad: PadSizes | None = None, workers: int = 0,
+                pushforward=None):
+    """An iterator over the training steps' batches ``(graph, target, mask)``: built by ``DataLoader`` workers
+    (``workers``; 0: in this process) in step order, padded to ``pad`` when given (``train.compile``). With
+    ``pushforward`` (``key -> item``: the item needs the model) the batches are built in this process, each just
+    before its step."""
+    collate = collate_samples if pad is None else functools.partial(collate_padded, sizes=pad)
+    if pushforward is not None:
+        return (collate([pushforward(key) for key in keys]) for keys in sampler)
+    return iter(torch.utils.data.DataLoader(frames, batch_sampler=sampler, collate_fn=collate, num_workers=workers,
+                                            worker_init_fn=_ignore_sigint if workers else None))
+
+
+def _ignore_sigint(worker_id: int) -> None:
+    """DataLoader workers leave Ctrl-C to the training process, which finishes the step and saves."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)

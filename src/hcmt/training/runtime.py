@@ -2,6 +2,7 @@
 rank-zero logging, and the exact-resume check."""
 from __future__ import annotations
 
+import contextlib
 import io
 import logging
 import math
@@ -93,11 +94,6 @@ def distributed() -> tuple[int, int]:
     return 0, 1
 
 
-def ignore_sigint(worker_id: int) -> None:
-    """DataLoader workers leave Ctrl-C to the training process, which finishes the step and saves."""
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
-
-
 def lock_run(out: Path) -> Path:
     """``RUN/.lock`` holding our pid (:func:`hcmt.data.format.take_lock`); a second writer is refused."""
     lock = out / ".lock"
@@ -129,3 +125,15 @@ def stop_together(world: int, device: torch.device, loss: float, interrupted: bo
     flag = torch.tensor([0.0 if math.isfinite(loss) else 1.0, float(interrupted)], device=device)
     dist.all_reduce(flag)
     return flag[0].item() == 0, flag[1].item() > 0
+
+
+@contextlib.contextmanager
+def deterministic_scope():
+    """Restore torch's deterministic-algorithm and cuDNN settings on exit (``train.deterministic`` is per run)."""
+    saved = (torch.are_deterministic_algorithms_enabled(), torch.is_deterministic_algorithms_warn_only_enabled(),
+             torch.backends.cudnn.benchmark)
+    try:
+        yield
+    finally:
+        torch.use_deterministic_algorithms(saved[0], warn_only=saved[1])
+        torch.backends.cudnn.benchmark = saved[2]

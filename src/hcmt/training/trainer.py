@@ -29,12 +29,10 @@ cuBLAS setting is read when CUDA is first used, so in a process that used CUDA b
 """
 from __future__ import annotations
 
-import functools
 import json
 import logging
 import math
 import os
-import shutil
 import sys
 import time
 from pathlib import Path
@@ -54,43 +52,12 @@ from hcmt.models.base import compile_simulator
 from hcmt.physics.adapters import config_adapter, model_args, noise_gamma
 from hcmt.physics.frames import step_seed
 from hcmt.physics.trajectory import load_split
-from hcmt.training.dataset import FrameDataset, StepSampler, collate_padded, collate_samples, pad_sizes
-from hcmt.training.runtime import (InterruptFlag, TrainingInterrupted, check_resume, distributed, ignore_sigint,
-                                   lock_run, rank_zero_logging, save_atomic, stop_together)
+from hcmt.training.dataset import FrameDataset, StepSampler, pad_sizes, step_loader
+from hcmt.training.runtime import (InterruptFlag, TrainingInterrupted, check_resume, distributed, rank_zero_logging,
+                                   save_atomic, stop_together)
 from hcmt.training.schedule import keras_epsilon, learning_rate
 
 logger = logging.getLogger("hcmt.train")  # rank-zero messages (hcmt.training.trainer.rank_zero_logging)
-
-
-def train(cfg: dict, data: str | Path, model_name: str, out: str | Path, *, ablation: str | None = None,
-          seed: int = 0, resume: bool = False, device: str | None = None, progress: bool = True,
-          stop_at: int | None = None) -> dict:
-    """Train one model; returns a summary (final loss, steps, ms per step, best validation metric).
-
-    ``stop_at`` ends this call after that global step (checkpointed), as an interruption would; ``resume=True``
-    then continues the same schedule. The run folder is locked while training (a second process writing the same
-    ``out`` is refused at once), and a run that fails before its first checkpoint leaves nothing behind."""
-    out = Path(out)
-    rank = int(os.environ.get("RANK", 0))
-    created = not out.exists()
-    if rank != 0:
-        return _train(cfg, data, model_name, out, ablation=ablation, seed=seed, resume=resume, device=device,
-                      progress=progress, stop_at=stop_at)
-    out.mkdir(parents=True, exist_ok=True)
-    lock = lock_run(out)
-    try:
-        return _train(cfg, data, model_name, out, ablation=ablation, seed=seed, resume=resume, device=device,
-                      progress=progress, stop_at=stop_at)
-    except BaseException:
-        if not (out / "checkpoint.pt").is_file():  # nothing worth keeping: leave no run folder behind
-            if created:
-                lock.unlink(missing_ok=True)
-                shutil.rmtree(out, ignore_errors=True)
-            elif not resume:
-                (out / "run.yaml").unlink(missing_ok=True)
-        raise
-    finally:
-        lock.unlink(missing_ok=True)
 
 
 class Trainer:
@@ -275,14 +242,9 @@ class Trainer:
         workers = int(tc["workers"])
         sampler = StepSampler(self.frames, int(tc["batch_size"]), self.seed, self.step_count, end, self.world,
                               rank)
-        collate = collate_samples if self.pad is None else functools.partial(collate_padded, sizes=self.pad)
-        if self.pushforward > 0:  # items need the model: built in this process, each just before its step
-            loader = (collate([self.frames.pushforward_item(key, self.model, self._pushforward_probability())
-                               for key in keys]) for keys in sampler)
-        else:  # graphs are built by DataLoader workers (train.workers; 0: in this process), in step order
-            loader = iter(torch.utils.data.DataLoader(
-                self.frames, batch_sampler=sampler, collate_fn=collate, num_workers=workers,
-                worker_init_fn=ignore_sigint if workers else None))
+        pushforward = (lambda key: self.frames.pushforward_item(key, self.model, self._pushforward_probability())
+                       ) if self.pushforward > 0 else None
+        loader = step_loader(self.frames, sampler, self.pad, workers, pushforward)
         times, loss = [], float("nan")
         interrupted = InterruptFlag()  # Ctrl-C / SIGTERM end the current step, then save and stop
         self.model.train()
@@ -331,24 +293,9 @@ class Trainer:
         if self.rank == 0 and self.step_count == self.steps:
             if not (self.out / "best.pt").is_file():
                 self.save(self.out / "best.pt")
-            with atomic_path(self.out / "train_stats.json") as tmp:  # standard JSON: non-finite numbers -> null
-                tmp.write_text(json.dumps({k: (None if isinstance(v, float) and not math.isfinite(v) else v)
-                                           for k, v in summary.items()}, indent=2))
+            self.folder.write_stats(summary)
             logger.info("%s: finished %d steps, %.1f ms per step", self.out, self.step_count,
                         summary["train_ms_per_step"] or float("nan"))
         if self.world > 1:
             dist.barrier()
         return summary
-
-
-def _train(cfg: dict, data: str | Path, model_name: str, out: Path, *, ablation: str | None, seed: int,
-           resume: bool, device: str | None, progress: bool, stop_at: int | None) -> dict:
-    deterministic = (torch.are_deterministic_algorithms_enabled(),
-                     torch.is_deterministic_algorithms_warn_only_enabled(), torch.backends.cudnn.benchmark)
-    try:
-        trainer = Trainer(cfg, data, model_name, out, ablation=ablation, seed=seed, resume=resume, device=device,
-                          progress=progress)
-        return trainer.run(stop_at)
-    finally:  # train.deterministic holds for this run only
-        torch.use_deterministic_algorithms(deterministic[0], warn_only=deterministic[1])
-        torch.backends.cudnn.benchmark = deterministic[2]

@@ -9,6 +9,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from hcmt.config import ModelConfig
+
 from .attention import MODES as ATTENTION_MODES, check_mode
 from .base import Simulator, resolve_device
 from .gt import GT
@@ -37,10 +39,13 @@ REGISTRY: dict[str, ModelInfo] = {
 MODELS = tuple(REGISTRY)
 
 
+_M = ModelConfig  # the schema's defaults are the defaults (hcmt.config)
+
+
 def build_model(name: str, node_in: int, mesh_in: int, contact_in: int, out: int, *, ablation: str | None = None,
-                levels: int | None = None, L_C: int | None = None, L_H: int | None = None, hidden: int = 128,
-                heads: int = 4, clip: float = 2.0, blocks: int = 15, lpe_k: int = 8, attention: str = "paper",
-                ffn_bias: bool = True) -> Simulator:
+                levels: int | None = None, L_C: int | None = None, L_H: int | None = _M.L_H, hidden: int = _M.hidden,
+                heads: int = _M.heads, clip: float = _M.clip, blocks: int = _M.blocks, lpe_k: int = 8,
+                attention: str = _M.attention, ffn_bias: bool = _M.ffn_bias) -> Simulator:
     """HCMT needs ``levels`` (λ) and ``L_C``; ``L_H`` is optional and must equal ``2λ + 1``.
     MGN and GT use ``blocks``; GT and HCMT use ``heads`` and ``clip``; ``attention`` (``paper`` | ``official``)
     and ``ffn_bias`` are HCMT's (the authors' code: ``official``, no FFN bias)."""

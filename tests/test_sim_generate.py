@@ -234,3 +234,43 @@ def test_interrupted_generate_is_one_line_and_keeps_finished_work(tmp_path, monk
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "finished trajectories are kept" in err[0] and "hcmt generate" in err[0]
     assert [p.name for p in (out / ".parts" / "train").glob("*.h5")] == ["00000.h5"]
+
+
+def test_peak_stress_is_the_largest_stress_between_frames():
+    """stress_max at a coarse interval equals the maximum over the substeps of a run that records every substep
+    (same substep: the coarse frame holds n substeps, the fine run one), and is never below the frame's stress."""
+    from hcmt.sim.scene import plan
+
+    d = Design(thickness=0.6, drop_height=900.0, mesh_size=0.6, plate_half_length=8.0, ball_radius=3.0)
+    coarse = Settings(frames=6, frame_dt=0.008, peak_stress=True)
+    n = plan(d, coarse)["substeps"] // (coarse.frames - 1)  # substeps per coarse frame
+    fine = simulate(d, Settings(frames=(coarse.frames - 1) * n + 1, frame_dt=coarse.frame_dt / n))
+    assert fine["info"]["substeps"] == (coarse.frames - 1) * n  # one substep per fine frame
+    r = simulate(d, coarse)
+    got, stress = r["fields"]["stress_max"][..., 0], r["fields"]["stress"][..., 0]
+    want = fine["fields"]["stress"][..., 0]
+    np.testing.assert_allclose(stress, want[::n], rtol=1e-5, atol=1e-4)  # the same trajectory
+    for k in range(1, coarse.frames):
+        np.testing.assert_allclose(got[k], want[(k - 1) * n + 1:k * n + 1].max(0), rtol=1e-5, atol=1e-4)
+    assert (got >= stress - 1e-4).all() and got.max() > stress.max()  # a coarse frame steps over the true peak
+
+
+def test_generate_peak_stress_writes_the_field_and_a_model_trains_on_it(tmp_path, tiny_config):
+    from hcmt.inference.evaluate import evaluate
+    from hcmt.inference.run import Run
+    from hcmt.training import train
+
+    out = tmp_path / "ip"
+    assert main(["generate", "impact-plate", str(out), "--preset", "small", "--train", "1", "--valid", "1",
+                 "--test", "1", "--frames", "5", "--frame-dt", "0.004", "--peak-stress", "--no-progress"]) == 0
+    with open_split(out, "test") as s:
+        t = s[0]
+        assert t["stress_max"].shape == t["stress"].shape and (t["stress_max"] >= t["stress"] - 1e-4).all()
+    cfg = tiny_config("train.steps=2", "data.stress_field=stress_max")
+    train(cfg, out, "mgn", tmp_path / "run", progress=False)
+    run = Run.load(tmp_path / "run", "cpu")
+    assert run.adapter.stress_field == "stress_max"
+    m = evaluate(run, out, "test", progress=False)
+    assert np.isfinite(m["stress"]["rmse_all"])
+    with pytest.raises(ValueError, match="data.stress_field: unknown value 'peak'"):
+        tiny_config("data.stress_field=peak")

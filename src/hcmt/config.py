@@ -150,6 +150,7 @@ class DataConfig:
     """``data:``."""
 
     exclude_trajectories: Optional[list] = None  # trajectory indices of the train split to leave out
+    stress_field: str = _choice("stress", "stress", "stress_max")  # stress_max: `generate --peak-stress`
 
 
 SECTIONS = {"model": ModelConfig, "train": TrainConfig, "data": DataConfig}

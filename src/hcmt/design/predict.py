@@ -154,7 +154,7 @@ def design_trajectory(run, name: str, design: Design, settings: Settings):
     f = dict(start["fields"])
     x = f["world_pos"]
     f["world_pos"] = np.concatenate([x, np.repeat(x[:1], settings.frames - 2, axis=0)])
-    f["stress"] = np.zeros((settings.frames, x.shape[1], 1), np.float32)
+    f["stress"] = f[run.adapter.stress_field] = np.zeros((settings.frames, x.shape[1], 1), np.float32)
     levels, remesh = run.hierarchy_spec
     return prepare_trajectory(f, name, run.adapter, levels, remesh, attrs=start["attrs"]), f
 
@@ -245,18 +245,20 @@ def check_designs(run, designs: list[tuple[str, Design]], *, batch: int = 8, ver
     add_margin(preds, yield_mpa)
     truth = verified = None
     if verify:
-        truth = solve(designs, settings)
+        field = run.adapter.stress_field  # stress_max: the solver records it as the model learned it
+        truth = solve(designs, replace(settings, peak_stress=True) if field == "stress_max" else settings, field)
         verified = verify_designs(preds, truth)
     return Check(preds, truth, verified, settings, wall)
 
 
-def solve(designs: list[tuple[str, Design]], settings: Settings) -> list[Prediction]:
-    """The built-in FEM solver on the same designs (the reference for :func:`verify`)."""
+def solve(designs: list[tuple[str, Design]], settings: Settings, stress_field: str = "stress") -> list[Prediction]:
+    """The built-in FEM solver on the same designs (the reference for :func:`verify`); ``stress_field``: the field
+    the model learned (``stress_max``: the largest stress between frames)."""
     out = []
     for name, design in designs:
         r = simulate(design, settings)
         f = r["fields"]
-        p = Prediction(name, design, f["world_pos"], f["stress"], f["mesh_pos"], f["cells"],
+        p = Prediction(name, design, f["world_pos"], f[stress_field], f["mesh_pos"], f["cells"],
                        f["node_type"].reshape(-1), r["info"]["wall_time"])
         p.summary = summarize(p, settings.frame_dt)
         out.append(p)

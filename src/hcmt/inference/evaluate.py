@@ -134,6 +134,8 @@ def evaluate(run: Run, data, split: str = "test", *, limit: int | None = None, b
         index = {n: i for i, n in enumerate(s.names)}
         for name in s.names[:limit]:  # the first `limit` trajectories (all when None), however many the file holds
             truth = s[index[name]]
+            if run.adapter.stress_field in truth:  # the field the model learned (data.stress_field)
+                truth["stress"] = truth[run.adapter.stress_field]
             g = f[name]
             start = int(g.attrs["start"])
             row = {"trajectory": name}

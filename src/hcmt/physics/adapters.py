@@ -47,6 +47,7 @@ class Adapter:
     self_contact: bool
     contact_types: tuple[tuple[int, int], ...] | None  # allowed (type, type) contact pairs; None: any two objects
     deformation: bool = False  # model.deformation: edge deformation x_ij − u_ij among the edge features
+    stress_field: str = "stress"  # data.stress_field: the dataset field the stress output learns and is judged on
 
     @property
     def history(self) -> int:
@@ -122,8 +123,11 @@ NOISE_NODES = ("normal", "predicted")
 
 def config_adapter(cfg: dict) -> Adapter:
     """The adapter a config asks for: ``dataset``, ``train.contact_pairs``, ``model.target`` (absent: the
-    dataset's own, Table 9) and ``model.deformation``."""
+    dataset's own, Table 9), ``model.deformation`` and ``data.stress_field``."""
     adapter = get_adapter(cfg["dataset"], cfg.get("train", {}).get("contact_pairs", "all"))
+    field = (cfg.get("data") or {}).get("stress_field") or "stress"
+    if field != "stress":
+        adapter = replace(adapter, stress_field=field)
     mc = cfg.get("model") or {}
     if mc.get("deformation", False):
         if adapter.mesh_dim != adapter.dim:

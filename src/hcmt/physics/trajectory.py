@@ -50,7 +50,8 @@ def prepare_trajectory(fields: dict, name: str, adapter: Adapter, levels: int, r
     return Trajectory(
         name=name, static=static,
         world_pos=torch.from_numpy(np.asarray(fields["world_pos"], np.float32)),
-        stress=torch.from_numpy(np.asarray(fields["stress"], np.float32)) if "stress" in fields else None,
+        stress=(torch.from_numpy(np.asarray(fields[adapter.stress_field], np.float32))
+                if adapter.stress_field in fields else None),
         hierarchy=hierarchy, adapter=adapter, attrs=dict(attrs or {}),
     )
 
@@ -61,7 +62,7 @@ def load_split(dataset: str | Path, split: str, adapter: Adapter, levels: int, r
     cache = hierarchy_cache_dir(dataset)
     with Split(dataset, split) as s:
         needed = ["mesh_pos", "cells", "node_type", "world_pos", *adapter.node_fields]
-        needed += ["stress"] if adapter.stress_output else []
+        needed += [adapter.stress_field] if adapter.stress_output else []
         missing = [f for f in needed if f not in s.meta["features"]]
         if missing:
             raise DatasetError(f"the {adapter.name} adapter (the config's `dataset`) needs fields {missing} that this "

@@ -194,11 +194,15 @@ def _settings_arguments(parser: argparse.ArgumentParser) -> None:
     g.add_argument("--bulk-viscosity", type=float, default=d.bulk_viscosity,
                    help=f"linear bulk viscosity b1, 0 = off (default {d.bulk_viscosity})")
     g.add_argument("--penalty", type=float, default=d.penalty, help=f"contact penalty factor (default {d.penalty})")
+    g.add_argument("--peak-stress", action="store_true",
+                   help="also record stress_max: each node's largest von Mises stress between two frames (a model "
+                        "trains on it with --set data.stress_field=stress_max)")
 
 
 def _settings(args) -> Settings:
     return Settings(formulation=args.formulation, frames=args.frames, frame_dt=args.frame_dt,
-                    bulk_viscosity=args.bulk_viscosity, penalty=args.penalty).validate()
+                    bulk_viscosity=args.bulk_viscosity, penalty=args.penalty,
+                    peak_stress=getattr(args, "peak_stress", False)).validate()
 
 
 def configure_generate(parser: argparse.ArgumentParser) -> None:

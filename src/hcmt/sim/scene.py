@@ -87,6 +87,7 @@ class Settings:
     bulk_viscosity: float = 0.06  # linear bulk viscosity b1 (0 = off)
     penalty: float = 0.2  # contact penalty factor alpha, k = alpha m / dt^2
     gravity: float = GRAVITY
+    peak_stress: bool = False  # also record stress_max: each node's largest von Mises since the previous frame
 
     def validate(self) -> "Settings":
         if self.formulation not in FORMULATIONS:
@@ -210,7 +211,9 @@ def simulate(design: Design, settings: Settings = Settings(), *, progress=None) 
 
     Frame k is the state at t = k * frame_dt; frame 0 the initial one. ``stress`` is the nodal von Mises stress
     (MPa): element Cauchy stress, the out-of-plane (hoop) component included, area-averaged to the nodes of its
-    own body."""
+    own body. With ``settings.peak_stress`` also ``stress_max`` [T,N,1]: each node's largest von Mises stress over
+    the solver's substeps since the previous frame (frame 0: its own), the peak a coarse frame interval would
+    otherwise step over (docs/RESULTS.md, "Frame interval")."""
     design.validate()
     settings.validate()
     start, cpu_start = time.perf_counter(), time.process_time()
@@ -230,9 +233,16 @@ def simulate(design: Design, settings: Settings = Settings(), *, progress=None) 
     T, N = settings.frames, len(X)
     world_pos = np.empty((T, N, 2), np.float32)
     stress = np.empty((T, N, 1), np.float32)
+    peak = np.empty((T, N, 1), np.float32) if settings.peak_stress else None
     for k in range(T):
-        if k:
+        if k and peak is None:
             sim.step(substeps)
+        elif k:  # one substep at a time: the largest stress between two frames (Settings.peak_stress)
+            running = np.zeros(N)
+            for _ in range(substeps):
+                sim.step(1)
+                np.maximum(running, nodal_von_mises(model, sim.x), out=running)
+            peak[k, :, 0] = running
         world_pos[k] = sim.x
         F11, F12, F21, F22, F33 = deformation(model, sim.x)
         inverted = np.flatnonzero((F11 * F22 - F12 * F21) * F33 <= 0)
@@ -242,9 +252,13 @@ def simulate(design: Design, settings: Settings = Settings(), *, progress=None) 
                               "is outside what the explicit solver handles (see the validated ranges in "
                               "docs/solver.md)")
         stress[k, :, 0] = nodal_von_mises(model, sim.x)
+        if peak is not None and k == 0:
+            peak[0] = stress[0]
         if progress is not None:
             progress(k)
     fields_ = dict(_static_fields(design, mesh), world_pos=world_pos, stress=stress)
+    if peak is not None:
+        fields_["stress_max"] = peak
     attrs = {**asdict(design), "impact_speed": design.impact_speed, "formulation": settings.formulation}
     info = dict(wall_time=time.perf_counter() - start, cpu_time=time.process_time() - cpu_start, substeps=substeps * (T - 1), dt=dt, num_nodes=N,
                 num_cells=len(cells), energy=sim.energies())
@@ -300,6 +314,8 @@ def feature_spec(settings: Settings = Settings()) -> dict:
         "modulus": {"type": "static", "shape": [-1, 1], "dtype": "float32"},
         "world_pos": {"type": "dynamic", "shape": [T, -1, 2], "dtype": "float32"},
         "stress": {"type": "dynamic", "shape": [T, -1, 1], "dtype": "float32"},
+        **({"stress_max": {"type": "dynamic", "shape": [T, -1, 1], "dtype": "float32"}} if settings.peak_stress
+           else {}),
     }
 
 

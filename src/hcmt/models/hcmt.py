@@ -24,7 +24,7 @@ r"""Hierarchical Contact Mesh Transformer (paper §3.2): encoder → CMT → HMT
   depth :math:`L = 15` of the paper is kept; no hierarchy), ``only-hmt`` (HMT alone, :math:`L_H` blocks, contact
   edges unused), ``lpe`` (+ Laplacian eigenvector PE, :mod:`hcmt.models.lpe`), ``single-branch`` (CMT blocks put
   mesh and contact edges in one softmax), ``no-remesh`` (the model is unchanged: the graph builder makes the coarse
-  edges without Delaunay: :func:`hcmt.training.trainer.uses_hierarchy` decides the hierarchy from the run's model
+  edges without Delaunay: :func:`hcmt.models.uses_hierarchy` decides the hierarchy from the run's model
   arguments). The clip range ``c`` is the
   ``clip`` setting.
 

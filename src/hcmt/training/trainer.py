@@ -57,7 +57,7 @@ from hcmt.training.runtime import (InterruptFlag, TrainingInterrupted, check_res
                                    save_atomic, stop_together)
 from hcmt.training.schedule import keras_epsilon, learning_rate
 
-logger = logging.getLogger("hcmt.train")  # rank-zero messages (hcmt.training.trainer.rank_zero_logging)
+logger = logging.getLogger("hcmt.train")  # rank-zero messages (hcmt.training.runtime.rank_zero_logging)
 
 
 class Trainer:

@@ -4,6 +4,7 @@ command line as ``section.key=value`` (the value is parsed as YAML: ``train.lr=3
 from __future__ import annotations
 
 import copy
+import difflib
 from dataclasses import asdict, dataclass, field, fields
 from typing import Optional, get_args, get_origin, get_type_hints
 from pathlib import Path
@@ -199,8 +200,6 @@ def _ok(kind: str, value) -> bool:
 
 
 def _unknown(key: str, known: list[str], source: str):
-    import difflib
-
     close = difflib.get_close_matches(key, known, n=1, cutoff=0.6)
     hint = f"; did you mean {close[0]}?" if close else f"; known: {', '.join(known)}"
     return ValueError(f"config {source}: {key}: unknown key{hint}")

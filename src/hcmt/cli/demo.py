@@ -16,12 +16,10 @@ import argparse
 import time
 from pathlib import Path
 
-import torch
-
 from hcmt.config import load_config
 from hcmt.design import predict as pr
 from hcmt.inference.evaluate import evaluate, format_metrics
-from hcmt.inference.run import Run
+from hcmt.inference.run import Run, RunFolder
 from hcmt.sim.generate import generate_dataset
 from hcmt.training import train
 
@@ -93,11 +91,11 @@ def train_demo(args: argparse.Namespace) -> int:
         print(f"[1/3] reusing the dataset in {data}")
     cfg = load_config("demo", [f"train.steps={args.steps}"] if args.steps else [])
     want = int(cfg["train"]["steps"])
-    ckpt = run / "checkpoint.pt"
-    done = int(torch.load(ckpt, map_location="cpu", weights_only=True)["step"]) if ckpt.is_file() else 0
-    if done >= want and (run / "train_stats.json").is_file():
+    folder = RunFolder(run, must_exist=False)
+    done = folder.steps_done()
+    if done >= want and folder.stats_path.is_file():
         print(f"[2/3] reusing the trained model in {run} ({done} steps; --steps N with N > {done} trains more)")
-    elif ckpt.is_file():
+    elif folder.latest.is_file():
         print(f"[2/3] training HCMT {want - done} more steps on the CPU (to {want}) -> {run}")
         train(cfg, data, "hcmt", run, seed=args.seed, resume=True, device="cpu", progress=not args.no_progress)
     else:

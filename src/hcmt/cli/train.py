@@ -35,7 +35,7 @@ def configure_train(p: argparse.ArgumentParser) -> None:
 def main_train(args: argparse.Namespace) -> int:
     overrides = list(args.set) + ([f"train.steps={args.steps}"] if args.steps is not None else [])
     folder = RunFolder(args.out, must_exist=False)
-    if not args.resume and (folder.info is not None or folder.checkpoint("checkpoint").is_file()):
+    if not args.resume and folder.holds_run():
         raise ValueError(f"{args.out} already holds a run; pass --resume to continue it or choose another --out")
     if args.resume and folder.info is not None and not args.config:  # resume with the run's saved settings
         saved = folder.info

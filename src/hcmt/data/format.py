@@ -22,8 +22,10 @@ yielding different data (tests/test_fuzz.py).
 from __future__ import annotations
 
 import enum
+import errno
 import json
 import os
+import shutil
 import tempfile
 from contextlib import contextmanager
 from pathlib import Path
@@ -186,9 +188,6 @@ def take_lock(lock: str | os.PathLike) -> int | None:
 def ensure_space(path: str | os.PathLike, nbytes: int, margin: int = 1 << 20) -> None:
     """Refuse (``OSError`` ENOSPC naming ``path``) to write ``nbytes`` where the disk has less free space, before
     HDF5 tries: its library can crash on a full disk instead of raising. Uncompressed sizes, so conservative."""
-    import errno
-    import shutil
-
     folder = Path(path).parent
     free = shutil.disk_usage(folder if folder.exists() else Path.cwd()).free
     if free < nbytes + margin:

@@ -21,6 +21,7 @@ import numpy as np
 from hcmt.sim.scene import Design
 from hcmt.data.format import atomic_path
 from hcmt.design.predict import DESIGN_KEYS, Check, check_designs, to_json
+from hcmt.viz.meshplot import new_figure
 
 #: steps smaller than this share of a series' range count as flat in the monotonicity test
 TREND_TOL = 0.02
@@ -171,13 +172,9 @@ def sweep_json(check: Check, analysis: dict, run_source: str, device: str) -> di
 
 def plot_sweep(check: Check, analysis: dict, out_dir: str | Path, label: str) -> Path:
     """Peak plate stress and maximum deflection against the swept parameter: model, and the solver with verify."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
     x = np.array(analysis["values"])
-    fig, axes = plt.subplots(1, 2, figsize=(10, 4), constrained_layout=True)
+    fig = new_figure(10, 4)
+    axes = fig.subplots(1, 2)
     for ax, (q, name) in zip(axes, QUANTITIES.items()):
         ax.plot(x, [p.summary[q] for p in check.preds], "o-", label=label)
         if check.truth is not None:
@@ -192,5 +189,4 @@ def plot_sweep(check: Check, analysis: dict, out_dir: str | Path, label: str) ->
     path.parent.mkdir(parents=True, exist_ok=True)
     with atomic_path(path) as tmp:
         fig.savefig(tmp, dpi=120, format="png")
-    plt.close(fig)
     return path

@@ -19,6 +19,7 @@ import math
 from pathlib import Path
 
 import numpy as np
+from tqdm import tqdm
 
 from hcmt.data.errors import DatasetError
 from hcmt.data.format import open_split
@@ -106,8 +107,6 @@ def main(args: argparse.Namespace) -> int:
     if count == 0:
         raise ValueError(f"split {args.split!r} of {args.dataset} has no trajectories")
     cache = None if args.no_cache else hierarchy_cache_dir(args.dataset)
-    from tqdm import tqdm
-
     per_trajectory = []
     for i in tqdm(range(count), desc="hierarchy", unit="traj", disable=count < 20):  # one mesh per trajectory
         traj = reader[i]

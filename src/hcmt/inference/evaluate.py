@@ -220,13 +220,13 @@ def format_metrics(m: dict) -> str:
     return "\n".join(lines)
 
 
-def compare(runs: list[str | Path | RunFolder], split: str = "test") -> dict:
+def compare(runs: list[str | Path | RunFolder | Run], split: str = "test") -> dict:
     """{label: {quantity: {metric: {mean, std, n}}}} over seeds of one split. Runs are grouped by model (+ ablation)
     and by the dataset they were evaluated on: runs of different datasets are never averaged together (the label
     then names the dataset)."""
     groups: dict[tuple[str, str], list[dict]] = defaultdict(list)
     for run in runs:
-        folder = run if isinstance(run, RunFolder) else RunFolder(run)
+        folder = run.require_folder() if isinstance(run, Run) else run if isinstance(run, RunFolder) else RunFolder(run)
         mpath = folder.metrics_path(split)
         if not mpath.is_file():
             raise FileNotFoundError(f"{mpath}: run `hcmt evaluate {folder.path} --data ... --split {split}` first")

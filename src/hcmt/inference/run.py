@@ -65,11 +65,37 @@ class RunFolder:
     def checkpoint(self, which: str = "best") -> Path:
         """``best.pt`` or ``checkpoint.pt``; the latest checkpoint when ``which`` is missing."""
         path = self.path / f"{which}.pt"
-        return path if path.is_file() else self.path / "checkpoint.pt"
+        return path if path.is_file() else self.latest
 
     @property
     def log(self) -> Path:
         return self.path / "log.jsonl"
+
+    @property
+    def best(self) -> Path:
+        return self.path / "best.pt"
+
+    @property
+    def latest(self) -> Path:
+        return self.path / "checkpoint.pt"
+
+    @property
+    def tensorboard(self) -> Path:
+        return self.path / "tb"
+
+    @property
+    def text_log(self) -> Path:
+        return self.path / "train.log"
+
+    def steps_done(self) -> int:
+        """The step of the latest checkpoint (0 when there is none)."""
+        if not self.latest.is_file():
+            return 0
+        return int(torch.load(self.latest, map_location="cpu", weights_only=True)["step"])
+
+    def holds_run(self) -> bool:
+        """Whether the folder holds a run (its settings or a checkpoint)."""
+        return self.run_yaml.is_file() or self.latest.is_file()
 
     @property
     def stats_path(self) -> Path:
@@ -160,6 +186,8 @@ class Run:
         (the latest)."""
         if isinstance(path, Run):
             return path
+        if isinstance(path, RunFolder):
+            path = path.path
         dev = resolve_device(device)
         text = str(path)
         if text.startswith("pretrained:"):

@@ -69,7 +69,7 @@ class AttentionMap:
     edge_index: Tensor
     weights: Tensor
     normalized: bool = True
-    stage: str = ""  # cmt | hmt.down | hmt.bottom | hmt.up | gt
+    stage: str = ""  # cmt | down | bottom | up (HMT's U) | gt
     block: int = 0  # the block's number within its stage (HMT: its level)
     branch: str = "mesh"  # the edges: mesh | contact | mesh+contact
 

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import torch
 from torch import Tensor, nn
+from torch.utils.checkpoint import checkpoint
 
 from hcmt.config import COMPILE_MODES
 from hcmt.data.errors import DatasetError
@@ -64,8 +65,6 @@ class Simulator(nn.Module):
     def run_block(self, block, *args):
         """``block(*args)``, with activation checkpointing while training when ``checkpoint_blocks`` is set."""
         if self.checkpoint_blocks and self.training and torch.is_grad_enabled():
-            from torch.utils.checkpoint import checkpoint
-
             return checkpoint(block, *args, use_reentrant=False)
         return block(*args)
 

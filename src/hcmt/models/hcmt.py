@@ -71,22 +71,22 @@ class HMT(nn.Module):
         saved = []
         call = run_block or (lambda block, *args: block(*args))  # the model's (maybe checkpointed) block call
 
-        def run(block, h, level, name):
+        def run(block, h, level, stage):
             if attention is None:
                 return call(block, h, [(latents[level], edges[level])])
             h, w = block(h, [(latents[level], edges[level])], return_attention=True)
-            attention.append(AttentionMap(f"{name}{level}", level, edges[level], w[0], block.attention.mode == "paper",
-                                          name, level))
+            attention.append(AttentionMap(f"hmt.{stage}{level}", level, edges[level], w[0],
+                                          block.attention.mode == "paper", stage, level))
             return h
 
         for level, block in enumerate(self.down):
-            h = run(block, h, level, "hmt.down")
+            h = run(block, h, level, "down")
             saved.append(h)
             h = pool_nodes(h, pool[level])
-        h = run(self.bottom, h, self.levels, "hmt.bottom")
+        h = run(self.bottom, h, self.levels, "bottom")
         for level in reversed(range(self.levels)):
             h = unpool(h, saved[level], pool[level])
-            h = run(self.up[level], h, level, "hmt.up")
+            h = run(self.up[level], h, level, "up")
         return h
 
 

@@ -26,7 +26,7 @@ import numpy as np
 import torch
 from torch import Tensor
 
-from hcmt.config import DATASET_NAMES, load_config
+from hcmt.config import DATASET_NAMES, complete_config, load_config
 from hcmt.data.format import NODE_TYPE_SIZE, NodeType
 from hcmt.graph.contact import OFFICIAL_IMPACT_PLATE_TYPES
 from hcmt.models import Simulator, build_model
@@ -122,24 +122,20 @@ NOISE_NODES = ("normal", "predicted")
 
 
 def config_adapter(cfg: dict) -> Adapter:
-    """The adapter a config asks for: ``dataset``, ``train.contact_pairs``, ``model.target`` (absent: the
+    """The adapter a config asks for: ``dataset``, ``train.contact_pairs``, ``model.target`` (None: the
     dataset's own, Table 9), ``model.deformation`` and ``data.stress_field``."""
-    adapter = get_adapter(cfg["dataset"], cfg.get("train", {}).get("contact_pairs", "all"))
-    field = (cfg.get("data") or {}).get("stress_field") or "stress"
-    if field != "stress":
-        adapter = replace(adapter, stress_field=field)
-    mc = cfg.get("model") or {}
-    if mc.get("deformation", False):
+    cfg = complete_config(cfg)  # a partial config (the API, an old run.yaml) gets the schema's defaults
+    mc = cfg["model"]
+    adapter = replace(get_adapter(cfg["dataset"], cfg["train"]["contact_pairs"]),
+                      stress_field=cfg["data"]["stress_field"])
+    if mc["deformation"]:
         if adapter.mesh_dim != adapter.dim:
             raise ValueError(f"model.deformation: {adapter.name} has a {adapter.mesh_dim}-D mesh space in a "
                              f"{adapter.dim}-D world; edge deformation needs both of one dimension")
         adapter = replace(adapter, deformation=True)
-    kind = mc.get("target")
-    if kind is None:
+    if mc["target"] is None:
         return adapter
-    if kind not in TARGETS:
-        raise ValueError(f"model.target: unknown value {kind!r}; expected one of {', '.join(TARGETS)}")
-    return replace(adapter, order=TARGETS[kind])
+    return replace(adapter, order=TARGETS[mc["target"]])
 
 
 def target_name(adapter: Adapter) -> str:

@@ -13,12 +13,14 @@ from __future__ import annotations
 import argparse
 import multiprocessing as mp
 import shutil
+import signal
 import sys
 from dataclasses import asdict, fields
 from pathlib import Path
 
 import h5py
 import numpy as np
+from tqdm import tqdm
 
 from hcmt.data.errors import DatasetError
 from hcmt.data.format import make_meta, read_meta, write_meta, write_split
@@ -63,8 +65,6 @@ def _run_one(task: tuple) -> tuple[str, int, float]:
 
 def _ignore_sigint() -> None:
     """Pool workers leave Ctrl-C to the parent, which stops the pool and says what was kept."""
-    import signal
-
     signal.signal(signal.SIGINT, signal.SIG_IGN)
 
 
@@ -160,8 +160,6 @@ def generate_dataset(out, *, preset: str = "small", counts: dict[str, int], seed
                 skipped += 1
             else:
                 todo.append((str(out), meta, preset, int(seed), split, i, asdict(settings)))
-
-    from tqdm import tqdm
 
     bar = tqdm(total=len(todo), desc=f"impact-plate {preset}", unit="traj", disable=not progress or not todo)
     if workers == 1 or len(todo) <= 1:
@@ -280,8 +278,6 @@ def main_simulate(args) -> int:
         raise ValueError(f"estimated {cost['estimated_s']:.0f} s exceeds {MAX_ESTIMATED_SECONDS:.0f} s "
                          f"({cost['num_nodes']} nodes x {cost['substeps']} substeps; mesh_size {design.mesh_size} mm, "
                          f"plate_poisson {design.plate_poisson}); coarsen the mesh or pass --force")
-    from tqdm import tqdm
-
     bar = tqdm(total=settings.frames, desc="simulate", unit="frame",
                disable=args.no_progress or cost["estimated_s"] < 5.0)
     result = simulate(design, settings, progress=lambda k: bar.update(1))

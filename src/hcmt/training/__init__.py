@@ -7,7 +7,9 @@ import os
 import shutil
 from pathlib import Path
 
-from hcmt.config import load_config
+from hcmt.config import apply_overrides, complete_config, load_config
+from hcmt.inference.run import RunFolder
+from hcmt.models import MODELS
 from hcmt.training.runtime import deterministic_scope, lock_run
 from hcmt.training.trainer import Trainer
 
@@ -27,14 +29,18 @@ def train(config, data, model: str, out, *, overrides=None, resume: bool = False
     behind."""
     if resume and overwrite:
         raise ValueError("hcmt.train: resume=True and overwrite=True contradict each other; choose one")
+    model = str(model).lower()
+    if model not in MODELS:
+        raise ValueError(f"hcmt.train: unknown model {model!r}; expected one of {', '.join(MODELS)}")
     out = Path(out)
-    held = (out / "checkpoint.pt").is_file() or (out / "run.yaml").is_file()
-    if held and not resume:
+    folder = RunFolder(out, must_exist=False)
+    if folder.holds_run() and not resume:
         if not overwrite:
             raise ValueError(f"hcmt.train: {out} already holds a run; pass resume=True to continue it, "
                              "overwrite=True to delete it and start afresh, or another out folder")
         shutil.rmtree(out)
-    cfg = config if isinstance(config, dict) else load_config(str(config), overrides)
+    cfg = (complete_config(apply_overrides(config, overrides)) if isinstance(config, dict)
+           else load_config(str(config), overrides))
 
     def run() -> dict:
         with deterministic_scope():  # train.deterministic holds for this run only
@@ -49,12 +55,12 @@ def train(config, data, model: str, out, *, overrides=None, resume: bool = False
     try:
         return run()
     except BaseException:
-        if not (out / "checkpoint.pt").is_file():  # nothing worth keeping: leave no run folder behind
+        if not folder.latest.is_file():  # nothing worth keeping: leave no run folder behind
             if created:
                 lock.unlink(missing_ok=True)
                 shutil.rmtree(out, ignore_errors=True)
             elif not resume:
-                (out / "run.yaml").unlink(missing_ok=True)
+                folder.run_yaml.unlink(missing_ok=True)
         raise
     finally:
         lock.unlink(missing_ok=True)

@@ -8,6 +8,7 @@ import logging
 import math
 import os
 import signal
+import threading
 from pathlib import Path
 
 import torch
@@ -54,9 +55,6 @@ class InterruptFlag:
     handlers back."""
 
     def __init__(self):
-        import signal
-        import threading
-
         self.set, self._old = False, {}
         if threading.current_thread() is threading.main_thread():
             for sig in (signal.SIGINT, signal.SIGTERM):
@@ -104,7 +102,7 @@ def lock_run(out: Path) -> Path:
     return lock
 
 
-def rank_zero_logging(rank: int, out: Path) -> logging.Handler | None:
+def rank_zero_logging(rank: int, log_file: Path) -> logging.Handler | None:
     """Rank 0 logs INFO messages of ``hcmt.*`` to ``RUN/train.log`` (the terminal keeps its progress bar and
     warnings); other ranks log warnings only. Returns the handler to remove at the end."""
     root = logging.getLogger("hcmt")
@@ -112,7 +110,7 @@ def rank_zero_logging(rank: int, out: Path) -> logging.Handler | None:
         root.setLevel(logging.WARNING)
         return None
     root.setLevel(logging.INFO)
-    handler = logging.FileHandler(out / "train.log")
+    handler = logging.FileHandler(log_file)
     handler.setFormatter(logging.Formatter("%(asctime)s %(levelname)s %(message)s"))
     root.addHandler(handler)
     return handler

@@ -78,14 +78,14 @@ class Trainer:
         meta = read_meta(data)
         self.adapter = config_adapter(cfg)
         self.args = model_args(cfg, model_name, ablation, meta)
-        self.ckpt_path = out / "checkpoint.pt"
+        self.folder = RunFolder(out, must_exist=False)
+        self.ckpt_path = self.folder.latest
         if resume and not self.ckpt_path.is_file():
             raise FileNotFoundError(f"{self.ckpt_path}: nothing to resume; start without --resume")
         if not resume and self.ckpt_path.is_file():
             raise ValueError(f"{out} already holds a run; pass --resume to continue it or choose another --out")
         run = {"model": self.args, "config": cfg, "data": str(Path(data).resolve()), "seed": seed,
                "world_size": self.world}
-        self.folder = RunFolder(out, must_exist=False)
         if resume and self.folder.info is not None:
             check_resume(self.folder.info, run, out)
         if self.rank == 0:
@@ -131,10 +131,10 @@ class Trainer:
             self.net = compile_simulator(self.net, self.compile)
         self.writer = self.log = None
         if self.rank == 0:
-            self.writer = SummaryWriter(str(out / "tb"), purge_step=self.step_count if resume else None)
-            self.log = open(out / "log.jsonl", "a")
+            self.writer = SummaryWriter(str(self.folder.tensorboard), purge_step=self.step_count if resume else None)
+            self.log = open(self.folder.log, "a")
         self.progress = progress
-        self._handler = rank_zero_logging(self.rank, out)
+        self._handler = rank_zero_logging(self.rank, self.folder.text_log)
         logger.info("%s: %s on %s, %d training frames, steps %d -> %d", out, model_name, self.device,
                     len(self.frames), self.step_count, self.steps)
 
@@ -146,7 +146,7 @@ class Trainer:
         if self.step_count > self.steps:
             raise ValueError(f"{self.out}: --resume with train.steps {self.steps}, but the run has done "
                              f"{self.step_count} steps; a run only grows (give --steps >= the steps done)")
-        log = self.out / "log.jsonl"
+        log = self.folder.log
         if self.rank == 0 and log.is_file():  # drop what was logged after the checkpoint: no duplicate steps
             kept = [l for l in log.read_text().splitlines() if l and json.loads(l)["step"] <= self.step_count]
             with atomic_path(log) as tmp:
@@ -221,7 +221,7 @@ class Trainer:
         logger.info("step %d: %s", self.step_count, ", ".join(f"{k} {v:.4g}" for k, v in metrics.items()))
         if metrics["valid/position_rmse_all"] < self.best:
             self.best = metrics["valid/position_rmse_all"]
-            self.save(self.out / "best.pt")
+            self.save(self.folder.best)
 
     def save(self, path: Path) -> None:
         save_atomic({"model": self.model.state_dict(), "optimizer": self.opt.state_dict(), "step": self.step_count,
@@ -291,8 +291,8 @@ class Trainer:
                    "best_valid_position_rmse_all": self.best if math.isfinite(self.best) else None,
                    "world_size": self.world, "device": str(self.device)}
         if self.rank == 0 and self.step_count == self.steps:
-            if not (self.out / "best.pt").is_file():
-                self.save(self.out / "best.pt")
+            if not self.folder.best.is_file():
+                self.save(self.folder.best)
             self.folder.write_stats(summary)
             logger.info("%s: finished %d steps, %.1f ms per step", self.out, self.step_count,
                         summary["train_ms_per_step"] or float("nan"))

@@ -13,6 +13,8 @@ from pathlib import Path
 
 import numpy as np
 from matplotlib import colors
+from matplotlib.cm import ScalarMappable
+from PIL import Image
 
 from hcmt.viz.contours import field_label, field_name, field_values, view_box
 from hcmt.viz.meshplot import (box_3d, closest_pair, draw_field_2d, draw_field_3d, extend_of, impact_window, new_figure,
@@ -60,8 +62,6 @@ def animate(case: Case, path: str | Path, *, fps: int = 10, stride: int | None =
     (:func:`animation_frames`). The zoom row shows one window for the whole animation (the impact window at the
     frame of closest approach), so the view does not jump; everything but the meshes and the title is drawn once
     (blitting), which makes a frame about ten times cheaper than redrawing the figure."""
-    from PIL import Image
-
     path = Path(path)
     if path.suffix.lower() != ".gif":
         raise ValueError(f"{path}: expected a .gif file name (animations are written with Pillow)")
@@ -83,8 +83,6 @@ def animate(case: Case, path: str | Path, *, fps: int = 10, stride: int | None =
     fig = new_figure(w * cols + 1.0, h + zh + 0.7)
     kw = {"projection": "3d"} if three_d else {}
     axes = [[fig.add_subplot(rows, cols, r * cols + c + 1, **kw) for c in range(cols)] for r in range(rows)]
-    from matplotlib.cm import ScalarMappable
-
     cbar = fig.colorbar(ScalarMappable(norm=norm, cmap=cmap), ax=[a for row in axes for a in row], extend=extend,
                         aspect=25)
     label = field_label(case, field)

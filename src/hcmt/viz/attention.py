@@ -143,10 +143,10 @@ def default_panels(maps: AttentionMaps) -> list[tuple[str, str]]:
     first_cmt = [b for b in blocks if b.stage == "cmt" and b.block == 0]
     first_cmt.sort(key=lambda b: 0 if b.branch == "contact" else 1)
     panels = [(b.name, f"{b.branch.capitalize()} of CMT (block 0)") for b in first_cmt]
-    hmt = [b for b in blocks if b.stage.startswith("hmt.")]
+    hmt = [b for b in blocks if b.stage in ("down", "bottom", "up")]
     for level in sorted({b.level for b in hmt}):
         first = next(b for b in hmt if b.level == level)
-        panels.append((first.name, f"Level {level} of HMT ({first.stage.split('.')[1]} block)"))
+        panels.append((first.name, f"Level {level} of HMT ({first.stage} block)"))
     gts = [b for b in blocks if b.stage == "gt"]
     for b in (gts[:1] + gts[-1:]) if len(gts) > 1 else gts:
         panels.append((b.name, f"GT layer {b.block} (mesh and contact)"))

@@ -106,7 +106,7 @@ def plot_error_curves(errors: dict[str, dict], meta: dict, path: str | Path, *, 
 def read_log(run: str | Path) -> tuple[dict[str, np.ndarray], dict[str, np.ndarray]]:
     """``RUN/log.jsonl`` as (training columns, validation columns), each ``{key: array}`` with ``step``.
     Lines written by an interrupted run that was resumed may repeat steps: the last line of a step wins."""
-    path = Path(run) / "log.jsonl"
+    path = RunFolder(run, must_exist=False).log
     if not path.is_file():
         raise FileNotFoundError(f"{path}: no training log (written by `hcmt train`)")
     train, valid = {}, {}
@@ -133,13 +133,13 @@ def running_mean(y: np.ndarray, window: int) -> np.ndarray:
     return (c[n] - c[lo]) / (n - lo)
 
 
-def plot_training_curves(runs: list[RunFolder], meta: dict, path: str | Path, labels: list[str] | None = None,
+def plot_training_curves(runs: list[Run | RunFolder], meta: dict, path: str | Path, labels: list[str] | None = None,
                          dpi: int = 150) -> Path:
     """Training loss, learning rate and the validation rollout RMSE-all (position, and stress when logged) against
     the step, one line per run. The validation metrics are logged x10^3 (the paper's tables) and drawn in physical
     units."""
     labels = labels or unique_labels(runs)
-    logs = [read_log(r.path) for r in runs]
+    logs = [read_log((r.require_folder() if isinstance(r, Run) else r).path) for r in runs]
     has_stress = any("valid/stress_rmse_all" in v for _, v in logs)
     panels = ["loss", "lr", "valid/position_rmse_all"] + (["valid/stress_rmse_all"] if has_stress else [])
     units = meta.get("units") or {}

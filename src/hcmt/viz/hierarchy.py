@@ -16,6 +16,8 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
+from matplotlib.lines import Line2D
+from mpl_toolkits.mplot3d.art3d import Line3DCollection
 
 from hcmt.data.format import NodeType
 from hcmt.graph.hierarchy import Hierarchy
@@ -34,8 +36,6 @@ def object_colours(object_id: np.ndarray) -> np.ndarray:
 
 def object_legend(fig, object_id: np.ndarray, node_type: np.ndarray | None) -> None:
     """Legend naming each object by its most common node type (``NORMAL`` plate, ``OBSTACLE`` ball)."""
-    from matplotlib.lines import Line2D
-
 
     handles = []
     for o in np.unique(object_id)[: len(OBJECT_COLOURS)]:  # a handful of objects
@@ -52,8 +52,6 @@ def _draw_level(ax, pos: np.ndarray, edges: np.ndarray, colours: np.ndarray, box
                 lw: float = 0.5) -> None:
     edges = edges[:, edges[0] < edges[1]]  # each undirected edge once
     if pos.shape[1] == 3:
-        from mpl_toolkits.mplot3d.art3d import Line3DCollection
-
         seg = np.stack([pos[edges[0]], pos[edges[1]]], axis=1)
         ax.add_collection3d(Line3DCollection(seg, colors=list(colours[edges[0]]), linewidths=lw))
         ax.scatter(*pos.T, s=2, c=list(colours), depthshade=False)

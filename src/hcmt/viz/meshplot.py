@@ -14,11 +14,15 @@ stress visible at any plate thickness.
 """
 from __future__ import annotations
 
+import matplotlib
 import numpy as np
 from matplotlib import colors
+from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.cm import ScalarMappable
 from matplotlib.collections import LineCollection
 from matplotlib.figure import Figure
 from matplotlib.tri import Triangulation
+from mpl_toolkits.mplot3d.art3d import Poly3DCollection
 from scipy.spatial import cKDTree
 
 ZOOM_THICKNESSES = 4.0  # zoom window height, in thicknesses of the thinnest object
@@ -27,8 +31,6 @@ ZOOM_ASPECT = 4.0 / 3.0  # zoom window width / height
 
 def new_figure(width: float, height: float) -> Figure:
     """A figure drawn by Agg (headless); ``constrained`` layout keeps titles and colour bars apart."""
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-
     fig = Figure(figsize=(width, height), layout="constrained")
     FigureCanvasAgg(fig)
     return fig
@@ -83,8 +85,6 @@ def draw_field_3d(ax, pos: np.ndarray, cells: np.ndarray, values: np.ndarray, no
                   limits: tuple[np.ndarray, np.ndarray] | None = None, length_unit: str | None = None):
     """Surface triangles of a 3-D mesh, each coloured by its nodes' mean value, at equal scale on every axis.
     ``limits`` (lo [3], hi [3]): the axes' box, shared by the panels to compare (default: ``pos``'s own)."""
-    from matplotlib.cm import ScalarMappable
-    from mpl_toolkits.mplot3d.art3d import Poly3DCollection
 
     faces = surface_triangles(cells)
     face_values = np.asarray(values, np.float64)[faces].mean(1)
@@ -112,8 +112,6 @@ def box_3d(positions: list[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _cmap(cmap):
-    import matplotlib
-
     return matplotlib.colormaps[cmap] if isinstance(cmap, str) else cmap
 
 

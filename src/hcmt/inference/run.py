@@ -23,7 +23,7 @@ import yaml
 
 from hcmt.config import complete_config
 from hcmt.data.format import Split, atomic_path, read_meta
-from hcmt.models import REGISTRY, make_model, resolve_device, uses_hierarchy
+from hcmt.models import REGISTRY, from_checkpoint, resolve_device, uses_hierarchy
 from hcmt.physics.adapters import config_adapter
 from hcmt.sim.scene import Design, middle_design, parse_design
 
@@ -157,9 +157,7 @@ def load_run(run: str | Path | RunFolder, which: str = "best", device: str = "cp
     if not path.is_file():
         raise FileNotFoundError(f"{folder.path}: no checkpoint yet (best.pt / checkpoint.pt)")
     state = torch.load(path, map_location=device, weights_only=True)
-    model = make_model(state["model_args"])
-    model.load_state_dict(state["model"])
-    model.eval()
+    model = from_checkpoint(state)
     info = dict(folder.info, config=complete_config(folder.info["config"]))
     info["checkpoint"] = {"file": path.name, "step": int(state["step"])}
     return model, info
@@ -204,10 +202,7 @@ class Run:
             raise ValueError(f"pretrained:{name}: no such shipped model; available: "
                              f"{', '.join(shipped) or 'none'} (`hcmt models` lists them)")
         pack = torch.load(shipped[name], map_location="cpu", weights_only=True)
-        model = make_model(pack["model_args"])
-        ref = model.state_dict()
-        model.load_state_dict({k: v.to(ref[k].dtype) for k, v in pack["model"].items()})
-        model.eval()
+        model = from_checkpoint(pack)
         info = {"model": pack["model_args"], "config": complete_config(pack["config"]), "data": None,
                 "checkpoint": {"file": shipped[name].name, "step": int(pack["card"].get("steps", 0))}}
         ranges = {k: (float(v[0]), float(v[1])) for k, v in pack["ranges"].items()}

@@ -74,6 +74,20 @@ def make_model(args: dict) -> Simulator:
                        args.pop("out"), **args)
 
 
+def from_checkpoint(state: dict) -> Simulator:
+    """A model in eval mode from a saved state ``{"model_args": constructor arguments, "model": state dict}`` (a
+    training checkpoint or a shipped model; fp16 tensors of a shipped model are cast back to the model's dtype)."""
+    model = make_model(state["model_args"])
+    ref = model.state_dict()
+    model.load_state_dict({k: v.to(ref[k].dtype) for k, v in state["model"].items()})
+    return model.eval()
+
+
+def checkpoint_state(model: Simulator, args: dict, **extra) -> dict:
+    """What :func:`from_checkpoint` reads: the constructor arguments and the state dict (plus ``extra``)."""
+    return {"model_args": args, "model": model.state_dict(), **extra}
+
+
 def uses_hierarchy(args: dict) -> tuple[int, bool]:
     """(levels, remesh) of the hierarchy a model needs; MGN and GT need none, only-cmt none either."""
     if not REGISTRY[args["name"]].needs_hierarchy or args.get("ablation") == "only-cmt":
@@ -82,4 +96,4 @@ def uses_hierarchy(args: dict) -> tuple[int, bool]:
 
 
 __all__ = ["ABLATIONS", "ATTENTION_MODES", "GT", "HCMT", "MGN", "MODELS", "REGISTRY", "ModelInfo", "Normalizer",
-           "Simulator", "build_model", "make_model", "resolve_device", "update_positions", "uses_hierarchy"]
+           "Simulator", "build_model", "checkpoint_state", "from_checkpoint", "make_model", "resolve_device", "update_positions", "uses_hierarchy"]

@@ -47,7 +47,7 @@ from hcmt.config import check_train_config, complete_config
 from hcmt.data.format import atomic_path, read_meta
 from hcmt.inference.evaluate import validation_rmse
 from hcmt.inference.run import RunFolder
-from hcmt.models import make_model, resolve_device, uses_hierarchy
+from hcmt.models import checkpoint_state, make_model, resolve_device, uses_hierarchy
 from hcmt.models.base import compile_simulator
 from hcmt.physics.adapters import config_adapter, model_args, noise_gamma
 from hcmt.physics.frames import step_seed
@@ -224,8 +224,8 @@ class Trainer:
             self.save(self.folder.best)
 
     def save(self, path: Path) -> None:
-        save_atomic({"model": self.model.state_dict(), "optimizer": self.opt.state_dict(), "step": self.step_count,
-                     "best": self.best, "model_args": self.args}, path)
+        save_atomic(checkpoint_state(self.model, self.args, optimizer=self.opt.state_dict(), step=self.step_count,
+                                     best=self.best), path)
 
     def _record(self, rec: dict) -> None:
         self.log.write(json.dumps(rec) + "\n")

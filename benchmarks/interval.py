@@ -162,9 +162,11 @@ def cell(work: Path, dt, form, model, steps, split="test") -> dict | None:
 
 
 def ratio(a: dict, b: dict, key: str) -> dict:
-    """a ÷ b of the seed means, and whether the two are separated (means further apart than the larger std)."""
+    """a ÷ b of the seed means, and whether the two are separated: at least two seeds each and the means further
+    apart than the larger std over seeds (one seed separates nothing)."""
     ma, mb = a[key]["mean"], b[key]["mean"]
-    return {"ratio": ma / mb, "separated": abs(ma - mb) > max(a[key]["std"], b[key]["std"])}
+    enough = min(a["seeds"], b["seeds"]) >= 2
+    return {"ratio": ma / mb, "separated": enough and abs(ma - mb) > max(a[key]["std"], b[key]["std"])}
 
 
 def table(work: Path, steps: int, datasets: dict[float, Path]) -> dict:

@@ -912,7 +912,41 @@ def interval(lines):
                      f"the margin {verdict} with the interval"
                      + (f" (separated from MGN at {b_dt:g} ms in {said([q.split('_')[0] for q in grows])})"
                         if grows else "") + ".")
-    lines.append("")
+    # what else the tables say, each sentence from a comparison of the numbers above
+    def pos(dt, form, model):
+        return table.get(dt, {}).get(form, {}).get(model)
+
+    a_dt, b_dt = dts[0], dts[-1]
+    for form in ("today", "recipe"):
+        drops = [(m, pos(a_dt, form, m)["position_rmse_all"]["mean"], pos(b_dt, form, m)["position_rmse_all"]["mean"])
+                 for m in ("hcmt", "mgn", "mgn-deep") if pos(a_dt, form, m) and pos(b_dt, form, m)]
+        if drops:
+            fell = [m for m, a, b in drops if b < a]
+            lines.append(f"- **{form}**, fewer autoregressive steps: position RMSE-all at {b_dt} ms ÷ at {a_dt} ms is "
+                         + ", ".join(f"{b / a:.2f} ({m})" for m, a, b in drops)
+                         + (" — every model's error falls with the coarser interval" if len(fell) == len(drops)
+                            else "") + ".")
+    depth = [(dt, form, q) for dt in dts for form in ("today", "recipe") for q in ("position_rmse_all", "stress_rmse_all")
+             if pos(dt, form, "mgn") and pos(dt, form, "mgn-deep")]
+    deeper = [x for x in depth if pos(x[0], x[1], "mgn-deep")[x[2]]["mean"] < pos(x[0], x[1], "mgn")[x[2]]["mean"]
+              and separated(pos(x[0], x[1], "mgn-deep")[x[2]], pos(x[0], x[1], "mgn")[x[2]])]
+    lines.append(f"- Depth control: MGN with 22 blocks is below MGN with 11, separated by the seeds' spread, in "
+                 f"{len(deeper)} of {len(depth)} (interval, formulation, quantity) cells, at "
+                 f"{pos(a_dt, 'today', 'mgn-deep')['train_ms_per_step']['mean'] / pos(a_dt, 'today', 'mgn')['train_ms_per_step']['mean']:.1f}× "
+                 "the training step time.")
+    pa, pb = prop[a_dt], prop[b_dt]
+    lines.append(f"- Reach: from {a_dt} to {b_dt} ms the P wave's hops per frame grow "
+                 f"{pb['p_wave_hops_per_frame'] / pa['p_wave_hops_per_frame']:.1f}×, the stress front's only "
+                 f"{pb['front_hops_per_frame'] / pa['front_hops_per_frame']:.1f}× (front ÷ MGN's reach "
+                 f"{pa['front_hops_per_frame'] / pa['reach_per_step']['mgn']:.2f} → "
+                 f"{pb['front_hops_per_frame'] / pb['reach_per_step']['mgn']:.2f}); the front is within HCMT's "
+                 f"{pb['reach_per_step']['hcmt']:.0f} hops per step at every interval.")
+    worst_defl = max(r["max_deflection_error_pct"]["mean"] for dt in dts for form in ("today", "recipe")
+                     for m, r in table.get(dt, {}).get(form, {}).items() if m != "ratios")
+    lines += [f"- Budget: {t['steps']} steps per run; max-deflection errors reach {worst_defl:.0f} % (median over "
+              "designs, mean over seeds): at this budget each model's own rollout drift is large next to any difference "
+              "in reach, which is the likeliest reason no margin shows (docs/MODELS.md has a model trained 36× "
+              "longer).", ""]
     sp = t.get("speed")
     if sp:
         lines += [f"The design check at each interval (`python benchmarks/interval.py --speed`): `predict --verify` "
@@ -920,7 +954,8 @@ def interval(lines):
                   f"interval's HCMT (recipe, seed 0), {sp['device']}; median seconds per design, learned one design at "
                   "a time and all in one batch, the solver one design at a time:", "",
                   "| interval ms | frames | learned s/design | learned s/design, batched | solver s/design | speedup "
-                  "| speedup, batched | peak plate stress error % (median) |", "|---|---|---|---|---|---|---|---|"]
+                  "| speedup, batched | peak plate stress error % (median, these 12) | HCMT recipe position "
+                  "RMSE-all ×10³ (3 seeds) | peak error % (3 seeds) |", "|---|---|---|---|---|---|---|---|---|---|"]
         for dt in dts:
             r = sp.get(dt)
             if not r:
@@ -929,7 +964,10 @@ def interval(lines):
             lines.append(f"| {dt} | {r['frames']} | {r['learned_s_per_design_one_at_a_time']:.3f} | "
                          f"{r['learned_s_per_design_batched']:.3f} | {r['solver_s_per_design']:.3f} | "
                          f"{r['speedup_one_at_a_time']:.2f}× | {r['speedup_batched']:.2f}× | "
-                         f"{pk.get('median', float('nan')):.1f} |")
+                         f"{pk.get('median', float('nan')):.1f} | "
+                         + (f"{c(pos(dt, 'recipe', 'hcmt'), 'position_rmse_all')} | "
+                            f"{c(pos(dt, 'recipe', 'hcmt'), 'peak_plate_stress_error_pct')} |"
+                            if pos(dt, "recipe", "hcmt") else "– | – |"))
         lines.append("")
     if ps:
         lines += [f"What a coarse interval loses of the peak (`{ps['command']}`): the solver re-run on the "

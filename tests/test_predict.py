@@ -149,3 +149,22 @@ def test_demo_predicts_three_designs_beside_the_solver(tmp_path, capsys):
     assert cli(["demo", "--steps", "0"]) == 2  # --steps belongs to --train
     assert cli(["demo", "--train", "--steps", "0", "--out", str(tmp_path / "t")]) == 2
     assert not (tmp_path / "t").exists()
+
+
+def test_start_frames_solve_the_first_frame_only_when_the_ball_reaches_the_plate_within_it():
+    """At 0.008 ms a 4 mm/ms ball crosses the 0.02 mm gap within the first frame: the learned rollout then starts
+    from the solver's frame 1 (one frame of a solve); at 0.002 ms from initial_frames, no solver run."""
+    from hcmt.sim.scene import start_frames
+
+    design = Design(drop_height=820.0, mesh_size=0.6, ball_radius=3.0, plate_half_length=8.0)
+    coarse = Settings(frames=3, frame_dt=0.008)
+    with pytest.raises(ValueError, match="gap"):
+        initial_frames(design, coarse)
+    s = start_frames(design, coarse)
+    solved = simulate(design, coarse)["fields"]
+    assert s["info"]["solver_frames"] == 1 and s["fields"]["world_pos"].shape[0] == 2
+    np.testing.assert_array_equal(s["fields"]["world_pos"], solved["world_pos"][:2])
+    fine = start_frames(design, Settings(frames=3, frame_dt=0.002))
+    assert fine["info"]["solver_frames"] == 0
+    np.testing.assert_array_equal(fine["fields"]["world_pos"],
+                                  initial_frames(design, Settings(frames=3, frame_dt=0.002))["fields"]["world_pos"])

@@ -28,7 +28,7 @@ from hcmt.data.format import atomic_path
 from hcmt.inference.metrics import format_physics, impact_metrics, plate_mask, rollout_rmse, summarize_impact
 from hcmt.inference.rollout import rollout_batch
 from hcmt.physics.trajectory import prepare_trajectory
-from hcmt.sim.scene import (DESIGN_KEYS, EDGES, MAX_ESTIMATED_SECONDS, Design, Settings, initial_frames,
+from hcmt.sim.scene import (DESIGN_KEYS, EDGES, MAX_ESTIMATED_SECONDS, Design, Settings, start_frames,
                             middle_design, parse_design, parse_number, plan, simulate)
 from hcmt.viz.contours import plot_contours
 from hcmt.viz.rollouts import Case, Series
@@ -148,9 +148,10 @@ def settings_of(meta: dict | None) -> Settings:
 
 # -- prediction ----------------------------------------------------------------------------------------------------
 def design_trajectory(run, name: str, design: Design, settings: Settings):
-    """The rollout input of a design: frames 0 and 1 from :func:`initial_frames`, later frames holding only what
-    the boundary conditions read (the clamped rim and the symmetry line do not move: frame 0's positions)."""
-    start = initial_frames(design, settings)
+    """The rollout input of a design: frames 0 and 1 from :func:`hcmt.sim.scene.start_frames` (the solver's first
+    frame only when the ball reaches the plate within it), later frames holding only what the boundary conditions
+    read (the clamped rim and the symmetry line do not move: frame 0's positions)."""
+    start = start_frames(design, settings)
     f = dict(start["fields"])
     x = f["world_pos"]
     f["world_pos"] = np.concatenate([x, np.repeat(x[:1], settings.frames - 2, axis=0)])

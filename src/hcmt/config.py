@@ -247,7 +247,7 @@ def check_train_config(cfg: dict) -> None:
     steps = tc["steps"]
     if isinstance(steps, bool) or not isinstance(steps, int) or steps < 1:
         raise ValueError(f"train.steps must be a whole number >= 1, got {steps!r}")
-    batch_size = tc.get("batch_size", TrainConfig.batch_size)
+    batch_size = tc["batch_size"]
     if isinstance(batch_size, bool) or not isinstance(batch_size, int) or batch_size < 1:
         raise ValueError(f"train.batch_size must be a whole number >= 1, got {batch_size!r}")
     if not isinstance(tc["lr"], (int, float)) or not tc["lr"] > 0:

@@ -91,7 +91,7 @@ def _load_runs(args) -> list[Run | RunFolder]:
     out = []
     for r in args.runs:
         folder = RunFolder(r)
-        out.append(Run.load(r, args.device) if folder.checkpoint().is_file() else folder)
+        out.append(Run.load(folder, args.device) if folder.checkpoint().is_file() else folder)
     return out
 
 

@@ -15,6 +15,7 @@ from __future__ import annotations
 import json
 import math
 from dataclasses import dataclass, field
+from functools import cached_property
 from pathlib import Path
 
 import numpy as np
@@ -184,16 +185,13 @@ class Run:
         (the latest)."""
         if isinstance(path, Run):
             return path
-        if isinstance(path, RunFolder):
-            path = path.path
         dev = resolve_device(device)
-        text = str(path)
-        if text.startswith("pretrained:"):
-            return cls._pretrained(text.split(":", 1)[1], dev)
-        folder = RunFolder(path)
+        if not isinstance(path, RunFolder) and str(path).startswith("pretrained:"):
+            return cls._pretrained(str(path).split(":", 1)[1], dev)
+        folder = path if isinstance(path, RunFolder) else RunFolder(path)  # run.yaml parsed once
         model, info = load_run(folder, which, device="cpu")
         meta, ranges = _data_facts(info.get("data"))
-        return cls(model.to(dev), info, str(path), meta, ranges, folder=folder)
+        return cls(model.to(dev), info, folder.source, meta, ranges, folder=folder)
 
     @classmethod
     def _pretrained(cls, name: str, device: torch.device) -> "Run":
@@ -217,9 +215,9 @@ class Run:
     def device(self) -> torch.device:
         return next(self.model.parameters()).device
 
-    @property
+    @cached_property
     def adapter(self):
-        return config_adapter(self.config)
+        return config_adapter(self.config)  # once per run: it validates and completes the config
 
     @property
     def radius(self) -> float:

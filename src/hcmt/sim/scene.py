@@ -286,7 +286,7 @@ def initial_frames(design: Design, settings: Settings = Settings()) -> dict:
     design.validate()
     settings.validate()
     dt, g = settings.frame_dt, settings.gravity
-    fall = design.impact_speed * dt + 0.5 * g * dt * dt
+    fall = first_frame_fall(design, settings)
     if fall >= design.gap:
         raise ValueError(f"drop_height {design.drop_height} mm: the ball ({design.impact_speed:.3g} mm/ms) would "
                          f"cross the {design.gap} mm gap within the first frame ({dt} ms); lower drop_height or "
@@ -303,14 +303,18 @@ def initial_frames(design: Design, settings: Settings = Settings()) -> dict:
     return dict(fields=fields_, attrs=attrs)
 
 
+def first_frame_fall(design: Design, settings: Settings) -> float:
+    """How far the ball falls in the first frame, ``v0 dt + g dt^2 / 2`` (mm)."""
+    dt = settings.frame_dt
+    return design.impact_speed * dt + 0.5 * settings.gravity * dt * dt
+
+
 def start_frames(design: Design, settings: Settings = Settings()) -> dict:
     """Frames 0 and 1 of a design, what a learned rollout starts from: :func:`initial_frames` (no solver run) when
     the ball cannot reach the plate within the first frame, else the solver's own first frame (a coarse interval:
     at 0.008 ms a ball at 4 mm/ms crosses the 0.02 mm gap within it; the cost is one frame of a solve, in
     ``info``). Returns ``fields``, ``attrs`` and ``info`` ({"solver_frames": 0 or 1, "wall_time"})."""
-    design.validate()
-    settings.validate()
-    if design.impact_speed * settings.frame_dt + 0.5 * settings.gravity * settings.frame_dt ** 2 < design.gap:
+    if first_frame_fall(design.validate(), settings.validate()) < design.gap:
         return {**initial_frames(design, settings), "info": {"solver_frames": 0, "wall_time": 0.0}}
     r = simulate(design, replace(settings, frames=2))
     f = dict(r["fields"])

@@ -8,7 +8,8 @@
 3. verifies ``--designs`` held-out designs of a fresh seed (``--design-seed``): the model card's measured error
    by region (``confidence``), then the *shipped* fp16 model against the solver (errors, physics, speedup), and
    a thickness and a drop-height sweep with ``--verify`` (trend signs, the minimum-thickness call);
-4. writes benchmarks/results/model_NAME.json (docs/MODELS.md quotes it).
+4. writes benchmarks/results/model_NAME.json (docs/MODELS.md quotes it);
+5. writes ``src/hcmt/pretrained/NAME.surrogate.json``: the response surface of its training designs.
 """
 from __future__ import annotations
 
@@ -25,6 +26,7 @@ from hcmt.sim.scene import sample_design
 from hcmt.design import predict as pr
 from hcmt.design import sweep as sw
 from hcmt.inference.evaluate import evaluate
+from hcmt.design.surrogate import Surrogate
 from hcmt.inference.run import PRETRAINED_DIR, Run
 
 
@@ -86,6 +88,10 @@ def main() -> None:
     card["verify_designs"] = {"seed": a.design_seed, "count": a.designs}
     path = run.save_pretrained(PRETRAINED_DIR / f"{a.name}.pt", card)
     print(f"wrote {path} ({path.stat().st_size / 1e6:.2f} MB)")
+    # every shipped model carries the response surface of its own training designs (hcmt.design.surrogate)
+    surrogate = Surrogate.fit_dataset(a.data)
+    surrogate.source = f"the training designs of pretrained:{a.name} ({a.data_command or a.data})"
+    print(f"wrote {surrogate.save(PRETRAINED_DIR / f'{a.name}.surrogate.json')}")
     shipped = Run.load(f"pretrained:{a.name}", "cpu")
     check = pr.check_designs(shipped, designs, batch=a.batch, verify=True, progress=False)  # the fp16 file itself
     print(pr.format_table(check.preds, check.verified))

@@ -4,7 +4,10 @@ The Python API (imported lazily, so ``import hcmt`` and ``hcmt --help`` stay fas
 
 * :class:`hcmt.Run` (``Run.load(path_or_"pretrained:NAME", device=None)``): a trained model, its config and data facts;
 * :func:`hcmt.load_pretrained` (``NAME``): a model shipped inside the package, offline;
-* :func:`hcmt.predict_designs`: peak stress and deflection of Impact Plate designs, no solver run;
+* :func:`hcmt.predict_designs`: peak stress and deflection of Impact Plate designs, no solver run, with the run's
+  response surface beside the model (the design check of ``hcmt predict``);
+* :class:`hcmt.Surrogate`: a Gaussian-process response surface on the design parameters (``Surrogate.fit_dataset``,
+  ``save``, ``load``);
 * :class:`hcmt.Design`: the parameters of one Impact Plate design;
 * :func:`hcmt.evaluate` (``run, data, split``): the paper's metrics and the physics metrics of a run on a split;
 * :func:`hcmt.load_dataset` (a native dataset folder), :func:`hcmt.train` (``config, data, model, out, **options``),
@@ -27,7 +30,8 @@ _LAZY = {
     "Design": ("hcmt.sim.scene", "Design"),
     "Settings": ("hcmt.sim.scene", "Settings"),
     "generate_dataset": ("hcmt.sim.generate", "generate_dataset"),
-    "predict_designs": ("hcmt.design.predict", "predict"),
+    "predict_designs": ("hcmt.design.predict", "predict_designs"),
+    "Surrogate": ("hcmt.design.surrogate", "Surrogate"),
     "load_dataset": ("hcmt.data.format", "load_dataset"),
     "FrameDataset": ("hcmt.training.dataset", "FrameDataset"),
     "load_config": ("hcmt.config", "load_config"),
@@ -47,5 +51,5 @@ def __getattr__(name):
     raise AttributeError(f"module 'hcmt' has no attribute {name!r}")
 
 
-__all__ = ["Design", "FrameDataset", "Run", "Settings", "__version__", "available_pretrained", "evaluate", "generate_dataset",
+__all__ = ["Design", "FrameDataset", "Run", "Settings", "Surrogate", "__version__", "available_pretrained", "evaluate", "generate_dataset",
            "load_config", "load_dataset", "load_pretrained", "predict_designs", "train"]

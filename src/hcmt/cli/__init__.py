@@ -30,6 +30,8 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "sweep": ("hcmt.cli.design", "one design parameter varied over a range, predicted in one batch: trend, limit "
               "for a yield stress, and with --verify the solver's"),
     "models": ("hcmt.cli.design", "list the trained models shipped with hcmt (pretrained:NAME)"),
+    "surrogate": ("hcmt.cli.surrogate", "fit a Gaussian-process response surface on a dataset's solver runs "
+                  "(the scalar answers an engineer would fit instead of a mesh model)"),
     "plot": ("hcmt.cli.viz", "draw stress contours, animations, error curves and training curves of a run"),
     "export": ("hcmt.cli.viz", "export a rollout to ParaView (VTU or XDMF time series)"),
     "demo": ("hcmt.cli.demo", "quickstart: the shipped HCMT model beside the solver on three new designs "

@@ -64,7 +64,11 @@ def design_demo(args: argparse.Namespace) -> int:
           f"{settings.frame_dt} ms each)")
     check = pr.check_designs(run, designs, batch=len(designs), verify=True, progress=False)
     preds, truth, verified = check.preds, check.truth, check.verified
-    print("\nvon Mises stresses in MPa, lengths in mm; 'err' columns compare the model with the solver")
+    for note in check.notes:
+        print(f"note: {note}")
+    print("\nvon Mises stresses in MPa, lengths in mm; 'err' columns compare the model with the solver"
+          + (f"; 'surrogate' is the response surface fitted on the model's own training designs "
+             f"({check.surrogate})" if check.surrogate else ""))
     print(pr.format_table(preds, verified))
     picture = pr.contour_picture(preds[1], truth[1], run.meta, Path(args.out), run.label)
     print(f"\ncontours at the peak frame, solver beside prediction: {picture}")

@@ -14,6 +14,35 @@ from hcmt.design import sweep as sw
 from hcmt.inference.run import Run, available_pretrained
 
 
+# -- shared options ------------------------------------------------------------------------------------------------
+def verify_arg(p: argparse.ArgumentParser, what: str) -> None:
+    p.add_argument("--verify", nargs="?", const="all", choices=("all", "auto"), metavar="auto",
+                   help=f"also run the built-in solver on every design and {what}; `--verify auto` (with "
+                        "--yield-mpa) runs it only on the designs whose call is undecided, and their final call is "
+                        "the solver's")
+
+
+def surrogate_args(p: argparse.ArgumentParser) -> None:
+    g = p.add_mutually_exclusive_group()
+    g.add_argument("--surrogate", metavar="FILE.json", help="the response surface to report beside the model (made "
+                   "by `hcmt surrogate fit`; default: the model's own, shipped with it or RUN/surrogate.json)")
+    g.add_argument("--no-surrogate", action="store_true", help="no response surface: the mesh model alone")
+
+
+def check_options(args) -> dict:
+    """The design-check options shared by predict and sweep."""
+    verify = {"all": True, "auto": "auto", None: False}[args.verify]
+    if verify == "auto" and args.yield_mpa is None:
+        raise ValueError("--verify auto runs the solver on the designs whose call is undecided: give --yield-mpa Y")
+    return {"verify": verify, "yield_mpa": args.yield_mpa,
+            "surrogate": False if args.no_surrogate else (args.surrogate or True)}
+
+
+def print_notes(command: str, check) -> None:
+    for note in check.notes:
+        print(f"hcmt {command}: {note}", file=sys.stderr)
+
+
 # -- predict / models ----------------------------------------------------------------------------------------------
 def configure_predict(p: argparse.ArgumentParser) -> None:
     p.add_argument("model", help="run folder made by `hcmt train`, or pretrained:NAME (`hcmt models` lists them)")
@@ -25,9 +54,10 @@ def configure_predict(p: argparse.ArgumentParser) -> None:
     p.add_argument("--device", help="cpu, cuda, cuda:N (default: cuda when available)")
     p.add_argument("--batch", type=int, default=8, help="designs rolled out together (default 8)")
     compile_arg(p)
-    p.add_argument("--yield-mpa", type=float, help="report the margin of the peak plate stress to this stress (MPa)")
-    p.add_argument("--verify", action="store_true", help="also run the built-in solver and report the errors and "
-                   "the speedup")
+    p.add_argument("--yield-mpa", type=float, help="report the margin of the peak plate stress to this stress (MPa) "
+                   "and a pass / fail / undecided call per design from the trusted interval")
+    verify_arg(p, "report the errors and the speedup")
+    surrogate_args(p)
     p.add_argument("--images", action="store_true", help="stress-contour PNG at each design's peak frame")
     p.add_argument("--out", default="predict_out", help="folder for --images (default predict_out)")
     p.add_argument("--force", action="store_true", help="run even designs estimated to take over 600 s")
@@ -47,12 +77,16 @@ def main_predict(args: argparse.Namespace) -> int:
     for name, d in designs:
         for w in pr.range_warnings(d, run.ranges):
             print(f"hcmt predict: warning: {name}: {w}", file=sys.stderr)
-    check = pr.check_designs(run, designs, batch=args.batch, verify=args.verify, yield_mpa=args.yield_mpa,
-                             compile=args.compile, progress=not args.no_progress, force=args.force)
+    check = pr.check_designs(run, designs, batch=args.batch, compile=args.compile, progress=not args.no_progress,
+                             force=args.force, **check_options(args))
+    print_notes("predict", check)
     preds, truth = check.preds, check.truth
     print(f"{run.label} ({run.source}) on {run.device}: {len(preds)} design(s), {check.settings.frames} frames of "
-          f"{check.settings.frame_dt} ms, {check.wall_s:.2f} s in all; stresses are von Mises [MPa], lengths [mm]")
+          f"{check.settings.frame_dt} ms, {check.wall_s:.2f} s in all; stresses are von Mises [MPa], lengths [mm]"
+          + (f"; response surface: {check.surrogate}" if check.surrogate else ""))
     print(pr.format_table(preds, check.verified))
+    if args.yield_mpa is not None:
+        print(pr.format_calls(preds, args.yield_mpa))
     if args.images:
         for i, p in enumerate(preds):
             path = pr.contour_picture(p, truth[i] if truth else None, run.meta, args.out, run.label)
@@ -61,7 +95,8 @@ def main_predict(args: argparse.Namespace) -> int:
         print(f"wrote {pr.write_csv(preds, args.csv)}")
     if args.json:
         with atomic_path(Path(args.json)) as tmp:
-            tmp.write_text(json.dumps(pr.to_json(preds, check.verified, run.source, str(run.device)), indent=2))
+            tmp.write_text(json.dumps(pr.to_json(preds, check.verified, run.source, str(run.device), check),
+                                      indent=2))
         print(f"wrote {args.json}")
     return 0
 
@@ -83,9 +118,10 @@ def configure_sweep(p: argparse.ArgumentParser) -> None:
     p.add_argument("--design", nargs="+", default=[], metavar="KEY=VALUE",
                    help="the other parameters, e.g. --design drop_height=750 (default: the middle of the training "
                         "ranges)")
-    p.add_argument("--verify", action="store_true", help="also run the solver on every point and compare trends")
+    verify_arg(p, "compare the trends")
     p.add_argument("--yield-mpa", type=float, help="report the smallest / largest parameter value that keeps the "
-                   "peak plate stress below this stress (MPa), for model and solver")
+                   "peak plate stress below this stress (MPa) from the final calls, for model and solver")
+    surrogate_args(p)
     p.add_argument("--device", help="cpu, cuda, cuda:N (default: cuda when available)")
     p.add_argument("--batch", type=int, help="designs per model call (default: the whole sweep in one batch)")
     compile_arg(p)
@@ -104,12 +140,15 @@ def main_sweep(args: argparse.Namespace) -> int:
     designs = sw.sweep_designs(base, param, lo, hi, n)
     for w in sorted({w for _, d in designs for w in pr.range_warnings(d, run.ranges)}):  # each distinct one once
         print(f"hcmt sweep: warning: {w}", file=sys.stderr)
-    check, analysis = sw.sweep(run, param, lo, hi, n, base, verify=args.verify, yield_mpa=args.yield_mpa,
-                               batch=args.batch, progress=not args.no_progress, compile=args.compile,
-                               force=args.force)
+    check, analysis = sw.sweep(run, param, lo, hi, n, base, batch=args.batch, progress=not args.no_progress,
+                               compile=args.compile, force=args.force, **check_options(args))
+    print_notes("sweep", check)
     print(f"{run.label} ({run.source}) on {run.device}: {param} from {lo:g} to {hi:g} in {n} points, "
-          f"{check.wall_s:.2f} s in all; stresses are von Mises [MPa], lengths [mm]")
+          f"{check.wall_s:.2f} s in all; stresses are von Mises [MPa], lengths [mm]"
+          + (f"; response surface: {check.surrogate}" if check.surrogate else ""))
     print(pr.format_table(check.preds, check.verified))
+    if args.yield_mpa is not None:
+        print(pr.format_calls(check.preds, args.yield_mpa, param, lambda p: f"{getattr(p.design, param):.6g}"))
     print(sw.format_analysis(analysis))
     print(f"plot: {sw.plot_sweep(check, analysis, args.out, run.label)}")
     if args.csv:

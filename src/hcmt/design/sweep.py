@@ -78,7 +78,12 @@ def trend(values: np.ndarray) -> dict:
 def limit_call(params: np.ndarray, peaks: np.ndarray, yield_mpa: float) -> dict:
     """Which parameter values keep the peak below ``yield_mpa``, and the call: the smallest passing value when the
     passing values lie at the top of the range, the largest when at the bottom (``None``: none or all pass)."""
-    ok = np.asarray(peaks) < yield_mpa
+    return limit_of(params, np.asarray(peaks) < yield_mpa)
+
+
+def limit_of(params: np.ndarray, ok: np.ndarray) -> dict:
+    """:func:`limit_call` of the passing mask ``ok``."""
+    ok = np.asarray(ok, bool)
     out = {"passing": [float(p) for p in np.asarray(params)[ok]], "call": None, "call_index": None, "side": None}
     if ok.all() or not ok.any():
         out["side"] = "all pass" if ok.all() else "none pass"
@@ -102,7 +107,7 @@ def analyse(check: Check, param: str, yield_mpa: float | None) -> dict:
     params = np.array([getattr(p.design, param) for p in check.preds])
     out = {"param": param, "values": params.tolist(), "trend": {}, "limit": None}
     series = {"model": [p.summary for p in check.preds]}
-    if check.truth is not None:
+    if check.truth is not None and all(t is not None for t in check.truth):
         series["solver"] = [t.summary for t in check.truth]
     for q in QUANTITIES:
         row = {who: trend([s[q] for s in rows]) for who, rows in series.items()}
@@ -120,6 +125,13 @@ def analyse(check: Check, param: str, yield_mpa: float | None) -> dict:
             else:
                 calls["within_one_step"] = a["side"] == b["side"]
             calls["unsafe"] = _unsafe(a, b)
+        # the final calls: pass only where the trusted interval (or, where it ran, the solver) says so
+        final = [p.summary["final_call"] for p in check.preds]
+        calls["final"] = {**limit_of(params, [c == "pass" for c in final]), "calls": final,
+                          "undecided": [float(v) for v, c in zip(params, final) if c == "undecided"],
+                          "solver_runs": check.solver_runs}
+        if "solver" in calls:
+            calls["final"]["unsafe"] = _unsafe(calls["final"], calls["solver"])
         out["limit"] = {"yield_mpa": yield_mpa, **calls}
     return out
 
@@ -129,14 +141,18 @@ def _unsafe(model: dict, solver: dict) -> bool:
     return bool(set(model["passing"]) - set(solver["passing"]))
 
 
-def sweep(run, param: str, lo: float, hi: float, n: int, base: Design, *, verify: bool = False,
-          yield_mpa: float | None = None, batch: int | None = None, progress: bool = True, compile: str = "none",
-          force: bool = False) -> tuple[Check, dict]:
-    """Predict a one-parameter sweep in one batch (``batch`` designs per model call, default all) and analyse it."""
+def sweep(run, param: str, lo: float, hi: float, n: int, base: Design, *, batch: int | None = None,
+          **options) -> tuple[Check, dict]:
+    """Predict a one-parameter sweep in one batch (``batch`` designs per model call, default all) and analyse it;
+    ``options`` as :func:`hcmt.design.predict.check_designs` (verify, yield_mpa, surrogate, ...)."""
     designs = sweep_designs(base, param, lo, hi, n)
-    check = check_designs(run, designs, batch=batch or n, verify=verify, yield_mpa=yield_mpa, progress=progress,
-                          compile=compile, force=force)
-    return check, analyse(check, param, yield_mpa)
+    check = check_designs(run, designs, batch=batch or n, **options)
+    analysis = analyse(check, param, options.get("yield_mpa"))
+    lo_t, hi_t = run.ranges.get(param, (None, None))
+    if lo_t is not None and lo_t == hi_t:
+        analysis["not_learned"] = (f"the model's training designs held {param} fixed at {lo_t:g}: the trend "
+                                   "against it is not learned")
+    return check, analysis
 
 
 def format_analysis(a: dict) -> str:
@@ -152,13 +168,20 @@ def format_analysis(a: dict) -> str:
                 parts.append(f"{who} {word[t['sign']]}{change}{'' if t['monotonic'] else ', not monotonic'}")
         agree = "" if "agree" not in row else ("  -> trends agree" if row["agree"] else "  -> TRENDS DISAGREE")
         lines.append(f"{label} against {a['param']}: " + "; ".join(parts) + agree)
+    if a.get("not_learned"):
+        lines.append(f"warning: {a['not_learned']}")
     lim = a["limit"]
     if lim:
-        for who in ("model", "solver"):
+        names = {"model": "model alone", "solver": "solver", "final": "final calls"}
+        for who in ("model", "final", "solver"):
             if who in lim:
                 c = lim[who]
                 text = (f"{c['side']} {a['param']} {c['call']:.6g}" if c["call"] is not None else c["side"])
-                lines.append(f"below {lim['yield_mpa']:g} MPa, {who}: {text}")
+                extra = ""
+                if who == "final":
+                    extra = (f" ({len(c['undecided'])} undecided point(s); the solver ran on {c['solver_runs']}"
+                             + (", UNSAFE: a final pass the solver fails" if c.get("unsafe") else "") + ")")
+                lines.append(f"below {lim['yield_mpa']:g} MPa, {names[who]}: {text}{extra}")
         if "within_one_step" in lim:
             lines.append("limit calls " + ("agree within one sweep step" if lim["within_one_step"] else
                                            "DIFFER by more than one sweep step")
@@ -167,7 +190,7 @@ def format_analysis(a: dict) -> str:
 
 
 def sweep_json(check: Check, analysis: dict, run_source: str, device: str) -> dict:
-    return {**to_json(check.preds, check.verified, run_source, device), "sweep": analysis}
+    return {**to_json(check.preds, check.verified, run_source, device, check), "sweep": analysis}
 
 
 def plot_sweep(check: Check, analysis: dict, out_dir: str | Path, label: str) -> Path:
@@ -178,7 +201,15 @@ def plot_sweep(check: Check, analysis: dict, out_dir: str | Path, label: str) ->
     for ax, (q, name) in zip(axes, QUANTITIES.items()):
         ax.plot(x, [p.summary[q] for p in check.preds], "o-", label=label)
         if check.truth is not None:
-            ax.plot(x, [t.summary[q] for t in check.truth], "s--", color="k", label="Solver")
+            ran = [(v, t.summary[q]) for v, t in zip(x, check.truth) if t is not None]
+            if ran:
+                ax.plot(*zip(*ran), "s--", color="k", label="Solver")
+        band = [(v, p.summary["surrogate"][q]) for v, p in zip(x, check.preds) if q in p.summary.get("surrogate", {})]
+        if band:
+            xs, bs = zip(*band)
+            ax.fill_between(xs, [b["lo"] for b in bs], [b["hi"] for b in bs], color="C1", alpha=0.25,
+                            label="surrogate 95 %")
+            ax.plot(xs, [b["mean"] for b in bs], "-", color="C1", lw=1)
         if q == "peak_plate_stress_mpa" and analysis["limit"]:
             ax.axhline(analysis["limit"]["yield_mpa"], color="r", lw=1, label=f"Y = {analysis['limit']['yield_mpa']:g}")
         ax.set_xlabel(analysis["param"])

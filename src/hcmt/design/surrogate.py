@@ -1,0 +1,326 @@
+"""A response surface on the design parameters: what an engineer fits on a family's solver runs instead of a mesh model.
+
+:class:`Surrogate` is one Gaussian process per scalar answer of a design (scikit-learn's
+:class:`~sklearn.gaussian_process.GaussianProcessRegressor`; hcmt does not write its own GP), on log inputs and
+log outputs, each standardized over the training designs:
+
+    z = (log x − m_x) / s_x,      y = (log q − m_q) / s_q,
+    k(z, z') = c² exp(−½ Σ_d (z_d − z'_d)² / ℓ_d²) + σ_n² δ(z, z')      (ARD RBF + white noise)
+
+Its 95 % interval is ``exp(m_q + s_q (μ ± 1.96 σ))`` with the predictive σ of the white-noise-including kernel, so
+a design's answer is a central estimate and a band that is not symmetric in MPa. Inputs are the parameters that
+vary over the training designs (a parameter held fixed there is recorded with its value: the surrogate cannot learn
+what it never saw vary). The answers (:data:`QUANTITIES`) are those of :func:`hcmt.design.readout.summarize` on the
+solver's trajectories: peak plate and ball stress, maximum deflection and the time the plate first reaches 95 % of
+its peak.
+
+Stored without pickle (:meth:`Surrogate.save`, :meth:`Surrogate.load`): JSON with the kernel's hyperparameters,
+the training designs and their solver answers, and the transforms; loading refits the posterior with the stored
+hyperparameters (``optimizer=None``), so a loaded surrogate predicts what the fitted one did, to rounding.
+"""
+from __future__ import annotations
+
+import json
+import math
+import warnings
+from dataclasses import asdict, dataclass
+from pathlib import Path
+
+import numpy as np
+from sklearn.exceptions import ConvergenceWarning
+from sklearn.gaussian_process import GaussianProcessRegressor
+from sklearn.gaussian_process.kernels import RBF, ConstantKernel, WhiteKernel
+
+from hcmt.data.format import Split, atomic_path, read_meta
+from hcmt.design.readout import summarize_fields
+from hcmt.inference.run import PRETRAINED_DIR
+from hcmt.sim.scene import DESIGN_KEYS, Design
+
+#: the scalar answers a surrogate predicts (keys of a design's summary)
+QUANTITIES = ("peak_plate_stress_mpa", "peak_ball_stress_mpa", "max_deflection_mm", "peak_plate_t95_ms")
+FORMAT, VERSION = "hcmt-surrogate", 1
+Z95 = 1.959963984540054  # the standard normal's 97.5 % quantile: a central 95 % interval
+RESTARTS = 3  # optimizer restarts of the marginal likelihood (the issue's comparison used 3)
+
+
+class SurrogateError(ValueError):
+    """A surrogate file that cannot be used; the message names the file and what is wrong."""
+
+
+@dataclass
+class Interval:
+    """A surrogate's answer: central estimate and the central 95 % interval."""
+
+    mean: float
+    lo: float
+    hi: float
+
+    def covers(self, value: float) -> bool:
+        return self.lo <= value <= self.hi
+
+
+class Surrogate:
+    """Gaussian-process response surfaces of a design family's scalar answers, fitted on its solver runs.
+
+    Args:
+        parameters: the design parameters the surfaces take (those that vary over the training designs).
+        fixed: the parameters held fixed over the training designs, with their values.
+        X: [n, d] the training designs' parameters (in ``parameters``' order).
+        Y: answer name -> [n] the solver's answer of each training design.
+        kernels: answer name -> ``{"constant", "length_scales" [d], "noise"}``: the fitted hyperparameters
+            (None: fit them by maximizing the marginal likelihood, ``restarts`` restarts, ``seed``).
+        source: where the training designs came from (recorded in the file).
+    """
+
+    def __init__(self, parameters: list[str], fixed: dict[str, float], X, Y: dict[str, np.ndarray],
+                 kernels: dict | None = None, *, source: str = "", restarts: int = RESTARTS, seed: int = 0):
+        self.parameters, self.fixed, self.source = list(parameters), dict(fixed), source
+        self.X = np.asarray(X, np.float64).reshape(-1, len(self.parameters))
+        self.Y = {q: np.asarray(v, np.float64) for q, v in Y.items()}
+        n, d = self.X.shape
+        if n < d + 2:
+            raise ValueError(f"{n} training designs for {d} parameters: a surrogate needs at least parameters + 2 "
+                             f"({d + 2}) designs")
+        if not (np.all(np.isfinite(self.X)) and np.all(self.X > 0)):
+            raise ValueError("training designs must be finite and positive (the surrogate works on log inputs)")
+        for q, v in self.Y.items():
+            if v.shape != (n,) or not (np.all(np.isfinite(v)) and np.all(v > 0)):
+                raise ValueError(f"answer {q!r}: expected {n} finite positive values (log outputs)")
+        logx = np.log(self.X)
+        self.x_mean, self.x_std = logx.mean(0), np.maximum(logx.std(0), 1e-12)
+        self.y_mean = {q: float(np.log(v).mean()) for q, v in self.Y.items()}
+        self.y_std = {q: float(max(np.log(v).std(), 1e-12)) for q, v in self.Y.items()}
+        self.kernels: dict = {}
+        self._gps: dict[str, GaussianProcessRegressor] = {}
+        z = self._z(self.X)
+        for q, v in self.Y.items():
+            y = (np.log(v) - self.y_mean[q]) / self.y_std[q]
+            hyper = (kernels or {}).get(q)
+            if hyper is None:
+                gp = GaussianProcessRegressor(_kernel(d), n_restarts_optimizer=restarts, random_state=seed)
+            else:
+                gp = GaussianProcessRegressor(_kernel(d, hyper), optimizer=None)
+            with warnings.catch_warnings():  # a length scale at its upper bound: that parameter does not matter
+                warnings.simplefilter("ignore", ConvergenceWarning)
+                gp.fit(z, y)
+            self._gps[q] = gp
+            self.kernels[q] = hyper or _hyper(gp.kernel_)
+
+    # -- fitting ---------------------------------------------------------------------------------------------------
+    @classmethod
+    def fit_dataset(cls, data: str | Path, split: str = "train", *, limit: int | None = None,
+                    restarts: int = RESTARTS, seed: int = 0) -> "Surrogate":
+        """Fit on the solver trajectories of an hcmt-generated Impact Plate dataset's ``split`` (the first
+        ``limit`` when given): :func:`dataset_answers`."""
+        designs, answers = dataset_answers(data, split, limit)
+        return cls.fit(designs, answers, source=f"{Path(data)} ({split}, {len(designs)} trajectories)",
+                       restarts=restarts, seed=seed)
+
+    @classmethod
+    def fit(cls, designs: list[Design], answers: dict[str, list[float]], *, source: str = "",
+            restarts: int = RESTARTS, seed: int = 0) -> "Surrogate":
+        """Fit on designs and their solver answers; the parameters that vary over ``designs`` are the inputs."""
+        if not designs:
+            raise ValueError("no training designs")
+        values = np.array([[getattr(d, k) for k in DESIGN_KEYS] for d in designs], np.float64)
+        spread = values.max(0) - values.min(0) > 1e-9 * np.maximum(np.abs(values).max(0), 1e-300)
+        params = [k for k, s in zip(DESIGN_KEYS, spread) if s]
+        fixed = {k: float(values[0, j]) for j, (k, s) in enumerate(zip(DESIGN_KEYS, spread)) if not s}
+        return cls(params, fixed, values[:, spread], answers, source=source, restarts=restarts, seed=seed)
+
+    # -- predicting ------------------------------------------------------------------------------------------------
+    def _z(self, X: np.ndarray) -> np.ndarray:
+        return (np.log(X) - self.x_mean) / self.x_std
+
+    def matrix(self, designs: list[Design]) -> np.ndarray:
+        return np.array([[getattr(d, k) for k in self.parameters] for d in designs], np.float64).reshape(
+            len(designs), len(self.parameters))
+
+    def predict(self, designs: list[Design]) -> list[dict[str, Interval]]:
+        """Per design, each answer's :class:`Interval` (central estimate and 95 % interval, in the answer's unit)."""
+        if not designs:
+            return []
+        X = self.matrix(designs)
+        if not np.all(X > 0):
+            raise ValueError("design parameters must be positive for the surrogate (log inputs)")
+        z = self._z(X)
+        out: list[dict[str, Interval]] = [{} for _ in designs]
+        for q, gp in self._gps.items():
+            mu, sd = gp.predict(z, return_std=True)
+            m, s = self.y_mean[q], self.y_std[q]
+            for i in range(len(designs)):
+                out[i][q] = Interval(float(np.exp(m + s * mu[i])), float(np.exp(m + s * (mu[i] - Z95 * sd[i]))),
+                                     float(np.exp(m + s * (mu[i] + Z95 * sd[i]))))
+        return out
+
+    def ranges(self) -> dict[str, tuple[float, float]]:
+        """Min and max of every design parameter over the training designs (fixed ones: their value twice)."""
+        out = {k: (float(self.X[:, j].min()), float(self.X[:, j].max())) for j, k in enumerate(self.parameters)}
+        out.update({k: (v, v) for k, v in self.fixed.items()})
+        return out
+
+    def __len__(self) -> int:
+        return len(self.X)
+
+    def __repr__(self) -> str:
+        return (f"Surrogate({len(self)} designs, parameters {self.parameters}, answers {list(self.Y)}"
+                + (f", from {self.source}" if self.source else "") + ")")
+
+    # -- storing ---------------------------------------------------------------------------------------------------
+    def to_dict(self) -> dict:
+        return {"format": FORMAT, "version": VERSION, "source": self.source,
+                "model": "GaussianProcessRegressor: ConstantKernel * RBF(ARD) + WhiteKernel on standardized log "
+                         "inputs and log outputs; 95 % interval = exp(m + s (mu +- 1.96 sd))",
+                "parameters": self.parameters, "fixed": self.fixed,
+                "input_transform": {"kind": "log-standardize", "mean": self.x_mean.tolist(),
+                                    "std": self.x_std.tolist()},
+                "output_transform": {q: {"kind": "log-standardize", "mean": self.y_mean[q], "std": self.y_std[q]}
+                                     for q in self.Y},
+                "kernels": self.kernels,
+                "designs": self.X.tolist(), "answers": {q: v.tolist() for q, v in self.Y.items()}}
+
+    def save(self, path: str | Path) -> Path:
+        """Write the surrogate as JSON, atomically."""
+        path = Path(path)
+        with atomic_path(path) as tmp:
+            tmp.write_text(json.dumps(self.to_dict(), indent=1))
+        return path
+
+    @classmethod
+    def load(cls, path: str | Path) -> "Surrogate":
+        """Read a surrogate written by :meth:`save` and refit its posterior with the stored hyperparameters (no
+        optimizer run). A file that is missing, not JSON, truncated or inconsistent raises
+        :class:`SurrogateError` naming it."""
+        path = Path(path)
+        if not path.is_file():
+            raise SurrogateError(f"{path}: no such surrogate file (make one with `hcmt surrogate fit DATA --out "
+                                 f"{path.name}`)")
+        try:
+            doc = json.loads(path.read_text(encoding="utf-8"))
+        except (UnicodeDecodeError, json.JSONDecodeError) as exc:
+            raise SurrogateError(f"{path}: not a surrogate JSON file (truncated or corrupt?): {exc}") from None
+        return cls.from_dict(doc, where=str(path))
+
+    @classmethod
+    def from_dict(cls, doc, where: str = "surrogate") -> "Surrogate":
+        if not isinstance(doc, dict) or doc.get("format") != FORMAT:
+            raise SurrogateError(f"{where}: not an hcmt surrogate (expected \"format\": \"{FORMAT}\")")
+        if doc.get("version") != VERSION:
+            raise SurrogateError(f"{where}: surrogate format version {doc.get('version')!r}, this hcmt reads "
+                                 f"{VERSION}")
+        try:
+            params, fixed, designs = list(doc["parameters"]), dict(doc["fixed"]), doc["designs"]
+            answers, kernels = dict(doc["answers"]), dict(doc["kernels"])
+            unknown = [k for k in [*params, *fixed] if k not in DESIGN_KEYS]
+            if unknown:
+                raise SurrogateError(f"{where}: unknown design parameters {unknown}; expected some of "
+                                     f"{', '.join(DESIGN_KEYS)}")
+            X = np.asarray(designs, np.float64)
+            if X.ndim != 2 or X.shape[1] != len(params):
+                raise SurrogateError(f"{where}: \"designs\" must be a table of {len(params)} columns (the "
+                                     "parameters)")
+            for q, k in kernels.items():
+                ls = np.asarray(k["length_scales"], np.float64)
+                if ls.shape != (len(params),) or not all(
+                        np.isfinite(float(k[h])) and float(k[h]) > 0 for h in ("constant", "noise")) \
+                        or not np.all(np.isfinite(ls) & (ls > 0)):
+                    raise SurrogateError(f"{where}: kernel of {q!r}: expected positive constant, noise and "
+                                         f"{len(params)} length scales")
+            if set(kernels) != set(answers):
+                raise SurrogateError(f"{where}: kernels for {sorted(kernels)} but answers for {sorted(answers)}")
+            return cls(params, {k: float(v) for k, v in fixed.items()}, X, answers, kernels,
+                       source=str(doc.get("source", "")))
+        except SurrogateError:
+            raise
+        except (KeyError, TypeError, ValueError) as exc:
+            what = f"missing key {exc}" if isinstance(exc, KeyError) else str(exc)
+            raise SurrogateError(f"{where}: not a usable surrogate: {what}") from None
+
+    # -- use against a model ---------------------------------------------------------------------------------------
+    def check_parameters(self, ranges: dict[str, tuple[float, float]], where: str) -> None:
+        """Refuse a surrogate whose parameters differ from the model's varied ones (``ranges``: the model's
+        training ranges)."""
+        varied = sorted(k for k, (lo, hi) in ranges.items() if k in DESIGN_KEYS and hi > lo)
+        if varied and sorted(self.parameters) != varied:
+            raise SurrogateError(f"{where}: the surrogate takes {sorted(self.parameters)}, the model's training "
+                                 f"designs vary {varied}: fit it on the model's own data (`hcmt surrogate fit`)")
+
+
+def dataset_answers(data: str | Path, split: str = "train", limit: int | None = None
+                    ) -> tuple[list[Design], dict[str, list[float]]]:
+    """The designs of a dataset split (each trajectory's attributes) and their answers (:data:`QUANTITIES`, read
+    off the solver's trajectory by :func:`hcmt.design.readout.summarize_fields`); the first ``limit`` only."""
+    data = Path(data)
+    meta = read_meta(data)
+    frame_dt = float(meta.get("dt") or ((meta.get("generator") or {}).get("settings") or {}).get("frame_dt", 0))
+    designs, answers = [], {q: [] for q in QUANTITIES}
+    with Split(data, split, meta) as s:
+        count = len(s) if limit is None else min(limit, len(s))
+        for i in range(count):
+            attrs = s.attrs(i)
+            missing = [k for k in DESIGN_KEYS if k not in attrs]
+            if missing:
+                raise ValueError(f"{s.path} trajectory {s.names[i]}: no design parameters {missing} in its "
+                                 "attributes; a surrogate is fitted on hcmt-generated Impact Plate data")
+            designs.append(Design(**{k: float(attrs[k]) for k in DESIGN_KEYS}))
+            summary = summarize_fields(s[i], frame_dt)
+            for q in QUANTITIES:
+                answers[q].append(summary[q])
+    return designs, answers
+
+
+def _kernel(d: int, hyper: dict | None = None):
+    """c² RBF(ℓ_1..ℓ_d) + σ_n², with the stored values when ``hyper`` is given."""
+    if hyper is None:
+        return (ConstantKernel(1.0, (1e-3, 1e3)) * RBF(np.ones(d), (1e-2, 1e3))
+                + WhiteKernel(1e-4, (1e-8, 1e-1)))
+    return (ConstantKernel(float(hyper["constant"]), "fixed") * RBF(np.asarray(hyper["length_scales"], float), "fixed")
+            + WhiteKernel(float(hyper["noise"]), "fixed"))
+
+
+def _hyper(kernel) -> dict:
+    """The fitted hyperparameters of :func:`_kernel`'s structure as plain numbers."""
+    prod, white = kernel.k1, kernel.k2
+    return {"constant": float(prod.k1.constant_value),
+            "length_scales": [float(v) for v in np.atleast_1d(prod.k2.length_scale)],
+            "noise": float(white.noise_level)}
+
+
+def side_by_side(summary: dict, interval: dict[str, Interval]) -> dict:
+    """The JSON block of a design's surrogate answers (``{q: {mean, lo, hi}}``) and ``disagreement``: the mesh
+    model's answer (``summary``) outside the surrogate's 95 % interval, per answer and for peak plate stress."""
+    block = {q: asdict(v) for q, v in interval.items()}
+    outside = {q: not v.covers(summary[q]) for q, v in interval.items() if q in summary and
+               isinstance(summary[q], (int, float)) and math.isfinite(summary[q])}
+    return {"surrogate": block, "disagreement": bool(outside.get("peak_plate_stress_mpa", False)),
+            "disagreement_by_answer": outside}
+
+
+def run_surrogate_path(run) -> Path | None:
+    """Where a run's own surrogate lives: ``hcmt/pretrained/NAME.surrogate.json`` beside a shipped model,
+    ``RUN/surrogate.json`` in a run folder (``hcmt surrogate fit DATA --out RUN/surrogate.json``)."""
+    if str(run.source).startswith("pretrained:"):
+        return PRETRAINED_DIR / f"{run.source.split(':', 1)[1]}.surrogate.json"
+    folder = getattr(run, "folder", None)
+    return folder.path / "surrogate.json" if folder is not None else None
+
+
+def for_run(run, choice: "Surrogate | str | Path | bool | None" = True) -> tuple["Surrogate | None", str | None]:
+    """(surrogate, note) for a run: ``True``, the run's own (:func:`run_surrogate_path`; note when it has none);
+    a path, that file; a :class:`Surrogate`, itself; ``False`` / ``None``, none. A surrogate whose parameters are
+    not the model's varied ones is refused (:meth:`Surrogate.check_parameters`)."""
+    if choice is None or choice is False:
+        return None, None
+    if isinstance(choice, Surrogate):
+        s, where = choice, "surrogate"
+    elif choice is True:
+        path = run_surrogate_path(run)
+        if path is None or not path.is_file():
+            return None, (f"{run.source} has no response surface ({path or 'no run folder'}); fit one with "
+                          "`hcmt surrogate fit DATA --out FILE` and pass --surrogate FILE")
+        s, where = Surrogate.load(path), str(path)
+    else:
+        s, where = Surrogate.load(choice), str(choice)
+    if getattr(run, "ranges", None):
+        s.check_parameters(run.ranges, where)
+    return s, None

@@ -159,10 +159,13 @@ def test_predict_refuses_a_mesh_far_beyond_the_training_data(setup):
     from hcmt.sim.scene import Settings
 
     run = Run.load(setup / "run", "cpu")
-    fine = [("fine", pr.parse_design(["mesh_size=0.01"], pr.middle_design(run.meta)))]
-    with pytest.raises(ValueError, match=r"fine: .* nodes at mesh_size 0.01 .*exceeds 600 s.*--force"):
+    fine = [("fine", pr.parse_design(["mesh_size=0.02"], pr.middle_design(run.meta)))]
+    with pytest.raises(ValueError, match=r"fine: about .* nodes at mesh_size 0.02 .*exceeds 600 s.*--force"):
         pr.cost_check(run, fine, Settings(frames=90), verify=False, force=False)
     pr.cost_check(run, fine, Settings(frames=90), verify=False, force=True)  # forced: no refusal
+    finer = [("finer", pr.parse_design(["mesh_size=0.005"], pr.middle_design(run.meta)))]
+    with pytest.raises(ValueError, match=r"finer: the design's mesh would have .* nodes"):
+        pr.cost_check(run, finer, Settings(frames=90), verify=False, force=True)  # too large to build at all
     pr.cost_check(run, [("ok", pr.middle_design(run.meta))], Settings(frames=90), verify=True, force=False)
 
 

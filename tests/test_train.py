@@ -1,6 +1,7 @@
 """Training, rollout and evaluation end to end on small data; resume equality; DDP; adapters; guards."""
 import json
 import os
+import socket
 import subprocess
 import sys
 
@@ -95,8 +96,15 @@ def test_resume_ends_with_the_same_parameters(impact, tmp_path, tiny_config):
               seed=3, progress=False, resume=True)
 
 
+def free_port() -> int:
+    """A TCP port free right now (the OS picks it), so two suites on one machine do not collide."""
+    with socket.socket() as sock:
+        sock.bind(("127.0.0.1", 0))
+        return sock.getsockname()[1]
+
+
 def test_two_process_ddp(impact, tmp_path):
-    cmd = [sys.executable, "-m", "torch.distributed.run", "--nproc_per_node=2", "--master_port=29533", "-m", "hcmt",
+    cmd = [sys.executable, "-m", "torch.distributed.run", "--nproc_per_node=2", f"--master_port={free_port()}", "-m", "hcmt",
            "train", "--config", "impact_plate_cpu", "--data", str(impact), "--model", "hcmt", "--steps", "3",
            "--out", str(tmp_path / "ddp"), "--no-progress"] + sum((["--set", s] for s in TINY + EXTRA), [])
     r = subprocess.run(cmd, capture_output=True, text=True, timeout=300)

@@ -252,3 +252,8 @@ def check_train_config(cfg: dict) -> None:
         raise ValueError(f"train.batch_size must be a whole number >= 1, got {batch_size!r}")
     if not isinstance(tc["lr"], (int, float)) or not tc["lr"] > 0:
         raise ValueError(f"train.lr must be a number > 0, got {tc['lr']!r}")
+
+
+def plural(n: int, word: str, many: str | None = None) -> str:
+    """``1 trajectory``, ``2 trajectories``: a count with its noun (``many``: the plural when not ``word + s``)."""
+    return f"{n} {word if n == 1 else (many or word + 's')}"

@@ -11,6 +11,7 @@ import importlib
 import os
 import signal
 import sys
+from pathlib import Path
 
 from hcmt.config import VERSION
 from hcmt.data.errors import DatasetError
@@ -40,8 +41,8 @@ COMMANDS: dict[str, tuple[str, str]] = {
 
 
 #: commands that compute with torch: they take ``--threads``
-THREADED = ("generate", "simulate", "hierarchy", "train", "rollout", "evaluate", "predict", "sweep", "plot", "export",
-            "demo")
+THREADED = ("generate", "simulate", "convert", "info", "hierarchy", "train", "rollout", "evaluate", "compare", "predict",
+            "sweep", "plot", "export", "demo")
 
 
 def threads_arg(text: str) -> int | str:
@@ -60,7 +61,7 @@ def auto_threads() -> int:
     """The CPU cores not already busy: cores minus the 1-minute load average (at least 1). On a machine whose other
     cores run another job this is 1 thread, never the oversubscribed default that made a design take 10x longer
     (docs/RESULTS.md, "Threads")."""
-    cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
+    cores = machine_cores()
     try:
         busy = os.getloadavg()[0]
     except OSError:  # no load average on this platform
@@ -72,13 +73,52 @@ def set_threads(threads: int | str) -> int:
     """Apply ``--threads`` to torch's intra-op pool; returns the number set."""
     import torch  # heavy: loaded only by commands that compute, so `hcmt --help` stays fast
 
+    cores = machine_cores()
     n = auto_threads() if threads == "auto" else int(threads)
+    if n > cores:
+        print(f"hcmt: warning: --threads {n} is more than this machine's {cores} cores; using {cores} (more threads "
+              "than cores only compete for them)", file=sys.stderr)
+        n = cores
     torch.set_num_threads(n)
     return n
 
 
+def machine_cores() -> int:
+    """The CPU cores this process may run on."""
+    return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
+
+
 class CommandError(Exception):
     """An error the user can fix; printed as one line, exit status 2."""
+
+
+def check_outputs(files: dict[str, str | None], folders: dict[str, str | None] | None = None) -> None:
+    """Check every output of a command before the first is written (``files``: option -> file path, ``folders``:
+    option -> folder; None: not asked for): a file path that is empty, an existing folder, or under a file; a
+    folder that is an existing file; a place this user cannot write; two outputs on one path. One line each."""
+    seen: dict[Path, str] = {}
+    for kind, items in (("file", files), ("folder", folders or {})):
+        for option, value in items.items():
+            if value is None:
+                continue
+            if not str(value).strip():
+                raise CommandError(f"{option}: an empty path; name a {kind}")
+            path = Path(value)
+            if kind == "file" and path.is_dir():
+                raise CommandError(f"{option} {value}: is a folder; name a file")
+            if kind == "folder" and path.exists() and not path.is_dir():
+                raise CommandError(f"{option} {value}: is a file; name a folder")
+            parent = path.parent if kind == "file" else path
+            while not parent.exists() and parent != parent.parent:
+                parent = parent.parent
+            if not parent.is_dir():
+                raise CommandError(f"{option} {value}: {parent} is a file, not a folder")
+            if not os.access(parent, os.W_OK | os.X_OK):
+                raise CommandError(f"{option} {value}: {parent} is not writable")
+            key = path.resolve()
+            if key in seen:
+                raise CommandError(f"{option} {value}: the same path as {seen[key]}; give each output its own")
+            seen[key] = option
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -95,10 +135,12 @@ def build_parser() -> argparse.ArgumentParser:
             mod = importlib.import_module(module)
             configure = getattr(mod, f"configure_{name}", None) or mod.configure
             configure(p)
+            if name in THREADED and not any(a.dest == "no_progress" for a in p._actions):
+                p.add_argument("--no-progress", action="store_true", help="no progress bars")
             if name in THREADED:
                 p.add_argument("--threads", type=threads_arg, default="auto", metavar="N",
-                               help="CPU threads for torch (default auto: the cores not busy with other work, "
-                                    "from the load average)")
+                               help="CPU threads for torch, at most the machine's cores (default auto: the cores "
+                                    "not busy with other work, from the 1-minute load average, at least 1)")
             p.set_defaults(_run=getattr(mod, f"main_{name}", None) or mod.main)
     return parser
 
@@ -124,6 +166,9 @@ def main(argv: list[str] | None = None) -> int:
         if getattr(args, "threads", None) is not None:
             set_threads(args.threads)
         return int(args._run(args) or 0)
+    except BrokenPipeError:  # the reader went away (`hcmt models --json | head`): nothing more to say to it
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 0
     except (DatasetError, CommandError, FileNotFoundError, ValueError) as exc:
         print(f"hcmt {args.command}: error: {exc}", file=sys.stderr)
         return 2

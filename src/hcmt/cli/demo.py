@@ -54,7 +54,7 @@ def design_demo(args: argparse.Namespace) -> int:
     run = Run.load(args.model, args.device)
     card = run.card
     print(f"[1/3] {run.label} model {run.source}: {card.get('summary', 'trained run')}")
-    defaults = pr.middle_design(run.meta)
+    defaults = pr.middle_design(run.meta, run.ranges)
     designs = [(f"design_{i + 1}", pr.parse_design([f"{k}={v}" for k, v in d.items()], defaults))
                for i, d in enumerate(DEMO_DESIGNS)]
     settings = pr.settings_of(run.meta)
@@ -67,15 +67,15 @@ def design_demo(args: argparse.Namespace) -> int:
     for note in check.notes:
         print(f"note: {note}")
     print("\nvon Mises stresses in MPa, lengths in mm; 'err' columns compare the model with the solver"
-          + (f"; 'surrogate' is the response surface fitted on the model's own training designs "
-             f"({check.surrogate})" if check.surrogate else ""))
+          + ("; 'surrogate' is the response surface (a Gaussian process) fitted on the model's own training "
+             "designs" if check.surrogate else ""))
     print(pr.format_table(preds, verified))
     picture = pr.contour_picture(preds[1], truth[1], run.meta, Path(args.out), run.label)
     print(f"\ncontours at the peak frame, solver beside prediction: {picture}")
     print("your own designs:  hcmt predict pretrained:impact_plate_small --design thickness=0.8 drop_height=700 "
           "--verify")
-    print("a sweep:           hcmt sweep pretrained:impact_plate_small --vary thickness=0.5:1.0:6 --design "
-          "drop_height=750 --yield-mpa 703 --verify")
+    print("a sweep:           hcmt sweep pretrained:impact_plate_small --vary thickness=0.5:1.0:11 --design "
+          "drop_height=600 --yield-mpa 750 --verify auto")
     print("where the model is weak: `hcmt models` (measured error by region) and docs/MODELS.md")
     print(f"took {time.perf_counter() - t0:.0f} s")
     return 0

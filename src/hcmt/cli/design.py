@@ -7,11 +7,15 @@ import json
 import sys
 from pathlib import Path
 
+from hcmt.config import plural
+from hcmt.cli import check_outputs
 from hcmt.cli.train import compile_arg
 from hcmt.data.format import atomic_path
 from hcmt.design import predict as pr
 from hcmt.design import sweep as sw
+from hcmt.design.surrogate import run_surrogate_path
 from hcmt.inference.run import Run, available_pretrained
+from hcmt.sim.scene import DESIGN_UNITS
 
 
 # -- shared options ------------------------------------------------------------------------------------------------
@@ -27,6 +31,18 @@ def surrogate_args(p: argparse.ArgumentParser) -> None:
     g.add_argument("--surrogate", metavar="FILE.json", help="the response surface to report beside the model (made "
                    "by `hcmt surrogate fit`; default: the model's own, shipped with it or RUN/surrogate.json)")
     g.add_argument("--no-surrogate", action="store_true", help="no response surface: the mesh model alone")
+
+
+def take_model(args, design_lists: list[list[str]]) -> None:
+    """Accept ``--design ... MODEL`` (the model after the options): argparse gives the model to ``--design``."""
+    if args.model is None:
+        for items in design_lists:
+            if items and "=" not in items[-1]:
+                args.model = items.pop()
+                break
+    if args.model is None:
+        raise ValueError("give the model: a run folder made by `hcmt train`, or pretrained:NAME (`hcmt models`)")
+    design_lists[:] = [items for items in design_lists if items]
 
 
 def check_options(args) -> dict:
@@ -45,12 +61,13 @@ def print_notes(command: str, check) -> None:
 
 # -- predict / models ----------------------------------------------------------------------------------------------
 def configure_predict(p: argparse.ArgumentParser) -> None:
-    p.add_argument("model", help="run folder made by `hcmt train`, or pretrained:NAME (`hcmt models` lists them)")
+    p.add_argument("model", nargs="?", help="run folder made by `hcmt train`, or pretrained:NAME (`hcmt models` "
+                   "lists them)")
     p.add_argument("--design", nargs="+", action="append", default=[], metavar="KEY=VALUE",
                    help="one design, e.g. --design thickness=0.8 drop_height=900 (repeat for more designs); "
                         "parameters as `hcmt simulate`'s, unspecified ones at the middle of the training ranges")
     p.add_argument("--designs", metavar="FILE.csv", help="designs from a CSV file: header of parameter names "
-                   "(optional `name` column), one design per row")
+                   "(optional `name` column), one design per row; with --design too, the --design ones come first")
     p.add_argument("--device", help="cpu, cuda, cuda:N (default: cuda when available)")
     p.add_argument("--batch", type=int, default=8, help="designs rolled out together (default 8)")
     compile_arg(p)
@@ -67,10 +84,12 @@ def configure_predict(p: argparse.ArgumentParser) -> None:
 
 
 def main_predict(args: argparse.Namespace) -> int:
+    take_model(args, args.design)
     if not args.design and not args.designs:
         raise ValueError("give designs with --design KEY=VALUE ... or --designs FILE.csv")
+    check_outputs({"--json": args.json, "--csv": args.csv}, {"--out": args.out} if args.images else {})
     run = _design_run(args)
-    defaults = pr.middle_design(run.meta)
+    defaults = pr.middle_design(run.meta, run.ranges)
     designs = [(f"design_{i + 1}", pr.parse_design(items, defaults)) for i, items in enumerate(args.design)]
     if args.designs:
         designs += pr.read_designs_csv(args.designs, defaults)
@@ -81,7 +100,7 @@ def main_predict(args: argparse.Namespace) -> int:
                              force=args.force, **check_options(args))
     print_notes("predict", check)
     preds, truth = check.preds, check.truth
-    print(f"{run.label} ({run.source}) on {run.device}: {len(preds)} design(s), {check.settings.frames} frames of "
+    print(f"{run.label} ({run.source}) on {run.device}: {plural(len(preds), 'design')}, {check.settings.frames} frames of "
           f"{check.settings.frame_dt} ms, {check.wall_s:.2f} s in all; stresses are von Mises [MPa], lengths [mm]"
           + (f"; response surface: {check.surrogate}" if check.surrogate else ""))
     print(pr.format_table(preds, check.verified))
@@ -112,7 +131,8 @@ def _design_run(args):
 
 # -- sweep ---------------------------------------------------------------------------------------------------------
 def configure_sweep(p: argparse.ArgumentParser) -> None:
-    p.add_argument("model", help="run folder made by `hcmt train`, or pretrained:NAME (`hcmt models` lists them)")
+    p.add_argument("model", nargs="?", help="run folder made by `hcmt train`, or pretrained:NAME (`hcmt models` "
+                   "lists them)")
     p.add_argument("--vary", required=True, metavar="PARAM=LO:HI:N",
                    help="the parameter swept and its range, e.g. thickness=0.5:1.0:6 (N points, ends included)")
     p.add_argument("--design", nargs="+", default=[], metavar="KEY=VALUE",
@@ -135,8 +155,14 @@ def configure_sweep(p: argparse.ArgumentParser) -> None:
 
 def main_sweep(args: argparse.Namespace) -> int:
     param, lo, hi, n = sw.parse_vary(args.vary)
+    take_model(args, [args.design])
+    check_outputs({"--json": args.json, "--csv": args.csv}, {"--out": args.out})
+    fixed = [item for item in args.design if item.partition("=")[0].strip().lstrip("-").replace("-", "_") == param]
+    if fixed:
+        raise ValueError(f"--vary {args.vary} and --design {fixed[0]}: {param} is the swept parameter; drop it "
+                         "from --design")
     run = _design_run(args)
-    base = pr.parse_design(args.design, pr.middle_design(run.meta))
+    base = pr.parse_design(args.design, pr.middle_design(run.meta, run.ranges))
     designs = sw.sweep_designs(base, param, lo, hi, n)
     for w in sorted({w for _, d in designs for w in pr.range_warnings(d, run.ranges)}):  # each distinct one once
         print(f"hcmt sweep: warning: {w}", file=sys.stderr)
@@ -172,12 +198,15 @@ def main_models(args: argparse.Namespace) -> int:
     cards = {}
     for name, path in shipped.items():
         run = Run.load(f"pretrained:{name}", "cpu")
-        defaults = pr.middle_design(run.meta)
+        defaults = pr.middle_design(run.meta, run.ranges)
         settings = pr.settings_of(run.meta)
+        surrogate = run_surrogate_path(run)
         cards[name] = {"file": str(path), "size_mb": path.stat().st_size / 1e6, **run.card,
                        "window": {"frames": settings.frames, "frame_dt_ms": settings.frame_dt},
+                       "surrogate": str(surrogate) if surrogate is not None and surrogate.is_file() else None,
                        "design_parameters": {k: {"training_range": list(run.ranges[k]) if k in run.ranges else None,
-                                                 "default": getattr(defaults, k)} for k in pr.DESIGN_KEYS}}
+                                                 "default": getattr(defaults, k), "unit": DESIGN_UNITS[k]}
+                                             for k in pr.DESIGN_KEYS}}
     if args.json:
         print(json.dumps(cards, indent=2))
         return 0
@@ -189,7 +218,8 @@ def main_models(args: argparse.Namespace) -> int:
         for k, d in c["design_parameters"].items():
             rng = d["training_range"]
             trained = "not varied in training" if rng is None or rng[0] == rng[1] else f"trained {rng[0]:.6g} .. {rng[1]:.6g}"
-            print(f"    {k:<18} default {d['default']:<10.6g} {trained}")
+            print(f"    {k:<18} {d['unit']:<7} default {d['default']:<10.6g} {trained}")
+        print(f"  response surface beside it: {c['surrogate'] or 'none'}")
         if c.get("confidence"):
             print("  measured error by region (docs/MODELS.md): "
                   + "; ".join(f"{r['label']}: peak plate stress median {r['peak_plate_stress_error_pct_median']:.1f} %"

@@ -87,6 +87,8 @@ configure_rollout = _run_args
 
 def _load(args) -> Run:
     check_options(batch=args.batch, compile=args.compile)  # bad options: one line before the model loads
+    if args.limit is not None and args.limit < 1:
+        raise ValueError(f"--limit must be >= 1 (the first N trajectories), got {args.limit}")
     return Run.load(args.run, args.device, args.checkpoint)
 
 

@@ -21,6 +21,9 @@ import argparse
 import re
 from pathlib import Path
 
+import matplotlib
+
+from hcmt.cli import check_outputs
 from hcmt.data.format import Split, read_meta
 from hcmt.graph.hierarchy import cached_hierarchy, hierarchy_cache_dir
 from hcmt.inference.evaluate import rollout_file
@@ -98,6 +101,9 @@ def _load_runs(args) -> list[Run | RunFolder]:
 def main_plot(args: argparse.Namespace) -> int:
     only = _only(args.only)
     frames = _frames(args.frames)
+    if args.cmap not in matplotlib.colormaps:
+        raise ValueError(f"--cmap {args.cmap!r}: not a matplotlib colour map (e.g. viridis, magma, jet)")
+    check_outputs({}, {"--out": args.out})
     out = Path(args.out)
     runs = _load_runs(args)
     labels = unique_labels(runs)

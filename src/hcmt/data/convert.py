@@ -50,11 +50,18 @@ def convert_tfrecord(src: Path, out: Path) -> dict:
         **extra,
     )
     for split in splits:
+        if (src / f"{split}.tfrecord").stat().st_size == 0:
+            raise DatasetError("is empty: no trajectories to convert", file=src / f"{split}.tfrecord")
+        count = [0]
+
         def trajectories(split=split):
             for i, traj in enumerate(iter_tfrecord(src, split, tf_meta)):
+                count[0] += 1
                 yield f"traj_{i:05d}", {k: v for k, v in traj.items() if k in features}, {}
 
         write_split(out / f"{split}.h5", meta, trajectories())
+        if not count[0]:
+            raise DatasetError("holds no trajectories (no tf.train.Example records)", file=src / f"{split}.tfrecord")
     write_meta(out, meta)
     return meta
 
@@ -62,7 +69,10 @@ def convert_tfrecord(src: Path, out: Path) -> dict:
 def convert_ggns(src: Path, out: Path) -> dict:
     files = [src] if src.is_file() else sorted(p for p in src.iterdir() if p.suffix in _PICKLE_SUFFIXES)
     if not files:
-        raise DatasetError("no pickle files (*.pkl) found", file=src)
+        if src.is_dir() and any(src.glob("*.tfrecord")):
+            raise DatasetError("holds .tfrecord files but no meta.json beside them: a TFRecord dataset needs the "
+                               "meta.json of its download (MeshGraphNets / HCMT)", file=src)
+        raise DatasetError("no pickle files (*.pkl) and no TFRecord dataset (meta.json + *.tfrecord) found", file=src)
     meta = None
     for path in files:
         trajs = load_ggns_pickle(path)

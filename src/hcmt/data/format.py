@@ -133,6 +133,12 @@ def read_meta(dataset_dir: str | os.PathLike) -> dict:
     return meta
 
 
+def incomplete(dataset_dir: str | os.PathLike) -> str:
+    """What a dataset folder with meta.json but no split file is, and what to do."""
+    parts = " (an interrupted `hcmt generate` left .parts/)" if (Path(dataset_dir) / ".parts").is_dir() else ""
+    return f"incomplete dataset: meta.json but no split files{parts}; rerun the same `hcmt generate` command to finish it"
+
+
 def list_splits(dataset_dir: str | os.PathLike) -> list[str]:
     """Split names present in a dataset folder, train/valid/test first."""
     names = sorted(p.stem for p in Path(dataset_dir).glob("*.h5"))
@@ -153,9 +159,10 @@ def atomic_path(path: str | os.PathLike) -> Iterator[Path]:
         os.chmod(tmp, 0o644)  # mkstemp creates 0600; a dataset is meant to be shared
         os.replace(tmp, path)
     except OSError as exc:
-        if getattr(exc, "filename", None) or exc.errno is None:
+        named = getattr(exc, "filename", None)
+        if exc.errno is None or (named and str(named) != str(tmp)):
             raise
-        raise OSError(exc.errno, exc.strerror, str(path)) from None  # name the file a full disk stopped
+        raise OSError(exc.errno, exc.strerror, str(path)) from None  # the user's path, never the temporary one
     finally:
         if tmp.exists():
             tmp.unlink()
@@ -303,7 +310,10 @@ class Split:
         self.path = self.dataset_dir / f"{split}.h5"
         self.split = split
         if not self.path.is_file():
-            raise DatasetError(f"split {split!r} not found; available: {list_splits(self.dataset_dir)}", file=self.path)
+            available = list_splits(self.dataset_dir)
+            if not available:
+                raise DatasetError(incomplete(self.dataset_dir), file=self.dataset_dir)
+            raise DatasetError(f"split {split!r} not found; available: {available}", file=self.path)
         try:
             self._file = h5py.File(self.path, "r")
             self.names = sorted(self._file.keys())

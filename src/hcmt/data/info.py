@@ -7,7 +7,7 @@ from pathlib import Path
 import numpy as np
 
 from hcmt.data.errors import DatasetError
-from hcmt.data.format import NodeType, Split, list_splits, read_meta
+from hcmt.data.format import NodeType, Split, incomplete, list_splits, read_meta
 
 
 def summarize(dataset_dir: str | Path) -> str:
@@ -16,9 +16,7 @@ def summarize(dataset_dir: str | Path) -> str:
     (:class:`hcmt.data.format.Split`): a bad one stops with a :class:`DatasetError` naming file, trajectory, field."""
     meta = read_meta(dataset_dir)
     if not list_splits(dataset_dir):
-        parts = " (an interrupted `hcmt generate` left .parts/)" if (Path(dataset_dir) / ".parts").is_dir() else ""
-        raise DatasetError(f"incomplete dataset: meta.json but no split files{parts}; rerun the same `hcmt "
-                           "generate` command to finish it", file=dataset_dir)
+        raise DatasetError(incomplete(dataset_dir), file=dataset_dir)
     dt = meta.get("dt")
     time_unit = meta.get("units", {}).get("time", "")
     lines = [f"dataset {dataset_dir}", f"  dimension {meta.get('dimension')}, steps {meta['trajectory_length']}, "

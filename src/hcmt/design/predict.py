@@ -24,14 +24,15 @@ import numpy as np
 
 from tqdm import tqdm
 
+from hcmt.config import plural
 from hcmt.data.format import atomic_path
+from hcmt.design.readout import history_correlation, summarize_fields
+from hcmt.design.surrogate import Surrogate, for_run, side_by_side
 from hcmt.inference.metrics import format_physics, impact_metrics, plate_mask, rollout_rmse, summarize_impact
 from hcmt.inference.rollout import rollout_batch
 from hcmt.physics.trajectory import prepare_trajectory
-from hcmt.design.readout import history_correlation, summarize_fields
-from hcmt.design.surrogate import Surrogate, for_run, side_by_side
-from hcmt.sim.scene import (DESIGN_KEYS, EDGES, MAX_ESTIMATED_SECONDS, Design, Settings, start_frames,
-                            middle_design, parse_design, parse_number, plan, simulate, validated_warnings)
+from hcmt.sim.scene import (DESIGN_KEYS, EDGES, MAX_ESTIMATED_SECONDS, Design, Settings, check_size,
+                            middle_design, parse_design, parse_number, simulate, start_frames, validated_warnings)
 from hcmt.viz.contours import plot_contours
 from hcmt.viz.rollouts import Case, Series
 
@@ -86,7 +87,7 @@ def read_designs_csv(path: str | Path, defaults: Design) -> list[tuple[str, Desi
         raise ValueError(f"{path} line {head_line}: a column appears twice in the header")
     if not body:
         raise ValueError(f"{path}: a header but no designs (one row per design after the header)")
-    out = []
+    out, seen = [], {}
     for n, row in body:
         if len(row) != len(header):
             raise ValueError(f"{path} line {n}: {len(row)} values for {len(header)} columns "
@@ -94,13 +95,34 @@ def read_designs_csv(path: str | Path, defaults: Design) -> list[tuple[str, Desi
         name, items = f"design_{len(out) + 1}", []
         for col, (h, v) in enumerate(zip(header, row), start=1):
             if h == "name":
-                name = v.strip() or name
+                name = check_name(v.strip(), f"{path} line {n}, column {col} (name)")
+                if name in seen:
+                    raise ValueError(f"{path} line {n}, column {col} (name): {name!r} already names line "
+                                     f"{seen[name]}; every design needs its own name")
+                seen[name] = n
                 continue
             if not v.strip():
                 raise ValueError(f"{path} line {n}, column {col} ({h}): missing value")
             items.append(f"{h}={parse_number(v, f'{path} line {n}, column {col} ({h})')}")
         out.append((name, parse_design(items, defaults, where=f"{path} line {n}:")))
     return out
+
+
+def check_name(name: str, where: str) -> str:
+    """A design name that is safe as a folder name under ``--out`` (pictures are written to ``OUT/NAME/``): not
+    empty, no path separator, not ``.`` or ``..``, no control character; else one line naming ``where``."""
+    bad = None
+    if not name:
+        bad = "is empty"
+    elif any(c in name for c in "/\\") or name in (".", ".."):
+        bad = "would be a path outside its own folder (no '/', '\\', '.' or '..')"
+    elif any(ord(c) < 32 or ord(c) == 127 for c in name):
+        bad = "holds a control character"
+    elif len(name) > 200:
+        bad = "is longer than 200 characters"
+    if bad:
+        raise ValueError(f"{where}: the design name {name!r} {bad}; names become folder names under --out")
+    return name
 
 
 def range_warnings(design: Design, ranges: dict[str, tuple[float, float]]) -> list[str]:
@@ -169,10 +191,12 @@ def design_trajectory(run, name: str, design: Design, settings: Settings):
 
 
 def predict(run, designs: list[tuple[str, Design]], batch: int = 8, progress: bool = True,
-            compile: str = "none", readout: str = "contact") -> list[Prediction]:
+            compile: str = "none", readout: str = "contact",
+            contact_end_ms: list[float | None] | None = None) -> list[Prediction]:
     """Roll the run's model out over each design's recorded window, ``batch`` designs per model call
     (``compile``: as :func:`hcmt.inference.rollout.rollout_batch`); ``readout``: how the plate's stress is read
-    (:data:`hcmt.design.readout.READOUTS`; ``contact``: the peak from contact frames, no ghost stress after)."""
+    (:data:`hcmt.design.readout.READOUTS`; ``contact``: the peak from contact frames, no ghost stress after);
+    ``contact_end_ms``: per design, a bound on when the ball leaves (the surrogate's), or None."""
     if batch < 1:
         raise ValueError(f"--batch must be >= 1, got {batch}")
     settings = settings_of(run.meta)
@@ -187,10 +211,11 @@ def predict(run, designs: list[tuple[str, Design]], batch: int = 8, progress: bo
         results = rollout_batch(run.model, run.adapter, [tr for tr, _ in built], run.radius, compile=compile,
                                 progress=lambda n, k=len(chunk): bar.update(n * k))
         wall = (time.perf_counter() - t0) / len(chunk)
-        for (name, design), (_, f), r in zip(chunk, built, results):
+        for k, ((name, design), (_, f), r) in enumerate(zip(chunk, built, results)):
             p = Prediction(name, design, r["world_pos"].numpy(), r["stress"].numpy(), f["mesh_pos"], f["cells"],
                            f["node_type"].reshape(-1), wall, modulus=f["modulus"].reshape(-1))
-            p.summary = summarize(p, settings.frame_dt, readout)
+            end = contact_end_ms[first + k] if contact_end_ms is not None else None
+            p.summary = summarize(p, settings.frame_dt, readout, end)
             out.append(p)
     bar.close()
     return out
@@ -224,29 +249,22 @@ TRUSTS = ("surrogate", "union", "model")
 MODEL_BAND = 0.6
 
 
-#: a design's mesh larger than this many times the training data's largest is estimated before any work
-MESH_FACTOR = 4.0
+#: the learned rollout's cost on one CPU thread: about 1e-4 s per node and step (HCMT width 64; docs/MODELS.md)
+MODEL_SECONDS_PER_NODE_STEP = 1e-4
 
 
 def cost_check(run, designs: list[tuple[str, Design]], settings: Settings, verify: bool, force: bool) -> None:
-    """Refuse designs whose meshes are far beyond the training data's (more than :data:`MESH_FACTOR` times the
-    nodes the same design has at the training data's finest ``mesh_size``) when the estimated time (the learned
-    rollout's, plus the solver's for ``verify``, :func:`hcmt.sim.scene.plan`) exceeds ``MAX_ESTIMATED_SECONDS``
-    (600 s), unless ``force``; as ``hcmt simulate`` does."""
-    finest = run.ranges.get("mesh_size", (None, None))[0]
+    """Refuse, before any array is built, a design whose mesh exceeds :data:`hcmt.sim.scene.MAX_NODES`
+    (:func:`hcmt.sim.scene.check_size`: always), and one whose estimated time (the learned rollout's, plus the
+    solver's for ``verify``, from :func:`hcmt.sim.scene.estimate`) exceeds ``MAX_ESTIMATED_SECONDS`` (600 s)
+    unless ``force``; as ``hcmt simulate`` does."""
     for name, d in designs:
-        if finest is None or d.mesh_size >= finest:
-            continue
-        cost = plan(d, settings)
-        trained = plan(replace(d, mesh_size=finest), settings)["num_nodes"]
-        if cost["num_nodes"] <= MESH_FACTOR * trained:
-            continue
-        # learned rollout: ~1e-4 s per node and step on one CPU thread (HCMT width 64; docs/MODELS.md)
-        estimate = 1e-4 * cost["num_nodes"] * (settings.frames - 2) + (cost["estimated_s"] if verify else 0.0)
-        if estimate > MAX_ESTIMATED_SECONDS and not force:
-            raise ValueError(f"{name}: {cost['num_nodes']} nodes at mesh_size {d.mesh_size:g} mm ({trained} at the "
-                             f"training data's finest, {finest:g} mm): estimated {estimate:.0f} s "
-                             f"{'(model and solver)' if verify else '(model rollout)'} exceeds "
+        cost = check_size(d, settings, where=f"{name}: ")
+        seconds = MODEL_SECONDS_PER_NODE_STEP * cost["num_nodes"] * (settings.frames - 2) + (
+            cost["estimated_s"] if verify else 0.0)
+        if seconds > MAX_ESTIMATED_SECONDS and not force:
+            raise ValueError(f"{name}: about {cost['num_nodes']:.0f} nodes at mesh_size {d.mesh_size:g} mm: estimated "
+                             f"{seconds:.0f} s {'(model and solver)' if verify else '(model rollout)'} exceeds "
                              f"{MAX_ESTIMATED_SECONDS:.0f} s; coarsen the mesh or pass --force")
 
 
@@ -274,16 +292,23 @@ def check_designs(run, designs: list[tuple[str, Design]], *, batch: int = 8, ver
     surrogate, note = for_run(run, surrogate)
     notes = [note] if note else []
     cost_check(run, designs, settings, bool(verify), force)
-    t0 = time.perf_counter()
-    preds = predict(run, designs, batch=batch, progress=progress, compile=compile, readout=readout)
-    wall = time.perf_counter() - t0
     intervals = surrogate.predict([d for _, d in designs]) if surrogate is not None else None
+    ends = [iv["contact_end_ms"].hi if "contact_end_ms" in iv else None for iv in intervals] if intervals else None
+    t0 = time.perf_counter()
+    preds = predict(run, designs, batch=batch, progress=progress, compile=compile, readout=readout,
+                    contact_end_ms=ends)
+    wall = time.perf_counter() - t0
     for i, p in enumerate(preds):
         p.summary["model"] = run.source
         p.summary["warnings"] = range_warnings(p.design, run.ranges)
         p.summary["confidence"] = confidence(p.design, run)
         if intervals is not None:
             p.summary.update(side_by_side(p.summary, intervals[i]))
+            # a user's own surrogate has its own training ranges: warn for a parameter outside them too
+            own = {w.split(" ", 1)[0] for w in p.summary["warnings"]}
+            p.summary["warnings"] += [w.replace("the model's training data", "the response surface's training "
+                                                "designs") for w in range_warnings(p.design, surrogate.ranges())
+                                      if w.split(" ", 1)[0] not in own]
     for p in preds:
         p.summary["low_confidence"] = bool(_weak(p))
     add_margin(preds, yield_mpa)
@@ -377,11 +402,11 @@ def solve(designs: list[tuple[str, Design]], settings: Settings, stress_field: s
 
 
 # -- reading off the numbers ---------------------------------------------------------------------------------------
-def summarize(p: Prediction, frame_dt: float, readout: str = "learned") -> dict:
+def summarize(p: Prediction, frame_dt: float, readout: str = "learned", contact_end_ms: float | None = None) -> dict:
     """Peak von Mises stress of plate (from contact frames) and ball (MPa, where in mm, when in ms), the first
     frame at 95 % of the plate's peak, maximum plate deflection and the plate's stress history
     (:func:`hcmt.design.readout.summarize_fields`)."""
-    return summarize_fields(p.fields(), frame_dt, readout, p.wall_s)
+    return summarize_fields(p.fields(), frame_dt, readout, p.wall_s, contact_end_ms)
 
 
 def add_margin(preds: list[Prediction], yield_mpa: float | None) -> None:
@@ -486,22 +511,25 @@ NOTE_DISAGREEMENT = 0.10
 
 
 def _weak(p: Prediction) -> list[str]:
-    """A line when the design lies where the model card measured large errors (or outside the ranges), or where
-    the surrogate and the mesh model disagree by more than :data:`NOTE_DISAGREEMENT`."""
+    """The low-confidence note: with a surrogate, where it and the mesh model disagree by more than
+    :data:`NOTE_DISAGREEMENT` (measured: it flagged 5 of 5 held-out designs with a peak error above 20 %, and 14
+    of 41 others; the card's regions flagged 5 of 5 and 19 of 41: docs/MODELS.md); without one, where the model
+    card measured large errors. A design outside the training ranges says so either way."""
     out = []
+    c = p.summary.get("confidence")
+    if c and c["region"] == "outside":
+        out.append(f"{p.name}: outside the training ranges: the model card has no measured error there"
+                   + ("" if "verify" in p.summary else "; verify with the solver (--verify)"))
     g = (p.summary.get("surrogate") or {}).get("peak_plate_stress_mpa")
     if g:
         gap = (p.summary["peak_plate_stress_mpa"] - g["mean"]) / g["mean"]
         if abs(gap) > NOTE_DISAGREEMENT:
             out.append(f"{p.name}: the mesh model's peak plate stress is {100 * gap:+.0f} % from the response "
-                       f"surface's {g['mean']:.0f} MPa [{g['lo']:.0f}, {g['hi']:.0f}]; low confidence, verify with "
-                       "the solver")
-    c = p.summary.get("confidence")
-    if not c:
+                       f"surface's {g['mean']:.0f} MPa [{g['lo']:.0f}, {g['hi']:.0f}]; low confidence"
+                       + ("" if "verify" in p.summary else ", verify with the solver"))
         return out
-    if c["region"] == "outside":
-        return out + [f"{p.name}: outside the training ranges: the model card has no measured error there"
-                      + ("" if "verify" in p.summary else "; verify with the solver (--verify)")]
+    if not c or c["region"] == "outside":
+        return out
     med, worst = c["peak_plate_stress_error_pct_median"], c["peak_plate_stress_error_pct_worst"]
     if med <= 10.0 and abs(worst) <= 25.0:
         return out
@@ -518,7 +546,7 @@ def format_table(preds: list[Prediction], verified: dict | None = None) -> str:
     if verified:
         v = verified
         lines.append(
-            f"against the solver over {v['designs']} design(s): peak plate stress error median "
+            f"against the solver over {plural(v['designs'], 'design')}: peak plate stress error median "
             f"{v['peak_plate_stress_error_pct']['median']:.1f} % (worst {v['peak_plate_stress_error_pct']['max']:.1f} %), "
             f"location median {v['peak_plate_location_error_mm']['median']:.2f} mm, deflection error median "
             f"{v['max_deflection_error_pct']['median']:.1f} % (worst {v['max_deflection_error_pct']['max']:.1f} %), "

@@ -12,13 +12,15 @@
   plateau (a median of 7.5 frames lie within 5 % of it), so the argmax frame swings by ±10 frames on noise; the
   first 95 % crossing does not;
 * ``plate_stress_history_mpa``: the plate's largest von Mises per frame, as read with ``readout`` (below);
-* the ball's peak, ``max_deflection_mm = max |u_y|`` over the plate's nodes and frames, and the contact frames.
+* the ball's peak, ``max_deflection_mm = max |u_y|`` over the plate's nodes and frames, the contact frames and
+  ``contact_end_ms``, when the ball leaves (the frame after its last touch; the window's end when it never does).
 
 ``readout`` is how a *learned* trajectory's plate stress is read (:data:`READOUTS`):
 
 * ``learned``: the model's stress head in every frame, the peak over every frame (hcmt 0.1's reading);
 * ``contact`` (recommended, the design check's default): the stress head while the predicted ball touches the
-  plate; after the predicted separation, the plate's free-vibration bending stress from its predicted
+  plate, the window ending no later than the response surface's upper bound of when the solver's ball leaves
+  (``contact_end_ms``: a learned ball rebounds late); after that, the plate's free-vibration bending stress from its predicted
   deflection, ``σ ≈ k E t w_max / R²`` (Kirchhoff plate: bending stress is linear in the deflection; ``k`` =
   :data:`BENDING_K`, the median over the shipped model's 120 training runs' post-separation frames; the static
   clamped-plate point-load solution gives ``2 / (1 − ν²) ≈ 2.1`` at the clamp, the measured ratio holds the
@@ -115,9 +117,13 @@ def plate_history(fields: dict, readout: str = "learned", *, plate: np.ndarray |
     return s
 
 
-def summarize_fields(fields: dict, frame_dt: float, readout: str = "learned", wall_s: float = 0.0) -> dict:
+def summarize_fields(fields: dict, frame_dt: float, readout: str = "learned", wall_s: float = 0.0,
+                     contact_end_ms: float | None = None) -> dict:
     """The design check's numbers of one trajectory (module docstring); ``readout`` as :func:`plate_history`
-    (a solver trajectory is read with ``learned``: its stress is the truth)."""
+    (a solver trajectory is read with ``learned``: its stress is the truth). ``contact_end_ms``: a bound on when
+    the ball leaves (the response surface's upper 95 % bound of the solver's ``contact_end_ms``); the ``contact``
+    read-out's window ends there even when the learned ball lingers (a rollout's ball rebounds late: 5-38 frames
+    on thick plates, the cause of its ghost stress)."""
     cells, node_type = np.asarray(fields["cells"]), np.asarray(fields["node_type"]).reshape(-1)
     x, X = np.asarray(fields["world_pos"]), np.asarray(fields["mesh_pos"])
     if readout not in READOUTS:
@@ -126,6 +132,9 @@ def summarize_fields(fields: dict, frame_dt: float, readout: str = "learned", wa
     plate = plate_mask(cells, node_type)
     gap = contact_gap(x, X, plate)
     window = contact_window(gap)
+    if contact_end_ms is not None and readout == "contact" and window.any():
+        cut = max(int(np.floor(contact_end_ms / frame_dt)), int(np.flatnonzero(window)[0]))
+        window[cut + 1:] = False
     # the contact read-out's peak comes from contact frames only (every frame when the ball never touches)
     eligible = window if readout == "contact" and window.any() else np.ones(len(s), bool)
     history = plate_history(fields, readout, plate=plate, window=window, field=s)
@@ -150,6 +159,8 @@ def summarize_fields(fields: dict, frame_dt: float, readout: str = "learned", wa
     out["max_deflection_mm"] = float(u_y.max())
     touch = np.flatnonzero(gap <= CONTACT_TOL)
     out["contact_frames"] = [int(touch[0]), int(touch[-1])] if len(touch) else None
+    # when the ball leaves: the frame after its last touch (the window's end when it never leaves: censored)
+    out["contact_end_ms"] = float((touch[-1] + 1 if len(touch) else 1) * frame_dt)
     out["stress_readout"] = readout
     out["plate_stress_history_mpa"] = [float(v) for v in history]
     out["wall_s"] = float(wall_s)

@@ -11,8 +11,9 @@ Its 95 % interval is ``exp(m_q + s_q (μ ± 1.96 σ))`` with the predictive σ o
 a design's answer is a central estimate and a band that is not symmetric in MPa. Inputs are the parameters that
 vary over the training designs (a parameter held fixed there is recorded with its value: the surrogate cannot learn
 what it never saw vary). The answers (:data:`QUANTITIES`) are those of :func:`hcmt.design.readout.summarize` on the
-solver's trajectories: peak plate and ball stress, maximum deflection and the time the plate first reaches 95 % of
-its peak.
+solver's trajectories: peak plate and ball stress, maximum deflection, the time the plate first reaches 95 % of
+its peak and the time the ball leaves the plate (which bounds the mesh model's contact window:
+:func:`hcmt.design.readout.summarize_fields`).
 
 Stored without pickle (:meth:`Surrogate.save`, :meth:`Surrogate.load`): JSON with the kernel's hyperparameters,
 the training designs and their solver answers, and the transforms; loading refits the posterior with the stored
@@ -37,7 +38,8 @@ from hcmt.inference.run import PRETRAINED_DIR
 from hcmt.sim.scene import DESIGN_KEYS, Design
 
 #: the scalar answers a surrogate predicts (keys of a design's summary)
-QUANTITIES = ("peak_plate_stress_mpa", "peak_ball_stress_mpa", "max_deflection_mm", "peak_plate_t95_ms")
+QUANTITIES = ("peak_plate_stress_mpa", "peak_ball_stress_mpa", "max_deflection_mm", "peak_plate_t95_ms",
+              "contact_end_ms")
 FORMAT, VERSION = "hcmt-surrogate", 1
 Z95 = 1.959963984540054  # the standard normal's 97.5 % quantile: a central 95 % interval
 RESTARTS = 3  # optimizer restarts of the marginal likelihood (the comparison used 3)

@@ -19,9 +19,8 @@ from pathlib import Path
 import numpy as np
 
 from hcmt.sim.scene import Design
-from hcmt.data.format import atomic_path
 from hcmt.design.predict import DESIGN_KEYS, Check, check_designs, to_json
-from hcmt.viz.meshplot import new_figure
+from hcmt.viz.meshplot import new_figure, save_figure
 
 #: steps smaller than this share of a series' range count as flat in the monotonicity test
 TREND_TOL = 0.02
@@ -145,6 +144,8 @@ def sweep(run, param: str, lo: float, hi: float, n: int, base: Design, *, batch:
           **options) -> tuple[Check, dict]:
     """Predict a one-parameter sweep in one batch (``batch`` designs per model call, default all) and analyse it;
     ``options`` as :func:`hcmt.design.predict.check_designs` (verify, yield_mpa, surrogate, ...)."""
+    if batch is not None and batch < 1:
+        raise ValueError(f"--batch must be >= 1, got {batch}")
     designs = sweep_designs(base, param, lo, hi, n)
     check = check_designs(run, designs, batch=batch or n, **options)
     analysis = analyse(check, param, options.get("yield_mpa"))
@@ -216,8 +217,4 @@ def plot_sweep(check: Check, analysis: dict, out_dir: str | Path, label: str) ->
         ax.set_ylabel(name)
         ax.grid(alpha=0.3)
         ax.legend()
-    path = Path(out_dir) / f"sweep_{analysis['param']}.png"
-    path.parent.mkdir(parents=True, exist_ok=True)
-    with atomic_path(path) as tmp:
-        fig.savefig(tmp, dpi=120, format="png")
-    return path
+    return save_figure(fig, Path(out_dir) / f"sweep_{analysis['param']}.png", dpi=120)

@@ -102,6 +102,8 @@ def format_table(rows: list[dict]) -> str:
 def main(args: argparse.Namespace) -> int:
     if args.levels < 0:
         raise ValueError(f"--levels must be >= 0, got {args.levels}")
+    if args.trajectories < 0:
+        raise ValueError(f"--trajectories must be >= 0 (0: all), got {args.trajectories}")
     reader = open_split(args.dataset, args.split)
     count = len(reader) if args.trajectories <= 0 else min(args.trajectories, len(reader))
     if count == 0:

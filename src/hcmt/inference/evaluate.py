@@ -14,7 +14,7 @@ import h5py
 import numpy as np
 from tqdm import tqdm
 
-from hcmt.config import COMPILE_MODES
+from hcmt.config import COMPILE_MODES, plural
 from hcmt.data.format import Split, atomic_path, ensure_space, read_meta
 from hcmt.inference.metrics import (SCALE, aggregate, format_physics, impact_groups, impact_metrics, plate_mask,
                                     rollout_rmse, step_rmse, summarize_impact, summarize_runs)
@@ -207,7 +207,7 @@ def metric_unit(m: dict, quantity: str) -> str:
 
 def format_metrics(m: dict) -> str:
     """The RMSE table in the data's units (metrics.json keeps the paper's ×10³ values)."""
-    lines = [f"split {m['split']}: {m['trajectories']} trajectories, RMSE over the rollout's steps 1, 1-50 and all",
+    lines = [f"split {m['split']}: {plural(m['trajectories'], 'trajectory', 'trajectories')}, RMSE over the rollout's steps 1, 1-50 and all",
              f"  {'':<18}{'rmse_1':>12}{'rmse_50':>12}{'rmse_all':>12}"]
     for q in ("position", "stress"):
         if q in m:

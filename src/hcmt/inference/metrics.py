@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from hcmt.config import plural
 from hcmt.data.format import NodeType
 from hcmt.graph.contact import object_ids
 
@@ -155,8 +156,9 @@ def format_physics(p: dict) -> list[str]:
         return (f"median {e['median_abs']:.1f}{unit} (signed {e['median']:+.1f}{unit}, p90 {e['p90_abs']:.1f}{unit}, "
                 f"worst {e['worst']:+.1f}{unit})")
     n = p["trajectories"]
-    return [f"  physics over {n} trajectories: rebound agreement {p['rebound_agreement'] * n:.0f}/{n} (the ball "
-            f"rebounds in {p['model_rebounds']} predictions, {p['solver_rebounds']} solver runs)",
+    return [f"  physics over {plural(n, 'trajectory', 'trajectories')}: rebound agreement "
+            f"{p['rebound_agreement'] * n:.0f}/{n} (the ball rebounds in {plural(p['model_rebounds'], 'prediction')}, "
+            f"{plural(p['solver_rebounds'], 'solver run')})",
             f"    peak plate stress error {err('peak_plate_stress_error_pct')}",
             f"    time of the plate's peak, frames off: {err('peak_plate_frame_error', '')}",
             f"    max deflection error {err('max_deflection_error_pct')}",

@@ -47,9 +47,11 @@ class RunFolder:
         self.path = Path(path)
         self.info: dict | None = None
         if (self.path / "run.yaml").is_file():
-            self.info = yaml.safe_load((self.path / "run.yaml").read_text())
+            self.info = read_run_yaml(self.path / "run.yaml")
         elif must_exist:
-            raise FileNotFoundError(f"{self.path / 'run.yaml'}: not a run folder (made by `hcmt train --out RUN`)")
+            hint = f"; the shipped model is pretrained:{self.path}" if str(self.path) in available_pretrained() else ""
+            raise FileNotFoundError(f"{self.path / 'run.yaml'}: not a run folder (made by `hcmt train --out RUN`)"
+                                    f"{hint}")
 
     def __repr__(self) -> str:
         return f"RunFolder({str(self.path)!r})"
@@ -92,7 +94,7 @@ class RunFolder:
         """The step of the latest checkpoint (0 when there is none)."""
         if not self.latest.is_file():
             return 0
-        return int(torch.load(self.latest, map_location="cpu", weights_only=True)["step"])
+        return int(read_checkpoint(self.latest, "cpu", earlier=self.best)["step"])
 
     def holds_run(self) -> bool:
         """Whether the folder holds a run (its settings or a checkpoint)."""
@@ -115,6 +117,33 @@ class RunFolder:
         with atomic_path(self.run_yaml) as tmp:
             tmp.write_text(yaml.safe_dump(info, sort_keys=False))
         self.info = info
+
+    @property
+    def data_facts_path(self) -> Path:
+        return self.path / "data.json"
+
+    def write_data_facts(self, data) -> None:
+        """``data.json``: the training data's meta.json and design ranges, so the run needs no dataset to predict
+        designs (the generator's settings, the ranges and the design keys travel with it)."""
+        meta, ranges = _data_facts(data)
+        if meta is not None:
+            with atomic_path(self.data_facts_path) as tmp:
+                tmp.write_text(json.dumps({"meta": meta, "ranges": {k: list(v) for k, v in ranges.items()}},
+                                          indent=1))
+
+    def data_facts(self) -> tuple[dict | None, dict[str, tuple[float, float]]]:
+        """(meta.json, design ranges) of the training data: from the dataset while it is there, else from the
+        run's ``data.json``."""
+        meta, ranges = _data_facts(self.train_data)
+        if meta is None and self.data_facts_path.is_file():
+            try:
+                facts = json.loads(self.data_facts_path.read_text())
+                meta = facts["meta"]
+                ranges = {k: (float(v[0]), float(v[1])) for k, v in facts["ranges"].items()}
+            except (ValueError, KeyError, TypeError, IndexError) as exc:
+                raise ValueError(f"{self.data_facts_path}: damaged ({exc.__class__.__name__}); it is written by "
+                                 "`hcmt train` from the training data's meta.json") from None
+        return meta, ranges
 
     # -- files of its use
     @property
@@ -142,6 +171,37 @@ class RunFolder:
         return model_label(self.info["model"])
 
 
+def read_run_yaml(path: Path) -> dict:
+    """``run.yaml`` as a dict with its ``model`` and ``config``; one line naming the file when it is not."""
+    try:
+        info = yaml.safe_load(path.read_text(encoding="utf-8"))
+    except (yaml.YAMLError, UnicodeDecodeError) as exc:
+        raise ValueError(f"{path}: not readable YAML ({str(exc).splitlines()[0]}); it is written by `hcmt train` "
+                         "(restore it, or train the run again)") from None
+    missing = [k for k in ("model", "config") if not isinstance(info, dict) or not isinstance(info.get(k), dict)]
+    if missing:
+        raise ValueError(f"{path}: {'empty' if not info else 'no ' + ' or '.join(missing) + ' section'}; run.yaml "
+                         "is written by `hcmt train` (restore it, or train the run again)")
+    return info
+
+
+def read_checkpoint(path: Path, device="cpu", earlier: Path | None = None) -> dict:
+    """A checkpoint (``torch.load(weights_only=True)``) as a dict; a truncated, empty or foreign file is one line
+    naming it, and the other checkpoint of the run when there is one."""
+    other = f"; another checkpoint of the run exists: {earlier} (copy it over {path.name} to go on from it)" \
+        if earlier is not None and earlier.is_file() and earlier != path else ""
+    try:
+        state = torch.load(path, map_location=device, weights_only=True)
+    except FileNotFoundError:
+        raise
+    except Exception as exc:  # torch raises RuntimeError, EOFError, UnpicklingError, ...: all mean "damaged"
+        raise ValueError(f"{path}: not a readable checkpoint (truncated or corrupt: {exc.__class__.__name__}){other}") \
+            from None
+    if not isinstance(state, dict) or "model" not in state:
+        raise ValueError(f"{path}: not an hcmt checkpoint (no model weights){other}")
+    return state
+
+
 def model_label(args: dict) -> str:
     """The display label of a model from its constructor arguments (:data:`hcmt.models.REGISTRY`), with its
     ablation."""
@@ -157,8 +217,12 @@ def load_run(run: str | Path | RunFolder, which: str = "best", device: str = "cp
     path = folder.checkpoint(which)
     if not path.is_file():
         raise FileNotFoundError(f"{folder.path}: no checkpoint yet (best.pt / checkpoint.pt)")
-    state = torch.load(path, map_location=device, weights_only=True)
-    model = from_checkpoint(state)
+    state = read_checkpoint(path, device, earlier=folder.latest if path == folder.best else folder.best)
+    try:
+        model = from_checkpoint(state)
+    except (KeyError, TypeError, RuntimeError, ValueError) as exc:
+        raise ValueError(f"{path}: the checkpoint does not hold the model run.yaml describes ({exc.__class__.__name__}:"
+                         f" {str(exc).splitlines()[0][:200]})") from None
     info = dict(folder.info, config=complete_config(folder.info["config"]))
     info["checkpoint"] = {"file": path.name, "step": int(state["step"])}
     return model, info
@@ -190,7 +254,7 @@ class Run:
             return cls._pretrained(str(path).split(":", 1)[1], dev)
         folder = path if isinstance(path, RunFolder) else RunFolder(path)  # run.yaml parsed once
         model, info = load_run(folder, which, device="cpu")
-        meta, ranges = _data_facts(info.get("data"))
+        meta, ranges = folder.data_facts()
         return cls(model.to(dev), info, folder.source, meta, ranges, folder=folder)
 
     @classmethod
@@ -199,8 +263,12 @@ class Run:
         if name not in shipped:
             raise ValueError(f"pretrained:{name}: no such shipped model; available: "
                              f"{', '.join(shipped) or 'none'} (`hcmt models` lists them)")
-        pack = torch.load(shipped[name], map_location="cpu", weights_only=True)
-        model = from_checkpoint(pack)
+        pack = read_checkpoint(shipped[name])
+        try:
+            model = from_checkpoint(pack)
+        except (KeyError, TypeError, RuntimeError, ValueError) as exc:
+            raise ValueError(f"{shipped[name]}: a damaged shipped model ({exc.__class__.__name__}); reinstall hcmt") \
+                from None
         info = {"model": pack["model_args"], "config": complete_config(pack["config"]), "data": None,
                 "checkpoint": {"file": shipped[name].name, "step": int(pack["card"].get("steps", 0))}}
         ranges = {k: (float(v[0]), float(v[1])) for k, v in pack["ranges"].items()}
@@ -245,9 +313,10 @@ class Run:
 
     # -- using it ---------------------------------------------------------------------------------------------------
     def design(self, **params) -> Design:
-        """An Impact Plate :class:`~hcmt.sim.scene.Design`: ``params`` over the middle of the training preset's
-        ranges (``hcmt simulate``'s defaults for that preset), validated."""
-        return parse_design([f"{k}={v}" for k, v in params.items()], middle_design(self.meta), where="design")
+        """An Impact Plate :class:`~hcmt.sim.scene.Design`: ``params`` over the middle of the model's training
+        ranges (:func:`hcmt.sim.scene.middle_design`), validated."""
+        return parse_design([f"{k}={v}" for k, v in params.items()], middle_design(self.meta, self.ranges),
+                            where="design")
 
     # -- packaging -------------------------------------------------------------------------------------------------
     def save_pretrained(self, path: str | Path, card: dict, half: bool = True) -> Path:

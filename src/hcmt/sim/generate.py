@@ -22,6 +22,7 @@ import h5py
 import numpy as np
 from tqdm import tqdm
 
+from hcmt.config import plural
 from hcmt.data.errors import DatasetError
 from hcmt.data.format import make_meta, read_meta, write_meta, write_split
 from hcmt.sim.scene import (CONTACT_RADIUS, MAX_ESTIMATED_SECONDS, RANGES, UNITS, VARIANTS, Design, Settings,
@@ -109,6 +110,19 @@ def _assemble(out: Path, meta: dict, split: str, count: int) -> Path:
     return path
 
 
+def _differences(old: dict, new: dict, prefix: str = "") -> str:
+    """``seed 1 there, 2 asked; settings.frames 90 there, 52 asked``: what differs between two generator blocks."""
+    out = []
+    for k in sorted(set(old) | set(new)):
+        a, b = old.get(k), new.get(k)
+        if isinstance(a, dict) and isinstance(b, dict):
+            inner = _differences(a, b, f"{prefix}{k}.")
+            out += [inner] if inner else []
+        elif a != b:
+            out.append(f"{prefix}{k} {a} there, {b} asked")
+    return "; ".join(out)
+
+
 def generate_dataset(out, *, preset: str = "small", counts: dict[str, int], seed: int = 0, workers: int = 1,
                      settings: Settings = Settings(), progress: bool = True, edge_fraction: float = 0.0) -> dict:
     """Generate (or finish) an Impact Plate dataset in ``out``. ``counts`` maps split names (of :data:`SPLITS`) to
@@ -136,8 +150,9 @@ def generate_dataset(out, *, preset: str = "small", counts: dict[str, int], seed
         old_gen, new_gen = dict(old.get("generator") or {}), dict(meta["generator"])
         old_counts, _ = old_gen.pop("counts", {}), new_gen.pop("counts")
         if old_gen != new_gen:
-            raise DatasetError("holds a dataset generated with other settings (preset, seed or solver settings "
-                               "differ); choose another output folder to generate a new one", file=out / "meta.json")
+            raise DatasetError(f"holds a dataset generated with other settings ({_differences(old_gen, new_gen)}); "
+                               "rerun with the dataset's own settings or choose another output folder",
+                               file=out / "meta.json")
         fewer = {k: v for k, v in old_counts.items() if counts.get(k, 0) < v}
         if fewer:
             k, v = next(iter(fewer.items()))
@@ -230,13 +245,14 @@ def main_generate(args) -> int:
     total = sum(max(int(v), 0) for v in counts.values())
     if total:
         cost = plan(preset_design(args.preset), _settings(args))
-        print(f"{total} trajectories of about {cost['num_nodes']} nodes and {cost['substeps']} substeps each: about "
+        print(f"{plural(total, 'trajectory', 'trajectories')} of about {cost['num_nodes']} nodes and {cost['substeps']} substeps each: about "
               f"{cost['estimated_s']:.1f} s per trajectory on one core, {total * cost['estimated_s'] / 60:.1f} "
               f"core-minutes in all (finished trajectories are reused on a rerun)", flush=True)
     result = generate_dataset(args.out, preset=args.preset, counts=counts, seed=args.seed, workers=args.workers,
                               settings=_settings(args), progress=not args.no_progress,
                               edge_fraction=args.edge_fraction)
-    print(f"{args.out}: simulated {result['simulated']} trajectories, reused {result['skipped']}; splits: "
+    print(f"{args.out}: simulated {plural(result['simulated'], 'trajectory', 'trajectories')}, reused "
+          f"{result['skipped']}; splits: "
           + ", ".join(f"{k} ({counts[k]})" for k in result["splits"]))
     return 0
 
@@ -269,6 +285,8 @@ def main_simulate(args) -> int:
     given = {f.name: getattr(args, f.name) for f in fields(Design) if getattr(args, f.name) is not None}
     design = Design(**{**asdict(preset_design(args.preset)), **given}).validate()
     settings = _settings(args)
+    if args.out is not None and Path(args.out).suffix != ".h5":
+        raise ValueError(f"--out must name an .h5 file, got {args.out}")
     for w in validated_warnings(design):
         print(f"hcmt simulate: warning: {w}", file=sys.stderr)
     cost = plan(design, settings)
@@ -290,8 +308,6 @@ def main_simulate(args) -> int:
           f"peak von Mises {float(f['stress'].max()):.1f} MPa")
     if args.out:
         path = Path(args.out)
-        if path.suffix != ".h5":
-            raise ValueError(f"--out must name an .h5 file, got {args.out}")
         meta = dataset_meta(args.preset, 0, {path.stem: 1}, settings)
         write_split(path, meta, [(trajectory_name(0), f, result["attrs"])])
         if not (path.parent / "meta.json").exists():

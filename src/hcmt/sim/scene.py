@@ -192,10 +192,55 @@ def _model(design: Design, settings: Settings, mesh: dict):
                        formulation=settings.formulation, bulk_viscosity=settings.bulk_viscosity)
 
 
+#: the largest mesh any command builds (nodes, from :func:`estimate`): the solver holds every frame (12 bytes per
+#: node and frame) and a learned model's step about 160 kB per node (docs/RESULTS.md), so beyond this a design
+#: exhausts memory before it could finish
+MAX_NODES = 200_000
+
+
+def estimate(design: Design, settings: Settings = Settings()) -> dict:
+    """The cost of a design from its numbers alone, before any array is built: nodes (the plate's structured grid
+    ``(L/h + 1)(max(4, t/h) + 1)`` plus the ball's half disk ``π r² / (2 h²) + 2 r / h + 1``), substeps (frames ×
+    frame interval ÷ the Courant step ``safety h_min / c``, ``h_min`` = half the plate's layer height or element
+    size, ``c`` the faster material's dilatational wave speed) and seconds (:data:`SECONDS_PER_SUBSTEP`,
+    :data:`SECONDS_PER_NODE_SUBSTEP`). Floats throughout: a 1e308 mm plate is an infinite estimate, not an
+    overflow."""
+    with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
+        h, t, L, r = (float(v) for v in (design.mesh_size, design.thickness, design.plate_half_length,
+                                         design.ball_radius))
+        layers = max(4.0, t / h)
+        nodes = (L / h + 1.0) * (layers + 1.0) + np.pi * r * r / (2.0 * h * h) + 2.0 * r / h + 1.0
+        speeds = []
+        for E, nu, rho in ((design.plate_modulus, design.plate_poisson, design.plate_density),
+                           (design.ball_modulus, design.ball_poisson, design.ball_density)):
+            speeds.append(np.sqrt(E * (1 - nu) / (rho * (1 + nu) * (1 - 2 * nu))))
+        h_min = 0.5 * min(h, t / layers)
+        b1 = settings.bulk_viscosity
+        dt = settings.safety * h_min / max(speeds) * (np.sqrt(1 + b1 * b1) - b1)
+        substeps = (settings.frames - 1) * np.ceil(settings.frame_dt / dt)
+        seconds = substeps * (SECONDS_PER_SUBSTEP + SECONDS_PER_NODE_SUBSTEP * nodes)
+    return {"num_nodes": float(nodes), "substeps": float(substeps), "estimated_s": float(seconds)}
+
+
+def check_size(design: Design, settings: Settings = Settings(), where: str = "") -> dict:
+    """:func:`estimate`, refusing (one line with the estimate) a design whose mesh would exceed
+    :data:`MAX_NODES` nodes; returns the estimate."""
+    e = estimate(design, settings)
+    if not e["num_nodes"] <= MAX_NODES:
+        n = f"{e['num_nodes']:.3g}" if np.isfinite(e["num_nodes"]) else "an unbounded number of"
+        raise ValueError(f"{where}the design's mesh would have {n} nodes (plate {design.plate_half_length:g} x "
+                         f"{design.thickness:g} mm, ball radius {design.ball_radius:g} mm at mesh_size "
+                         f"{design.mesh_size:g} mm), more than the {MAX_NODES:,} any command builds; coarsen the "
+                         "mesh or shrink the design")
+    return e
+
+
 def plan(design: Design, settings: Settings = Settings()) -> dict:
-    """What a solve will cost before running it: nodes, cells, substeps, time step and estimated seconds."""
+    """What a solve will cost before running it: nodes, cells, substeps, time step and estimated seconds. The
+    mesh is built only after :func:`check_size` has refused a design too large to build."""
     design.validate()
     settings.validate()
+    check_size(design, settings)
     mesh = design_mesh(design)
     per_frame = int(np.ceil(settings.frame_dt / stable_time_step(_model(design, settings, mesh), settings.safety)))
     n, substeps = len(mesh["mesh_pos"]), per_frame * (settings.frames - 1)
@@ -216,6 +261,7 @@ def simulate(design: Design, settings: Settings = Settings(), *, progress=None) 
     otherwise step over (docs/RESULTS.md, "Frame interval")."""
     design.validate()
     settings.validate()
+    check_size(design, settings)
     start, cpu_start = time.perf_counter(), time.process_time()
     mesh = design_mesh(design)
     X, cells, body = mesh["mesh_pos"], mesh["cells"], mesh["body"]
@@ -285,6 +331,7 @@ def initial_frames(design: Design, settings: Settings = Settings()) -> dict:
     ``world_pos [2, N, 2]``, ``stress [2, N, 1]``) and ``attrs``, as :func:`simulate`."""
     design.validate()
     settings.validate()
+    check_size(design, settings)
     dt, g = settings.frame_dt, settings.gravity
     fall = first_frame_fall(design, settings)
     if fall >= design.gap:
@@ -343,13 +390,20 @@ __all__ = ["Design", "Settings", "RANGES", "VARIANTS", "UNITS", "GRAVITY", "CONT
 
 
 DESIGN_KEYS = tuple(f.name for f in fields(Design))
+#: the unit of each design parameter (meta.json's units: mm, g, MPa)
+DESIGN_UNITS = {"thickness": "mm", "drop_height": "mm", "plate_density": "g/mm^3", "plate_modulus": "MPa",
+                "plate_poisson": "-", "ball_radius": "mm", "ball_density": "g/mm^3", "ball_modulus": "MPa",
+                "ball_poisson": "-", "mesh_size": "mm", "plate_half_length": "mm", "gap": "mm"}
 
 
-def middle_design(meta: dict | None) -> Design:
-    """The middle of the training preset's ranges (``hcmt simulate``'s defaults for that preset) of a
-    dataset's meta.json (``paper`` when it names none)."""
+def middle_design(meta: dict | None, ranges: dict[str, tuple[float, float]] | None = None) -> Design:
+    """The middle of a model's training ranges (``ranges``: min and max of each parameter over its training
+    designs), every parameter they do not name at the middle of the training preset's ranges (``hcmt
+    simulate``'s defaults for that preset; the preset of a dataset's meta.json, ``paper`` when it names none)."""
     preset = ((meta or {}).get("generator") or {}).get("preset", "paper")
-    return Design(**{k: 0.5 * (lo + hi) for k, (lo, hi) in RANGES.get(preset, RANGES["paper"]).items()})
+    values = {k: 0.5 * (lo + hi) for k, (lo, hi) in RANGES.get(preset, RANGES["paper"]).items()}
+    values.update({k: 0.5 * (float(lo) + float(hi)) for k, (lo, hi) in (ranges or {}).items() if k in DESIGN_KEYS})
+    return Design(**values)
 
 
 def parse_design(items: list[str], defaults: Design, where: str = "--design") -> Design:
@@ -363,6 +417,8 @@ def parse_design(items: list[str], defaults: Design, where: str = "--design") ->
             raise ValueError(f"{where} {item!r}: expected KEY=VALUE, e.g. thickness=0.8")
         if key not in DESIGN_KEYS:
             raise ValueError(f"{where} {item!r}: unknown parameter {key!r}; expected one of {', '.join(DESIGN_KEYS)}")
+        if key in values:
+            raise ValueError(f"{where} {item!r}: {key} is given twice in one design; give it once")
         values[key] = parse_number(raw, f"{where} {item!r}: {key}")
     try:
         return Design(**{**asdict(defaults), **values}).validate()

@@ -46,7 +46,7 @@ from tqdm import tqdm
 from hcmt.config import check_train_config, complete_config
 from hcmt.data.format import atomic_path, read_meta
 from hcmt.inference.evaluate import validation_rmse
-from hcmt.inference.run import RunFolder
+from hcmt.inference.run import RunFolder, read_checkpoint
 from hcmt.models import checkpoint_state, make_model, resolve_device, uses_hierarchy
 from hcmt.models.base import compile_simulator
 from hcmt.physics.adapters import config_adapter, model_args, noise_gamma
@@ -91,6 +91,7 @@ class Trainer:
         if self.rank == 0:
             out.mkdir(parents=True, exist_ok=True)
             self.folder.write_info(run)
+            self.folder.write_data_facts(data)
 
         self.compile = tc["compile"]
         if self.compile != "none" and self.args.get("ablation") == "lpe":
@@ -139,9 +140,13 @@ class Trainer:
                     len(self.frames), self.step_count, self.steps)
 
     def _resume(self) -> None:
-        state = torch.load(self.ckpt_path, map_location=self.device, weights_only=True)
-        self.model.load_state_dict(state["model"])
-        self.opt.load_state_dict(state["optimizer"])
+        state = read_checkpoint(self.ckpt_path, self.device, earlier=self.folder.best)
+        try:
+            self.model.load_state_dict(state["model"])
+            self.opt.load_state_dict(state["optimizer"])
+        except (KeyError, RuntimeError, ValueError) as exc:
+            raise ValueError(f"{self.ckpt_path}: the checkpoint does not fit this run's model or optimizer "
+                             f"({exc.__class__.__name__}); --resume continues the run that wrote it") from None
         self.step_count, self.best = int(state["step"]), float(state["best"])
         if self.step_count > self.steps:
             raise ValueError(f"{self.out}: --resume with train.steps {self.steps}, but the run has done "

@@ -16,6 +16,7 @@ from matplotlib import colors
 from matplotlib.cm import ScalarMappable
 from PIL import Image
 
+from hcmt.data.format import atomic_path
 from hcmt.viz.contours import field_label, field_name, field_values, view_box
 from hcmt.viz.meshplot import (box_3d, closest_pair, draw_field_2d, draw_field_3d, extend_of, impact_window, new_figure,
                                panel_size)
@@ -156,5 +157,7 @@ def animate(case: Case, path: str | Path, *, fps: int = 10, stride: int | None =
             images.append(Image.fromarray(np.asarray(canvas.buffer_rgba())).convert("RGB"))
             for _, a in artists:
                 a.remove()
-    images[0].save(path, save_all=True, append_images=images[1:], duration=int(round(1000 / fps)), loop=0)
+    with atomic_path(path) as tmp:
+        images[0].save(tmp, format="GIF", save_all=True, append_images=images[1:], duration=int(round(1000 / fps)),
+                       loop=0)
     return path

@@ -38,7 +38,7 @@ from hcmt.models import REGISTRY
 from hcmt.models.attention import AttentionMap
 from hcmt.physics.frames import input_graph
 from hcmt.physics.trajectory import prepare_trajectory
-from hcmt.viz.meshplot import closest_pair, new_figure
+from hcmt.viz.meshplot import closest_pair, new_figure, save_figure
 from hcmt.viz.rollouts import trajectory_index
 
 
@@ -217,5 +217,5 @@ def attention_figure(maps: AttentionMaps, panels: list[tuple[str, str]] | None =
 def plot_attention(maps: AttentionMaps, path: str | Path, dpi: int = 150) -> Path:
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    attention_figure(maps).savefig(path, dpi=dpi)
+    save_figure(attention_figure(maps), path, dpi=dpi)
     return path

@@ -24,7 +24,7 @@ from matplotlib.patches import Rectangle
 from hcmt.inference.metrics import step_rmse
 
 from hcmt.viz.meshplot import (box_3d, draw_field_2d, draw_field_3d, extend_of, field_limits, impact_window, new_figure,
-                               panel_size, scene_box)
+                               panel_size, save_figure, scene_box)
 from hcmt.viz.rollouts import Case, Series, quantity_label
 
 STRESS_NAME = "von Mises stress"
@@ -188,13 +188,12 @@ def plot_contours(case: Case, out_dir: str | Path, frames: list[int] | None = No
     """Write ``<field>_contours.png`` (whole scene) and, for a 2-D scene of several objects,
     ``<field>_contours_zoom.png`` (the impact window). Returns the paths written."""
     out_dir = Path(out_dir)
-    out_dir.mkdir(parents=True, exist_ok=True)
     field = field_name(case)
     paths = []
     zooms = [False] + ([True] if case.dim == 2 and len(np.unique(case.object_id)) > 1 else [])
     for zoom in zooms:
         fig = contour_figure(case, frames, field=field, zoom=zoom, cmap=cmap, scale=scale)
         path = out_dir / f"{field}_contours{'_zoom' if zoom else ''}.png"
-        fig.savefig(path, dpi=dpi)
+        save_figure(fig, path, dpi=dpi)
         paths.append(path)
     return paths

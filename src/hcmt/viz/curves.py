@@ -16,7 +16,7 @@ import numpy as np
 
 from hcmt.data.format import Split, read_meta
 from hcmt.inference.metrics import SCALE, step_rmse
-from hcmt.viz.meshplot import new_figure
+from hcmt.viz.meshplot import new_figure, save_figure
 from hcmt.inference.evaluate import rollout_file
 from hcmt.inference.run import Run, RunFolder
 from hcmt.viz.rollouts import quantity_label, unique_labels
@@ -99,7 +99,7 @@ def plot_error_curves(errors: dict[str, dict], meta: dict, path: str | Path, *, 
                  + (" (band: best to worst)" if n > 1 else ""), fontsize=10)
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=dpi)
+    save_figure(fig, path, dpi=dpi)
     return path
 
 
@@ -175,5 +175,5 @@ def plot_training_curves(runs: list[Run | RunFolder], meta: dict, path: str | Pa
     fig.suptitle("Training curves", fontsize=10)
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=dpi)
+    save_figure(fig, path, dpi=dpi)
     return path

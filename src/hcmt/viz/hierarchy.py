@@ -23,7 +23,7 @@ from hcmt.data.format import NodeType
 from hcmt.graph.hierarchy import Hierarchy
 from hcmt.graph.quality import quality_summary
 from hcmt.graph.remesh import clique_cells, two_hop_edges
-from hcmt.viz.meshplot import draw_edges, impact_window, new_figure, panel_size, scene_box
+from hcmt.viz.meshplot import draw_edges, impact_window, new_figure, panel_size, save_figure, scene_box
 from hcmt.viz.rollouts import quantity_label
 
 OBJECT_COLOURS = ("#2ca02c", "#1f9bd7", "#d62728", "#9467bd", "#8c564b", "#e377c2")  # object 0, 1, ...
@@ -175,6 +175,6 @@ def plot_hierarchy(mesh_pos: np.ndarray, hierarchy: Hierarchy, out_dir: str | Pa
             figures.append(("remeshing", remeshing_figure(pos, hierarchy, **kw)))
         for name, fig in figures:
             path = out_dir / f"hierarchy_{name}{suffix}.png"
-            fig.savefig(path, dpi=dpi)
+            save_figure(fig, path, dpi=dpi)
             paths.append(path)
     return paths

@@ -14,7 +14,10 @@ stress visible at any plate thickness.
 """
 from __future__ import annotations
 
+from pathlib import Path
+
 import matplotlib
+
 import numpy as np
 from matplotlib import colors
 from matplotlib.backends.backend_agg import FigureCanvasAgg
@@ -25,6 +28,8 @@ from matplotlib.tri import Triangulation
 from mpl_toolkits.mplot3d.art3d import Poly3DCollection
 from scipy.spatial import cKDTree
 
+from hcmt.data.format import atomic_path
+
 ZOOM_THICKNESSES = 4.0  # zoom window height, in thicknesses of the thinnest object
 ZOOM_ASPECT = 4.0 / 3.0  # zoom window width / height
 
@@ -34,6 +39,15 @@ def new_figure(width: float, height: float) -> Figure:
     fig = Figure(figsize=(width, height), layout="constrained")
     FigureCanvasAgg(fig)
     return fig
+
+
+def save_figure(fig: Figure, path: str | Path, dpi: int = 150) -> Path:
+    """Write a figure atomically (a temporary file renamed onto ``path``): a full disk or an interrupt leaves no
+    empty or half-written picture, and an error names ``path``."""
+    path = Path(path)
+    with atomic_path(path) as tmp:
+        fig.savefig(tmp, dpi=dpi, format=path.suffix.lstrip(".") or "png")
+    return path
 
 
 def surface_triangles(cells: np.ndarray) -> np.ndarray:

@@ -124,6 +124,9 @@ def record(p, t, frame_dt: float, end: float | None) -> dict:
                            "peak_where_solver_unloaded": bool(unloaded[s["peak_plate_frame"]]),
                            "t95_frame_error": s["peak_plate_t95_frame"] - truth["peak_plate_t95_frame"],
                            "argmax_frame_error": s["peak_plate_frame"] - truth["peak_plate_frame"]}
+    out["contact_end_lag_frames"] = round((model["contact_own"]["contact_end_ms"] - truth["contact_end_ms"])
+                                          / frame_dt)  # the learned ball leaves this much later
+    out["solver_ball_leaves"] = truth["contact_end_ms"] < len(truth["plate_stress_history_mpa"]) * frame_dt - 1e-9
     out["critical_node_history_correlation"] = p.summary["verify"]["critical_node_history_correlation"]
     out["model_wall_s"] = p.wall_s
     return out
@@ -347,6 +350,9 @@ def main() -> None:
                                                 [x["solver"]["peak_plate_stress_mpa"] for x in allheld])}
                        for r in (*READOUTS, "contact_own")}
     result["ghost"]["designs"] = len(allheld)
+    lags = [x["contact_end_lag_frames"] for x in allheld if x["solver_ball_leaves"]]
+    result["ghost"]["contact_end_lag_frames"] = {"median": float(np.median(lags)), "min": int(min(lags)),
+                                                 "max": int(max(lags)), "designs": len(lags)}
     result["ghost"]["solver_median"] = float(np.median([x["solver_ghost"] for x in allheld]))
     result["time_of_peak"] = {
         "t95_frames_off_median": float(np.median([abs(x["model"]["contact"]["t95_frame_error"]) for x in allheld])),

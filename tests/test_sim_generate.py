@@ -176,7 +176,7 @@ def test_preset_node_counts():
 
 
 def test_simulate_states_its_cost_and_refuses_an_absurd_one(capsys):
-    assert main(["simulate", "--mesh-size", "0.01", "--no-progress"]) == 2
+    assert main(["simulate", "--mesh-size", "0.02", "--no-progress"]) == 2
     captured = capsys.readouterr()
     assert "substeps" in captured.out and "estimated" in captured.out
     err = captured.err.strip().splitlines()

@@ -155,13 +155,23 @@ def _requested_command(argv: list[str]) -> str | None:
 def main(argv: list[str] | None = None) -> int:
     if argv is not None:
         sys.argv = [sys.argv[0], *argv]
-    parser = build_parser()
-    args = parser.parse_args(sys.argv[1:])
+    previous = signal.signal(signal.SIGTERM, _terminate)  # SIGTERM ends a command as Ctrl-C does, from the start
+    try:
+        parser = build_parser()  # imports the command's module: torch, seconds on a busy machine
+        args = parser.parse_args(sys.argv[1:])
+    except KeyboardInterrupt:
+        signal.signal(signal.SIGTERM, previous)
+        print(f"hcmt {_requested_command(sys.argv[1:]) or ''}: interrupted while starting; nothing was written",
+              file=sys.stderr)
+        return 130
+    except BaseException:
+        signal.signal(signal.SIGTERM, previous)
+        raise
     if not getattr(args, "_run", None):
+        signal.signal(signal.SIGTERM, previous)
         parser.print_help()
         return 0 if args.command is None else 2
 
-    previous = signal.signal(signal.SIGTERM, _terminate)  # SIGTERM ends a command as Ctrl-C does
     try:
         if getattr(args, "threads", None) is not None:
             set_threads(args.threads)

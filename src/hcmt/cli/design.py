@@ -56,7 +56,7 @@ def check_options(args) -> dict:
 
 def print_notes(command: str, check) -> None:
     for note in check.notes:
-        print(f"hcmt {command}: {note}", file=sys.stderr)
+        print(f"hcmt {command}: note: {note}", file=sys.stderr)
 
 
 # -- predict / models ----------------------------------------------------------------------------------------------
@@ -126,6 +126,10 @@ def _design_run(args):
     if run.config.get("dataset") != "impact_plate":
         raise ValueError(f"{args.model}: predict is for Impact Plate models; this one was trained on "
                          f"{run.config.get('dataset')!r}")
+    if run.meta is None and run.folder is not None:
+        raise ValueError(f"{args.model}: its training data ({run.info.get('data')}) is gone and the run folder holds "
+                         f"no {run.folder.data_facts_path.name} (written by `hcmt train`): predict needs the "
+                         "generator's settings, the design ranges and keys; restore the dataset, or retrain")
     return run
 
 

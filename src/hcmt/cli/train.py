@@ -35,6 +35,8 @@ def configure_train(p: argparse.ArgumentParser) -> None:
 def main_train(args: argparse.Namespace) -> int:
     overrides = list(args.set) + ([f"train.steps={args.steps}"] if args.steps is not None else [])
     folder = RunFolder(args.out, must_exist=False)
+    if args.resume and folder.damaged:
+        raise ValueError(folder.damaged)
     if not args.resume and folder.holds_run():
         raise ValueError(f"{args.out} already holds a run; pass --resume to continue it or choose another --out")
     if args.resume and folder.info is not None and not args.config:  # resume with the run's saved settings

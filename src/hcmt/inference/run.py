@@ -46,8 +46,14 @@ class RunFolder:
     def __init__(self, path: str | Path, *, must_exist: bool = True):
         self.path = Path(path)
         self.info: dict | None = None
+        self.damaged: str | None = None  # why run.yaml could not be read (a folder that may be written anew)
         if (self.path / "run.yaml").is_file():
-            self.info = read_run_yaml(self.path / "run.yaml")
+            try:
+                self.info = read_run_yaml(self.path / "run.yaml")
+            except ValueError as exc:
+                if must_exist:
+                    raise
+                self.damaged = str(exc)
         elif must_exist:
             hint = f"; the shipped model is pretrained:{self.path}" if str(self.path) in available_pretrained() else ""
             raise FileNotFoundError(f"{self.path / 'run.yaml'}: not a run folder (made by `hcmt train --out RUN`)"
@@ -172,16 +178,18 @@ class RunFolder:
 
 
 def read_run_yaml(path: Path) -> dict:
-    """``run.yaml`` as a dict with its ``model`` and ``config``; one line naming the file when it is not."""
+    """``run.yaml`` as a dict with its ``model`` (and ``config`` when the run has a checkpoint: :func:`load_run`
+    checks it); one line naming the file when it is not."""
     try:
         info = yaml.safe_load(path.read_text(encoding="utf-8"))
     except (yaml.YAMLError, UnicodeDecodeError) as exc:
         raise ValueError(f"{path}: not readable YAML ({str(exc).splitlines()[0]}); it is written by `hcmt train` "
                          "(restore it, or train the run again)") from None
-    missing = [k for k in ("model", "config") if not isinstance(info, dict) or not isinstance(info.get(k), dict)]
-    if missing:
-        raise ValueError(f"{path}: {'empty' if not info else 'no ' + ' or '.join(missing) + ' section'}; run.yaml "
-                         "is written by `hcmt train` (restore it, or train the run again)")
+    if not isinstance(info, dict) or not isinstance(info.get("model"), dict) or (
+            "config" in info and not isinstance(info["config"], dict)):
+        what = "empty" if not info else "no model section (the model's constructor arguments)" \
+            if not isinstance(info, dict) or not isinstance(info.get("model"), dict) else "a config that is no mapping"
+        raise ValueError(f"{path}: {what}; run.yaml is written by `hcmt train` (restore it, or train the run again)")
     return info
 
 
@@ -223,8 +231,16 @@ def load_run(run: str | Path | RunFolder, which: str = "best", device: str = "cp
     except (KeyError, TypeError, RuntimeError, ValueError) as exc:
         raise ValueError(f"{path}: the checkpoint does not hold the model run.yaml describes ({exc.__class__.__name__}:"
                          f" {str(exc).splitlines()[0][:200]})") from None
-    info = dict(folder.info, config=complete_config(folder.info["config"]))
-    info["checkpoint"] = {"file": path.name, "step": int(state["step"])}
+    try:  # a hand-edited or damaged run.yaml: its settings must still make the run's adapter and graph
+        info = dict(folder.info, config=complete_config(folder.info["config"]))
+        config_adapter(info["config"])
+        float(info["config"]["train"]["contact_radius"])
+        uses_hierarchy(info["model"])
+        info["checkpoint"] = {"file": path.name, "step": int(state["step"])}
+    except (TypeError, ValueError, KeyError, AttributeError) as exc:
+        raise ValueError(f"{folder.run_yaml}: its settings do not load ({exc.__class__.__name__}: "
+                         f"{str(exc).splitlines()[0][:160] if str(exc) else '-'}); restore it or train the run again") \
+            from None
     return model, info
 
 

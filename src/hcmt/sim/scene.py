@@ -156,9 +156,11 @@ def design_mesh(design: Design) -> dict[str, np.ndarray]:
                              plate_half_length=design.plate_half_length, gap=design.gap)
 
 
-#: cost model of the solver, fitted to its measured speed (docs/solver.md, "Speed"): per substep a fixed
-#: ~0.4 ms of Python and sparse-product overhead plus ~1e-7 s per node, on one core of the development machine
-SECONDS_PER_SUBSTEP, SECONDS_PER_NODE_SUBSTEP = 4e-4, 1e-7
+#: cost model of the solver (docs/solver.md, "Speed"): per substep a fixed ~0.4 ms of Python and sparse-product
+#: overhead plus ~3e-7 s per node, on one core of the development machine (a 34,768-node design measured 15 ms per
+#: substep with the other core busy: 582 s where 1e-7 s per node had estimated 150 s; small meshes stay
+#: overhead-bound, so their estimate stays conservative)
+SECONDS_PER_SUBSTEP, SECONDS_PER_NODE_SUBSTEP = 4e-4, 3e-7
 #: a design estimated to take longer than this is refused unless forced (``hcmt simulate --force``)
 MAX_ESTIMATED_SECONDS = 600.0
 #: the ranges the solver is validated for (docs/solver.md): outside them, results are not trusted

@@ -80,6 +80,8 @@ class Trainer:
         self.args = model_args(cfg, model_name, ablation, meta)
         self.folder = RunFolder(out, must_exist=False)
         self.ckpt_path = self.folder.latest
+        if resume and self.folder.damaged:
+            raise ValueError(self.folder.damaged)
         if resume and not self.ckpt_path.is_file():
             raise FileNotFoundError(f"{self.ckpt_path}: nothing to resume; start without --resume")
         if not resume and self.ckpt_path.is_file():

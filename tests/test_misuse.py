@@ -1,0 +1,382 @@
+"""Misuse of the design check, the run files and the other commands (issue "No traceback, no memory blow-up, no
+file outside the output folder"): each case gives one line and exit 2 (or works, documented), leaves nothing
+behind, and the run files are fuzzed."""
+import errno
+import json
+import os
+import random
+import resource
+import shutil
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+import torch
+
+from hcmt.cli import main as cli
+from hcmt.cli import set_threads
+from hcmt.design import predict as pr
+from hcmt.inference.run import Run
+from hcmt.sim.scene import Design, estimate
+from hcmt.training import train
+from hcmt.viz.meshplot import new_figure, save_figure
+
+FRAMES = 6
+ROOT = Path(__file__).resolve().parent.parent
+
+
+@pytest.fixture(scope="module")
+def setup(tmp_path_factory, tiny_config):
+    """A tiny dataset and a 2-step HCMT run with checkpoint.pt, best.pt (validation at step 2) and data.json."""
+    root = tmp_path_factory.mktemp("misuse")
+    assert cli(["generate", "impact-plate", str(root / "data"), "--preset", "small", "--train", "2", "--valid", "1",
+                "--test", "1", "--seed", "4", "--frames", str(FRAMES), "--no-progress"]) == 0
+    train(tiny_config("train.steps=2", "train.checkpoint_every=1", "train.valid_every=2",
+                      "train.valid_trajectories=1"), root / "data", "hcmt", root / "run", progress=False)
+    assert (root / "run" / "best.pt").is_file() and (root / "run" / "checkpoint.pt").is_file()
+    return root
+
+
+def one_line(capsys, rc) -> str:
+    err = [line for line in capsys.readouterr().err.strip().splitlines()
+           if ": warning: " not in line and ": note: " not in line]
+    assert rc == 2 and len(err) == 1 and "Traceback" not in err[0], err
+    return err[0]
+
+
+def run_capped(argv: list[str], gib: float = 6.0, seconds: float = 120.0) -> subprocess.CompletedProcess:
+    """``hcmt ARGV`` in a child process whose address space is capped (a blow-up fails there, not here)."""
+    limit = int(gib * 2**30)
+
+    def cap():
+        resource.setrlimit(resource.RLIMIT_AS, (limit, limit))
+
+    return subprocess.run([sys.executable, "-m", "hcmt", *argv], capture_output=True, text=True, timeout=seconds,
+                          preexec_fn=cap, cwd=ROOT)
+
+
+# -- 1. memory: the cost estimate comes from the design's numbers -------------------------------------------------
+def test_the_estimate_needs_no_mesh_and_matches_it():
+    from hcmt.sim.scene import design_mesh
+
+    d = Design(thickness=0.8, mesh_size=0.3, ball_radius=3.8, plate_half_length=12.0)
+    e = estimate(d)
+    assert abs(e["num_nodes"] - len(design_mesh(d)["mesh_pos"])) < 0.05 * e["num_nodes"]
+    huge = estimate(Design(thickness=1e308, plate_half_length=1e308))
+    assert huge["num_nodes"] == float("inf")  # a float estimate, not an OverflowError
+
+
+@pytest.mark.parametrize("argv", [
+    ["predict", "pretrained:impact_plate_small", "--design", "mesh_size=1e-4", "--no-progress"],
+    ["predict", "pretrained:impact_plate_small", "--design", "plate_half_length=1e308", "--no-progress"],
+    ["predict", "pretrained:impact_plate_small", "--design", "thickness=1e308", "--no-progress"],
+    ["simulate", "--mesh-size", "1e-4", "--no-progress"],
+    ["simulate", "--thickness", "1e308", "--no-progress"],
+])
+def test_a_huge_design_is_refused_before_any_array(argv):
+    t0 = time.perf_counter()
+    r = run_capped(argv)
+    err = [line for line in r.stderr.strip().splitlines() if ": warning: " not in line]
+    assert r.returncode == 2 and len(err) == 1 and "Traceback" not in r.stderr, r.stderr
+    assert "nodes" in err[0] and time.perf_counter() - t0 < 60
+
+
+def test_a_huge_design_in_a_csv_is_refused_naming_it(setup, tmp_path, capsys):
+    path = tmp_path / "d.csv"
+    path.write_text("name,thickness\nok,0.8\nhuge,1e308\n")
+    msg = one_line(capsys, cli(["predict", str(setup / "run"), "--designs", str(path), "--no-progress"]))
+    assert "huge" in msg and "nodes" in msg
+
+
+# -- 2. names that would escape --out ------------------------------------------------------------------------------
+@pytest.mark.parametrize("name,message", [("../../escaped", "outside its own folder"), ("a/b", "outside its own"),
+                                          ("..", "outside its own"), ("", "is empty"), ("tab\tname", "control"),
+                                          ("/abs", "outside its own")])
+def test_a_design_name_that_is_a_path_is_refused(setup, tmp_path, capsys, name, message):
+    path = tmp_path / "d.csv"
+    path.write_text(f"name,thickness\n{name},0.8\n")
+    msg = one_line(capsys, cli(["predict", str(setup / "run"), "--designs", str(path), "--images", "--out",
+                                str(tmp_path / "imgs"), "--no-progress"]))
+    assert str(path) in msg and "line 2" in msg and message in msg
+    assert not (tmp_path / "imgs").exists() and not (tmp_path.parent / "escaped").exists()
+
+
+def test_duplicate_names_are_refused(setup, tmp_path, capsys):
+    path = tmp_path / "d.csv"
+    path.write_text("name,thickness\na,0.8\nb,0.7\na,0.9\n")
+    msg = one_line(capsys, cli(["predict", str(setup / "run"), "--designs", str(path), "--no-progress"]))
+    assert "line 4" in msg and "already names line 2" in msg
+
+
+# -- 3. damaged run files ------------------------------------------------------------------------------------------
+DAMAGE = {"truncated": lambda b: b[: len(b) // 3], "random bytes": lambda b: bytes(random.Random(0).randrange(256)
+                                                                                    for _ in range(2000)),
+          "empty": lambda b: b""}
+
+
+def commands(run: Path, data: Path, out: Path) -> dict[str, list[str]]:
+    return {"predict": ["predict", str(run), "--design", "thickness=0.7", "--no-progress"],
+            "rollout": ["rollout", str(run), "--data", str(data), "--split", "test", "--no-progress"],
+            "evaluate": ["evaluate", str(run), "--data", str(data), "--split", "test", "--no-progress"],
+            "export": ["export", str(run), "--data", str(data), "--split", "test", "--out", str(out / "vtu"),
+                       "--no-progress"],
+            "plot": ["plot", str(run), "--data", str(data), "--split", "test", "--only", "contours", "--out",
+                     str(out / "pic"), "--no-progress"]}
+
+
+@pytest.mark.parametrize("kind", sorted(DAMAGE))
+def test_a_damaged_checkpoint_is_one_line_naming_it_and_the_other(setup, tmp_path, capsys, kind):
+    run = tmp_path / "run"
+    shutil.copytree(setup / "run", run)
+    (run / "best.pt").write_bytes(DAMAGE[kind]((run / "best.pt").read_bytes()))
+    for name, argv in commands(run, setup / "data", tmp_path).items():
+        msg = one_line(capsys, cli(argv))
+        assert str(run / "best.pt") in msg and "checkpoint.pt" in msg, (name, msg)  # the intact one is named
+    # the latest checkpoint damaged: --resume names it and the best one
+    shutil.copy(setup / "run" / "best.pt", run / "best.pt")
+    (run / "checkpoint.pt").write_bytes(DAMAGE[kind]((run / "checkpoint.pt").read_bytes()))
+    msg = one_line(capsys, cli(["train", "--resume", "--out", str(run), "--steps", "3", "--no-progress"]))
+    assert str(run / "checkpoint.pt") in msg and "best.pt" in msg
+
+
+@pytest.mark.parametrize("text", ["", "model: [1, 2\n", "x: 1\n", "- a\n- b\n", "\x00\x01binary"])
+def test_a_damaged_run_yaml_is_one_line(setup, tmp_path, capsys, text):
+    run = tmp_path / "run"
+    shutil.copytree(setup / "run", run)
+    (run / "run.yaml").write_text(text)
+    for name, argv in commands(run, setup / "data", tmp_path).items():
+        msg = one_line(capsys, cli(argv))
+        assert "run.yaml" in msg, (name, msg)
+    msg = one_line(capsys, cli(["train", "--resume", "--out", str(run), "--steps", "3", "--no-progress"]))
+    assert "run.yaml" in msg
+
+
+def test_fuzz_run_files(setup, tmp_path, capsys):
+    """Byte flips and cuts of run.yaml, checkpoint.pt, best.pt and data.json, and of a shipped model file: every
+    case runs (exit 0) or is one line (exit 2), never a traceback."""
+    rng = random.Random(1)
+    cases = 0
+    for file in ("run.yaml", "checkpoint.pt", "best.pt", "data.json"):
+        original = (setup / "run" / file).read_bytes()
+        for k in range(8):
+            run = tmp_path / f"{file}_{k}"
+            shutil.copytree(setup / "run", run)
+            b = bytearray(original)
+            if k < 5:
+                for _ in range(rng.randint(1, 6)):
+                    b[rng.randrange(len(b))] = rng.randrange(256)
+            else:
+                b = b[: rng.randrange(len(b))]
+            (run / file).write_bytes(bytes(b))
+            if file == "data.json":
+                shutil.move(str(setup / "data"), str(tmp_path / "away"))  # read only when the dataset is gone
+            try:
+                rc = cli(["predict", str(run), "--design", "thickness=0.7", "--no-progress"])
+            finally:
+                if file == "data.json":
+                    shutil.move(str(tmp_path / "away"), str(setup / "data"))
+            err = capsys.readouterr().err
+            assert rc in (0, 2) and "Traceback" not in err, (file, k, err)
+            if rc == 2:
+                assert len([l for l in err.strip().splitlines() if ": warning: " not in l and ": note: " not in l]) \
+                    == 1, err
+            cases += 1
+            shutil.rmtree(run)
+    assert cases == 32
+
+
+def test_fuzz_a_shipped_model_file(tmp_path, monkeypatch, capsys):
+    from hcmt.inference import run as run_module
+
+    original = (run_module.PRETRAINED_DIR / "impact_plate_small.pt").read_bytes()
+    rng = random.Random(2)
+    for k in range(6):
+        b = bytearray(original)
+        if k < 4:
+            for _ in range(rng.randint(1, 4)):
+                b[rng.randrange(len(b))] = rng.randrange(256)
+        else:
+            b = b[: rng.randrange(len(b))]
+        path = tmp_path / "impact_plate_small.pt"
+        path.write_bytes(bytes(b))
+        monkeypatch.setattr(run_module, "available_pretrained", lambda: {"impact_plate_small": path})
+        rc = cli(["predict", "pretrained:impact_plate_small", "--design", "thickness=0.7", "--no-surrogate",
+                  "--no-progress"])
+        err = capsys.readouterr().err
+        assert rc in (0, 2) and "Traceback" not in err, err
+
+
+# -- 4. the solver's warnings travel with --verify -----------------------------------------------------------------
+def test_verify_carries_the_solvers_warnings(setup, tmp_path, capsys):
+    out = tmp_path / "v.json"
+    assert cli(["predict", str(setup / "run"), "--design", "plate_poisson=0.47", "--verify", "--json", str(out),
+                "--no-progress"]) == 0
+    printed = capsys.readouterr().out
+    d = json.loads(out.read_text())["designs"][0]
+    assert any("validated" in w for w in d["verify"]["solver_warnings"])
+    assert "solver warning: design_1: plate_poisson" in printed
+
+
+# -- 5, 6. outputs checked before the first is written ------------------------------------------------------------
+@pytest.mark.parametrize("extra,message", [
+    (["--json", "{dir}", "--csv", "{tmp}/t.csv"], "is a folder"),
+    (["--json", "{tmp}/x", "--csv", "{tmp}/x"], "the same path as --json"),
+    (["--csv", ""], "an empty path"),
+    (["--images", "--out", "{tmp}/file.txt"], "is a file; name a folder"),
+])
+def test_outputs_are_checked_before_any_is_written(setup, tmp_path, capsys, extra, message):
+    (tmp_path / "a_dir").mkdir()
+    (tmp_path / "file.txt").write_text("x")
+    argv = [a.format(dir=tmp_path / "a_dir", tmp=tmp_path) for a in extra]
+    msg = one_line(capsys, cli(["predict", str(setup / "run"), "--design", "thickness=0.7", *argv, "--no-progress"]))
+    assert message in msg
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["a_dir", "file.txt"]  # nothing written
+
+
+def test_a_picture_on_a_full_disk_leaves_nothing_and_names_the_path(tmp_path, monkeypatch):
+    fig = new_figure(2, 2)
+
+    def full(*args, **kwargs):
+        raise OSError(errno.ENOSPC, "No space left on device", str(args[0]))
+
+    monkeypatch.setattr(fig, "savefig", full)
+    target = tmp_path / "pics" / "p.png"
+    with pytest.raises(OSError) as info:
+        save_figure(fig, target)
+    assert info.value.filename == str(target) and not any(tmp_path.rglob("*.png*"))
+    assert not any(p.is_file() for p in tmp_path.rglob("*"))
+
+
+def test_plot_refused_for_bad_options_leaves_no_folder(setup, tmp_path, capsys):
+    for extra in (["--cmap", "nosuchmap"], ["--frames", "0,999"], ["--frames", "x"]):
+        out = tmp_path / "pics"
+        msg = one_line(capsys, cli(["plot", str(setup / "run"), "--data", str(setup / "data"), "--split", "test",
+                                    "--only", "contours", "--out", str(out), "--no-progress", *extra]))
+        assert not out.exists(), (extra, msg)
+
+
+# -- 7. threads ---------------------------------------------------------------------------------------------------
+def test_threads_are_capped_at_the_cores(capsys):
+    before = torch.get_num_threads()
+    try:
+        n = set_threads(1000)
+        assert n == len(os.sched_getaffinity(0)) and "more than this machine's" in capsys.readouterr().err
+    finally:
+        torch.set_num_threads(before)
+
+
+# -- 8, 9. defaults and a self-contained run folder ----------------------------------------------------------------
+def test_defaults_are_the_middle_of_the_models_training_ranges(setup):
+    run = Run.load(setup / "run", "cpu")
+    d = run.design()
+    lo, hi = run.ranges["thickness"]
+    assert d.thickness == pytest.approx(0.5 * (lo + hi)) and pr.range_warnings(d, run.ranges) == []
+
+
+def test_a_run_folder_predicts_without_its_dataset(setup, tmp_path, capsys):
+    data, run = tmp_path / "data", tmp_path / "run"
+    shutil.copytree(setup / "data", data)
+    train({**Run.load(setup / "run", "cpu").config}, data, "hcmt", run, progress=False, overwrite=True)
+    shutil.rmtree(data)
+    assert (run / "data.json").is_file()
+    assert cli(["predict", str(run), "--design", "thickness=0.7", "--no-progress"]) == 0
+    (run / "data.json").unlink()
+    msg = one_line(capsys, cli(["predict", str(run), "--design", "thickness=0.7", "--no-progress"]))
+    assert "not an hcmt-generated" not in msg and "data.json" in msg
+
+
+# -- 10. silent acceptance ----------------------------------------------------------------------------------------
+@pytest.mark.parametrize("argv,message", [
+    (["predict", "{run}", "--design", "thickness=0.7", "thickness=0.8"], "thickness is given twice"),
+    (["sweep", "{run}", "--vary", "thickness=0.6:0.8:2", "--design", "thickness=0.7"], "the swept parameter"),
+    (["sweep", "{run}", "--vary", "thickness=0.6:0.8:2", "--batch", "0"], "--batch must be >= 1"),
+    (["hierarchy", "{data}", "--levels", "1", "--trajectories", "-1"], "--trajectories must be >= 0"),
+    (["predict", "{run}", "--design", "thickness=0.7", "--csv", ""], "--csv: an empty path"),
+    (["rollout", "{run}", "--data", "{data}", "--split", "test", "--limit", "0"], "--limit must be >= 1"),
+    (["predict", "impact_plate_small", "--design", "thickness=0.7"], "pretrained:impact_plate_small"),
+    (["simulate", "--out", "{tmp}/x.txt", "--mesh-size", "0.5", "--thickness", "0.6", "--ball-radius", "3"],
+     "--out must name an .h5 file"),
+    (["predict", "{run}", "--design", "thickness=0.7", "--verify", "auto"], "--yield-mpa"),
+])
+def test_silent_acceptance_is_refused(setup, tmp_path, capsys, monkeypatch, argv, message):
+    monkeypatch.chdir(tmp_path)
+    t0 = time.perf_counter()
+    argv = [a.format(run=setup / "run", data=setup / "data", tmp=tmp_path) for a in argv]
+    msg = one_line(capsys, cli([*argv, "--no-progress"]))
+    assert message in msg and time.perf_counter() - t0 < 30
+    assert not (tmp_path / "x.txt").exists()
+
+
+def test_design_before_the_model_and_design_with_designs(setup, tmp_path, capsys):
+    out = tmp_path / "p.json"
+    path = tmp_path / "d.csv"
+    path.write_text("name,thickness\nc,0.9\n")
+    assert cli(["predict", "--design", "thickness=0.7", str(setup / "run"), "--designs", str(path), "--json",
+                str(out), "--no-progress"]) == 0
+    assert [d["name"] for d in json.loads(out.read_text())["designs"]] == ["design_1", "c"]  # merged, --design first
+
+
+def test_an_empty_tfrecord_is_refused(tmp_path, capsys):
+    from layouts import sphere_simple_tfrecord
+
+    src = tmp_path / "src"
+    sphere_simple_tfrecord(src)
+    (src / "test.tfrecord").write_bytes(b"")
+    msg = one_line(capsys, cli(["convert", str(src), str(tmp_path / "out")]))
+    assert "test.tfrecord" in msg and "empty" in msg
+    (src / "meta.json").unlink()
+    msg = one_line(capsys, cli(["convert", str(src), str(tmp_path / "out2")]))
+    assert "no meta.json" in msg
+
+
+# -- 12. messages ---------------------------------------------------------------------------------------------------
+def test_messages_that_said_the_wrong_thing(setup, tmp_path, capsys):
+    data = tmp_path / "partial"
+    data.mkdir()
+    shutil.copy(setup / "data" / "meta.json", data / "meta.json")
+    (data / ".parts").mkdir()
+    msg = one_line(capsys, cli(["evaluate", str(setup / "run"), "--data", str(data), "--split", "test"]))
+    assert "incomplete dataset" in msg and ".parts" in msg
+    msg = one_line(capsys, cli(["generate", "impact-plate", str(setup / "data"), "--preset", "small", "--train", "2",
+                                "--valid", "1", "--test", "1", "--seed", "5", "--frames", str(FRAMES)]))
+    assert "seed 4 there, 5 asked" in msg
+
+
+def test_a_closed_pipe_is_not_an_error():
+    r = subprocess.run(f"{sys.executable} -m hcmt models --json | head -3", shell=True, capture_output=True,
+                       text=True, cwd=ROOT, timeout=120)
+    assert r.stdout.count("\n") == 3 and "error" not in r.stderr.lower() and "Traceback" not in r.stderr
+
+
+def test_sigterm_during_predict_says_what_happened():
+    p = subprocess.Popen([sys.executable, "-m", "hcmt", "predict", "pretrained:impact_plate_small", "--design",
+                          "thickness=0.7", "--verify", "--no-progress"], stderr=subprocess.PIPE, text=True, cwd=ROOT)
+    time.sleep(6)  # starting (imports) or rolling out: either way one line
+    p.send_signal(signal.SIGTERM)
+    _, err = p.communicate(timeout=60)
+    assert p.returncode == 130 and "interrupted" in err and "Traceback" not in err, err
+
+
+# -- 13. progress and flags -----------------------------------------------------------------------------------------
+def test_every_computing_command_takes_threads_and_no_progress(setup, capsys):
+    assert cli(["info", str(setup / "data"), "--threads", "1", "--no-progress"]) == 0
+    assert cli(["compare", str(setup / "run"), "--threads", "1", "--no-progress"]) in (0, 2)
+    capsys.readouterr()
+    assert cli(["models"]) == 0
+    assert "mm " in capsys.readouterr().out  # units
+    assert {"/predict_out/", "/sweep_out/"} <= set((ROOT / ".gitignore").read_text().split())
+
+
+def test_one_is_singular(setup, capsys):
+    assert cli(["predict", str(setup / "run"), "--design", "thickness=0.7", "--verify", "--no-progress"]) == 0
+    out = capsys.readouterr().out
+    assert "1 design," in out and "1 trajectory" in out and "1 trajectories" not in out and "1 predictions" not in out
+
+
+def test_verify_shows_the_solvers_progress(setup, capsys):
+    assert cli(["predict", str(setup / "run"), "--design", "thickness=0.7", "--verify"]) == 0
+    assert "solver" in capsys.readouterr().err

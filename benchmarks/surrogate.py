@@ -94,7 +94,7 @@ def design_sets(run) -> dict[str, list[tuple[str, Design]]]:
                 d = replace(d, drop_height=float(rng.uniform(*h)))
             rows.append((f"{name}_{i}", d))
         sets[name] = rows
-    base = pr.middle_design(run.meta)
+    base = pr.middle_design(run.meta)  # the preset's middle, as the issue's sweeps (hcmt 0.1's default) were run
     for h, _ in SWEEPS:
         sets[f"sweep_{h:g}"] = [(f"t={t:.2f}", replace(base, drop_height=h, thickness=float(t)))
                                 for t in np.round(np.linspace(0.5, 1.0, 11), 6)]

@@ -380,3 +380,61 @@ def test_one_is_singular(setup, capsys):
 def test_verify_shows_the_solvers_progress(setup, capsys):
     assert cli(["predict", str(setup / "run"), "--design", "thickness=0.7", "--verify"]) == 0
     assert "solver" in capsys.readouterr().err
+
+
+def test_fuzz_designs_csv_bytes(setup, tmp_path, capsys):
+    """Byte flips, cuts and path-like names in a designs CSV: read_designs_csv returns safe, distinct names or
+    raises a one-line ValueError naming the file; a few cases go through `hcmt predict --images` end to end."""
+    run = Run.load(setup / "run", "cpu")
+    defaults = pr.middle_design(run.meta, run.ranges)
+    good = b"name,thickness,drop_height\nalpha,0.7,800\nbeta,0.9,600\n"
+    rng = random.Random(3)
+    path, cases = tmp_path / "d.csv", 0
+    for k in range(240):
+        b = bytearray(good)
+        kind = k % 4
+        if kind == 0:
+            for _ in range(rng.randint(1, 4)):
+                b[rng.randrange(len(b))] = rng.randrange(256)
+        elif kind == 1:
+            b = b[: rng.randrange(len(b))]
+        elif kind == 2:
+            name = rng.choice(["../up", "a/b", "..", ".", "x\\y", "", "beta", "c\x07", "/abs", "ok name"])
+            b = bytearray(good.replace(b"alpha", name.encode()))
+        else:
+            b.insert(rng.randrange(len(b)), rng.choice(b",\n\"/\\.\x00"))
+        path.write_bytes(bytes(b))
+        try:
+            designs = pr.read_designs_csv(path, defaults)
+        except ValueError as exc:
+            assert str(path) in str(exc) and "\n" not in str(exc)
+        else:
+            names = [n for n, _ in designs]
+            assert len(set(names)) == len(names)
+            assert all(n and "/" not in n and "\\" not in n and n not in (".", "..") for n in names)
+        cases += 1
+    assert cases == 240
+    for name in ("../../escaped", "a/b"):
+        path.write_text(f"name,thickness\n{name},0.8\n")
+        assert cli(["predict", str(setup / "run"), "--designs", str(path), "--images", "--out", str(tmp_path / "img"),
+                    "--no-progress"]) == 2
+    capsys.readouterr()
+    assert not (tmp_path / "img").exists()
+
+
+def test_the_model_after_verify_and_names_across_design_and_designs(setup, tmp_path, capsys):
+    out = tmp_path / "p.json"
+    assert cli(["predict", "--design", "thickness=0.8", "--verify", str(setup / "run"), "--json", str(out),
+                "--no-progress"]) == 0
+    assert "verify" in json.loads(out.read_text())["designs"][0]
+    msg = one_line(capsys, cli(["predict", str(setup / "run"), "--verify", "sometimes", "--design", "thickness=0.8"]))
+    assert "--verify 'sometimes'" in msg
+    path = tmp_path / "d.csv"
+    path.write_text("thickness\n0.9\n")  # unnamed rows continue the --design numbering
+    assert cli(["predict", str(setup / "run"), "--design", "thickness=0.7", "--designs", str(path), "--json",
+                str(out), "--no-progress"]) == 0
+    assert [d["name"] for d in json.loads(out.read_text())["designs"]] == ["design_1", "design_2"]
+    path.write_text("name,thickness\ndesign_1,0.9\n")
+    msg = one_line(capsys, cli(["predict", str(setup / "run"), "--design", "thickness=0.7", "--designs", str(path),
+                                "--no-progress"]))
+    assert "'design_1' already names --design" in msg

@@ -337,3 +337,32 @@ def test_the_shipped_model_carries_its_surrogate():
     assert note is None and len(s) == 120 and s.ranges()["thickness"] == pytest.approx(run.ranges["thickness"])
     (a,) = s.predict([run.design(thickness=0.6, drop_height=600)])
     assert 500 < a["peak_plate_stress_mpa"].mean < 1200 and a["max_deflection_mm"].lo > 0
+
+
+@pytest.mark.parametrize("damage", ["huge constant", "huge integer", "nested", "no parameters"])
+def test_numbers_no_float_holds_are_refused_too(tmp_path, damage):
+    s, _ = fitted(14)
+    path = s.save(tmp_path / "s.json")
+    text = path.read_text()
+    doc = json.loads(text)
+    if damage == "huge constant":
+        doc["kernels"]["peak_plate_stress_mpa"]["constant"] = 1e300
+        path.write_text(json.dumps(doc))
+    elif damage == "huge integer":
+        doc["designs"][0][0] = 10**400  # valid JSON, no float holds it
+        path.write_text(json.dumps(doc))
+    elif damage == "nested":
+        path.write_text("[" * 100000)
+    else:
+        doc["parameters"], doc["designs"] = [], [[] for _ in doc["designs"]]
+        for k in doc["kernels"].values():
+            k["length_scales"] = []
+        path.write_text(json.dumps(doc))
+    with pytest.raises(SurrogateError) as info:
+        Surrogate.load(path)
+    assert str(path) in str(info.value)
+
+
+def test_json_output_is_standard_json():
+    assert pr.finite({"a": float("nan"), "b": [1.0, float("inf")], "c": "x"}) == {"a": None, "b": [1.0, None],
+                                                                                  "c": "x"}

@@ -115,7 +115,10 @@ def check_outputs(files: dict[str, str | None], folders: dict[str, str | None] |
                 raise CommandError(f"{option} {value}: {parent} is a file, not a folder")
             if not os.access(parent, os.W_OK | os.X_OK):
                 raise CommandError(f"{option} {value}: {parent} is not writable")
-            key = path.resolve()
+            try:
+                key = path.resolve()
+            except (RuntimeError, OSError) as exc:  # a symlink loop
+                raise CommandError(f"{option} {value}: {exc}") from None
             if key in seen:
                 raise CommandError(f"{option} {value}: the same path as {seen[key]}; give each output its own")
             seen[key] = option

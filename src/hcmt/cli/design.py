@@ -20,7 +20,7 @@ from hcmt.sim.scene import DESIGN_UNITS
 
 # -- shared options ------------------------------------------------------------------------------------------------
 def verify_arg(p: argparse.ArgumentParser, what: str) -> None:
-    p.add_argument("--verify", nargs="?", const="all", choices=("all", "auto"), metavar="auto",
+    p.add_argument("--verify", nargs="?", const="all", metavar="auto",
                    help=f"also run the built-in solver on every design and {what}; `--verify auto` (with "
                         "--yield-mpa) runs it only on the designs whose call is undecided, and their final call is "
                         "the solver's")
@@ -34,12 +34,16 @@ def surrogate_args(p: argparse.ArgumentParser) -> None:
 
 
 def take_model(args, design_lists: list[list[str]]) -> None:
-    """Accept ``--design ... MODEL`` (the model after the options): argparse gives the model to ``--design``."""
-    if args.model is None:
-        for items in design_lists:
-            if items and "=" not in items[-1]:
-                args.model = items.pop()
-                break
+    """Accept the model after the options (``--design ... MODEL``, ``--verify MODEL``): argparse gives it to the
+    option before it. Also checks ``--verify``'s value (nothing, or ``auto``)."""
+    if args.verify not in (None, "all", "auto"):
+        if args.model is not None:
+            raise ValueError(f"--verify {args.verify!r}: expected nothing (every design) or auto")
+        args.model, args.verify = args.verify, "all"
+    if args.model is None and design_lists and design_lists[-1]:
+        last = design_lists[-1][-1]
+        if "=" not in last or last.startswith("pretrained:") or Path(last).exists():
+            args.model = design_lists[-1].pop()
     if args.model is None:
         raise ValueError("give the model: a run folder made by `hcmt train`, or pretrained:NAME (`hcmt models`)")
     design_lists[:] = [items for items in design_lists if items]
@@ -87,17 +91,19 @@ def main_predict(args: argparse.Namespace) -> int:
     take_model(args, args.design)
     if not args.design and not args.designs:
         raise ValueError("give designs with --design KEY=VALUE ... or --designs FILE.csv")
+    options = check_options(args)  # before the model loads
     check_outputs({"--json": args.json, "--csv": args.csv}, {"--out": args.out} if args.images else {})
     run = _design_run(args)
     defaults = pr.middle_design(run.meta, run.ranges)
     designs = [(f"design_{i + 1}", pr.parse_design(items, defaults)) for i, items in enumerate(args.design)]
     if args.designs:
-        designs += pr.read_designs_csv(args.designs, defaults)
+        designs += pr.read_designs_csv(args.designs, defaults, first=len(designs) + 1,
+                                       taken={n: "--design" for n, _ in designs})
     for name, d in designs:
         for w in pr.range_warnings(d, run.ranges):
             print(f"hcmt predict: warning: {name}: {w}", file=sys.stderr)
     check = pr.check_designs(run, designs, batch=args.batch, compile=args.compile, progress=not args.no_progress,
-                             force=args.force, **check_options(args))
+                             force=args.force, **options)
     print_notes("predict", check)
     preds, truth = check.preds, check.truth
     print(f"{run.label} ({run.source}) on {run.device}: {plural(len(preds), 'design')}, {check.settings.frames} frames of "
@@ -160,6 +166,7 @@ def configure_sweep(p: argparse.ArgumentParser) -> None:
 def main_sweep(args: argparse.Namespace) -> int:
     param, lo, hi, n = sw.parse_vary(args.vary)
     take_model(args, [args.design])
+    options = check_options(args)  # before the model loads
     check_outputs({"--json": args.json, "--csv": args.csv}, {"--out": args.out})
     fixed = [item for item in args.design if item.partition("=")[0].strip().lstrip("-").replace("-", "_") == param]
     if fixed:
@@ -171,7 +178,7 @@ def main_sweep(args: argparse.Namespace) -> int:
     for w in sorted({w for _, d in designs for w in pr.range_warnings(d, run.ranges)}):  # each distinct one once
         print(f"hcmt sweep: warning: {w}", file=sys.stderr)
     check, analysis = sw.sweep(run, param, lo, hi, n, base, batch=args.batch, progress=not args.no_progress,
-                               compile=args.compile, force=args.force, **check_options(args))
+                               compile=args.compile, force=args.force, **options)
     print_notes("sweep", check)
     print(f"{run.label} ({run.source}) on {run.device}: {param} from {lo:g} to {hi:g} in {n} points, "
           f"{check.wall_s:.2f} s in all; stresses are von Mises [MPa], lengths [mm]"

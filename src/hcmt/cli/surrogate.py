@@ -21,6 +21,9 @@ def configure(p: argparse.ArgumentParser) -> None:
     f.add_argument("--restarts", type=int, default=RESTARTS,
                    help=f"optimizer restarts of the marginal likelihood (default {RESTARTS})")
     f.add_argument("--seed", type=int, default=0, help="seed of the optimizer restarts")
+    f.add_argument("--stress-field", choices=("stress", "stress_max"), default="stress",
+                   help="the stress the model learned (default stress; stress_max: `generate --peak-stress` data and "
+                        "a model trained with --set data.stress_field=stress_max)")
     f.add_argument("--label", help="what the training designs are, recorded in the file (default: the dataset's "
                    "path and split)")
 
@@ -30,7 +33,8 @@ def main(args: argparse.Namespace) -> int:
         raise ValueError(f"--limit must be >= 1, got {args.limit}")
     if args.restarts < 0:
         raise ValueError(f"--restarts must be >= 0, got {args.restarts}")
-    s = Surrogate.fit_dataset(args.data, args.split, limit=args.limit, restarts=args.restarts, seed=args.seed)
+    s = Surrogate.fit_dataset(args.data, args.split, limit=args.limit, restarts=args.restarts, seed=args.seed,
+                              stress_field=args.stress_field)
     if args.label:
         s.source = args.label
     path = s.save(args.out)

@@ -63,10 +63,12 @@ class Prediction:
 
 
 # -- designs -----------------------------------------------------------------------------------------------------
-def read_designs_csv(path: str | Path, defaults: Design) -> list[tuple[str, Design]]:
+def read_designs_csv(path: str | Path, defaults: Design, first: int = 1,
+                     taken: dict[str, str] | None = None) -> list[tuple[str, Design]]:
     """Designs from a CSV file: a header of parameter names (optionally a ``name`` column), one design per row,
     every column present and numeric in every row (blank lines are skipped; a UTF-8 BOM and CRLF line ends are
-    fine). Anything else is refused naming the file, the line and the column."""
+    fine). Anything else is refused naming the file, the line and the column. Unnamed rows are ``design_<first>``,
+    ... ; ``taken``: names already given elsewhere (name -> where), which a row may not take again."""
     path = Path(path)
     if not path.is_file():
         raise FileNotFoundError(f"{path}: no such designs file")
@@ -74,7 +76,10 @@ def read_designs_csv(path: str | Path, defaults: Design) -> list[tuple[str, Desi
         text = path.read_text(encoding="utf-8-sig")
     except UnicodeDecodeError as exc:
         raise ValueError(f"{path}: not a UTF-8 text file ({exc.reason} at byte {exc.start})") from None
-    rows = [(n, r) for n, r in enumerate(csv.reader(text.splitlines()), start=1) if any(c.strip() for c in r)]
+    try:
+        rows = [(n, r) for n, r in enumerate(csv.reader(text.splitlines()), start=1) if any(c.strip() for c in r)]
+    except csv.Error as exc:
+        raise ValueError(f"{path}: not a readable CSV file ({exc})") from None
     if not rows:
         raise ValueError(f"{path}: no designs (expected a header line of parameter names and one row per design)")
     (head_line, head), body = rows[0], rows[1:]
@@ -87,23 +92,27 @@ def read_designs_csv(path: str | Path, defaults: Design) -> list[tuple[str, Desi
         raise ValueError(f"{path} line {head_line}: a column appears twice in the header")
     if not body:
         raise ValueError(f"{path}: a header but no designs (one row per design after the header)")
-    out, seen = [], {}
+    out, seen = [], dict(taken or {})
     for n, row in body:
         if len(row) != len(header):
             raise ValueError(f"{path} line {n}: {len(row)} values for {len(header)} columns "
                              f"({', '.join(header)})")
-        name, items = f"design_{len(out) + 1}", []
+        name, items = f"design_{len(out) + first}", []
         for col, (h, v) in enumerate(zip(header, row), start=1):
             if h == "name":
                 name = check_name(v.strip(), f"{path} line {n}, column {col} (name)")
                 if name in seen:
-                    raise ValueError(f"{path} line {n}, column {col} (name): {name!r} already names line "
-                                     f"{seen[name]}; every design needs its own name")
+                    where = seen[name] if isinstance(seen[name], str) else f"line {seen[name]}"
+                    raise ValueError(f"{path} line {n}, column {col} (name): {name!r} already names {where}; every "
+                                     "design needs its own name")
                 seen[name] = n
                 continue
             if not v.strip():
                 raise ValueError(f"{path} line {n}, column {col} ({h}): missing value")
             items.append(f"{h}={parse_number(v, f'{path} line {n}, column {col} ({h})')}")
+        if name in seen and seen[name] != n:
+            raise ValueError(f"{path} line {n}: the default name {name!r} is already taken ({seen[name]}); give the "
+                             "CSV a name column")
         out.append((name, parse_design(items, defaults, where=f"{path} line {n}:")))
     return out
 
@@ -648,7 +657,18 @@ def to_json(preds: list[Prediction], verified: dict | None, run_source: str, dev
         out["surrogate"] = check.surrogate
         out["solver_runs"] = check.solver_runs
         out["notes"] = check.notes
-    return out
+    return finite(out)
+
+
+def finite(obj):
+    """``obj`` with every NaN or infinite float as None: standard JSON (``jq``, ``JSON.parse``) has no NaN."""
+    if isinstance(obj, float):
+        return obj if np.isfinite(obj) else None
+    if isinstance(obj, dict):
+        return {k: finite(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [finite(v) for v in obj]
+    return obj
 
 
 def contour_picture(p: Prediction, truth: Prediction | None, meta: dict, out_dir: str | Path, label: str) -> Path:

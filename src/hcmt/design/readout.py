@@ -47,7 +47,7 @@ CONTACT_TOL = 0.05
 CONTACT_GRACE = 1
 #: the post-separation bending coefficient of the ``contact`` read-out: σ = k E t w_max / R² (median of
 #: σ_plate / (E t w_max / R²) over the post-separation frames of the shipped model's 120 training runs, which
-#: ranged 3.8-8.1; benchmarks/surrogate.py --calibrate measures it again)
+#: ranged 3.8-8.1)
 BENDING_K = 5.0
 READOUTS = ("contact", "learned", "element")
 
@@ -132,7 +132,7 @@ def summarize_fields(fields: dict, frame_dt: float, readout: str = "learned", wa
     plate = plate_mask(cells, node_type)
     gap = contact_gap(x, X, plate)
     window = contact_window(gap)
-    if contact_end_ms is not None and readout == "contact" and window.any():
+    if contact_end_ms is not None and np.isfinite(contact_end_ms) and readout == "contact" and window.any():
         cut = max(int(np.floor(contact_end_ms / frame_dt)), int(np.flatnonzero(window)[0]))
         window[cut + 1:] = False
     # the contact read-out's peak comes from contact frames only (every frame when the ball never touches)

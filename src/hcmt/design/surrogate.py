@@ -77,6 +77,8 @@ class Surrogate:
     def __init__(self, parameters: list[str], fixed: dict[str, float], X, Y: dict[str, np.ndarray],
                  kernels: dict | None = None, *, source: str = "", restarts: int = RESTARTS, seed: int = 0):
         self.parameters, self.fixed, self.source = list(parameters), dict(fixed), source
+        if not self.parameters:
+            raise ValueError("no design parameter varies over the training designs: nothing to fit")
         self.X = np.asarray(X, np.float64).reshape(-1, len(self.parameters))
         self.Y = {q: np.asarray(v, np.float64) for q, v in Y.items()}
         n, d = self.X.shape
@@ -111,10 +113,10 @@ class Surrogate:
     # -- fitting ---------------------------------------------------------------------------------------------------
     @classmethod
     def fit_dataset(cls, data: str | Path, split: str = "train", *, limit: int | None = None,
-                    restarts: int = RESTARTS, seed: int = 0) -> "Surrogate":
+                    restarts: int = RESTARTS, seed: int = 0, stress_field: str = "stress") -> "Surrogate":
         """Fit on the solver trajectories of an hcmt-generated Impact Plate dataset's ``split`` (the first
         ``limit`` when given): :func:`dataset_answers`."""
-        designs, answers = dataset_answers(data, split, limit)
+        designs, answers = dataset_answers(data, split, limit, stress_field)
         return cls.fit(designs, answers, source=f"{Path(data)} ({split}, {len(designs)} trajectories)",
                        restarts=restarts, seed=seed)
 
@@ -199,8 +201,9 @@ class Surrogate:
                                  f"{path.name}`)")
         try:
             doc = json.loads(path.read_text(encoding="utf-8"))
-        except (UnicodeDecodeError, json.JSONDecodeError) as exc:
-            raise SurrogateError(f"{path}: not a surrogate JSON file (truncated or corrupt?): {exc}") from None
+        except (UnicodeDecodeError, json.JSONDecodeError, RecursionError) as exc:
+            raise SurrogateError(f"{path}: not a surrogate JSON file (truncated or corrupt?): "
+                                 f"{str(exc).splitlines()[0][:200] if str(exc) else exc.__class__.__name__}") from None
         return cls.from_dict(doc, where=str(path))
 
     @classmethod
@@ -224,7 +227,7 @@ class Surrogate:
             for q, k in kernels.items():
                 ls = np.asarray(k["length_scales"], np.float64)
                 if ls.shape != (len(params),) or not all(
-                        np.isfinite(float(k[h])) and float(k[h]) > 0 for h in ("constant", "noise")) \
+                        np.isfinite(float(k[h])) and 0 < float(k[h]) <= 1e6 for h in ("constant", "noise")) \
                         or not np.all(np.isfinite(ls) & (ls > 0)):
                     raise SurrogateError(f"{where}: kernel of {q!r}: expected positive constant, noise and "
                                          f"{len(params)} length scales")
@@ -234,8 +237,8 @@ class Surrogate:
                        source=str(doc.get("source", "")))
         except SurrogateError:
             raise
-        except (KeyError, TypeError, ValueError) as exc:
-            what = f"missing key {exc}" if isinstance(exc, KeyError) else str(exc)
+        except (KeyError, TypeError, ValueError, OverflowError) as exc:
+            what = f"missing key {exc}" if isinstance(exc, KeyError) else str(exc).splitlines()[0][:200]
             raise SurrogateError(f"{where}: not a usable surrogate: {what}") from None
 
     # -- use against a model ---------------------------------------------------------------------------------------
@@ -248,10 +251,11 @@ class Surrogate:
                                  f"designs vary {varied}: fit it on the model's own data (`hcmt surrogate fit`)")
 
 
-def dataset_answers(data: str | Path, split: str = "train", limit: int | None = None
+def dataset_answers(data: str | Path, split: str = "train", limit: int | None = None, stress_field: str = "stress"
                     ) -> tuple[list[Design], dict[str, list[float]]]:
     """The designs of a dataset split (each trajectory's attributes) and their answers (:data:`QUANTITIES`, read
-    off the solver's trajectory by :func:`hcmt.design.readout.summarize_fields`); the first ``limit`` only."""
+    off the solver's trajectory by :func:`hcmt.design.readout.summarize_fields`); the first ``limit`` only;
+    ``stress_field``: the stress a model learned (``stress_max`` for ``generate --peak-stress`` data)."""
     data = Path(data)
     meta = read_meta(data)
     frame_dt = float(meta.get("dt") or ((meta.get("generator") or {}).get("settings") or {}).get("frame_dt", 0))
@@ -265,7 +269,11 @@ def dataset_answers(data: str | Path, split: str = "train", limit: int | None = 
                 raise ValueError(f"{s.path} trajectory {s.names[i]}: no design parameters {missing} in its "
                                  "attributes; a surrogate is fitted on hcmt-generated Impact Plate data")
             designs.append(Design(**{k: float(attrs[k]) for k in DESIGN_KEYS}))
-            summary = summarize_fields(s[i], frame_dt)
+            fields = s[i]
+            if stress_field not in fields:
+                raise ValueError(f"{s.path} trajectory {s.names[i]}: no field {stress_field!r} (a model that learned "
+                                 "stress_max needs data made by `hcmt generate --peak-stress`)")
+            summary = summarize_fields({**fields, "stress": fields[stress_field]}, frame_dt)
             for q in QUANTITIES:
                 answers[q].append(summary[q])
     return designs, answers

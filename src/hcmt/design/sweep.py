@@ -19,7 +19,7 @@ from pathlib import Path
 import numpy as np
 
 from hcmt.sim.scene import Design
-from hcmt.design.predict import DESIGN_KEYS, Check, check_designs, to_json
+from hcmt.design.predict import DESIGN_KEYS, Check, check_designs, finite, to_json
 from hcmt.viz.meshplot import new_figure, save_figure
 
 #: steps smaller than this share of a series' range count as flat in the monotonicity test
@@ -191,7 +191,7 @@ def format_analysis(a: dict) -> str:
 
 
 def sweep_json(check: Check, analysis: dict, run_source: str, device: str) -> dict:
-    return {**to_json(check.preds, check.verified, run_source, device, check), "sweep": analysis}
+    return finite({**to_json(check.preds, check.verified, run_source, device, check), "sweep": analysis})
 
 
 def plot_sweep(check: Check, analysis: dict, out_dir: str | Path, label: str) -> Path:

@@ -146,7 +146,10 @@ class RunFolder:
                 facts = json.loads(self.data_facts_path.read_text())
                 meta = facts["meta"]
                 ranges = {k: (float(v[0]), float(v[1])) for k, v in facts["ranges"].items()}
-            except (ValueError, KeyError, TypeError, IndexError) as exc:
+                generator = meta.get("generator") if isinstance(meta, dict) else None
+                if not isinstance(generator, dict) or not isinstance(generator.get("settings", {}), dict):
+                    raise TypeError("no generator block")
+            except (ValueError, KeyError, TypeError, IndexError, AttributeError, OverflowError) as exc:
                 raise ValueError(f"{self.data_facts_path}: damaged ({exc.__class__.__name__}); it is written by "
                                  "`hcmt train` from the training data's meta.json") from None
         return meta, ranges

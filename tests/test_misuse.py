@@ -20,6 +20,7 @@ import torch
 from hcmt.cli import main as cli
 from hcmt.cli import set_threads
 from hcmt.design import predict as pr
+from hcmt.inference import run as run_module
 from hcmt.inference.run import Run
 from hcmt.sim.scene import Design, estimate
 from hcmt.training import train
@@ -165,13 +166,7 @@ def test_fuzz_run_files(setup, tmp_path, capsys):
         for k in range(8):
             run = tmp_path / f"{file}_{k}"
             shutil.copytree(setup / "run", run)
-            b = bytearray(original)
-            if k < 5:
-                for _ in range(rng.randint(1, 6)):
-                    b[rng.randrange(len(b))] = rng.randrange(256)
-            else:
-                b = b[: rng.randrange(len(b))]
-            (run / file).write_bytes(bytes(b))
+            (run / file).write_bytes(damaged(original, rng, flips=6 if k < 5 else 0))
             if file == "data.json":
                 shutil.move(str(setup / "data"), str(tmp_path / "away"))  # read only when the dataset is gone
             try:
@@ -189,20 +184,22 @@ def test_fuzz_run_files(setup, tmp_path, capsys):
     assert cases == 32
 
 
-def test_fuzz_a_shipped_model_file(tmp_path, monkeypatch, capsys):
-    from hcmt.inference import run as run_module
+def damaged(original: bytes, rng: random.Random, flips: int) -> bytes:
+    """1..``flips`` random bytes changed, or (``flips`` 0) the file cut at a random length."""
+    if not flips:
+        return original[: rng.randrange(len(original))]
+    b = bytearray(original)
+    for _ in range(rng.randint(1, flips)):
+        b[rng.randrange(len(b))] = rng.randrange(256)
+    return bytes(b)
 
+
+def test_fuzz_a_shipped_model_file(tmp_path, monkeypatch, capsys):
     original = (run_module.PRETRAINED_DIR / "impact_plate_small.pt").read_bytes()
     rng = random.Random(2)
     for k in range(6):
-        b = bytearray(original)
-        if k < 4:
-            for _ in range(rng.randint(1, 4)):
-                b[rng.randrange(len(b))] = rng.randrange(256)
-        else:
-            b = b[: rng.randrange(len(b))]
         path = tmp_path / "impact_plate_small.pt"
-        path.write_bytes(bytes(b))
+        path.write_bytes(damaged(original, rng, flips=4 if k < 4 else 0))
         monkeypatch.setattr(run_module, "available_pretrained", lambda: {"impact_plate_small": path})
         rc = cli(["predict", "pretrained:impact_plate_small", "--design", "thickness=0.7", "--no-surrogate",
                   "--no-progress"])

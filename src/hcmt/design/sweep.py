@@ -18,8 +18,9 @@ from pathlib import Path
 
 import numpy as np
 
-from hcmt.sim.scene import Design
+from hcmt.config import plural
 from hcmt.design.predict import DESIGN_KEYS, Check, check_designs, finite, to_json
+from hcmt.sim.scene import Design
 from hcmt.viz.meshplot import new_figure, save_figure
 
 #: steps smaller than this share of a series' range count as flat in the monotonicity test
@@ -180,8 +181,9 @@ def format_analysis(a: dict) -> str:
                 text = (f"{c['side']} {a['param']} {c['call']:.6g}" if c["call"] is not None else c["side"])
                 extra = ""
                 if who == "final":
-                    extra = (f" ({len(c['undecided'])} undecided point(s); the solver ran on {c['solver_runs']}"
-                             + (", UNSAFE: a final pass the solver fails" if c.get("unsafe") else "") + ")")
+                    extra = (f" (the solver decided {plural(c['solver_runs'], 'point')} of {len(a['values'])}"
+                             + (f"; {plural(len(c['undecided']), 'point')} still undecided" if c["undecided"] else "")
+                             + ("; UNSAFE: a final pass the solver fails" if c.get("unsafe") else "") + ")")
                 lines.append(f"below {lim['yield_mpa']:g} MPa, {names[who]}: {text}{extra}")
         if "within_one_step" in lim:
             lines.append("limit calls " + ("agree within one sweep step" if lim["within_one_step"] else

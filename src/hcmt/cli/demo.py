@@ -62,7 +62,7 @@ def design_demo(args: argparse.Namespace) -> int:
           + ", ".join(f"{d.thickness:g}/{d.drop_height:g}" for _, d in designs) + ")")
     print(f"[3/3] simulating the same designs with the built-in FEM solver ({settings.frames} frames of "
           f"{settings.frame_dt} ms each)")
-    check = pr.check_designs(run, designs, batch=len(designs), verify=True, progress=False)
+    check = pr.check_designs(run, designs, batch=len(designs), verify=True, progress=not args.no_progress)
     preds, truth, verified = check.preds, check.truth, check.verified
     for note in check.notes:
         print(f"note: {note}")

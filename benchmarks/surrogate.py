@@ -209,9 +209,7 @@ def calls(rows, gp, yield_mpa: float) -> dict:
     for trust in pr.TRUSTS:
         made, final = [], []
         for r, g, ok in zip(rows, gps, solver_pass):
-            summary = {"peak_plate_stress_mpa": r["model"]["contact"]["peak_plate_stress_mpa"],
-                       "surrogate": {"peak_plate_stress_mpa": asdict(g["peak_plate_stress_mpa"])}}
-            lo, hi, _ = pr.trusted_interval(summary, trust)
+            lo, hi, _ = pr.trusted_interval(_summary(r, g), trust)
             c = pr.call_of(lo, hi, yield_mpa)
             made.append(c)
             final.append(("pass" if ok else "fail") if c == "undecided" else c)
@@ -224,6 +222,13 @@ def calls(rows, gp, yield_mpa: float) -> dict:
     out["model_alone"] = {"unsafe": int(sum(m and not ok for m, ok in zip(model_pass, solver_pass))),
                           "minimum": _minimum(thick, model_pass)}
     return out
+
+
+def _summary(r: dict, g: dict) -> dict:
+    """The part of a design check summary :func:`hcmt.design.predict.trusted_interval` reads: the model's peak
+    (default read-out) and the GP's interval of it."""
+    return {"peak_plate_stress_mpa": r["model"]["contact"]["peak_plate_stress_mpa"],
+            "surrogate": {"peak_plate_stress_mpa": asdict(g["peak_plate_stress_mpa"])}}
 
 
 def _minimum(values, passing) -> float | None:
@@ -240,9 +245,7 @@ def coverage(rows, gp, trust) -> dict:
     designs = [Design(**r["design"]) for r in rows]
     hits = 0
     for r, g in zip(rows, gp.predict(designs)):
-        summary = {"peak_plate_stress_mpa": r["model"]["contact"]["peak_plate_stress_mpa"],
-                   "surrogate": {"peak_plate_stress_mpa": asdict(g["peak_plate_stress_mpa"])}}
-        lo, hi, _ = pr.trusted_interval(summary, trust)
+        lo, hi, _ = pr.trusted_interval(_summary(r, g), trust)
         hits += lo <= r["solver"]["peak_plate_stress_mpa"] <= hi
     return {"covered": int(hits), "of": len(rows)}
 

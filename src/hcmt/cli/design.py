@@ -15,7 +15,7 @@ from hcmt.design import predict as pr
 from hcmt.design import sweep as sw
 from hcmt.design.surrogate import run_surrogate_path
 from hcmt.inference.run import Run, available_pretrained
-from hcmt.sim.scene import DESIGN_UNITS
+from hcmt.sim.scene import DESIGN_UNITS, design_key
 
 
 # -- shared options ------------------------------------------------------------------------------------------------
@@ -168,7 +168,7 @@ def main_sweep(args: argparse.Namespace) -> int:
     take_model(args, [args.design])
     options = check_options(args)  # before the model loads
     check_outputs({"--json": args.json, "--csv": args.csv}, {"--out": args.out})
-    fixed = [item for item in args.design if item.partition("=")[0].strip().lstrip("-").replace("-", "_") == param]
+    fixed = [item for item in args.design if design_key(item) == param]
     if fixed:
         raise ValueError(f"--vary {args.vary} and --design {fixed[0]}: {param} is the swept parameter; drop it "
                          "from --design")

@@ -134,17 +134,24 @@ def check_name(name: str, where: str) -> str:
     return name
 
 
-def range_warnings(design: Design, ranges: dict[str, tuple[float, float]]) -> list[str]:
-    """One line per parameter outside the training data's range (relative tolerance 1e-6)."""
+def outside(design: Design, ranges: dict[str, tuple[float, float]]) -> list[str]:
+    """The design parameters outside ``ranges`` (relative tolerance 1e-6)."""
     out = []
     for key, (lo, hi) in ranges.items():
-        if key not in DESIGN_KEYS:
-            continue
-        v = getattr(design, key)
         tol = 1e-6 * max(abs(lo), abs(hi), 1e-12)
-        if v < lo - tol or v > hi + tol:
-            span = f"{lo:.6g}" if lo == hi else f"{lo:.6g} .. {hi:.6g}"
-            out.append(f"{key} = {v:.6g} is outside the model's training data ({span}); expect larger errors")
+        if key in DESIGN_KEYS and not lo - tol <= getattr(design, key) <= hi + tol:
+            out.append(key)
+    return out
+
+
+def range_warnings(design: Design, ranges: dict[str, tuple[float, float]],
+                   what: str = "the model's training data") -> list[str]:
+    """One line per parameter outside the training data's range (:func:`outside`)."""
+    out = []
+    for key in outside(design, ranges):
+        lo, hi = ranges[key]
+        span = f"{lo:.6g}" if lo == hi else f"{lo:.6g} .. {hi:.6g}"
+        out.append(f"{key} = {getattr(design, key):.6g} is outside {what} ({span}); expect larger errors")
     return out
 
 
@@ -314,11 +321,10 @@ def check_designs(run, designs: list[tuple[str, Design]], *, batch: int = 8, ver
         if intervals is not None:
             p.summary.update(side_by_side(p.summary, intervals[i]))
             # a user's own surrogate has its own training ranges: warn for a parameter outside them too
-            own = {w.split(" ", 1)[0] for w in p.summary["warnings"]}
-            p.summary["warnings"] += [w.replace("the model's training data", "the response surface's training "
-                                                "designs") for w in range_warnings(p.design, surrogate.ranges())
-                                      if w.split(" ", 1)[0] not in own]
-    for p in preds:
+            own = set(outside(p.design, run.ranges))
+            p.summary["warnings"] += range_warnings(
+                p.design, {k: r for k, r in surrogate.ranges().items() if k not in own},
+                "the response surface's training designs")
         p.summary["low_confidence"] = bool(_weak(p))
     add_margin(preds, yield_mpa)
     add_calls(preds, yield_mpa, trust)

@@ -414,7 +414,7 @@ def parse_design(items: list[str], defaults: Design, where: str = "--design") ->
     values = {}
     for item in items:
         key, sep, raw = item.partition("=")
-        key = key.strip().lstrip("-").replace("-", "_")
+        key = design_key(key)
         if not sep:
             raise ValueError(f"{where} {item!r}: expected KEY=VALUE, e.g. thickness=0.8")
         if key not in DESIGN_KEYS:
@@ -426,6 +426,12 @@ def parse_design(items: list[str], defaults: Design, where: str = "--design") ->
         return Design(**{**asdict(defaults), **values}).validate()
     except ValueError as exc:
         raise ValueError(f"{where} {exc}") from None
+
+
+def design_key(text: str) -> str:
+    """``--plate-modulus`` / ``plate-modulus`` / ``plate_modulus=...`` -> ``plate_modulus``: a parameter's name as
+    written in ``--design``, ``--vary`` or a CSV header."""
+    return text.partition("=")[0].strip().lstrip("-").replace("-", "_")
 
 
 def parse_number(raw: str, what: str) -> float:

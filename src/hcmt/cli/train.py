@@ -13,6 +13,7 @@ from hcmt.inference.evaluate import check_options, compare, evaluate, format_com
 from hcmt.inference.run import Run, RunFolder, dataset_warnings
 from hcmt.models import ABLATIONS, MODELS
 from hcmt.training import train
+from hcmt.training.trainer import INIT_NORMALIZERS
 
 
 # -- train ---------------------------------------------------------------------------------------------------------
@@ -28,6 +29,12 @@ def configure_train(p: argparse.ArgumentParser) -> None:
                    "`--resume --out RUN` alone uses the run's saved settings (--steps may extend it)")
     p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                    help="override any config key, e.g. --set train.lr=3e-4 --set model.levels=4")
+    p.add_argument("--init", metavar="RUN|pretrained:NAME",
+                   help="start from that model's weights (fine-tuning, e.g. a shipped model on your own solver's "
+                        "data); its architecture and feature widths must be this run's")
+    p.add_argument("--init-normalizers", choices=INIT_NORMALIZERS, default="keep",
+                   help="with --init: keep its normalizer statistics, frozen (default), or re-accumulate them on "
+                        "--data")
     p.add_argument("--device", help="cpu, cuda, cuda:1 (default: cuda if available)")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
 
@@ -54,7 +61,8 @@ def main_train(args: argparse.Namespace) -> int:
         cfg, data, model, ablation = load_config(args.config, overrides), args.data, args.model, args.ablation
         seed = args.seed if args.seed is not None else 0
     summary = train(cfg, data, model, args.out, ablation=ablation, seed=seed,
-                    resume=args.resume, device=args.device, progress=not args.no_progress)
+                    resume=args.resume, device=args.device, progress=not args.no_progress, init=args.init,
+                    init_normalizers=args.init_normalizers)
     print(json.dumps(summary, indent=2))
     return 0
 

@@ -35,7 +35,7 @@ from sklearn.gaussian_process.kernels import RBF, ConstantKernel, WhiteKernel
 from hcmt.data.format import Split, atomic_path, read_meta
 from hcmt.design.readout import summarize_fields
 from hcmt.inference.run import PRETRAINED_DIR
-from hcmt.sim.scene import DESIGN_KEYS, Design
+from hcmt.sim.scene import DESIGN_KEYS, FIRST_SCENE_KEYS, Design, design_from_attrs
 
 #: the scalar answers a surrogate predicts (keys of a design's summary)
 QUANTITIES = ("peak_plate_stress_mpa", "peak_ball_stress_mpa", "max_deflection_mm", "peak_plate_t95_ms",
@@ -75,22 +75,29 @@ class Surrogate:
     """
 
     def __init__(self, parameters: list[str], fixed: dict[str, float], X, Y: dict[str, np.ndarray],
-                 kernels: dict | None = None, *, source: str = "", restarts: int = RESTARTS, seed: int = 0):
+                 kernels: dict | None = None, *, source: str = "", restarts: int = RESTARTS, seed: int = 0,
+                 linear: list[str] | None = None, strict: bool = True):
         self.parameters, self.fixed, self.source = list(parameters), dict(fixed), source
         if not self.parameters:
             raise ValueError("no design parameter varies over the training designs: nothing to fit")
         self.X = np.asarray(X, np.float64).reshape(-1, len(self.parameters))
         self.Y = {q: np.asarray(v, np.float64) for q, v in Y.items()}
         n, d = self.X.shape
-        if n < d + 2:
+        self.underdetermined = n < d + 2  # allowed with strict=False (a benchmark's few runs of a new family)
+        if n < 3 or (strict and self.underdetermined):
             raise ValueError(f"{n} training designs for {d} parameters: a surrogate needs at least parameters + 2 "
                              f"({d + 2}) designs")
-        if not (np.all(np.isfinite(self.X)) and np.all(self.X > 0)):
-            raise ValueError("training designs must be finite and positive (the surrogate works on log inputs)")
+        # log inputs, but a parameter that is 0 in some design (an absent layer, support, pen) stays linear
+        self.linear = [k for j, k in enumerate(self.parameters) if np.any(self.X[:, j] <= 0)] if linear is None \
+            else list(linear)
+        self._log = np.array([k not in self.linear for k in self.parameters])
+        if not (np.all(np.isfinite(self.X)) and np.all(self.X[:, self._log] > 0) and np.all(self.X >= 0)):
+            raise ValueError("training designs must be finite and non-negative, positive where the surrogate takes "
+                             "their log")
         for q, v in self.Y.items():
             if v.shape != (n,) or not (np.all(np.isfinite(v)) and np.all(v > 0)):
                 raise ValueError(f"answer {q!r}: expected {n} finite positive values (log outputs)")
-        logx = np.log(self.X)
+        logx = self._x(self.X)
         self.x_mean, self.x_std = logx.mean(0), np.maximum(logx.std(0), 1e-12)
         self.y_mean = {q: float(np.log(v).mean()) for q, v in self.Y.items()}
         self.y_std = {q: float(max(np.log(v).std(), 1e-12)) for q, v in self.Y.items()}
@@ -122,19 +129,31 @@ class Surrogate:
 
     @classmethod
     def fit(cls, designs: list[Design], answers: dict[str, list[float]], *, source: str = "",
-            restarts: int = RESTARTS, seed: int = 0) -> "Surrogate":
-        """Fit on designs and their solver answers; the parameters that vary over ``designs`` are the inputs."""
+            restarts: int = RESTARTS, seed: int = 0, strict: bool = True) -> "Surrogate":
+        """Fit on designs and their solver answers; the parameters that vary over ``designs`` are the inputs
+        (``strict=False`` fits fewer designs than parameters + 2 too, at least 3: most length scales then stay
+        at their bound and the surfaces predict near the mean)."""
         if not designs:
             raise ValueError("no training designs")
         values = np.array([[getattr(d, k) for k in DESIGN_KEYS] for d in designs], np.float64)
         spread = values.max(0) - values.min(0) > 1e-9 * np.maximum(np.abs(values).max(0), 1e-300)
         params = [k for k, s in zip(DESIGN_KEYS, spread) if s]
         fixed = {k: float(values[0, j]) for j, (k, s) in enumerate(zip(DESIGN_KEYS, spread)) if not s}
-        return cls(params, fixed, values[:, spread], answers, source=source, restarts=restarts, seed=seed)
+        return cls(params, fixed, values[:, spread], answers, source=source, restarts=restarts, seed=seed,
+                   strict=strict)
 
     # -- predicting ------------------------------------------------------------------------------------------------
+    def _x(self, X: np.ndarray) -> np.ndarray:
+        with np.errstate(divide="ignore", invalid="ignore"):
+            return np.where(self._log, np.log(np.where(self._log, X, 1.0)), X)
+
     def _z(self, X: np.ndarray) -> np.ndarray:
-        return (np.log(X) - self.x_mean) / self.x_std
+        return (self._x(X) - self.x_mean) / self.x_std
+
+    def cannot_take(self, design: Design) -> list[str]:
+        """The parameters of ``design`` the surfaces cannot take at all: held fixed over every training design
+        but different here (a layer, support or impactor the training family never had)."""
+        return [k for k, v in self.fixed.items() if not np.isclose(getattr(design, k), v, rtol=1e-9, atol=1e-12)]
 
     def matrix(self, designs: list[Design]) -> np.ndarray:
         return np.array([[getattr(d, k) for k in self.parameters] for d in designs], np.float64).reshape(
@@ -145,7 +164,7 @@ class Surrogate:
         if not designs:
             return []
         X = self.matrix(designs)
-        if not np.all(X > 0):
+        if not np.all(X[:, self._log] > 0):
             raise ValueError("design parameters must be positive for the surrogate (log inputs)")
         z = self._z(X)
         out: list[dict[str, Interval]] = [{} for _ in designs]
@@ -177,7 +196,7 @@ class Surrogate:
                          "inputs and log outputs; 95 % interval = exp(m + s (mu +- 1.96 sd))",
                 "parameters": self.parameters, "fixed": self.fixed,
                 "input_transform": {"kind": "log-standardize", "mean": self.x_mean.tolist(),
-                                    "std": self.x_std.tolist()},
+                                    "std": self.x_std.tolist(), "linear": self.linear},
                 "output_transform": {q: {"kind": "log-standardize", "mean": self.y_mean[q], "std": self.y_std[q]}
                                      for q in self.Y},
                 "kernels": self.kernels,
@@ -233,8 +252,9 @@ class Surrogate:
                                          f"{len(params)} length scales")
             if set(kernels) != set(answers):
                 raise SurrogateError(f"{where}: kernels for {sorted(kernels)} but answers for {sorted(answers)}")
+            linear = list((doc.get("input_transform") or {}).get("linear") or [])
             return cls(params, {k: float(v) for k, v in fixed.items()}, X, answers, kernels,
-                       source=str(doc.get("source", "")))
+                       source=str(doc.get("source", "")), linear=linear)
         except SurrogateError:
             raise
         except (KeyError, TypeError, ValueError, OverflowError) as exc:
@@ -264,11 +284,11 @@ def dataset_answers(data: str | Path, split: str = "train", limit: int | None = 
         count = len(s) if limit is None else min(limit, len(s))
         for i in range(count):
             attrs = s.attrs(i)
-            missing = [k for k in DESIGN_KEYS if k not in attrs]
+            missing = [k for k in DESIGN_KEYS[:FIRST_SCENE_KEYS] if k not in attrs]
             if missing:
                 raise ValueError(f"{s.path} trajectory {s.names[i]}: no design parameters {missing} in its "
                                  "attributes; a surrogate is fitted on hcmt-generated Impact Plate data")
-            designs.append(Design(**{k: float(attrs[k]) for k in DESIGN_KEYS}))
+            designs.append(design_from_attrs(attrs))
             fields = s[i]
             if stress_field not in fields:
                 raise ValueError(f"{s.path} trajectory {s.names[i]}: no field {stress_field!r} (a model that learned "

@@ -81,13 +81,16 @@ def rollout_details(pred: np.ndarray, true: np.ndarray, start: int, groups: dict
 
 # -- Impact Plate: the physics an engineer reads ------------------------------------------------------------------
 def plate_mask(cells: np.ndarray, node_type: np.ndarray) -> np.ndarray:
-    """[N] bool: the plate, i.e. the body holding the clamped (HANDLE) nodes; the other body is the ball."""
+    """[N] bool: the plate, i.e. the body holding the supported nodes (clamped HANDLE, or a ring's
+    WALL_BOUNDARY), else the one holding NORMAL nodes; the other body is the impactor (OBSTACLE nodes)."""
     node_type = np.asarray(node_type).reshape(-1)
     obj = object_ids(np.asarray(cells), len(node_type))
-    handles = obj[node_type == NodeType.HANDLE]
-    if not len(handles):
-        raise ValueError("no clamped (HANDLE) nodes: cannot tell the plate from the ball")
-    return obj == handles[0]
+    for kind in (NodeType.HANDLE, NodeType.WALL_BOUNDARY, NodeType.NORMAL):
+        held = obj[node_type == kind]
+        if len(held):
+            return obj == held[0]
+    raise ValueError("no clamped (HANDLE), supported (WALL_BOUNDARY) or NORMAL nodes: cannot tell the plate from "
+                     "the impactor")
 
 
 def impact_groups(rest: np.ndarray, plate: np.ndarray) -> dict[str, np.ndarray]:

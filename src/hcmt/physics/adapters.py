@@ -154,6 +154,7 @@ def position_mask(adapter: Adapter, node_type: Tensor, dim: int) -> Tensor:
     mask = torch.ones(nt.shape[0], dim, dtype=torch.float32, device=nt.device)
     mask[torch.isin(nt, torch.tensor((int(NodeType.HANDLE), *adapter.prescribed), dtype=nt.dtype))] = 0.0
     mask[nt == int(NodeType.SYMMETRIC), 0] = 0.0  # symmetry line: x is fixed
+    mask[nt == int(NodeType.WALL_BOUNDARY), dim - 1] = 0.0  # a roller (Impact Plate's support ring): y is fixed
     return mask
 
 

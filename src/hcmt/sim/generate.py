@@ -25,8 +25,9 @@ from tqdm import tqdm
 from hcmt.config import plural
 from hcmt.data.errors import DatasetError
 from hcmt.data.format import make_meta, read_meta, write_meta, write_split
-from hcmt.sim.scene import (CONTACT_RADIUS, MAX_ESTIMATED_SECONDS, RANGES, UNITS, VARIANTS, Design, Settings,
-                            feature_spec, plan, sample_design, simulate, validated_warnings)
+from hcmt.sim.scene import (CONTACT_RADIUS, DESIGN_UNITS, FAMILIES, MATERIALS as _MATERIALS, MAX_ESTIMATED_SECONDS, RANGES, RELATIVE, UNITS,
+                            VARIANTS, Design, Settings, family_ranges, feature_spec, parse_stack, plan, sample_design,
+                            simulate, validated_warnings)
 
 #: Split names and their stable codes in the per-trajectory seed.
 SPLITS = ("train", "valid", "test", "test_thicker", "test_higher", "test_thicker_higher")
@@ -41,8 +42,18 @@ def trajectory_name(index: int) -> str:
     return f"traj_{index:05d}"
 
 
-def dataset_meta(preset: str, seed: int, counts: dict[str, int], settings: Settings, edge_fraction: float = 0.0) -> dict:
+def trajectory_family(meta: dict, index: int) -> str:
+    """The family of trajectory ``index`` of a generated dataset: its families in turn (``i mod n``)."""
+    families = (meta.get("generator") or {}).get("families") or ["mono"]
+    return families[index % len(families)]
+
+
+def dataset_meta(preset: str, seed: int, counts: dict[str, int], settings: Settings, edge_fraction: float = 0.0,
+                 families: tuple[str, ...] = ("mono",)) -> dict:
     extra = {"edge_fraction": float(edge_fraction)} if edge_fraction else {}  # absent: datasets made before it
+    if tuple(families) != ("mono",):  # absent: one family, the first scene (datasets made before families)
+        extra.update(families=list(families),
+                     family_ranges={f: {k: list(v) for k, v in FAMILIES[f].items()} for f in families})
     generator = dict(name="hcmt impact-plate", preset=preset, seed=int(seed), counts=dict(counts), **extra,
                      settings=asdict(settings), ranges={k: list(v) for k, v in RANGES[preset].items()},
                      variants={k: {p: list(r) for p, r in v.items()} for k, v in VARIANTS.items()},
@@ -56,7 +67,8 @@ def _run_one(task: tuple) -> tuple[str, int, float]:
     out, meta, preset, seed, split, index, settings = task
     variant = split if split in VARIANTS else None
     edges = float(meta["generator"].get("edge_fraction", 0.0)) if split == "train" else 0.0
-    design = sample_design(trajectory_rng(seed, split, index), preset, variant, edges)
+    design = sample_design(trajectory_rng(seed, split, index), preset, variant, edges,
+                           family=trajectory_family(meta, index))
     result = simulate(design, Settings(**settings))
     part = Path(out) / ".parts" / split / f"{index:05d}.h5"
     part.parent.mkdir(parents=True, exist_ok=True)
@@ -124,10 +136,21 @@ def _differences(old: dict, new: dict, prefix: str = "") -> str:
 
 
 def generate_dataset(out, *, preset: str = "small", counts: dict[str, int], seed: int = 0, workers: int = 1,
-                     settings: Settings = Settings(), progress: bool = True, edge_fraction: float = 0.0) -> dict:
+                     settings: Settings = Settings(), progress: bool = True, edge_fraction: float = 0.0,
+                     families: tuple[str, ...] = ("mono",)) -> dict:
     """Generate (or finish) an Impact Plate dataset in ``out``. ``counts`` maps split names (of :data:`SPLITS`) to
     trajectory counts; ``edge_fraction`` of the training designs are drawn at the ranges' edges (thin plates, high
-    drops: :data:`hcmt.sim.scene.EDGES`). Returns ``{"simulated": n, "skipped": n, "splits": {split: path}}``."""
+    drops: :data:`hcmt.sim.scene.EDGES`); ``families`` (:data:`hcmt.sim.scene.FAMILIES`) take the trajectories of
+    every split in turn, and meta.json's ``families`` lists each trajectory's. Returns ``{"simulated": n,
+    "skipped": n, "splits": {split: path}}``."""
+    families = tuple(families)
+    if not families:
+        raise ValueError(f"family: give at least one of {', '.join(FAMILIES)}")
+    for f in families:
+        if f not in FAMILIES:
+            raise ValueError(f"family {f!r} does not exist; the families are {', '.join(FAMILIES)}")
+    if len(set(families)) < len(families):
+        raise ValueError(f"family: {', '.join(families)} names a family twice; name each once")
     if not 0.0 <= float(edge_fraction) <= 1.0:
         raise ValueError(f"--edge-fraction must be in [0, 1], got {edge_fraction}")
     if preset not in RANGES:
@@ -144,7 +167,8 @@ def generate_dataset(out, *, preset: str = "small", counts: dict[str, int], seed
     if not counts:
         raise ValueError("nothing to generate: every trajectory count (--train, --valid, --test) is 0")
     out = Path(out)
-    meta = dataset_meta(preset, seed, counts, settings, edge_fraction)
+    meta = dataset_meta(preset, seed, counts, settings, edge_fraction, families)
+    meta["families"] = {split: [trajectory_family(meta, i) for i in range(n)] for split, n in counts.items()}
     if (out / "meta.json").is_file():
         old = read_meta(out)
         old_gen, new_gen = dict(old.get("generator") or {}), dict(meta["generator"])
@@ -234,8 +258,19 @@ def configure_generate(parser: argparse.ArgumentParser) -> None:
                         help="share of training designs drawn at the ranges' edges where models fail first: thin "
                              "plates (lowest fifth of the thickness range) or high drops (top fifth); default 0")
     parser.add_argument("--workers", type=int, default=1, help="worker processes (default 1)")
+    parser.add_argument("--family", default="mono", metavar="F[,F...]",
+                        help="design families, taking each split's trajectories in turn: "
+                             + "; ".join(f"{k}: {_family_help(k)}" for k in FAMILIES) + " (default mono)")
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
     _settings_arguments(parser)
+
+
+def _family_help(family: str) -> str:
+    ranges = FAMILIES[family]
+    if not ranges:
+        return "the first scene, one clamped layer struck by the ball"
+    return ", ".join(f"{k} {lo:g}-{hi:g}{' x plate_half_length' if k in RELATIVE else ' ' + DESIGN_UNITS[k]}"
+                     for k, (lo, hi) in ranges.items())
 
 
 def main_generate(args) -> int:
@@ -243,37 +278,65 @@ def main_generate(args) -> int:
     if args.variants:
         counts.update({v: args.variant_count for v in VARIANTS})
     total = sum(max(int(v), 0) for v in counts.values())
+    families = parse_families(args.family)
     if total:
-        cost = plan(preset_design(args.preset), _settings(args))
+        cost = max((plan(preset_design(args.preset, f), _settings(args)) for f in families),
+                   key=lambda c: c["estimated_s"])
         print(f"{plural(total, 'trajectory', 'trajectories')} of about {cost['num_nodes']} nodes and {cost['substeps']} substeps each: about "
               f"{cost['estimated_s']:.1f} s per trajectory on one core, {total * cost['estimated_s'] / 60:.1f} "
               f"core-minutes in all (finished trajectories are reused on a rerun)", flush=True)
     result = generate_dataset(args.out, preset=args.preset, counts=counts, seed=args.seed, workers=args.workers,
                               settings=_settings(args), progress=not args.no_progress,
-                              edge_fraction=args.edge_fraction)
+                              edge_fraction=args.edge_fraction, families=families)
     print(f"{args.out}: simulated {plural(result['simulated'], 'trajectory', 'trajectories')}, reused "
           f"{result['skipped']}; splits: "
           + ", ".join(f"{k} ({counts[k]})" for k in result["splits"]))
     return 0
 
 
-_DESIGN_HELP = {"thickness": "plate thickness (mm)", "drop_height": "drop height H (mm), v0 = sqrt(2 g H)",
+_DESIGN_HELP = {"layer2_thickness": "mm, a bonded layer under the top one (0: none; default material the polymer film)",
+                "support_radius": "mm, a simply supported ring under the panel, rim free (0: clamped rim)",
+                "backing_thickness": "mm, a bonded soft backing under the panel, bottom fixed, rim free (0: none)",
+                "backing_modulus": "MPa, the backing's Young's modulus",
+                "pen_tip_radius": "mm, a pen's hemispherical tip instead of the ball (0: the ball)",
+                "pen_mass": "g, the pen's rigid rod","thickness": "plate thickness (mm)", "drop_height": "drop height H (mm), v0 = sqrt(2 g H)",
                 "plate_density": "g/mm^3", "plate_modulus": "Young's modulus (MPa)", "plate_poisson": "",
                 "ball_radius": "mm", "ball_density": "g/mm^3", "ball_modulus": "MPa", "ball_poisson": "",
                 "mesh_size": "element size (mm)", "plate_half_length": "plate radius / half width (mm)",
                 "gap": f"initial gap (mm), < contact radius {CONTACT_RADIUS}"}
 
 
-def preset_design(preset: str) -> Design:
-    """The nominal design of a preset: the middle of every sampling range."""
-    return Design(**{k: 0.5 * (lo + hi) for k, (lo, hi) in RANGES[preset].items()})
+def preset_design(preset: str, family: str = "mono") -> Design:
+    """The nominal design of a preset and family: the middle of every sampling range (:func:`family_ranges`)."""
+    values = {k: 0.5 * (lo + hi) for k, (lo, hi) in family_ranges(preset, family).items()}
+    for key, of in RELATIVE.items():
+        if key in values:
+            values[key] *= values[of]
+    return Design(**values)
+
+
+def parse_families(text: str) -> tuple[str, ...]:
+    """``mono,stack2,ring`` -> the families, each checked against :data:`FAMILIES`."""
+    names = tuple(t.strip() for t in text.split(",") if t.strip())
+    for name in names or ("",):
+        if name not in FAMILIES:
+            raise ValueError(f"--family {text!r}: family {name!r} does not exist; the families are "
+                             f"{', '.join(FAMILIES)}")
+    return names
 
 
 def configure_simulate(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--preset", choices=sorted(RANGES), default="paper",
                         help="defaults for unspecified parameters: the middle of the preset's ranges (default paper)")
+    parser.add_argument("--family", default="mono",
+                        help=f"defaults from this family's ranges instead: one of {', '.join(FAMILIES)} (default mono)")
+    parser.add_argument("--stack", default=None, metavar="SPEC",
+                        help="the panel's bonded layers from the top, MATERIAL:THICKNESS[:density=..][:modulus=..]"
+                             f"[:poisson=..] separated by commas, 1-4 layers, MATERIAL one of {', '.join(_MATERIALS)}"
+                             " (e.g. glass:0.55,adhesive:0.05,film:0.2); sets thickness, plate_* and layer2-4_*")
     for f in fields(Design):
-        parser.add_argument("--" + f.name.replace("_", "-"), type=float, default=None, help=_DESIGN_HELP[f.name])
+        parser.add_argument("--" + f.name.replace("_", "-"), type=float, default=None,
+                            help=_DESIGN_HELP.get(f.name) or f"{DESIGN_UNITS[f.name]}")
     parser.add_argument("--out", default=None, help="write the trajectory to FILE.h5 (meta.json beside it)")
     parser.add_argument("--force", action="store_true",
                         help=f"solve even when the estimated time exceeds {MAX_ESTIMATED_SECONDS:.0f} s")
@@ -283,7 +346,14 @@ def configure_simulate(parser: argparse.ArgumentParser) -> None:
 
 def main_simulate(args) -> int:
     given = {f.name: getattr(args, f.name) for f in fields(Design) if getattr(args, f.name) is not None}
-    design = Design(**{**asdict(preset_design(args.preset)), **given}).validate()
+    stack = parse_stack(args.stack) if args.stack is not None else {}
+    both = sorted(set(stack) & set(given))
+    if both:
+        raise ValueError(f"--stack sets {', '.join(both)}; do not give --{both[0].replace('_', '-')} too")
+    family = parse_families(args.family)
+    if len(family) != 1:
+        raise ValueError(f"--family {args.family!r}: name one family for one design")
+    design = Design(**{**asdict(preset_design(args.preset, family[0])), **stack, **given}).validate()
     settings = _settings(args)
     if args.out is not None and Path(args.out).suffix != ".h5":
         raise ValueError(f"--out must name an .h5 file, got {args.out}")

@@ -16,6 +16,7 @@ from hcmt.data.format import NodeType
 from scipy.spatial import Delaunay
 
 NORMAL, OBSTACLE, HANDLE, SYMMETRIC = NodeType.NORMAL, NodeType.OBSTACLE, NodeType.HANDLE, NodeType.SYMMETRIC
+WALL_BOUNDARY = NodeType.WALL_BOUNDARY
 
 #: Preset meshes: ``paper`` about 2,200 nodes (paper Table 6: 2,208), ``small`` about 400-600 nodes (CPU training).
 PRESETS: dict[str, dict[str, float]] = {
@@ -159,39 +160,125 @@ def _counter_clockwise(pos: np.ndarray, cells: np.ndarray) -> np.ndarray:
     return cells
 
 
+def layer_rows(thicknesses, mesh_size: float, minimum: int = 4) -> list[int]:
+    """Element rows of each bonded layer: ``max(1, round(t_i / h))`` each, then one more row at a time to the layer
+    with the tallest rows until the stack has ``minimum`` (fewer than 4 rows lock CST triangles in bending). One
+    layer gets ``max(4, round(t / h))`` as :func:`plate_mesh`; two equal halves of a plate get the plate's rows."""
+    t = np.asarray(thicknesses, float)
+    rows = np.maximum(1, np.round(t / mesh_size)).astype(int)
+    while rows.sum() < minimum:  # hand-rolled: at most 3 additions
+        rows[int(np.argmax(t / rows))] += 1
+    return rows.tolist()
+
+
+def pen_tip_mesh(radius: float, mesh_size: float, center_y: float) -> tuple[np.ndarray, np.ndarray]:
+    """The pen's hemispherical tip, a quarter disk ``x >= 0, y <= center_y`` of ``radius`` (a hemisphere when
+    revolved): rings around the centre sampled every ~``mesh_size`` from the pole to the flat top face, Delaunay.
+    The top face ``y = center_y`` is where the rigid rod holds it (:func:`impact_plate_mesh`'s ``rigid``)."""
+    n_rings = max(int(np.round(radius / mesh_size)), 2)
+    r = radius * np.arange(1, n_rings + 1) / n_rings
+    counts = np.maximum(np.round(0.5 * np.pi * r / mesh_size).astype(int), 1)
+    ring = np.repeat(np.arange(n_rings), counts + 1)
+    k = np.arange(len(ring)) - np.repeat(np.cumsum(counts + 1) - (counts + 1), counts + 1)
+    theta = -np.pi / 2 + 0.5 * np.pi * k / counts[ring]
+    c = np.array([0.0, center_y])
+    pos = np.concatenate([c[None], c + r[ring, None] * np.stack([np.cos(theta), np.sin(theta)], 1)])
+    pos[np.abs(pos[:, 0]) < 1e-12 * radius, 0] = 0.0
+    pos[np.abs(pos[:, 1] - center_y) < 1e-12 * radius, 1] = center_y
+    tri = Delaunay(pos).simplices.astype(np.int64)
+    tri = tri[np.abs(_signed_area(pos, tri)) > 1e-10 * mesh_size**2]
+    return pos, _counter_clockwise(pos, tri)
+
+
 def impact_plate_mesh(thickness: float, ball_radius: float, mesh_size: float, *, plate_half_length: float = 15.0,
                       gap: float = 0.02, ball_mesh_size: float | None = None, plate_layers: int | None = None,
                       plate_growth: float = 1.0, plate_h_max: float | None = None, plate_y_growth: float = 1.0,
-                      ball_growth: float = 1.0, ball_h_max: float | None = None) -> dict[str, np.ndarray]:
-    """The Impact Plate scene mesh: plate nodes first, then ball nodes.
+                      ball_growth: float = 1.0, ball_h_max: float | None = None, layers=None,
+                      support_radius: float = 0.0, backing_thickness: float = 0.0,
+                      impactor: str = "ball") -> dict[str, np.ndarray]:
+    """The Impact Plate scene mesh: plate nodes first (the panel's layers, then a backing), then the impactor's.
+
+    ``layers``: the thicknesses of a stack of bonded layers from the top (impact) face down, sharing nodes at their
+    interfaces (:func:`layer_rows` rows each); default one layer of ``thickness``. Supports: the outer rim
+    ``x = L`` clamped (HANDLE) unless ``support_radius`` > 0 (a simply supported ring: the bottom node at that
+    radius WALL_BOUNDARY, its axial position fixed, the rim free) or ``backing_thickness`` > 0 (a bonded soft
+    backing of that thickness under the panel, its bottom HANDLE, the rim free). ``impactor``: ``"ball"`` (a half
+    disk of ``ball_radius``) or ``"pen"`` (:func:`pen_tip_mesh` of that radius; its top face nodes are the
+    ``rigid`` ones a rod holds).
 
     Returns ``mesh_pos [N,2] float64``, ``cells [C,3] int64`` (counter-clockwise), ``node_type [N] int64``,
-    ``body [N] int64`` (0 plate, 1 ball; the node type alone loses it on the symmetry line) and
-    ``cell_body [C] int64``. ``ball_mesh_size`` defaults to ``mesh_size``.
+    ``body [N] int64`` (0 plate, 1 impactor; the node type alone loses it on the symmetry line),
+    ``cell_body [C] int64``, ``cell_layer [C] int64`` (0 = top layer, ..., the backing last; -1 impactor) and
+    ``rigid [N] bool``. ``ball_mesh_size`` defaults to ``mesh_size`` (a pen tip's to ``min(mesh_size, r / 3)``).
     """
-    for name, v in (("thickness", thickness), ("ball_radius", ball_radius), ("mesh_size", mesh_size),
-                    ("plate_half_length", plate_half_length), ("gap", gap)):
+    layers = [thickness] if layers is None else [float(t) for t in layers]
+    for name, v in (("thickness", sum(layers)), ("ball_radius", ball_radius), ("mesh_size", mesh_size),
+                    ("plate_half_length", plate_half_length), ("gap", gap), *((f"layer {i + 1} thickness", t)
+                                                                              for i, t in enumerate(layers))):
         if not np.isfinite(v) or v <= 0:
             raise ValueError(f"{name} must be a positive finite length in mm, got {v}")
+    if impactor not in ("ball", "pen"):
+        raise ValueError(f"impactor must be 'ball' or 'pen', got {impactor!r}")
     if plate_half_length <= ball_radius:
         raise ValueError(f"plate_half_length ({plate_half_length} mm) must exceed ball_radius ({ball_radius} mm)")
-    if mesh_size > thickness:
-        raise ValueError(f"mesh_size ({mesh_size} mm) must not exceed the plate thickness ({thickness} mm)")
-    hb = mesh_size if ball_mesh_size is None else ball_mesh_size
-    if hb > ball_radius / 3:
-        raise ValueError(f"ball mesh size ({hb} mm) must be at most ball_radius / 3 ({ball_radius / 3:.3g} mm)")
-    p_pos, p_cells = plate_mesh(thickness, plate_half_length, mesh_size, layers=plate_layers,
-                                growth=plate_growth, h_max=plate_h_max, y_growth=plate_y_growth)
-    b_pos, b_cells = ball_mesh(ball_radius, hb, ball_radius + gap, growth=ball_growth, h_max=ball_h_max)
+    if mesh_size > sum(layers):
+        raise ValueError(f"mesh_size ({mesh_size} mm) must not exceed the plate thickness ({sum(layers)} mm)")
+    if not 0 <= support_radius < plate_half_length:
+        raise ValueError(f"support_radius ({support_radius} mm) must lie inside the plate (0 .. {plate_half_length})")
+    if impactor == "pen":
+        hb = min(mesh_size, ball_radius / 3) if ball_mesh_size is None else ball_mesh_size
+    else:
+        hb = mesh_size if ball_mesh_size is None else ball_mesh_size
+        if hb > ball_radius / 3:
+            raise ValueError(f"ball mesh size ({hb} mm) must be at most ball_radius / 3 ({ball_radius / 3:.3g} mm)")
+    if plate_layers is not None or plate_y_growth != 1.0:  # one block with its own rows (the Hertz check)
+        if len(layers) > 1 or support_radius > 0 or backing_thickness > 0:
+            raise ValueError("plate_layers and plate_y_growth make one clamped block: no stack, ring or backing")
+        p_pos, p_cells = plate_mesh(layers[0], plate_half_length, mesh_size, layers=plate_layers,
+                                    growth=plate_growth, h_max=plate_h_max, y_growth=plate_y_growth)
+        bounds = np.array([0.0, layers[0]])
+    else:
+        rows = layer_rows(layers, mesh_size)
+        depth = [np.linspace(0.0, t, n + 1)[1:] for t, n in zip(layers, rows)]
+        bounds = np.concatenate([[0.0], np.cumsum(layers)])
+        if backing_thickness > 0:
+            nb = max(2, int(round(backing_thickness / mesh_size)))
+            depth.append(np.linspace(0.0, backing_thickness, nb + 1)[1:])
+            bounds = np.append(bounds, bounds[-1] + backing_thickness)
+        depth = np.concatenate([[0.0]] + [d + b for d, b in zip(depth, bounds[:-1])])
+        xs = graded_coordinates(plate_half_length, mesh_size, plate_growth, plate_h_max)
+        if support_radius > 0:  # the ring on a grid line: the nearest inner grid line moves there
+            j = int(np.argmin(np.abs(xs[1:-1] - support_radius))) + 1
+            xs[j] = support_radius
+        p_pos, p_cells = structured_triangles(xs, -depth[::-1])
+    if impactor == "pen":
+        b_pos, b_cells = pen_tip_mesh(ball_radius, hb, ball_radius + gap)
+    else:
+        b_pos, b_cells = ball_mesh(ball_radius, hb, ball_radius + gap, growth=ball_growth, h_max=ball_h_max)
     pos = np.concatenate([p_pos, b_pos])
     cells = np.concatenate([p_cells, b_cells + len(p_pos)])
     body = np.concatenate([np.zeros(len(p_pos), np.int64), np.ones(len(b_pos), np.int64)])
     tol = 1e-9 * max(plate_half_length, 1.0)
     node_type = np.where(body == 0, NORMAL, OBSTACLE).astype(np.int64)
-    node_type[(body == 0) & (pos[:, 0] > plate_half_length - tol)] = HANDLE
+    plate = body == 0
+    panel_depth = float(np.sum(layers))
+    if backing_thickness > 0:
+        node_type[plate & (pos[:, 1] < -bounds[-1] + tol)] = HANDLE
+    elif support_radius > 0:
+        node_type[plate & (np.abs(pos[:, 0] - support_radius) < tol) & (pos[:, 1] < -panel_depth + tol)] = \
+            WALL_BOUNDARY
+    else:
+        node_type[plate & (pos[:, 0] > plate_half_length - tol)] = HANDLE
     node_type[np.abs(pos[:, 0]) < tol] = SYMMETRIC
     cell_body = np.concatenate([np.zeros(len(p_cells), np.int64), np.ones(len(b_cells), np.int64)])
-    return dict(mesh_pos=pos, cells=cells, node_type=node_type, body=body, cell_body=cell_body)
+    centroid_depth = -p_pos[p_cells, 1].mean(1)
+    cell_layer = np.concatenate([np.searchsorted(bounds[1:-1], centroid_depth),
+                                 np.full(len(b_cells), -1)]).astype(np.int64)
+    rigid = np.zeros(len(pos), bool)
+    if impactor == "pen":
+        rigid[len(p_pos):] = np.abs(b_pos[:, 1] - (ball_radius + gap)) < 1e-9 * ball_radius
+    return dict(mesh_pos=pos, cells=cells, node_type=node_type, body=body, cell_body=cell_body,
+                cell_layer=cell_layer, rigid=rigid)
 
 
 def preset_mesh(preset: str = "small", **overrides) -> dict[str, np.ndarray]:

@@ -22,12 +22,16 @@ from dataclasses import asdict, dataclass, fields, replace
 import numpy as np
 
 from hcmt.sim.contact import PenaltyContact
-from hcmt.sim.mesh import HANDLE, SYMMETRIC, impact_plate_mesh
+from hcmt.sim.mesh import HANDLE, SYMMETRIC, WALL_BOUNDARY, impact_plate_mesh
 from hcmt.sim.solver import FORMULATIONS, CentralDifference, build_model, check_material, deformation, \
     nodal_von_mises, stable_time_step
 
 GRAVITY = 9.81e-3  # mm/ms^2
 CONTACT_RADIUS = 0.4  # mm, the learned model's contact-edge radius (paper Table 7); the initial gap must be smaller
+#: the largest Poisson ratio of a layer under the top one (an adhesive): near 0.5 linear triangles lock
+MAX_LAYER_POISSON = 0.45
+#: the soft backing's density (g/mm^3, a foam of 200 kg/m^3) and Poisson ratio
+BACKING_DENSITY, BACKING_POISSON = 2e-4, 0.3
 UNITS = {"length": "mm", "time": "ms", "mass": "g", "force": "N", "stress": "MPa", "energy": "mJ",
          "velocity": "mm/ms (= m/s)", "density": "g/mm^3", "modulus": "MPa"}
 
@@ -48,11 +52,61 @@ class Design:
     mesh_size: float = 0.125  # mm, plate element size (and ball element size)
     plate_half_length: float = 15.0  # mm, disk radius (axisymmetric) or half width (plane strain)
     gap: float = 0.02  # mm, initial ball-plate gap
+    # panel families (docs/solver.md, "Panel families"): 0 means absent, so the fields above alone are the first
+    # scene, one clamped layer struck by the ball. Layers 2-4 lie under the top one (thickness, plate_*), bonded.
+    layer2_thickness: float = 0.0  # mm (0: no second layer)
+    layer2_density: float = 1.4e-3  # g/mm^3 (defaults: the polymer film)
+    layer2_modulus: float = 4e3  # MPa
+    layer2_poisson: float = 0.38
+    layer3_thickness: float = 0.0
+    layer3_density: float = 1.4e-3
+    layer3_modulus: float = 4e3
+    layer3_poisson: float = 0.38
+    layer4_thickness: float = 0.0
+    layer4_density: float = 1.4e-3
+    layer4_modulus: float = 4e3
+    layer4_poisson: float = 0.38
+    support_radius: float = 0.0  # mm, a simply supported ring under the panel at this radius, rim free (0: clamped)
+    backing_thickness: float = 0.0  # mm, a bonded soft backing under the panel, its bottom fixed, rim free (0: none)
+    backing_modulus: float = 10.0  # MPa (density BACKING_DENSITY, Poisson BACKING_POISSON)
+    pen_tip_radius: float = 0.0  # mm, a pen's hemispherical tip (ball_* material) instead of the ball (0: the ball)
+    pen_mass: float = 2.0  # g, the pen's rigid rod
 
     @property
     def impact_speed(self) -> float:
         """v0 = sqrt(2 g H) (mm/ms)."""
         return float(np.sqrt(2 * GRAVITY * self.drop_height))
+
+    @property
+    def layers(self) -> list[tuple[float, float, float, float]]:
+        """The panel's bonded layers from the top face down: (thickness mm, density, modulus MPa, Poisson)."""
+        out = [(self.thickness, self.plate_density, self.plate_modulus, self.plate_poisson)]
+        for k in (2, 3, 4):
+            t = getattr(self, f"layer{k}_thickness")
+            if t > 0:
+                out.append((t, *(getattr(self, f"layer{k}_{m}") for m in ("density", "modulus", "poisson"))))
+        return out
+
+    @property
+    def total_thickness(self) -> float:
+        return float(sum(layer[0] for layer in self.layers))
+
+    @property
+    def impactor(self) -> str:
+        return "pen" if self.pen_tip_radius > 0 else "ball"
+
+    @property
+    def impactor_radius(self) -> float:
+        return self.pen_tip_radius if self.pen_tip_radius > 0 else self.ball_radius
+
+    @property
+    def family(self) -> str:
+        """The design's family (:data:`FAMILIES`): ``mono``, ``stack2`` .. ``stack4``, ``ring``, ``backing``,
+        ``pen``, or their combination joined by ``+`` (``stack3+pen``)."""
+        n = len(self.layers)
+        parts = ([f"stack{n}"] if n > 1 else []) + (["ring"] if self.support_radius > 0 else []) + \
+            (["backing"] if self.backing_thickness > 0 else []) + (["pen"] if self.pen_tip_radius > 0 else [])
+        return "+".join(parts) or "mono"
 
     def validate(self) -> "Design":
         """Refuse impossible designs with a message naming the parameter and what was expected."""
@@ -60,19 +114,54 @@ class Design:
             v = getattr(self, name)
             if not np.isfinite(v) or v <= 0:
                 raise ValueError(f"{name} must be > 0 (mm), got {v}")
+        for name in ("layer2_thickness", "layer3_thickness", "layer4_thickness", "support_radius",
+                     "backing_thickness", "pen_tip_radius"):
+            v = getattr(self, name)
+            if not np.isfinite(v) or v < 0:
+                raise ValueError(f"{name} must be >= 0 mm (0: none), got {v}")
         check_material("plate", self.plate_density, self.plate_modulus, self.plate_poisson)
         check_material("ball", self.ball_density, self.ball_modulus, self.ball_poisson)
+        for k in (2, 3, 4):
+            if getattr(self, f"layer{k}_thickness") > 0:
+                if k > 2 and not getattr(self, f"layer{k - 1}_thickness") > 0:
+                    raise ValueError(f"layer{k}_thickness is set but layer{k - 1}_thickness is 0: layers stack "
+                                     "from the top without gaps")
+                check_material(f"layer{k}", *(getattr(self, f"layer{k}_{m}") for m in ("density", "modulus",
+                                                                                       "poisson")))
+                nu = getattr(self, f"layer{k}_poisson")
+                if not 0 <= nu <= MAX_LAYER_POISSON:
+                    raise ValueError(f"layer{k}_poisson must be in [0, {MAX_LAYER_POISSON}] (near 0.5 the linear "
+                                     f"triangles lock volumetrically), got {nu}")
         if self.gap >= CONTACT_RADIUS:
             raise ValueError(f"gap ({self.gap} mm) must be smaller than the contact radius {CONTACT_RADIUS} mm so the "
                              "first frame already sees the ball near the plate")
-        if self.mesh_size > self.thickness:
-            raise ValueError(f"mesh_size ({self.mesh_size} mm) must not exceed thickness ({self.thickness} mm)")
-        if self.mesh_size > self.ball_radius / 3:
+        if self.mesh_size > self.total_thickness:
+            what = "thickness" if len(self.layers) == 1 else "the stack's total thickness"
+            raise ValueError(f"mesh_size ({self.mesh_size} mm) must not exceed {what} ({self.total_thickness:g} mm)")
+        if self.pen_tip_radius > 0:
+            if not self.mesh_size <= self.pen_tip_radius <= 10 * self.total_thickness:
+                raise ValueError(f"pen_tip_radius ({self.pen_tip_radius} mm) must lie between mesh_size "
+                                 f"({self.mesh_size:g} mm) and 10 x the panel's thickness "
+                                 f"({10 * self.total_thickness:g} mm)")
+            if not (np.isfinite(self.pen_mass) and self.pen_mass > 0):
+                raise ValueError(f"pen_mass must be > 0 g, got {self.pen_mass}")
+        elif self.mesh_size > self.ball_radius / 3:
             raise ValueError(f"mesh_size ({self.mesh_size} mm) must be at most ball_radius / 3 "
                              f"({self.ball_radius / 3:.3g} mm)")
-        if self.plate_half_length <= self.ball_radius:
-            raise ValueError(f"plate_half_length ({self.plate_half_length} mm) must exceed ball_radius "
-                             f"({self.ball_radius} mm)")
+        if self.plate_half_length <= self.impactor_radius:
+            raise ValueError(f"plate_half_length ({self.plate_half_length} mm) must exceed the "
+                             f"{'pen_tip_radius' if self.pen_tip_radius > 0 else 'ball_radius'} "
+                             f"({self.impactor_radius} mm)")
+        if self.support_radius > 0 and not self.mesh_size <= self.support_radius <= self.plate_half_length - \
+                self.mesh_size:
+            raise ValueError(f"support_radius ({self.support_radius} mm) must lie inside the plate: between mesh_size "
+                             f"({self.mesh_size:g}) and plate_half_length - mesh_size "
+                             f"({self.plate_half_length - self.mesh_size:g} mm)")
+        if self.backing_thickness > 0:
+            if self.support_radius > 0:
+                raise ValueError("support_radius and backing_thickness are both set: choose one support (a ring, "
+                                 "or a backing)")
+            check_material("backing", BACKING_DENSITY, self.backing_modulus, BACKING_POISSON)
         return self
 
 
@@ -130,20 +219,62 @@ VARIANTS: dict[str, dict[str, tuple[float, float]]] = {
 EDGES = {"thickness": (0.0, 0.2), "drop_height": (0.8, 1.0)}
 
 
-def sample_design(rng: np.random.Generator, preset: str = "small", variant: str | None = None,
-                  edge_fraction: float = 0.0) -> Design:
-    """Draw one design: every parameter of ``RANGES[preset]`` uniform (in a fixed order), the variant's ranges
-    replacing the training ones. With ``edge_fraction`` > 0, that share of designs then has its thickness or its
-    drop height redrawn inside :data:`EDGES` (draws after the uniform ones: a design with ``edge_fraction`` 0 is
-    the same as before)."""
+#: the panel's layer materials (density g/mm^3, Young's modulus MPa, Poisson): soda-lime / aluminosilicate
+#: cover glass, a polymer film (PET / polarizer, 2-6 GPa) and an optically clear adhesive (1-100 MPa; Poisson 0.45,
+#: not the rubber's 0.49+: :data:`MAX_LAYER_POISSON`)
+MATERIALS = {"glass": (2.5e-3, 70e3, 0.22), "film": (1.4e-3, 4e3, 0.38), "adhesive": (1.0e-3, 20.0, 0.45)}
+
+_FILM = dict(density=(1.2e-3, 1.5e-3), modulus=(2e3, 6e3), poisson=(0.30, 0.40))
+_ADHESIVE = dict(density=(0.9e-3, 1.1e-3), modulus=(20.0, 100.0), poisson=(0.40, 0.45))
+
+
+def _layer(k: int, thickness: tuple[float, float], material: dict) -> dict:
+    return {f"layer{k}_thickness": thickness, **{f"layer{k}_{m}": r for m, r in material.items()}}
+
+
+#: Named design families: ranges replacing or adding to the preset's (:data:`RANGES`), so that a split can hold a
+#: family out. ``mono`` is the first scene unchanged; the others vary the plate's outer radius too. A range of
+#: ``support_radius`` is a fraction of the drawn ``plate_half_length`` (:data:`RELATIVE`).
+FAMILIES: dict[str, dict[str, tuple[float, float]]] = {
+    "mono": {},
+    "stack2": dict(thickness=(0.4, 0.8), plate_half_length=(10.0, 14.0), **_layer(2, (0.1, 0.3), _FILM)),
+    "stack3": dict(thickness=(0.4, 0.7), plate_half_length=(10.0, 14.0), **_layer(2, (0.05, 0.15), _ADHESIVE),
+                   **_layer(3, (0.1, 0.3), _FILM)),
+    "stack4": dict(thickness=(0.4, 0.7), plate_half_length=(10.0, 14.0), **_layer(2, (0.05, 0.15), _ADHESIVE),
+                   **_layer(3, (0.1, 0.3), _FILM), **_layer(4, (0.05, 0.15), _ADHESIVE)),
+    "ring": dict(plate_half_length=(10.0, 14.0), support_radius=(0.6, 0.9)),
+    "backing": dict(plate_half_length=(10.0, 14.0), backing_thickness=(1.0, 2.0), backing_modulus=(5.0, 50.0)),
+    "pen": dict(plate_half_length=(10.0, 14.0), pen_tip_radius=(0.5, 1.0), pen_mass=(1.0, 4.0)),
+}
+#: family ranges given as a fraction of another drawn parameter
+RELATIVE = {"support_radius": "plate_half_length"}
+
+
+def family_ranges(preset: str = "small", family: str = "mono", variant: str | None = None) -> dict:
+    """The sampling ranges of a family: the preset's, the family's replacing or adding to them, a
+    generalization variant's last (ranges of :data:`RELATIVE` parameters stay fractions)."""
     if preset not in RANGES:
         raise ValueError(f"unknown preset {preset!r}; expected one of {sorted(RANGES)}")
+    if family not in FAMILIES:
+        raise ValueError(f"unknown family {family!r}; expected one of {', '.join(FAMILIES)}")
     if variant is not None and variant not in VARIANTS:
         raise ValueError(f"unknown variant {variant!r}; expected one of {sorted(VARIANTS)}")
-    ranges = {**RANGES[preset], **(VARIANTS[variant] if variant else {})}
+    return {**RANGES[preset], **FAMILIES[family], **(VARIANTS[variant] if variant else {})}
+
+
+def sample_design(rng: np.random.Generator, preset: str = "small", variant: str | None = None,
+                  edge_fraction: float = 0.0, family: str = "mono") -> Design:
+    """Draw one design: every parameter of the family's ranges (:func:`family_ranges`) uniform, in sorted order,
+    a variant's ranges replacing the training ones. With ``edge_fraction`` > 0, that share of designs then has its
+    thickness or its drop height redrawn inside :data:`EDGES` (draws after the uniform ones: a design with
+    ``edge_fraction`` 0 is the same as before; a ``mono`` design the same as before families existed)."""
+    ranges = family_ranges(preset, family, variant)
     names = sorted(ranges)
     u = rng.random(len(names))
     values = {k: float(ranges[k][0] + (ranges[k][1] - ranges[k][0]) * ui) for k, ui in zip(names, u)}
+    for key, of in RELATIVE.items():
+        if key in values:
+            values[key] *= values[of]
     if edge_fraction > 0 and rng.random() < edge_fraction:
         key = sorted(EDGES)[int(rng.random() < 0.5)]
         (lo, hi), (a, b) = ranges[key], EDGES[key]
@@ -151,9 +282,58 @@ def sample_design(rng: np.random.Generator, preset: str = "small", variant: str 
     return Design(**values)
 
 
+def parse_stack(text: str) -> dict[str, float]:
+    """``glass:0.55,adhesive:0.05,film:0.2`` (top layer first; a layer ``MATERIAL:THICKNESS[:density=..]
+    [:modulus=..][:poisson=..]``, MATERIAL one of :data:`MATERIALS`) -> the Design fields of a stack of 1-4
+    bonded layers, or one line saying what does not parse."""
+    items = [i.strip() for i in text.split(",") if i.strip()]
+    where = f"--stack {text!r}"
+    if not items:
+        raise ValueError(f"{where}: expected 1-4 layers MATERIAL:THICKNESS separated by commas, e.g. "
+                         "glass:0.55,adhesive:0.05,film:0.2")
+    if len(items) > 4:
+        raise ValueError(f"{where}: {len(items)} layers; a stack has 1-4 layers")
+    out = {}
+    for k, item in enumerate(items, 1):
+        parts = item.split(":")
+        if len(parts) < 2 or parts[0] not in MATERIALS:
+            raise ValueError(f"{where}: layer {k} {item!r}: expected MATERIAL:THICKNESS with MATERIAL one of "
+                             f"{', '.join(MATERIALS)}")
+        material = dict(zip(("density", "modulus", "poisson"), MATERIALS[parts[0]]))
+        thickness = parse_number(parts[1], f"{where}: layer {k} thickness")
+        if thickness <= 0:
+            raise ValueError(f"{where}: layer {k} thickness must be > 0 mm, got {parts[1]}")
+        for extra in parts[2:]:
+            key, sep, raw = extra.partition("=")
+            if not sep or key not in material:
+                raise ValueError(f"{where}: layer {k} {extra!r}: expected density=, modulus= or poisson=")
+            material[key] = parse_number(raw, f"{where}: layer {k} {key}")
+        if k == 1:
+            out.update(thickness=thickness, plate_density=material["density"], plate_modulus=material["modulus"],
+                       plate_poisson=material["poisson"])
+        else:
+            out.update({f"layer{k}_thickness": thickness, **{f"layer{k}_{m}": v for m, v in material.items()}})
+    for k in range(len(items) + 1, 5):
+        out[f"layer{k}_thickness"] = 0.0
+    return out
+
+
 def design_mesh(design: Design) -> dict[str, np.ndarray]:
-    return impact_plate_mesh(design.thickness, design.ball_radius, design.mesh_size,
-                             plate_half_length=design.plate_half_length, gap=design.gap)
+    return impact_plate_mesh(design.thickness, design.impactor_radius, design.mesh_size,
+                             plate_half_length=design.plate_half_length, gap=design.gap,
+                             layers=[layer[0] for layer in design.layers], support_radius=design.support_radius,
+                             backing_thickness=design.backing_thickness, impactor=design.impactor)
+
+
+def cell_materials(design: Design, mesh: dict) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(density, modulus, Poisson) per cell [C] from the mesh's ``cell_layer``: the panel's layers, the backing
+    (last), the impactor (-1: the ball_* material)."""
+    table = np.array([layer[1:] for layer in design.layers]
+                     + ([(BACKING_DENSITY, design.backing_modulus, BACKING_POISSON)] if design.backing_thickness > 0
+                        else [])
+                     + [(design.ball_density, design.ball_modulus, design.ball_poisson)])
+    m = table[mesh["cell_layer"]]  # -1 picks the impactor's row
+    return m[:, 0], m[:, 1], m[:, 2]
 
 
 #: cost model of the solver (docs/solver.md, "Speed"): per substep a fixed ~0.4 ms of Python and sparse-product
@@ -186,11 +366,7 @@ def validated_warnings(design: Design) -> list[str]:
 
 
 def _model(design: Design, settings: Settings, mesh: dict):
-    ball_c = mesh["cell_body"] == 1
-    return build_model(mesh["mesh_pos"], mesh["cells"],
-                       np.where(ball_c, design.ball_density, design.plate_density),
-                       np.where(ball_c, design.ball_modulus, design.plate_modulus),
-                       np.where(ball_c, design.ball_poisson, design.plate_poisson),
+    return build_model(mesh["mesh_pos"], mesh["cells"], *cell_materials(design, mesh),
                        formulation=settings.formulation, bulk_viscosity=settings.bulk_viscosity)
 
 
@@ -208,17 +384,27 @@ def estimate(design: Design, settings: Settings = Settings()) -> dict:
     :data:`SECONDS_PER_NODE_SUBSTEP`). Floats throughout: a 1e308 mm plate is an infinite estimate, not an
     overflow."""
     with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
-        h, t, L, r = (float(v) for v in (design.mesh_size, design.thickness, design.plate_half_length,
-                                         design.ball_radius))
-        layers = max(4.0, t / h)
-        nodes = (L / h + 1.0) * (layers + 1.0) + np.pi * r * r / (2.0 * h * h) + 2.0 * r / h + 1.0
-        speeds = []
-        for E, nu, rho in ((design.plate_modulus, design.plate_poisson, design.plate_density),
-                           (design.ball_modulus, design.ball_poisson, design.ball_density)):
-            speeds.append(np.sqrt(E * (1 - nu) / (rho * (1 + nu) * (1 - 2 * nu))))
-        h_min = 0.5 * min(h, t / layers)
+        h, L, r = (float(v) for v in (design.mesh_size, design.plate_half_length, design.impactor_radius))
+        layers = [(float(t), rho, E, nu) for t, rho, E, nu in design.layers]
+        if design.backing_thickness > 0:
+            layers.append((float(design.backing_thickness), BACKING_DENSITY, design.backing_modulus,
+                           BACKING_POISSON))
+        rows = [max(1.0, t / h) for t, *_ in layers]
+        rows[0] += max(0.0, 4.0 - sum(rows[:len(design.layers)]))  # at least 4 rows through the panel
+        if design.pen_tip_radius > 0:  # quarter disk at min(h, r / 3)
+            hb = min(h, r / 3.0)
+            impactor = np.pi * r * r / (4.0 * hb * hb) + 2.0 * r / hb + 1.0
+        else:
+            hb = h
+            impactor = np.pi * r * r / (2.0 * h * h) + 2.0 * r / h + 1.0
+        nodes = (L / h + 1.0) * (sum(rows) + 1.0) + impactor
+        speeds = [np.sqrt(E * (1 - nu) / (rho * (1 + nu) * (1 - 2 * nu))) for _, rho, E, nu in layers]
+        ball = np.sqrt(design.ball_modulus * (1 - design.ball_poisson) / (
+            design.ball_density * (1 + design.ball_poisson) * (1 - 2 * design.ball_poisson)))
         b1 = settings.bulk_viscosity
-        dt = settings.safety * h_min / max(speeds) * (np.sqrt(1 + b1 * b1) - b1)
+        # the Courant step of the fastest element: its half height over its material's wave speed
+        h_over_c = min([0.5 * min(h, t / n) / c for (t, *_), n, c in zip(layers, rows, speeds)] + [0.5 * hb / ball])
+        dt = settings.safety * h_over_c * (np.sqrt(1 + b1 * b1) - b1)
         substeps = (settings.frames - 1) * np.ceil(settings.frame_dt / dt)
         seconds = substeps * (SECONDS_PER_SUBSTEP + SECONDS_PER_NODE_SUBSTEP * nodes)
     return {"num_nodes": float(nodes), "substeps": float(substeps), "estimated_s": float(seconds)}
@@ -270,11 +456,9 @@ def simulate(design: Design, settings: Settings = Settings(), *, progress=None) 
     model = _model(design, settings, mesh)
     substeps = int(np.ceil(settings.frame_dt / stable_time_step(model, settings.safety)))
     dt = settings.frame_dt / substeps  # frames land exactly on substeps
-    fixed = np.zeros_like(X, dtype=bool)
-    fixed[mesh["node_type"] == SYMMETRIC, 0] = True
-    fixed[mesh["node_type"] == HANDLE] = True
     contact = PenaltyContact(X, cells, body, model.mass, dt, alpha=settings.penalty)
-    sim = CentralDifference(model, fixed, dt, contact=contact, gravity=settings.gravity)
+    sim = CentralDifference(model, fixed_dofs(mesh["node_type"]), dt, contact=contact, gravity=settings.gravity,
+                            rigid=(mesh["rigid"], design.pen_mass))
     v0 = np.zeros_like(X)
     v0[body == 1, 1] = -design.impact_speed
     sim.start(X, v0)
@@ -307,20 +491,49 @@ def simulate(design: Design, settings: Settings = Settings(), *, progress=None) 
     fields_ = dict(_static_fields(design, mesh), world_pos=world_pos, stress=stress)
     if peak is not None:
         fields_["stress_max"] = peak
-    attrs = {**asdict(design), "impact_speed": design.impact_speed, "formulation": settings.formulation}
+    attrs = {**asdict(design), "impact_speed": design.impact_speed, "formulation": settings.formulation,
+             "family": design.family}
     info = dict(wall_time=time.perf_counter() - start, cpu_time=time.process_time() - cpu_start, substeps=substeps * (T - 1), dt=dt, num_nodes=N,
                 num_cells=len(cells), energy=sim.energies())
     return dict(fields=fields_, attrs=attrs, info=info)
 
 
+def fixed_dofs(node_type: np.ndarray) -> np.ndarray:
+    """[N, 2] bool: the degrees of freedom a boundary condition holds: SYMMETRIC x (the axis), HANDLE x and y
+    (clamped), WALL_BOUNDARY y (a roller: the simply supported ring)."""
+    fixed = np.zeros((len(node_type), 2), dtype=bool)
+    fixed[node_type == SYMMETRIC, 0] = True
+    fixed[node_type == HANDLE] = True
+    fixed[node_type == WALL_BOUNDARY, 1] = True
+    return fixed
+
+
 def _static_fields(design: Design, mesh: dict) -> dict[str, np.ndarray]:
-    """The native-format static fields of a design's mesh: mesh_pos, cells, node_type, density, modulus."""
-    is_ball = mesh["body"] == 1
+    """The native-format static fields of a design's mesh: mesh_pos, cells, node_type, density, modulus.
+
+    A node's density and modulus are those of the softest cell it belongs to, so that a soft layer one element
+    thick is seen at both its faces. The pen's nodes carry the pen's effective density, its whole mass (tip and
+    rod) over the tip's volume: a learned model sees the rod only through it."""
+    rho_c, E_c, _ = cell_materials(design, mesh)
+    cells = mesh["cells"]
+    rank = np.lexsort((rho_c, E_c))  # cells from softest to stiffest
+    order = np.empty(len(rank), np.int64)
+    order[rank] = np.arange(len(rank))
+    node_rank = np.full(len(mesh["mesh_pos"]), len(rank), np.int64)
+    np.minimum.at(node_rank, cells.ravel(), np.repeat(order, 3))
+    softest = rank[node_rank]
+    density, modulus = rho_c[softest], E_c[softest]
+    if design.pen_tip_radius > 0:
+        tip = mesh["cell_body"] == 1
+        p = mesh["mesh_pos"][cells[tip]]
+        area = 0.5 * np.abs((p[:, 1, 0] - p[:, 0, 0]) * (p[:, 2, 1] - p[:, 0, 1])
+                            - (p[:, 1, 1] - p[:, 0, 1]) * (p[:, 2, 0] - p[:, 0, 0]))
+        volume = float(np.sum(2 * np.pi * p[:, :, 0].mean(1) * area))  # the revolved tip (axisymmetric)
+        density = np.where(mesh["body"] == 1, design.ball_density + design.pen_mass / volume, density)
     return dict(
-        mesh_pos=mesh["mesh_pos"].astype(np.float32), cells=mesh["cells"].astype(np.int32),
+        mesh_pos=mesh["mesh_pos"].astype(np.float32), cells=cells.astype(np.int32),
         node_type=mesh["node_type"].astype(np.int32)[:, None],
-        density=np.where(is_ball, design.ball_density, design.plate_density).astype(np.float32)[:, None],
-        modulus=np.where(is_ball, design.ball_modulus, design.plate_modulus).astype(np.float32)[:, None])
+        density=density.astype(np.float32)[:, None], modulus=modulus.astype(np.float32)[:, None])
 
 
 def initial_frames(design: Design, settings: Settings = Settings()) -> dict:
@@ -345,10 +558,11 @@ def initial_frames(design: Design, settings: Settings = Settings()) -> dict:
     x1 = x0.copy()
     ball = mesh["body"] == 1
     x1[ball, 1] -= fall
-    x1[~ball & (mesh["node_type"] != HANDLE), 1] -= 0.5 * g * dt * dt
+    x1[~ball & ~fixed_dofs(mesh["node_type"])[:, 1], 1] -= 0.5 * g * dt * dt
     fields_ = dict(_static_fields(design, mesh), world_pos=np.stack([x0, x1]).astype(np.float32),
                    stress=np.zeros((2, len(x0), 1), np.float32))
-    attrs = {**asdict(design), "impact_speed": design.impact_speed, "formulation": settings.formulation}
+    attrs = {**asdict(design), "impact_speed": design.impact_speed, "formulation": settings.formulation,
+             "family": design.family}
     return dict(fields=fields_, attrs=attrs)
 
 
@@ -387,15 +601,27 @@ def feature_spec(settings: Settings = Settings()) -> dict:
     }
 
 
-__all__ = ["Design", "Settings", "RANGES", "VARIANTS", "UNITS", "GRAVITY", "CONTACT_RADIUS", "sample_design",
-           "simulate", "initial_frames", "start_frames", "feature_spec", "design_mesh"]
+__all__ = ["Design", "Settings", "RANGES", "VARIANTS", "FAMILIES", "MATERIALS", "UNITS", "GRAVITY",
+           "CONTACT_RADIUS", "sample_design", "family_ranges", "parse_stack", "design_from_attrs", "simulate", "initial_frames", "start_frames", "feature_spec", "design_mesh"]
 
 
 DESIGN_KEYS = tuple(f.name for f in fields(Design))
+#: the first scene's parameters (thickness .. gap): every hcmt Impact Plate dataset has them; the families' came later
+FIRST_SCENE_KEYS = DESIGN_KEYS.index("gap") + 1
 #: the unit of each design parameter (meta.json's units: mm, g, MPa)
 DESIGN_UNITS = {"thickness": "mm", "drop_height": "mm", "plate_density": "g/mm^3", "plate_modulus": "MPa",
                 "plate_poisson": "-", "ball_radius": "mm", "ball_density": "g/mm^3", "ball_modulus": "MPa",
-                "ball_poisson": "-", "mesh_size": "mm", "plate_half_length": "mm", "gap": "mm"}
+                "ball_poisson": "-", "mesh_size": "mm", "plate_half_length": "mm", "gap": "mm",
+                **{f"layer{k}_{m}": u for k in (2, 3, 4) for m, u in (("thickness", "mm"), ("density", "g/mm^3"),
+                                                                     ("modulus", "MPa"), ("poisson", "-"))},
+                "support_radius": "mm", "backing_thickness": "mm", "backing_modulus": "MPa", "pen_tip_radius": "mm",
+                "pen_mass": "g"}
+
+
+def design_from_attrs(attrs: dict) -> Design:
+    """The :class:`Design` of a trajectory's attributes; parameters a dataset made before they existed take their
+    default (the first scene's: no layers under the top one, clamped, the ball)."""
+    return Design(**{k: float(attrs[k]) for k in DESIGN_KEYS if k in attrs})
 
 
 def middle_design(meta: dict | None, ranges: dict[str, tuple[float, float]] | None = None) -> Design:

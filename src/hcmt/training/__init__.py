@@ -16,7 +16,7 @@ from hcmt.training.trainer import Trainer
 
 def train(config, data, model: str, out, *, overrides=None, resume: bool = False, overwrite: bool = False,
           ablation: str | None = None, seed: int = 0, device: str | None = None, progress: bool = True,
-          stop_at: int | None = None) -> dict:
+          stop_at: int | None = None, init: str | None = None, init_normalizers: str = "keep") -> dict:
     """Train ``model`` (``hcmt``, ``mgn``, ``gt``) on the native dataset ``data`` into the run folder ``out``;
     returns the training summary (final loss, steps, ms per step, best validation metric); :meth:`hcmt.Run.load`
     (``out``) gives the trained model.
@@ -26,7 +26,11 @@ def train(config, data, model: str, out, *, overrides=None, resume: bool = False
     starts afresh (otherwise a folder holding a run is refused). ``stop_at`` ends this call after that global step
     (checkpointed), as an interruption would. The run folder is locked while training (a second process writing
     the same ``out`` is refused at once), and a run that fails before its first checkpoint leaves nothing
-    behind."""
+    behind.
+
+    ``init`` (a run folder or ``pretrained:NAME``) starts from that model's weights (fine-tuning; its constructor
+    arguments must equal this run's, else one line lists what differs); ``init_normalizers`` ``keep`` freezes its
+    normalizer statistics, ``reaccumulate`` zeroes them and accumulates them on ``data``. run.yaml records it."""
     if resume and overwrite:
         raise ValueError("hcmt.train: resume=True and overwrite=True contradict each other; choose one")
     model = str(model).lower()
@@ -45,7 +49,7 @@ def train(config, data, model: str, out, *, overrides=None, resume: bool = False
     def run() -> dict:
         with deterministic_scope():  # train.deterministic holds for this run only
             return Trainer(cfg, data, model, out, ablation=ablation, seed=seed, resume=resume, device=device,
-                           progress=progress).run(stop_at)
+                           progress=progress, init=init, init_normalizers=init_normalizers).run(stop_at)
 
     if int(os.environ.get("RANK", 0)) != 0:  # torchrun's other ranks: rank 0 owns the folder
         return run()

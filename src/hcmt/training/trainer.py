@@ -46,8 +46,8 @@ from tqdm import tqdm
 from hcmt.config import check_train_config, complete_config
 from hcmt.data.format import atomic_path, read_meta
 from hcmt.inference.evaluate import validation_rmse
-from hcmt.inference.run import RunFolder, read_checkpoint
-from hcmt.models import checkpoint_state, make_model, resolve_device, uses_hierarchy
+from hcmt.inference.run import Run, RunFolder, read_checkpoint
+from hcmt.models import Normalizer, checkpoint_state, make_model, resolve_device, uses_hierarchy
 from hcmt.models.base import compile_simulator
 from hcmt.physics.adapters import config_adapter, model_args, noise_gamma
 from hcmt.physics.frames import step_seed
@@ -60,13 +60,32 @@ from hcmt.training.schedule import keras_epsilon, learning_rate
 logger = logging.getLogger("hcmt.train")  # rank-zero messages (hcmt.training.runtime.rank_zero_logging)
 
 
+#: ``init_normalizers``: a fine-tuned run keeps its source's normalizer statistics, frozen (the few runs of a new
+#: family make poor statistics), or zeroes them and accumulates them afresh on its own data
+INIT_NORMALIZERS = ("keep", "reaccumulate")
+
+
+def init_source(init: str, args: dict) -> Run:
+    """The model a run starts from (a run folder's best checkpoint or ``pretrained:NAME``), refused in one line
+    listing what differs when its constructor arguments (architecture, feature widths) are not this run's."""
+    source = Run.load(init, "cpu")
+    theirs = source.info["model"]
+    differ = [f"{k} {theirs.get(k)!r} there, {args.get(k)!r} here" for k in sorted(set(theirs) | set(args))
+              if theirs.get(k) != args.get(k)]
+    if differ:
+        raise ValueError(f"--init {init}: its model differs from this run's: {'; '.join(differ)}; fine-tuning needs "
+                         "the same model, architecture and feature widths (use its config: --config and --set as it "
+                         "was trained)")
+    return source
+
+
 class Trainer:
     """One training run in four parts a reader can follow: :meth:`__init__` (setup: config, run folder, model,
     data, optimizer, resume), :meth:`step` (one optimizer step on one batch), :meth:`validate` (validation
     rollouts, best.pt) and :meth:`save` (checkpoints); :meth:`run` loops over them."""
 
     def __init__(self, cfg: dict, data, model_name: str, out: Path, *, ablation, seed: int, resume: bool, device,
-                 progress: bool):
+                 progress: bool, init: str | None = None, init_normalizers: str = "keep"):
         self.rank, self.world = distributed()
         self.device = resolve_device(device) if device else (
             torch.device(f"cuda:{self.rank}") if torch.cuda.is_available() else torch.device("cpu"))
@@ -88,6 +107,20 @@ class Trainer:
             raise ValueError(f"{out} already holds a run; pass --resume to continue it or choose another --out")
         run = {"model": self.args, "config": cfg, "data": str(Path(data).resolve()), "seed": seed,
                "world_size": self.world}
+        if init_normalizers not in INIT_NORMALIZERS:
+            raise ValueError(f"init_normalizers must be one of {', '.join(INIT_NORMALIZERS)}, got {init_normalizers!r}")
+        if resume and init is not None:
+            raise ValueError("--init starts a run from another model's weights and --resume continues a run (whose "
+                             "run.yaml remembers its --init); give one of them")
+        source, started_from = None, None
+        if resume and self.folder.info is not None and init is None:  # the checkpoint holds the weights already
+            started_from = self.folder.info.get("init")
+        elif init is not None:
+            source = init_source(init, self.args)  # refused before anything is written
+            started_from = {"from": source.source, "normalizers": init_normalizers,
+                            "step": int(source.checkpoint_step)}
+        if started_from:
+            run["init"] = started_from
         if resume and self.folder.info is not None:
             check_resume(self.folder.info, run, out)
         if self.rank == 0:
@@ -106,6 +139,16 @@ class Trainer:
             torch.backends.cudnn.benchmark = False
         torch.manual_seed(seed)  # parameter initialization
         self.model = make_model(self.args).to(self.device)
+        # fine-tuning from another model's weights: its normalizers kept (frozen) or re-accumulated on this data
+        self.frozen_normalizers = bool(started_from) and started_from["normalizers"] == "keep"
+        if source is not None and not resume:
+            self.model.load_state_dict(source.model.state_dict())
+            if init_normalizers == "reaccumulate":
+                for m in self.model.modules():
+                    if isinstance(m, Normalizer):
+                        for b in m.buffers():
+                            b.zero_()
+        self.normalizer_steps = 0 if self.frozen_normalizers else int(tc["normalizer_steps"])
         self.model.checkpoint_blocks = tc["checkpoint_blocks"]  # memory for recomputation
         self.bf16 = tc["precision"] == "bf16"  # autocast forward and loss in bfloat16
         levels, remesh = uses_hierarchy(self.args)
@@ -169,12 +212,12 @@ class Trainer:
         return mask.sum().clamp_min(1.0)
 
     def _epsilon_hat(self) -> float:
-        t = self.step_count - int(self.tc["normalizer_steps"]) + 1  # this optimizer step, 1-based
+        t = self.step_count - self.normalizer_steps + 1  # this optimizer step, 1-based
         return keras_epsilon(float(self.tc["adam_epsilon"] or 1e-7), self.opt.param_groups[0]["betas"][1], t)
 
     def _pushforward_probability(self) -> float:
         """``train.pushforward`` from ``train.pushforward_start`` on (and never while only the normalizers learn)."""
-        start = max(self.pushforward_start, int(self.tc["normalizer_steps"]))
+        start = max(self.pushforward_start, self.normalizer_steps)
         return self.pushforward if self.step_count >= start else 0.0
 
     def learning_rate(self, step: int) -> float:
@@ -187,13 +230,13 @@ class Trainer:
         """One training step (normalizer statistics only during the first ``normalizer_steps``): (loss, lr)."""
         torch.manual_seed(step_seed(self.seed, self.step_count, self.rank))  # global draws (LPE sign flips)
         graph, tgt, mask = graph.to(self.device), tgt.to(self.device), mask.to(self.device)
-        tc, warmup = self.tc, self.step_count < int(self.tc["normalizer_steps"])
+        tc, warmup = self.tc, self.step_count < self.normalizer_steps
         # the authors' loop (run_model.py) accumulates only the node normalizer while warming up
-        accumulate = not (warmup and tc["normalizer_warmup"] == "nodes")
+        accumulate = not (warmup and tc["normalizer_warmup"] == "nodes") and not self.frozen_normalizers
         with torch.autocast(self.device.type, dtype=torch.bfloat16, enabled=self.bf16):
-            if not accumulate:
+            if not accumulate and not self.frozen_normalizers:
                 self.model.node_normalizer.accumulate(graph.node_features, graph.node_mask)
-            elif tc["mesh_edges_twice"] and graph.level_edges:  # the authors' HCMT: level 0 twice
+            elif accumulate and tc["mesh_edges_twice"] and graph.level_edges:  # the authors' HCMT: level 0 twice
                 self.model.mesh_normalizer.accumulate(graph.mesh_features, graph.mesh_mask)
             if self.pad is None:
                 pred = self.net(graph, accumulate=accumulate)

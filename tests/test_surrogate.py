@@ -2,6 +2,7 @@
 calls: a GP that recovers a known law, JSON storage without pickle, refused files, answers side by side, calls that
 pass only below the trusted interval, ``--verify auto``, no ghost peak."""
 import json
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -11,7 +12,7 @@ from hcmt.design import predict as pr
 from hcmt.design import readout as ro
 from hcmt.design.surrogate import Surrogate, SurrogateError
 from hcmt.inference.run import Run
-from hcmt.sim.scene import Design, Settings, sample_design, simulate
+from hcmt.sim.scene import DESIGN_KEYS, FIRST_SCENE_KEYS, Design, Settings, sample_design, simulate
 from hcmt.training import train
 
 FRAMES = 8
@@ -366,3 +367,50 @@ def test_numbers_no_float_holds_are_refused_too(tmp_path, damage):
 def test_json_output_is_standard_json():
     assert pr.finite({"a": float("nan"), "b": [1.0, float("inf")], "c": "x"}) == {"a": None, "b": [1.0, None],
                                                                                   "c": "x"}
+
+
+def test_zero_valued_family_parameters_enter_linearly_and_other_families_are_not_taken(tmp_path):
+    """A mix of mono and ring designs: support_radius is 0 for half of them, so it enters linearly (log(0) would
+    be -inf) and the fit is finite; a law that jumps with the ring is learned; a pen design (pen_tip_radius held
+    at 0 over the training designs) is named by cannot_take, and the JSON round trip keeps the linear inputs."""
+    rng = np.random.default_rng(4)
+    designs = [sample_design(rng, "small", family=("mono", "ring")[i % 2]) for i in range(60)]
+
+    def ring_law(d):
+        return {q: v * (1.5 if d.support_radius > 0 else 1.0) for q, v in law(d).items()}
+
+    answers = {q: [ring_law(d)[q] for d in designs] for q in law(designs[0])}
+    s = Surrogate.fit(designs, answers, restarts=1)
+    assert "support_radius" in s.linear and "thickness" not in s.linear
+    held = [sample_design(rng, "small", family=f) for f in ("mono", "ring") * 5]
+    err = [abs(o["peak_plate_stress_mpa"].mean / ring_law(d)["peak_plate_stress_mpa"] - 1)
+           for o, d in zip(s.predict(held), held)]
+    assert np.median(err) < 0.05
+    pen = sample_design(rng, "small", family="pen")
+    assert set(s.cannot_take(pen)) == {"pen_tip_radius", "pen_mass"}
+    assert s.cannot_take(held[1]) == []
+    back = Surrogate.load(s.save(tmp_path / "s.json"))
+    assert back.linear == s.linear
+    np.testing.assert_allclose(back.predict(held)[3]["peak_plate_stress_mpa"].mean,
+                               s.predict(held)[3]["peak_plate_stress_mpa"].mean, rtol=1e-9)
+
+
+def test_a_surrogate_of_the_first_scene_cannot_take_family_parameters():
+    """The shipped surrogate was fitted before the families: their parameters count as held at the default."""
+    s, designs = fitted(20)
+    first = {k: v for k, v in s.fixed.items() if k in DESIGN_KEYS[:FIRST_SCENE_KEYS]}
+    old = Surrogate(s.parameters, first, s.X, s.Y, s.kernels)  # as a surrogate stored before the families
+    for sur in (s, old):
+        assert sur.cannot_take(replace(designs[0], pen_tip_radius=0.8)) == ["pen_tip_radius"]
+        assert sur.cannot_take(replace(designs[0], layer2_thickness=0.1)) == ["layer2_thickness"]
+        assert sur.cannot_take(designs[1]) == []
+
+
+def test_few_designs_fit_only_when_not_strict():
+    rng = np.random.default_rng(2)
+    designs = [sample_design(rng, "small") for _ in range(5)]
+    answers = {q: [law(d)[q] for d in designs] for q in law(designs[0])}
+    with pytest.raises(ValueError, match="at least parameters \\+ 2"):
+        Surrogate.fit(designs, answers)
+    s = Surrogate.fit(designs, answers, strict=False, restarts=0)
+    assert s.underdetermined and np.isfinite(s.predict(designs[:1])[0]["peak_plate_stress_mpa"].mean)

@@ -467,3 +467,46 @@ def test_pad_sizes_from_the_hierarchies_equal_those_of_the_frames_graphs(impact)
     assert graphs[0].num_levels == 1
     for batch in (1, 3):
         assert pad_sizes(ds, batch) == PadSizes.of(graphs, batch)
+
+
+# -- fine-tuning: train --init ---------------------------------------------------------------------------------------
+def _normalizer_buffers(model) -> dict:
+    from hcmt.models import Normalizer
+    return {f"{n}.{b}": t.clone() for n, m in model.named_modules() if isinstance(m, Normalizer)
+            for b, t in m.named_buffers()}
+
+
+def test_init_starts_from_the_source_weights_and_keeps_or_reaccumulates_normalizers(impact, tmp_path, tiny_config):
+    """``init``: step 0 of the new run holds the source's parameters exactly (a 0-step run is refused, so one step
+    with lr 1e-30, below float32 resolution, shows it); ``keep`` leaves the source's normalizer statistics untouched through training;
+    ``reaccumulate`` zeroes them and counts afresh; run.yaml records the source."""
+    src = tmp_path / "src"
+    train(tiny_config(*EXTRA, "train.steps=4"), impact, "hcmt", src, seed=1, progress=False)
+    source = Run.load(src, "cpu").model
+    frozen = tmp_path / "frozen"
+    train(tiny_config(*EXTRA, "train.steps=3", "train.lr=1e-30", "train.lr_final=1e-30", "train.pushforward=0"), impact,
+          "hcmt", frozen, seed=2, progress=False, init=str(src))
+    tuned = load_run(frozen, "checkpoint")[0]
+    for (k, a), b in zip(source.state_dict().items(), tuned.state_dict().values()):
+        torch.testing.assert_close(a, b, rtol=0, atol=0, msg=k)  # no step and frozen statistics: nothing moved
+    assert load_run(frozen, "checkpoint")[1]["init"] == {"from": str(src), "normalizers": "keep", "step": 3}
+    fresh = tmp_path / "fresh"
+    train(tiny_config(*EXTRA, "train.steps=3"), impact, "hcmt", fresh, seed=2, progress=False, init=str(src),
+          init_normalizers="reaccumulate")
+    counts_src = {k: float(v) for k, v in _normalizer_buffers(source).items() if k.endswith("num_accumulations")}
+    counts_new = {k: float(v) for k, v in _normalizer_buffers(load_run(fresh, "checkpoint")[0]).items()
+                  if k.endswith("num_accumulations")}
+    assert all(counts_new[k] < counts_src[k] for k in counts_src if counts_src[k] > 3)  # started again from zero
+
+
+def test_init_with_another_architecture_is_one_line_listing_the_differences(impact, tmp_path, tiny_config, capsys):
+    train(tiny_config(*EXTRA, "train.steps=2"), impact, "hcmt", tmp_path / "src", seed=1, progress=False)
+    rc = cli(["train", "--config", "impact_plate_cpu", "--data", str(impact), "--model", "hcmt", "--out",
+              str(tmp_path / "b"), "--steps", "2", "--init", str(tmp_path / "src"), "--no-progress",
+              *(a for kv in TINY + EXTRA + ["model.hidden=16"] for a in ("--set", kv))])
+    err = capsys.readouterr().err.strip()
+    assert rc == 2 and len(err.splitlines()) == 1
+    assert "its model differs from this run's: hidden" in err and "16 here" in err
+    assert not (tmp_path / "b").exists()
+    rc = cli(["train", "--out", str(tmp_path / "src"), "--resume", "--init", str(tmp_path / "src")])
+    assert rc == 2 and "give one of them" in capsys.readouterr().err

@@ -15,7 +15,7 @@ from hcmt.design import predict as pr
 from hcmt.design import sweep as sw
 from hcmt.design.surrogate import run_surrogate_path
 from hcmt.inference.run import Run, available_pretrained
-from hcmt.sim.scene import DESIGN_UNITS, design_key
+from hcmt.sim.scene import DESIGN_UNITS, FAMILIES, describe_family, design_key
 
 
 # -- shared options ------------------------------------------------------------------------------------------------
@@ -201,6 +201,14 @@ def configure_models(p: argparse.ArgumentParser) -> None:
     p.add_argument("--json", action="store_true", help="print the model cards as JSON")
 
 
+def trained_families(meta: dict | None) -> dict[str, int]:
+    """The design families of a model's training split and their counts (``mono`` for data made before them)."""
+    listed = ((meta or {}).get("families") or {}).get("train")
+    if listed is None:
+        listed = ["mono"] * int((((meta or {}).get("generator") or {}).get("counts") or {}).get("train", 0))
+    return {k: listed.count(k) for k in dict.fromkeys(listed)}
+
+
 def main_models(args: argparse.Namespace) -> int:
     shipped = available_pretrained()
     if not shipped:
@@ -215,6 +223,7 @@ def main_models(args: argparse.Namespace) -> int:
         cards[name] = {"file": str(path), "size_mb": path.stat().st_size / 1e6, **run.card,
                        "window": {"frames": settings.frames, "frame_dt_ms": settings.frame_dt},
                        "surrogate": str(surrogate) if surrogate is not None and surrogate.is_file() else None,
+                       "families": trained_families(run.meta),
                        "design_parameters": {k: {"training_range": list(run.ranges[k]) if k in run.ranges else None,
                                                  "default": getattr(defaults, k), "unit": DESIGN_UNITS[k]}
                                              for k in pr.DESIGN_KEYS}}
@@ -230,9 +239,15 @@ def main_models(args: argparse.Namespace) -> int:
             rng = d["training_range"]
             trained = "not varied in training" if rng is None or rng[0] == rng[1] else f"trained {rng[0]:.6g} .. {rng[1]:.6g}"
             print(f"    {k:<18} {d['unit']:<7} default {d['default']:<10.6g} {trained}")
+        print("  trained on the families " + ", ".join(f"{k} ({n})" for k, n in c["families"].items())
+              + f"; the generator's families (hcmt generate --family): {', '.join(FAMILIES)}; a design of another "
+              "family is outside its training and warned as such")
         print(f"  response surface beside it: {c['surrogate'] or 'none'}")
         if c.get("confidence"):
             print("  measured error by region (docs/MODELS.md): "
                   + "; ".join(f"{r['label']}: peak plate stress median {r['peak_plate_stress_error_pct_median']:.1f} %"
                               for r in c["confidence"]))
+    print("panel families (hcmt generate --family; docs/solver.md, \"Panel families\", has the validated ranges):")
+    for k in FAMILIES:
+        print(f"  {k:<8} {describe_family(k)}")
     return 0

@@ -32,7 +32,7 @@ def summarize(dataset_dir: str | Path) -> str:
             if len(s) == 0:
                 lines.append(f"  split {split}: 0 trajectories")
                 continue
-            nodes, types, params = [], np.zeros(len(NodeType), dtype=np.int64), {}
+            nodes, types, params, families = [], np.zeros(len(NodeType), dtype=np.int64), {}, {}
             steps: dict[str, dict[str, list[np.ndarray]]] = {}
             for i in range(len(s)):
                 f = s[i]  # validated: shapes, dtypes, finite values, cell indices, node types
@@ -42,6 +42,8 @@ def summarize(dataset_dir: str | Path) -> str:
                 for k, v in s.attrs(i).items():
                     if isinstance(v, (int, float, np.number)):
                         params.setdefault(k, []).append(float(v))
+                    elif k == "family":  # the design family of a generated panel (hcmt.sim.scene.FAMILIES)
+                        families[str(v)] = families.get(str(v), 0) + 1
                 for field in position_fields(meta):
                     d = np.linalg.norm(np.diff(np.asarray(f[field], np.float64), axis=0), axis=-1)  # [T-1, N]
                     for t in np.unique(nt):
@@ -51,6 +53,8 @@ def summarize(dataset_dir: str | Path) -> str:
                          f"{nodes.min()}/{nodes.mean():.1f}/{nodes.max()}")
             lines.append("    node types (total over trajectories): "
                          + ", ".join(f"{t.name} {types[t]}" for t in NodeType if types[t]))
+            if families:
+                lines.append("    families: " + ", ".join(f"{k} {n}" for k, n in sorted(families.items())))
             for k, v in params.items():
                 lines.append(f"    {k:<14} {min(v):.6g} .. {max(v):.6g}")
             lines += displacement_lines(steps, meta.get("units", {}).get("length", ""))

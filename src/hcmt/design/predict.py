@@ -31,7 +31,7 @@ from hcmt.design.surrogate import Surrogate, for_run, side_by_side
 from hcmt.inference.metrics import format_physics, impact_metrics, plate_mask, rollout_rmse, summarize_impact
 from hcmt.inference.rollout import rollout_batch
 from hcmt.physics.trajectory import prepare_trajectory
-from hcmt.sim.scene import (DESIGN_KEYS, EDGES, MAX_ESTIMATED_SECONDS, Design, Settings, check_size,
+from hcmt.sim.scene import (DESIGN_KEYS, EDGES, FIRST_SCENE_KEYS, MAX_ESTIMATED_SECONDS, Design, Settings, check_size,
                             middle_design, parse_design, parse_number, simulate, start_frames, validated_warnings)
 from hcmt.viz.contours import plot_contours
 from hcmt.viz.rollouts import Case, Series
@@ -134,10 +134,21 @@ def check_name(name: str, where: str) -> str:
     return name
 
 
+def with_family_defaults(ranges: dict[str, tuple[float, float]]) -> dict[str, tuple[float, float]]:
+    """Training ranges with every panel-family parameter they do not name held at its default (a model trained
+    before the families existed learned the first scene only); empty ranges stay empty (nothing known)."""
+    if not ranges:
+        return ranges
+    first = {k: (v, v) for k, v in asdict(Design()).items() if k in DESIGN_KEYS[FIRST_SCENE_KEYS:]}
+    return {**first, **ranges}
+
+
 def outside(design: Design, ranges: dict[str, tuple[float, float]]) -> list[str]:
-    """The design parameters outside ``ranges`` (relative tolerance 1e-6)."""
+    """The design parameters outside ``ranges`` (relative tolerance 1e-6). A panel-family parameter that
+    ``ranges`` do not name (a model trained before the families existed) counts as held at its default, the
+    first scene's: one clamped layer struck by the ball."""
     out = []
-    for key, (lo, hi) in ranges.items():
+    for key, (lo, hi) in with_family_defaults(ranges).items():
         tol = 1e-6 * max(abs(lo), abs(hi), 1e-12)
         if key in DESIGN_KEYS and not lo - tol <= getattr(design, key) <= hi + tol:
             out.append(key)
@@ -148,6 +159,7 @@ def range_warnings(design: Design, ranges: dict[str, tuple[float, float]],
                    what: str = "the model's training data") -> list[str]:
     """One line per parameter outside the training data's range (:func:`outside`)."""
     out = []
+    ranges = with_family_defaults(ranges)
     for key in outside(design, ranges):
         lo, hi = ranges[key]
         span = f"{lo:.6g}" if lo == hi else f"{lo:.6g} .. {hi:.6g}"
@@ -309,7 +321,12 @@ def check_designs(run, designs: list[tuple[str, Design]], *, batch: int = 8, ver
     notes = [note] if note else []
     cost_check(run, designs, settings, bool(verify), force)
     intervals = surrogate.predict([d for _, d in designs]) if surrogate is not None else None
-    ends = [iv["contact_end_ms"].hi if "contact_end_ms" in iv else None for iv in intervals] if intervals else None
+    # a design with a parameter the surrogate's training designs held fixed (another family): no surrogate answer
+    cannot = [surrogate.cannot_take(d) if surrogate is not None else [] for _, d in designs]
+    if intervals is not None:
+        intervals = [None if c else iv for iv, c in zip(intervals, cannot)]
+    ends = [iv["contact_end_ms"].hi if iv and "contact_end_ms" in iv else None for iv in intervals] \
+        if intervals else None
     t0 = time.perf_counter()
     preds = predict(run, designs, batch=batch, progress=progress, compile=compile, readout=readout,
                     contact_end_ms=ends)
@@ -318,7 +335,11 @@ def check_designs(run, designs: list[tuple[str, Design]], *, batch: int = 8, ver
         p.summary["model"] = run.source
         p.summary["warnings"] = range_warnings(p.design, run.ranges)
         p.summary["confidence"] = confidence(p.design, run)
-        if intervals is not None:
+        if cannot[i]:
+            p.summary["warnings"].append(
+                f"the response surface cannot take {', '.join(cannot[i])} (held fixed over its training designs: "
+                "another design family); no surrogate answer for this design, the call trusts the model's band")
+        if intervals is not None and intervals[i] is not None:
             p.summary.update(side_by_side(p.summary, intervals[i]))
             # a user's own surrogate has its own training ranges: warn for a parameter outside them too
             own = set(outside(p.design, run.ranges))

@@ -153,7 +153,10 @@ class Surrogate:
     def cannot_take(self, design: Design) -> list[str]:
         """The parameters of ``design`` the surfaces cannot take at all: held fixed over every training design
         but different here (a layer, support or impactor the training family never had)."""
-        return [k for k, v in self.fixed.items() if not np.isclose(getattr(design, k), v, rtol=1e-9, atol=1e-12)]
+        default = Design()  # a surrogate fitted before the panel families: their parameters held at the default
+        held = {**{k: getattr(default, k) for k in DESIGN_KEYS if k not in self.fixed and k not in self.parameters},
+                **self.fixed}
+        return [k for k, v in held.items() if not np.isclose(getattr(design, k), v, rtol=1e-9, atol=1e-12)]
 
     def matrix(self, designs: list[Design]) -> np.ndarray:
         return np.array([[getattr(d, k) for k in self.parameters] for d in designs], np.float64).reshape(

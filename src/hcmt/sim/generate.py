@@ -26,7 +26,7 @@ from hcmt.config import plural
 from hcmt.data.errors import DatasetError
 from hcmt.data.format import make_meta, read_meta, write_meta, write_split
 from hcmt.sim.scene import (CONTACT_RADIUS, DESIGN_UNITS, FAMILIES, MATERIALS as _MATERIALS, MAX_ESTIMATED_SECONDS, RANGES, RELATIVE, UNITS,
-                            VARIANTS, Design, Settings, family_ranges, feature_spec, parse_stack, plan, sample_design,
+                            VARIANTS, Design, Settings, describe_family, family_ranges, feature_spec, parse_stack, plan, sample_design,
                             simulate, validated_warnings)
 
 #: Split names and their stable codes in the per-trajectory seed.
@@ -260,17 +260,9 @@ def configure_generate(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--workers", type=int, default=1, help="worker processes (default 1)")
     parser.add_argument("--family", default="mono", metavar="F[,F...]",
                         help="design families, taking each split's trajectories in turn: "
-                             + "; ".join(f"{k}: {_family_help(k)}" for k in FAMILIES) + " (default mono)")
+                             + "; ".join(f"{k}: {describe_family(k)}" for k in FAMILIES) + " (default mono)")
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
     _settings_arguments(parser)
-
-
-def _family_help(family: str) -> str:
-    ranges = FAMILIES[family]
-    if not ranges:
-        return "the first scene, one clamped layer struck by the ball"
-    return ", ".join(f"{k} {lo:g}-{hi:g}{' x plate_half_length' if k in RELATIVE else ' ' + DESIGN_UNITS[k]}"
-                     for k, (lo, hi) in ranges.items())
 
 
 def main_generate(args) -> int:

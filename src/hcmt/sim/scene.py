@@ -126,12 +126,12 @@ class Design:
                 if k > 2 and not getattr(self, f"layer{k - 1}_thickness") > 0:
                     raise ValueError(f"layer{k}_thickness is set but layer{k - 1}_thickness is 0: layers stack "
                                      "from the top without gaps")
-                check_material(f"layer{k}", *(getattr(self, f"layer{k}_{m}") for m in ("density", "modulus",
-                                                                                       "poisson")))
                 nu = getattr(self, f"layer{k}_poisson")
                 if not 0 <= nu <= MAX_LAYER_POISSON:
                     raise ValueError(f"layer{k}_poisson must be in [0, {MAX_LAYER_POISSON}] (near 0.5 the linear "
                                      f"triangles lock volumetrically), got {nu}")
+                check_material(f"layer{k}", *(getattr(self, f"layer{k}_{m}") for m in ("density", "modulus",
+                                                                                       "poisson")))
         if self.gap >= CONTACT_RADIUS:
             raise ValueError(f"gap ({self.gap} mm) must be smaller than the contact radius {CONTACT_RADIUS} mm so the "
                              "first frame already sees the ball near the plate")
@@ -260,6 +260,15 @@ def family_ranges(preset: str = "small", family: str = "mono", variant: str | No
     if variant is not None and variant not in VARIANTS:
         raise ValueError(f"unknown variant {variant!r}; expected one of {sorted(VARIANTS)}")
     return {**RANGES[preset], **FAMILIES[family], **(VARIANTS[variant] if variant else {})}
+
+
+def describe_family(family: str) -> str:
+    """One line: what a family varies beyond the preset's ranges, with units (``--help``, ``hcmt models``)."""
+    ranges = FAMILIES[family]
+    if not ranges:
+        return "the first scene, one clamped layer struck by the ball"
+    return ", ".join(f"{k} {lo:g}-{hi:g}{' x plate_half_length' if k in RELATIVE else ' ' + DESIGN_UNITS[k]}"
+                     for k, (lo, hi) in ranges.items())
 
 
 def sample_design(rng: np.random.Generator, preset: str = "small", variant: str | None = None,
@@ -437,6 +446,24 @@ def plan(design: Design, settings: Settings = Settings()) -> dict:
             "estimated_s": substeps * (SECONDS_PER_SUBSTEP + SECONDS_PER_NODE_SUBSTEP * n)}
 
 
+def solver(design: Design, settings: Settings = Settings()) -> tuple[CentralDifference, dict, int]:
+    """The solver of a design, started: (the integrator at t = 0 with the impactor at ``v0``, the mesh
+    (:func:`design_mesh`), substeps per frame). Boundary conditions :func:`fixed_dofs`, the pen's rod
+    ``rigid``, penalty contact between the plate and the impactor."""
+    mesh = design_mesh(design)
+    X, cells, body = mesh["mesh_pos"], mesh["cells"], mesh["body"]
+    model = _model(design, settings, mesh)
+    substeps = int(np.ceil(settings.frame_dt / stable_time_step(model, settings.safety)))
+    dt = settings.frame_dt / substeps  # frames land exactly on substeps
+    contact = PenaltyContact(X, cells, body, model.mass, dt, alpha=settings.penalty)
+    sim = CentralDifference(model, fixed_dofs(mesh["node_type"]), dt, contact=contact, gravity=settings.gravity,
+                            rigid=(mesh["rigid"], design.pen_mass))
+    v0 = np.zeros_like(X)
+    v0[body == 1, 1] = -design.impact_speed
+    sim.start(X, v0)
+    return sim, mesh, substeps
+
+
 def simulate(design: Design, settings: Settings = Settings(), *, progress=None) -> dict:
     """Simulate one design. Returns ``fields`` (the native-format arrays: mesh_pos, cells, node_type, density,
     modulus static; world_pos [T,N,2], stress [T,N,1] dynamic; float32/int32), ``attrs`` (the design parameters,
@@ -451,17 +478,8 @@ def simulate(design: Design, settings: Settings = Settings(), *, progress=None) 
     settings.validate()
     check_size(design, settings)
     start, cpu_start = time.perf_counter(), time.process_time()
-    mesh = design_mesh(design)
-    X, cells, body = mesh["mesh_pos"], mesh["cells"], mesh["body"]
-    model = _model(design, settings, mesh)
-    substeps = int(np.ceil(settings.frame_dt / stable_time_step(model, settings.safety)))
-    dt = settings.frame_dt / substeps  # frames land exactly on substeps
-    contact = PenaltyContact(X, cells, body, model.mass, dt, alpha=settings.penalty)
-    sim = CentralDifference(model, fixed_dofs(mesh["node_type"]), dt, contact=contact, gravity=settings.gravity,
-                            rigid=(mesh["rigid"], design.pen_mass))
-    v0 = np.zeros_like(X)
-    v0[body == 1, 1] = -design.impact_speed
-    sim.start(X, v0)
+    sim, mesh, substeps = solver(design, settings)
+    model, X, cells, dt = sim.model, mesh["mesh_pos"], mesh["cells"], sim.dt
     T, N = settings.frames, len(X)
     world_pos = np.empty((T, N, 2), np.float32)
     stress = np.empty((T, N, 1), np.float32)

@@ -69,6 +69,7 @@ def test_two_material_stack_static_deflection_matches_laminate_theory():
     r, w = mid_surface(mesh, u, a / 2, 0.8)
     D = laminate_rigidity(layers)
     theory = 1.0 / (16 * np.pi * D) * (a * a - r * r + 2 * r * r * np.log(r / a))
+    print(f"\nlaminate: w(a/2) {-w:.5g} mm, theory {theory:.5g} mm ({-w / theory - 1:+.2%})")  # docs/solver.md
     assert -w == pytest.approx(theory, rel=0.03)
     glass_only = laminate_rigidity([(0.4, 70e3, nu), (0.4, 70e3, nu)])
     assert abs(glass_only / D - 1) > 0.3  # the laminate's rigidity is measurably not the glass plate's
@@ -89,6 +90,7 @@ def test_simply_supported_ring_centre_deflection_matches_timoshenko():
     r, w = mid_surface(mesh, u, a / 2, t)
     _, w_ring = mid_surface(mesh, u, a, t)
     theory = 1.0 / (16 * np.pi * D) * ((3 + nu) / (1 + nu) * (a * a - r * r) + 2 * r * r * np.log(r / a))
+    print(f"\nring: w(a/2) {-(w - w_ring):.5g} mm, Timoshenko {theory:.5g} mm ({-(w - w_ring) / theory - 1:+.2%})")
     assert -(w - w_ring) == pytest.approx(theory, rel=0.03)
     clamped = 1.0 / (16 * np.pi * D) * (a * a - r * r + 2 * r * r * np.log(r / a))
     assert theory / clamped > 1.5
@@ -118,6 +120,8 @@ def test_stack_of_one_material_equals_the_plate():
     assert layer_rows([0.45, 0.45], 0.3) == [2, 2] and layer_rows([0.6, 0.3], 0.3) == [3, 1]
     assert layer_rows([0.9], 0.3) == [4] and same.family == "stack2" and base.family == "mono"
     plate, a, b = impact_answers(base), impact_answers(same), impact_answers(other)
+    print(f"\none material: plate {plate}, same rows {a}, other rows {b}: peak {a[0] / plate[0] - 1:+.2%} / "
+          f"{b[0] / plate[0] - 1:+.2%}, deflection {a[1] / plate[1] - 1:+.2%} / {b[1] / plate[1] - 1:+.2%}")
     assert a[0] == pytest.approx(plate[0], rel=0.02) and a[1] == pytest.approx(plate[1], rel=0.02)
     assert b[1] == pytest.approx(plate[1], rel=0.02) and b[0] == pytest.approx(plate[0], rel=0.08)
 
@@ -154,6 +158,7 @@ def test_pen_tip_force_and_duration_match_hertz():
         time.append(sim.t)
     force, time = np.array(force), np.array(time)
     on = time[force > 1e-3 * force.max()]
+    print(f"\npen Hertz: force {force.max() / f_max - 1:+.2%}, duration {(on[-1] - on[0]) / t_c - 1:+.2%}")
     assert force.max() == pytest.approx(f_max, rel=0.10)
     assert on[-1] - on[0] == pytest.approx(t_c, rel=0.10)
     assert force[-1] == 0.0  # the pen has bounced off
@@ -179,8 +184,10 @@ def test_energy_conserved_per_family(family):
         strain.append(e["strain"])
     kinetic0 = 0.5 * (sim.model.mass[mesh["body"] == 1].sum() + (design.pen_mass if family == "pen" else 0.0)) \
         * design.impact_speed**2
+    drift = np.max(np.abs(np.array(totals) - e0)) / kinetic0
+    print(f"\nenergy {family}: drift {drift:.2e} of the impact energy, strain peak {max(strain) / kinetic0:.0%}")
     assert max(strain) > 0.2 * kinetic0
-    assert np.max(np.abs(np.array(totals) - e0)) < 0.01 * kinetic0
+    assert drift < 0.01
 
 
 def test_layers_share_nodes_and_soft_layers_show_in_the_node_features():

@@ -14,9 +14,10 @@ from pathlib import Path
 
 
 from hcmt.cli import main as hcmt
-from hcmt.data.format import atomic_path, take_lock
+from hcmt.files import atomic_path, take_lock
 from hcmt.inference.evaluate import evaluate
-from hcmt.inference.run import Run, RunFolder
+from hcmt.inference.run import Run
+from hcmt.data.runs import RunFolder
 from hcmt.config import load_config
 from hcmt.training import train
 

@@ -19,7 +19,8 @@ import torch
 from common import write_json
 
 from hcmt.sim.scene import sample_design
-from hcmt.design import predict as pr
+from hcmt.design.check import predict, solve
+from hcmt.design.inputs import settings_of
 from hcmt.inference.run import Run
 
 
@@ -40,14 +41,14 @@ def main() -> None:
     preset = run.meta["generator"]["preset"]
     rng = np.random.default_rng(a.seed)
     designs = [(f"d{i}", sample_design(rng, preset)) for i in range(a.designs)]
-    settings = pr.settings_of(run.meta)
+    settings = settings_of(run.meta)
     t0 = time.perf_counter()
-    truth = pr.solve(designs, settings)
+    truth = solve(designs, settings)
     solver = np.array([t.wall_s for t in truth])
     rows = {}
     for batch, mode in ((b, m) for m in a.compile for b in a.batches):
         t1 = time.perf_counter()
-        preds = pr.predict(run, designs, batch=batch, progress=False, compile=mode)
+        preds = predict(run, designs, batch=batch, progress=False, compile=mode)
         wall = time.perf_counter() - t1
         per = wall / len(designs)
         key = str(batch) if mode == "none" else f"{batch} compile={mode}"

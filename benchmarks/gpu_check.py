@@ -31,7 +31,7 @@ sys.path.insert(0, str(HERE))
 from bench_models import _step_fn, _sync, impact_plate_graph  # noqa: E402
 from speed import _one  # noqa: E402
 
-from hcmt.data.format import atomic_path  # noqa: E402
+from hcmt.files import atomic_path
 from hcmt.graph.batch import collate  # noqa: E402
 from hcmt.physics.adapters import build_for_dataset, dataset_spec  # noqa: E402
 
@@ -146,7 +146,7 @@ def train_step(c: Check) -> dict:
 
 def rollout_vs_solver(c: Check) -> dict:
     from hcmt.sim.scene import sample_design
-    from hcmt.design import predict as pr
+    from hcmt.design.check import check_designs
     from hcmt.inference.run import Run
 
     import numpy as np
@@ -155,8 +155,8 @@ def rollout_vs_solver(c: Check) -> dict:
     rng = np.random.default_rng(7)
     n = 2 if c.smoke else 64
     designs = [(f"d{i}", sample_design(rng, "small")) for i in range(n)]
-    one = pr.check_designs(run, designs[:1], batch=1, verify=True, progress=False)
-    many = pr.check_designs(run, designs, batch=n, verify=not c.smoke, progress=False)
+    one = check_designs(run, designs[:1], batch=1, verify=True, progress=False)
+    many = check_designs(run, designs, batch=n, verify=not c.smoke, progress=False)
     solver = one.truth[0].wall_s
     out = {"one_design_s": one.preds[0].wall_s, "solver_one_design_s": solver,
            "speedup_one": solver / one.preds[0].wall_s, "batch": n, "batch_per_design_s": many.preds[0].wall_s,

@@ -28,7 +28,8 @@ from common import RESULTS, dataset, run_and_evaluate, write_json
 from propagation import hcmt_reach, trajectory_numbers
 
 from hcmt.data.format import Split
-from hcmt.design import predict as pr
+from hcmt.design.check import check_designs
+from hcmt.sim.scene import DESIGN_KEYS, Design
 from hcmt.inference.metrics import mean_std
 from hcmt.inference.run import Run
 
@@ -243,10 +244,10 @@ def speed(work: Path, steps: int, datasets: dict[float, Path], form: str = "reci
         sigma = chosen_sigma(work, dt, form, "hcmt", steps)
         run = Run.load(work / "runs" / run_name(dt, form, "hcmt", 0, sigma, steps), "cpu")
         with Split(path, "test") as s:
-            designs = [(s.names[i], pr.Design(**{k: v for k, v in s.attrs(i).items() if k in pr.DESIGN_KEYS}))
+            designs = [(s.names[i], Design(**{k: v for k, v in s.attrs(i).items() if k in DESIGN_KEYS}))
                        for i in range(len(s))]
-        one = pr.check_designs(run, designs, batch=1, verify=True, progress=False)
-        batched = pr.check_designs(run, designs, batch=len(designs), verify=False, progress=False)
+        one = check_designs(run, designs, batch=1, verify=True, progress=False)
+        batched = check_designs(run, designs, batch=len(designs), verify=False, progress=False)
         learned_one = [p.wall_s for p in one.preds]
         solver = [t.wall_s for t in one.truth]
         out[f"{dt:g}"] = {"run": run.source, "designs": len(designs), "frames": WINDOW_FRAMES[dt],

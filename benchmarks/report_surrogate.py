@@ -110,7 +110,7 @@ def surrogate(lines: list[str], r: dict | None) -> None:
               f"{totals['union']['unsafe']}, HCMT alone {totals['model_alone']['unsafe']}. Solver runs: GP "
               f"{totals['surrogate']['solver_runs']}, union {totals['union']['solver_runs']}, ±60 % band "
               f"{totals['model']['solver_runs']}.",
-              f"- hcmt trusts the **{chosen}** (`TRUST` in hcmt.design.predict): at 120 designs it covers as the GP "
+              f"- hcmt trusts the **{chosen}** (`TRUST` in hcmt.design.check): at 120 designs it covers as the GP "
               f"does and makes no unsafe call, for {totals['union']['solver_runs'] - totals['surrogate']['solver_runs']} "
               f"more solver runs over {points} points; with a user's own surrogate on fewer runs it is the one that "
               f"stays near its nominal coverage (learning curve above).", ""]

@@ -23,11 +23,15 @@ import torch
 from common import write_json
 
 from hcmt.sim.scene import sample_design
-from hcmt.design import predict as pr
+from hcmt.design.check import check_designs, predict
+from hcmt.design.inputs import region_of
+from hcmt.design.reports import format_table
+from hcmt.sim.scene import middle_design, parse_design
 from hcmt.design import sweep as sw
 from hcmt.inference.evaluate import evaluate
 from hcmt.design.surrogate import Surrogate
-from hcmt.inference.run import PRETRAINED_DIR, Run
+from hcmt.inference.run import Run
+from hcmt.data.runs import PRETRAINED_DIR
 
 
 def main() -> None:
@@ -71,11 +75,11 @@ def main() -> None:
     rng = np.random.default_rng(a.design_seed)
     designs = [(f"fresh_{i:02d}", sample_design(rng, run.meta["generator"]["preset"])) for i in range(a.designs)]
     preliminary = Run.load(a.run, "cpu")
-    check = pr.check_designs(preliminary, designs, batch=a.batch, verify=True, progress=False)
-    print(pr.format_table(check.preds, check.verified))
+    check = check_designs(preliminary, designs, batch=a.batch, verify=True, progress=False)
+    print(format_table(check.preds, check.verified))
     regions = {}
     for p in check.preds:
-        regions.setdefault(pr.region_of(p.design, preliminary.ranges), []).append(p.summary["verify"])
+        regions.setdefault(region_of(p.design, preliminary.ranges), []).append(p.summary["verify"])
     labels = {"inside": "inside the ranges' edges", "thin": "thin plates (lowest fifth of thickness)",
               "high": "high drops (top fifth of drop height)", "thin+high": "thin plates dropped from high"}
     card["confidence"] = [
@@ -93,12 +97,12 @@ def main() -> None:
     surrogate.source = f"the training designs of pretrained:{a.name} ({a.data_command or a.data})"
     print(f"wrote {surrogate.save(PRETRAINED_DIR / f'{a.name}.surrogate.json')}")
     shipped = Run.load(f"pretrained:{a.name}", "cpu")
-    check = pr.check_designs(shipped, designs, batch=a.batch, verify=True, progress=False)  # the fp16 file itself
-    print(pr.format_table(check.preds, check.verified))
+    check = check_designs(shipped, designs, batch=a.batch, verify=True, progress=False)  # the fp16 file itself
+    print(format_table(check.preds, check.verified))
     sweeps = {}
     for vary, fixed in (("thickness=0.5:1.0:6", ["drop_height=750"]), ("drop_height=520:990:6", ["thickness=0.75"])):
         param, lo, hi, n = sw.parse_vary(vary)
-        base = pr.parse_design(fixed, pr.middle_design(shipped.meta))
+        base = parse_design(fixed, middle_design(shipped.meta))
         sc, analysis = sw.sweep(shipped, param, lo, hi, n, base, verify=True, yield_mpa=a.yield_mpa, progress=False)
         print(sw.format_analysis(analysis))
         sweeps[vary] = {"design": fixed, **analysis,
@@ -106,7 +110,7 @@ def main() -> None:
                         "solver_peak": [t.summary["peak_plate_stress_mpa"] for t in sc.truth],
                         "model_deflection": [q.summary["max_deflection_mm"] for q in sc.preds],
                         "solver_deflection": [t.summary["max_deflection_mm"] for t in sc.truth]}
-    single = pr.predict(shipped, designs[:1], batch=1, progress=False)[0]
+    single = predict(shipped, designs[:1], batch=1, progress=False)[0]
     out = {"name": a.name, "file_mb": path.stat().st_size / 1e6, "card": card,
            "test_metrics": {k: metrics[k] for k in ("split", "trajectories", "position", "stress",
                                                     "inference_ms_per_step", "physics")},

@@ -29,8 +29,11 @@ import torch
 from common import write_json
 from sklearn.preprocessing import PolynomialFeatures
 
-from hcmt.data.format import atomic_path
-from hcmt.design import predict as pr
+from hcmt.data.runs import PRETRAINED_DIR
+from hcmt.files import atomic_path
+from hcmt.design.check import Prediction, TRUSTS, call_of, check_designs, summarize, trusted_interval, verify_designs
+from hcmt.design.inputs import region_of, settings_of
+from hcmt.sim.scene import middle_design
 from hcmt.design.readout import READOUTS, contact_gap, contact_window, ghost_ratio, summarize_fields
 from hcmt.design.surrogate import QUANTITIES, Z95, Surrogate, dataset_answers
 from hcmt.inference.metrics import plate_mask
@@ -94,7 +97,7 @@ def design_sets(run) -> dict[str, list[tuple[str, Design]]]:
                 d = replace(d, drop_height=float(rng.uniform(*h)))
             rows.append((f"{name}_{i}", d))
         sets[name] = rows
-    base = pr.middle_design(run.meta)  # the preset's middle, as the issue's sweeps (hcmt 0.1's default) were run
+    base = middle_design(run.meta)  # the preset's middle, as the issue's sweeps (hcmt 0.1's default) were run
     for h, _ in SWEEPS:
         sets[f"sweep_{h:g}"] = [(f"t={t:.2f}", replace(base, drop_height=h, thickness=float(t)))
                                 for t in np.round(np.linspace(0.5, 1.0, 11), 6)]
@@ -142,7 +145,7 @@ def run_group(run, name: str, designs, work: Path, batch: int, frame_dt: float, 
     path = work / f"{name}.npz"
     if not path.is_file():
         t0 = time.perf_counter()
-        check = pr.check_designs(run, designs, batch=batch, verify=True, surrogate=False, progress=False)
+        check = check_designs(run, designs, batch=batch, verify=True, surrogate=False, progress=False)
         arrays = {}
         for i, (p, t) in enumerate(zip(check.preds, check.truth)):
             arrays.update({f"{i}_model_pos": p.world_pos, f"{i}_model_stress": p.stress, f"{i}_solver_pos": t.world_pos,
@@ -158,13 +161,13 @@ def run_group(run, name: str, designs, work: Path, batch: int, frame_dt: float, 
         for i, (n, d) in enumerate(designs):
             wall = z[f"{i}_wall"]
             static = [z[f"{i}_{k}"] for k in ("mesh_pos", "cells", "node_type")]
-            p = pr.Prediction(n, d, z[f"{i}_model_pos"], z[f"{i}_model_stress"], *static, float(wall[0]),
+            p = Prediction(n, d, z[f"{i}_model_pos"], z[f"{i}_model_stress"], *static, float(wall[0]),
                               modulus=z[f"{i}_modulus"])
-            t = pr.Prediction(n, d, z[f"{i}_solver_pos"], z[f"{i}_solver_stress"], *static, float(wall[1]),
+            t = Prediction(n, d, z[f"{i}_solver_pos"], z[f"{i}_solver_stress"], *static, float(wall[1]),
                               modulus=z[f"{i}_modulus"])
-            p.summary = pr.summarize(p, frame_dt, "contact", ends[i])
-            t.summary = pr.summarize(t, frame_dt, "learned")
-            pr.verify_designs([p], [t])
+            p.summary = summarize(p, frame_dt, "contact", ends[i])
+            t.summary = summarize(t, frame_dt, "learned")
+            verify_designs([p], [t])
             rows.append(record(p, t, frame_dt, ends[i]))
     return rows
 
@@ -206,11 +209,11 @@ def calls(rows, gp, yield_mpa: float) -> dict:
            "solver_peaks": [r["solver"]["peak_plate_stress_mpa"] for r in rows],
            "model_peaks": [r["model"]["contact"]["peak_plate_stress_mpa"] for r in rows],
            "gp": [asdict(g["peak_plate_stress_mpa"]) for g in gps]}
-    for trust in pr.TRUSTS:
+    for trust in TRUSTS:
         made, final = [], []
         for r, g, ok in zip(rows, gps, solver_pass):
-            lo, hi, _ = pr.trusted_interval(_summary(r, g), trust)
-            c = pr.call_of(lo, hi, yield_mpa)
+            lo, hi, _ = trusted_interval(_summary(r, g), trust)
+            c = call_of(lo, hi, yield_mpa)
             made.append(c)
             final.append(("pass" if ok else "fail") if c == "undecided" else c)
         out[trust] = {"calls": made, "final": final,
@@ -225,7 +228,7 @@ def calls(rows, gp, yield_mpa: float) -> dict:
 
 
 def _summary(r: dict, g: dict) -> dict:
-    """The part of a design check summary :func:`hcmt.design.predict.trusted_interval` reads: the model's peak
+    """The part of a design check summary :func:`hcmt.design.check.trusted_interval` reads: the model's peak
     (default read-out) and the GP's interval of it."""
     return {"peak_plate_stress_mpa": r["model"]["contact"]["peak_plate_stress_mpa"],
             "surrogate": {"peak_plate_stress_mpa": asdict(g["peak_plate_stress_mpa"])}}
@@ -245,7 +248,7 @@ def coverage(rows, gp, trust) -> dict:
     designs = [Design(**r["design"]) for r in rows]
     hits = 0
     for r, g in zip(rows, gp.predict(designs)):
-        lo, hi, _ = pr.trusted_interval(_summary(r, g), trust)
+        lo, hi, _ = trusted_interval(_summary(r, g), trust)
         hits += lo <= r["solver"]["peak_plate_stress_mpa"] <= hi
     return {"covered": int(hits), "of": len(rows)}
 
@@ -284,7 +287,7 @@ def main() -> None:
     torch.set_num_threads(a.threads)
     a.work.mkdir(parents=True, exist_ok=True)
     run = Run.load(a.model, "cpu")
-    frame_dt = pr.settings_of(run.meta).frame_dt
+    frame_dt = settings_of(run.meta).frame_dt
     print("fitting the response surfaces", flush=True)
     designs, answers = dataset_answers(a.data, "train")
     t0 = time.perf_counter()
@@ -299,7 +302,7 @@ def main() -> None:
         held, _ = dataset_answers(a.data, split)
         tune += run_group(run, f"tune_{split}", [(f"{split}_{i}", d) for i, d in enumerate(held)], a.work, a.batch,
                           frame_dt, gp)
-    shipped = Surrogate.load(Path(pr.__file__).resolve().parent.parent / "pretrained"
+    shipped = Surrogate.load(PRETRAINED_DIR
                              / f"{a.model.split(':', 1)[-1]}.surrogate.json") if a.model.startswith("pretrained:") else None
     X = gp.matrix(designs)
     t0 = time.perf_counter()
@@ -334,9 +337,9 @@ def main() -> None:
         sweeps[f"{h:g} mm, Y {y:.0f} MPa"] = calls(rows, gp, y)
     result["sweeps"] = sweeps
     held = groups["in_range"]
-    result["coverage_in_range"] = {t: coverage(held, gp, t) for t in pr.TRUSTS}
+    result["coverage_in_range"] = {t: coverage(held, gp, t) for t in TRUSTS}
     result["coverage_outside"] = {t: coverage(groups["thicker"] + groups["higher"] + groups["both"], gp, t)
-                                  for t in pr.TRUSTS}
+                                  for t in TRUSTS}
 
     # ghost stress and the peak's frame, every read-out, on all held-out designs (in range and outside)
     allheld = held + groups["thicker"] + groups["higher"] + groups["both"]
@@ -367,7 +370,7 @@ def main() -> None:
         "designs": len(allheld)}
 
     # the low-confidence note: candidates tuned on the dataset's own designs, judged on the held-out ones
-    region = lambda d: pr.region_of(d, run.ranges)  # noqa: E731
+    region = lambda d: region_of(d, run.ranges)  # noqa: E731
     card = {r["region"]: r for r in run.card.get("confidence", [])}
 
     def region_flag(d):
@@ -405,7 +408,7 @@ def main() -> None:
     print(json.dumps({k: result[k] for k in ("accuracy", "coverage_in_range", "ghost", "time_of_peak",
                                              "seconds_per_design")}, indent=1)[:6000])
     for name, s in sweeps.items():
-        print(name, {t: (s[t]["unsafe"], s[t]["solver_runs"], s[t]["minimum"]) for t in pr.TRUSTS},
+        print(name, {t: (s[t]["unsafe"], s[t]["solver_runs"], s[t]["minimum"]) for t in TRUSTS},
               "solver", s["solver_minimum"], "model alone", s["model_alone"])
     print({k: v for k, v in result["note"].items() if k != "designs"})
     print(f"wrote {path}")

@@ -41,11 +41,13 @@ import torch
 
 from common import claim, write_json
 from hcmt.config import load_config
-from hcmt.data.format import Split, atomic_path, read_meta, write_meta, write_split
+from hcmt.data.format import Split, read_meta, write_meta, write_split
+from hcmt.files import atomic_path
 from hcmt.design.surrogate import Surrogate, dataset_answers
 from hcmt.inference.evaluate import evaluate
 from hcmt.inference.metrics import plate_mask
-from hcmt.inference.run import Run, RunFolder
+from hcmt.inference.run import Run
+from hcmt.data.runs import RunFolder
 from hcmt.sim.scene import Settings, design_from_attrs, simulate
 from hcmt.training import train
 

@@ -33,7 +33,8 @@ def test_train_api_refuses_a_held_folder_in_python_words(tmp_path):
 def test_train_api_applies_overrides_to_a_dict_and_any_model_case(tmp_path, tiny_config):
     """overrides reach a dict config too; "MGN" is the model mgn; Run.load takes the RunFolder it names."""
     import hcmt
-    from hcmt.inference.run import Run, RunFolder
+    from hcmt.inference.run import Run
+    from hcmt.data.runs import RunFolder
     from viz_runs import impact_dataset
 
     data = impact_dataset(tmp_path / "data", n_test=1)
@@ -48,3 +49,25 @@ def test_train_api_applies_overrides_to_a_dict_and_any_model_case(tmp_path, tiny
 
     with pytest.raises(ValueError, match="unknown model 'mesh'"):
         hcmt.train(cfg, data, "mesh", tmp_path / "other", progress=False)
+
+
+def test_the_public_api_is_declared_for_type_checkers_and_loads_lazily():
+    """Every lazy name is also imported under TYPE_CHECKING (what IDEs read), listed in __all__ and resolvable;
+    the model classes document their constructor arguments."""
+    import ast
+    import inspect
+
+    import hcmt
+
+    tree = ast.parse(inspect.getsource(hcmt))
+    checked = {a.asname or a.name for node in ast.walk(tree) if isinstance(node, ast.If)
+               and getattr(node.test, "id", "") == "TYPE_CHECKING" for imp in node.body for a in imp.names}
+    assert checked == set(hcmt._LAZY)
+    assert set(hcmt._LAZY) | {"load_pretrained", "__version__"} == set(hcmt.__all__)
+    for name in hcmt._LAZY:
+        assert getattr(hcmt, name) is not None
+    for cls in (hcmt.HCMT, hcmt.MGN, hcmt.GT):
+        doc = cls.__doc__ or ""
+        params = [p for p in inspect.signature(cls.__init__).parameters if p != "self"]
+        assert all(f"{p}:" in doc for p in params), (cls.__name__, [p for p in params if f"{p}:" not in doc])
+        assert "Shapes" in doc

@@ -9,9 +9,14 @@ import random
 import numpy as np
 import pytest
 
+import hcmt.cli.design as cli_design
+import hcmt.design.reports as design_reports
 from hcmt.cli import main as cli
 from hcmt.sim.scene import Design
-from hcmt.design import predict as pr
+from hcmt.design.check import Prediction, check_designs, cost_check, weak_reasons
+from hcmt.design.inputs import confidence, read_designs_csv, region_of
+from hcmt.design.reports import contour_picture
+from hcmt.sim.scene import DESIGN_KEYS, middle_design, parse_design
 from hcmt.inference.run import Run
 from hcmt.training import train
 
@@ -59,7 +64,7 @@ def test_bad_designs_csv_is_refused_naming_file_line_and_column(setup, tmp_path,
 def test_bom_crlf_and_blank_lines_are_read(setup):
     path = setup / "ok.csv"
     path.write_bytes("\ufeffname,thickness\r\n\r\na,0.7\r\n\r\nb,0.9\r\n".encode("utf-8"))
-    designs = pr.read_designs_csv(path, Design())
+    designs = read_designs_csv(path, Design())
     assert [(n, d.thickness) for n, d in designs] == [("a", 0.7), ("b", 0.9)]
 
 
@@ -91,7 +96,7 @@ def test_fuzz_designs_csv(setup, tmp_path, capsys):
         path = tmp_path / f"f{case}.csv"
         path.write_text(text, encoding="utf-8")
         try:
-            designs = pr.read_designs_csv(path, pr.middle_design(run.meta))
+            designs = read_designs_csv(path, middle_design(run.meta))
         except ValueError as exc:
             assert "\n" not in str(exc) and str(path) in str(exc)
             continue
@@ -159,14 +164,14 @@ def test_predict_refuses_a_mesh_far_beyond_the_training_data(setup):
     from hcmt.sim.scene import Settings
 
     run = Run.load(setup / "run", "cpu")
-    fine = [("fine", pr.parse_design(["mesh_size=0.02"], pr.middle_design(run.meta)))]
+    fine = [("fine", parse_design(["mesh_size=0.02"], middle_design(run.meta)))]
     with pytest.raises(ValueError, match=r"fine: about .* nodes at mesh_size 0.02 .*exceeds 600 s.*--force"):
-        pr.cost_check(run, fine, Settings(frames=90), verify=False, force=False)
-    pr.cost_check(run, fine, Settings(frames=90), verify=False, force=True)  # forced: no refusal
-    finer = [("finer", pr.parse_design(["mesh_size=0.005"], pr.middle_design(run.meta)))]
+        cost_check(run, fine, Settings(frames=90), verify=False, force=False)
+    cost_check(run, fine, Settings(frames=90), verify=False, force=True)  # forced: no refusal
+    finer = [("finer", parse_design(["mesh_size=0.005"], middle_design(run.meta)))]
     with pytest.raises(ValueError, match=r"finer: the design's mesh would have .* nodes"):
-        pr.cost_check(run, finer, Settings(frames=90), verify=False, force=True)  # too large to build at all
-    pr.cost_check(run, [("ok", pr.middle_design(run.meta))], Settings(frames=90), verify=True, force=False)
+        cost_check(run, finer, Settings(frames=90), verify=False, force=True)  # too large to build at all
+    cost_check(run, [("ok", middle_design(run.meta))], Settings(frames=90), verify=True, force=False)
 
 
 # -- 6. Ctrl-C -------------------------------------------------------------------------------------------------
@@ -174,7 +179,7 @@ def test_interrupt_says_what_happened(setup, capsys, monkeypatch):
     def interrupted(*args, **kwargs):
         raise KeyboardInterrupt()
 
-    monkeypatch.setattr(pr, "check_designs", interrupted)
+    monkeypatch.setattr(cli_design, "check_designs", interrupted)
     rc = cli(["predict", str(setup / "run"), "--design", "thickness=0.7", "--no-progress"])
     err = [l for l in capsys.readouterr().err.strip().splitlines() if ": warning: " not in l]
     assert rc == 130 and len(err) == 1 and err[0].startswith("hcmt predict: interrupted; nothing half-written")
@@ -197,7 +202,7 @@ def test_models_lists_design_parameters_and_ranges(capsys):
     if not cards:
         pytest.skip("no shipped model")
     card = next(iter(cards.values()))
-    assert set(card["design_parameters"]) == set(pr.DESIGN_KEYS)
+    assert set(card["design_parameters"]) == set(DESIGN_KEYS)
     lo, hi = card["design_parameters"]["thickness"]["training_range"]
     assert 0 < lo < hi and card["window"]["frames"] > 2
     assert cli(["models"]) == 0
@@ -230,12 +235,12 @@ def test_pictures_name_r_and_stress_has_no_below_zero_arrow(setup):
 
 def test_contour_pair_shows_both_peaks(setup, monkeypatch):
     seen = {}
-    monkeypatch.setattr(pr, "plot_contours", lambda case, out, frames: seen.setdefault("f", frames) or [out])
+    monkeypatch.setattr(design_reports, "plot_contours", lambda case, out, frames: seen.setdefault("f", frames) or [out])
     run = Run.load(setup / "run", "cpu")
-    check = pr.check_designs(run, [("d", pr.parse_design(["thickness=0.7"], pr.middle_design(run.meta)))],
+    check = check_designs(run, [("d", parse_design(["thickness=0.7"], middle_design(run.meta)))],
                              verify=True, progress=False)
     p, t = check.preds[0], check.truth[0]
-    pr.contour_picture(p, t, run.meta, setup / "img", "MGN")
+    contour_picture(p, t, run.meta, setup / "img", "MGN")
     want = sorted({max(p.summary["peak_plate_frame"], 1), max(t.summary["peak_plate_frame"], 1)})
     assert seen["f"] == want
 
@@ -243,11 +248,11 @@ def test_contour_pair_shows_both_peaks(setup, monkeypatch):
 # -- 13. confidence ----------------------------------------------------------------------------------------------
 def test_confidence_regions_and_the_weak_note():
     ranges = {"thickness": (0.5, 1.0), "drop_height": (500.0, 1000.0)}
-    assert pr.region_of(Design(thickness=0.55, drop_height=700), ranges) == "thin"
-    assert pr.region_of(Design(thickness=0.8, drop_height=950), ranges) == "high"
-    assert pr.region_of(Design(thickness=0.55, drop_height=950), ranges) == "thin+high"
-    assert pr.region_of(Design(thickness=0.8, drop_height=700), ranges) == "inside"
-    assert pr.region_of(Design(thickness=2.0, drop_height=700), ranges) == "outside"
+    assert region_of(Design(thickness=0.55, drop_height=700), ranges) == "thin"
+    assert region_of(Design(thickness=0.8, drop_height=950), ranges) == "high"
+    assert region_of(Design(thickness=0.55, drop_height=950), ranges) == "thin+high"
+    assert region_of(Design(thickness=0.8, drop_height=700), ranges) == "inside"
+    assert region_of(Design(thickness=2.0, drop_height=700), ranges) == "outside"
 
     class FakeRun:
         card = {"confidence": [{"region": "thin", "label": "thin plates", "designs": 5,
@@ -256,9 +261,9 @@ def test_confidence_regions_and_the_weak_note():
                                 "peak_plate_stress_error_pct_median": 4.0, "peak_plate_stress_error_pct_worst": 9.0}]}
 
     FakeRun.ranges = ranges
-    thin = pr.Prediction("t", Design(thickness=0.55, drop_height=700), *([np.zeros(1)] * 5), wall_s=1.0)
-    inside = pr.Prediction("i", Design(thickness=0.8, drop_height=700), *([np.zeros(1)] * 5), wall_s=1.0)
+    thin = Prediction("t", Design(thickness=0.55, drop_height=700), *([np.zeros(1)] * 5), wall_s=1.0)
+    inside = Prediction("i", Design(thickness=0.8, drop_height=700), *([np.zeros(1)] * 5), wall_s=1.0)
     for p in (thin, inside):
-        p.summary["confidence"] = pr.confidence(p.design, FakeRun)
-    assert "median peak plate stress error of 18.0 %" in pr._weak(thin)[0]
-    assert pr._weak(inside) == []
+        p.summary["confidence"] = confidence(p.design, FakeRun)
+    assert "median peak plate stress error of 18.0 %" in weak_reasons(thin)[0]
+    assert weak_reasons(inside) == []

@@ -16,7 +16,7 @@ SRC = Path(__file__).resolve().parent.parent / "src" / "hcmt"
 
 #: layer of each top-level module or subpackage of hcmt, bottom (0) to top; equal numbers may not import each other
 LAYERS = {"config": 0, "data": 1, "sim": 2, "graph": 2, "models": 3, "physics": 4, "inference": 5, "training": 6,
-          "viz": 6, "design": 7, "cli": 8}
+          "viz": 6, "design": 7, "cli": 8, "files": 0}
 
 
 def module_name(path: Path) -> str:
@@ -107,7 +107,7 @@ def test_the_checker_sees_violations(tmp_path, monkeypatch):
 
 
 @pytest.mark.parametrize("module", ["hcmt.config", "hcmt.models", "hcmt.physics.adapters", "hcmt.inference.run",
-                                    "hcmt.training", "hcmt.viz.rollouts", "hcmt.design.predict", "hcmt.cli"])
+                                    "hcmt.training", "hcmt.viz.rollouts", "hcmt.design.check", "hcmt.cli"])
 def test_each_layer_imports_alone(module):
     """Each module imports in a fresh interpreter (no cycle hidden by import order)."""
     import subprocess

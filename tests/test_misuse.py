@@ -19,7 +19,8 @@ import torch
 
 from hcmt.cli import main as cli
 from hcmt.cli import set_threads
-from hcmt.design import predict as pr
+from hcmt.design.inputs import design_for, range_warnings, read_designs_csv
+from hcmt.sim.scene import middle_design
 from hcmt.inference import run as run_module
 from hcmt.inference.run import Run
 from hcmt.sim.scene import Design, estimate
@@ -269,9 +270,9 @@ def test_threads_are_capped_at_the_cores(capsys):
 # -- 8, 9. defaults and a self-contained run folder ----------------------------------------------------------------
 def test_defaults_are_the_middle_of_the_models_training_ranges(setup):
     run = Run.load(setup / "run", "cpu")
-    d = run.design()
+    d = design_for(run)
     lo, hi = run.ranges["thickness"]
-    assert d.thickness == pytest.approx(0.5 * (lo + hi)) and pr.range_warnings(d, run.ranges) == []
+    assert d.thickness == pytest.approx(0.5 * (lo + hi)) and range_warnings(d, run.ranges) == []
 
 
 def test_a_run_folder_predicts_without_its_dataset(setup, tmp_path, capsys):
@@ -383,7 +384,7 @@ def test_fuzz_designs_csv_bytes(setup, tmp_path, capsys):
     """Byte flips, cuts and path-like names in a designs CSV: read_designs_csv returns safe, distinct names or
     raises a one-line ValueError naming the file; a few cases go through `hcmt predict --images` end to end."""
     run = Run.load(setup / "run", "cpu")
-    defaults = pr.middle_design(run.meta, run.ranges)
+    defaults = middle_design(run.meta, run.ranges)
     good = b"name,thickness,drop_height\nalpha,0.7,800\nbeta,0.9,600\n"
     rng = random.Random(3)
     path, cases = tmp_path / "d.csv", 0
@@ -402,7 +403,7 @@ def test_fuzz_designs_csv_bytes(setup, tmp_path, capsys):
             b.insert(rng.randrange(len(b)), rng.choice(b",\n\"/\\.\x00"))
         path.write_bytes(bytes(b))
         try:
-            designs = pr.read_designs_csv(path, defaults)
+            designs = read_designs_csv(path, defaults)
         except ValueError as exc:
             assert str(path) in str(exc) and "\n" not in str(exc)
         else:

@@ -8,8 +8,12 @@ import torch
 
 from hcmt.cli import main as cli
 from hcmt.sim.scene import Design, Settings, initial_frames, simulate
-from hcmt.design import predict as pr
-from hcmt.inference.run import Run, available_pretrained
+from hcmt.design.check import Prediction, design_trajectory, predict, summarize
+from hcmt.design.inputs import settings_of
+from hcmt.inference.metrics import plate_mask
+from hcmt.sim.scene import middle_design, parse_design
+from hcmt.inference.run import Run
+from hcmt.data.runs import available_pretrained
 from hcmt.training import train
 
 FRAMES = 8
@@ -44,10 +48,10 @@ def test_ball_crossing_the_gap_in_one_frame_is_refused():
 
 def test_batch_equals_one_by_one(tiny_run):
     run = Run.load(tiny_run, "cpu")
-    designs = [(f"d{i}", pr.parse_design([f"thickness={t}", f"drop_height={h}"], pr.middle_design(run.meta)))
+    designs = [(f"d{i}", parse_design([f"thickness={t}", f"drop_height={h}"], middle_design(run.meta)))
                for i, (t, h) in enumerate([(0.6, 600), (0.9, 950), (0.75, 700)])]
-    together = pr.predict(run, designs, batch=3, progress=False)
-    alone = pr.predict(run, designs, batch=1, progress=False)
+    together = predict(run, designs, batch=3, progress=False)
+    alone = predict(run, designs, batch=1, progress=False)
     assert together[0].world_pos.shape[0] == FRAMES
     for a, b in zip(together, alone):
         np.testing.assert_allclose(a.world_pos, b.world_pos, rtol=0, atol=1e-5)
@@ -65,8 +69,8 @@ def test_summary_reads_peaks_off_the_trajectory():
     world[2, 2, 1] -= 0.3  # plate node 2 deflects 0.3 mm at frame 2
     stress = np.zeros((T, 6, 1))
     stress[3, 1, 0], stress[1, 4, 0] = 250.0, 90.0
-    p = pr.Prediction("x", Design(), world, stress, mesh, cells, node_type, wall_s=1.0)
-    s = pr.summarize(p, frame_dt=0.002)
+    p = Prediction("x", Design(), world, stress, mesh, cells, node_type, wall_s=1.0)
+    s = summarize(p, frame_dt=0.002)
     assert s["peak_plate_stress_mpa"] == 250.0 and s["peak_plate_where_mm"] == [0.0, 0.0]
     assert s["peak_plate_when_ms"] == pytest.approx(0.006) and s["peak_plate_frame"] == 3
     assert s["peak_ball_stress_mpa"] == 90.0 and s["peak_ball_when_ms"] == pytest.approx(0.002)
@@ -114,7 +118,7 @@ def test_verify_compares_with_the_solver(tiny_run, tmp_path, capsys):
     res = json.loads(out.read_text())
     v = res["designs"][0]["verify"]
     solved = simulate(Design(**res["designs"][0]["design"]), Settings(frames=FRAMES))["fields"]
-    plate = pr.plate_mask(solved["cells"], solved["node_type"])
+    plate = plate_mask(solved["cells"], solved["node_type"])
     assert v["solver_peak_plate_stress_mpa"] == pytest.approx(float(solved["stress"][:, plate].max()), rel=1e-6)
     pred = res["designs"][0]["peak_plate_stress_mpa"]
     assert v["peak_plate_stress_error_pct"] == pytest.approx(100 * (pred - v["solver_peak_plate_stress_mpa"])
@@ -132,8 +136,8 @@ def test_every_shipped_model_loads_and_predicts(name):
 
     run = hcmt.load_pretrained(name, device="cpu")
     assert name.startswith(run.config["dataset"]) and run.ranges and run.card.get("steps")
-    settings = pr.settings_of(run.meta)
-    tr, _ = pr.design_trajectory(run, "d", pr.middle_design(run.meta), settings)
+    settings = settings_of(run.meta)
+    tr, _ = design_trajectory(run, "d", middle_design(run.meta), settings)
     from hcmt.inference.rollout import rollout
 
     r = rollout(run.model, run.adapter, tr, run.radius, steps=1)

@@ -8,7 +8,9 @@ import numpy as np
 import pytest
 
 from hcmt.cli import main as cli
-from hcmt.design import predict as pr
+from hcmt.design.inputs import design_for
+from hcmt.design.check import MODEL_BAND, call_of, check_designs, predict_designs, trusted_interval
+from hcmt.design.reports import finite
 from hcmt.design import readout as ro
 from hcmt.design.surrogate import Surrogate, SurrogateError
 from hcmt.inference.run import Run
@@ -211,16 +213,16 @@ def test_the_solvers_peak_lies_in_its_contact_window():
 
 # -- calls ---------------------------------------------------------------------------------------------------------
 def test_calls_pass_only_below_and_fail_only_above_the_trusted_interval():
-    assert pr.call_of(600, 690, 700) == "pass" and pr.call_of(710, 800, 700) == "fail"
-    assert pr.call_of(650, 750, 700) == "undecided" and pr.call_of(700, 720, 700) == "undecided"
+    assert call_of(600, 690, 700) == "pass" and call_of(710, 800, 700) == "fail"
+    assert call_of(650, 750, 700) == "undecided" and call_of(700, 720, 700) == "undecided"
     summary = {"peak_plate_stress_mpa": 760.0, "surrogate": {"peak_plate_stress_mpa": {"mean": 680, "lo": 660,
                                                                                       "hi": 700}}}
-    assert pr.trusted_interval(summary, "surrogate")[:2] == (660, 700)
-    assert pr.trusted_interval(summary, "union")[:2] == (660, 760)  # widened to hold the mesh model
-    lo, hi, what = pr.trusted_interval({"peak_plate_stress_mpa": 500.0}, "union")  # no surrogate
-    assert what == "model" and lo == pytest.approx(500 * (1 - pr.MODEL_BAND)) and hi > 500
+    assert trusted_interval(summary, "surrogate")[:2] == (660, 700)
+    assert trusted_interval(summary, "union")[:2] == (660, 760)  # widened to hold the mesh model
+    lo, hi, what = trusted_interval({"peak_plate_stress_mpa": 500.0}, "union")  # no surrogate
+    assert what == "model" and lo == pytest.approx(500 * (1 - MODEL_BAND)) and hi > 500
     with pytest.raises(ValueError, match="trust"):
-        pr.trusted_interval(summary, "best")
+        trusted_interval(summary, "best")
 
 
 @pytest.fixture(scope="module")
@@ -268,21 +270,21 @@ def test_fit_command_writes_the_runs_surrogate_and_predict_reports_both(family, 
                 "--no-progress"]) == 0
     assert "surrogate" not in json.loads(out.read_text())["designs"][0]
     # the Python API runs the same check
-    (p,) = pr.predict_designs(Run.load(run, "cpu"), [("x", Design(**d["design"]))], progress=False)
+    (p,) = predict_designs(Run.load(run, "cpu"), [("x", Design(**d["design"]))], progress=False)
     assert p.summary["surrogate"]["peak_plate_stress_mpa"]["mean"] == pytest.approx(iv["mean"], rel=1e-9)
 
 
 def test_verify_auto_runs_the_solver_on_the_undecided_designs_only(family, tmp_path, capsys):
     run = Run.load(family / "run", "cpu")
-    designs = [(f"d{i}", run.design(thickness=t)) for i, t in enumerate((0.6, 0.9))]
-    probe = pr.check_designs(run, designs, progress=False)
-    lo, hi = (min(pr.trusted_interval(p.summary)[k] for p in probe.preds) for k in (0, 1))
-    never = pr.check_designs(run, designs, verify="auto", yield_mpa=hi * 2, progress=False)
+    designs = [(f"d{i}", design_for(run, thickness=t)) for i, t in enumerate((0.6, 0.9))]
+    probe = check_designs(run, designs, progress=False)
+    lo, hi = (min(trusted_interval(p.summary)[k] for p in probe.preds) for k in (0, 1))
+    never = check_designs(run, designs, verify="auto", yield_mpa=hi * 2, progress=False)
     assert never.solver_runs == 0 and all(p.summary["final_call"] == "pass" for p in never.preds)
     assert all(p.summary["verified"] is False for p in never.preds)
     first = probe.preds[0].summary
-    y = 0.5 * sum(pr.trusted_interval(first)[:2])  # inside design 0's trusted interval: undecided
-    auto = pr.check_designs(run, designs, verify="auto", yield_mpa=y, progress=False)
+    y = 0.5 * sum(trusted_interval(first)[:2])  # inside design 0's trusted interval: undecided
+    auto = check_designs(run, designs, verify="auto", yield_mpa=y, progress=False)
     a = auto.preds[0].summary
     assert a["call"] == "undecided" and a["verified"] is True and auto.truth[0] is not None
     assert a["final_call"] == ("pass" if a["verify"]["solver_peak_plate_stress_mpa"] < y else "fail")
@@ -336,7 +338,7 @@ def test_the_shipped_model_carries_its_surrogate():
 
     s, note = for_run(run)
     assert note is None and len(s) == 120 and s.ranges()["thickness"] == pytest.approx(run.ranges["thickness"])
-    (a,) = s.predict([run.design(thickness=0.6, drop_height=600)])
+    (a,) = s.predict([design_for(run, thickness=0.6, drop_height=600)])
     assert 500 < a["peak_plate_stress_mpa"].mean < 1200 and a["max_deflection_mm"].lo > 0
 
 
@@ -365,7 +367,7 @@ def test_numbers_no_float_holds_are_refused_too(tmp_path, damage):
 
 
 def test_json_output_is_standard_json():
-    assert pr.finite({"a": float("nan"), "b": [1.0, float("inf")], "c": "x"}) == {"a": None, "b": [1.0, None],
+    assert finite({"a": float("nan"), "b": [1.0, float("inf")], "c": "x"}) == {"a": None, "b": [1.0, None],
                                                                                   "c": "x"}
 
 

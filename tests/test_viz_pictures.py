@@ -7,7 +7,8 @@ import pytest
 from PIL import Image
 
 from hcmt.cli import main as cli
-from hcmt.inference.run import Run, RunFolder
+from hcmt.inference.run import Run
+from hcmt.data.runs import RunFolder
 from hcmt.data.format import read_meta
 from hcmt.graph.contact import object_ids
 from hcmt.graph.hierarchy import build_hierarchy

@@ -17,9 +17,13 @@ import time
 from pathlib import Path
 
 from hcmt.config import load_config
-from hcmt.design import predict as pr
+from hcmt.design.check import check_designs
+from hcmt.design.inputs import settings_of
+from hcmt.design.reports import contour_picture, format_table
+from hcmt.sim.scene import middle_design, parse_design
 from hcmt.inference.evaluate import evaluate, format_metrics
-from hcmt.inference.run import Run, RunFolder
+from hcmt.inference.run import Run
+from hcmt.data.runs import RunFolder
 from hcmt.sim.generate import generate_dataset
 from hcmt.training import train
 
@@ -54,23 +58,23 @@ def design_demo(args: argparse.Namespace) -> int:
     run = Run.load(args.model, args.device)
     card = run.card
     print(f"[1/3] {run.label} model {run.source}: {card.get('summary', 'trained run')}")
-    defaults = pr.middle_design(run.meta, run.ranges)
-    designs = [(f"design_{i + 1}", pr.parse_design([f"{k}={v}" for k, v in d.items()], defaults))
+    defaults = middle_design(run.meta, run.ranges)
+    designs = [(f"design_{i + 1}", parse_design([f"{k}={v}" for k, v in d.items()], defaults))
                for i, d in enumerate(DEMO_DESIGNS)]
-    settings = pr.settings_of(run.meta)
+    settings = settings_of(run.meta)
     print(f"[2/3] predicting {len(designs)} new designs on {run.device} (thickness mm, drop height mm: "
           + ", ".join(f"{d.thickness:g}/{d.drop_height:g}" for _, d in designs) + ")")
     print(f"[3/3] simulating the same designs with the built-in FEM solver ({settings.frames} frames of "
           f"{settings.frame_dt} ms each)")
-    check = pr.check_designs(run, designs, batch=len(designs), verify=True, progress=not args.no_progress)
+    check = check_designs(run, designs, batch=len(designs), verify=True, progress=not args.no_progress)
     preds, truth, verified = check.preds, check.truth, check.verified
     for note in check.notes:
         print(f"note: {note}")
     print("\nvon Mises stresses in MPa, lengths in mm; 'err' columns compare the model with the solver"
           + ("; 'surrogate' is the response surface (a Gaussian process) fitted on the model's own training "
              "designs" if check.surrogate else ""))
-    print(pr.format_table(preds, verified))
-    picture = pr.contour_picture(preds[1], truth[1], run.meta, Path(args.out), run.label)
+    print(format_table(preds, verified))
+    picture = contour_picture(preds[1], truth[1], run.meta, Path(args.out), run.label)
     print(f"\ncontours at the peak frame, solver beside prediction: {picture}")
     print("your own designs:  hcmt predict pretrained:impact_plate_small --design thickness=0.8 drop_height=700 "
           "--verify")

@@ -1,5 +1,5 @@
 """``hcmt predict / sweep / models``: argument parsing and printing only; the library functions live in
-:mod:`hcmt.design.predict` and :mod:`hcmt.design.sweep`."""
+:mod:`hcmt.design.check` and :mod:`hcmt.design.sweep`."""
 from __future__ import annotations
 
 import argparse
@@ -10,11 +10,15 @@ from pathlib import Path
 from hcmt.config import plural
 from hcmt.cli import check_outputs
 from hcmt.cli.train import compile_arg
-from hcmt.data.format import atomic_path
-from hcmt.design import predict as pr
+from hcmt.files import atomic_path
+from hcmt.design.check import check_designs
+from hcmt.design.inputs import range_warnings, read_designs_csv, settings_of
+from hcmt.design.reports import contour_picture, format_calls, format_table, to_json, write_csv
+from hcmt.sim.scene import DESIGN_KEYS, middle_design, parse_design
 from hcmt.design import sweep as sw
 from hcmt.design.surrogate import run_surrogate_path
-from hcmt.inference.run import Run, available_pretrained
+from hcmt.inference.run import Run
+from hcmt.data.runs import available_pretrained
 from hcmt.sim.scene import DESIGN_UNITS, FAMILIES, describe_family, design_key
 
 
@@ -94,33 +98,33 @@ def main_predict(args: argparse.Namespace) -> int:
     options = check_options(args)  # before the model loads
     check_outputs({"--json": args.json, "--csv": args.csv}, {"--out": args.out} if args.images else {})
     run = _design_run(args)
-    defaults = pr.middle_design(run.meta, run.ranges)
-    designs = [(f"design_{i + 1}", pr.parse_design(items, defaults)) for i, items in enumerate(args.design)]
+    defaults = middle_design(run.meta, run.ranges)
+    designs = [(f"design_{i + 1}", parse_design(items, defaults)) for i, items in enumerate(args.design)]
     if args.designs:
-        designs += pr.read_designs_csv(args.designs, defaults, first=len(designs) + 1,
+        designs += read_designs_csv(args.designs, defaults, first=len(designs) + 1,
                                        taken={n: "--design" for n, _ in designs})
     for name, d in designs:
-        for w in pr.range_warnings(d, run.ranges):
+        for w in range_warnings(d, run.ranges):
             print(f"hcmt predict: warning: {name}: {w}", file=sys.stderr)
-    check = pr.check_designs(run, designs, batch=args.batch, compile=args.compile, progress=not args.no_progress,
+    check = check_designs(run, designs, batch=args.batch, compile=args.compile, progress=not args.no_progress,
                              force=args.force, **options)
     print_notes("predict", check)
     preds, truth = check.preds, check.truth
     print(f"{run.label} ({run.source}) on {run.device}: {plural(len(preds), 'design')}, {check.settings.frames} frames of "
           f"{check.settings.frame_dt} ms, {check.wall_s:.2f} s in all; stresses are von Mises [MPa], lengths [mm]"
           + (f"; response surface: {check.surrogate}" if check.surrogate else ""))
-    print(pr.format_table(preds, check.verified))
+    print(format_table(preds, check.verified))
     if args.yield_mpa is not None:
-        print(pr.format_calls(preds, args.yield_mpa))
+        print(format_calls(preds, args.yield_mpa))
     if args.images:
         for i, p in enumerate(preds):
-            path = pr.contour_picture(p, truth[i] if truth else None, run.meta, args.out, run.label)
+            path = contour_picture(p, truth[i] if truth else None, run.meta, args.out, run.label)
             print(f"contours {p.name}: {path}")
     if args.csv:
-        print(f"wrote {pr.write_csv(preds, args.csv)}")
+        print(f"wrote {write_csv(preds, args.csv)}")
     if args.json:
         with atomic_path(Path(args.json)) as tmp:
-            tmp.write_text(json.dumps(pr.to_json(preds, check.verified, run.source, str(run.device), check),
+            tmp.write_text(json.dumps(to_json(preds, check.verified, run.source, str(run.device), check),
                                       indent=2))
         print(f"wrote {args.json}")
     return 0
@@ -173,9 +177,9 @@ def main_sweep(args: argparse.Namespace) -> int:
         raise ValueError(f"--vary {args.vary} and --design {fixed[0]}: {param} is the swept parameter; drop it "
                          "from --design")
     run = _design_run(args)
-    base = pr.parse_design(args.design, pr.middle_design(run.meta, run.ranges))
+    base = parse_design(args.design, middle_design(run.meta, run.ranges))
     designs = sw.sweep_designs(base, param, lo, hi, n)
-    for w in sorted({w for _, d in designs for w in pr.range_warnings(d, run.ranges)}):  # each distinct one once
+    for w in sorted({w for _, d in designs for w in range_warnings(d, run.ranges)}):  # each distinct one once
         print(f"hcmt sweep: warning: {w}", file=sys.stderr)
     check, analysis = sw.sweep(run, param, lo, hi, n, base, batch=args.batch, progress=not args.no_progress,
                                compile=args.compile, force=args.force, **options)
@@ -183,13 +187,13 @@ def main_sweep(args: argparse.Namespace) -> int:
     print(f"{run.label} ({run.source}) on {run.device}: {param} from {lo:g} to {hi:g} in {n} points, "
           f"{check.wall_s:.2f} s in all; stresses are von Mises [MPa], lengths [mm]"
           + (f"; response surface: {check.surrogate}" if check.surrogate else ""))
-    print(pr.format_table(check.preds, check.verified))
+    print(format_table(check.preds, check.verified))
     if args.yield_mpa is not None:
-        print(pr.format_calls(check.preds, args.yield_mpa, param, lambda p: f"{getattr(p.design, param):.6g}"))
+        print(format_calls(check.preds, args.yield_mpa, param, lambda p: f"{getattr(p.design, param):.6g}"))
     print(sw.format_analysis(analysis))
     print(f"plot: {sw.plot_sweep(check, analysis, args.out, run.label)}")
     if args.csv:
-        print(f"wrote {pr.write_csv(check.preds, args.csv)}")
+        print(f"wrote {write_csv(check.preds, args.csv)}")
     if args.json:
         with atomic_path(Path(args.json)) as tmp:
             tmp.write_text(json.dumps(sw.sweep_json(check, analysis, run.source, str(run.device)), indent=2))
@@ -217,8 +221,8 @@ def main_models(args: argparse.Namespace) -> int:
     cards = {}
     for name, path in shipped.items():
         run = Run.load(f"pretrained:{name}", "cpu")
-        defaults = pr.middle_design(run.meta, run.ranges)
-        settings = pr.settings_of(run.meta)
+        defaults = middle_design(run.meta, run.ranges)
+        settings = settings_of(run.meta)
         surrogate = run_surrogate_path(run)
         cards[name] = {"file": str(path), "size_mb": path.stat().st_size / 1e6, **run.card,
                        "window": {"frames": settings.frames, "frame_dt_ms": settings.frame_dt},
@@ -226,7 +230,7 @@ def main_models(args: argparse.Namespace) -> int:
                        "families": trained_families(run.meta),
                        "design_parameters": {k: {"training_range": list(run.ranges[k]) if k in run.ranges else None,
                                                  "default": getattr(defaults, k), "unit": DESIGN_UNITS[k]}
-                                             for k in pr.DESIGN_KEYS}}
+                                             for k in DESIGN_KEYS}}
     if args.json:
         print(json.dumps(cards, indent=2))
         return 0

@@ -8,9 +8,10 @@ import sys
 from pathlib import Path
 
 from hcmt.config import COMPILE_MODES, apply_overrides, complete_config, load_config
-from hcmt.data.format import atomic_path
+from hcmt.files import atomic_path
 from hcmt.inference.evaluate import check_options, compare, evaluate, format_compare, format_metrics, run_rollouts
-from hcmt.inference.run import Run, RunFolder, dataset_warnings
+from hcmt.inference.run import Run, dataset_warnings
+from hcmt.data.runs import RunFolder, check_start
 from hcmt.models import ABLATIONS, MODELS
 from hcmt.training import train
 from hcmt.training.trainer import INIT_NORMALIZERS
@@ -42,10 +43,7 @@ def configure_train(p: argparse.ArgumentParser) -> None:
 def main_train(args: argparse.Namespace) -> int:
     overrides = list(args.set) + ([f"train.steps={args.steps}"] if args.steps is not None else [])
     folder = RunFolder(args.out, must_exist=False)
-    if args.resume and folder.damaged:
-        raise ValueError(folder.damaged)
-    if not args.resume and folder.holds_run():
-        raise ValueError(f"{args.out} already holds a run; pass --resume to continue it or choose another --out")
+    check_start(folder, args.resume, flags=True)
     if args.resume and folder.info is not None and not args.config:  # resume with the run's saved settings
         saved = folder.info
         cfg = complete_config(apply_overrides(saved["config"], overrides))  # the one --set path

@@ -27,7 +27,8 @@ from hcmt.cli import check_outputs
 from hcmt.data.format import Split, read_meta
 from hcmt.graph.hierarchy import cached_hierarchy, hierarchy_cache_dir
 from hcmt.inference.evaluate import rollout_file
-from hcmt.inference.run import Run, RunFolder
+from hcmt.inference.run import Run
+from hcmt.data.runs import RunFolder
 from hcmt.models import REGISTRY, uses_hierarchy
 from hcmt.viz.animation import animate
 from hcmt.viz.attention import frame_attention, plot_attention

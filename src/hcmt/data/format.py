@@ -22,19 +22,16 @@ yielding different data (tests/test_fuzz.py).
 from __future__ import annotations
 
 import enum
-import errno
 import json
 import os
-import shutil
-import tempfile
-from contextlib import contextmanager
 from pathlib import Path
-from typing import Iterable, Iterator, Mapping
+from typing import Iterable, Mapping
 
 import h5py
 import numpy as np
 
 from hcmt.data.errors import DatasetError
+from hcmt.files import atomic_path, ensure_space
 
 FORMAT_NAME = "hcmt-dataset"
 FORMAT_VERSION = 1
@@ -144,62 +141,6 @@ def list_splits(dataset_dir: str | os.PathLike) -> list[str]:
     names = sorted(p.stem for p in Path(dataset_dir).glob("*.h5"))
     order = {"train": 0, "valid": 1, "test": 2}
     return sorted(names, key=lambda n: (order.get(n, 3), n))
-
-
-@contextmanager
-def atomic_path(path: str | os.PathLike) -> Iterator[Path]:
-    """Yield a temporary path beside ``path``; on success rename it onto ``path``, on failure delete it."""
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    os.close(fd)
-    tmp = Path(tmp)
-    try:
-        yield tmp
-        os.chmod(tmp, 0o644)  # mkstemp creates 0600; a dataset is meant to be shared
-        os.replace(tmp, path)
-    except OSError as exc:
-        named = getattr(exc, "filename", None)
-        if exc.errno is None or (named and str(named) != str(tmp)):
-            raise
-        raise OSError(exc.errno, exc.strerror, str(path)) from None  # the user's path, never the temporary one
-    finally:
-        if tmp.exists():
-            tmp.unlink()
-
-
-def take_lock(lock: str | os.PathLike) -> int | None:
-    """Create ``lock`` holding this process's pid. Returns None when taken, else the pid of the live process that
-    already holds it (possibly this one); a lock whose process is gone is taken over."""
-    lock = Path(lock)
-    lock.parent.mkdir(parents=True, exist_ok=True)
-    for _ in range(2):
-        try:
-            fd = os.open(lock, os.O_CREAT | os.O_EXCL | os.O_WRONLY)
-        except FileExistsError:
-            try:
-                pid = int(lock.read_text() or 0)
-                os.kill(pid, 0)
-            except (ProcessLookupError, ValueError):
-                lock.unlink(missing_ok=True)  # stale: its process is gone
-                continue
-            except PermissionError:  # alive, another user's
-                pass
-            return pid
-        with os.fdopen(fd, "w") as f:
-            f.write(str(os.getpid()))
-        return None
-    raise OSError(f"{lock}: cannot take the lock")
-
-
-def ensure_space(path: str | os.PathLike, nbytes: int, margin: int = 1 << 20) -> None:
-    """Refuse (``OSError`` ENOSPC naming ``path``) to write ``nbytes`` where the disk has less free space, before
-    HDF5 tries: its library can crash on a full disk instead of raising. Uncompressed sizes, so conservative."""
-    folder = Path(path).parent
-    free = shutil.disk_usage(folder if folder.exists() else Path.cwd()).free
-    if free < nbytes + margin:
-        raise OSError(errno.ENOSPC, f"No space left on device ({free / 1e6:.1f} MB free, about "
-                                    f"{(nbytes + margin) / 1e6:.1f} MB needed)", str(path))
 
 
 def validate_trajectory(meta: Mapping, fields: Mapping[str, np.ndarray], *, file=None, trajectory=None) -> dict:

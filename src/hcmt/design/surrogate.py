@@ -32,9 +32,10 @@ from sklearn.exceptions import ConvergenceWarning
 from sklearn.gaussian_process import GaussianProcessRegressor
 from sklearn.gaussian_process.kernels import RBF, ConstantKernel, WhiteKernel
 
-from hcmt.data.format import Split, atomic_path, read_meta
+from hcmt.data.format import Split, read_meta
+from hcmt.files import atomic_path
 from hcmt.design.readout import summarize_fields
-from hcmt.inference.run import PRETRAINED_DIR
+from hcmt.data.runs import PRETRAINED_DIR
 from hcmt.sim.scene import DESIGN_KEYS, FIRST_SCENE_KEYS, Design, design_from_attrs
 
 #: the scalar answers a surrogate predicts (keys of a design's summary)

@@ -19,8 +19,9 @@ from pathlib import Path
 import numpy as np
 
 from hcmt.config import plural
-from hcmt.design.predict import DESIGN_KEYS, Check, check_designs, finite, to_json
-from hcmt.sim.scene import Design
+from hcmt.design.check import Check, check_designs
+from hcmt.design.reports import finite, to_json
+from hcmt.sim.scene import DESIGN_KEYS, Design
 from hcmt.viz.meshplot import new_figure, save_figure
 
 #: steps smaller than this share of a series' range count as flat in the monotonicity test
@@ -144,7 +145,7 @@ def _unsafe(model: dict, solver: dict) -> bool:
 def sweep(run, param: str, lo: float, hi: float, n: int, base: Design, *, batch: int | None = None,
           **options) -> tuple[Check, dict]:
     """Predict a one-parameter sweep in one batch (``batch`` designs per model call, default all) and analyse it;
-    ``options`` as :func:`hcmt.design.predict.check_designs` (verify, yield_mpa, surrogate, ...)."""
+    ``options`` as :func:`hcmt.design.check.check_designs` (verify, yield_mpa, surrogate, ...)."""
     if batch is not None and batch < 1:
         raise ValueError(f"--batch must be >= 1, got {batch}")
     designs = sweep_designs(base, param, lo, hi, n)

@@ -27,7 +27,7 @@ import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components
 
 from hcmt.data.errors import DatasetError
-from hcmt.data.format import atomic_path
+from hcmt.files import atomic_path
 from hcmt.graph.contact import object_ids
 from hcmt.graph.edges import cells_to_edges, undirected_to_edges
 from hcmt.graph.pooling import bistride_pool

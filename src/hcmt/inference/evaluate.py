@@ -15,11 +15,13 @@ import numpy as np
 from tqdm import tqdm
 
 from hcmt.config import COMPILE_MODES, plural
-from hcmt.data.format import Split, atomic_path, ensure_space, read_meta
+from hcmt.data.format import Split, read_meta
+from hcmt.files import atomic_path, ensure_space
 from hcmt.inference.metrics import (SCALE, aggregate, format_physics, impact_groups, impact_metrics, plate_mask,
                                     rollout_rmse, step_rmse, summarize_impact, summarize_runs)
 from hcmt.inference.rollout import RolloutError, rollout, rollout_batch
-from hcmt.inference.run import Run, RunFolder, check_dataset, dataset_warnings
+from hcmt.inference.run import Run, check_dataset, dataset_warnings, model_label
+from hcmt.data.runs import RunFolder
 from hcmt.physics.trajectory import load_split
 
 
@@ -231,7 +233,7 @@ def compare(runs: list[str | Path | RunFolder | Run], split: str = "test") -> di
         if not mpath.is_file():
             raise FileNotFoundError(f"{mpath}: run `hcmt evaluate {folder.path} --data ... --split {split}` first")
         m = json.loads(mpath.read_text())
-        groups[(folder.label, m.get("data", "?"))].append(m)
+        groups[(model_label(folder.info["model"]), m.get("data", "?"))].append(m)
     datasets = {d for _, d in groups}
     return {(label if len(datasets) == 1 else f"{label} [{Path(d).name}]"): summarize_runs(ms)
             for (label, d), ms in groups.items()}

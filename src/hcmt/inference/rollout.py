@@ -43,7 +43,7 @@ def rollout_batch(model, adapter: Adapter, trajs: list[Trajectory], radius: floa
 
     Frames ``0 .. history`` of each trajectory start the rollout; later frames of ``traj.world_pos`` are read only
     where a boundary condition sets the position (clamped, symmetry and prescribed nodes), so a trajectory whose
-    later frames hold just those values (:func:`hcmt.design.predict.design_trajectory`) rolls out the same.
+    later frames hold just those values (:func:`hcmt.design.check.design_trajectory`) rolls out the same.
     ``progress(n)`` is called after every step. Returns one dict per trajectory, as :func:`rollout`;
     ``ms_per_step`` is the batch's time per step divided by the number of trajectories (compilation included)."""
     model.eval()

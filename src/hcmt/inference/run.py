@@ -13,205 +13,19 @@ trajectories), "card" (how it was made)}``; it loads with ``torch.load(weights_o
 from __future__ import annotations
 
 import json
-import math
 from dataclasses import dataclass, field
 from functools import cached_property
 from pathlib import Path
 
 import numpy as np
 import torch
-import yaml
 
 from hcmt.config import complete_config
-from hcmt.data.format import Split, atomic_path, read_meta
+from hcmt.data.format import Split, read_meta
+from hcmt.data.runs import RunFolder, available_pretrained, read_checkpoint
+from hcmt.files import atomic_path
 from hcmt.models import REGISTRY, from_checkpoint, resolve_device, uses_hierarchy
 from hcmt.physics.adapters import config_adapter
-from hcmt.sim.scene import Design, middle_design, parse_design
-
-PRETRAINED_DIR = Path(__file__).resolve().parent.parent / "pretrained"
-
-
-def available_pretrained() -> dict[str, Path]:
-    """Shipped models by name (``impact_plate_small``, ...)."""
-    return {p.stem: p for p in sorted(PRETRAINED_DIR.glob("*.pt"))}
-
-
-class RunFolder:
-    """A run folder made by ``hcmt train``: the one owner of its file names, ``run.yaml`` parsed once.
-
-    ``run.yaml`` holds the model's constructor arguments (``model``), the config (``config``), the training data
-    (``data``), ``seed`` and ``world_size``; the checkpoints are ``checkpoint.pt`` (latest) and ``best.pt``;
-    rollouts and metrics of a split are ``rollout_<split>[@<data>].h5`` and ``metrics_<split>[@<data>].json``."""
-
-    def __init__(self, path: str | Path, *, must_exist: bool = True):
-        self.path = Path(path)
-        self.info: dict | None = None
-        self.damaged: str | None = None  # why run.yaml could not be read (a folder that may be written anew)
-        if (self.path / "run.yaml").is_file():
-            try:
-                self.info = read_run_yaml(self.path / "run.yaml")
-            except ValueError as exc:
-                if must_exist:
-                    raise
-                self.damaged = str(exc)
-        elif must_exist:
-            hint = f"; the shipped model is pretrained:{self.path}" if str(self.path) in available_pretrained() else ""
-            raise FileNotFoundError(f"{self.path / 'run.yaml'}: not a run folder (made by `hcmt train --out RUN`)"
-                                    f"{hint}")
-
-    def __repr__(self) -> str:
-        return f"RunFolder({str(self.path)!r})"
-
-    @property
-    def source(self) -> str:
-        return str(self.path)
-
-    # -- files the training loop writes
-    @property
-    def run_yaml(self) -> Path:
-        return self.path / "run.yaml"
-
-    def checkpoint(self, which: str = "best") -> Path:
-        """``best.pt`` or ``checkpoint.pt``; the latest checkpoint when ``which`` is missing."""
-        path = self.path / f"{which}.pt"
-        return path if path.is_file() else self.latest
-
-    @property
-    def log(self) -> Path:
-        return self.path / "log.jsonl"
-
-    @property
-    def best(self) -> Path:
-        return self.path / "best.pt"
-
-    @property
-    def latest(self) -> Path:
-        return self.path / "checkpoint.pt"
-
-    @property
-    def tensorboard(self) -> Path:
-        return self.path / "tb"
-
-    @property
-    def text_log(self) -> Path:
-        return self.path / "train.log"
-
-    def steps_done(self) -> int:
-        """The step of the latest checkpoint (0 when there is none)."""
-        if not self.latest.is_file():
-            return 0
-        return int(read_checkpoint(self.latest, "cpu", earlier=self.best)["step"])
-
-    def holds_run(self) -> bool:
-        """Whether the folder holds a run (its settings or a checkpoint)."""
-        return self.run_yaml.is_file() or self.latest.is_file()
-
-    @property
-    def stats_path(self) -> Path:
-        return self.path / "train_stats.json"
-
-    def train_stats(self) -> dict | None:
-        return json.loads(self.stats_path.read_text()) if self.stats_path.is_file() else None
-
-    def write_stats(self, summary: dict) -> None:
-        """``train_stats.json`` (standard JSON: non-finite numbers become null), atomically."""
-        with atomic_path(self.stats_path) as tmp:
-            tmp.write_text(json.dumps({k: (None if isinstance(v, float) and not math.isfinite(v) else v)
-                                       for k, v in summary.items()}, indent=2))
-
-    def write_info(self, info: dict) -> None:
-        with atomic_path(self.run_yaml) as tmp:
-            tmp.write_text(yaml.safe_dump(info, sort_keys=False))
-        self.info = info
-
-    @property
-    def data_facts_path(self) -> Path:
-        return self.path / "data.json"
-
-    def write_data_facts(self, data) -> None:
-        """``data.json``: the training data's meta.json and design ranges, so the run needs no dataset to predict
-        designs (the generator's settings, the ranges and the design keys travel with it)."""
-        meta, ranges = _data_facts(data)
-        if meta is not None:
-            with atomic_path(self.data_facts_path) as tmp:
-                tmp.write_text(json.dumps({"meta": meta, "ranges": {k: list(v) for k, v in ranges.items()}},
-                                          indent=1))
-
-    def data_facts(self) -> tuple[dict | None, dict[str, tuple[float, float]]]:
-        """(meta.json, design ranges) of the training data: from the dataset while it is there, else from the
-        run's ``data.json``."""
-        meta, ranges = _data_facts(self.train_data)
-        if meta is None and self.data_facts_path.is_file():
-            try:
-                facts = json.loads(self.data_facts_path.read_text())
-                meta = facts["meta"]
-                ranges = {k: (float(v[0]), float(v[1])) for k, v in facts["ranges"].items()}
-                generator = meta.get("generator") if isinstance(meta, dict) else None
-                if not isinstance(generator, dict) or not isinstance(generator.get("settings", {}), dict):
-                    raise TypeError("no generator block")
-            except (ValueError, KeyError, TypeError, IndexError, AttributeError, OverflowError) as exc:
-                raise ValueError(f"{self.data_facts_path}: damaged ({exc.__class__.__name__}); it is written by "
-                                 "`hcmt train` from the training data's meta.json") from None
-        return meta, ranges
-
-    # -- files of its use
-    @property
-    def train_data(self) -> str | None:
-        """The resolved training-data path recorded in ``run.yaml``."""
-        return (self.info or {}).get("data")
-
-    def data_key(self, data) -> str:
-        """``""`` when ``data`` is the run's own training dataset (or not given), else ``"@<dataset folder
-        name>"``: the suffix of the rollout and metrics files of another dataset, so evaluating one never
-        overwrites the run's own."""
-        own = self.train_data
-        if data is None or own is None or str(Path(data).resolve()) == str(Path(own).resolve()):
-            return ""
-        return f"@{Path(data).name}"
-
-    def rollout_path(self, split: str, data=None) -> Path:
-        return self.path / f"rollout_{split}{self.data_key(data)}.h5"
-
-    def metrics_path(self, split: str, data=None) -> Path:
-        return self.path / f"metrics_{split}{self.data_key(data)}.json"
-
-    @property
-    def label(self) -> str:
-        return model_label(self.info["model"])
-
-
-def read_run_yaml(path: Path) -> dict:
-    """``run.yaml`` as a dict with its ``model`` (and ``config`` when the run has a checkpoint: :func:`load_run`
-    checks it); one line naming the file when it is not."""
-    try:
-        info = yaml.safe_load(path.read_text(encoding="utf-8"))
-    except (yaml.YAMLError, UnicodeDecodeError) as exc:
-        raise ValueError(f"{path}: not readable YAML ({str(exc).splitlines()[0]}); it is written by `hcmt train` "
-                         "(restore it, or train the run again)") from None
-    if not isinstance(info, dict) or not isinstance(info.get("model"), dict) or (
-            "config" in info and not isinstance(info["config"], dict)):
-        what = "empty" if not info else "no model section (the model's constructor arguments)" \
-            if not isinstance(info, dict) or not isinstance(info.get("model"), dict) else "a config that is no mapping"
-        raise ValueError(f"{path}: {what}; run.yaml is written by `hcmt train` (restore it, or train the run again)")
-    return info
-
-
-def read_checkpoint(path: Path, device="cpu", earlier: Path | None = None) -> dict:
-    """A checkpoint (``torch.load(weights_only=True)``) as a dict; a truncated, empty or foreign file is one line
-    naming it, and the other checkpoint of the run when there is one."""
-    other = f"; another checkpoint of the run exists: {earlier} (copy it over {path.name} to go on from it)" \
-        if earlier is not None and earlier.is_file() and earlier != path else ""
-    try:
-        state = torch.load(path, map_location=device, weights_only=True)
-    except FileNotFoundError:
-        raise
-    except Exception as exc:  # torch raises RuntimeError, EOFError, UnpicklingError, ...: all mean "damaged"
-        raise ValueError(f"{path}: not a readable checkpoint (truncated or corrupt: {exc.__class__.__name__}){other}") \
-            from None
-    if not isinstance(state, dict) or "model" not in state:
-        raise ValueError(f"{path}: not an hcmt checkpoint (no model weights){other}")
-    return state
-
 
 def model_label(args: dict) -> str:
     """The display label of a model from its constructor arguments (:data:`hcmt.models.REGISTRY`), with its
@@ -330,13 +144,6 @@ class Run:
                              "hcmt.predict_designs for designs, or train a run")
         return self.folder
 
-    # -- using it ---------------------------------------------------------------------------------------------------
-    def design(self, **params) -> Design:
-        """An Impact Plate :class:`~hcmt.sim.scene.Design`: ``params`` over the middle of the model's training
-        ranges (:func:`hcmt.sim.scene.middle_design`), validated."""
-        return parse_design([f"{k}={v}" for k, v in params.items()], middle_design(self.meta, self.ranges),
-                            where="design")
-
     # -- packaging -------------------------------------------------------------------------------------------------
     def save_pretrained(self, path: str | Path, card: dict, half: bool = True) -> Path:
         """Write this run as one shipped-model file (fp16 weights with ``half``), atomically."""
@@ -353,22 +160,6 @@ class Run:
         with atomic_path(path) as tmp:
             torch.save(pack, tmp)
         return path
-
-
-def _data_facts(data: str | None) -> tuple[dict | None, dict[str, tuple[float, float]]]:
-    """(meta.json, min/max of each numeric design attribute over the training split) of a run's dataset, or
-    (None, {}) when it is not there any more."""
-    if not data or not (Path(data) / "meta.json").is_file():
-        return None, {}
-    meta = read_meta(data)
-    ranges: dict[str, list[float]] = {}
-    if (Path(data) / "train.h5").is_file():
-        with Split(data, "train", meta) as s:
-            for i in range(len(s)):
-                for k, v in s.attrs(i).items():
-                    if isinstance(v, (int, float, np.number)) and not isinstance(v, bool):
-                        ranges.setdefault(k, []).append(float(v))
-    return json.loads(json.dumps(meta)), {k: (min(v), max(v)) for k, v in ranges.items()}
 
 
 def check_dataset(train_meta: dict | None, data, train_data=None, split: str | None = None) -> list[str]:

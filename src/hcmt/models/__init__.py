@@ -17,7 +17,6 @@ from .gt import GT
 from .hcmt import ABLATIONS, HCMT
 from .mgn import MGN
 from .normalizer import Normalizer
-from .updater import update_positions
 
 
 
@@ -96,4 +95,4 @@ def uses_hierarchy(args: dict) -> tuple[int, bool]:
 
 
 __all__ = ["ABLATIONS", "ATTENTION_MODES", "GT", "HCMT", "MGN", "MODELS", "REGISTRY", "ModelInfo", "Normalizer",
-           "Simulator", "build_model", "checkpoint_state", "from_checkpoint", "make_model", "resolve_device", "update_positions", "uses_hierarchy"]
+           "Simulator", "build_model", "checkpoint_state", "from_checkpoint", "make_model", "resolve_device", "uses_hierarchy"]

@@ -65,6 +65,27 @@ class GTLayer(nn.Module):
 
 
 class GT(Simulator):
+    r"""Graph Transformer (Dwivedi & Bresson 2021), the paper's attention baseline: encode, ``blocks`` layers of
+    clipped edge-gated attention over mesh and contact edges together (one softmax per receiver), edges updated
+    in every layer but the last, decode.
+
+    Args:
+        node_in: width of the raw node features :math:`f_i` (Table 9: node-type one-hot 9, velocity
+            :math:`x_i^t - x_i^{t-1}`, and the dataset's static fields such as ρ and Y).
+        mesh_in: width of the raw mesh-edge features :math:`u_{ij}, |u_{ij}|, x_{ij}, |x_{ij}|` (+ the
+            deformation :math:`x_{ij} - u_{ij}` with ``model.deformation``).
+        contact_in: width of the raw contact-edge features :math:`x_{iq}, |x_{iq}|`.
+        out: width of the output: the velocity (or acceleration) per dimension, plus the stress σ.
+        blocks: Transformer layers (15, the depth of the paper's HCMT).
+        heads: attention heads (4).
+        hidden: latent width (128).
+        clip: the clip range of the attention logits.
+
+    Shapes: ``graph.node_features [N, node_in]``, ``graph.mesh_features [E, mesh_in]`` with ``mesh_edges [2, E]``,
+    ``graph.contact_features [C, contact_in]`` with ``contact_edges [2, C]``; ``forward`` returns the normalized
+    output ``[N, out]``, ``denormalize`` the physical one. Save with :func:`hcmt.models.checkpoint_state`, load with
+    :func:`hcmt.models.from_checkpoint` (the constructor arguments travel with the weights).
+    """
     def __init__(self, node_in: int, mesh_in: int, contact_in: int, out: int, *, blocks: int = 15, heads: int = 4,
                  hidden: int = 128, clip: float = 2.0):
         super().__init__(node_in, mesh_in, contact_in, out, hidden=hidden)

@@ -18,7 +18,7 @@ r"""Hierarchical Contact Mesh Transformer (paper §3.2): encoder → CMT → HMT
     uses the (L_H−ℓ)-th edge feature after reaching the final level λ").
 
 * **Decoder and updater**: the decoder (no LayerNorm) gives the normalized output; ``denormalize`` then
-  :func:`hcmt.models.updater.update_positions` (first order, :math:`\hat x^{t+1} = x^t + \hat{\dot x}^t`) give positions.
+  :func:`hcmt.physics.updater.update_positions` (first order, :math:`\hat x^{t+1} = x^t + \hat{\dot x}^t`) give positions.
 
 * **Ablations** (``ablation=``): ``late-contact`` (HMT, then CMT), ``only-cmt`` (:math:`L_C + L_H` CMT blocks, so the
   depth :math:`L = 15` of the paper is kept; no hierarchy), ``only-hmt`` (HMT alone, :math:`L_H` blocks, contact
@@ -91,6 +91,32 @@ class HMT(nn.Module):
 
 
 class HCMT(Simulator):
+    r"""The Hierarchical Contact Mesh Transformer (paper §3.2, module docstring): encode, :math:`L_C` CMT blocks over
+    level-0 mesh and contact edges (eqs. 1–4), an HMT U over :math:`\lambda` pooled levels,
+    :math:`L_H = 2\lambda + 1` blocks (eqs. 5–7), decode.
+
+    Args:
+        node_in: width of the raw node features :math:`f_i` (Table 9: node-type one-hot 9, velocity
+            :math:`x_i^t - x_i^{t-1}`, and the dataset's static fields such as ρ and Y).
+        mesh_in: width of the raw mesh-edge features :math:`u_{ij}, |u_{ij}|, x_{ij}, |x_{ij}|` (+ the
+            deformation :math:`x_{ij} - u_{ij}` with ``model.deformation``).
+        contact_in: width of the raw contact-edge features :math:`x_{iq}, |x_{iq}|`.
+        out: width of the output: the velocity (or acceleration) per dimension, plus the stress σ.
+        L_C: contact-mesh Transformer blocks (paper Table 8: 2).
+        levels: λ, the pooled levels of the hierarchy (Table 8: 4-6; 0 = no HMT).
+        hidden: latent width :math:`d` (Table 8: 128).
+        heads: attention heads (Table 8: 4).
+        clip: the clip range :math:`c` of the attention logits (eq. 1).
+        ablation: None or one of :data:`ABLATIONS` (paper Tables 3, 10-12).
+        lpe_k: Laplacian eigenvectors of the ``lpe`` ablation.
+        attention: ``paper`` (eq. 1, a per-receiver softmax) or ``official`` (the authors' unnormalized sum).
+        ffn_bias: biases in the blocks' feed-forward networks (the authors' code: False).
+
+    Shapes: ``graph.node_features [N, node_in]``, ``graph.mesh_features [E, mesh_in]`` with ``mesh_edges [2, E]``,
+    ``graph.contact_features [C, contact_in]`` with ``contact_edges [2, C]``; ``forward`` returns the normalized
+    output ``[N, out]`` (hierarchy: ``graph.pool``, ``graph.level_edges``, ``graph.level_features``), ``denormalize`` the physical one. Save with :func:`hcmt.models.checkpoint_state`, load with
+    :func:`hcmt.models.from_checkpoint` (the constructor arguments travel with the weights).
+    """
     def __init__(self, node_in: int, mesh_in: int, contact_in: int, out: int, *, L_C: int = 2, levels: int = 6,
                  hidden: int = 128, heads: int = 4, clip: float = 2.0, ablation: str | None = None, lpe_k: int = 8,
                  attention: str = "paper", ffn_bias: bool = True):

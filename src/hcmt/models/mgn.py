@@ -45,6 +45,25 @@ class MGNBlock(nn.Module):
 
 
 class MGN(Simulator):
+    r"""MeshGraphNets (Pfaff et al. 2021), the paper's baseline: encode, ``blocks`` message-passing blocks that
+    update mesh edges, contact edges and nodes (:math:`e'_{ij} = f(e_{ij}, v_i, v_j)`,
+    :math:`v'_i = g(v_i, \sum_j e'_{ij}, \sum_q s'_{iq})`, residual), decode.
+
+    Args:
+        node_in: width of the raw node features :math:`f_i` (Table 9: node-type one-hot 9, velocity
+            :math:`x_i^t - x_i^{t-1}`, and the dataset's static fields such as ρ and Y).
+        mesh_in: width of the raw mesh-edge features :math:`u_{ij}, |u_{ij}|, x_{ij}, |x_{ij}|` (+ the
+            deformation :math:`x_{ij} - u_{ij}` with ``model.deformation``).
+        contact_in: width of the raw contact-edge features :math:`x_{iq}, |x_{iq}|`.
+        out: width of the output: the velocity (or acceleration) per dimension, plus the stress σ.
+        blocks: message-passing blocks (MeshGraphNets: 15).
+        hidden: latent width (128).
+
+    Shapes: ``graph.node_features [N, node_in]``, ``graph.mesh_features [E, mesh_in]`` with ``mesh_edges [2, E]``,
+    ``graph.contact_features [C, contact_in]`` with ``contact_edges [2, C]``; ``forward`` returns the normalized
+    output ``[N, out]``, ``denormalize`` the physical one. Save with :func:`hcmt.models.checkpoint_state`, load with
+    :func:`hcmt.models.from_checkpoint` (the constructor arguments travel with the weights).
+    """
     def __init__(self, node_in: int, mesh_in: int, contact_in: int, out: int, *, blocks: int = 15,
                  hidden: int = 128):
         super().__init__(node_in, mesh_in, contact_in, out, hidden=hidden)

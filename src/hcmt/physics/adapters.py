@@ -30,7 +30,7 @@ from hcmt.config import DATASET_NAMES, complete_config, load_config
 from hcmt.data.format import NODE_TYPE_SIZE, NodeType
 from hcmt.graph.contact import OFFICIAL_IMPACT_PLATE_TYPES
 from hcmt.models import Simulator, build_model
-from hcmt.models.updater import update_positions
+from hcmt.physics.updater import update_positions
 
 
 @dataclass(frozen=True)

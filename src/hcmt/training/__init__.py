@@ -8,7 +8,7 @@ import shutil
 from pathlib import Path
 
 from hcmt.config import apply_overrides, complete_config, load_config
-from hcmt.inference.run import RunFolder
+from hcmt.data.runs import RunFolder, check_start
 from hcmt.models import MODELS
 from hcmt.training.runtime import deterministic_scope, lock_run
 from hcmt.training.trainer import Trainer
@@ -38,11 +38,10 @@ def train(config, data, model: str, out, *, overrides=None, resume: bool = False
         raise ValueError(f"hcmt.train: unknown model {model!r}; expected one of {', '.join(MODELS)}")
     out = Path(out)
     folder = RunFolder(out, must_exist=False)
-    if folder.holds_run() and not resume:
-        if not overwrite:
-            raise ValueError(f"hcmt.train: {out} already holds a run; pass resume=True to continue it, "
-                             "overwrite=True to delete it and start afresh, or another out folder")
+    if folder.holds_run() and not resume and overwrite:
         shutil.rmtree(out)
+        folder = RunFolder(out, must_exist=False)
+    check_start(folder, resume)
     cfg = (complete_config(apply_overrides(config, overrides)) if isinstance(config, dict)
            else load_config(str(config), overrides))
 

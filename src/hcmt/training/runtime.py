@@ -16,7 +16,7 @@ import torch.distributed as dist
 import yaml
 
 from hcmt.config import complete_config
-from hcmt.data.format import atomic_path, take_lock
+from hcmt.files import atomic_path, take_lock
 
 
 def check_resume(saved: dict, run: dict, out: Path) -> None:

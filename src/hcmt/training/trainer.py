@@ -44,9 +44,11 @@ from torch.utils.tensorboard import SummaryWriter
 from tqdm import tqdm
 
 from hcmt.config import check_train_config, complete_config
-from hcmt.data.format import atomic_path, read_meta
+from hcmt.data.format import read_meta
+from hcmt.data.runs import RunFolder, check_start, read_checkpoint
+from hcmt.files import atomic_path
 from hcmt.inference.evaluate import validation_rmse
-from hcmt.inference.run import Run, RunFolder, read_checkpoint
+from hcmt.inference.run import Run
 from hcmt.models import Normalizer, checkpoint_state, make_model, resolve_device, uses_hierarchy
 from hcmt.models.base import compile_simulator
 from hcmt.physics.adapters import config_adapter, model_args, noise_gamma
@@ -99,12 +101,8 @@ class Trainer:
         self.args = model_args(cfg, model_name, ablation, meta)
         self.folder = RunFolder(out, must_exist=False)
         self.ckpt_path = self.folder.latest
-        if resume and self.folder.damaged:
-            raise ValueError(self.folder.damaged)
-        if resume and not self.ckpt_path.is_file():
-            raise FileNotFoundError(f"{self.ckpt_path}: nothing to resume; start without --resume")
-        if not resume and self.ckpt_path.is_file():
-            raise ValueError(f"{out} already holds a run; pass --resume to continue it or choose another --out")
+        if resume or self.ckpt_path.is_file():  # train() has cleared or refused a folder holding only run.yaml
+            check_start(self.folder, resume, flags=True)
         run = {"model": self.args, "config": cfg, "data": str(Path(data).resolve()), "seed": seed,
                "world_size": self.world}
         if init_normalizers not in INIT_NORMALIZERS:

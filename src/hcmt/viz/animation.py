@@ -16,7 +16,7 @@ from matplotlib import colors
 from matplotlib.cm import ScalarMappable
 from PIL import Image
 
-from hcmt.data.format import atomic_path
+from hcmt.files import atomic_path
 from hcmt.viz.contours import field_label, field_name, field_values, view_box
 from hcmt.viz.meshplot import (box_3d, closest_pair, draw_field_2d, draw_field_3d, extend_of, impact_window, new_figure,
                                panel_size)

@@ -18,7 +18,8 @@ from hcmt.data.format import Split, read_meta
 from hcmt.inference.metrics import SCALE, step_rmse
 from hcmt.viz.meshplot import new_figure, save_figure
 from hcmt.inference.evaluate import rollout_file
-from hcmt.inference.run import Run, RunFolder
+from hcmt.inference.run import Run
+from hcmt.data.runs import RunFolder
 from hcmt.viz.rollouts import quantity_label, unique_labels
 
 QUANTITIES = ("position", "stress")

@@ -28,7 +28,7 @@ from pathlib import Path
 import meshio
 import numpy as np
 
-from hcmt.data.format import atomic_path
+from hcmt.files import atomic_path
 from hcmt.viz.rollouts import Case, Series
 
 FORMATS = ("vtu", "xdmf")

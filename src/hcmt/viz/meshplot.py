@@ -28,7 +28,7 @@ from matplotlib.tri import Triangulation
 from mpl_toolkits.mplot3d.art3d import Poly3DCollection
 from scipy.spatial import cKDTree
 
-from hcmt.data.format import atomic_path
+from hcmt.files import atomic_path
 
 ZOOM_THICKNESSES = 4.0  # zoom window height, in thicknesses of the thinnest object
 ZOOM_ASPECT = 4.0 / 3.0  # zoom window width / height

@@ -17,7 +17,8 @@ from hcmt.data.errors import DatasetError
 from hcmt.data.format import Split, read_meta
 from hcmt.graph.contact import object_ids
 from hcmt.inference.evaluate import rollout_file
-from hcmt.inference.run import Run, RunFolder
+from hcmt.inference.run import Run
+from hcmt.data.runs import RunFolder
 
 
 @dataclass

@@ -1,4 +1,4 @@
-"""Design check: the peak stress and deflection of new Impact Plate designs from a learned model, no solver run.
+"""Design check, the check itself: the peak stress and deflection of new Impact Plate designs from a learned model, no solver run.
 
 For each design (the parameters of ``hcmt simulate``, :class:`hcmt.sim.scene.Design`) the generator's scene code
 builds the mesh and the first two frames (:func:`hcmt.sim.scene.initial_frames`: the ball in free flight just above
@@ -15,30 +15,21 @@ sweep`` and ``hcmt demo`` share.
 """
 from __future__ import annotations
 
-import csv
 import time
-from dataclasses import asdict, dataclass, field, fields, replace
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
-
 from tqdm import tqdm
 
-from hcmt.config import plural
-from hcmt.data.format import atomic_path
 from hcmt.design.readout import history_correlation, summarize_fields
 from hcmt.design.surrogate import Surrogate, for_run, side_by_side
-from hcmt.inference.metrics import format_physics, impact_metrics, plate_mask, rollout_rmse, summarize_impact
+from hcmt.inference.metrics import impact_metrics, plate_mask, rollout_rmse, summarize_impact
 from hcmt.inference.rollout import rollout_batch
 from hcmt.physics.trajectory import prepare_trajectory
-from hcmt.sim.scene import (DESIGN_KEYS, EDGES, FIRST_SCENE_KEYS, MAX_ESTIMATED_SECONDS, Design, Settings, check_size,
-                            middle_design, parse_design, parse_number, simulate, start_frames, validated_warnings)
-from hcmt.viz.contours import plot_contours
-from hcmt.viz.rollouts import Case, Series
-
-__all__ = ["DESIGN_KEYS", "Check", "Prediction", "check_designs", "middle_design", "parse_design", "predict",
-           "read_designs_csv", "verify_designs"]
-
+from hcmt.sim.scene import (MAX_ESTIMATED_SECONDS, Design, Settings, check_size, simulate, start_frames,
+                            validated_warnings)
+from hcmt.design.inputs import confidence, outside, range_warnings, settings_of
 
 
 @dataclass
@@ -60,148 +51,6 @@ class Prediction:
         """The trajectory as :func:`hcmt.design.readout.summarize_fields` reads it."""
         return {"world_pos": self.world_pos, "stress": self.stress, "mesh_pos": self.mesh_pos, "cells": self.cells,
                 "node_type": self.node_type, "modulus": self.modulus}
-
-
-# -- designs -----------------------------------------------------------------------------------------------------
-def read_designs_csv(path: str | Path, defaults: Design, first: int = 1,
-                     taken: dict[str, str] | None = None) -> list[tuple[str, Design]]:
-    """Designs from a CSV file: a header of parameter names (optionally a ``name`` column), one design per row,
-    every column present and numeric in every row (blank lines are skipped; a UTF-8 BOM and CRLF line ends are
-    fine). Anything else is refused naming the file, the line and the column. Unnamed rows are ``design_<first>``,
-    ... ; ``taken``: names already given elsewhere (name -> where), which a row may not take again."""
-    path = Path(path)
-    if not path.is_file():
-        raise FileNotFoundError(f"{path}: no such designs file")
-    try:
-        text = path.read_text(encoding="utf-8-sig")
-    except UnicodeDecodeError as exc:
-        raise ValueError(f"{path}: not a UTF-8 text file ({exc.reason} at byte {exc.start})") from None
-    try:
-        rows = [(n, r) for n, r in enumerate(csv.reader(text.splitlines()), start=1) if any(c.strip() for c in r)]
-    except csv.Error as exc:
-        raise ValueError(f"{path}: not a readable CSV file ({exc})") from None
-    if not rows:
-        raise ValueError(f"{path}: no designs (expected a header line of parameter names and one row per design)")
-    (head_line, head), body = rows[0], rows[1:]
-    header = [h.strip().replace("-", "_") for h in head]
-    for col, h in enumerate(header, start=1):
-        if h != "name" and h not in DESIGN_KEYS:
-            raise ValueError(f"{path} line {head_line}, column {col}: unknown column {h!r} in the header; expected "
-                             f"`name` or parameters of {', '.join(DESIGN_KEYS)}")
-    if len(set(header)) != len(header):
-        raise ValueError(f"{path} line {head_line}: a column appears twice in the header")
-    if not body:
-        raise ValueError(f"{path}: a header but no designs (one row per design after the header)")
-    out, seen = [], dict(taken or {})
-    for n, row in body:
-        if len(row) != len(header):
-            raise ValueError(f"{path} line {n}: {len(row)} values for {len(header)} columns "
-                             f"({', '.join(header)})")
-        name, items = f"design_{len(out) + first}", []
-        for col, (h, v) in enumerate(zip(header, row), start=1):
-            if h == "name":
-                name = check_name(v.strip(), f"{path} line {n}, column {col} (name)")
-                if name in seen:
-                    where = seen[name] if isinstance(seen[name], str) else f"line {seen[name]}"
-                    raise ValueError(f"{path} line {n}, column {col} (name): {name!r} already names {where}; every "
-                                     "design needs its own name")
-                seen[name] = n
-                continue
-            if not v.strip():
-                raise ValueError(f"{path} line {n}, column {col} ({h}): missing value")
-            items.append(f"{h}={parse_number(v, f'{path} line {n}, column {col} ({h})')}")
-        if name in seen and seen[name] != n:
-            raise ValueError(f"{path} line {n}: the default name {name!r} is already taken ({seen[name]}); give the "
-                             "CSV a name column")
-        out.append((name, parse_design(items, defaults, where=f"{path} line {n}:")))
-    return out
-
-
-def check_name(name: str, where: str) -> str:
-    """A design name that is safe as a folder name under ``--out`` (pictures are written to ``OUT/NAME/``): not
-    empty, no path separator, not ``.`` or ``..``, no control character; else one line naming ``where``."""
-    bad = None
-    if not name:
-        bad = "is empty"
-    elif any(c in name for c in "/\\") or name in (".", ".."):
-        bad = "would be a path outside its own folder (no '/', '\\', '.' or '..')"
-    elif any(ord(c) < 32 or ord(c) == 127 for c in name):
-        bad = "holds a control character"
-    elif len(name) > 200:
-        bad = "is longer than 200 characters"
-    if bad:
-        raise ValueError(f"{where}: the design name {name!r} {bad}; names become folder names under --out")
-    return name
-
-
-def with_family_defaults(ranges: dict[str, tuple[float, float]]) -> dict[str, tuple[float, float]]:
-    """Training ranges with every panel-family parameter they do not name held at its default (a model trained
-    before the families existed learned the first scene only); empty ranges stay empty (nothing known)."""
-    if not ranges:
-        return ranges
-    first = {k: (v, v) for k, v in asdict(Design()).items() if k in DESIGN_KEYS[FIRST_SCENE_KEYS:]}
-    return {**first, **ranges}
-
-
-def outside(design: Design, ranges: dict[str, tuple[float, float]]) -> list[str]:
-    """The design parameters outside ``ranges`` (relative tolerance 1e-6). A panel-family parameter that
-    ``ranges`` do not name (a model trained before the families existed) counts as held at its default, the
-    first scene's: one clamped layer struck by the ball."""
-    out = []
-    for key, (lo, hi) in with_family_defaults(ranges).items():
-        tol = 1e-6 * max(abs(lo), abs(hi), 1e-12)
-        if key in DESIGN_KEYS and not lo - tol <= getattr(design, key) <= hi + tol:
-            out.append(key)
-    return out
-
-
-def range_warnings(design: Design, ranges: dict[str, tuple[float, float]],
-                   what: str = "the model's training data") -> list[str]:
-    """One line per parameter outside the training data's range (:func:`outside`)."""
-    out = []
-    ranges = with_family_defaults(ranges)
-    for key in outside(design, ranges):
-        lo, hi = ranges[key]
-        span = f"{lo:.6g}" if lo == hi else f"{lo:.6g} .. {hi:.6g}"
-        out.append(f"{key} = {getattr(design, key):.6g} is outside {what} ({span}); expect larger errors")
-    return out
-
-
-def region_of(design: Design, ranges: dict[str, tuple[float, float]]) -> str:
-    """Where a design lies in the training ranges, for the model card's measured error by region: ``thin``
-    (thickness in the lowest fifth of its range), ``high`` (drop height in the top fifth), ``thin+high``,
-    ``inside``, or ``outside`` (a parameter outside the training ranges). The fifths are those of the generator's
-    ``--edge-fraction`` (:data:`hcmt.sim.scene.EDGES`)."""
-    if range_warnings(design, ranges):
-        return "outside"
-    parts = []
-    for key, name in (("thickness", "thin"), ("drop_height", "high")):
-        if key in ranges:
-            lo, hi = ranges[key]
-            a, b = EDGES[key]
-            u = (getattr(design, key) - lo) / max(hi - lo, 1e-12)
-            if a <= u <= b and (a > 0 or b < 1):
-                parts.append(name)
-    return "+".join(parts) or "inside"
-
-
-def confidence(design: Design, run) -> dict | None:
-    """The model card's measured error for the design's region (:func:`region_of`), or None when the card has
-    none: ``{"region", "label", "designs", "peak_plate_stress_error_pct_median", ...}``."""
-    regions = {r["region"]: r for r in (run.card or {}).get("confidence", [])}
-    region = region_of(design, run.ranges)
-    if region == "outside":
-        return {"region": region, "label": "outside the training ranges", "designs": 0}
-    return regions.get(region)
-
-
-def settings_of(meta: dict | None) -> Settings:
-    """The generator settings (frames, frame_dt, formulation, ...) the training data was made with."""
-    saved = ((meta or {}).get("generator") or {}).get("settings")
-    if not saved:
-        raise ValueError("the model's training data is not an hcmt-generated Impact Plate dataset (no generator "
-                         "settings in its meta.json): predict needs the recorded window it was trained on")
-    return Settings(**{k: v for k, v in saved.items() if k in {f.name for f in fields(Settings)}})
 
 
 # -- prediction ----------------------------------------------------------------------------------------------------
@@ -271,7 +120,11 @@ class Check:
 
 #: the interval the limit calls trust (:func:`trusted_interval`), chosen by measurement (docs/MODELS.md, "Calls")
 TRUST = "union"
+
+
 TRUSTS = ("surrogate", "union", "model")
+
+
 #: without a surrogate, the mesh model's interval is its answer ± this share: the worst peak plate stress error
 #: measured on held-out designs inside the training ranges (docs/MODELS.md)
 MODEL_BAND = 0.6
@@ -346,7 +199,7 @@ def check_designs(run, designs: list[tuple[str, Design]], *, batch: int = 8, ver
             p.summary["warnings"] += range_warnings(
                 p.design, {k: r for k, r in surrogate.ranges().items() if k not in own},
                 "the response surface's training designs")
-        p.summary["low_confidence"] = bool(_weak(p))
+        p.summary["low_confidence"] = bool(weak_reasons(p))
     add_margin(preds, yield_mpa)
     add_calls(preds, yield_mpa, trust)
     truth = verified = None
@@ -502,51 +355,13 @@ def verify_designs(preds: list[Prediction], truth: list[Prediction]) -> dict:
                     "prediction wall time per design on this machine"}
 
 
-# -- output --------------------------------------------------------------------------------------------------------
-COLUMNS = [("design", "{}", "name"), ("plate MPa", "{:.1f}", "peak_plate_stress_mpa"),
-           ("at r,y mm", "{}", "peak_plate_where_mm"), ("t ms", "{:.3f}", "peak_plate_when_ms"),
-           ("ball MPa", "{:.1f}", "peak_ball_stress_mpa"), ("defl. mm", "{:.4f}", "max_deflection_mm"),
-           ("margin MPa", "{:.1f}", "yield_margin_mpa"), ("wall s", "{:.2f}", "wall_s")]
-VERIFY_COLUMNS = [("solver MPa", "{:.1f}", "solver_peak_plate_stress_mpa"),
-                  ("err %", "{:+.1f}", "peak_plate_stress_error_pct"),
-                  ("loc. err mm", "{:.2f}", "peak_plate_location_error_mm"),
-                  ("defl. err %", "{:+.1f}", "max_deflection_error_pct"),
-                  ("pos RMSE mm", "{:.4f}", "position_rmse_mm"), ("speedup", "{:.1f}x", "speedup")]
-
-
-def _interval(block: dict | None, fmt: str = "{:.0f}") -> str:
-    """``mean [lo, hi]`` of a surrogate answer ("-" when there is none)."""
-    if not block:
-        return "-"
-    return f"{fmt.format(block['mean'])} [{fmt.format(block['lo'])}, {fmt.format(block['hi'])}]"
-
-
-def table_rows(preds: list[Prediction]) -> tuple[list[str], list[list[str]]]:
-    cols = [c for c in COLUMNS if c[2] != "yield_margin_mpa" or "yield_margin_mpa" in preds[0].summary]
-    with_surrogate = any("surrogate" in p.summary for p in preds)
-    vcols = VERIFY_COLUMNS if any("verify" in p.summary for p in preds) else []
-    head = [c[0] for c in cols[:2]] + (["surrogate MPa [95 %]"] if with_surrogate else []) + \
-        [c[0] for c in cols[2:] + vcols]
-    rows = []
-    for p in preds:
-        s = {**p.summary, "name": p.name, **p.summary.get("verify", {})}
-        cells = []
-        for _, fmt, key in cols + vcols:
-            v = s.get(key)
-            cells.append("-" if v is None else f"{v[0]:.2f},{v[1]:.2f}" if isinstance(v, list) else fmt.format(v))
-        if with_surrogate:
-            cells.insert(2, _interval((p.summary.get("surrogate") or {}).get("peak_plate_stress_mpa")))
-        rows.append(cells)
-    return head, rows
-
-
 #: the low-confidence note also fires where the mesh model and the surrogate differ by more than this share of
 #: the surrogate's estimate (tuned on the shipped model's 18 valid + test designs, judged on 46 held-out ones:
 #: docs/MODELS.md, "When the note fires")
 NOTE_DISAGREEMENT = 0.10
 
 
-def _weak(p: Prediction) -> list[str]:
+def weak_reasons(p: Prediction) -> list[str]:
     """The low-confidence note: with a surrogate, where it and the mesh model disagree by more than
     :data:`NOTE_DISAGREEMENT` (measured: it flagged 5 of 5 held-out designs with a peak error above 20 %, and 14
     of 41 others; the card's regions flagged 5 of 5 and 19 of 41: docs/MODELS.md); without one, where the model
@@ -572,144 +387,3 @@ def _weak(p: Prediction) -> list[str]:
     return out + [f"{p.name}: {c['label']}: the model card measured a median peak plate stress error of {med:.1f} % "
                   f"(worst {worst:+.1f} %) over {c['designs']} such designs; low confidence"
                   + ("" if "verify" in p.summary else ", verify with the solver")]
-
-
-def format_table(preds: list[Prediction], verified: dict | None = None) -> str:
-    head, rows = table_rows(preds)
-    width = [max(len(h), *(len(r[i]) for r in rows)) for i, h in enumerate(head)]
-    lines = ["  ".join(h.rjust(w) for h, w in zip(head, width))]
-    lines += ["  ".join(c.rjust(w) for c, w in zip(r, width)) for r in rows]
-    if verified:
-        v = verified
-        lines.append(
-            f"against the solver over {plural(v['designs'], 'design')}: peak plate stress error median "
-            f"{v['peak_plate_stress_error_pct']['median']:.1f} % (worst {v['peak_plate_stress_error_pct']['max']:.1f} %), "
-            f"location median {v['peak_plate_location_error_mm']['median']:.2f} mm, deflection error median "
-            f"{v['max_deflection_error_pct']['median']:.1f} % (worst {v['max_deflection_error_pct']['max']:.1f} %), "
-            f"speedup median {v['speedup']['median']:.1f}x")
-        lines.append(f"  time of the peak (first frame at 95 % of it): median {v['peak_plate_t95_frame_error']['median']:.1f} "
-                     f"frames off; the critical node's stress history, model against solver: correlation median "
-                     f"{v['critical_node_history_correlation']['median']:.2f} (lowest "
-                     f"{v['critical_node_history_correlation']['min']:.2f})")
-        lines += [line[2:] for line in format_physics(v["physics"])]
-    lines += [f"solver warning: {p.name}: {w}" for p in preds for w in p.summary.get("verify", {}).get(
-        "solver_warnings", [])]
-    lines += [f"note: {w}" for p in preds for w in _weak(p)]
-    return "\n".join(lines)
-
-
-def format_calls(preds: list[Prediction], yield_mpa: float, label: str = "design", value=None) -> str:
-    """The limit calls as a table: value, model, surrogate ± interval, the interval trusted, call, solver (where
-    run) and the final call; then how many designs needed the solver."""
-    value = value or (lambda p: p.name)
-    head = [label, "model MPa", "surrogate MPa [95 %]", "trusted [lo, hi]", "call", "solver MPa", "final"]
-    rows = []
-    for p in preds:
-        s, iv = p.summary, p.summary["call_interval_mpa"]
-        solver = (s.get("verify") or {}).get("solver_peak_plate_stress_mpa")
-        rows.append([str(value(p)), f"{s['peak_plate_stress_mpa']:.0f}",
-                     _interval((s.get("surrogate") or {}).get("peak_plate_stress_mpa")),
-                     f"{iv['from']} [{iv['lo']:.0f}, {iv['hi']:.0f}]", s["call"],
-                     "-" if solver is None else f"{solver:.0f}", s.get("final_call", s["call"])])
-    width = [max(len(h), *(len(r[i]) for r in rows)) for i, h in enumerate(head)]
-    lines = [f"limit calls for a yield stress of {yield_mpa:g} MPa (pass: the trusted interval lies below it, fail: "
-             "above it, undecided: it straddles it)"]
-    lines += ["  " + "  ".join(h.rjust(w) for h, w in zip(head, width))]
-    lines += ["  " + "  ".join(c.rjust(w) for c, w in zip(r, width)) for r in rows]
-    undecided = sum(p.summary["call"] == "undecided" for p in preds)
-    ran = sum(bool(p.summary.get("verified")) for p in preds)
-    lines.append(f"  {undecided} of {len(preds)} undecided; the solver ran on {ran}"
-                 + ("" if ran >= undecided else " (--verify auto runs it on the undecided ones)"))
-    return "\n".join(lines)
-
-
-#: summary keys that are not CSV columns: lists over frames, nested blocks (flattened below) and text
-_NOT_COLUMNS = ("verify", "warnings", "model", "confidence", "surrogate", "disagreement_by_answer",
-                "call_interval_mpa", "plate_stress_history_mpa", "solver_plate_stress_history_mpa", "contact_frames",
-                "stress_readout")
-
-
-def csv_rows(preds: list[Prediction]) -> tuple[list[str], list[list]]:
-    """One row per design for a machine: the design's parameters, every summary quantity as its own numeric column
-    at full precision (positions split into r and y), the surrogate's answers (``surrogate_<answer>_mean/lo/hi``),
-    the calls, the verify block's columns, the model and the warnings. The stress histories are the JSON's."""
-    head = ["name", *DESIGN_KEYS]
-    keys = []
-    for p in preds:
-        keys += [k for k in p.summary if k not in _NOT_COLUMNS and k not in keys]
-    skeys = []
-    for p in preds:
-        skeys += [q for q in (p.summary.get("surrogate") or {}) if q not in skeys]
-    vkeys = []
-    for p in preds:
-        vkeys += [k for k in p.summary.get("verify", {}) if k not in vkeys and k != "solver_warnings"]
-    for k in keys:
-        head += [k.replace("where_mm", "r_mm"), k.replace("where_mm", "y_mm")] if k.endswith("where_mm") else [k]
-    head += [f"surrogate_{q}_{b}" for q in skeys for b in ("mean", "lo", "hi")]
-    head += [f"verify_{k}" for k in vkeys] + ["model", "warnings"]
-    rows = []
-    for p in preds:
-        row = [p.name, *(getattr(p.design, k) for k in DESIGN_KEYS)]
-        for k in keys:
-            v = p.summary.get(k)
-            row += (list(v) if v else ["", ""]) if k.endswith("where_mm") else [v]
-        block = p.summary.get("surrogate") or {}
-        row += [block.get(q, {}).get(b) for q in skeys for b in ("mean", "lo", "hi")]
-        row += [p.summary.get("verify", {}).get(k) for k in vkeys]
-        warnings = p.summary.get("warnings", []) + p.summary.get("verify", {}).get("solver_warnings", []) + _weak(p)
-        row += [p.summary.get("model", ""), "; ".join(warnings)]
-        rows.append([repr(v) if isinstance(v, float) else "" if v is None else v for v in row])  # repr: every digit
-    return head, rows
-
-
-def write_csv(preds: list[Prediction], path: str | Path) -> Path:
-    head, rows = csv_rows(preds)
-    path = Path(path)
-    with atomic_path(path) as tmp, open(tmp, "w", newline="") as f:
-        w = csv.writer(f)
-        w.writerow(head)
-        w.writerows(rows)
-    return path
-
-
-def to_json(preds: list[Prediction], verified: dict | None, run_source: str, device: str,
-            check: "Check | None" = None) -> dict:
-    """The design check as JSON: per design its parameters and summary (the surrogate's answers, ``disagreement``,
-    the calls, the plate's stress history and the notes), the verify summary, the surrogate's source and the
-    solver runs."""
-    out = {"model": run_source, "device": device, "units": {"stress": "MPa", "length": "mm", "time": "ms"},
-           "designs": [{"name": p.name, "design": asdict(p.design), **p.summary, "notes": _weak(p)} for p in preds],
-           **({"verify": verified} if verified else {})}
-    if check is not None:
-        out["surrogate"] = check.surrogate
-        out["solver_runs"] = check.solver_runs
-        out["notes"] = check.notes
-    return finite(out)
-
-
-def finite(obj):
-    """``obj`` with every NaN or infinite float as None: standard JSON (``jq``, ``JSON.parse``) has no NaN."""
-    if isinstance(obj, float):
-        return obj if np.isfinite(obj) else None
-    if isinstance(obj, dict):
-        return {k: finite(v) for k, v in obj.items()}
-    if isinstance(obj, (list, tuple)):
-        return [finite(v) for v in obj]
-    return obj
-
-
-def contour_picture(p: Prediction, truth: Prediction | None, meta: dict, out_dir: str | Path, label: str) -> Path:
-    """Stress contours (impact zoom) at the predicted peak-plate-stress frame, and with ``truth`` beside the solver
-    at the solver's own peak frame too (one row each, the earlier first, one row when they coincide)."""
-    pred = Series(f"{label} prediction", p.world_pos, p.stress, start=2)
-    if truth is not None:
-        case = Case(p.name, p.mesh_pos, p.cells, p.node_type, Series("Solver", truth.world_pos, truth.stress),
-                    [pred], meta)
-    else:
-        case = Case(p.name, p.mesh_pos, p.cells, p.node_type, pred, [], meta)
-    frames = {max(int(p.summary["peak_plate_frame"]), 1)}
-    if truth is not None:
-        frames.add(max(int(truth.summary["peak_plate_frame"]), 1))
-    paths = plot_contours(case, Path(out_dir) / p.name, sorted(frames))
-    return paths[-1]
-

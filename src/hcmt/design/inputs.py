@@ -1,0 +1,160 @@
+"""Design check, its inputs: the designs a user gives (``--design K=V``, a ``--designs`` CSV, :func:`design_for`),
+their names, and where they lie against a model's training data (ranges, regions, the model card's measured
+confidence, the recorded window's settings)."""
+from __future__ import annotations
+
+import csv
+from dataclasses import asdict, fields
+from pathlib import Path
+
+
+from hcmt.sim.scene import (DESIGN_KEYS, EDGES, FIRST_SCENE_KEYS, Design, Settings, middle_design, parse_design,
+                            parse_number)
+
+
+# -- designs -----------------------------------------------------------------------------------------------------
+def read_designs_csv(path: str | Path, defaults: Design, first: int = 1,
+                     taken: dict[str, str] | None = None) -> list[tuple[str, Design]]:
+    """Designs from a CSV file: a header of parameter names (optionally a ``name`` column), one design per row,
+    every column present and numeric in every row (blank lines are skipped; a UTF-8 BOM and CRLF line ends are
+    fine). Anything else is refused naming the file, the line and the column. Unnamed rows are ``design_<first>``,
+    ... ; ``taken``: names already given elsewhere (name -> where), which a row may not take again."""
+    path = Path(path)
+    if not path.is_file():
+        raise FileNotFoundError(f"{path}: no such designs file")
+    try:
+        text = path.read_text(encoding="utf-8-sig")
+    except UnicodeDecodeError as exc:
+        raise ValueError(f"{path}: not a UTF-8 text file ({exc.reason} at byte {exc.start})") from None
+    try:
+        rows = [(n, r) for n, r in enumerate(csv.reader(text.splitlines()), start=1) if any(c.strip() for c in r)]
+    except csv.Error as exc:
+        raise ValueError(f"{path}: not a readable CSV file ({exc})") from None
+    if not rows:
+        raise ValueError(f"{path}: no designs (expected a header line of parameter names and one row per design)")
+    (head_line, head), body = rows[0], rows[1:]
+    header = [h.strip().replace("-", "_") for h in head]
+    for col, h in enumerate(header, start=1):
+        if h != "name" and h not in DESIGN_KEYS:
+            raise ValueError(f"{path} line {head_line}, column {col}: unknown column {h!r} in the header; expected "
+                             f"`name` or parameters of {', '.join(DESIGN_KEYS)}")
+    if len(set(header)) != len(header):
+        raise ValueError(f"{path} line {head_line}: a column appears twice in the header")
+    if not body:
+        raise ValueError(f"{path}: a header but no designs (one row per design after the header)")
+    out, seen = [], dict(taken or {})
+    for n, row in body:
+        if len(row) != len(header):
+            raise ValueError(f"{path} line {n}: {len(row)} values for {len(header)} columns "
+                             f"({', '.join(header)})")
+        name, items = f"design_{len(out) + first}", []
+        for col, (h, v) in enumerate(zip(header, row), start=1):
+            if h == "name":
+                name = check_name(v.strip(), f"{path} line {n}, column {col} (name)")
+                if name in seen:
+                    where = seen[name] if isinstance(seen[name], str) else f"line {seen[name]}"
+                    raise ValueError(f"{path} line {n}, column {col} (name): {name!r} already names {where}; every "
+                                     "design needs its own name")
+                seen[name] = n
+                continue
+            if not v.strip():
+                raise ValueError(f"{path} line {n}, column {col} ({h}): missing value")
+            items.append(f"{h}={parse_number(v, f'{path} line {n}, column {col} ({h})')}")
+        if name in seen and seen[name] != n:
+            raise ValueError(f"{path} line {n}: the default name {name!r} is already taken ({seen[name]}); give the "
+                             "CSV a name column")
+        out.append((name, parse_design(items, defaults, where=f"{path} line {n}:")))
+    return out
+
+
+def check_name(name: str, where: str) -> str:
+    """A design name that is safe as a folder name under ``--out`` (pictures are written to ``OUT/NAME/``): not
+    empty, no path separator, not ``.`` or ``..``, no control character; else one line naming ``where``."""
+    bad = None
+    if not name:
+        bad = "is empty"
+    elif any(c in name for c in "/\\") or name in (".", ".."):
+        bad = "would be a path outside its own folder (no '/', '\\', '.' or '..')"
+    elif any(ord(c) < 32 or ord(c) == 127 for c in name):
+        bad = "holds a control character"
+    elif len(name) > 200:
+        bad = "is longer than 200 characters"
+    if bad:
+        raise ValueError(f"{where}: the design name {name!r} {bad}; names become folder names under --out")
+    return name
+
+
+def with_family_defaults(ranges: dict[str, tuple[float, float]]) -> dict[str, tuple[float, float]]:
+    """Training ranges with every panel-family parameter they do not name held at its default (a model trained
+    before the families existed learned the first scene only); empty ranges stay empty (nothing known)."""
+    if not ranges:
+        return ranges
+    first = {k: (v, v) for k, v in asdict(Design()).items() if k in DESIGN_KEYS[FIRST_SCENE_KEYS:]}
+    return {**first, **ranges}
+
+
+def outside(design: Design, ranges: dict[str, tuple[float, float]]) -> list[str]:
+    """The design parameters outside ``ranges`` (relative tolerance 1e-6). A panel-family parameter that
+    ``ranges`` do not name (a model trained before the families existed) counts as held at its default, the
+    first scene's: one clamped layer struck by the ball."""
+    out = []
+    for key, (lo, hi) in with_family_defaults(ranges).items():
+        tol = 1e-6 * max(abs(lo), abs(hi), 1e-12)
+        if key in DESIGN_KEYS and not lo - tol <= getattr(design, key) <= hi + tol:
+            out.append(key)
+    return out
+
+
+def range_warnings(design: Design, ranges: dict[str, tuple[float, float]],
+                   what: str = "the model's training data") -> list[str]:
+    """One line per parameter outside the training data's range (:func:`outside`)."""
+    out = []
+    ranges = with_family_defaults(ranges)
+    for key in outside(design, ranges):
+        lo, hi = ranges[key]
+        span = f"{lo:.6g}" if lo == hi else f"{lo:.6g} .. {hi:.6g}"
+        out.append(f"{key} = {getattr(design, key):.6g} is outside {what} ({span}); expect larger errors")
+    return out
+
+
+def region_of(design: Design, ranges: dict[str, tuple[float, float]]) -> str:
+    """Where a design lies in the training ranges, for the model card's measured error by region: ``thin``
+    (thickness in the lowest fifth of its range), ``high`` (drop height in the top fifth), ``thin+high``,
+    ``inside``, or ``outside`` (a parameter outside the training ranges). The fifths are those of the generator's
+    ``--edge-fraction`` (:data:`hcmt.sim.scene.EDGES`)."""
+    if range_warnings(design, ranges):
+        return "outside"
+    parts = []
+    for key, name in (("thickness", "thin"), ("drop_height", "high")):
+        if key in ranges:
+            lo, hi = ranges[key]
+            a, b = EDGES[key]
+            u = (getattr(design, key) - lo) / max(hi - lo, 1e-12)
+            if a <= u <= b and (a > 0 or b < 1):
+                parts.append(name)
+    return "+".join(parts) or "inside"
+
+
+def confidence(design: Design, run) -> dict | None:
+    """The model card's measured error for the design's region (:func:`region_of`), or None when the card has
+    none: ``{"region", "label", "designs", "peak_plate_stress_error_pct_median", ...}``."""
+    regions = {r["region"]: r for r in (run.card or {}).get("confidence", [])}
+    region = region_of(design, run.ranges)
+    if region == "outside":
+        return {"region": region, "label": "outside the training ranges", "designs": 0}
+    return regions.get(region)
+
+
+def settings_of(meta: dict | None) -> Settings:
+    """The generator settings (frames, frame_dt, formulation, ...) the training data was made with."""
+    saved = ((meta or {}).get("generator") or {}).get("settings")
+    if not saved:
+        raise ValueError("the model's training data is not an hcmt-generated Impact Plate dataset (no generator "
+                         "settings in its meta.json): predict needs the recorded window it was trained on")
+    return Settings(**{k: v for k, v in saved.items() if k in {f.name for f in fields(Settings)}})
+
+
+def design_for(run, **params) -> Design:
+    """An Impact Plate :class:`~hcmt.sim.scene.Design` for a model: ``params`` (``thickness=0.7, ...``) over the
+    middle of the model's training ranges (:func:`hcmt.sim.scene.middle_design`), validated (``hcmt.design_for``)."""
+    return parse_design([f"{k}={v}" for k, v in params.items()], middle_design(run.meta, run.ranges), where="design")

@@ -1,0 +1,197 @@
+"""Design check, its reports: the table and the calls as text, the CSV, the JSON (standard JSON: non-finite numbers
+become null) and the contour pictures of a checked design."""
+from __future__ import annotations
+
+import csv
+from dataclasses import asdict
+from pathlib import Path
+
+import numpy as np
+
+from hcmt.config import plural
+from hcmt.files import atomic_path
+from hcmt.inference.metrics import format_physics
+from hcmt.sim.scene import DESIGN_KEYS
+from hcmt.viz.contours import plot_contours
+from hcmt.viz.rollouts import Case, Series
+from hcmt.design.check import Check, Prediction, weak_reasons
+
+
+# -- output --------------------------------------------------------------------------------------------------------
+COLUMNS = [("design", "{}", "name"), ("plate MPa", "{:.1f}", "peak_plate_stress_mpa"),
+           ("at r,y mm", "{}", "peak_plate_where_mm"), ("t ms", "{:.3f}", "peak_plate_when_ms"),
+           ("ball MPa", "{:.1f}", "peak_ball_stress_mpa"), ("defl. mm", "{:.4f}", "max_deflection_mm"),
+           ("margin MPa", "{:.1f}", "yield_margin_mpa"), ("wall s", "{:.2f}", "wall_s")]
+
+
+VERIFY_COLUMNS = [("solver MPa", "{:.1f}", "solver_peak_plate_stress_mpa"),
+                  ("err %", "{:+.1f}", "peak_plate_stress_error_pct"),
+                  ("loc. err mm", "{:.2f}", "peak_plate_location_error_mm"),
+                  ("defl. err %", "{:+.1f}", "max_deflection_error_pct"),
+                  ("pos RMSE mm", "{:.4f}", "position_rmse_mm"), ("speedup", "{:.1f}x", "speedup")]
+
+
+def _interval(block: dict | None, fmt: str = "{:.0f}") -> str:
+    """``mean [lo, hi]`` of a surrogate answer ("-" when there is none)."""
+    if not block:
+        return "-"
+    return f"{fmt.format(block['mean'])} [{fmt.format(block['lo'])}, {fmt.format(block['hi'])}]"
+
+
+def table_rows(preds: list[Prediction]) -> tuple[list[str], list[list[str]]]:
+    cols = [c for c in COLUMNS if c[2] != "yield_margin_mpa" or "yield_margin_mpa" in preds[0].summary]
+    with_surrogate = any("surrogate" in p.summary for p in preds)
+    vcols = VERIFY_COLUMNS if any("verify" in p.summary for p in preds) else []
+    head = [c[0] for c in cols[:2]] + (["surrogate MPa [95 %]"] if with_surrogate else []) + \
+        [c[0] for c in cols[2:] + vcols]
+    rows = []
+    for p in preds:
+        s = {**p.summary, "name": p.name, **p.summary.get("verify", {})}
+        cells = []
+        for _, fmt, key in cols + vcols:
+            v = s.get(key)
+            cells.append("-" if v is None else f"{v[0]:.2f},{v[1]:.2f}" if isinstance(v, list) else fmt.format(v))
+        if with_surrogate:
+            cells.insert(2, _interval((p.summary.get("surrogate") or {}).get("peak_plate_stress_mpa")))
+        rows.append(cells)
+    return head, rows
+
+
+def format_table(preds: list[Prediction], verified: dict | None = None) -> str:
+    head, rows = table_rows(preds)
+    width = [max(len(h), *(len(r[i]) for r in rows)) for i, h in enumerate(head)]
+    lines = ["  ".join(h.rjust(w) for h, w in zip(head, width))]
+    lines += ["  ".join(c.rjust(w) for c, w in zip(r, width)) for r in rows]
+    if verified:
+        v = verified
+        lines.append(
+            f"against the solver over {plural(v['designs'], 'design')}: peak plate stress error median "
+            f"{v['peak_plate_stress_error_pct']['median']:.1f} % (worst {v['peak_plate_stress_error_pct']['max']:.1f} %), "
+            f"location median {v['peak_plate_location_error_mm']['median']:.2f} mm, deflection error median "
+            f"{v['max_deflection_error_pct']['median']:.1f} % (worst {v['max_deflection_error_pct']['max']:.1f} %), "
+            f"speedup median {v['speedup']['median']:.1f}x")
+        lines.append(f"  time of the peak (first frame at 95 % of it): median {v['peak_plate_t95_frame_error']['median']:.1f} "
+                     f"frames off; the critical node's stress history, model against solver: correlation median "
+                     f"{v['critical_node_history_correlation']['median']:.2f} (lowest "
+                     f"{v['critical_node_history_correlation']['min']:.2f})")
+        lines += [line[2:] for line in format_physics(v["physics"])]
+    lines += [f"solver warning: {p.name}: {w}" for p in preds for w in p.summary.get("verify", {}).get(
+        "solver_warnings", [])]
+    lines += [f"note: {w}" for p in preds for w in weak_reasons(p)]
+    return "\n".join(lines)
+
+
+def format_calls(preds: list[Prediction], yield_mpa: float, label: str = "design", value=None) -> str:
+    """The limit calls as a table: value, model, surrogate ± interval, the interval trusted, call, solver (where
+    run) and the final call; then how many designs needed the solver."""
+    value = value or (lambda p: p.name)
+    head = [label, "model MPa", "surrogate MPa [95 %]", "trusted [lo, hi]", "call", "solver MPa", "final"]
+    rows = []
+    for p in preds:
+        s, iv = p.summary, p.summary["call_interval_mpa"]
+        solver = (s.get("verify") or {}).get("solver_peak_plate_stress_mpa")
+        rows.append([str(value(p)), f"{s['peak_plate_stress_mpa']:.0f}",
+                     _interval((s.get("surrogate") or {}).get("peak_plate_stress_mpa")),
+                     f"{iv['from']} [{iv['lo']:.0f}, {iv['hi']:.0f}]", s["call"],
+                     "-" if solver is None else f"{solver:.0f}", s.get("final_call", s["call"])])
+    width = [max(len(h), *(len(r[i]) for r in rows)) for i, h in enumerate(head)]
+    lines = [f"limit calls for a yield stress of {yield_mpa:g} MPa (pass: the trusted interval lies below it, fail: "
+             "above it, undecided: it straddles it)"]
+    lines += ["  " + "  ".join(h.rjust(w) for h, w in zip(head, width))]
+    lines += ["  " + "  ".join(c.rjust(w) for c, w in zip(r, width)) for r in rows]
+    undecided = sum(p.summary["call"] == "undecided" for p in preds)
+    ran = sum(bool(p.summary.get("verified")) for p in preds)
+    lines.append(f"  {undecided} of {len(preds)} undecided; the solver ran on {ran}"
+                 + ("" if ran >= undecided else " (--verify auto runs it on the undecided ones)"))
+    return "\n".join(lines)
+
+
+#: summary keys that are not CSV columns: lists over frames, nested blocks (flattened below) and text
+_NOT_COLUMNS = ("verify", "warnings", "model", "confidence", "surrogate", "disagreement_by_answer",
+                "call_interval_mpa", "plate_stress_history_mpa", "solver_plate_stress_history_mpa", "contact_frames",
+                "stress_readout")
+
+
+def csv_rows(preds: list[Prediction]) -> tuple[list[str], list[list]]:
+    """One row per design for a machine: the design's parameters, every summary quantity as its own numeric column
+    at full precision (positions split into r and y), the surrogate's answers (``surrogate_<answer>_mean/lo/hi``),
+    the calls, the verify block's columns, the model and the warnings. The stress histories are the JSON's."""
+    head = ["name", *DESIGN_KEYS]
+    keys = []
+    for p in preds:
+        keys += [k for k in p.summary if k not in _NOT_COLUMNS and k not in keys]
+    skeys = []
+    for p in preds:
+        skeys += [q for q in (p.summary.get("surrogate") or {}) if q not in skeys]
+    vkeys = []
+    for p in preds:
+        vkeys += [k for k in p.summary.get("verify", {}) if k not in vkeys and k != "solver_warnings"]
+    for k in keys:
+        head += [k.replace("where_mm", "r_mm"), k.replace("where_mm", "y_mm")] if k.endswith("where_mm") else [k]
+    head += [f"surrogate_{q}_{b}" for q in skeys for b in ("mean", "lo", "hi")]
+    head += [f"verify_{k}" for k in vkeys] + ["model", "warnings"]
+    rows = []
+    for p in preds:
+        row = [p.name, *(getattr(p.design, k) for k in DESIGN_KEYS)]
+        for k in keys:
+            v = p.summary.get(k)
+            row += (list(v) if v else ["", ""]) if k.endswith("where_mm") else [v]
+        block = p.summary.get("surrogate") or {}
+        row += [block.get(q, {}).get(b) for q in skeys for b in ("mean", "lo", "hi")]
+        row += [p.summary.get("verify", {}).get(k) for k in vkeys]
+        warnings = p.summary.get("warnings", []) + p.summary.get("verify", {}).get("solver_warnings", []) + weak_reasons(p)
+        row += [p.summary.get("model", ""), "; ".join(warnings)]
+        rows.append([repr(v) if isinstance(v, float) else "" if v is None else v for v in row])  # repr: every digit
+    return head, rows
+
+
+def write_csv(preds: list[Prediction], path: str | Path) -> Path:
+    head, rows = csv_rows(preds)
+    path = Path(path)
+    with atomic_path(path) as tmp, open(tmp, "w", newline="") as f:
+        w = csv.writer(f)
+        w.writerow(head)
+        w.writerows(rows)
+    return path
+
+
+def to_json(preds: list[Prediction], verified: dict | None, run_source: str, device: str,
+            check: "Check | None" = None) -> dict:
+    """The design check as JSON: per design its parameters and summary (the surrogate's answers, ``disagreement``,
+    the calls, the plate's stress history and the notes), the verify summary, the surrogate's source and the
+    solver runs."""
+    out = {"model": run_source, "device": device, "units": {"stress": "MPa", "length": "mm", "time": "ms"},
+           "designs": [{"name": p.name, "design": asdict(p.design), **p.summary, "notes": weak_reasons(p)} for p in preds],
+           **({"verify": verified} if verified else {})}
+    if check is not None:
+        out["surrogate"] = check.surrogate
+        out["solver_runs"] = check.solver_runs
+        out["notes"] = check.notes
+    return finite(out)
+
+
+def finite(obj):
+    """``obj`` with every NaN or infinite float as None: standard JSON (``jq``, ``JSON.parse``) has no NaN."""
+    if isinstance(obj, float):
+        return obj if np.isfinite(obj) else None
+    if isinstance(obj, dict):
+        return {k: finite(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [finite(v) for v in obj]
+    return obj
+
+
+def contour_picture(p: Prediction, truth: Prediction | None, meta: dict, out_dir: str | Path, label: str) -> Path:
+    """Stress contours (impact zoom) at the predicted peak-plate-stress frame, and with ``truth`` beside the solver
+    at the solver's own peak frame too (one row each, the earlier first, one row when they coincide)."""
+    pred = Series(f"{label} prediction", p.world_pos, p.stress, start=2)
+    if truth is not None:
+        case = Case(p.name, p.mesh_pos, p.cells, p.node_type, Series("Solver", truth.world_pos, truth.stress),
+                    [pred], meta)
+    else:
+        case = Case(p.name, p.mesh_pos, p.cells, p.node_type, pred, [], meta)
+    frames = {max(int(p.summary["peak_plate_frame"]), 1)}
+    if truth is not None:
+        frames.add(max(int(truth.summary["peak_plate_frame"]), 1))
+    paths = plot_contours(case, Path(out_dir) / p.name, sorted(frames))
+    return paths[-1]

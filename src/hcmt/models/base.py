@@ -54,7 +54,16 @@ def compile_simulator(model: nn.Module, mode: str) -> nn.Module:
 
 
 class Simulator(nn.Module):
-    """Encoder, decoder and normalizers; subclasses define ``forward(graph, accumulate=None) -> [N, out]``.
+    r"""Encoder, decoder and normalizers; subclasses define ``forward(graph, accumulate=None) -> [N, out]``.
+
+    Args (every model's first four):
+        node_in: width of the raw node features :math:`f_i` (Table 9: node-type one-hot 9, velocity
+            :math:`x_i^t - x_i^{t-1}`, and the dataset's static fields such as ρ and Y).
+        mesh_in: width of the raw mesh-edge features :math:`u_{ij}, |u_{ij}|, x_{ij}, |x_{ij}|` (+ the
+            deformation :math:`x_{ij} - u_{ij}` with ``model.deformation``).
+        contact_in: width of the raw contact-edge features :math:`x_{iq}, |x_{iq}|`.
+        out: width of the output: the velocity (or acceleration) per dimension, plus the stress σ.
+        hidden: the latent width of the encoders and decoder.
 
     ``checkpoint_blocks = True`` (``train.checkpoint_blocks``) recomputes each processor block's activations in
     the backward pass instead of keeping them (:func:`torch.utils.checkpoint.checkpoint`): memory for depth, the

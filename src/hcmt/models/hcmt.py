@@ -96,12 +96,8 @@ class HCMT(Simulator):
     :math:`L_H = 2\lambda + 1` blocks (eqs. 5–7), decode.
 
     Args:
-        node_in: width of the raw node features :math:`f_i` (Table 9: node-type one-hot 9, velocity
-            :math:`x_i^t - x_i^{t-1}`, and the dataset's static fields such as ρ and Y).
-        mesh_in: width of the raw mesh-edge features :math:`u_{ij}, |u_{ij}|, x_{ij}, |x_{ij}|` (+ the
-            deformation :math:`x_{ij} - u_{ij}` with ``model.deformation``).
-        contact_in: width of the raw contact-edge features :math:`x_{iq}, |x_{iq}|`.
-        out: width of the output: the velocity (or acceleration) per dimension, plus the stress σ.
+        node_in, mesh_in, contact_in, out: the widths of the raw node, mesh-edge and contact-edge features and
+            of the output (paper Table 9; :class:`~hcmt.models.base.Simulator` lists them).
         L_C: contact-mesh Transformer blocks (paper Table 8: 2).
         levels: λ, the pooled levels of the hierarchy (Table 8: 4-6; 0 = no HMT).
         hidden: latent width :math:`d` (Table 8: 128).

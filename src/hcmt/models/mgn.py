@@ -50,12 +50,7 @@ class MGN(Simulator):
     :math:`v'_i = g(v_i, \sum_j e'_{ij}, \sum_q s'_{iq})`, residual), decode.
 
     Args:
-        node_in: width of the raw node features :math:`f_i` (Table 9: node-type one-hot 9, velocity
-            :math:`x_i^t - x_i^{t-1}`, and the dataset's static fields such as ρ and Y).
-        mesh_in: width of the raw mesh-edge features :math:`u_{ij}, |u_{ij}|, x_{ij}, |x_{ij}|` (+ the
-            deformation :math:`x_{ij} - u_{ij}` with ``model.deformation``).
-        contact_in: width of the raw contact-edge features :math:`x_{iq}, |x_{iq}|`.
-        out: width of the output: the velocity (or acceleration) per dimension, plus the stress σ.
+        node_in, mesh_in, contact_in, out: feature and output widths, as :class:`~hcmt.models.hcmt.HCMT`.
         blocks: message-passing blocks (MeshGraphNets: 15).
         hidden: latent width (128).
 

@@ -11,6 +11,7 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from common import DATASET, RESULTS, ROOT  # noqa: E402
 from report_surrogate import surrogate as surrogate_section  # noqa: E402
+from report_transfer import transfer as transfer_section  # noqa: E402
 
 DOC = ROOT.parent / "docs" / "RESULTS.md"
 PAPER_LEVELS = [2208, 1108, 559, 285, 148, 78, 42]
@@ -999,6 +1000,7 @@ def main() -> None:
              "(2 CPU cores, no GPU) unless stated. This file is written by `python benchmarks/report.py` from "
              "`benchmarks/results/*.json`; the paper's numbers are quoted for comparison only.", ""]
     surrogate_section(lines, load("surrogate.json"))
+    transfer_section(lines, load("transfer.json"))
     for section in (recipe, interval, threads, parity, propagation, accuracy, longer, ablations, generalization, speed, gpu_path, cpu_ab, gpu_check, hierarchy):
         section(lines)
     DOC.parent.mkdir(exist_ok=True)

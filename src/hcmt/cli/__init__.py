@@ -17,11 +17,11 @@ from hcmt.config import VERSION
 from hcmt.data.errors import DatasetError
 
 COMMANDS: dict[str, tuple[str, str]] = {
-    "generate": ("hcmt.sim.generate", "generate a dataset with the built-in FEM solver (impact-plate)"),
-    "simulate": ("hcmt.sim.generate", "simulate one Impact Plate design with explicit parameters (solver baseline)"),
-    "convert": ("hcmt.data.convert", "convert a MeshGraphNets/HCMT TFRecord or Deformable Plate pickle dataset to native HDF5"),
-    "info": ("hcmt.data.info", "summarize a native dataset: splits, trajectories, nodes, fields, design parameters"),
-    "hierarchy": ("hcmt.graph.report", "build the HCMT mesh hierarchy of a dataset and report its quality per level"),
+    "generate": ("hcmt.cli.data", "generate a dataset with the built-in FEM solver (impact-plate)"),
+    "simulate": ("hcmt.cli.data", "simulate one Impact Plate design with explicit parameters (solver baseline)"),
+    "convert": ("hcmt.cli.data", "convert a MeshGraphNets/HCMT TFRecord or Deformable Plate pickle dataset to native HDF5"),
+    "info": ("hcmt.cli.data", "summarize a native dataset: splits, trajectories, nodes, fields, design parameters"),
+    "hierarchy": ("hcmt.cli.data", "build the HCMT mesh hierarchy of a dataset and report its quality per level"),
     "train": ("hcmt.cli.train", "train HCMT, MeshGraphNets or Graph Transformer on a dataset"),
     "rollout": ("hcmt.cli.train", "roll a trained model out over a dataset split (writes HDF5 predictions)"),
     "evaluate": ("hcmt.cli.train", "compute the paper's RMSE metrics of a run on a split (writes RUN/metrics_<split>.json)"),

@@ -8,7 +8,6 @@ copied: hcmt builds its own hierarchy (``hcmt hierarchy``).
 """
 from __future__ import annotations
 
-import argparse
 import shutil
 from pathlib import Path
 
@@ -16,7 +15,6 @@ from hcmt.data.errors import DatasetError
 from hcmt.data.format import make_meta, write_meta, write_split
 from hcmt.data.ggns import ggns_features, ggns_to_native, load_ggns_pickle
 from hcmt.data.tfrecord import iter_tfrecord, read_tf_meta
-from hcmt.data.info import summarize
 
 _PICKLE_SUFFIXES = (".pkl", ".pickle", ".pk")
 
@@ -111,15 +109,3 @@ def convert(src: str | Path, out: str | Path) -> dict:
         if not existed:
             shutil.rmtree(out, ignore_errors=True)
         raise
-
-
-def configure(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("src", help="TFRecord dataset folder (meta.json + <split>.tfrecord) or GGNS pickle(s)")
-    parser.add_argument("out", help="output folder for the native dataset (meta.json + <split>.h5)")
-
-
-def main(args: argparse.Namespace) -> int:
-    meta = convert(args.src, args.out)
-    print(f"converted {args.src} -> {args.out}")
-    print(summarize(args.out))
-    return 0 if meta else 1

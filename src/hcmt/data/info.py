@@ -1,7 +1,6 @@
 """``hcmt info DATASET``: what a native dataset holds."""
 from __future__ import annotations
 
-import argparse
 from pathlib import Path
 
 import numpy as np
@@ -79,12 +78,3 @@ def displacement_lines(steps: dict[str, dict[str, list[np.ndarray]]], unit: str)
             v = np.concatenate(parts)
             lines.append(f"      {name:<10} {np.median(v):.3g} / {np.percentile(v, 90):.3g} / {v.max():.3g}")
     return lines
-
-
-def configure(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("dataset", help="native dataset folder (meta.json + <split>.h5)")
-
-
-def main(args: argparse.Namespace) -> int:
-    print(summarize(args.dataset))
-    return 0

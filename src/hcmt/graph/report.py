@@ -13,10 +13,7 @@ model's graph holds each twice). Hierarchies are cached in ``DATASET/.cache/hier
 """
 from __future__ import annotations
 
-import argparse
-import json
 import math
-from pathlib import Path
 
 import numpy as np
 from tqdm import tqdm
@@ -29,17 +26,6 @@ from hcmt.graph.remesh import clique_cells, two_hop_edges
 
 KEYS = ("level", "nodes", "edges", "jacobian_before", "jacobian_after", "min_angle_before", "min_angle_after",
         "max_angle_before", "max_angle_after")
-
-
-def configure(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("dataset", metavar="DATASET", help="native dataset folder (meta.json + <split>.h5)")
-    parser.add_argument("--levels", type=int, required=True, help="number of pooled levels lambda (paper: 6 for "
-                        "Impact Plate, 2 Deforming Plate, 4 Sphere Simple, 1 Deformable Plate)")
-    parser.add_argument("--json", metavar="FILE", help="also write the table as JSON: one object per level 0..L")
-    parser.add_argument("--split", default="train", help="split to read (default: train)")
-    parser.add_argument("--trajectories", type=int, default=0, metavar="N",
-                        help="use the first N trajectories (default 0: all)")
-    parser.add_argument("--no-cache", action="store_true", help="do not read or write DATASET/.cache/hierarchy")
 
 
 def level_quality(hierarchy: Hierarchy, mesh_pos: np.ndarray) -> list[dict]:
@@ -99,30 +85,26 @@ def format_table(rows: list[dict]) -> str:
     return "\n".join(lines)
 
 
-def main(args: argparse.Namespace) -> int:
-    if args.levels < 0:
-        raise ValueError(f"--levels must be >= 0, got {args.levels}")
-    if args.trajectories < 0:
-        raise ValueError(f"--trajectories must be >= 0 (0: all), got {args.trajectories}")
-    reader = open_split(args.dataset, args.split)
-    count = len(reader) if args.trajectories <= 0 else min(args.trajectories, len(reader))
+def dataset_quality(dataset, split: str, levels: int, *, trajectories: int = 0, cache: bool = True
+                    ) -> tuple[int, list[dict]]:
+    """(trajectories read, per-level rows averaged over them: :func:`level_quality`, :func:`average_rows`) of the
+    first ``trajectories`` of a split (0: all); hierarchies cached in ``DATASET/.cache/hierarchy`` with ``cache``."""
+    if levels < 0:
+        raise ValueError(f"--levels must be >= 0, got {levels}")
+    if trajectories < 0:
+        raise ValueError(f"--trajectories must be >= 0 (0: all), got {trajectories}")
+    reader = open_split(dataset, split)
+    count = len(reader) if trajectories <= 0 else min(trajectories, len(reader))
     if count == 0:
-        raise ValueError(f"split {args.split!r} of {args.dataset} has no trajectories")
-    cache = None if args.no_cache else hierarchy_cache_dir(args.dataset)
+        raise ValueError(f"split {split!r} of {dataset} has no trajectories")
+    cache_dir = hierarchy_cache_dir(dataset) if cache else None
     per_trajectory = []
     for i in tqdm(range(count), desc="hierarchy", unit="traj", disable=count < 20):  # one mesh per trajectory
         traj = reader[i]
         try:
-            h = cached_hierarchy(traj["mesh_pos"], traj["cells"], traj["node_type"].reshape(-1), args.levels,
-                                 remesh=True, cache_dir=cache)
+            h = cached_hierarchy(traj["mesh_pos"], traj["cells"], traj["node_type"].reshape(-1), levels,
+                                 remesh=True, cache_dir=cache_dir)
         except ValueError as exc:  # DatasetError included: say which trajectory
             raise DatasetError(str(exc), file=reader.path, trajectory=reader.names[i]) from None
         per_trajectory.append(level_quality(h, traj["mesh_pos"]))
-    rows = average_rows(per_trajectory)
-    print(f"{args.dataset} [{args.split}]: {count} trajector{'y' if count == 1 else 'ies'}, {args.levels} levels")
-    print(format_table(rows))
-    if args.json:
-        clean = [{k: (None if isinstance(v, float) and math.isnan(v) else v) for k, v in r.items()} for r in rows]
-        Path(args.json).parent.mkdir(parents=True, exist_ok=True)
-        Path(args.json).write_text(json.dumps(clean, indent=2) + "\n")
-    return 0
+    return count, average_rows(per_trajectory)

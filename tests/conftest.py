@@ -24,3 +24,22 @@ def tiny_config():
     """:func:`tiny`: ``tiny_config("train.steps=2")`` is the Impact Plate CPU config with TINY and one more
     override; ``base=`` names another config. Session-scoped, so module-scoped fixtures can use it."""
     return tiny
+
+
+#: the one generated dataset of the test run (:func:`impact_data`): 12 training designs (enough for a response
+#: surface on 9 varied parameters + 2), one validation and one test trajectory of 8 frames, the `small` preset
+IMPACT_DATA = dict(train=12, valid=1, test=1, frames=8, seed=11)
+
+
+@pytest.fixture(scope="session")
+def impact_data(tmp_path_factory):
+    """A dataset made by `hcmt generate impact-plate` once per test run (:data:`IMPACT_DATA`), shared by every
+    module that needs real generator data (its meta.json, design attributes and solver trajectories)."""
+    from hcmt.cli import main as cli
+
+    out = tmp_path_factory.mktemp("impact_data") / "data"
+    spec = IMPACT_DATA
+    assert cli(["generate", "impact-plate", str(out), "--preset", "small", "--train", str(spec["train"]), "--valid",
+                str(spec["valid"]), "--test", str(spec["test"]), "--seed", str(spec["seed"]), "--frames",
+                str(spec["frames"]), "--no-progress"]) == 0
+    return out

@@ -2,6 +2,10 @@
 import re
 from pathlib import Path
 
+import pytest
+
+pytestmark = pytest.mark.slow  # the README example trains a run
+
 README = Path(__file__).resolve().parent.parent / "README.md"
 
 

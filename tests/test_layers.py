@@ -106,6 +106,7 @@ def test_the_checker_sees_violations(tmp_path, monkeypatch):
     assert not any("ok.py" in v for v in found)
 
 
+@pytest.mark.slow  # one fresh interpreter per module
 @pytest.mark.parametrize("module", ["hcmt.config", "hcmt.models", "hcmt.physics.adapters", "hcmt.inference.run",
                                     "hcmt.training", "hcmt.viz.rollouts", "hcmt.design.check", "hcmt.cli"])
 def test_each_layer_imports_alone(module):

@@ -256,7 +256,11 @@ class Surrogate:
                                          f"{len(params)} length scales")
             if set(kernels) != set(answers):
                 raise SurrogateError(f"{where}: kernels for {sorted(kernels)} but answers for {sorted(answers)}")
-            linear = list((doc.get("input_transform") or {}).get("linear") or [])
+            transform = doc.get("input_transform") or {}
+            linear = transform.get("linear") or [] if isinstance(transform, dict) else None
+            if not isinstance(linear, list) or any(k not in params for k in linear):
+                raise SurrogateError(f"{where}: \"input_transform\": expected {{\"linear\": [parameters taken "
+                                     "linearly]}}")
             return cls(params, {k: float(v) for k, v in fixed.items()}, X, answers, kernels,
                        source=str(doc.get("source", "")), linear=linear)
         except SurrogateError:

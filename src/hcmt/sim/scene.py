@@ -506,7 +506,7 @@ def simulate(design: Design, settings: Settings = Settings(), *, progress=None) 
             peak[0] = stress[0]
         if progress is not None:
             progress(k)
-    fields_ = dict(_static_fields(design, mesh), world_pos=world_pos, stress=stress)
+    fields_ = dict(_static_fields(design, mesh, settings.formulation), world_pos=world_pos, stress=stress)
     if peak is not None:
         fields_["stress_max"] = peak
     attrs = {**asdict(design), "impact_speed": design.impact_speed, "formulation": settings.formulation,
@@ -526,7 +526,7 @@ def fixed_dofs(node_type: np.ndarray) -> np.ndarray:
     return fixed
 
 
-def _static_fields(design: Design, mesh: dict) -> dict[str, np.ndarray]:
+def _static_fields(design: Design, mesh: dict, formulation: str = "axisymmetric") -> dict[str, np.ndarray]:
     """The native-format static fields of a design's mesh: mesh_pos, cells, node_type, density, modulus.
 
     A node's density and modulus are those of the softest cell it belongs to, so that a soft layer one element
@@ -546,7 +546,8 @@ def _static_fields(design: Design, mesh: dict) -> dict[str, np.ndarray]:
         p = mesh["mesh_pos"][cells[tip]]
         area = 0.5 * np.abs((p[:, 1, 0] - p[:, 0, 0]) * (p[:, 2, 1] - p[:, 0, 1])
                             - (p[:, 1, 1] - p[:, 0, 1]) * (p[:, 2, 0] - p[:, 0, 0]))
-        volume = float(np.sum(2 * np.pi * p[:, :, 0].mean(1) * area))  # the revolved tip (axisymmetric)
+        weight = 2 * np.pi * p[:, :, 0].mean(1) if formulation == "axisymmetric" else 1.0  # revolved, or per mm
+        volume = float(np.sum(weight * area))
         density = np.where(mesh["body"] == 1, design.ball_density + design.pen_mass / volume, density)
     return dict(
         mesh_pos=mesh["mesh_pos"].astype(np.float32), cells=cells.astype(np.int32),
@@ -577,7 +578,7 @@ def initial_frames(design: Design, settings: Settings = Settings()) -> dict:
     ball = mesh["body"] == 1
     x1[ball, 1] -= fall
     x1[~ball & ~fixed_dofs(mesh["node_type"])[:, 1], 1] -= 0.5 * g * dt * dt
-    fields_ = dict(_static_fields(design, mesh), world_pos=np.stack([x0, x1]).astype(np.float32),
+    fields_ = dict(_static_fields(design, mesh, settings.formulation), world_pos=np.stack([x0, x1]).astype(np.float32),
                    stress=np.zeros((2, len(x0), 1), np.float32))
     attrs = {**asdict(design), "impact_speed": design.impact_speed, "formulation": settings.formulation,
              "family": design.family}

@@ -2,10 +2,13 @@
 calls: a GP that recovers a known law, JSON storage without pickle, refused files, answers side by side, calls that
 pass only below the trusted interval, ``--verify auto``, no ghost peak."""
 import json
+import shutil
 from dataclasses import replace
 
 import numpy as np
 import pytest
+
+from conftest import IMPACT_DATA
 
 from hcmt.cli import main as cli
 from hcmt.design.inputs import design_for
@@ -17,7 +20,9 @@ from hcmt.inference.run import Run
 from hcmt.sim.scene import DESIGN_KEYS, FIRST_SCENE_KEYS, Design, Settings, sample_design, simulate
 from hcmt.training import train
 
-FRAMES = 8
+pytestmark = pytest.mark.slow  # trained runs, fitted response surfaces, solver verification
+
+FRAMES = IMPACT_DATA["frames"]
 
 
 def law(d: Design) -> dict:
@@ -226,12 +231,11 @@ def test_calls_pass_only_below_and_fail_only_above_the_trusted_interval():
 
 
 @pytest.fixture(scope="module")
-def family(tmp_path_factory, tiny_config):
-    """12 generated `small` training trajectories (enough for 9 varied parameters + 2), a tiny HCMT run on them
-    and its surrogate saved as RUN/surrogate.json by the command."""
+def family(tmp_path_factory, tiny_config, impact_data):
+    """The test run's 12 generated `small` training trajectories (conftest; enough for 9 varied parameters + 2), a
+    tiny HCMT run on them and its surrogate saved as RUN/surrogate.json by the command."""
     root = tmp_path_factory.mktemp("surrogate")
-    assert cli(["generate", "impact-plate", str(root / "data"), "--preset", "small", "--train", "12", "--valid", "0",
-                "--test", "1", "--seed", "11", "--frames", str(FRAMES), "--no-progress"]) == 0
+    shutil.copytree(impact_data, root / "data")
     train(tiny_config("train.steps=2", "train.checkpoint_every=2"), root / "data", "hcmt", root / "run",
           progress=False)
     return root

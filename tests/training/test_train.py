@@ -22,6 +22,8 @@ from hcmt.training import train
 from conftest import TINY
 from layouts import deforming_plate_tfrecord, ggns_pickles, sphere_simple_tfrecord, write_impact_like
 
+pytestmark = pytest.mark.slow  # trains and rolls out real runs (DDP in a subprocess)
+
 # this file's runs: conftest's TINY, then these (MGN/GT at 2 blocks, a log line every step, a checkpoint every 2,
 # validation on one trajectory every 3, contact radius 0.3)
 EXTRA = ["model.blocks=2", "train.log_every=1", "train.checkpoint_every=2", "train.valid_every=3",

@@ -104,6 +104,7 @@ def impact_answers(design: Design, frames: int = 45) -> tuple[float, float]:
     return float(f["stress"][:, plate].max()), float(np.abs(x[:, plate, 1] - x[0, plate, 1]).max())
 
 
+@pytest.mark.slow  # ball impacts solved over whole trajectories
 def test_stack_of_one_material_equals_the_plate():
     """Two layers of the same glass against one plate of the summed thickness (0.9 mm), a ball impact:
 
@@ -126,6 +127,7 @@ def test_stack_of_one_material_equals_the_plate():
     assert b[1] == pytest.approx(plate[1], rel=0.02) and b[0] == pytest.approx(plate[0], rel=0.08)
 
 
+@pytest.mark.slow  # ball impacts solved over whole trajectories
 def test_pen_tip_force_and_duration_match_hertz():
     """A pen (rigid rod of 20 g, steel tip R = 3 mm) at 2 m/s on a thick glass block: with the rod's mass in
     Hertz's m, d = (15 m v^2 / (16 E* sqrt R))^(2/5), F = 4/3 E* sqrt(R) d^(3/2), t_c = 2.94 d / v, within 10 %."""
@@ -167,6 +169,7 @@ def test_pen_tip_force_and_duration_match_hertz():
     np.testing.assert_allclose(rod[:, 0], X[mesh["rigid"], 0])
 
 
+@pytest.mark.slow  # ball impacts solved over whole trajectories
 @pytest.mark.parametrize("family", ["stack2", "stack3", "stack4", "ring", "backing", "pen"])
 def test_energy_conserved_per_family(family):
     """Without bulk viscosity, kinetic + strain + penalty + gravity energy (the pen's rod included) stays within

@@ -1,9 +1,12 @@
 """Design check (`hcmt predict`): initial state without a solver, batched prediction, verify, range warnings,
 refused designs, shipped models."""
 import json
+import shutil
 
 import numpy as np
 import pytest
+
+from conftest import IMPACT_DATA
 import torch
 
 from hcmt.cli import main as cli
@@ -16,15 +19,17 @@ from hcmt.inference.run import Run
 from hcmt.data.runs import available_pretrained
 from hcmt.training import train
 
-FRAMES = 8
+pytestmark = pytest.mark.slow  # trained runs and solver verification
+
+FRAMES = IMPACT_DATA["frames"]
 
 
 @pytest.fixture(scope="module")
-def tiny_run(tmp_path_factory, tiny_config):
-    """A 3-step HCMT run on 2 generated `small` trajectories of 8 frames (real generator meta and design attrs)."""
+def tiny_run(tmp_path_factory, tiny_config, impact_data):
+    """A 3-step HCMT run on the test run's generated `small` trajectories (conftest; real generator meta and design
+    attrs)."""
     root = tmp_path_factory.mktemp("predict")
-    assert cli(["generate", "impact-plate", str(root / "data"), "--preset", "small", "--train", "2", "--valid", "0",
-                "--test", "1", "--seed", "3", "--frames", str(FRAMES), "--no-progress"]) == 0
+    shutil.copytree(impact_data, root / "data")
     train(tiny_config("train.steps=3", "train.checkpoint_every=3"), root / "data", "hcmt", root / "run",
           progress=False)
     return root / "run"

@@ -15,28 +15,33 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+
+from conftest import IMPACT_DATA
 import torch
 
 from hcmt.cli import main as cli
 from hcmt.cli import set_threads
 from hcmt.design.inputs import design_for, range_warnings, read_designs_csv
 from hcmt.sim.scene import middle_design
+from hcmt.data.runs import PRETRAINED_DIR
 from hcmt.inference import run as run_module
 from hcmt.inference.run import Run
 from hcmt.sim.scene import Design, estimate
 from hcmt.training import train
 from hcmt.viz.meshplot import new_figure, save_figure
 
-FRAMES = 6
-ROOT = Path(__file__).resolve().parent.parent
+pytestmark = pytest.mark.slow  # trained runs, subprocesses under memory limits
+
+FRAMES = IMPACT_DATA["frames"]
+ROOT = Path(__file__).resolve().parents[2]
 
 
 @pytest.fixture(scope="module")
-def setup(tmp_path_factory, tiny_config):
-    """A tiny dataset and a 2-step HCMT run with checkpoint.pt, best.pt (validation at step 2) and data.json."""
+def setup(tmp_path_factory, tiny_config, impact_data):
+    """The test run's dataset (conftest; a copy this module may damage) and a 2-step HCMT run with checkpoint.pt,
+    best.pt (validation at step 2) and data.json."""
     root = tmp_path_factory.mktemp("misuse")
-    assert cli(["generate", "impact-plate", str(root / "data"), "--preset", "small", "--train", "2", "--valid", "1",
-                "--test", "1", "--seed", "4", "--frames", str(FRAMES), "--no-progress"]) == 0
+    shutil.copytree(impact_data, root / "data")
     train(tiny_config("train.steps=2", "train.checkpoint_every=1", "train.valid_every=2",
                       "train.valid_trajectories=1"), root / "data", "hcmt", root / "run", progress=False)
     assert (root / "run" / "best.pt").is_file() and (root / "run" / "checkpoint.pt").is_file()
@@ -196,7 +201,7 @@ def damaged(original: bytes, rng: random.Random, flips: int) -> bytes:
 
 
 def test_fuzz_a_shipped_model_file(tmp_path, monkeypatch, capsys):
-    original = (run_module.PRETRAINED_DIR / "impact_plate_small.pt").read_bytes()
+    original = (PRETRAINED_DIR / "impact_plate_small.pt").read_bytes()
     rng = random.Random(2)
     for k in range(6):
         path = tmp_path / "impact_plate_small.pt"
@@ -339,9 +344,10 @@ def test_messages_that_said_the_wrong_thing(setup, tmp_path, capsys):
     (data / ".parts").mkdir()
     msg = one_line(capsys, cli(["evaluate", str(setup / "run"), "--data", str(data), "--split", "test"]))
     assert "incomplete dataset" in msg and ".parts" in msg
+    seed = IMPACT_DATA["seed"]
     msg = one_line(capsys, cli(["generate", "impact-plate", str(setup / "data"), "--preset", "small", "--train", "2",
-                                "--valid", "1", "--test", "1", "--seed", "5", "--frames", str(FRAMES)]))
-    assert "seed 4 there, 5 asked" in msg
+                                "--valid", "1", "--test", "1", "--seed", str(seed + 1), "--frames", str(FRAMES)]))
+    assert f"seed {seed} there, {seed + 1} asked" in msg
 
 
 def test_a_closed_pipe_is_not_an_error():

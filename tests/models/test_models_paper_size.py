@@ -10,6 +10,8 @@ import torch
 from hcmt.physics.adapters import build_for_dataset, dataset_spec
 from models_grid import hop_distance, paper_graph
 
+pytestmark = pytest.mark.slow  # paper-size models
+
 
 @pytest.fixture(scope="module")
 def sample():

@@ -1,9 +1,12 @@
 """Issue "Impact physics": the training formulation options (target, noise nodes, γ, pushforward), the physics
 metrics an engineer reads, design sweeps and --threads."""
 import json
+import shutil
 
 import numpy as np
 import pytest
+
+from conftest import IMPACT_DATA
 import torch
 
 from hcmt.cli import main as cli
@@ -18,15 +21,16 @@ from hcmt.inference.evaluate import evaluate
 from hcmt.inference.run import Run
 from hcmt.training import train
 
-FRAMES = 8
+pytestmark = pytest.mark.slow  # training runs on generated data
+
+FRAMES = IMPACT_DATA["frames"]
 EXTRA = ["train.steps=4", "train.checkpoint_every=2"]  # this file's runs: conftest's TINY, then these
 
 
 @pytest.fixture(scope="module")
-def data(tmp_path_factory):
+def data(tmp_path_factory, impact_data):
     root = tmp_path_factory.mktemp("physics")
-    assert cli(["generate", "impact-plate", str(root / "data"), "--preset", "small", "--train", "2", "--valid", "0",
-                "--test", "1", "--seed", "5", "--frames", str(FRAMES), "--no-progress"]) == 0
+    shutil.copytree(impact_data, root / "data")  # the test run's dataset (conftest), a copy this module may change
     return root / "data"
 
 

@@ -5,9 +5,12 @@ import csv
 import io
 import json
 import random
+import shutil
 
 import numpy as np
 import pytest
+
+from conftest import IMPACT_DATA
 
 import hcmt.cli.design as cli_design
 import hcmt.design.reports as design_reports
@@ -20,15 +23,17 @@ from hcmt.sim.scene import DESIGN_KEYS, middle_design, parse_design
 from hcmt.inference.run import Run
 from hcmt.training import train
 
-FRAMES = 6
+pytestmark = pytest.mark.slow  # trained runs and solver verification
+
+FRAMES = IMPACT_DATA["frames"]
 
 
 @pytest.fixture(scope="module")
-def setup(tmp_path_factory, tiny_config):
+def setup(tmp_path_factory, tiny_config, impact_data):
     root = tmp_path_factory.mktemp("safety")
     gen = ["generate", "impact-plate", "--preset", "small", "--train", "2", "--valid", "0", "--test", "1",
            "--no-progress"]
-    assert cli([*gen[:2], str(root / "data"), *gen[2:], "--seed", "1", "--frames", str(FRAMES)]) == 0
+    shutil.copytree(impact_data, root / "data")  # the test run's dataset (conftest), a copy this module may change
     assert cli([*gen[:2], str(root / "other"), *gen[2:], "--seed", "2", "--frames", str(FRAMES)]) == 0
     assert cli([*gen[:2], str(root / "coarse_dt"), *gen[2:], "--seed", "1", "--frames", "4",
                 "--frame-dt", "0.004"]) == 0

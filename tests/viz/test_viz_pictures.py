@@ -24,6 +24,8 @@ from hcmt.viz.rollouts import Series, load_case
 from layouts import impact_like
 from viz_runs import SHIFT, STRESS_OFFSET, fake_run, impact_dataset
 
+pytestmark = pytest.mark.slow  # trained runs rolled out
+
 
 @pytest.fixture(scope="module")
 def data(tmp_path_factory):

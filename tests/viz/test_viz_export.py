@@ -15,6 +15,8 @@ from hcmt.viz.rollouts import Case, Series, load_case
 from layouts import box_tetrahedra
 from viz_runs import SHIFT, STRESS_OFFSET, fake_run, impact_dataset
 
+pytestmark = pytest.mark.slow  # trained runs rolled out
+
 
 @pytest.fixture(scope="module")
 def setup(tmp_path_factory):

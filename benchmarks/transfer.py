@@ -30,7 +30,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
 import platform
 import time
 from pathlib import Path
@@ -264,7 +263,8 @@ def main() -> None:
             [f"--work {work}", f"--train-data {a.train_data}", *(f"--new {x}" for x in a.new),
              f"--models {' '.join(a.models)}", f"--steps {a.steps}", f"--ft-steps {a.ft_steps}",
              f"--shots {' '.join(map(str, a.shots))}", f"--eval {a.eval}"]),
-        "device": f"cpu ({platform.processor() or platform.machine()}), {a.threads} thread(s), pid {os.getpid()}",
+        "device": f"cpu ({platform.processor() or platform.machine()}), {a.threads} thread per process, two "
+                  "processes (one per seed) side by side on the 2-core machine",
         "train_families": sorted(set((read_meta(base_data).get("families") or {}).get("train") or ["mono"])),
         "new_families": {k: str(v) for k, v in new.items()}, "rows": summary})
     print(json.dumps({k: v for k, v in summary.items()}, indent=1)[:4000])

@@ -8,17 +8,17 @@ from __future__ import annotations
 import json
 import os
 import shutil
-import sys
 import time
 from pathlib import Path
 
 
-from hcmt.cli import main as hcmt
 from hcmt.files import atomic_path, take_lock
 from hcmt.inference.evaluate import evaluate
 from hcmt.inference.run import Run
 from hcmt.data.runs import RunFolder
 from hcmt.config import load_config
+from hcmt.sim.generate import generate_dataset
+from hcmt.sim.scene import VARIANTS, Settings
 from hcmt.training import train
 
 import torch
@@ -34,21 +34,17 @@ DATASET = dict(preset="small", train=40, valid=4, test=10, seed=2024, variants=2
 
 
 def dataset(work: Path, spec: dict = DATASET) -> Path:
+    """The benchmark's dataset under ``work``, generated (or finished: the generator skips what exists) by
+    :func:`hcmt.sim.generate.generate_dataset`."""
     data = work / (f"impact_plate_{spec['preset']}_{spec['train']}" + (f"_{spec['frames']}" if spec.get("frames") else "")
                    + (f"_dt{spec['frame_dt']:g}" if spec.get("frame_dt") else ""))
-    complete = all((data / f"{s}.h5").is_file() for s in ("train", "valid", "test")) and not (data / ".parts").exists()
-    if not complete:  # the generator resumes an interrupted run, reusing finished trajectories
-        args = ["generate", "impact-plate", str(data), "--preset", spec["preset"], "--train", str(spec["train"]),
-                "--valid", str(spec["valid"]), "--test", str(spec["test"]), "--seed", str(spec["seed"]),
-                "--workers", "2", "--no-progress"]
-        if spec.get("variants"):
-            args += ["--variants", "--variant-count", str(spec["variants"])]
-        if spec.get("frames"):
-            args += ["--frames", str(spec["frames"])]
-        if spec.get("frame_dt"):
-            args += ["--frame-dt", repr(spec["frame_dt"])]
-        if hcmt(args):
-            sys.exit("dataset generation failed")
+    counts = {"train": spec["train"], "valid": spec["valid"], "test": spec["test"]}
+    if spec.get("variants"):
+        counts.update({v: spec["variants"] for v in VARIANTS})
+    default = Settings()
+    settings = Settings(frames=spec.get("frames") or default.frames, frame_dt=spec.get("frame_dt") or default.frame_dt)
+    generate_dataset(data, preset=spec["preset"], counts=counts, seed=spec["seed"], workers=2, settings=settings,
+                     progress=False)
     return data
 
 
@@ -57,8 +53,9 @@ def run_and_evaluate(work: Path, data: Path, name: str, model: str, seed: int, o
                      details: bool = False, keep_rollouts: bool = False) -> dict:
     """Train (or resume, or skip) one run, then evaluate it on each split; returns {split: metrics}."""
     run = work / "runs" / name
+    folder = RunFolder(run, must_exist=False)
     out = {}
-    done = all((run / f"metrics_{s}.json").is_file() for s in splits)
+    done = all(folder.metrics_path(s).is_file() for s in splits)
     if not done and not claim(run):
         print(f"  {name} is being trained by another process: skipped here", flush=True)
         return None
@@ -68,8 +65,8 @@ def run_and_evaluate(work: Path, data: Path, name: str, model: str, seed: int, o
         finally:
             (run.parent / f"{run.name}.lock").unlink(missing_ok=True)  # ours: claimed above
     for s in splits:
-        out[s] = json.loads((run / f"metrics_{s}.json").read_text())
-    stats = json.loads((run / "train_stats.json").read_text())
+        out[s] = json.loads(folder.metrics_path(s).read_text())
+    stats = RunFolder(run).train_stats()
     for s in splits:
         out[s]["train_ms_per_step"] = stats["train_ms_per_step"]
         out[s]["steps"] = stats["steps"]
@@ -80,24 +77,22 @@ def _train_and_evaluate(run, data, model, seed, overrides, splits, ablation, con
                         keep_rollouts=False) -> None:
     """Train the run unless trained (resuming a checkpoint), then write ``metrics_<split>.json`` per split."""
     cfg = load_config(config, overrides)
-    if not (run / "train_stats.json").is_file():
-        if run.exists() and not (run / "checkpoint.pt").is_file():
+    folder = RunFolder(run, must_exist=False)
+    if not folder.stats_path.is_file():
+        if run.exists() and not folder.latest.is_file():
             shutil.rmtree(run)
         t0 = time.perf_counter()
-        train(cfg, data, model, run, ablation=ablation, seed=seed, resume=(run / "checkpoint.pt").is_file(),
-              progress=False)
+        train(cfg, data, model, run, ablation=ablation, seed=seed, resume=folder.latest.is_file(), progress=False)
         print(f"  trained {run.name} in {time.perf_counter() - t0:.0f} s", flush=True)
     for s in splits:
-        if (run / f"metrics_{s}.json").is_file():  # evaluated before (e.g. the sweep's validation split)
+        if folder.metrics_path(s).is_file():  # evaluated before (e.g. the sweep's validation split)
             continue
-        m = evaluate(Run.load(run, "cpu"), data, s, progress=False)
+        evaluate(Run.load(run, "cpu"), data, s, progress=False)  # writes RUN/metrics_<split>.json
         if details:
             with atomic_path(run / f"details_{s}.json") as tmp:
                 tmp.write_text(json.dumps(rollout_details(run, data, s), indent=2))
-        with atomic_path(run / f"metrics_{s}.json") as tmp:
-            tmp.write_text(json.dumps(m, indent=2))
         if not keep_rollouts:
-            RunFolder(run).rollout_path(s).unlink(missing_ok=True)
+            folder.rollout_path(s).unlink(missing_ok=True)
 
 
 def rollout_details(run: Path, data: Path, split: str) -> dict:

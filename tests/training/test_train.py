@@ -505,10 +505,10 @@ def test_init_with_another_architecture_is_one_line_listing_the_differences(impa
     train(tiny_config(*EXTRA, "train.steps=2"), impact, "hcmt", tmp_path / "src", seed=1, progress=False)
     rc = cli(["train", "--config", "impact_plate_cpu", "--data", str(impact), "--model", "hcmt", "--out",
               str(tmp_path / "b"), "--steps", "2", "--init", str(tmp_path / "src"), "--no-progress",
-              *(a for kv in TINY + EXTRA + ["model.hidden=16"] for a in ("--set", kv))])
+              *(a for kv in TINY + EXTRA + ["model.hidden=24"] for a in ("--set", kv))])
     err = capsys.readouterr().err.strip()
     assert rc == 2 and len(err.splitlines()) == 1
-    assert "its model differs from this run's: hidden" in err and "16 here" in err
+    assert "its model differs from this run's: hidden 16 there, 24 here" in err
     assert not (tmp_path / "b").exists()
     rc = cli(["train", "--out", str(tmp_path / "src"), "--resume", "--init", str(tmp_path / "src")])
     assert rc == 2 and "give one of them" in capsys.readouterr().err

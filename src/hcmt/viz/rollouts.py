@@ -17,7 +17,7 @@ from hcmt.data.errors import DatasetError
 from hcmt.data.format import Split, read_meta
 from hcmt.graph.contact import object_ids
 from hcmt.inference.evaluate import rollout_file
-from hcmt.inference.run import Run
+from hcmt.inference.run import Run, model_label
 from hcmt.data.runs import RunFolder
 
 
@@ -87,7 +87,7 @@ def quantity_label(name: str, unit: str | None) -> str:
 
 def unique_labels(runs: list[Run | RunFolder]) -> list[str]:
     """Run labels, with the run folder's name added where two runs would otherwise share one."""
-    labels = [r.label for r in runs]
+    labels = [r.label if isinstance(r, Run) else model_label(r.info["model"]) for r in runs]
     return [f"{lab} ({Path(r.source).name})" if labels.count(lab) > 1 else lab for lab, r in zip(labels, runs)]
 
 

@@ -11,7 +11,8 @@ from scipy.sparse.linalg import eigsh, spsolve
 from hertz import contact_history, hertz
 
 from hcmt.sim.contact import PenaltyContact
-from hcmt.sim.mesh import HANDLE, SYMMETRIC, impact_plate_mesh, plate_mesh, preset_mesh
+from hcmt.sim.scene import fixed_dofs
+from hcmt.sim.mesh import SYMMETRIC, impact_plate_mesh, plate_mesh, preset_mesh
 from hcmt.sim.solver import (CentralDifference, build_model, internal_force, linear_stiffness, stable_time_step,
                              strain_energy)
 
@@ -24,13 +25,6 @@ def two_body_model(mesh, ball, plate, formulation="axisymmetric", bulk_viscosity
     props = {k: np.where(cb == 1, ball[k], plate[k]) for k in ("density", "modulus", "poisson")}
     return build_model(mesh["mesh_pos"], mesh["cells"], props["density"], props["modulus"], props["poisson"],
                        formulation=formulation, bulk_viscosity=bulk_viscosity)
-
-
-def scene_fixed(mesh):
-    fixed = np.zeros((len(mesh["mesh_pos"]), 2), bool)
-    fixed[mesh["node_type"] == SYMMETRIC, 0] = True
-    fixed[mesh["node_type"] == HANDLE] = True
-    return fixed
 
 
 def test_hertz_sphere_on_thick_block():
@@ -69,7 +63,7 @@ def test_energy_conserved_through_impact(formulation):
     model = two_body_model(mesh, STEEL, GLASS, formulation)
     dt = 0.002 / np.ceil(0.002 / stable_time_step(model))
     contact = PenaltyContact(mesh["mesh_pos"], mesh["cells"], mesh["body"], model.mass, dt)
-    sim = CentralDifference(model, scene_fixed(mesh), dt, contact=contact, gravity=9.81e-3)
+    sim = CentralDifference(model, fixed_dofs(mesh["node_type"]), dt, contact=contact, gravity=9.81e-3)
     v0 = np.zeros_like(mesh["mesh_pos"])
     v0[mesh["body"] == 1, 1] = -np.sqrt(2 * 9.81e-3 * 1000.0)
     sim.start(mesh["mesh_pos"], v0)
@@ -171,7 +165,7 @@ def test_bulk_viscosity_only_dissipates():
         model = two_body_model(mesh, STEEL, GLASS, bulk_viscosity=b1)
         dt = stable_time_step(model)
         contact = PenaltyContact(mesh["mesh_pos"], mesh["cells"], mesh["body"], model.mass, dt)
-        sim = CentralDifference(model, scene_fixed(mesh), dt, contact=contact)
+        sim = CentralDifference(model, fixed_dofs(mesh["node_type"]), dt, contact=contact)
         v0 = np.zeros_like(mesh["mesh_pos"])
         v0[mesh["body"] == 1, 1] = -4.0
         sim.start(mesh["mesh_pos"], v0)

@@ -22,8 +22,8 @@ from tqdm import tqdm
 
 from hcmt.data.errors import DatasetError
 from hcmt.data.format import make_meta, read_meta, write_meta, write_split
-from hcmt.sim.scene import (CONTACT_RADIUS, FAMILIES, RANGES, RELATIVE, UNITS, VARIANTS, Design, Settings,
-                            family_ranges, feature_spec, sample_design, simulate)
+from hcmt.sim.scene import (CONTACT_RADIUS, FAMILIES, RANGES, UNITS, VARIANTS, Design, Settings,
+                            family_ranges, feature_spec, resolve_relative, sample_design, simulate)
 
 #: Split names and their stable codes in the per-trajectory seed.
 SPLITS = ("train", "valid", "test", "test_thicker", "test_higher", "test_thicker_higher")
@@ -217,8 +217,4 @@ def generate_dataset(out, *, preset: str = "small", counts: dict[str, int], seed
 
 def preset_design(preset: str, family: str = "mono") -> Design:
     """The nominal design of a preset and family: the middle of every sampling range (:func:`family_ranges`)."""
-    values = {k: 0.5 * (lo + hi) for k, (lo, hi) in family_ranges(preset, family).items()}
-    for key, of in RELATIVE.items():
-        if key in values:
-            values[key] *= values[of]
-    return Design(**values)
+    return Design(**resolve_relative({k: 0.5 * (lo + hi) for k, (lo, hi) in family_ranges(preset, family).items()}))

@@ -262,6 +262,11 @@ def family_ranges(preset: str = "small", family: str = "mono", variant: str | No
     return {**RANGES[preset], **FAMILIES[family], **(VARIANTS[variant] if variant else {})}
 
 
+def resolve_relative(values: dict[str, float]) -> dict[str, float]:
+    """Drawn values with each :data:`RELATIVE` parameter (drawn as a fraction) turned into its length."""
+    return {k: v * values[RELATIVE[k]] if k in RELATIVE else v for k, v in values.items()}
+
+
 def describe_family(family: str) -> str:
     """One line: what a family varies beyond the preset's ranges, with units (``--help``, ``hcmt models``)."""
     ranges = FAMILIES[family]
@@ -280,10 +285,8 @@ def sample_design(rng: np.random.Generator, preset: str = "small", variant: str 
     ranges = family_ranges(preset, family, variant)
     names = sorted(ranges)
     u = rng.random(len(names))
-    values = {k: float(ranges[k][0] + (ranges[k][1] - ranges[k][0]) * ui) for k, ui in zip(names, u)}
-    for key, of in RELATIVE.items():
-        if key in values:
-            values[key] *= values[of]
+    values = resolve_relative({k: float(ranges[k][0] + (ranges[k][1] - ranges[k][0]) * ui)
+                               for k, ui in zip(names, u)})
     if edge_fraction > 0 and rng.random() < edge_fraction:
         key = sorted(EDGES)[int(rng.random() < 0.5)]
         (lo, hi), (a, b) = ranges[key], EDGES[key]

@@ -22,6 +22,7 @@ from pathlib import Path
 import numpy as np
 from tqdm import tqdm
 
+from hcmt.design.inputs import confidence, outside, range_warnings, settings_of
 from hcmt.design.readout import history_correlation, summarize_fields
 from hcmt.design.surrogate import Surrogate, for_run, side_by_side
 from hcmt.inference.metrics import impact_metrics, plate_mask, rollout_rmse, summarize_impact
@@ -29,7 +30,6 @@ from hcmt.inference.rollout import rollout_batch
 from hcmt.physics.trajectory import prepare_trajectory
 from hcmt.sim.scene import (MAX_ESTIMATED_SECONDS, Design, Settings, check_size, simulate, start_frames,
                             validated_warnings)
-from hcmt.design.inputs import confidence, outside, range_warnings, settings_of
 
 
 @dataclass

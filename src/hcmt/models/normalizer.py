@@ -23,6 +23,12 @@ class Normalizer(nn.Module):
         self.register_buffer("sum", torch.zeros(size, dtype=torch.float64))
         self.register_buffer("sum_squared", torch.zeros(size, dtype=torch.float64))
 
+    @torch.no_grad()
+    def reset(self) -> None:
+        """Forget the statistics: the state of a new normalizer (a fine-tuning run that re-accumulates them)."""
+        for b in self.buffers():
+            b.zero_()
+
     def _check(self, x: Tensor) -> None:
         if x.dim() != 2 or x.shape[1] != self.size:
             raise ValueError(f"Normalizer expects features [rows, {self.size}], got shape {tuple(x.shape)}")

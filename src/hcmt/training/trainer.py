@@ -144,8 +144,7 @@ class Trainer:
             if init_normalizers == "reaccumulate":
                 for m in self.model.modules():
                     if isinstance(m, Normalizer):
-                        for b in m.buffers():
-                            b.zero_()
+                        m.reset()
         self.normalizer_steps = 0 if self.frozen_normalizers else int(tc["normalizer_steps"])
         self.model.checkpoint_blocks = tc["checkpoint_blocks"]  # memory for recomputation
         self.bf16 = tc["precision"] == "bf16"  # autocast forward and loss in bfloat16

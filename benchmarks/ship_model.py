@@ -61,7 +61,7 @@ def main() -> None:
                    f"{stats['steps']} steps on {run.meta['generator']['counts']['train']} generated "
                    f"`{run.meta['generator']['preset']}` Impact Plate trajectories of "
                    f"{run.meta['generator']['settings']['frames']} frames",
-        "recipe": {k: run.config["model" if k in ("target", "deformation", "attention") else "train"].get(k)
+        "recipe": {k: getattr(run.config.model if k in ("target", "deformation", "attention") else run.config.train, k)
                    for k in ("target", "deformation", "attention", "noise_std", "noise_nodes", "pushforward",
                              "pushforward_start")},
         "frame_dt_ms": run.meta.get("dt"),

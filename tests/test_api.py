@@ -46,7 +46,7 @@ def test_train_api_applies_overrides_to_a_dict_and_any_model_case(tmp_path, tiny
     summary = hcmt.train(cfg, data, "MGN", tmp_path / "run", overrides=["train.steps=2"], progress=False)
     assert summary["steps"] == 2
     folder = RunFolder(tmp_path / "run")
-    assert folder.info["model"]["name"] == "mgn" and folder.info["config"]["train"]["steps"] == 2
+    assert folder.info["model"]["name"] == "mgn" and folder.info["config"].train.steps == 2
     run = Run.load(folder, "cpu")
     assert run.label == "MGN" and run.folder.path == folder.path and folder.steps_done() == 2
     import pytest

@@ -16,7 +16,7 @@ SRC = Path(__file__).resolve().parent.parent / "src" / "hcmt"
 
 #: layer of each top-level module or subpackage of hcmt, bottom (0) to top; equal numbers may not import each other
 LAYERS = {"config": 0, "data": 1, "sim": 2, "graph": 2, "models": 3, "physics": 4, "inference": 5, "training": 6,
-          "viz": 6, "design": 7, "cli": 8, "files": 0}
+          "viz": 6, "design": 7, "cli": 8, "files": 0, "errors": -1}
 
 
 def module_name(path: Path) -> str:

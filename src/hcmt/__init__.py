@@ -13,12 +13,12 @@ The Python API (imported lazily, so ``import hcmt`` and ``hcmt --help`` stay fas
 * :func:`hcmt.evaluate` (``run, data, split``): the paper's metrics and the physics metrics of a run on a split;
 * :func:`hcmt.load_dataset` (a native dataset folder), :func:`hcmt.train` (``config, data, model, out, **options``;
   ``init=`` fine-tunes from another model), :class:`hcmt.FrameDataset` (training frames for a ``DataLoader``),
-  :func:`hcmt.load_config`;
+  :func:`hcmt.load_config` (a frozen :class:`hcmt.Config`: ``cfg.train.lr``);
 * the models :class:`hcmt.HCMT`, :class:`hcmt.MGN`, :class:`hcmt.GT` (constructor arguments and shapes in their
   docstrings), :func:`hcmt.build_model` (``name, node_in, mesh_in, contact_in, out, **args``) and
   :func:`hcmt.from_checkpoint`.
 
-The package's layers import only downward (tests/test_layers.py): ``config`` → ``data`` → ``sim``, ``graph`` →
+The package's layers import only downward (tests/test_layers.py): ``errors`` → ``config`` → ``data`` → ``sim``, ``graph`` →
 ``models`` → ``physics`` → ``inference`` → ``training``, ``viz`` → ``design`` → ``cli``. This module stands above
 them all and imports on first use (PEP 562 ``__getattr__``), so ``import hcmt`` stays fast.
 """
@@ -31,7 +31,7 @@ from typing import TYPE_CHECKING
 from hcmt.config import VERSION as __version__
 
 if TYPE_CHECKING:  # what IDEs and type checkers see; at run time each name loads on first use (_LAZY)
-    from hcmt.config import load_config
+    from hcmt.config import Config, load_config
     from hcmt.data.format import load_dataset
     from hcmt.design.check import predict_designs
     from hcmt.design.inputs import design_for
@@ -59,6 +59,7 @@ _LAZY = {
     "load_dataset": ("hcmt.data.format", "load_dataset"),
     "FrameDataset": ("hcmt.training.dataset", "FrameDataset"),
     "load_config": ("hcmt.config", "load_config"),
+    "Config": ("hcmt.config", "Config"),
     "HCMT": ("hcmt.models", "HCMT"),
     "MGN": ("hcmt.models", "MGN"),
     "GT": ("hcmt.models", "GT"),
@@ -80,6 +81,6 @@ def __getattr__(name):
     raise AttributeError(f"module 'hcmt' has no attribute {name!r}")
 
 
-__all__ = ["GT", "HCMT", "MGN", "Design", "FrameDataset", "Run", "Settings", "Surrogate", "__version__",
+__all__ = ["Config", "GT", "HCMT", "MGN", "Design", "FrameDataset", "Run", "Settings", "Surrogate", "__version__",
            "available_pretrained", "build_model", "design_for", "evaluate", "from_checkpoint", "generate_dataset", "load_config",
            "load_dataset", "load_pretrained", "predict_designs", "train"]

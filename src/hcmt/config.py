@@ -11,6 +11,8 @@ from pathlib import Path
 
 import yaml
 
+from hcmt.errors import InputError
+
 
 #: the package version (``hcmt --version``, ``hcmt.__version__``)
 VERSION = "0.1.0"
@@ -37,9 +39,9 @@ def _read(name_or_path: str) -> dict:
     except yaml.YAMLError as exc:
         mark = getattr(exc, "problem_mark", None)
         where = f" line {mark.line + 1}, column {mark.column + 1}" if mark else ""
-        raise ValueError(f"config {path}:{where}: not valid YAML ({getattr(exc, 'problem', None) or exc})") from None
+        raise InputError(f"config {path}:{where}: not valid YAML ({getattr(exc, 'problem', None) or exc})") from None
     if not isinstance(data, dict):
-        raise ValueError(f"config {path}: expected a mapping at top level")
+        raise InputError(f"config {path}: expected a mapping at top level")
     base = data.pop("base", None)
     check_schema(data, str(path))
     return merge(_read(base), data) if base else data
@@ -62,11 +64,11 @@ def parse_value(raw: str):
     return yaml.safe_load(raw)
 
 
-def load_config(name_or_path: str, overrides: list[str] | None = None) -> dict:
+def load_config(name_or_path: str, overrides: list[str] | None = None) -> "Config":
     """A config by name or path, its ``base`` chain merged, then ``section.key=value`` overrides
-    (:func:`apply_overrides`), completed with the schema's defaults (:func:`complete_config`); every key and value
-    checked against the schema (one line naming the file or ``--set``, the key, what was expected)."""
-    return complete_config(apply_overrides(_read(name_or_path), overrides))
+    (:func:`apply_overrides`), as a complete :class:`Config`; every key and value checked against the schema (one
+    line naming the file or ``--set``, the key, what was expected)."""
+    return Config.from_dict(apply_overrides(_read(name_or_path), overrides), name_or_path)
 
 
 def apply_overrides(cfg: dict, overrides: list[str] | None) -> dict:
@@ -76,7 +78,7 @@ def apply_overrides(cfg: dict, overrides: list[str] | None) -> dict:
     for item in overrides or []:
         key, sep, raw = item.partition("=")
         if not sep or not key:
-            raise ValueError(f"--set {item!r}: expected section.key=value")
+            raise InputError(f"--set {item!r}: expected section.key=value")
         *parents, leaf = key.split(".")
         check_schema(_nest(parents + [leaf], parse_value(raw)), f"--set {item}")
         node = cfg
@@ -90,100 +92,169 @@ def _nest(keys: list[str], value):
     return {keys[0]: _nest(keys[1:], value)} if len(keys) > 1 else {keys[0]: value}
 
 
-# -- the schema: one dataclass per section, its fields' defaults the defaults ---------------------------------------
-def _choice(default, *allowed):
-    return field(default=default, metadata={"allowed": allowed})
+# -- the schema: one frozen dataclass per section, its fields' defaults the defaults --------------------------------
+def _field(default, *allowed, required: bool = False, minimum=None, maximum=None, above=None, says=None):
+    """A schema field: ``allowed`` values, ``required`` to train, and bounds (``minimum <= v <= maximum``,
+    ``v > above``) that :func:`check_schema` enforces; ``says``: how its message names the bounds."""
+    return field(default=default, metadata={"allowed": allowed, "required": required, "minimum": minimum,
+                                            "maximum": maximum, "above": above, "says": says})
 
 
-@dataclass
+@dataclass(frozen=True)
 class ModelConfig:
     """``model:`` (paper Table 8 depths; ``hidden`` is the latent width)."""
 
-    hidden: int = 128
-    heads: int = 4
-    L_C: int = 2  # contact-mesh transformer blocks
-    levels: int = 0  # λ, the hierarchy's levels (HCMT)
+    hidden: int = _field(128, minimum=1)
+    heads: int = _field(4, minimum=1)
+    L_C: int = _field(2, minimum=0)  # contact-mesh transformer blocks
+    levels: int = _field(0, minimum=0)  # λ, the hierarchy's levels (HCMT)
     L_H: Optional[int] = None  # 2λ + 1 when given
     clip: float = 2.0  # attention logit clip
-    blocks: int = 15  # message-passing blocks of MGN and GT
+    blocks: int = _field(15, minimum=1)  # message-passing blocks of MGN and GT
     ffn_bias: bool = True
-    attention: str = _choice("paper", "paper", "official")
-    target: Optional[str] = _choice(None, "velocity", "acceleration")  # None: the dataset's Table 9 output
+    attention: str = _field("paper", "paper", "official")
+    target: Optional[str] = _field(None, "velocity", "acceleration")  # None: the dataset's Table 9 output
     deformation: bool = False  # hcmt's edge deformation features x_ij − u_ij and stretch
 
 
-@dataclass
+@dataclass(frozen=True)
 class TrainConfig:
     """``train:`` (Table 8's schedule and noise; hcmt's speed and formulation options)."""
 
-    steps: Optional[int] = None  # required (check_train_config)
-    lr: Optional[float] = None  # required
-    contact_radius: Optional[float] = None  # required: the contact search radius (Table 8's γ)
-    batch_size: int = 1
+    steps: Optional[int] = _field(None, required=True, minimum=1)
+    lr: Optional[float] = _field(None, required=True, above=0)
+    contact_radius: Optional[float] = _field(None, required=True)  # the contact search radius (Table 8's γ)
+    batch_size: int = _field(1, minimum=1)
     lr_final: Optional[float] = None  # None: constant ``lr``
     lr_decay_steps: Optional[int] = None  # None: decay over ``steps``
     lr_decay_rate: float = 0.1
-    noise_std: float = 0.0
+    noise_std: float = _field(0.0, minimum=0)
     noise_gamma: Optional[float] = None  # None: 1.0 for a velocity target, 0.1 for acceleration
-    noise_nodes: str = _choice("normal", "normal", "predicted")
-    pushforward: float = 0.0  # probability in [0, 1]
+    noise_nodes: str = _field("normal", "normal", "predicted")
+    pushforward: float = _field(0.0, minimum=0, maximum=1, says="a probability in [0, 1]")
     pushforward_start: int = 0
-    normalizer_steps: int = 0
-    normalizer_warmup: str = _choice("all", "all", "nodes")
+    normalizer_steps: int = _field(0, minimum=0)
+    normalizer_warmup: str = _field("all", "all", "nodes")
     mesh_edges_twice: bool = False
-    loss_denominator: str = _choice("masked", "masked", "nodes")
+    loss_denominator: str = _field("masked", "masked", "nodes")
     adam_epsilon: Optional[float] = None  # None: 1e-8 (PyTorch's), 1e-7 with adam_epsilon_hat (Keras')
     adam_epsilon_hat: bool = False
-    log_every: int = 100
-    checkpoint_every: int = 1000
-    valid_every: int = 0
-    valid_trajectories: int = 2
-    contact_pairs: str = _choice("all", "all", "official")
-    workers: int = 0
+    log_every: int = _field(100, minimum=1)
+    checkpoint_every: int = _field(1000, minimum=1)
+    valid_every: int = _field(0, minimum=0)
+    valid_trajectories: int = _field(2, minimum=0)
+    contact_pairs: str = _field("all", "all", "official")
+    workers: int = _field(0, minimum=0)
     checkpoint_blocks: bool = False
-    precision: str = _choice("fp32", "fp32", "bf16")
-    compile: str = _choice("none", *COMPILE_MODES)
+    precision: str = _field("fp32", "fp32", "bf16")
+    compile: str = _field("none", *COMPILE_MODES)
     deterministic: bool = False
 
 
-@dataclass
+@dataclass(frozen=True)
 class DataConfig:
     """``data:``."""
 
-    exclude_trajectories: Optional[list] = None  # trajectory indices of the train split to leave out
-    stress_field: str = _choice("stress", "stress", "stress_max")  # stress_max: `generate --peak-stress`
+    exclude_trajectories: Optional[tuple] = None  # trajectory indices of the train split to leave out
+    stress_field: str = _field("stress", "stress", "stress_max")  # stress_max: `generate --peak-stress`
 
 
 SECTIONS = {"model": ModelConfig, "train": TrainConfig, "data": DataConfig}
 _KIND = {int: "a whole number", float: "a number", bool: "true or false", str: "a string",
-         list: "a list of trajectory indices"}
+         tuple: "a list of trajectory indices"}
+_CAST = {"a whole number": int, "a number": float, "a list of trajectory indices": tuple}
 
 
-def _spec(cls) -> dict[str, tuple[str, tuple | None, bool]]:
-    """key -> (what it must be, allowed values or None, may be null) of a section dataclass."""
+@dataclass(frozen=True)
+class Spec:
+    """What one config key must be: its kind, allowed values, whether null is allowed and its bounds."""
+
+    kind: str
+    allowed: tuple
+    nullable: bool
+    required: bool
+    minimum: float | None
+    maximum: float | None
+    above: float | None
+    says: str | None
+
+
+def _spec(cls) -> dict[str, Spec]:
     hints = get_type_hints(cls)
     out = {}
     for f in fields(cls):
         t = hints[f.name]
         args = [a for a in get_args(t) if a is not type(None)]
         base = args[0] if args else t
-        out[f.name] = (_KIND[get_origin(base) or base], f.metadata.get("allowed") or None, type(None) in get_args(t))
+        out[f.name] = Spec(_KIND[get_origin(base) or base], tuple(f.metadata.get("allowed", ())),
+                           type(None) in get_args(t),
+                           *(f.metadata.get(k) for k in ("required", "minimum", "maximum", "above", "says")))
     return out
 
 
-#: every key a config may hold: section -> key -> (what it must be, allowed values or None, may be null)
-SCHEMA: dict[str, dict[str, tuple]] = {name: _spec(cls) for name, cls in SECTIONS.items()}
+#: every key a config may hold: section -> key -> :class:`Spec`
+SCHEMA: dict[str, dict[str, Spec]] = {name: _spec(cls) for name, cls in SECTIONS.items()}
 TOP = {"dataset": ("a string", DATASET_NAMES)}
 
 
-def complete_config(cfg: dict) -> dict:
-    """``cfg`` (a copy) with every section key present: the dataclass defaults fill what the file left out, so
-    code reads ``cfg["train"]["noise_std"]`` without a default of its own. Checked against the schema."""
-    check_schema(cfg)
-    out = copy.deepcopy(cfg)
-    for name, cls in SECTIONS.items():
-        out[name] = asdict(cls(**(cfg.get(name) or {})))
-    return out
+@dataclass(frozen=True)
+class Config:
+    """A complete, checked config: ``dataset`` and one frozen section each (``cfg.train.lr``). Every key holds a
+    value of its declared type (a YAML ``1`` for a number is ``1.0``); what a file leaves out is the section's
+    default. Made by :func:`load_config` or :meth:`from_dict`; ``run.yaml`` holds :meth:`to_dict`."""
+
+    dataset: Optional[str] = None
+    model: ModelConfig = field(default_factory=ModelConfig)
+    train: TrainConfig = field(default_factory=TrainConfig)
+    data: DataConfig = field(default_factory=DataConfig)
+
+    @classmethod
+    def from_dict(cls, cfg: dict, source: str = "config") -> "Config":
+        """The one completion of a config mapping (a file's, ``run.yaml``'s, the API's): checked against the
+        schema (one line naming ``source``, the key and what was expected), defaults filled, values cast."""
+        if isinstance(cfg, Config):
+            return cfg
+        if not isinstance(cfg, dict):
+            raise InputError(f"config {source}: expected a mapping of sections, got {type(cfg).__name__}")
+        check_schema(cfg, source)
+        sections = {}
+        for name, cls_ in SECTIONS.items():
+            given = cfg.get(name) or {}
+            sections[name] = cls_(**{k: (v if v is None or SCHEMA[name][k].kind not in _CAST
+                                         else _CAST[SCHEMA[name][k].kind](v)) for k, v in given.items()})
+        return cls(dataset=cfg.get("dataset"), **sections)
+
+    def to_dict(self) -> dict:
+        """Plain types (lists, not tuples) for YAML and ``torch.load(weights_only=True)``."""
+        out = asdict(self)
+        ex = out["data"]["exclude_trajectories"]
+        out["data"]["exclude_trajectories"] = None if ex is None else list(ex)
+        return out
+
+    def with_overrides(self, overrides: list[str] | None) -> "Config":
+        """This config with ``section.key=value`` items applied (:func:`apply_overrides`)."""
+        return Config.from_dict(apply_overrides(self.to_dict(), overrides)) if overrides else self
+
+    def for_training(self) -> "Config":
+        """This config, refused in one line when a key training needs (``Spec.required``, ``dataset``) is unset."""
+        if self.dataset is None:
+            raise InputError("config: `dataset` (the adapter: impact_plate, deforming_plate, ...) is missing")
+        for name, specs in SCHEMA.items():
+            for key, spec in specs.items():
+                if spec.required and getattr(getattr(self, name), key) is None:
+                    raise InputError(f"config: {name}.{key} is missing (see configs/impact_plate.yaml for a "
+                                     "complete config)")
+        return self
+
+
+def as_config(config, overrides: list[str] | None = None) -> Config:
+    """A :class:`Config` from a Config, a config mapping, a built-in config name or a YAML path, with
+    ``section.key=value`` overrides."""
+    if isinstance(config, Config):
+        return config.with_overrides(overrides)
+    if isinstance(config, dict):
+        return Config.from_dict(apply_overrides(config, overrides))
+    return load_config(str(config), overrides)
 
 
 def _ok(kind: str, value) -> bool:
@@ -196,7 +267,17 @@ def _ok(kind: str, value) -> bool:
         return isinstance(value, bool)
     if kind == "a string":
         return isinstance(value, str)
-    return isinstance(value, list) and all(isinstance(v, int) and not isinstance(v, bool) for v in value)
+    return isinstance(value, (list, tuple)) and all(isinstance(v, int) and not isinstance(v, bool) for v in value)
+
+
+def _bounds(spec: Spec, value) -> str | None:
+    """What ``value`` breaks of ``spec``'s bounds, as ``a whole number >= 1``, or None."""
+    for bound, op, holds in (("minimum", ">=", lambda b: value >= b), ("above", ">", lambda b: value > b),
+                             ("maximum", "<=", lambda b: value <= b)):
+        b = getattr(spec, bound)
+        if b is not None and not holds(b):
+            return spec.says or f"{spec.kind} {op} {b:g}"
+    return None
 
 
 def _unknown(key: str, known: list[str], source: str):
@@ -206,52 +287,36 @@ def _unknown(key: str, known: list[str], source: str):
 
 
 def check_schema(cfg: dict, source: str = "config") -> None:
-    """Refuse unknown keys (with the closest known one), values of the wrong type and values outside a fixed set."""
+    """Refuse unknown keys (with the closest known one), values of the wrong type, values outside a fixed set and
+    values outside a key's bounds."""
     sections = list(SCHEMA)
     for top, value in cfg.items():
         if top in TOP:
             kind, allowed = TOP[top]
             if not _ok(kind, value) or (allowed and value not in allowed):
-                raise ValueError(f"config {source}: {top}: got {value!r}; expected one of {', '.join(allowed)}")
+                raise InputError(f"config {source}: {top}: got {value!r}; expected one of {', '.join(allowed)}")
             continue
         if top == "base":
             continue
         if top not in SCHEMA:
             raise _unknown(top, sections + list(TOP), source)
         if not isinstance(value, dict):
-            raise ValueError(f"config {source}: {top}: expected a section of keys, got {value!r}")
+            raise InputError(f"config {source}: {top}: expected a section of keys, got {value!r}")
         for key, v in value.items():
             if key not in SCHEMA[top]:
                 raise _unknown(f"{top}.{key}", [f"{top}.{k}" for k in SCHEMA[top]]
                                + [f"{s}.{k}" for s in SCHEMA for k in SCHEMA[s] if s != top], source)
-            kind, allowed, nullable = SCHEMA[top][key]
-            if v is None and nullable:
+            spec = SCHEMA[top][key]
+            if v is None and spec.nullable:
                 continue
-            if not _ok(kind, v):
-                raise ValueError(f"config {source}: {top}.{key}: got {v!r}; expected {kind}")
-            if allowed and v not in allowed:
-                raise ValueError(f"config {source}: {top}.{key}: unknown value {v!r}; expected one of "
-                                 f"{', '.join(allowed)}")
-            if key == "pushforward" and not 0 <= v <= 1:
-                raise ValueError(f"config {source}: train.pushforward: got {v!r}; expected a probability in [0, 1]")
-
-
-def check_train_config(cfg: dict) -> None:
-    """What training needs beyond the schema: a dataset, steps, a learning rate and a contact radius."""
-    tc = cfg["train"]
-    for key in ("steps", "lr", "contact_radius"):
-        if tc.get(key) is None:
-            raise ValueError(f"config: train.{key} is missing (see configs/impact_plate.yaml for a complete config)")
-    if "dataset" not in cfg:
-        raise ValueError("config: `dataset` (the adapter: impact_plate, deforming_plate, ...) is missing")
-    steps = tc["steps"]
-    if isinstance(steps, bool) or not isinstance(steps, int) or steps < 1:
-        raise ValueError(f"train.steps must be a whole number >= 1, got {steps!r}")
-    batch_size = tc["batch_size"]
-    if isinstance(batch_size, bool) or not isinstance(batch_size, int) or batch_size < 1:
-        raise ValueError(f"train.batch_size must be a whole number >= 1, got {batch_size!r}")
-    if not isinstance(tc["lr"], (int, float)) or not tc["lr"] > 0:
-        raise ValueError(f"train.lr must be a number > 0, got {tc['lr']!r}")
+            if not _ok(spec.kind, v):
+                raise InputError(f"config {source}: {top}.{key}: got {v!r}; expected {spec.kind}")
+            if spec.allowed and v not in spec.allowed:
+                raise InputError(f"config {source}: {top}.{key}: unknown value {v!r}; expected one of "
+                                 f"{', '.join(spec.allowed)}")
+            broken = _bounds(spec, v) if isinstance(v, (int, float)) else None
+            if broken:
+                raise InputError(f"config {source}: {top}.{key} must be {broken}, got {v!r}")
 
 
 def plural(n: int, word: str, many: str | None = None) -> str:

@@ -36,3 +36,44 @@ def test_each_subcommand_help_parses(capsys):
 def test_unknown_command_fails():
     r = subprocess.run([sys.executable, "-m", "hcmt", "frobnicate"], capture_output=True, text=True)
     assert r.returncode != 0
+
+
+# -- errors: a user's mistake is one line naming the flag, a bug keeps its traceback ---------------------------------
+def test_a_library_parameter_error_names_the_flag_on_the_command_line(impact_data, capsys):
+    import hcmt.errors
+    from hcmt.inference.evaluate import check_options
+
+    with pytest.raises(hcmt.errors.InputError) as exc:
+        check_options(batch=0, compile="none")
+    assert str(exc.value) == "batch must be a whole number >= 1, got 0" and exc.value.param == "batch"  # the API's word
+    rc = cli(["hierarchy", str(impact_data), "--levels", "1", "--trajectories", "-1"])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert rc == 2 and err == ["hcmt hierarchy: error: --trajectories must be >= 0 (0: all), got -1"]  # the flag
+
+
+def test_an_unexpected_exception_is_a_bug_and_keeps_its_traceback(monkeypatch, capsys):
+    import hcmt.cli.design
+
+    def broken(args):
+        raise ValueError("an internal invariant broke")  # a plain ValueError is no user error
+
+    monkeypatch.setattr(hcmt.cli.design, "main_models", broken)
+    with pytest.raises(ValueError, match="internal invariant"):
+        cli(["models"])
+    monkeypatch.setattr(hcmt.cli.design, "main_models", lambda args: (_ for _ in ()).throw(
+        hcmt.cli.CommandError("--json: an empty path; name a file")))
+    assert cli(["models"]) == 2
+    assert capsys.readouterr().err.strip() == "hcmt models: error: --json: an empty path; name a file"
+
+
+def test_flag_of_maps_parameters_to_options_and_positionals():
+    import argparse
+
+    from hcmt.cli import flag_of
+
+    p = argparse.ArgumentParser()
+    p.add_argument("data")
+    p.add_argument("--yield-mpa", type=float)
+    p.add_argument("-b", "--batch", type=int)
+    assert flag_of(p, "yield_mpa") == "--yield-mpa" and flag_of(p, "batch") == "--batch"
+    assert flag_of(p, "data") == "DATA" and flag_of(p, "nothing") is None and flag_of(None, "batch") is None

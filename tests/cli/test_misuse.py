@@ -283,7 +283,7 @@ def test_defaults_are_the_middle_of_the_models_training_ranges(setup):
 def test_a_run_folder_predicts_without_its_dataset(setup, tmp_path, capsys):
     data, run = tmp_path / "data", tmp_path / "run"
     shutil.copytree(setup / "data", data)
-    train({**Run.load(setup / "run", "cpu").config}, data, "hcmt", run, progress=False, overwrite=True)
+    train(Run.load(setup / "run", "cpu").config, data, "hcmt", run, progress=False, overwrite=True)
     shutil.rmtree(data)
     assert (run / "data.json").is_file()
     assert cli(["predict", str(run), "--design", "thickness=0.7", "--no-progress"]) == 0

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from hcmt.cli import main as cli
-from hcmt.data.errors import DatasetError
+from hcmt.errors import DatasetError
 from hcmt.data.format import NodeType, make_meta, open_split, read_meta, write_meta, write_split
 
 T = 4

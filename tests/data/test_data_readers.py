@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from hcmt.cli import main as cli
-from hcmt.data.errors import DatasetError
+from hcmt.errors import DatasetError
 from hcmt.data.format import NodeType, open_split, read_meta
 from hcmt.data.tfrecord import iter_tfrecord
 

@@ -140,7 +140,7 @@ def test_every_shipped_model_loads_and_predicts(name):
     import hcmt
 
     run = hcmt.load_pretrained(name, device="cpu")
-    assert name.startswith(run.config["dataset"]) and run.ranges and run.card.get("steps")
+    assert name.startswith(run.config.dataset) and run.ranges and run.card.get("steps")
     settings = settings_of(run.meta)
     tr, _ = design_trajectory(run, "d", middle_design(run.meta), settings)
     from hcmt.inference.rollout import rollout

@@ -10,7 +10,7 @@ from scipy.sparse.csgraph import connected_components
 from scipy.spatial import ConvexHull
 
 from graph_meshes import annulus, cloth, grid_triangles, impact_plate, plate_and_ball, tet_box
-from hcmt.data.errors import DatasetError
+from hcmt.errors import DatasetError
 from hcmt.graph.edges import cells_to_edges
 from hcmt.graph.hierarchy import (Hierarchy, MeshWarning, build_hierarchy, cached_hierarchy, hierarchy_key,
                                   pool, unpool)

@@ -14,7 +14,7 @@ from hcmt.data.format import NodeType
 from hcmt.design import sweep as sw
 from hcmt.physics.adapters import (config_adapter, get_adapter, integrate, noise_gamma, noise_mask, position_mask,
                                  target)
-from hcmt.config import load_config
+from hcmt.config import Config, load_config
 from hcmt.training.dataset import FrameDataset
 from hcmt.inference.metrics import impact_metrics, summarize_impact
 from hcmt.inference.evaluate import evaluate
@@ -37,7 +37,7 @@ def data(tmp_path_factory, impact_data):
 # -- formulation options -----------------------------------------------------------------------------------------
 @pytest.mark.parametrize("kind,order", [("velocity", 1), ("acceleration", 2)])
 def test_target_option_sets_the_updater_and_the_updater_inverts_the_target(kind, order):
-    adapter = config_adapter({"dataset": "impact_plate", "model": {"target": kind}})
+    adapter = config_adapter(Config.from_dict({"dataset": "impact_plate", "model": {"target": kind}}))
     assert adapter.order == order
     g = torch.Generator().manual_seed(0)
     prev, pos, nxt = (torch.randn(20, 2, generator=g) for _ in range(3))
@@ -50,13 +50,13 @@ def test_target_option_sets_the_updater_and_the_updater_inverts_the_target(kind,
 
 
 def test_gamma_defaults_per_target_and_an_explicit_value_wins():
-    vel = {"dataset": "impact_plate", "model": {}, "train": {}}
-    acc = {"dataset": "impact_plate", "model": {"target": "acceleration"}, "train": {}}
+    vel = Config.from_dict({"dataset": "impact_plate", "model": {}, "train": {}})
+    acc = Config.from_dict({"dataset": "impact_plate", "model": {"target": "acceleration"}, "train": {}})
     assert noise_gamma(vel, config_adapter(vel)) == 1.0
     assert noise_gamma(acc, config_adapter(acc)) == 0.1
-    acc["train"]["noise_gamma"] = 0.5
+    acc = acc.with_overrides(["train.noise_gamma=0.5"])
     assert noise_gamma(acc, config_adapter(acc)) == 0.5
-    assert load_config("impact_plate").get("train", {}).get("noise_gamma") is None  # per target unless set
+    assert load_config("impact_plate").train.noise_gamma is None  # per target unless set
 
 
 def test_noise_nodes_predicted_reaches_the_ball_but_not_boundary_channels():
@@ -323,7 +323,7 @@ def test_official_loop_options_normalizers_and_loss(data, tmp_path, tiny_config)
 def test_deformation_features_are_the_edges_strain_and_zero_at_rest(data):
     from hcmt.graph.build import frame_graph
 
-    adapter = config_adapter({"dataset": "impact_plate", "model": {"deformation": True}})
+    adapter = config_adapter(Config.from_dict({"dataset": "impact_plate", "model": {"deformation": True}}))
     plain = get_adapter("impact_plate")
     assert adapter.widths()["mesh_in"] == plain.widths()["mesh_in"] + 3
     ds = FrameDataset(data, "train", plain, 1, True, 0.4)
@@ -340,4 +340,4 @@ def test_deformation_features_are_the_edges_strain_and_zero_at_rest(data):
     torch.testing.assert_close(g.mesh_features[:, 6:8], (moved[s] - moved[r]) - (mesh[s] - mesh[r]))
     torch.testing.assert_close(g.mesh_features[:, 8], (moved[s] - moved[r]).norm(dim=1) - (mesh[s] - mesh[r]).norm(dim=1))
     with pytest.raises(ValueError, match="deformation.*dimension"):
-        config_adapter({"dataset": "sphere_simple", "model": {"deformation": True}})
+        config_adapter(Config.from_dict({"dataset": "sphere_simple", "model": {"deformation": True}}))

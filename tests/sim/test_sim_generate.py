@@ -7,7 +7,7 @@ import pytest
 
 import hcmt.sim.generate as gen
 from hcmt.cli import main
-from hcmt.data.errors import DatasetError
+from hcmt.errors import DatasetError
 from hcmt.data.format import NodeType, list_splits, open_split
 from hcmt.sim.scene import GRAVITY, RANGES, Design, Settings, sample_design, simulate
 

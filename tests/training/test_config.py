@@ -1,4 +1,5 @@
 import pytest
+import yaml
 
 from hcmt.config import builtin_configs, load_config
 
@@ -13,21 +14,21 @@ TABLE8 = {  # dataset: (L_C, L_H, lambda, noise std, gamma, steps)
 @pytest.mark.parametrize("name", TABLE8)
 def test_paper_configs_hold_table8(name):
     c = load_config(name)
-    m, t = c["model"], c["train"]
-    L_H = 2 * m["levels"] + 1  # derived, as the paper's L_H = 2λ + 1
-    assert (m["L_C"], L_H, m["levels"], t["noise_std"], t["contact_radius"], t["steps"]) == TABLE8[name]
-    assert m["L_C"] + L_H == 15 and m["L_H"] is None  # not set: the schema's default, derived from λ
-    assert (t["lr"], t["lr_final"], t["batch_size"], m["hidden"], m["heads"]) == (1e-4, 1e-6, 1, 128, 4)
+    m, t = c.model, c.train
+    L_H = 2 * m.levels + 1  # derived, as the paper's L_H = 2λ + 1
+    assert (m.L_C, L_H, m.levels, t.noise_std, t.contact_radius, t.steps) == TABLE8[name]
+    assert m.L_C + L_H == 15 and m.L_H is None  # not set: the schema's default, derived from λ
+    assert (t.lr, t.lr_final, t.batch_size, m.hidden, m.heads) == (1e-4, 1e-6, 1, 128, 4)
     assert f"{name}_cpu" in builtin_configs()
 
 
 def test_base_and_overrides(tmp_path):
     c = load_config("impact_plate_cpu", ["train.lr=3e-4", "model.levels=3", "data.exclude_trajectories=[1, 2]"])
-    assert c["train"]["lr"] == 3e-4 and c["model"]["levels"] == 3 and c["data"]["exclude_trajectories"] == [1, 2]
-    assert c["train"]["noise_std"] == 0.003  # inherited from impact_plate
+    assert c.train.lr == 3e-4 and c.model.levels == 3 and c.data.exclude_trajectories == (1, 2)
+    assert c.train.noise_std == 0.003  # inherited from impact_plate
     f = tmp_path / "mine.yaml"
     f.write_text("base: impact_plate\ntrain:\n  steps: 7\n")
-    assert load_config(str(f))["train"]["steps"] == 7
+    assert load_config(str(f)).train.steps == 7
     with pytest.raises(FileNotFoundError, match="built-in"):
         load_config("nope")
     with pytest.raises(ValueError, match="section.key=value"):
@@ -74,3 +75,56 @@ def test_schema_refuses_unknown_keys_and_wrong_types(tmp_path, overrides, yaml_t
 def test_every_builtin_config_passes_the_schema():
     for name in builtin_configs():
         load_config(name)
+
+
+def test_a_config_is_frozen_complete_and_typed():
+    import dataclasses
+
+    from hcmt.config import Config
+
+    c = Config.from_dict({"dataset": "impact_plate", "train": {"lr": 1, "steps": 10.0, "contact_radius": 2},
+                          "data": {"exclude_trajectories": [3]}})
+    assert c.train.lr == 1.0 and isinstance(c.train.lr, float)  # a YAML 1 for a number is a float
+    assert c.train.steps == 10 and isinstance(c.train.steps, int)  # a whole float for a count is an int
+    assert c.train.noise_std == 0.0 and c.model.hidden == 128  # what the mapping left out: the defaults
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        c.train.lr = 2.0
+    assert Config.from_dict(c.to_dict()) == c and c.to_dict()["data"]["exclude_trajectories"] == [3]
+    assert c.with_overrides(["train.lr=3e-4"]).train.lr == 3e-4 and c.train.lr == 1.0  # a new object
+
+
+@pytest.mark.parametrize("overrides,message", [
+    (["train.steps=0"], "train.steps must be a whole number >= 1, got 0"),
+    (["train.lr=0"], "train.lr must be a number > 0, got 0"),
+    (["train.batch_size=-2"], "train.batch_size must be a whole number >= 1, got -2"),
+    (["train.pushforward=1.5"], "train.pushforward must be a probability in [0, 1], got 1.5"),
+])
+def test_the_schema_holds_the_bounds(overrides, message):
+    with pytest.raises(ValueError) as exc:
+        load_config("impact_plate_cpu", overrides)
+    assert message in str(exc.value) and f"--set {overrides[0]}" in str(exc.value)
+
+
+def test_training_needs_the_required_keys():
+    from hcmt.config import Config
+
+    with pytest.raises(ValueError, match="train.lr is missing"):
+        Config.from_dict({"dataset": "impact_plate", "train": {"steps": 3, "contact_radius": 1.0}}).for_training()
+    with pytest.raises(ValueError, match="`dataset`"):
+        Config.from_dict({"train": {"steps": 3, "lr": 1e-3, "contact_radius": 1.0}}).for_training()
+    assert load_config("impact_plate").for_training().train.steps == 2_000_000
+
+
+def test_run_yaml_is_read_back_as_a_config(tmp_path):
+    from hcmt.config import Config
+    from hcmt.data.runs import RunFolder
+
+    cfg = load_config("impact_plate_cpu", ["data.exclude_trajectories=[1]"])
+    RunFolder(tmp_path, must_exist=False).write_info({"model": {"name": "mgn"}, "config": cfg})
+    plain = yaml.safe_load((tmp_path / "run.yaml").read_text())  # plain YAML: no Python tags
+    assert plain["config"]["data"]["exclude_trajectories"] == [1] and plain["config"]["train"]["lr"] == cfg.train.lr
+    back = RunFolder(tmp_path).info["config"]
+    assert isinstance(back, Config) and back == cfg
+    (tmp_path / "run.yaml").write_text("model: {name: mgn}\nconfig: {train: {lr: fast}}\n")
+    with pytest.raises(ValueError, match="run.yaml: its settings do not load .*train.lr: got 'fast'"):
+        RunFolder(tmp_path)

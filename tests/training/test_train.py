@@ -192,7 +192,7 @@ def test_evaluate_rolls_out_again_after_more_training(impact, tmp_path, tiny_con
 
 
 def test_dataset_without_the_adapters_fields_is_refused(tmp_path, tiny_config):
-    from hcmt.data.errors import DatasetError
+    from hcmt.errors import DatasetError
 
     src = tmp_path / "src"
     sphere_simple_tfrecord(src)
@@ -227,6 +227,7 @@ def test_step_decay_is_the_authors_schedule():
 
 
 def test_official_contact_pairs_join_obstacle_and_normal_nodes_only(impact):
+    from hcmt.config import Config
     from hcmt.physics.adapters import config_adapter
     from hcmt.physics.trajectory import build_graph
     from hcmt.physics.adapters import node_features
@@ -234,7 +235,7 @@ def test_official_contact_pairs_join_obstacle_and_normal_nodes_only(impact):
     radius = 10.0  # every pair of the two bodies is in range
     graphs = {}
     for pairs in ("all", "official"):
-        adapter = config_adapter({"dataset": "impact_plate", "train": {"contact_pairs": pairs}})
+        adapter = config_adapter(Config.from_dict({"dataset": "impact_plate", "train": {"contact_pairs": pairs}}))
         (traj,) = load_split(impact, "test", adapter, 0)
         x = traj.world_pos[2]
         graphs[pairs] = (build_graph(traj, x, node_features(adapter, traj.static, x, traj.world_pos[1], x), radius),

@@ -8,7 +8,7 @@ import pytest
 
 from hcmt.cli import main as cli
 from hcmt.data.runs import RunFolder
-from hcmt.data.errors import DatasetError
+from hcmt.errors import DatasetError
 from hcmt.viz.export import export_case
 from hcmt.viz.rollouts import Case, Series, load_case
 

@@ -3,6 +3,10 @@
 Every subcommand is registered in :data:`COMMANDS` below, and nowhere else: name -> (module, one-line help).
 Each module defines ``configure(parser)`` (adds its arguments) and ``main(args) -> int``. Modules are imported
 only when their command runs, so ``hcmt --help`` stays fast (no torch import).
+
+Errors: a user's mistake is one line and exit 2: a :class:`CommandError` raised here, or the library's
+:class:`hcmt.errors.InputError` (its parameter printed as the command's flag: ``batch`` -> ``--batch``), a missing
+file, a full disk. Any other exception is a bug and shows its traceback.
 """
 from __future__ import annotations
 
@@ -14,7 +18,7 @@ import sys
 from pathlib import Path
 
 from hcmt.config import VERSION
-from hcmt.data.errors import DatasetError
+from hcmt.errors import InputError
 
 COMMANDS: dict[str, tuple[str, str]] = {
     "generate": ("hcmt.cli.data", "generate a dataset with the built-in FEM solver (impact-plate)"),
@@ -89,7 +93,7 @@ def machine_cores() -> int:
 
 
 class CommandError(Exception):
-    """An error the user can fix; printed as one line, exit status 2."""
+    """An error the user can fix in the command line; printed as one line, exit status 2."""
 
 
 def check_outputs(files: dict[str, str | None], folders: dict[str, str | None] | None = None) -> None:
@@ -145,7 +149,19 @@ def build_parser() -> argparse.ArgumentParser:
                                help="CPU threads for torch, at most the machine's cores (default auto: the cores "
                                     "not busy with other work, from the 1-minute load average, at least 1)")
             p.set_defaults(_run=getattr(mod, f"main_{name}", None) or mod.main)
+            parser.command_parser = p
     return parser
+
+
+def flag_of(parser: argparse.ArgumentParser | None, param: str | None) -> str | None:
+    """The command-line name of the library parameter ``param`` in this command: its option (``--batch``), its
+    positional argument's name (``DATA``), or None when the command has no such argument."""
+    if parser is None or not param:
+        return None
+    for action in parser._actions:
+        if action.dest == param.replace("-", "_"):
+            return max(action.option_strings, key=len) if action.option_strings else action.dest.upper()
+    return None
 
 
 def _requested_command(argv: list[str]) -> str | None:
@@ -182,7 +198,11 @@ def main(argv: list[str] | None = None) -> int:
     except BrokenPipeError:  # the reader went away (`hcmt models --json | head`): nothing more to say to it
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         return 0
-    except (DatasetError, CommandError, FileNotFoundError, ValueError) as exc:
+    except InputError as exc:
+        flag = flag_of(getattr(parser, "command_parser", None), exc.param)
+        print(f"hcmt {args.command}: error: {exc.worded(flag)}", file=sys.stderr)
+        return 2
+    except (CommandError, FileNotFoundError) as exc:
         print(f"hcmt {args.command}: error: {exc}", file=sys.stderr)
         return 2
     except OSError as exc:  # disk full, permissions, ...: the path and the system's reason

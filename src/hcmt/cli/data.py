@@ -12,6 +12,7 @@ from pathlib import Path
 
 from tqdm import tqdm
 
+from hcmt.cli import CommandError
 from hcmt.config import plural
 from hcmt.data.convert import convert
 from hcmt.data.format import write_meta, write_split
@@ -30,7 +31,7 @@ def parse_families(text: str) -> tuple[str, ...]:
     names = tuple(t.strip() for t in text.split(",") if t.strip())
     for name in names or ("",):
         if name not in FAMILIES:
-            raise ValueError(f"--family {text!r}: family {name!r} does not exist; the families are "
+            raise CommandError(f"--family {text!r}: family {name!r} does not exist; the families are "
                              f"{', '.join(FAMILIES)}")
     return names
 
@@ -140,21 +141,21 @@ def main_simulate(args) -> int:
     stack = parse_stack(args.stack) if args.stack is not None else {}
     both = sorted(set(stack) & set(given))
     if both:
-        raise ValueError(f"--stack sets {', '.join(both)}; do not give --{both[0].replace('_', '-')} too")
+        raise CommandError(f"--stack sets {', '.join(both)}; do not give --{both[0].replace('_', '-')} too")
     family = parse_families(args.family)
     if len(family) != 1:
-        raise ValueError(f"--family {args.family!r}: name one family for one design")
+        raise CommandError(f"--family {args.family!r}: name one family for one design")
     design = Design(**{**asdict(preset_design(args.preset, family[0])), **stack, **given}).validate()
     settings = _settings(args)
     if args.out is not None and Path(args.out).suffix != ".h5":
-        raise ValueError(f"--out must name an .h5 file, got {args.out}")
+        raise CommandError(f"--out must name an .h5 file, got {args.out}")
     for w in validated_warnings(design):
         print(f"hcmt simulate: warning: {w}", file=sys.stderr)
     cost = plan(design, settings)
     print(f"{cost['num_nodes']} nodes, {cost['num_cells']} triangles, {cost['substeps']} substeps of "
           f"{cost['dt']:.3e} ms: estimated {cost['estimated_s']:.1f} s on one core", flush=True)
     if cost["estimated_s"] > MAX_ESTIMATED_SECONDS and not args.force:
-        raise ValueError(f"estimated {cost['estimated_s']:.0f} s exceeds {MAX_ESTIMATED_SECONDS:.0f} s "
+        raise CommandError(f"estimated {cost['estimated_s']:.0f} s exceeds {MAX_ESTIMATED_SECONDS:.0f} s "
                          f"({cost['num_nodes']} nodes x {cost['substeps']} substeps; mesh_size {design.mesh_size} mm, "
                          f"plate_poisson {design.plate_poisson}); coarsen the mesh or pass --force")
     bar = tqdm(total=settings.frames, desc="simulate", unit="frame",

@@ -16,6 +16,7 @@ import argparse
 import time
 from pathlib import Path
 
+from hcmt.cli import CommandError
 from hcmt.config import load_config
 from hcmt.design.check import check_designs
 from hcmt.design.inputs import settings_of
@@ -48,7 +49,7 @@ def configure(p: argparse.ArgumentParser) -> None:
 
 def main(args: argparse.Namespace) -> int:
     if args.steps is not None and not args.train:
-        raise ValueError("--steps sets the training length of `hcmt demo --train`; the default demo trains nothing "
+        raise CommandError("--steps sets the training length of `hcmt demo --train`; the default demo trains nothing "
                            "(it uses the shipped model)")
     return train_demo(args) if args.train else design_demo(args)
 
@@ -87,7 +88,7 @@ def design_demo(args: argparse.Namespace) -> int:
 
 def train_demo(args: argparse.Namespace) -> int:
     if args.steps is not None and args.steps < 1:
-        raise ValueError(f"--steps must be >= 1, got {args.steps}")
+        raise CommandError(f"--steps must be >= 1, got {args.steps}")
     out = Path(args.out)
     data, run = out / "impact_plate_small", out / "run_hcmt"
     t0 = time.perf_counter()
@@ -98,7 +99,7 @@ def train_demo(args: argparse.Namespace) -> int:
     else:
         print(f"[1/3] reusing the dataset in {data}")
     cfg = load_config("demo", [f"train.steps={args.steps}"] if args.steps else [])
-    want = int(cfg["train"]["steps"])
+    want = cfg.train.steps
     folder = RunFolder(run, must_exist=False)
     done = folder.steps_done()
     if done >= want and folder.stats_path.is_file():

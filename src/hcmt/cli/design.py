@@ -7,6 +7,7 @@ import json
 import sys
 from pathlib import Path
 
+from hcmt.cli import CommandError
 from hcmt.config import plural
 from hcmt.cli import check_outputs
 from hcmt.cli.train import compile_arg
@@ -42,14 +43,14 @@ def take_model(args, design_lists: list[list[str]]) -> None:
     option before it. Also checks ``--verify``'s value (nothing, or ``auto``)."""
     if args.verify not in (None, "all", "auto"):
         if args.model is not None:
-            raise ValueError(f"--verify {args.verify!r}: expected nothing (every design) or auto")
+            raise CommandError(f"--verify {args.verify!r}: expected nothing (every design) or auto")
         args.model, args.verify = args.verify, "all"
     if args.model is None and design_lists and design_lists[-1]:
         last = design_lists[-1][-1]
         if "=" not in last or last.startswith("pretrained:") or Path(last).exists():
             args.model = design_lists[-1].pop()
     if args.model is None:
-        raise ValueError("give the model: a run folder made by `hcmt train`, or pretrained:NAME (`hcmt models`)")
+        raise CommandError("give the model: a run folder made by `hcmt train`, or pretrained:NAME (`hcmt models`)")
     design_lists[:] = [items for items in design_lists if items]
 
 
@@ -57,7 +58,7 @@ def check_options(args) -> dict:
     """The design-check options shared by predict and sweep."""
     verify = {"all": True, "auto": "auto", None: False}[args.verify]
     if verify == "auto" and args.yield_mpa is None:
-        raise ValueError("--verify auto runs the solver on the designs whose call is undecided: give --yield-mpa Y")
+        raise CommandError("--verify auto runs the solver on the designs whose call is undecided: give --yield-mpa Y")
     return {"verify": verify, "yield_mpa": args.yield_mpa,
             "surrogate": False if args.no_surrogate else (args.surrogate or True)}
 
@@ -94,7 +95,7 @@ def configure_predict(p: argparse.ArgumentParser) -> None:
 def main_predict(args: argparse.Namespace) -> int:
     take_model(args, args.design)
     if not args.design and not args.designs:
-        raise ValueError("give designs with --design KEY=VALUE ... or --designs FILE.csv")
+        raise CommandError("give designs with --design KEY=VALUE ... or --designs FILE.csv")
     options = check_options(args)  # before the model loads
     check_outputs({"--json": args.json, "--csv": args.csv}, {"--out": args.out} if args.images else {})
     run = _design_run(args)
@@ -133,11 +134,11 @@ def main_predict(args: argparse.Namespace) -> int:
 def _design_run(args):
     """The Impact Plate model of ``predict`` / ``sweep``."""
     run = Run.load(args.model, args.device)
-    if run.config.get("dataset") != "impact_plate":
-        raise ValueError(f"{args.model}: predict is for Impact Plate models; this one was trained on "
-                         f"{run.config.get('dataset')!r}")
+    if run.config.dataset != "impact_plate":
+        raise CommandError(f"{args.model}: predict is for Impact Plate models; this one was trained on "
+                         f"{run.config.dataset!r}")
     if run.meta is None and run.folder is not None:
-        raise ValueError(f"{args.model}: its training data ({run.info.get('data')}) is gone and the run folder holds "
+        raise CommandError(f"{args.model}: its training data ({run.info.get('data')}) is gone and the run folder holds "
                          f"no {run.folder.data_facts_path.name} (written by `hcmt train`): predict needs the "
                          "generator's settings, the design ranges and keys; restore the dataset, or retrain")
     return run
@@ -174,7 +175,7 @@ def main_sweep(args: argparse.Namespace) -> int:
     check_outputs({"--json": args.json, "--csv": args.csv}, {"--out": args.out})
     fixed = [item for item in args.design if design_key(item) == param]
     if fixed:
-        raise ValueError(f"--vary {args.vary} and --design {fixed[0]}: {param} is the swept parameter; drop it "
+        raise CommandError(f"--vary {args.vary} and --design {fixed[0]}: {param} is the swept parameter; drop it "
                          "from --design")
     run = _design_run(args)
     base = parse_design(args.design, middle_design(run.meta, run.ranges))

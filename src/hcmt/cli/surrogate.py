@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 
+from hcmt.cli import CommandError
 from hcmt.design.surrogate import QUANTITIES, RESTARTS, Surrogate
 
 
@@ -30,9 +31,9 @@ def configure(p: argparse.ArgumentParser) -> None:
 
 def main(args: argparse.Namespace) -> int:
     if args.limit is not None and args.limit < 1:
-        raise ValueError(f"--limit must be >= 1, got {args.limit}")
+        raise CommandError(f"--limit must be >= 1, got {args.limit}")
     if args.restarts < 0:
-        raise ValueError(f"--restarts must be >= 0, got {args.restarts}")
+        raise CommandError(f"--restarts must be >= 0, got {args.restarts}")
     s = Surrogate.fit_dataset(args.data, args.split, limit=args.limit, restarts=args.restarts, seed=args.seed,
                               stress_field=args.stress_field)
     if args.label:

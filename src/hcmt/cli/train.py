@@ -7,7 +7,8 @@ import json
 import sys
 from pathlib import Path
 
-from hcmt.config import COMPILE_MODES, apply_overrides, complete_config, load_config
+from hcmt.cli import CommandError
+from hcmt.config import COMPILE_MODES, load_config
 from hcmt.files import atomic_path
 from hcmt.inference.evaluate import check_options, compare, evaluate, format_compare, format_metrics, run_rollouts
 from hcmt.inference.run import Run, dataset_warnings
@@ -46,7 +47,7 @@ def main_train(args: argparse.Namespace) -> int:
     check_start(folder, args.resume, flags=True)
     if args.resume and folder.info is not None and not args.config:  # resume with the run's saved settings
         saved = folder.info
-        cfg = complete_config(apply_overrides(saved["config"], overrides))  # the one --set path
+        cfg = saved["config"].with_overrides(overrides)  # the one --set path
         data = args.data or saved["data"]
         model = args.model or saved["model"]["name"]
         ablation = args.ablation if args.ablation is not None else saved["model"].get("ablation")
@@ -54,7 +55,7 @@ def main_train(args: argparse.Namespace) -> int:
     else:
         missing = [f"--{k}" for k in ("config", "data", "model") if getattr(args, k) is None]
         if missing:
-            raise ValueError(f"{', '.join(missing)} required (only `--resume --out RUN` of an existing run may leave "
+            raise CommandError(f"{', '.join(missing)} required (only `--resume --out RUN` of an existing run may leave "
                              "them out)")
         cfg, data, model, ablation = load_config(args.config, overrides), args.data, args.model, args.ablation
         seed = args.seed if args.seed is not None else 0
@@ -96,7 +97,7 @@ configure_rollout = _run_args
 def _load(args) -> Run:
     check_options(batch=args.batch, compile=args.compile)  # bad options: one line before the model loads
     if args.limit is not None and args.limit < 1:
-        raise ValueError(f"--limit must be >= 1 (the first N trajectories), got {args.limit}")
+        raise CommandError(f"--limit must be >= 1 (the first N trajectories), got {args.limit}")
     return Run.load(args.run, args.device, args.checkpoint)
 
 

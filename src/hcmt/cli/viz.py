@@ -23,6 +23,7 @@ from pathlib import Path
 
 import matplotlib
 
+from hcmt.cli import CommandError
 from hcmt.cli import check_outputs
 from hcmt.data.format import Split, read_meta
 from hcmt.graph.hierarchy import cached_hierarchy, hierarchy_cache_dir
@@ -47,7 +48,7 @@ def _frames(text: str | None) -> list[int] | None:
     try:
         return [int(t) for t in text.split(",") if t.strip()]
     except ValueError:
-        raise ValueError(f"--frames {text!r}: expected comma-separated frame numbers, e.g. 0,10,25,51") from None
+        raise CommandError(f"--frames {text!r}: expected comma-separated frame numbers, e.g. 0,10,25,51") from None
 
 
 def _only(text: str | None) -> list[str]:
@@ -56,7 +57,7 @@ def _only(text: str | None) -> list[str]:
     picked = [t.strip() for t in text.split(",") if t.strip()]
     unknown = [t for t in picked if t not in PICTURES]
     if unknown:
-        raise ValueError(f"--only {', '.join(unknown)}: expected some of {', '.join(PICTURES)}")
+        raise CommandError(f"--only {', '.join(unknown)}: expected some of {', '.join(PICTURES)}")
     return picked
 
 
@@ -103,7 +104,7 @@ def main_plot(args: argparse.Namespace) -> int:
     only = _only(args.only)
     frames = _frames(args.frames)
     if args.cmap not in matplotlib.colormaps:
-        raise ValueError(f"--cmap {args.cmap!r}: not a matplotlib colour map (e.g. viridis, magma, jet)")
+        raise CommandError(f"--cmap {args.cmap!r}: not a matplotlib colour map (e.g. viridis, magma, jet)")
     check_outputs({}, {"--out": args.out})
     out = Path(args.out)
     runs = _load_runs(args)
@@ -171,7 +172,7 @@ def configure_export(p: argparse.ArgumentParser) -> None:
 
 def main_export(args: argparse.Namespace) -> int:
     if args.stride < 1:
-        raise ValueError(f"--stride must be >= 1, got {args.stride}")
+        raise CommandError(f"--stride must be >= 1, got {args.stride}")
     with Split(args.data, args.split) as s:
         names = list(s.names)
     runs = _load_runs(args)

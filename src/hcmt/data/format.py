@@ -30,7 +30,7 @@ from typing import Iterable, Mapping
 import h5py
 import numpy as np
 
-from hcmt.data.errors import DatasetError
+from hcmt.errors import DatasetError
 from hcmt.files import atomic_path, ensure_space
 
 FORMAT_NAME = "hcmt-dataset"

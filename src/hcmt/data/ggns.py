@@ -19,7 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
-from hcmt.data.errors import DatasetError
+from hcmt.errors import DatasetError
 from hcmt.data.format import NodeType
 
 REQUIRED = ("nodes_grid", "triangles_grid", "nodes_collider", "triangles_collider", "poisson_ratio")

@@ -5,7 +5,7 @@ from pathlib import Path
 
 import numpy as np
 
-from hcmt.data.errors import DatasetError
+from hcmt.errors import DatasetError
 from hcmt.data.format import NodeType, Split, incomplete, list_splits, read_meta
 
 

@@ -14,6 +14,8 @@ import numpy as np
 import torch
 import yaml
 
+from hcmt.errors import InputError
+from hcmt.config import Config
 from hcmt.data.format import Split, read_meta
 from hcmt.files import atomic_path
 
@@ -109,8 +111,10 @@ class RunFolder:
                                        for k, v in summary.items()}, indent=2))
 
     def write_info(self, info: dict) -> None:
+        """``run.yaml`` (its config as plain YAML: :meth:`hcmt.config.Config.to_dict`), atomically."""
+        plain = dict(info, config=info["config"].to_dict()) if isinstance(info.get("config"), Config) else info
         with atomic_path(self.run_yaml) as tmp:
-            tmp.write_text(yaml.safe_dump(info, sort_keys=False))
+            tmp.write_text(yaml.safe_dump(plain, sort_keys=False))
         self.info = info
 
     @property
@@ -139,7 +143,7 @@ class RunFolder:
                 if not isinstance(generator, dict) or not isinstance(generator.get("settings", {}), dict):
                     raise TypeError("no generator block")
             except (ValueError, KeyError, TypeError, IndexError, AttributeError, OverflowError) as exc:
-                raise ValueError(f"{self.data_facts_path}: damaged ({exc.__class__.__name__}); it is written by "
+                raise InputError(f"{self.data_facts_path}: damaged ({exc.__class__.__name__}); it is written by "
                                  "`hcmt train` from the training data's meta.json") from None
         return meta, ranges
 
@@ -166,18 +170,24 @@ class RunFolder:
 
 
 def read_run_yaml(path: Path) -> dict:
-    """``run.yaml`` as a dict with its ``model`` (and ``config`` when the run has a checkpoint: :func:`load_run`
-    checks it); one line naming the file when it is not."""
+    """``run.yaml`` as a dict with its ``model`` and, when it has one, its ``config`` read back through
+    :meth:`hcmt.config.Config.from_dict` (completed and checked); one line naming the file when it is not."""
     try:
         info = yaml.safe_load(path.read_text(encoding="utf-8"))
     except (yaml.YAMLError, UnicodeDecodeError) as exc:
-        raise ValueError(f"{path}: not readable YAML ({str(exc).splitlines()[0]}); it is written by `hcmt train` "
+        raise InputError(f"{path}: not readable YAML ({str(exc).splitlines()[0]}); it is written by `hcmt train` "
                          "(restore it, or train the run again)") from None
     if not isinstance(info, dict) or not isinstance(info.get("model"), dict) or (
             "config" in info and not isinstance(info["config"], dict)):
         what = "empty" if not info else "no model section (the model's constructor arguments)" \
             if not isinstance(info, dict) or not isinstance(info.get("model"), dict) else "a config that is no mapping"
-        raise ValueError(f"{path}: {what}; run.yaml is written by `hcmt train` (restore it, or train the run again)")
+        raise InputError(f"{path}: {what}; run.yaml is written by `hcmt train` (restore it, or train the run again)")
+    if "config" in info:
+        try:
+            info["config"] = Config.from_dict(info["config"], str(path))
+        except (TypeError, ValueError) as exc:
+            raise InputError(f"{path}: its settings do not load ({str(exc).splitlines()[0][:200]}); restore it or "
+                             "train the run again") from None
     return info
 
 
@@ -191,10 +201,10 @@ def read_checkpoint(path: Path, device="cpu", earlier: Path | None = None) -> di
     except FileNotFoundError:
         raise
     except Exception as exc:  # torch raises RuntimeError, EOFError, UnpicklingError, ...: all mean "damaged"
-        raise ValueError(f"{path}: not a readable checkpoint (truncated or corrupt: {exc.__class__.__name__}){other}") \
+        raise InputError(f"{path}: not a readable checkpoint (truncated or corrupt: {exc.__class__.__name__}){other}") \
             from None
     if not isinstance(state, dict) or "model" not in state:
-        raise ValueError(f"{path}: not an hcmt checkpoint (no model weights){other}")
+        raise InputError(f"{path}: not an hcmt checkpoint (no model weights){other}")
     return state
 
 
@@ -221,11 +231,11 @@ def check_start(folder: RunFolder, resume: bool, *, flags: bool = False) -> None
     folder that holds none. One line each, in the command line's words with ``flags`` (``--resume``, ``--out``),
     else in the Python API's (``resume=True``, ``overwrite=True``)."""
     if resume and folder.damaged:
-        raise ValueError(folder.damaged)
+        raise InputError(folder.damaged)
     if resume and not folder.latest.is_file():
         raise FileNotFoundError(f"{folder.latest}: nothing to resume; start without "
                                 f"{'--resume' if flags else 'resume=True'}")
     if not resume and folder.holds_run():
-        raise ValueError(f"{folder.path} already holds a run; pass --resume to continue it or choose another --out"
+        raise InputError(f"{folder.path} already holds a run; pass --resume to continue it or choose another --out"
                          if flags else f"hcmt.train: {folder.path} already holds a run; pass resume=True to continue "
                          "it, overwrite=True to delete it and start afresh, or another out folder")

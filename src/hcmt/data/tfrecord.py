@@ -24,7 +24,7 @@ import crc32c
 import numpy as np
 from tfrecord import example_pb2
 
-from hcmt.data.errors import DatasetError
+from hcmt.errors import DatasetError
 
 _MASK_DELTA = 0xA282EAD8
 

@@ -22,6 +22,7 @@ from pathlib import Path
 import numpy as np
 from tqdm import tqdm
 
+from hcmt.errors import InputError
 from hcmt.design.inputs import confidence, outside, range_warnings, settings_of
 from hcmt.design.readout import history_correlation, summarize_fields
 from hcmt.design.surrogate import Surrogate, for_run, side_by_side
@@ -75,7 +76,7 @@ def predict(run, designs: list[tuple[str, Design]], batch: int = 8, progress: bo
     (:data:`hcmt.design.readout.READOUTS`; ``contact``: the peak from contact frames, no ghost stress after);
     ``contact_end_ms``: per design, a bound on when the ball leaves (the surrogate's), or None."""
     if batch < 1:
-        raise ValueError(f"--batch must be >= 1, got {batch}")
+        raise InputError(f"must be >= 1, got {batch}", param="batch")
     settings = settings_of(run.meta)
     h = run.adapter.history
     bar = tqdm(total=len(designs) * (settings.frames - 1 - h), desc="predict", unit="step",
@@ -144,9 +145,9 @@ def cost_check(run, designs: list[tuple[str, Design]], settings: Settings, verif
         seconds = MODEL_SECONDS_PER_NODE_STEP * cost["num_nodes"] * (settings.frames - 2) + (
             cost["estimated_s"] if verify else 0.0)
         if seconds > MAX_ESTIMATED_SECONDS and not force:
-            raise ValueError(f"{name}: about {cost['num_nodes']:.0f} nodes at mesh_size {d.mesh_size:g} mm: estimated "
+            raise InputError(f"{name}: about {cost['num_nodes']:.0f} nodes at mesh_size {d.mesh_size:g} mm: estimated "
                              f"{seconds:.0f} s {'(model and solver)' if verify else '(model rollout)'} exceeds "
-                             f"{MAX_ESTIMATED_SECONDS:.0f} s; coarsen the mesh or pass --force")
+                             f"{MAX_ESTIMATED_SECONDS:.0f} s; coarsen the mesh or force it (force=True, --force)")
 
 
 def check_designs(run, designs: list[tuple[str, Design]], *, batch: int = 8, verify: bool | str = False,
@@ -161,14 +162,14 @@ def check_designs(run, designs: list[tuple[str, Design]], *, batch: int = 8, ver
     (:func:`add_calls`, ``trust``: which interval they trust), and the solver: on every design with
     ``verify=True``, on the undecided ones only with ``verify="auto"`` (which needs ``yield_mpa``)."""
     if verify not in (True, False, "auto"):
-        raise ValueError(f"verify must be True, False or 'auto', got {verify!r}")
+        raise InputError(f"must be True, False or 'auto', got {verify!r}", param="verify")
     if yield_mpa is not None and not (np.isfinite(yield_mpa) and yield_mpa > 0):
-        raise ValueError(f"--yield-mpa must be a number > 0, got {yield_mpa}")
+        raise InputError(f"must be a number > 0, got {yield_mpa}", param="yield_mpa")
     if verify == "auto" and yield_mpa is None:
-        raise ValueError("--verify auto runs the solver on the designs whose call is undecided: it needs "
-                         "--yield-mpa Y")
+        raise InputError("auto runs the solver on the designs whose call is undecided: it needs a yield stress "
+                         "(yield_mpa; --yield-mpa Y in hcmt predict and sweep)", param="verify")
     if batch < 1:
-        raise ValueError(f"--batch must be >= 1, got {batch}")
+        raise InputError(f"must be >= 1, got {batch}", param="batch")
     settings = settings_of(run.meta)
     surrogate, note = for_run(run, surrogate)
     notes = [note] if note else []
@@ -224,7 +225,7 @@ def trusted_interval(summary: dict, trust: str = TRUST) -> tuple[float, float, s
     ``union``, that interval widened to hold the mesh model's answer; ``model`` (and whenever there is no
     surrogate), the mesh model's answer ± :data:`MODEL_BAND`."""
     if trust not in TRUSTS:
-        raise ValueError(f"trust must be one of {', '.join(TRUSTS)}, got {trust!r}")
+        raise InputError(f"trust must be one of {', '.join(TRUSTS)}, got {trust!r}")
     m = summary["peak_plate_stress_mpa"]
     s = (summary.get("surrogate") or {}).get("peak_plate_stress_mpa")
     if s is None or trust == "model":
@@ -302,7 +303,7 @@ def add_margin(preds: list[Prediction], yield_mpa: float | None) -> None:
     if yield_mpa is None:
         return
     if not yield_mpa > 0:
-        raise ValueError(f"--yield-mpa must be > 0, got {yield_mpa}")
+        raise InputError(f"must be > 0, got {yield_mpa}", param="yield_mpa")
     for p in preds:
         p.summary["yield_margin_mpa"] = float(yield_mpa - p.summary["peak_plate_stress_mpa"])
 

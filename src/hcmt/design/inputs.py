@@ -8,6 +8,7 @@ from dataclasses import asdict, fields
 from pathlib import Path
 
 
+from hcmt.errors import InputError
 from hcmt.sim.scene import (DESIGN_KEYS, EDGES, FIRST_SCENE_KEYS, Design, Settings, middle_design, parse_design,
                             parse_number)
 
@@ -25,27 +26,27 @@ def read_designs_csv(path: str | Path, defaults: Design, first: int = 1,
     try:
         text = path.read_text(encoding="utf-8-sig")
     except UnicodeDecodeError as exc:
-        raise ValueError(f"{path}: not a UTF-8 text file ({exc.reason} at byte {exc.start})") from None
+        raise InputError(f"{path}: not a UTF-8 text file ({exc.reason} at byte {exc.start})") from None
     try:
         rows = [(n, r) for n, r in enumerate(csv.reader(text.splitlines()), start=1) if any(c.strip() for c in r)]
     except csv.Error as exc:
-        raise ValueError(f"{path}: not a readable CSV file ({exc})") from None
+        raise InputError(f"{path}: not a readable CSV file ({exc})") from None
     if not rows:
-        raise ValueError(f"{path}: no designs (expected a header line of parameter names and one row per design)")
+        raise InputError(f"{path}: no designs (expected a header line of parameter names and one row per design)")
     (head_line, head), body = rows[0], rows[1:]
     header = [h.strip().replace("-", "_") for h in head]
     for col, h in enumerate(header, start=1):
         if h != "name" and h not in DESIGN_KEYS:
-            raise ValueError(f"{path} line {head_line}, column {col}: unknown column {h!r} in the header; expected "
+            raise InputError(f"{path} line {head_line}, column {col}: unknown column {h!r} in the header; expected "
                              f"`name` or parameters of {', '.join(DESIGN_KEYS)}")
     if len(set(header)) != len(header):
-        raise ValueError(f"{path} line {head_line}: a column appears twice in the header")
+        raise InputError(f"{path} line {head_line}: a column appears twice in the header")
     if not body:
-        raise ValueError(f"{path}: a header but no designs (one row per design after the header)")
+        raise InputError(f"{path}: a header but no designs (one row per design after the header)")
     out, seen = [], dict(taken or {})
     for n, row in body:
         if len(row) != len(header):
-            raise ValueError(f"{path} line {n}: {len(row)} values for {len(header)} columns "
+            raise InputError(f"{path} line {n}: {len(row)} values for {len(header)} columns "
                              f"({', '.join(header)})")
         name, items = f"design_{len(out) + first}", []
         for col, (h, v) in enumerate(zip(header, row), start=1):
@@ -53,15 +54,15 @@ def read_designs_csv(path: str | Path, defaults: Design, first: int = 1,
                 name = check_name(v.strip(), f"{path} line {n}, column {col} (name)")
                 if name in seen:
                     where = seen[name] if isinstance(seen[name], str) else f"line {seen[name]}"
-                    raise ValueError(f"{path} line {n}, column {col} (name): {name!r} already names {where}; every "
+                    raise InputError(f"{path} line {n}, column {col} (name): {name!r} already names {where}; every "
                                      "design needs its own name")
                 seen[name] = n
                 continue
             if not v.strip():
-                raise ValueError(f"{path} line {n}, column {col} ({h}): missing value")
+                raise InputError(f"{path} line {n}, column {col} ({h}): missing value")
             items.append(f"{h}={parse_number(v, f'{path} line {n}, column {col} ({h})')}")
         if name in seen and seen[name] != n:
-            raise ValueError(f"{path} line {n}: the default name {name!r} is already taken ({seen[name]}); give the "
+            raise InputError(f"{path} line {n}: the default name {name!r} is already taken ({seen[name]}); give the "
                              "CSV a name column")
         out.append((name, parse_design(items, defaults, where=f"{path} line {n}:")))
     return out
@@ -80,7 +81,7 @@ def check_name(name: str, where: str) -> str:
     elif len(name) > 200:
         bad = "is longer than 200 characters"
     if bad:
-        raise ValueError(f"{where}: the design name {name!r} {bad}; names become folder names under --out")
+        raise InputError(f"{where}: the design name {name!r} {bad}; names become folder names under --out")
     return name
 
 
@@ -149,7 +150,7 @@ def settings_of(meta: dict | None) -> Settings:
     """The generator settings (frames, frame_dt, formulation, ...) the training data was made with."""
     saved = ((meta or {}).get("generator") or {}).get("settings")
     if not saved:
-        raise ValueError("the model's training data is not an hcmt-generated Impact Plate dataset (no generator "
+        raise InputError("the model's training data is not an hcmt-generated Impact Plate dataset (no generator "
                          "settings in its meta.json): predict needs the recorded window it was trained on")
     return Settings(**{k: v for k, v in saved.items() if k in {f.name for f in fields(Settings)}})
 

@@ -35,6 +35,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from hcmt.errors import InputError
 from hcmt.inference.metrics import plate_mask
 from hcmt.sim.solver import build_model, nodal_von_mises
 
@@ -57,7 +58,7 @@ def axis_nodes(mesh_pos: np.ndarray, plate: np.ndarray) -> tuple[int, int]:
     axis = np.abs(mesh_pos[:, 0]) < 1e-6
     ball_axis, plate_axis = np.flatnonzero(~plate & axis), np.flatnonzero(plate & axis)
     if not len(ball_axis) or not len(plate_axis):
-        raise ValueError("no ball and plate nodes on the symmetry axis x = 0: not an Impact Plate mesh")
+        raise InputError("no ball and plate nodes on the symmetry axis x = 0: not an Impact Plate mesh")
     return int(ball_axis[np.argmin(mesh_pos[ball_axis, 1])]), int(plate_axis[np.argmax(mesh_pos[plate_axis, 1])])
 
 
@@ -104,7 +105,7 @@ def plate_history(fields: dict, readout: str = "learned", *, plate: np.ndarray |
     """[T] the plate's largest von Mises stress per frame as read with ``readout`` (:data:`READOUTS`); ``field``
     [T, N]: the nodal stress already read (default: the ``stress`` field, or the element law for ``element``)."""
     if readout not in READOUTS:
-        raise ValueError(f"stress read-out must be one of {', '.join(READOUTS)}, got {readout!r}")
+        raise InputError(f"stress read-out must be one of {', '.join(READOUTS)}, got {readout!r}")
     plate = plate_mask(fields["cells"], fields["node_type"]) if plate is None else plate
     x, X = np.asarray(fields["world_pos"]), np.asarray(fields["mesh_pos"])
     if field is None:
@@ -127,7 +128,7 @@ def summarize_fields(fields: dict, frame_dt: float, readout: str = "learned", wa
     cells, node_type = np.asarray(fields["cells"]), np.asarray(fields["node_type"]).reshape(-1)
     x, X = np.asarray(fields["world_pos"]), np.asarray(fields["mesh_pos"])
     if readout not in READOUTS:
-        raise ValueError(f"stress read-out must be one of {', '.join(READOUTS)}, got {readout!r}")
+        raise InputError(f"stress read-out must be one of {', '.join(READOUTS)}, got {readout!r}")
     s = element_stress(x, fields) if readout == "element" else np.asarray(fields["stress"])[..., 0]
     plate = plate_mask(cells, node_type)
     gap = contact_gap(x, X, plate)

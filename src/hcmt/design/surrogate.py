@@ -32,6 +32,7 @@ from sklearn.exceptions import ConvergenceWarning
 from sklearn.gaussian_process import GaussianProcessRegressor
 from sklearn.gaussian_process.kernels import RBF, ConstantKernel, WhiteKernel
 
+from hcmt.errors import InputError
 from hcmt.data.format import Split, read_meta
 from hcmt.files import atomic_path
 from hcmt.design.readout import summarize_fields
@@ -46,7 +47,7 @@ Z95 = 1.959963984540054  # the standard normal's 97.5 % quantile: a central 95 %
 RESTARTS = 3  # optimizer restarts of the marginal likelihood (the issue's comparison used 3)
 
 
-class SurrogateError(ValueError):
+class SurrogateError(InputError):
     """A surrogate file that cannot be used; the message names the file and what is wrong."""
 
 
@@ -80,24 +81,24 @@ class Surrogate:
                  linear: list[str] | None = None, strict: bool = True):
         self.parameters, self.fixed, self.source = list(parameters), dict(fixed), source
         if not self.parameters:
-            raise ValueError("no design parameter varies over the training designs: nothing to fit")
+            raise InputError("no design parameter varies over the training designs: nothing to fit")
         self.X = np.asarray(X, np.float64).reshape(-1, len(self.parameters))
         self.Y = {q: np.asarray(v, np.float64) for q, v in Y.items()}
         n, d = self.X.shape
         self.underdetermined = n < d + 2  # allowed with strict=False (a benchmark's few runs of a new family)
         if n < 3 or (strict and self.underdetermined):
-            raise ValueError(f"{n} training designs for {d} parameters: a surrogate needs at least parameters + 2 "
+            raise InputError(f"{n} training designs for {d} parameters: a surrogate needs at least parameters + 2 "
                              f"({d + 2}) designs")
         # log inputs, but a parameter that is 0 in some design (an absent layer, support, pen) stays linear
         self.linear = [k for j, k in enumerate(self.parameters) if np.any(self.X[:, j] <= 0)] if linear is None \
             else list(linear)
         self._log = np.array([k not in self.linear for k in self.parameters])
         if not (np.all(np.isfinite(self.X)) and np.all(self.X[:, self._log] > 0) and np.all(self.X >= 0)):
-            raise ValueError("training designs must be finite and non-negative, positive where the surrogate takes "
+            raise InputError("training designs must be finite and non-negative, positive where the surrogate takes "
                              "their log")
         for q, v in self.Y.items():
             if v.shape != (n,) or not (np.all(np.isfinite(v)) and np.all(v > 0)):
-                raise ValueError(f"answer {q!r}: expected {n} finite positive values (log outputs)")
+                raise InputError(f"answer {q!r}: expected {n} finite positive values (log outputs)")
         logx = self._x(self.X)
         self.x_mean, self.x_std = logx.mean(0), np.maximum(logx.std(0), 1e-12)
         self.y_mean = {q: float(np.log(v).mean()) for q, v in self.Y.items()}
@@ -135,7 +136,7 @@ class Surrogate:
         (``strict=False`` fits fewer designs than parameters + 2 too, at least 3: most length scales then stay
         at their bound and the surfaces predict near the mean)."""
         if not designs:
-            raise ValueError("no training designs")
+            raise InputError("no training designs")
         values = np.array([[getattr(d, k) for k in DESIGN_KEYS] for d in designs], np.float64)
         spread = values.max(0) - values.min(0) > 1e-9 * np.maximum(np.abs(values).max(0), 1e-300)
         params = [k for k, s in zip(DESIGN_KEYS, spread) if s]
@@ -169,7 +170,7 @@ class Surrogate:
             return []
         X = self.matrix(designs)
         if not np.all(X[:, self._log] > 0):
-            raise ValueError("design parameters must be positive for the surrogate (log inputs)")
+            raise InputError("design parameters must be positive for the surrogate (log inputs)")
         z = self._z(X)
         out: list[dict[str, Interval]] = [{} for _ in designs]
         for q, gp in self._gps.items():
@@ -294,12 +295,12 @@ def dataset_answers(data: str | Path, split: str = "train", limit: int | None = 
             attrs = s.attrs(i)
             missing = [k for k in DESIGN_KEYS[:FIRST_SCENE_KEYS] if k not in attrs]
             if missing:
-                raise ValueError(f"{s.path} trajectory {s.names[i]}: no design parameters {missing} in its "
+                raise InputError(f"{s.path} trajectory {s.names[i]}: no design parameters {missing} in its "
                                  "attributes; a surrogate is fitted on hcmt-generated Impact Plate data")
             designs.append(design_from_attrs(attrs))
             fields = s[i]
             if stress_field not in fields:
-                raise ValueError(f"{s.path} trajectory {s.names[i]}: no field {stress_field!r} (a model that learned "
+                raise InputError(f"{s.path} trajectory {s.names[i]}: no field {stress_field!r} (a model that learned "
                                  "stress_max needs data made by `hcmt generate --peak-stress`)")
             summary = summarize_fields({**fields, "stress": fields[stress_field]}, frame_dt)
             for q in QUANTITIES:

@@ -18,6 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
+from hcmt.errors import InputError
 from hcmt.config import plural
 from hcmt.design.check import Check, check_designs
 from hcmt.design.reports import finite, to_json
@@ -35,21 +36,22 @@ def parse_vary(text: str) -> tuple[str, float, float, int]:
     key = key.strip().replace("-", "_")
     parts = spec.split(":")
     if not sep or len(parts) != 3:
-        raise ValueError(f"--vary {text!r}: expected PARAM=LO:HI:N, e.g. thickness=0.5:1.0:6")
+        raise InputError(f"{text!r}: expected PARAM=LO:HI:N, e.g. thickness=0.5:1.0:6", param="vary")
     if key not in DESIGN_KEYS:
-        raise ValueError(f"--vary {text!r}: unknown parameter {key!r}; expected one of {', '.join(DESIGN_KEYS)}")
+        raise InputError(f"{text!r}: unknown parameter {key!r}; expected one of {', '.join(DESIGN_KEYS)}",
+                         param="vary")
     try:
         lo, hi = float(parts[0]), float(parts[1])
     except ValueError:
-        raise ValueError(f"--vary {text!r}: LO and HI must be numbers") from None
+        raise InputError(f"{text!r}: LO and HI must be numbers", param="vary") from None
     if not (np.isfinite(lo) and np.isfinite(hi)) or not lo < hi:
-        raise ValueError(f"--vary {text!r}: expected finite LO < HI, got {parts[0]} and {parts[1]}")
+        raise InputError(f"{text!r}: expected finite LO < HI, got {parts[0]} and {parts[1]}", param="vary")
     try:
         n = int(parts[2])
     except ValueError:
-        raise ValueError(f"--vary {text!r}: N must be a whole number, got {parts[2]!r}") from None
+        raise InputError(f"{text!r}: N must be a whole number, got {parts[2]!r}", param="vary") from None
     if not 2 <= n <= 256:
-        raise ValueError(f"--vary {text!r}: N must be between 2 and 256, got {n}")
+        raise InputError(f"{text!r}: N must be between 2 and 256, got {n}", param="vary")
     return key, lo, hi, n
 
 
@@ -60,8 +62,8 @@ def sweep_designs(base: Design, param: str, lo: float, hi: float, n: int) -> lis
         try:
             out.append((f"{param}={v:.6g}", replace(base, **{param: float(v)}).validate()))
         except ValueError as exc:
-            raise ValueError(f"--vary {param}={lo:g}:{hi:g}:{n}: the point {param}={v:.6g} is impossible: {exc}") \
-                from None
+            raise InputError(f"{param}={lo:g}:{hi:g}:{n}: the point {param}={v:.6g} is impossible: {exc}",
+                             param="vary") from None
     return out
 
 
@@ -147,7 +149,7 @@ def sweep(run, param: str, lo: float, hi: float, n: int, base: Design, *, batch:
     """Predict a one-parameter sweep in one batch (``batch`` designs per model call, default all) and analyse it;
     ``options`` as :func:`hcmt.design.check.check_designs` (verify, yield_mpa, surrogate, ...)."""
     if batch is not None and batch < 1:
-        raise ValueError(f"--batch must be >= 1, got {batch}")
+        raise InputError(f"must be >= 1, got {batch}", param="batch")
     designs = sweep_designs(base, param, lo, hi, n)
     check = check_designs(run, designs, batch=batch or n, **options)
     analysis = analyse(check, param, options.get("yield_mpa"))

@@ -23,6 +23,8 @@ from dataclasses import dataclass, field, fields, replace
 import torch
 from torch import Tensor
 
+from hcmt.errors import InputError
+
 
 @dataclass
 class Graph:
@@ -68,7 +70,7 @@ def collate(graphs: list[Graph]) -> Graph:
         return replace(g, batch=torch.zeros(g.num_nodes, dtype=torch.long, device=g.node_features.device))
     levels = {g.num_levels for g in graphs}
     if len(levels) != 1:
-        raise ValueError(f"cannot batch graphs with different hierarchy depths {sorted(levels)}")
+        raise InputError(f"cannot batch graphs with different hierarchy depths {sorted(levels)}")
     (num_levels,) = levels
     # node counts per graph per level: level 0 then each pooled level
     counts = [[g.num_nodes] + [int(p.shape[0]) for p in g.pool] for g in graphs]
@@ -137,7 +139,7 @@ def pad_rows(x: Tensor, size: int, what: str = "rows") -> tuple[Tensor, Tensor]:
     """``x`` ``[R, ...]`` with zero rows appended up to ``size``, and its mask ``[size]`` (1 real, 0 dummy)."""
     extra = size - x.shape[0]
     if extra < 0:
-        raise ValueError(f"{what}: {x.shape[0]} rows exceed the padded size {size}")
+        raise InputError(f"{what}: {x.shape[0]} rows exceed the padded size {size}")
     mask = torch.cat([x.new_ones(x.shape[0]), x.new_zeros(extra)])
     return torch.cat([x, x.new_zeros((extra, *x.shape[1:]))]), mask
 
@@ -147,18 +149,18 @@ def pad_graph(g: Graph, sizes: PadSizes) -> Graph:
     ``bucket(C)``), and the masks that mark them. A real node's output and every gradient are unchanged
     (tests/test_padding.py): dummy edges only ever reach dummy nodes."""
     if g.node_mask is not None:
-        raise ValueError("graph is padded already")
+        raise InputError("graph is padded already")
     counts = [g.num_nodes] + [int(p.shape[0]) for p in g.pool]
     if len(sizes.levels) < g.num_levels:
-        raise ValueError(f"pad sizes cover {len(sizes.levels)} levels, the graph has {g.num_levels}")
+        raise InputError(f"pad sizes cover {len(sizes.levels)} levels, the graph has {g.num_levels}")
     targets = [sizes.nodes] + [n for n, _ in sizes.levels[: g.num_levels]]
     for level, (n, t) in enumerate(zip(counts, targets)):
         if n >= t:
-            raise ValueError(f"level {level}: {n} nodes do not fit the padded size {t} (one dummy node needed)")
+            raise InputError(f"level {level}: {n} nodes do not fit the padded size {t} (one dummy node needed)")
 
     def edges(e: Tensor, size: int, dummy: int, what: str) -> Tensor:
         if size < e.shape[1]:
-            raise ValueError(f"{what}: {e.shape[1]} edges exceed the padded size {size}")
+            raise InputError(f"{what}: {e.shape[1]} edges exceed the padded size {size}")
         return torch.cat([e, e.new_full((2, size - e.shape[1]), dummy)], dim=1)
 
     node_features, node_mask = pad_rows(g.node_features, sizes.nodes, "nodes")

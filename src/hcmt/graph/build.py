@@ -15,6 +15,7 @@ from typing import Iterable
 import torch
 from torch import Tensor
 
+from hcmt.errors import InputError
 from hcmt.graph.batch import Graph
 from hcmt.graph.contact import contact_edges, near_pairs
 from hcmt.graph.edges import contact_edge_features, relative
@@ -83,7 +84,7 @@ def deformation_features(mesh_part: Tensor, world_part: Tensor) -> Tensor:
     normalized to O(1), which the encoder must learn to resolve; given explicitly, the normalizer scales it to O(1)
     so the restoring force of a deflected plate can be read directly."""
     if mesh_part.shape[-1] != world_part.shape[-1]:
-        raise ValueError("model.deformation needs mesh and world spaces of one dimension (not cloth)")
+        raise InputError("model.deformation needs mesh and world spaces of one dimension (not cloth)")
     return world_part - mesh_part
 
 

@@ -31,6 +31,7 @@ from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 from torch import Tensor
 
+from hcmt.errors import InputError
 from hcmt.data.format import NodeType
 from hcmt.graph.edges import cells_to_edges, unique_sorted
 
@@ -53,7 +54,7 @@ def near_pairs(edges: np.ndarray, num_nodes: int, hops: int) -> np.ndarray:
     """Sorted int64 keys ``a * N + b`` of every ordered pair ``a != b`` at most ``hops`` mesh hops apart: the
     pairs self-contact must exclude. ``edges`` is ``[2, E]`` (both directions)."""
     if hops < 1:
-        raise ValueError(f"hops must be >= 1, got {hops}")
+        raise InputError(f"hops must be >= 1, got {hops}")
     edges = np.asarray(edges)
     adj = sp.csr_matrix((np.ones(edges.shape[1], bool), (edges[0], edges[1])), shape=(num_nodes, num_nodes))
     reach = adj.copy()
@@ -77,18 +78,18 @@ def contact_edges(world_pos, object_id, radius: float, *, node_type=None,
     (dense for CUDA tensors, KD-tree otherwise).
     """
     if not radius > 0:
-        raise ValueError(f"contact radius must be positive, got {radius}")
+        raise InputError(f"contact radius must be positive, got {radius}")
     if type_pairs is not None and node_type is None:
-        raise ValueError("type_pairs needs node_type")
+        raise InputError("type_pairs needs node_type")
     if self_contact and exclude is None:
-        raise ValueError("self_contact=True needs exclude: the keys of the pairs close on the mesh "
+        raise InputError("self_contact=True needs exclude: the keys of the pairs close on the mesh "
                          "(hcmt.graph.contact.near_pairs of the mesh edges), at least the mesh edges themselves")
     is_torch = isinstance(world_pos, Tensor)
     device = world_pos.device if is_torch else None
     if method == "auto":
         method = "dense" if is_torch and world_pos.device.type != "cpu" else "kdtree"
     if method not in ("kdtree", "dense"):
-        raise ValueError(f"method must be 'auto', 'kdtree' or 'dense', got {method!r}")
+        raise InputError(f"method must be 'auto', 'kdtree' or 'dense', got {method!r}")
     n = int(world_pos.shape[0])
     allowed = _type_table(type_pairs)
     if method == "kdtree":

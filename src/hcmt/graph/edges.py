@@ -19,6 +19,8 @@ import numpy as np
 import torch
 from torch import Tensor
 
+from hcmt.errors import InputError
+
 
 def cells_to_edges(cells: np.ndarray, num_nodes: int | None = None) -> np.ndarray:
     """Unique undirected edges of simplicial cells (triangles ``[C,3]``, tetrahedra ``[C,4]``, segments ``[C,2]``),
@@ -30,7 +32,7 @@ def cells_to_edges(cells: np.ndarray, num_nodes: int | None = None) -> np.ndarra
     """
     cells = np.asarray(cells, dtype=np.int64)
     if cells.ndim != 2 or cells.shape[1] < 2:
-        raise ValueError(f"cells must be [C, k] with k >= 2 vertices per cell, got shape {list(cells.shape)}")
+        raise InputError(f"cells must be [C, k] with k >= 2 vertices per cell, got shape {list(cells.shape)}")
     if num_nodes is None:
         num_nodes = int(cells.max()) + 1 if cells.size else 0
     pairs = np.concatenate([cells[:, [a, b]] for a, b in combinations(range(cells.shape[1]), 2)])

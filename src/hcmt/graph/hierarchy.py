@@ -26,7 +26,7 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components
 
-from hcmt.data.errors import DatasetError
+from hcmt.errors import DatasetError, InputError
 from hcmt.files import atomic_path
 from hcmt.graph.contact import object_ids
 from hcmt.graph.edges import cells_to_edges, undirected_to_edges
@@ -84,7 +84,7 @@ class Hierarchy:
     def load(cls, path: str | os.PathLike) -> "Hierarchy":
         with np.load(path) as z:
             if int(z["version"]) != HIERARCHY_VERSION:
-                raise ValueError(f"{path}: hierarchy version {int(z['version'])}, expected {HIERARCHY_VERSION}")
+                raise InputError(f"{path}: hierarchy version {int(z['version'])}, expected {HIERARCHY_VERSION}")
             n = int(z["levels"])
             get = lambda name, count: [z[f"{name}_{l}"] for l in range(count)]  # noqa: E731
             return cls(get("pool", n), get("edges", n + 1), get("nodes", n + 1), get("cells", n + 1),
@@ -109,7 +109,7 @@ def unpool(coarse, fine, index):
 def check_mesh(mesh_pos, cells, node_type=None, *, warn: bool = True) -> tuple[np.ndarray, np.ndarray]:
     """Validate a mesh; return ``(mesh_pos float64 [N, D], cells int64 [C, k])``.
 
-    Refused (:class:`~hcmt.data.errors.DatasetError`): wrong shapes, non-finite positions, cell indices out of
+    Refused (:class:`~hcmt.errors.DatasetError`): wrong shapes, non-finite positions, cell indices out of
     range, cells that are neither triangles nor tetrahedra or have more dimensions than the mesh space.
     Handled, with a :class:`MeshWarning`: cells that repeat a vertex or have zero measure (they give edges but
     no domain for the remeshing filter), inverted cells (orientation opposite to the rest of their object; the
@@ -177,7 +177,7 @@ def build_hierarchy(mesh_pos, cells, node_type=None, levels: int = 1, remesh: bo
     node) is refused; an object that shrinks to one node before the last level stays one node (warned).
     """
     if not isinstance(levels, (int, np.integer)) or levels < 0:
-        raise ValueError(f"levels must be a non-negative integer, got {levels!r}")
+        raise InputError(f"levels must be a non-negative integer, got {levels!r}")
     pos, cells = check_mesh(mesh_pos, cells, node_type, warn=False)
     n0 = len(pos)
     obj = object_ids(cells, n0)
@@ -192,7 +192,7 @@ def build_hierarchy(mesh_pos, cells, node_type=None, levels: int = 1, remesh: bo
         n = len(nodes[-1])
         kept = bistride_pool(edges[-1], n, pos[nodes[-1]])
         if len(kept) == n:
-            raise ValueError(f"levels={levels} is more than this mesh can be pooled: at level {level} every object "
+            raise InputError(f"levels={levels} is more than this mesh can be pooled: at level {level} every object "
                              f"is down to a single node ({n} nodes); use levels <= {level}")
         coarse = nodes[-1][kept]
         if remesh:

@@ -17,6 +17,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from hcmt.errors import InputError
+
 # even permutations (i, a, b, c): the corner i with its three edges in an order that keeps the cell's orientation
 _TET_CORNERS = np.array([[0, 1, 2, 3], [1, 0, 3, 2], [2, 3, 0, 1], [3, 2, 1, 0]])
 _TRI_CORNERS = np.array([[0, 1, 2], [1, 2, 0], [2, 0, 1]])
@@ -32,7 +34,7 @@ def signed_measure(pos: np.ndarray, cells: np.ndarray) -> np.ndarray:
         return 0.5 * np.linalg.norm(np.cross(e[:, 0], e[:, 1]), axis=1)
     if cells.shape[1] == 4 and pos.shape[1] == 3:
         return np.linalg.det(e) / 6.0
-    raise ValueError(f"cells with {cells.shape[1]} vertices in {pos.shape[1]}-D are not triangles or tetrahedra")
+    raise InputError(f"cells with {cells.shape[1]} vertices in {pos.shape[1]}-D are not triangles or tetrahedra")
 
 
 def scaled_jacobian(pos: np.ndarray, cells: np.ndarray) -> np.ndarray:
@@ -52,7 +54,7 @@ def scaled_jacobian(pos: np.ndarray, cells: np.ndarray) -> np.ndarray:
             e = pos[c[..., 1:]] - pos[c[..., :1]]  # [C, 4, 3, 3]
             sj = np.abs(np.linalg.det(e)) / np.prod(np.linalg.norm(e, axis=-1), axis=-1) * np.sqrt(2)
         else:
-            raise ValueError(f"scaled Jacobian needs triangles or tetrahedra, got {cells.shape[1]} vertices per cell")
+            raise InputError(f"scaled Jacobian needs triangles or tetrahedra, got {cells.shape[1]} vertices per cell")
     return sj.min(axis=1)
 
 
@@ -73,7 +75,7 @@ def cell_angles(pos: np.ndarray, cells: np.ndarray) -> np.ndarray:
             a, b = np.triu_indices(4, 1)  # faces a, b share the edge opposite both vertices a and b
             cos = -np.sum(n[:, a] * n[:, b], -1)  # dihedral angle = pi - angle between the outward normals
         else:
-            raise ValueError(f"angles need triangles or tetrahedra, got {cells.shape[1]} vertices per cell")
+            raise InputError(f"angles need triangles or tetrahedra, got {cells.shape[1]} vertices per cell")
     return np.degrees(np.arccos(np.clip(cos, -1.0, 1.0)))
 
 

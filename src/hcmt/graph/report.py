@@ -18,7 +18,7 @@ import math
 import numpy as np
 from tqdm import tqdm
 
-from hcmt.data.errors import DatasetError
+from hcmt.errors import DatasetError, InputError
 from hcmt.data.format import open_split
 from hcmt.graph.hierarchy import Hierarchy, cached_hierarchy, hierarchy_cache_dir
 from hcmt.graph.quality import quality_summary
@@ -90,13 +90,13 @@ def dataset_quality(dataset, split: str, levels: int, *, trajectories: int = 0, 
     """(trajectories read, per-level rows averaged over them: :func:`level_quality`, :func:`average_rows`) of the
     first ``trajectories`` of a split (0: all); hierarchies cached in ``DATASET/.cache/hierarchy`` with ``cache``."""
     if levels < 0:
-        raise ValueError(f"--levels must be >= 0, got {levels}")
+        raise InputError(f"must be >= 0, got {levels}", param="levels")
     if trajectories < 0:
-        raise ValueError(f"--trajectories must be >= 0 (0: all), got {trajectories}")
+        raise InputError(f"must be >= 0 (0: all), got {trajectories}", param="trajectories")
     reader = open_split(dataset, split)
     count = len(reader) if trajectories <= 0 else min(trajectories, len(reader))
     if count == 0:
-        raise ValueError(f"split {split!r} of {dataset} has no trajectories")
+        raise InputError(f"split {split!r} of {dataset} has no trajectories")
     cache_dir = hierarchy_cache_dir(dataset) if cache else None
     per_trajectory = []
     for i in tqdm(range(count), desc="hierarchy", unit="traj", disable=count < 20):  # one mesh per trajectory

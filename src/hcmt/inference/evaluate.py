@@ -14,6 +14,7 @@ import h5py
 import numpy as np
 from tqdm import tqdm
 
+from hcmt.errors import InputError
 from hcmt.config import COMPILE_MODES, plural
 from hcmt.data.format import Split, read_meta
 from hcmt.files import atomic_path, ensure_space
@@ -28,9 +29,9 @@ from hcmt.physics.trajectory import load_split
 def check_options(*, batch: int = 1, compile: str = "none") -> None:
     """Refuse bad rollout options in one line before any cache is consulted or work done."""
     if isinstance(batch, bool) or not isinstance(batch, int) or batch < 1:
-        raise ValueError(f"--batch must be a whole number >= 1, got {batch}")
+        raise InputError(f"must be a whole number >= 1, got {batch}", param="batch")
     if compile not in COMPILE_MODES:
-        raise ValueError(f"--compile must be one of {', '.join(COMPILE_MODES)}, got {compile!r}")
+        raise InputError(f"must be one of {', '.join(COMPILE_MODES)}, got {compile!r}", param="compile")
 
 
 def rollout_key(data, split: str, run: Run) -> dict:

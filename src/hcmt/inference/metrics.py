@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from hcmt.errors import InputError
 from hcmt.config import plural
 from hcmt.data.format import NodeType
 from hcmt.graph.contact import object_ids
@@ -32,7 +33,7 @@ def step_rmse(pred: np.ndarray, true: np.ndarray) -> np.ndarray:
     """[T, N, D] × 2 → [T]: RMSE over nodes of the per-node error vector at each step."""
     pred, true = np.asarray(pred, np.float64), np.asarray(true, np.float64)
     if pred.shape != true.shape:
-        raise ValueError(f"prediction shape {pred.shape} differs from ground truth {true.shape}")
+        raise InputError(f"prediction shape {pred.shape} differs from ground truth {true.shape}")
     return np.sqrt(((pred - true) ** 2).sum(-1).mean(-1))
 
 
@@ -89,7 +90,7 @@ def plate_mask(cells: np.ndarray, node_type: np.ndarray) -> np.ndarray:
         held = obj[node_type == kind]
         if len(held):
             return obj == held[0]
-    raise ValueError("no clamped (HANDLE), supported (WALL_BOUNDARY) or NORMAL nodes: cannot tell the plate from "
+    raise InputError("no clamped (HANDLE), supported (WALL_BOUNDARY) or NORMAL nodes: cannot tell the plate from "
                      "the impactor")
 
 

@@ -16,6 +16,7 @@ import time
 
 import torch
 
+from hcmt.errors import InputError
 from hcmt.graph.batch import PadSizes, collate, pad_graph
 from hcmt.models.base import compile_simulator
 from hcmt.physics.adapters import Adapter, integrate
@@ -53,7 +54,7 @@ def rollout_batch(model, adapter: Adapter, trajs: list[Trajectory], radius: floa
     device = next(model.parameters()).device  # graphs go where the model is; results come back to the CPU
     lengths = {int(tr.world_pos.shape[0]) for tr in trajs}
     if len(lengths) != 1:
-        raise ValueError(f"trajectories of different lengths {sorted(lengths)} cannot roll out in one batch")
+        raise InputError(f"trajectories of different lengths {sorted(lengths)} cannot roll out in one batch")
     (full,) = lengths
     h = adapter.history
     T = full if steps is None else min(full, steps + h + 1)

@@ -20,7 +20,8 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from hcmt.config import complete_config
+from hcmt.errors import InputError
+from hcmt.config import Config
 from hcmt.data.format import Split, read_meta
 from hcmt.data.runs import RunFolder, available_pretrained, read_checkpoint
 from hcmt.files import atomic_path
@@ -37,7 +38,7 @@ def model_label(args: dict) -> str:
 
 def load_run(run: str | Path | RunFolder, which: str = "best", device: str = "cpu"):
     """(model, run dict) of a run folder; ``which`` is ``best`` or ``checkpoint``. The run dict is ``run.yaml``
-    (its config completed with the schema's defaults) plus ``checkpoint: {file, step}``."""
+    (its config a :class:`hcmt.config.Config`) plus ``checkpoint: {file, step}``."""
     folder = run if isinstance(run, RunFolder) else RunFolder(run)
     path = folder.checkpoint(which)
     if not path.is_file():
@@ -46,16 +47,17 @@ def load_run(run: str | Path | RunFolder, which: str = "best", device: str = "cp
     try:
         model = from_checkpoint(state)
     except (KeyError, TypeError, RuntimeError, ValueError) as exc:
-        raise ValueError(f"{path}: the checkpoint does not hold the model run.yaml describes ({exc.__class__.__name__}:"
+        raise InputError(f"{path}: the checkpoint does not hold the model run.yaml describes ({exc.__class__.__name__}:"
                          f" {str(exc).splitlines()[0][:200]})") from None
     try:  # a hand-edited or damaged run.yaml: its settings must still make the run's adapter and graph
-        info = dict(folder.info, config=complete_config(folder.info["config"]))
-        config_adapter(info["config"])
-        float(info["config"]["train"]["contact_radius"])
+        info = dict(folder.info)
+        config_adapter(info["config"])  # a KeyError when run.yaml has no config
+        if info["config"].train.contact_radius is None:
+            raise InputError("train.contact_radius is missing")
         uses_hierarchy(info["model"])
         info["checkpoint"] = {"file": path.name, "step": int(state["step"])}
     except (TypeError, ValueError, KeyError, AttributeError) as exc:
-        raise ValueError(f"{folder.run_yaml}: its settings do not load ({exc.__class__.__name__}: "
+        raise InputError(f"{folder.run_yaml}: its settings do not load ({exc.__class__.__name__}: "
                          f"{str(exc).splitlines()[0][:160] if str(exc) else '-'}); restore it or train the run again") \
             from None
     return model, info
@@ -67,7 +69,7 @@ class Run:
     the design check take. Make one with :meth:`load`."""
 
     model: torch.nn.Module
-    info: dict  # run.yaml: model (constructor arguments), config, data, seed; plus "checkpoint"
+    info: dict  # run.yaml: model (constructor arguments), config (a Config), data, seed; plus "checkpoint"
     source: str  # the run folder or ``pretrained:NAME``
     meta: dict | None = None  # the training data's meta.json (None when the dataset is gone)
     ranges: dict[str, tuple[float, float]] = field(default_factory=dict)  # design parameters of the training data
@@ -94,22 +96,22 @@ class Run:
     def _pretrained(cls, name: str, device: torch.device) -> "Run":
         shipped = available_pretrained()
         if name not in shipped:
-            raise ValueError(f"pretrained:{name}: no such shipped model; available: "
+            raise InputError(f"pretrained:{name}: no such shipped model; available: "
                              f"{', '.join(shipped) or 'none'} (`hcmt models` lists them)")
         pack = read_checkpoint(shipped[name])
         try:
             model = from_checkpoint(pack)
         except (KeyError, TypeError, RuntimeError, ValueError) as exc:
-            raise ValueError(f"{shipped[name]}: a damaged shipped model ({exc.__class__.__name__}); reinstall hcmt") \
+            raise InputError(f"{shipped[name]}: a damaged shipped model ({exc.__class__.__name__}); reinstall hcmt") \
                 from None
-        info = {"model": pack["model_args"], "config": complete_config(pack["config"]), "data": None,
+        info = {"model": pack["model_args"], "config": Config.from_dict(pack["config"], str(shipped[name])), "data": None,
                 "checkpoint": {"file": shipped[name].name, "step": int(pack["card"].get("steps", 0))}}
         ranges = {k: (float(v[0]), float(v[1])) for k, v in pack["ranges"].items()}
         return cls(model.to(device), info, f"pretrained:{name}", pack["meta"], ranges, pack["card"])
 
     # -- what the run is -------------------------------------------------------------------------------------------
     @property
-    def config(self) -> dict:
+    def config(self) -> Config:
         return self.info["config"]
 
     @property
@@ -118,11 +120,11 @@ class Run:
 
     @cached_property
     def adapter(self):
-        return config_adapter(self.config)  # once per run: it validates and completes the config
+        return config_adapter(self.config)  # once per run
 
     @property
     def radius(self) -> float:
-        return float(self.config["train"]["contact_radius"])
+        return self.config.train.contact_radius
 
     @property
     def hierarchy_spec(self) -> tuple[int, bool]:
@@ -140,7 +142,7 @@ class Run:
     def require_folder(self) -> RunFolder:
         """The run folder (rollouts and metrics are written there); a shipped model has none."""
         if self.folder is None:
-            raise ValueError(f"{self.source}: a shipped model has no run folder to write rollouts to; use "
+            raise InputError(f"{self.source}: a shipped model has no run folder to write rollouts to; use "
                              "hcmt.predict_designs for designs, or train a run")
         return self.folder
 
@@ -148,11 +150,11 @@ class Run:
     def save_pretrained(self, path: str | Path, card: dict, half: bool = True) -> Path:
         """Write this run as one shipped-model file (fp16 weights with ``half``), atomically."""
         if self.meta is None or not self.ranges:
-            raise ValueError(f"{self.source}: its training dataset ({self.info.get('data')}) is needed to record "
+            raise InputError(f"{self.source}: its training dataset ({self.info.get('data')}) is needed to record "
                              "the design ranges; keep it next to the run")
         state = {k: (v.half() if half and v.dtype == torch.float32 else v).cpu()
                  for k, v in self.model.state_dict().items()}
-        pack = {"model_args": self.info["model"], "model": state, "config": self.config, "meta": self.meta,
+        pack = {"model_args": self.info["model"], "model": state, "config": self.config.to_dict(), "meta": self.meta,
                 "ranges": {k: [float(a), float(b)] for k, (a, b) in self.ranges.items()},
                 "card": json.loads(json.dumps(card, default=str))}  # plain types: loads with weights_only=True
         path = Path(path)
@@ -172,7 +174,7 @@ def check_dataset(train_meta: dict | None, data, train_data=None, split: str | N
     meta = read_meta(data)
     a, b = train_meta.get("dt"), meta.get("dt")
     if a is not None and b is not None and not np.isclose(float(a), float(b), rtol=1e-6, atol=0):
-        raise ValueError(f"{data}: frames {b} apart (dt), but the model was trained on frames {a} apart; a model "
+        raise InputError(f"{data}: frames {b} apart (dt), but the model was trained on frames {a} apart; a model "
                          f"steps one training interval at a time: use data recorded at dt {a}")
     out = []
     pa, pb = ((m.get("generator") or {}).get("preset") for m in (train_meta, meta))

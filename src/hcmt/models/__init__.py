@@ -9,6 +9,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from hcmt.errors import InputError
 from hcmt.config import ModelConfig
 
 from .attention import MODES as ATTENTION_MODES, check_mode
@@ -52,18 +53,18 @@ def build_model(name: str, node_in: int, mesh_in: int, contact_in: int, out: int
     name = name.lower()
     if name == "hcmt":
         if levels is None or L_C is None:
-            raise ValueError("HCMT needs levels (λ) and L_C (e.g. Impact Plate: levels=6, L_C=2)")
+            raise InputError("HCMT needs levels (λ) and L_C (e.g. Impact Plate: levels=6, L_C=2)")
         if L_H is not None and L_H != 2 * levels + 1:
-            raise ValueError(f"L_H must be 2λ+1 = {2 * levels + 1} for λ={levels}, got L_H={L_H}")
+            raise InputError(f"L_H must be 2λ+1 = {2 * levels + 1} for λ={levels}, got L_H={L_H}")
         return HCMT(node_in, mesh_in, contact_in, out, L_C=L_C, levels=levels, hidden=hidden, heads=heads,
                     clip=clip, ablation=ablation, lpe_k=lpe_k, attention=attention, ffn_bias=ffn_bias)
     if ablation not in (None, "", "none"):
-        raise ValueError(f"ablations apply to HCMT only, got ablation={ablation!r} for model {name!r}")
+        raise InputError(f"ablations apply to HCMT only, got ablation={ablation!r} for model {name!r}")
     if name == "mgn":
         return MGN(node_in, mesh_in, contact_in, out, blocks=blocks, hidden=hidden)
     if name == "gt":
         return GT(node_in, mesh_in, contact_in, out, blocks=blocks, heads=heads, hidden=hidden, clip=clip)
-    raise ValueError(f"unknown model {name!r}; expected one of {', '.join(MODELS)}")
+    raise InputError(f"unknown model {name!r}; expected one of {', '.join(MODELS)}")
 
 
 def make_model(args: dict) -> Simulator:

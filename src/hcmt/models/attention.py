@@ -50,6 +50,8 @@ from dataclasses import dataclass
 from torch import Tensor, nn
 from torch_geometric.utils import scatter, softmax
 
+from hcmt.errors import InputError
+
 
 MODES = ("paper", "official")
 
@@ -76,7 +78,7 @@ class AttentionMap:
 
 def check_mode(mode: str) -> str:
     if mode not in MODES:
-        raise ValueError(f"model.attention: unknown value {mode!r}; expected one of {', '.join(MODES)}")
+        raise InputError(f"model.attention: unknown value {mode!r}; expected one of {', '.join(MODES)}")
     return mode
 
 
@@ -113,9 +115,9 @@ class EdgeGatedAttention(nn.Module):
         super().__init__()
         self.mode = check_mode(mode)
         if hidden % heads:
-            raise ValueError(f"hidden size {hidden} must be divisible by the number of heads {heads}")
+            raise InputError(f"hidden size {hidden} must be divisible by the number of heads {heads}")
         if not clip > 0:
-            raise ValueError(f"clip range c must be positive, got {clip}")
+            raise InputError(f"clip range c must be positive, got {clip}")
         self.hidden, self.heads, self.clip = hidden, heads, float(clip)
         self.qkv = nn.Linear(hidden, 3 * hidden, bias=False)  # Q, K, V fused: one matmul
         self.ew = nn.Linear(hidden, 2 * hidden, bias=False)  # E, W fused

@@ -14,7 +14,7 @@ from torch import Tensor, nn
 from torch.utils.checkpoint import checkpoint
 
 from hcmt.config import COMPILE_MODES
-from hcmt.data.errors import DatasetError
+from hcmt.errors import DatasetError, InputError
 from hcmt.graph.batch import Graph
 
 from .mlp import mlp
@@ -23,21 +23,21 @@ from .normalizer import Normalizer
 
 def resolve_device(device: str | None = None) -> torch.device:
     """``None``: CUDA when available, else the CPU. An unknown device, or CUDA on a CPU-only torch, is refused with
-    one line (``ValueError``)."""
+    one line (:class:`hcmt.errors.InputError` naming ``device``)."""
     if device is None:
         return torch.device("cuda" if torch.cuda.is_available() else "cpu")
     try:
         dev = torch.device(device)
     except (RuntimeError, ValueError):
-        raise ValueError(f"--device {device!r}: not a device; expected cpu, cuda or cuda:N") from None
+        raise InputError(f"{device!r}: not a device; expected cpu, cuda or cuda:N", param="device") from None
     if dev.type == "cuda":
         if not torch.cuda.is_available():
-            raise ValueError(f"--device {device}: this torch has no usable CUDA device (torch {torch.__version__}); "
-                             "use --device cpu")
+            raise InputError(f"{device}: this torch has no usable CUDA device (torch {torch.__version__}); use "
+                             "the CPU (cpu)", param="device")
         if dev.index is not None and dev.index >= torch.cuda.device_count():
-            raise ValueError(f"--device {device}: only {torch.cuda.device_count()} CUDA device(s) here")
+            raise InputError(f"{device}: only {torch.cuda.device_count()} CUDA device(s) here", param="device")
     elif dev.type != "cpu":
-        raise ValueError(f"--device {device}: unsupported device type {dev.type!r}; expected cpu or cuda")
+        raise InputError(f"{device}: unsupported device type {dev.type!r}; expected cpu or cuda", param="device")
     return dev
 
 
@@ -46,7 +46,7 @@ def compile_simulator(model: nn.Module, mode: str) -> nn.Module:
     shapes (``dynamic=False``), one compiled graph per bucketed shape; Dynamo's recompile limit (8 by default, after
     which it silently runs eager) is raised to hold the few dozen buckets a run meets."""
     if mode not in COMPILE_MODES[1:]:
-        raise ValueError(f"compile mode {mode!r}: expected one of {', '.join(COMPILE_MODES[1:])}")
+        raise InputError(f"compile mode {mode!r}: expected one of {', '.join(COMPILE_MODES[1:])}")
     import torch._dynamo
 
     torch._dynamo.config.recompile_limit = max(torch._dynamo.config.recompile_limit, 64)
@@ -82,7 +82,7 @@ class Simulator(nn.Module):
         for name, size in (("node_in", node_in), ("mesh_in", mesh_in), ("contact_in", contact_in), ("out", out),
                            ("hidden", hidden)):
             if int(size) < 1:
-                raise ValueError(f"{name} must be a positive size, got {size}")
+                raise InputError(f"{name} must be a positive size, got {size}")
         self.node_in, self.mesh_in, self.contact_in, self.out, self.hidden = node_in, mesh_in, contact_in, out, hidden
         self.node_normalizer = Normalizer(node_in)
         self.mesh_normalizer = Normalizer(mesh_in)

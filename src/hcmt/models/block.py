@@ -22,13 +22,15 @@ from torch import Tensor, nn
 from .attention import EdgeGatedAttention
 from .mlp import ffn
 
+from hcmt.errors import InputError
+
 
 class TransformerBlock(nn.Module):
     def __init__(self, hidden: int = 128, heads: int = 4, clip: float = 2.0, *, edge_types: int = 1,
                  merge_branches: bool = False, attention: str = "paper", ffn_bias: bool = True):
         super().__init__()
         if edge_types < 1:
-            raise ValueError(f"a block needs at least one edge type, got {edge_types}")
+            raise InputError(f"a block needs at least one edge type, got {edge_types}")
         self.edge_types, self.merge_branches = edge_types, bool(merge_branches)
         branches = 1 if merge_branches else edge_types
         self.norm_node = nn.LayerNorm(hidden)
@@ -43,7 +45,7 @@ class TransformerBlock(nn.Module):
 
         Returns ``z^{ℓ+1}``, and with ``return_attention`` also the list of attention weights per branch."""
         if len(edge_sets) != self.edge_types:
-            raise ValueError(f"block built for {self.edge_types} edge types, got {len(edge_sets)}")
+            raise InputError(f"block built for {self.edge_types} edge types, got {len(edge_sets)}")
         qkv = self.attention.project_nodes(self.norm_node(z))
         normed = [(norm(e), edges) for norm, (e, edges) in zip(self.norm_edges, edge_sets)]
         if self.merge_branches and len(normed) > 1:

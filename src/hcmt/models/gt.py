@@ -24,6 +24,7 @@ import torch
 from torch import Tensor, nn
 from torch_geometric.utils import scatter, softmax
 
+from hcmt.errors import InputError
 from hcmt.graph.batch import Graph
 
 from .attention import AttentionMap
@@ -35,9 +36,9 @@ class GTLayer(nn.Module):
     def __init__(self, hidden: int = 128, heads: int = 4, clip: float = 2.0, *, update_edges: bool = True):
         super().__init__()
         if hidden % heads:
-            raise ValueError(f"hidden size {hidden} must be divisible by the number of heads {heads}")
+            raise InputError(f"hidden size {hidden} must be divisible by the number of heads {heads}")
         if not clip > 0:
-            raise ValueError(f"clip range must be positive, got {clip}")
+            raise InputError(f"clip range must be positive, got {clip}")
         self.heads, self.d_k, self.clip = heads, hidden // heads, float(clip)
         self.qkv = nn.Linear(hidden, 3 * hidden, bias=False)
         self.E = nn.Linear(hidden, hidden, bias=False)
@@ -85,7 +86,7 @@ class GT(Simulator):
                  hidden: int = 128, clip: float = 2.0):
         super().__init__(node_in, mesh_in, contact_in, out, hidden=hidden)
         if blocks < 1:
-            raise ValueError(f"GT needs at least one layer, got {blocks}")
+            raise InputError(f"GT needs at least one layer, got {blocks}")
         self.layers = nn.ModuleList(GTLayer(hidden, heads, clip, update_edges=n < blocks - 1) for n in range(blocks))
 
     def forward(self, graph: Graph, accumulate: bool | None = None, return_attention: bool = False):

@@ -37,7 +37,7 @@ from __future__ import annotations
 import torch
 from torch import Tensor, nn
 
-from hcmt.data.errors import DatasetError
+from hcmt.errors import DatasetError, InputError
 from hcmt.graph.batch import Graph
 from hcmt.graph.hierarchy import pool as pool_nodes, unpool
 
@@ -56,7 +56,7 @@ class HMT(nn.Module):
                  attention: str = "paper", ffn_bias: bool = True):
         super().__init__()
         if levels < 0:
-            raise ValueError(f"number of levels λ must be >= 0, got {levels}")
+            raise InputError(f"number of levels λ must be >= 0, got {levels}")
         self.levels = levels
         make = lambda: TransformerBlock(hidden, heads, clip, edge_types=1, attention=attention,  # noqa: E731
                                         ffn_bias=ffn_bias)
@@ -120,9 +120,9 @@ class HCMT(Simulator):
         if ablation in ("", "none"):
             ablation = None
         if ablation is not None and ablation not in ABLATIONS:
-            raise ValueError(f"unknown ablation {ablation!r}; expected one of {', '.join(ABLATIONS)} or None")
+            raise InputError(f"unknown ablation {ablation!r}; expected one of {', '.join(ABLATIONS)} or None")
         if L_C < 0 or levels < 0:
-            raise ValueError(f"L_C and λ must be >= 0, got L_C={L_C}, levels={levels}")
+            raise InputError(f"L_C and λ must be >= 0, got L_C={L_C}, levels={levels}")
         self.ablation, self.L_C, self.levels, self.clip = ablation, L_C, levels, float(clip)
         self.attention_mode, self.ffn_bias = check_mode(attention), bool(ffn_bias)
         self.L_H = 2 * levels + 1

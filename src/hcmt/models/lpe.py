@@ -20,13 +20,15 @@ import scipy.sparse.linalg as spla
 import torch
 from torch import Tensor, nn
 
+from hcmt.errors import InputError
+
 _DENSE_BELOW = 400  # nodes: dense eigh is faster than shift-invert Lanczos below this size
 
 
 def laplacian_pe(edges: np.ndarray, num_nodes: int, k: int = 8) -> np.ndarray:
     """``[num_nodes, k]`` eigenvectors of the normalized Laplacian (eigenvalues 2..k+1), float64."""
     if k < 1:
-        raise ValueError(f"LPE dimension k must be positive, got {k}")
+        raise InputError(f"LPE dimension k must be positive, got {k}")
     pe = np.zeros((num_nodes, k))
     if num_nodes < 2:
         return pe

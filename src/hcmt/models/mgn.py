@@ -17,6 +17,7 @@ import torch
 from torch import Tensor, nn
 from torch_geometric.utils import scatter
 
+from hcmt.errors import InputError
 from hcmt.graph.batch import Graph
 
 from .base import Simulator
@@ -63,7 +64,7 @@ class MGN(Simulator):
                  hidden: int = 128):
         super().__init__(node_in, mesh_in, contact_in, out, hidden=hidden)
         if blocks < 1:
-            raise ValueError(f"MGN needs at least one message-passing block, got {blocks}")
+            raise InputError(f"MGN needs at least one message-passing block, got {blocks}")
         self.blocks = nn.ModuleList(MGNBlock(hidden) for _ in range(blocks))
 
     def forward(self, graph: Graph, accumulate: bool | None = None) -> Tensor:

@@ -8,10 +8,12 @@ from __future__ import annotations
 
 from torch import nn
 
+from hcmt.errors import InputError
+
 
 def mlp(in_size: int, hidden: int, out_size: int, *, layers: int = 2, layer_norm: bool = True) -> nn.Sequential:
     if min(in_size, hidden, out_size) < 1 or layers < 0:
-        raise ValueError(f"mlp sizes must be positive, got in={in_size} hidden={hidden} out={out_size} layers={layers}")
+        raise InputError(f"mlp sizes must be positive, got in={in_size} hidden={hidden} out={out_size} layers={layers}")
     mods: list[nn.Module] = []
     width = in_size
     for _ in range(layers):

@@ -11,12 +11,14 @@ from __future__ import annotations
 import torch
 from torch import Tensor, nn
 
+from hcmt.errors import InputError
+
 
 class Normalizer(nn.Module):
     def __init__(self, size: int, *, max_accumulations: int = 10**6, std_epsilon: float = 1e-8):
         super().__init__()
         if size < 1:
-            raise ValueError(f"Normalizer size must be positive, got {size}")
+            raise InputError(f"Normalizer size must be positive, got {size}")
         self.size, self.max_accumulations, self.std_epsilon = size, int(max_accumulations), float(std_epsilon)
         self.register_buffer("count", torch.zeros((), dtype=torch.float64))
         self.register_buffer("num_accumulations", torch.zeros((), dtype=torch.float64))
@@ -31,7 +33,7 @@ class Normalizer(nn.Module):
 
     def _check(self, x: Tensor) -> None:
         if x.dim() != 2 or x.shape[1] != self.size:
-            raise ValueError(f"Normalizer expects features [rows, {self.size}], got shape {tuple(x.shape)}")
+            raise InputError(f"Normalizer expects features [rows, {self.size}], got shape {tuple(x.shape)}")
 
     @torch.no_grad()
     def accumulate(self, x: Tensor, mask: Tensor | None = None) -> None:

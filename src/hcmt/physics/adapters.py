@@ -26,7 +26,8 @@ import numpy as np
 import torch
 from torch import Tensor
 
-from hcmt.config import DATASET_NAMES, complete_config, load_config
+from hcmt.errors import InputError
+from hcmt.config import DATASET_NAMES, Config, load_config
 from hcmt.data.format import NODE_TYPE_SIZE, NodeType
 from hcmt.graph.contact import OFFICIAL_IMPACT_PLATE_TYPES
 from hcmt.models import Simulator, build_model
@@ -98,9 +99,9 @@ CONTACT_PAIRS = {"all": None, "official": OFFICIAL_IMPACT_PLATE_TYPES}
 def get_adapter(name: str, contact_pairs: str = "all") -> Adapter:
     """The dataset's adapter; ``contact_pairs="official"`` restricts contacts to OBSTACLE <-> NORMAL nodes."""
     if name not in ADAPTERS:
-        raise ValueError(f"unknown dataset adapter {name!r}; expected one of {', '.join(ADAPTERS)}")
+        raise InputError(f"unknown dataset adapter {name!r}; expected one of {', '.join(ADAPTERS)}")
     if contact_pairs not in CONTACT_PAIRS:
-        raise ValueError(f"train.contact_pairs: unknown value {contact_pairs!r}; expected one of "
+        raise InputError(f"train.contact_pairs: unknown value {contact_pairs!r}; expected one of "
                          f"{', '.join(CONTACT_PAIRS)}")
     adapter = ADAPTERS[name]
     if CONTACT_PAIRS[contact_pairs] is not None:
@@ -121,31 +122,29 @@ DEFAULT_GAMMA = {"velocity": 1.0, "acceleration": 0.1}
 NOISE_NODES = ("normal", "predicted")
 
 
-def config_adapter(cfg: dict) -> Adapter:
+def config_adapter(cfg: Config) -> Adapter:
     """The adapter a config asks for: ``dataset``, ``train.contact_pairs``, ``model.target`` (None: the
     dataset's own, Table 9), ``model.deformation`` and ``data.stress_field``."""
-    cfg = complete_config(cfg)  # a partial config (the API, an old run.yaml) gets the schema's defaults
-    mc = cfg["model"]
-    adapter = replace(get_adapter(cfg["dataset"], cfg["train"]["contact_pairs"]),
-                      stress_field=cfg["data"]["stress_field"])
-    if mc["deformation"]:
+    mc = cfg.model
+    adapter = replace(get_adapter(cfg.dataset, cfg.train.contact_pairs), stress_field=cfg.data.stress_field)
+    if mc.deformation:
         if adapter.mesh_dim != adapter.dim:
-            raise ValueError(f"model.deformation: {adapter.name} has a {adapter.mesh_dim}-D mesh space in a "
+            raise InputError(f"model.deformation: {adapter.name} has a {adapter.mesh_dim}-D mesh space in a "
                              f"{adapter.dim}-D world; edge deformation needs both of one dimension")
         adapter = replace(adapter, deformation=True)
-    if mc["target"] is None:
+    if mc.target is None:
         return adapter
-    return replace(adapter, order=TARGETS[mc["target"]])
+    return replace(adapter, order=TARGETS[mc.target])
 
 
 def target_name(adapter: Adapter) -> str:
     return "velocity" if adapter.order == 1 else "acceleration"
 
 
-def noise_gamma(cfg: dict, adapter: Adapter) -> float:
+def noise_gamma(cfg: Config, adapter: Adapter) -> float:
     """γ of ``train.noise_gamma``, or the target's default (:data:`DEFAULT_GAMMA`)."""
-    gamma = (cfg.get("train") or {}).get("noise_gamma")
-    return float(DEFAULT_GAMMA[target_name(adapter)] if gamma is None else gamma)
+    gamma = cfg.train.noise_gamma
+    return DEFAULT_GAMMA[target_name(adapter)] if gamma is None else gamma
 
 
 def position_mask(adapter: Adapter, node_type: Tensor, dim: int) -> Tensor:
@@ -206,7 +205,7 @@ def noise_mask(adapter: Adapter, node_type: Tensor, dim: int, nodes: str = "norm
     if nodes == "predicted":
         return position_mask(adapter, node_type, dim)
     if nodes != "normal":
-        raise ValueError(f"train.noise_nodes: unknown value {nodes!r}; expected one of {', '.join(NOISE_NODES)}")
+        raise InputError(f"train.noise_nodes: unknown value {nodes!r}; expected one of {', '.join(NOISE_NODES)}")
     normal = (node_type.reshape(-1) == int(NodeType.NORMAL)).float()[:, None]
     return normal.expand(-1, dim)
 
@@ -216,22 +215,22 @@ def exclude_trajectories(names: list[str], excluded: list[int] | None) -> np.nda
     excluded = [int(i) for i in excluded or []]
     bad = [i for i in excluded if not 0 <= i < len(names)]
     if bad:
-        raise ValueError(f"data.exclude_trajectories {bad}: out of range for a split of {len(names)} trajectories")
+        raise InputError(f"data.exclude_trajectories {bad}: out of range for a split of {len(names)} trajectories")
     keep = np.ones(len(names), bool)
     keep[excluded] = False
     return np.flatnonzero(keep)
 
 
-def model_args(cfg: dict, model_name: str, ablation: str | None, meta: dict) -> dict:
+def model_args(cfg: Config, model_name: str, ablation: str | None, meta: dict) -> dict:
     """Constructor arguments of the model (saved in ``run.yaml``), from the config and the dataset's dimensions
     (meta.json)."""
     adapter = config_adapter(cfg)
     widths = adapter.widths(int(meta["dimension"]), int(meta["features"]["mesh_pos"]["shape"][-1]))
-    mc = cfg["model"]
+    mc = cfg.model
     return {
-        "name": model_name, **widths, "ablation": ablation, "levels": mc["levels"], "L_C": mc["L_C"],
-        "L_H": mc["L_H"], "hidden": mc["hidden"], "heads": mc["heads"], "clip": mc["clip"], "blocks": mc["blocks"],
-        **({"attention": mc["attention"], "ffn_bias": bool(mc["ffn_bias"])} if model_name == "hcmt" else {}),
+        "name": model_name, **widths, "ablation": ablation, "levels": mc.levels, "L_C": mc.L_C, "L_H": mc.L_H,
+        "hidden": mc.hidden, "heads": mc.heads, "clip": mc.clip, "blocks": mc.blocks,
+        **({"attention": mc.attention, "ffn_bias": mc.ffn_bias} if model_name == "hcmt" else {}),
     }
 
 
@@ -243,11 +242,11 @@ def dataset_spec(name: str) -> dict:
     ``u_ij, |u_ij|, x_ij, |x_ij|``, contact edges ``x_iq, |x_iq|``; ``integration`` 1 velocity, 2 acceleration."""
     key = name.replace("-", "_").lower()
     if key not in DATASET_NAMES:
-        raise ValueError(f"unknown dataset {name!r}; expected one of {', '.join(DATASET_NAMES)}")
+        raise InputError(f"unknown dataset {name!r}; expected one of {', '.join(DATASET_NAMES)}")
     cfg, adapter = load_config(key), get_adapter(key)
-    m, t = cfg["model"], cfg["train"]
-    return dict(L_C=m["L_C"], levels=m["levels"], L_H=2 * m["levels"] + 1, noise_std=t["noise_std"],
-                radius=t["contact_radius"], training_steps=t["steps"], dim=adapter.dim, mesh_dim=adapter.mesh_dim,
+    m, t = cfg.model, cfg.train
+    return dict(L_C=m.L_C, levels=m.levels, L_H=2 * m.levels + 1, noise_std=t.noise_std,
+                radius=t.contact_radius, training_steps=t.steps, dim=adapter.dim, mesh_dim=adapter.mesh_dim,
                 integration=adapter.order, **adapter.widths())
 
 

@@ -9,7 +9,7 @@ import numpy as np
 import torch
 from torch import Tensor
 
-from hcmt.data.errors import DatasetError
+from hcmt.errors import DatasetError
 from hcmt.data.format import Split
 from hcmt.graph.batch import Graph
 from hcmt.graph.build import frame_graph

@@ -13,19 +13,21 @@ from __future__ import annotations
 
 from torch import Tensor
 
+from hcmt.errors import InputError
+
 
 def update_positions(output: Tensor, position: Tensor, previous_position: Tensor | None = None, *,
                      order: int = 1) -> tuple[Tensor, Tensor]:
     """``(next_position [N, dim], remaining output channels [N, out - dim])`` from an un-normalized output."""
     dim = position.shape[-1]
     if output.shape[-1] < dim or output.shape[:-1] != position.shape[:-1]:
-        raise ValueError(f"output {tuple(output.shape)} must start with {dim} kinematic channels for positions "
+        raise InputError(f"output {tuple(output.shape)} must start with {dim} kinematic channels for positions "
                          f"{tuple(position.shape)}")
     kin, rest = output[..., :dim], output[..., dim:]
     if order == 1:
         return position + kin, rest
     if order == 2:
         if previous_position is None:
-            raise ValueError("second-order integration needs previous_position (x^{t-1})")
+            raise InputError("second-order integration needs previous_position (x^{t-1})")
         return 2 * position - previous_position + kin, rest
-    raise ValueError(f"integration order must be 1 (velocity) or 2 (acceleration), got {order}")
+    raise InputError(f"integration order must be 1 (velocity) or 2 (acceleration), got {order}")

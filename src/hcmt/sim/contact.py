@@ -20,6 +20,8 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial import cKDTree
 
+from hcmt.errors import InputError
+
 
 def boundary_edges(cells: np.ndarray) -> np.ndarray:
     """Edges used by exactly one triangle, oriented as in their (counter-clockwise) cell, so the body lies on the
@@ -36,14 +38,14 @@ class PenaltyContact:
     def __init__(self, X: np.ndarray, cells: np.ndarray, body: np.ndarray, mass: np.ndarray, dt: float, *,
                  alpha: float = 0.2, exclude_axis: bool = True, k_nearest: int = 4):
         if not 0 < alpha <= 0.5:
-            raise ValueError(f"penalty factor alpha must be in (0, 0.5] to stay inside the stable step, got {alpha}")
+            raise InputError(f"penalty factor alpha must be in (0, 0.5] to stay inside the stable step, got {alpha}")
         self.mass, self.dt, self.alpha, self.K = mass, dt, alpha, k_nearest
         edges = boundary_edges(cells)
         if exclude_axis:  # segments on the symmetry line x = 0 are not surfaces
             edges = edges[~((np.abs(X[edges[:, 0], 0]) < 1e-9) & (np.abs(X[edges[:, 1], 0]) < 1e-9))]
         eb = body[edges[:, 0]]
         if np.any(eb != body[edges[:, 1]]):
-            raise ValueError("a boundary edge joins the two bodies; contact needs two separate bodies")
+            raise InputError("a boundary edge joins the two bodies; contact needs two separate bodies")
         bnodes = np.unique(boundary_edges(cells))
         # pass 0: plate nodes on ball segments; pass 1: ball nodes on plate segments
         self.passes = [(bnodes[body[bnodes] == s], edges[eb == 1 - s]) for s in (0, 1)]

@@ -20,7 +20,7 @@ import h5py
 import numpy as np
 from tqdm import tqdm
 
-from hcmt.data.errors import DatasetError
+from hcmt.errors import DatasetError, InputError
 from hcmt.data.format import make_meta, read_meta, write_meta, write_split
 from hcmt.sim.scene import (CONTACT_RADIUS, FAMILIES, RANGES, UNITS, VARIANTS, Design, Settings,
                             family_ranges, feature_spec, resolve_relative, sample_design, simulate)
@@ -141,27 +141,27 @@ def generate_dataset(out, *, preset: str = "small", counts: dict[str, int], seed
     "skipped": n, "splits": {split: path}}``."""
     families = tuple(families)
     if not families:
-        raise ValueError(f"family: give at least one of {', '.join(FAMILIES)}")
+        raise InputError(f"family: give at least one of {', '.join(FAMILIES)}")
     for f in families:
         if f not in FAMILIES:
-            raise ValueError(f"family {f!r} does not exist; the families are {', '.join(FAMILIES)}")
+            raise InputError(f"family {f!r} does not exist; the families are {', '.join(FAMILIES)}")
     if len(set(families)) < len(families):
-        raise ValueError(f"family: {', '.join(families)} names a family twice; name each once")
+        raise InputError(f"family: {', '.join(families)} names a family twice; name each once")
     if not 0.0 <= float(edge_fraction) <= 1.0:
-        raise ValueError(f"--edge-fraction must be in [0, 1], got {edge_fraction}")
+        raise InputError(f"must be in [0, 1], got {edge_fraction}", param="edge_fraction")
     if preset not in RANGES:
-        raise ValueError(f"unknown preset {preset!r}; expected one of {sorted(RANGES)}")
+        raise InputError(f"unknown preset {preset!r}; expected one of {sorted(RANGES)}")
     for split, n in counts.items():
         if split not in SPLITS:
-            raise ValueError(f"unknown split {split!r}; expected one of {SPLITS}")
+            raise InputError(f"unknown split {split!r}; expected one of {SPLITS}")
         if int(n) < 0:
-            raise ValueError(f"--{split} must be >= 0 trajectories, got {n}")
+            raise InputError(f"--{split} must be >= 0 trajectories, got {n}")
     if int(workers) < 1:
-        raise ValueError(f"--workers must be >= 1, got {workers}")
+        raise InputError(f"must be >= 1, got {workers}", param="workers")
     settings.validate()
     counts = {k: int(v) for k, v in counts.items() if int(v) > 0}
     if not counts:
-        raise ValueError("nothing to generate: every trajectory count (--train, --valid, --test) is 0")
+        raise InputError("nothing to generate: every trajectory count (train, valid, test) is 0")
     out = Path(out)
     meta = dataset_meta(preset, seed, counts, settings, edge_fraction, families)
     meta["families"] = {split: [trajectory_family(meta, i) for i in range(n)] for split, n in counts.items()}

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from hcmt.errors import InputError
 from hcmt.data.format import NodeType
 from scipy.spatial import Delaunay
 
@@ -29,7 +30,7 @@ def graded_coordinates(length: float, h0: float, growth: float = 1.0, h_max: flo
     """Coordinates ``0 = s_0 < ... < s_n = length``: spacing ``h0`` growing geometrically by ``growth`` up to
     ``h_max``, then rescaled so the last point lands exactly on ``length``."""
     if length <= 0 or h0 <= 0:
-        raise ValueError(f"graded_coordinates needs length > 0 and h0 > 0, got {length}, {h0}")
+        raise InputError(f"graded_coordinates needs length > 0 and h0 > 0, got {length}, {h0}")
     h_max = h0 if h_max is None else max(h_max, h0)
     steps, total, h = [], 0.0, h0
     while total < length - 1e-9:  # hand-rolled: a 1-D geometric series clipped at h_max, a few hundred terms
@@ -64,14 +65,14 @@ def plate_mesh(thickness: float, half_length: float, mesh_size: float, *, layers
     if layers is None:
         layers = max(4, int(round(thickness / mesh_size)))
     if layers < 4:
-        raise ValueError(f"plate needs at least 4 element layers through the thickness, got {layers}")
+        raise InputError(f"plate needs at least 4 element layers through the thickness, got {layers}")
     xs = graded_coordinates(half_length, mesh_size, growth, h_max)
     if y_growth == 1.0:
         depth = np.linspace(0.0, thickness, layers + 1)
     else:  # graded from the top like x: first layer mesh_size, growing up to h_max
         depth = graded_coordinates(thickness, mesh_size, y_growth, h_max)
         if len(depth) < 5:
-            raise ValueError(f"graded plate has {len(depth) - 1} layers; at least 4 are needed")
+            raise InputError(f"graded plate has {len(depth) - 1} layers; at least 4 are needed")
     ys = -depth[::-1]
     return structured_triangles(xs, ys)
 
@@ -216,24 +217,24 @@ def impact_plate_mesh(thickness: float, ball_radius: float, mesh_size: float, *,
                     ("plate_half_length", plate_half_length), ("gap", gap), *((f"layer {i + 1} thickness", t)
                                                                               for i, t in enumerate(layers))):
         if not np.isfinite(v) or v <= 0:
-            raise ValueError(f"{name} must be a positive finite length in mm, got {v}")
+            raise InputError(f"{name} must be a positive finite length in mm, got {v}")
     if impactor not in ("ball", "pen"):
-        raise ValueError(f"impactor must be 'ball' or 'pen', got {impactor!r}")
+        raise InputError(f"impactor must be 'ball' or 'pen', got {impactor!r}")
     if plate_half_length <= ball_radius:
-        raise ValueError(f"plate_half_length ({plate_half_length} mm) must exceed ball_radius ({ball_radius} mm)")
+        raise InputError(f"plate_half_length ({plate_half_length} mm) must exceed ball_radius ({ball_radius} mm)")
     if mesh_size > sum(layers):
-        raise ValueError(f"mesh_size ({mesh_size} mm) must not exceed the plate thickness ({sum(layers)} mm)")
+        raise InputError(f"mesh_size ({mesh_size} mm) must not exceed the plate thickness ({sum(layers)} mm)")
     if not 0 <= support_radius < plate_half_length:
-        raise ValueError(f"support_radius ({support_radius} mm) must lie inside the plate (0 .. {plate_half_length})")
+        raise InputError(f"support_radius ({support_radius} mm) must lie inside the plate (0 .. {plate_half_length})")
     if impactor == "pen":
         hb = min(mesh_size, ball_radius / 3) if ball_mesh_size is None else ball_mesh_size
     else:
         hb = mesh_size if ball_mesh_size is None else ball_mesh_size
         if hb > ball_radius / 3:
-            raise ValueError(f"ball mesh size ({hb} mm) must be at most ball_radius / 3 ({ball_radius / 3:.3g} mm)")
+            raise InputError(f"ball mesh size ({hb} mm) must be at most ball_radius / 3 ({ball_radius / 3:.3g} mm)")
     if plate_layers is not None or plate_y_growth != 1.0:  # one block with its own rows (the Hertz check)
         if len(layers) > 1 or support_radius > 0 or backing_thickness > 0:
-            raise ValueError("plate_layers and plate_y_growth make one clamped block: no stack, ring or backing")
+            raise InputError("plate_layers and plate_y_growth make one clamped block: no stack, ring or backing")
         p_pos, p_cells = plate_mesh(layers[0], plate_half_length, mesh_size, layers=plate_layers,
                                     growth=plate_growth, h_max=plate_h_max, y_growth=plate_y_growth)
         bounds = np.array([0.0, layers[0]])
@@ -284,5 +285,5 @@ def impact_plate_mesh(thickness: float, ball_radius: float, mesh_size: float, *,
 def preset_mesh(preset: str = "small", **overrides) -> dict[str, np.ndarray]:
     """The mesh of a preset's nominal design (``paper`` ~2,200 nodes, ``small`` ~400-600 nodes)."""
     if preset not in PRESETS:
-        raise ValueError(f"unknown preset {preset!r}; expected one of {sorted(PRESETS)}")
+        raise InputError(f"unknown preset {preset!r}; expected one of {sorted(PRESETS)}")
     return impact_plate_mesh(**{**PRESETS[preset], **overrides})

@@ -21,6 +21,7 @@ from dataclasses import asdict, dataclass, fields, replace
 
 import numpy as np
 
+from hcmt.errors import InputError
 from hcmt.sim.contact import PenaltyContact
 from hcmt.sim.mesh import HANDLE, SYMMETRIC, WALL_BOUNDARY, impact_plate_mesh
 from hcmt.sim.solver import FORMULATIONS, CentralDifference, build_model, check_material, deformation, \
@@ -113,53 +114,53 @@ class Design:
         for name in ("thickness", "ball_radius", "mesh_size", "plate_half_length", "drop_height", "gap"):
             v = getattr(self, name)
             if not np.isfinite(v) or v <= 0:
-                raise ValueError(f"{name} must be > 0 (mm), got {v}")
+                raise InputError(f"{name} must be > 0 (mm), got {v}")
         for name in ("layer2_thickness", "layer3_thickness", "layer4_thickness", "support_radius",
                      "backing_thickness", "pen_tip_radius"):
             v = getattr(self, name)
             if not np.isfinite(v) or v < 0:
-                raise ValueError(f"{name} must be >= 0 mm (0: none), got {v}")
+                raise InputError(f"{name} must be >= 0 mm (0: none), got {v}")
         check_material("plate", self.plate_density, self.plate_modulus, self.plate_poisson)
         check_material("ball", self.ball_density, self.ball_modulus, self.ball_poisson)
         for k in (2, 3, 4):
             if getattr(self, f"layer{k}_thickness") > 0:
                 if k > 2 and not getattr(self, f"layer{k - 1}_thickness") > 0:
-                    raise ValueError(f"layer{k}_thickness is set but layer{k - 1}_thickness is 0: layers stack "
+                    raise InputError(f"layer{k}_thickness is set but layer{k - 1}_thickness is 0: layers stack "
                                      "from the top without gaps")
                 nu = getattr(self, f"layer{k}_poisson")
                 if not 0 <= nu <= MAX_LAYER_POISSON:
-                    raise ValueError(f"layer{k}_poisson must be in [0, {MAX_LAYER_POISSON}] (near 0.5 the linear "
+                    raise InputError(f"layer{k}_poisson must be in [0, {MAX_LAYER_POISSON}] (near 0.5 the linear "
                                      f"triangles lock volumetrically), got {nu}")
                 check_material(f"layer{k}", *(getattr(self, f"layer{k}_{m}") for m in ("density", "modulus",
                                                                                        "poisson")))
         if self.gap >= CONTACT_RADIUS:
-            raise ValueError(f"gap ({self.gap} mm) must be smaller than the contact radius {CONTACT_RADIUS} mm so the "
+            raise InputError(f"gap ({self.gap} mm) must be smaller than the contact radius {CONTACT_RADIUS} mm so the "
                              "first frame already sees the ball near the plate")
         if self.mesh_size > self.total_thickness:
             what = "thickness" if len(self.layers) == 1 else "the stack's total thickness"
-            raise ValueError(f"mesh_size ({self.mesh_size} mm) must not exceed {what} ({self.total_thickness:g} mm)")
+            raise InputError(f"mesh_size ({self.mesh_size} mm) must not exceed {what} ({self.total_thickness:g} mm)")
         if self.pen_tip_radius > 0:
             if not self.mesh_size <= self.pen_tip_radius <= 10 * self.total_thickness:
-                raise ValueError(f"pen_tip_radius ({self.pen_tip_radius} mm) must lie between mesh_size "
+                raise InputError(f"pen_tip_radius ({self.pen_tip_radius} mm) must lie between mesh_size "
                                  f"({self.mesh_size:g} mm) and 10 x the panel's thickness "
                                  f"({10 * self.total_thickness:g} mm)")
             if not (np.isfinite(self.pen_mass) and self.pen_mass > 0):
-                raise ValueError(f"pen_mass must be > 0 g, got {self.pen_mass}")
+                raise InputError(f"pen_mass must be > 0 g, got {self.pen_mass}")
         elif self.mesh_size > self.ball_radius / 3:
-            raise ValueError(f"mesh_size ({self.mesh_size} mm) must be at most ball_radius / 3 "
+            raise InputError(f"mesh_size ({self.mesh_size} mm) must be at most ball_radius / 3 "
                              f"({self.ball_radius / 3:.3g} mm)")
         if self.plate_half_length <= self.impactor_radius:
-            raise ValueError(f"plate_half_length ({self.plate_half_length} mm) must exceed the "
+            raise InputError(f"plate_half_length ({self.plate_half_length} mm) must exceed the "
                              f"{'pen_tip_radius' if self.pen_tip_radius > 0 else 'ball_radius'} "
                              f"({self.impactor_radius} mm)")
         if self.support_radius > 0 and not self.mesh_size <= self.support_radius <= self.plate_half_length - \
                 self.mesh_size:
-            raise ValueError(f"support_radius ({self.support_radius} mm) must lie inside the plate: between mesh_size "
+            raise InputError(f"support_radius ({self.support_radius} mm) must lie inside the plate: between mesh_size "
                              f"({self.mesh_size:g}) and plate_half_length - mesh_size "
                              f"({self.plate_half_length - self.mesh_size:g} mm)")
         if self.backing_thickness > 0:
             if self.support_radius > 0:
-                raise ValueError("support_radius and backing_thickness are both set: choose one support (a ring, "
+                raise InputError("support_radius and backing_thickness are both set: choose one support (a ring, "
                                  "or a backing)")
             check_material("backing", BACKING_DENSITY, self.backing_modulus, BACKING_POISSON)
         return self
@@ -180,17 +181,17 @@ class Settings:
 
     def validate(self) -> "Settings":
         if self.formulation not in FORMULATIONS:
-            raise ValueError(f"formulation must be one of {FORMULATIONS}, got {self.formulation!r}")
+            raise InputError(f"formulation must be one of {FORMULATIONS}, got {self.formulation!r}")
         if self.frames < 2:
-            raise ValueError(f"frames must be >= 2, got {self.frames}")
+            raise InputError(f"frames must be >= 2, got {self.frames}")
         if not self.frame_dt > 0:
-            raise ValueError(f"frame_dt must be > 0 ms, got {self.frame_dt}")
+            raise InputError(f"frame_dt must be > 0 ms, got {self.frame_dt}")
         if not 0 < self.safety <= 0.8:
-            raise ValueError(f"safety must be in (0, 0.8], got {self.safety}")
+            raise InputError(f"safety must be in (0, 0.8], got {self.safety}")
         if self.bulk_viscosity < 0:
-            raise ValueError(f"bulk_viscosity must be >= 0, got {self.bulk_viscosity}")
+            raise InputError(f"bulk_viscosity must be >= 0, got {self.bulk_viscosity}")
         if not 0 < self.penalty <= 0.5:
-            raise ValueError(f"penalty must be in (0, 0.5], got {self.penalty}")
+            raise InputError(f"penalty must be in (0, 0.5], got {self.penalty}")
         return self
 
 
@@ -254,11 +255,11 @@ def family_ranges(preset: str = "small", family: str = "mono", variant: str | No
     """The sampling ranges of a family: the preset's, the family's replacing or adding to them, a
     generalization variant's last (ranges of :data:`RELATIVE` parameters stay fractions)."""
     if preset not in RANGES:
-        raise ValueError(f"unknown preset {preset!r}; expected one of {sorted(RANGES)}")
+        raise InputError(f"unknown preset {preset!r}; expected one of {sorted(RANGES)}")
     if family not in FAMILIES:
-        raise ValueError(f"unknown family {family!r}; expected one of {', '.join(FAMILIES)}")
+        raise InputError(f"unknown family {family!r}; expected one of {', '.join(FAMILIES)}")
     if variant is not None and variant not in VARIANTS:
-        raise ValueError(f"unknown variant {variant!r}; expected one of {sorted(VARIANTS)}")
+        raise InputError(f"unknown variant {variant!r}; expected one of {sorted(VARIANTS)}")
     return {**RANGES[preset], **FAMILIES[family], **(VARIANTS[variant] if variant else {})}
 
 
@@ -301,24 +302,24 @@ def parse_stack(text: str) -> dict[str, float]:
     items = [i.strip() for i in text.split(",") if i.strip()]
     where = f"--stack {text!r}"
     if not items:
-        raise ValueError(f"{where}: expected 1-4 layers MATERIAL:THICKNESS separated by commas, e.g. "
+        raise InputError(f"{where}: expected 1-4 layers MATERIAL:THICKNESS separated by commas, e.g. "
                          "glass:0.55,adhesive:0.05,film:0.2")
     if len(items) > 4:
-        raise ValueError(f"{where}: {len(items)} layers; a stack has 1-4 layers")
+        raise InputError(f"{where}: {len(items)} layers; a stack has 1-4 layers")
     out = {}
     for k, item in enumerate(items, 1):
         parts = item.split(":")
         if len(parts) < 2 or parts[0] not in MATERIALS:
-            raise ValueError(f"{where}: layer {k} {item!r}: expected MATERIAL:THICKNESS with MATERIAL one of "
+            raise InputError(f"{where}: layer {k} {item!r}: expected MATERIAL:THICKNESS with MATERIAL one of "
                              f"{', '.join(MATERIALS)}")
         material = dict(zip(("density", "modulus", "poisson"), MATERIALS[parts[0]]))
         thickness = parse_number(parts[1], f"{where}: layer {k} thickness")
         if thickness <= 0:
-            raise ValueError(f"{where}: layer {k} thickness must be > 0 mm, got {parts[1]}")
+            raise InputError(f"{where}: layer {k} thickness must be > 0 mm, got {parts[1]}")
         for extra in parts[2:]:
             key, sep, raw = extra.partition("=")
             if not sep or key not in material:
-                raise ValueError(f"{where}: layer {k} {extra!r}: expected density=, modulus= or poisson=")
+                raise InputError(f"{where}: layer {k} {extra!r}: expected density=, modulus= or poisson=")
             material[key] = parse_number(raw, f"{where}: layer {k} {key}")
         if k == 1:
             out.update(thickness=thickness, plate_density=material["density"], plate_modulus=material["modulus"],
@@ -361,7 +362,7 @@ VALIDATED = {"impact_speed": (0.0, 10.0), "plate_modulus": (1e3, 1e6), "ball_mod
              "ball_density": (5e-4, 2e-2)}
 
 
-class SolverError(ValueError):
+class SolverError(InputError):
     """The solve cannot go on (an element inverted): the design is outside what the solver handles."""
 
 
@@ -428,7 +429,7 @@ def check_size(design: Design, settings: Settings = Settings(), where: str = "")
     e = estimate(design, settings)
     if not e["num_nodes"] <= MAX_NODES:
         n = f"{e['num_nodes']:.3g}" if np.isfinite(e["num_nodes"]) else "an unbounded number of"
-        raise ValueError(f"{where}the design's mesh would have {n} nodes (plate {design.plate_half_length:g} x "
+        raise InputError(f"{where}the design's mesh would have {n} nodes (plate {design.plate_half_length:g} x "
                          f"{design.thickness:g} mm, ball radius {design.ball_radius:g} mm at mesh_size "
                          f"{design.mesh_size:g} mm), more than the {MAX_NODES:,} any command builds; coarsen the "
                          "mesh or shrink the design")
@@ -572,7 +573,7 @@ def initial_frames(design: Design, settings: Settings = Settings()) -> dict:
     dt, g = settings.frame_dt, settings.gravity
     fall = first_frame_fall(design, settings)
     if fall >= design.gap:
-        raise ValueError(f"drop_height {design.drop_height} mm: the ball ({design.impact_speed:.3g} mm/ms) would "
+        raise InputError(f"drop_height {design.drop_height} mm: the ball ({design.impact_speed:.3g} mm/ms) would "
                          f"cross the {design.gap} mm gap within the first frame ({dt} ms); lower drop_height or "
                          "raise gap")
     mesh = design_mesh(design)
@@ -664,16 +665,16 @@ def parse_design(items: list[str], defaults: Design, where: str = "--design") ->
         key, sep, raw = item.partition("=")
         key = design_key(key)
         if not sep:
-            raise ValueError(f"{where} {item!r}: expected KEY=VALUE, e.g. thickness=0.8")
+            raise InputError(f"{where} {item!r}: expected KEY=VALUE, e.g. thickness=0.8")
         if key not in DESIGN_KEYS:
-            raise ValueError(f"{where} {item!r}: unknown parameter {key!r}; expected one of {', '.join(DESIGN_KEYS)}")
+            raise InputError(f"{where} {item!r}: unknown parameter {key!r}; expected one of {', '.join(DESIGN_KEYS)}")
         if key in values:
-            raise ValueError(f"{where} {item!r}: {key} is given twice in one design; give it once")
+            raise InputError(f"{where} {item!r}: {key} is given twice in one design; give it once")
         values[key] = parse_number(raw, f"{where} {item!r}: {key}")
     try:
         return Design(**{**asdict(defaults), **values}).validate()
     except ValueError as exc:
-        raise ValueError(f"{where} {exc}") from None
+        raise InputError(f"{where} {exc}") from None
 
 
 def design_key(text: str) -> str:
@@ -687,7 +688,7 @@ def parse_number(raw: str, what: str) -> float:
     try:
         v = float(raw)
     except ValueError:
-        raise ValueError(f"{what} must be a number, got {raw.strip()!r}") from None
+        raise InputError(f"{what} must be a number, got {raw.strip()!r}") from None
     if not np.isfinite(v):
-        raise ValueError(f"{what} must be a finite number, got {raw.strip()!r}")
+        raise InputError(f"{what} must be a finite number, got {raw.strip()!r}")
     return v

@@ -30,6 +30,8 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 
+from hcmt.errors import InputError
+
 FORMULATIONS = ("axisymmetric", "plane_strain")
 
 
@@ -82,16 +84,16 @@ def check_material(name: str, density, modulus, poisson) -> None:
     ):
         a = np.asarray(v, float)
         if not np.all(np.isfinite(a)) or not np.all(ok(a)):
-            raise ValueError(f"{name} {what} must be {expected}, got {v}")
+            raise InputError(f"{name} {what} must be {expected}, got {v}")
 
 
 def build_model(X: np.ndarray, cells: np.ndarray, density, modulus, poisson, *, formulation: str = "axisymmetric",
                 bulk_viscosity: float = 0.0) -> FEModel:
     """Precompute the CST operators of a mesh. ``density``, ``modulus`` (MPa), ``poisson`` are per cell or scalars."""
     if formulation not in FORMULATIONS:
-        raise ValueError(f"formulation must be one of {FORMULATIONS}, got {formulation!r}")
+        raise InputError(f"formulation must be one of {FORMULATIONS}, got {formulation!r}")
     if bulk_viscosity < 0:
-        raise ValueError(f"bulk_viscosity must be >= 0, got {bulk_viscosity}")
+        raise InputError(f"bulk_viscosity must be >= 0, got {bulk_viscosity}")
     X = np.asarray(X, float)
     cells = np.asarray(cells, np.int64)
     C, N = len(cells), len(X)
@@ -103,13 +105,13 @@ def build_model(X: np.ndarray, cells: np.ndarray, density, modulus, poisson, *, 
     A = 0.5 * ((p[:, 1, 0] - p[:, 0, 0]) * (p[:, 2, 1] - p[:, 0, 1]) - (p[:, 1, 1] - p[:, 0, 1]) * (p[:, 2, 0] - p[:, 0, 0]))
     if np.any(A <= 0):
         bad = np.flatnonzero(A <= 0)[:5]
-        raise ValueError(f"cells must be counter-clockwise with positive area; cells {bad.tolist()} are not")
+        raise InputError(f"cells must be counter-clockwise with positive area; cells {bad.tolist()} are not")
     dNdX = (nxt[..., 1] - prv[..., 1]) / (2 * A[:, None])  # [C,3]
     dNdY = (prv[..., 0] - nxt[..., 0]) / (2 * A[:, None])
     Rc = p[:, :, 0].mean(1)
     if formulation == "axisymmetric":
         if np.any(X[:, 0] < -1e-9):
-            raise ValueError("axisymmetric meshes need x = r >= 0 for every node")
+            raise InputError("axisymmetric meshes need x = r >= 0 for every node")
         W = 2 * np.pi * Rc * A
     else:
         Rc = np.ones(C)
@@ -137,7 +139,7 @@ def stable_time_step(model: FEModel, safety: float = 0.8) -> float:
     """Courant step ``dt = safety * min_e h_e / c_e`` (h_e smallest altitude, c_e dilatational wave speed), reduced
     by the bulk-viscosity factor ``sqrt(1 + b1^2) - b1``. ``safety`` must lie in (0, 0.8]."""
     if not 0 < safety <= 0.8:
-        raise ValueError(f"time-step safety factor must be in (0, 0.8], got {safety}")
+        raise InputError(f"time-step safety factor must be in (0, 0.8], got {safety}")
     b1 = model.bulk_viscosity
     return float(safety * np.min(model.altitude / model.wave_speed) * (np.sqrt(1 + b1 * b1) - b1))
 
@@ -248,7 +250,7 @@ class CentralDifference:
     def __init__(self, model: FEModel, fixed: np.ndarray, dt: float, *, contact=None, gravity: float = 0.0,
                  rigid: tuple[np.ndarray, float] | None = None):
         if not dt > 0:
-            raise ValueError(f"time step must be > 0, got {dt}")
+            raise InputError(f"time step must be > 0, got {dt}")
         self.model, self.dt, self.contact, self.gravity = model, float(dt), contact, float(gravity)
         self.free = ~np.asarray(fixed, bool)
         self.inv_mass = (1.0 / model.mass)[:, None] * self.free
@@ -258,7 +260,7 @@ class CentralDifference:
         if rigid is not None and np.any(rigid[0]):
             self.rigid, self.rod_mass = np.flatnonzero(rigid[0]), float(rigid[1])
             if not self.rod_mass >= 0:
-                raise ValueError(f"rigid rod mass must be >= 0 g, got {rigid[1]}")
+                raise InputError(f"rigid rod mass must be >= 0 g, got {rigid[1]}")
             self.inv_mass[self.rigid] = 0.0
             self.rigid_mass = float(model.mass[self.rigid].sum()) + self.rod_mass
         self.t, self.steps = 0.0, 0

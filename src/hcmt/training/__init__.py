@@ -7,7 +7,8 @@ import os
 import shutil
 from pathlib import Path
 
-from hcmt.config import apply_overrides, complete_config, load_config
+from hcmt.errors import InputError
+from hcmt.config import as_config
 from hcmt.data.runs import RunFolder, check_start
 from hcmt.models import MODELS
 from hcmt.training.runtime import deterministic_scope, lock_run
@@ -21,7 +22,7 @@ def train(config, data, model: str, out, *, overrides=None, resume: bool = False
     returns the training summary (final loss, steps, ms per step, best validation metric); :meth:`hcmt.Run.load`
     (``out``) gives the trained model.
 
-    ``config`` is a config dict, a built-in config name or a YAML path; ``overrides`` a list of
+    ``config`` is a :class:`hcmt.config.Config`, a config mapping, a built-in config name or a YAML path; ``overrides`` a list of
     ``section.key=value``; ``resume=True`` continues the run in ``out`` exactly, ``overwrite=True`` deletes it and
     starts afresh (otherwise a folder holding a run is refused). ``stop_at`` ends this call after that global step
     (checkpointed), as an interruption would. The run folder is locked while training (a second process writing
@@ -32,18 +33,17 @@ def train(config, data, model: str, out, *, overrides=None, resume: bool = False
     arguments must equal this run's, else one line lists what differs); ``init_normalizers`` ``keep`` freezes its
     normalizer statistics, ``reaccumulate`` zeroes them and accumulates them on ``data``. run.yaml records it."""
     if resume and overwrite:
-        raise ValueError("hcmt.train: resume=True and overwrite=True contradict each other; choose one")
+        raise InputError("hcmt.train: resume=True and overwrite=True contradict each other; choose one")
     model = str(model).lower()
     if model not in MODELS:
-        raise ValueError(f"hcmt.train: unknown model {model!r}; expected one of {', '.join(MODELS)}")
+        raise InputError(f"hcmt.train: unknown model {model!r}; expected one of {', '.join(MODELS)}")
     out = Path(out)
     folder = RunFolder(out, must_exist=False)
     if folder.holds_run() and not resume and overwrite:
         shutil.rmtree(out)
         folder = RunFolder(out, must_exist=False)
     check_start(folder, resume)
-    cfg = (complete_config(apply_overrides(config, overrides)) if isinstance(config, dict)
-           else load_config(str(config), overrides))
+    cfg = as_config(config, overrides).for_training()
 
     def run() -> dict:
         with deterministic_scope():  # train.deterministic holds for this run only

@@ -15,7 +15,8 @@ import torch
 import torch.distributed as dist
 import yaml
 
-from hcmt.config import complete_config
+from hcmt.errors import InputError
+from hcmt.config import Config
 from hcmt.files import atomic_path, take_lock
 
 
@@ -23,8 +24,7 @@ def check_resume(saved: dict, run: dict, out: Path) -> None:
     """An exact continuation needs the settings the run started with; only ``train.steps`` may grow (the
     learning-rate schedule then stretches to the new length)."""
     def strip(r):
-        r = yaml.safe_load(yaml.safe_dump(r))
-        r["config"] = complete_config(r["config"])  # a run.yaml written before a key had its default
+        r = yaml.safe_load(yaml.safe_dump(dict(r, config=Config.from_dict(r["config"]).to_dict())))
         r["config"]["train"].pop("steps", None)
         return r
 
@@ -33,9 +33,9 @@ def check_resume(saved: dict, run: dict, out: Path) -> None:
     for k in ("model", "config", "seed", "world_size"):
         changed += _differences(a.get(k, b[k]), b[k], k)
     if changed:
-        raise ValueError(f"{out}: --resume with other settings than the run was started with: {'; '.join(changed)} "
-                         f"(see {out / 'run.yaml'}); `hcmt train --resume --out {out}` alone resumes with the saved "
-                         "settings")
+        raise InputError(f"{out}: other settings than the run was started with: {'; '.join(changed)} (see "
+                         f"{out / 'run.yaml'}); `hcmt train --resume --out {out}` alone resumes with the saved "
+                         "settings", param="resume")
 
 
 def _differences(a, b, key: str) -> list[str]:
@@ -84,7 +84,7 @@ def distributed() -> tuple[int, int]:
         world = int(os.environ["WORLD_SIZE"])
         gpus = torch.cuda.device_count() if torch.cuda.is_available() else 0
         if gpus and world > gpus:
-            raise ValueError(f"{world} training processes but {gpus} GPU(s): NCCL needs one GPU per process; use "
+            raise InputError(f"{world} training processes but {gpus} GPU(s): NCCL needs one GPU per process; use "
                              f"torchrun --nproc_per_node={gpus}, or run on the CPU (CUDA_VISIBLE_DEVICES= gives gloo)")
         if not dist.is_initialized():
             dist.init_process_group("nccl" if gpus else "gloo")
@@ -97,8 +97,8 @@ def lock_run(out: Path) -> Path:
     lock = out / ".lock"
     holder = take_lock(lock)
     if holder is not None:
-        raise ValueError(f"{out} is being written by another training process (pid {holder}, {lock}); wait for "
-                         "it or choose another --out")
+        raise InputError(f"{out} is being written by another training process (pid {holder}, {lock}); wait for "
+                         "it or choose another run folder", param="out")
     return lock
 
 

@@ -43,7 +43,8 @@ import torch.distributed as dist
 from torch.utils.tensorboard import SummaryWriter
 from tqdm import tqdm
 
-from hcmt.config import check_train_config, complete_config
+from hcmt.errors import InputError
+from hcmt.config import Config
 from hcmt.data.format import read_meta
 from hcmt.data.runs import RunFolder, check_start, read_checkpoint
 from hcmt.files import atomic_path
@@ -75,9 +76,9 @@ def init_source(init: str, args: dict) -> Run:
     differ = [f"{k} {theirs.get(k)!r} there, {args.get(k)!r} here" for k in sorted(set(theirs) | set(args))
               if theirs.get(k) != args.get(k)]
     if differ:
-        raise ValueError(f"--init {init}: its model differs from this run's: {'; '.join(differ)}; fine-tuning needs "
-                         "the same model, architecture and feature widths (use its config: --config and --set as it "
-                         "was trained)")
+        raise InputError(f"{init}: its model differs from this run's: {'; '.join(differ)}; fine-tuning needs the "
+                         "same model, architecture and feature widths (train with the config it was trained with)",
+                         param="init")
     return source
 
 
@@ -86,16 +87,15 @@ class Trainer:
     data, optimizer, resume), :meth:`step` (one optimizer step on one batch), :meth:`validate` (validation
     rollouts, best.pt) and :meth:`save` (checkpoints); :meth:`run` loops over them."""
 
-    def __init__(self, cfg: dict, data, model_name: str, out: Path, *, ablation, seed: int, resume: bool, device,
+    def __init__(self, cfg: Config, data, model_name: str, out: Path, *, ablation, seed: int, resume: bool, device,
                  progress: bool, init: str | None = None, init_normalizers: str = "keep"):
         self.rank, self.world = distributed()
         self.device = resolve_device(device) if device else (
             torch.device(f"cuda:{self.rank}") if torch.cuda.is_available() else torch.device("cpu"))
-        cfg = complete_config(cfg)  # a partial config dict (the API) gets the schema's defaults
-        check_train_config(cfg)
-        self.cfg, self.tc, self.out, self.seed, self.model_name = cfg, cfg["train"], out, seed, model_name
+        cfg = cfg.for_training()
+        self.cfg, self.tc, self.out, self.seed, self.model_name = cfg, cfg.train, out, seed, model_name
         tc = self.tc
-        self.steps = int(tc["steps"])
+        self.steps = tc.steps
         meta = read_meta(data)
         self.adapter = config_adapter(cfg)
         self.args = model_args(cfg, model_name, ablation, meta)
@@ -106,10 +106,10 @@ class Trainer:
         run = {"model": self.args, "config": cfg, "data": str(Path(data).resolve()), "seed": seed,
                "world_size": self.world}
         if init_normalizers not in INIT_NORMALIZERS:
-            raise ValueError(f"init_normalizers must be one of {', '.join(INIT_NORMALIZERS)}, got {init_normalizers!r}")
+            raise InputError(f"init_normalizers must be one of {', '.join(INIT_NORMALIZERS)}, got {init_normalizers!r}")
         if resume and init is not None:
-            raise ValueError("--init starts a run from another model's weights and --resume continues a run (whose "
-                             "run.yaml remembers its --init); give one of them")
+            raise InputError("starts a run from another model's weights and resuming continues a run (whose "
+                             "run.yaml remembers where it started); give one of them", param="init")
         source, started_from = None, None
         if resume and self.folder.info is not None and init is None:  # the checkpoint holds the weights already
             started_from = self.folder.info.get("init")
@@ -126,11 +126,11 @@ class Trainer:
             self.folder.write_info(run)
             self.folder.write_data_facts(data)
 
-        self.compile = tc["compile"]
+        self.compile = tc.compile
         if self.compile != "none" and self.args.get("ablation") == "lpe":
-            raise ValueError("train.compile: the lpe ablation computes its eigenvectors per graph outside the model's "
+            raise InputError("train.compile: the lpe ablation computes its eigenvectors per graph outside the model's "
                              "tensors; use train.compile=none with it")
-        if tc["deterministic"]:
+        if tc.deterministic:
             # cuBLAS needs this workspace setting for reproducible matmuls (read when its handle is created)
             os.environ.setdefault("CUBLAS_WORKSPACE_CONFIG", ":4096:8")
             torch.use_deterministic_algorithms(True)
@@ -145,21 +145,21 @@ class Trainer:
                 for m in self.model.modules():
                     if isinstance(m, Normalizer):
                         m.reset()
-        self.normalizer_steps = 0 if self.frozen_normalizers else int(tc["normalizer_steps"])
-        self.model.checkpoint_blocks = tc["checkpoint_blocks"]  # memory for recomputation
-        self.bf16 = tc["precision"] == "bf16"  # autocast forward and loss in bfloat16
+        self.normalizer_steps = 0 if self.frozen_normalizers else tc.normalizer_steps
+        self.model.checkpoint_blocks = tc.checkpoint_blocks  # memory for recomputation
+        self.bf16 = tc.precision == "bf16"  # autocast forward and loss in bfloat16
         levels, remesh = uses_hierarchy(self.args)
-        self.radius = float(tc["contact_radius"])
+        self.radius = tc.contact_radius
         self.frames = FrameDataset(data, "train", self.adapter, levels, remesh, self.radius,
-                                   float(tc["noise_std"]), noise_gamma(cfg, self.adapter), seed,
-                                   cfg["data"]["exclude_trajectories"], tc["noise_nodes"])
+                                   tc.noise_std, noise_gamma(cfg, self.adapter), seed,
+                                   cfg.data.exclude_trajectories, tc.noise_nodes)
         # pushforward: with this probability a frame's input is the model's own prediction (frames.pushforward_item)
-        self.pushforward = float(tc["pushforward"])
-        self.pushforward_start = int(tc["pushforward_start"])
+        self.pushforward = tc.pushforward
+        self.pushforward_start = tc.pushforward_start
         self.valid_trajs = (load_split(data, "valid", self.adapter, levels, remesh,
-                                       limit=int(tc["valid_trajectories"]))
+                                       limit=tc.valid_trajectories)
                             if (Path(data) / "valid.h5").is_file() else [])
-        self.opt = torch.optim.Adam(self.model.parameters(), lr=float(tc["lr"]), eps=float(tc["adam_epsilon"] or 1e-8),
+        self.opt = torch.optim.Adam(self.model.parameters(), lr=tc.lr, eps=tc.adam_epsilon or 1e-8,
                                     fused=self.device.type == "cuda")  # one kernel per step on CUDA
         self.step_count, self.best = 0, math.inf
         if resume:
@@ -170,7 +170,7 @@ class Trainer:
                 self.model, device_ids=[self.device.index] if self.device.type == "cuda" else None)
         self.pad = None
         if self.compile != "none":  # static shapes: padded batches, one compiled graph per contact bucket
-            self.pad = pad_sizes(self.frames, int(tc["batch_size"]))
+            self.pad = pad_sizes(self.frames, tc.batch_size)
             self.net = compile_simulator(self.net, self.compile)
         self.writer = self.log = None
         if self.rank == 0:
@@ -187,11 +187,11 @@ class Trainer:
             self.model.load_state_dict(state["model"])
             self.opt.load_state_dict(state["optimizer"])
         except (KeyError, RuntimeError, ValueError) as exc:
-            raise ValueError(f"{self.ckpt_path}: the checkpoint does not fit this run's model or optimizer "
+            raise InputError(f"{self.ckpt_path}: the checkpoint does not fit this run's model or optimizer "
                              f"({exc.__class__.__name__}); --resume continues the run that wrote it") from None
         self.step_count, self.best = int(state["step"]), float(state["best"])
         if self.step_count > self.steps:
-            raise ValueError(f"{self.out}: --resume with train.steps {self.steps}, but the run has done "
+            raise InputError(f"{self.out}: --resume with train.steps {self.steps}, but the run has done "
                              f"{self.step_count} steps; a run only grows (give --steps >= the steps done)")
         log = self.folder.log
         if self.rank == 0 and log.is_file():  # drop what was logged after the checkpoint: no duplicate steps
@@ -203,14 +203,14 @@ class Trainer:
         """``train.loss_denominator``: ``masked`` (hcmt: the number of unmasked entries, a mean over what is
         predicted) or ``nodes`` (the authors' model.py: ``reduce_mean`` over all N nodes of the masked error summed
         over channels)."""
-        if self.tc["loss_denominator"] == "nodes":
+        if self.tc.loss_denominator == "nodes":
             n = graph.node_mask.sum() if graph.node_mask is not None else torch.tensor(float(graph.num_nodes))
             return n.to(mask.device, torch.float32).clamp_min(1.0)
         return mask.sum().clamp_min(1.0)
 
     def _epsilon_hat(self) -> float:
         t = self.step_count - self.normalizer_steps + 1  # this optimizer step, 1-based
-        return keras_epsilon(float(self.tc["adam_epsilon"] or 1e-7), self.opt.param_groups[0]["betas"][1], t)
+        return keras_epsilon(self.tc.adam_epsilon or 1e-7, self.opt.param_groups[0]["betas"][1], t)
 
     def _pushforward_probability(self) -> float:
         """``train.pushforward`` from ``train.pushforward_start`` on (and never while only the normalizers learn)."""
@@ -219,9 +219,7 @@ class Trainer:
 
     def learning_rate(self, step: int) -> float:
         tc = self.tc
-        lr0 = float(tc["lr"])
-        return learning_rate(step, self.steps, lr0, float(tc["lr_final"] or lr0), tc["lr_decay_steps"],
-                             float(tc["lr_decay_rate"]))
+        return learning_rate(step, self.steps, tc.lr, tc.lr_final or tc.lr, tc.lr_decay_steps, tc.lr_decay_rate)
 
     def step(self, graph, tgt, mask) -> tuple[float, float]:
         """One training step (normalizer statistics only during the first ``normalizer_steps``): (loss, lr)."""
@@ -229,11 +227,11 @@ class Trainer:
         graph, tgt, mask = graph.to(self.device), tgt.to(self.device), mask.to(self.device)
         tc, warmup = self.tc, self.step_count < self.normalizer_steps
         # the authors' loop (run_model.py) accumulates only the node normalizer while warming up
-        accumulate = not (warmup and tc["normalizer_warmup"] == "nodes") and not self.frozen_normalizers
+        accumulate = not (warmup and tc.normalizer_warmup == "nodes") and not self.frozen_normalizers
         with torch.autocast(self.device.type, dtype=torch.bfloat16, enabled=self.bf16):
             if not accumulate and not self.frozen_normalizers:
                 self.model.node_normalizer.accumulate(graph.node_features, graph.node_mask)
-            elif accumulate and tc["mesh_edges_twice"] and graph.level_edges:  # the authors' HCMT: level 0 twice
+            elif accumulate and tc.mesh_edges_twice and graph.level_edges:  # the authors' HCMT: level 0 twice
                 self.model.mesh_normalizer.accumulate(graph.mesh_features, graph.mesh_mask)
             if self.pad is None:
                 pred = self.net(graph, accumulate=accumulate)
@@ -248,7 +246,7 @@ class Trainer:
         if not warmup:
             for group in self.opt.param_groups:
                 group["lr"] = lr
-                if tc["adam_epsilon_hat"]:  # TF/Keras Adam's ε̂ (see _epsilon_hat)
+                if tc.adam_epsilon_hat:  # TF/Keras Adam's ε̂ (see _epsilon_hat)
                     group["eps"] = self._epsilon_hat()
             self.opt.zero_grad(set_to_none=True)
             loss.backward()
@@ -280,14 +278,14 @@ class Trainer:
 
     def run(self, stop_at: int | None = None) -> dict:
         tc, rank = self.tc, self.rank
-        log_every, ckpt_every = int(tc["log_every"]), int(tc["checkpoint_every"])
-        valid_every = int(tc["valid_every"])
+        log_every, ckpt_every = tc.log_every, tc.checkpoint_every
+        valid_every = tc.valid_every
         end = self.steps if stop_at is None else min(self.steps, int(stop_at))
         bar = tqdm(total=self.steps, initial=self.step_count, disable=not self.progress or rank != 0,
                    desc=f"train {self.model_name}", dynamic_ncols=True,
                    mininterval=0.1 if sys.stderr.isatty() else 30.0)
-        workers = int(tc["workers"])
-        sampler = StepSampler(self.frames, int(tc["batch_size"]), self.seed, self.step_count, end, self.world,
+        workers = tc.workers
+        sampler = StepSampler(self.frames, tc.batch_size, self.seed, self.step_count, end, self.world,
                               rank)
         pushforward = (lambda key: self.frames.pushforward_item(key, self.model, self._pushforward_probability())
                        ) if self.pushforward > 0 else None

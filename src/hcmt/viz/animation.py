@@ -16,6 +16,7 @@ from matplotlib import colors
 from matplotlib.cm import ScalarMappable
 from PIL import Image
 
+from hcmt.errors import InputError
 from hcmt.files import atomic_path
 from hcmt.viz.contours import field_label, field_name, field_values, view_box
 from hcmt.viz.meshplot import (box_3d, closest_pair, draw_field_2d, draw_field_3d, extend_of, impact_window, new_figure,
@@ -28,7 +29,7 @@ def animation_frames(num_frames: int, stride: int | None = None, max_frames: int
     if stride is None:  # the last frame is added below, so at most max_frames - 1 strides fit
         stride = 1 if num_frames <= max_frames else int(np.ceil((num_frames - 1) / (max_frames - 1)))
     if stride < 1:
-        raise ValueError(f"stride must be >= 1, got {stride}")
+        raise InputError(f"stride must be >= 1, got {stride}")
     frames = list(range(0, num_frames, stride))
     if frames[-1] != num_frames - 1:
         frames.append(num_frames - 1)
@@ -38,7 +39,7 @@ def animation_frames(num_frames: int, stride: int | None = None, max_frames: int
 def animation_norm(case: Case, field: str, percentile: float = 99.0) -> tuple[colors.Normalize, str]:
     """The fixed colour scale: [0 or min, ``percentile`` of the ground truth over every frame]."""
     if not 0 < percentile <= 100:
-        raise ValueError(f"percentile must be in (0, 100], got {percentile}")
+        raise InputError(f"percentile must be in (0, 100], got {percentile}")
     truth = np.stack([field_values(case.truth, f, field) for f in range(case.num_frames)])
     truth = truth[np.isfinite(truth)]
     lo = 0.0 if truth.min() >= 0 else float(truth.min())
@@ -65,9 +66,9 @@ def animate(case: Case, path: str | Path, *, fps: int = 10, stride: int | None =
     (blitting), which makes a frame about ten times cheaper than redrawing the figure."""
     path = Path(path)
     if path.suffix.lower() != ".gif":
-        raise ValueError(f"{path}: expected a .gif file name (animations are written with Pillow)")
+        raise InputError(f"{path}: expected a .gif file name (animations are written with Pillow)")
     if fps <= 0:
-        raise ValueError(f"fps must be > 0, got {fps}")
+        raise InputError(f"fps must be > 0, got {fps}")
     path.parent.mkdir(parents=True, exist_ok=True)
     field = field_name(case)
     norm, extend = animation_norm(case, field, percentile)

@@ -31,6 +31,7 @@ from matplotlib import colors
 
 import torch
 
+from hcmt.errors import InputError
 from hcmt.data.format import NodeType, Split
 from hcmt.graph.hierarchy import hierarchy_cache_dir
 from hcmt.inference.run import Run
@@ -64,7 +65,7 @@ def attention_matrix(weights, edges, num_nodes: int) -> sp.csr_matrix:
     w = np.asarray(weights.detach().cpu().numpy() if hasattr(weights, "detach") else weights, np.float64)
     e = np.asarray(edges.detach().cpu().numpy() if hasattr(edges, "detach") else edges, np.int64)
     if w.shape[0] != e.shape[1]:
-        raise ValueError(f"{w.shape[0]} weights for {e.shape[1]} edges")
+        raise InputError(f"{w.shape[0]} weights for {e.shape[1]} edges")
     w = w.reshape(len(w), -1).mean(1)
     return sp.coo_matrix((w, (e[1], e[0])), shape=(num_nodes, num_nodes)).tocsr()
 
@@ -103,7 +104,7 @@ def frame_attention(run: Run, data: str | Path, split: str = "test", trajectory:
                     frame: int | None = None) -> AttentionMaps:
     """Attention maps of a run's model on one ground-truth frame (default: the impact, :func:`default_frame`)."""
     if not REGISTRY[run.info["model"]["name"]].has_attention:
-        raise ValueError(f"{run.label} has no attention to show (MeshGraphNets is not a Transformer); use an HCMT "
+        raise InputError(f"{run.label} has no attention to show (MeshGraphNets is not a Transformer); use an HCMT "
                          "or GT run")
     adapter = run.adapter
     levels, remesh = run.hierarchy_spec
@@ -118,7 +119,7 @@ def frame_attention(run: Run, data: str | Path, split: str = "test", trajectory:
     if frame is None:
         frame = default_frame(world.numpy(), obj, h)
     if not h <= frame <= T - 2:
-        raise ValueError(f"frame {frame} out of range: a graph needs frames {h}..{T - 2} of trajectory {traj.name} "
+        raise InputError(f"frame {frame} out of range: a graph needs frames {h}..{T - 2} of trajectory {traj.name} "
                          f"(the previous frame as input, the next one for prescribed nodes)")
     graph = input_graph(traj, world[frame], world[frame - h], world[frame + 1], run.radius)
     level_nodes = [np.asarray(v) for v in traj.hierarchy.nodes[1:]]
@@ -158,7 +159,7 @@ def attention_figure(maps: AttentionMaps, panels: list[tuple[str, str]] | None =
     a row sum to 1; a log scale shows the spread of small weights and the few large ones alike)."""
     panels = panels or default_panels(maps)
     if not panels:
-        raise ValueError("no attention blocks to draw")
+        raise InputError("no attention blocks to draw")
     cols = min(columns, len(panels))
     rows = int(np.ceil(len(panels) / cols))
     fig = new_figure(3.3 * cols + 1.0, 3.8 * rows + 0.6)

@@ -21,6 +21,7 @@ import numpy as np
 from matplotlib import colors
 from matplotlib.patches import Rectangle
 
+from hcmt.errors import InputError
 from hcmt.inference.metrics import step_rmse
 
 from hcmt.viz.meshplot import (box_3d, draw_field_2d, draw_field_3d, extend_of, field_limits, impact_window, new_figure,
@@ -39,11 +40,11 @@ def field_values(series: Series, frame: int, field: str) -> np.ndarray:
     """Nodal values [N] of ``field`` at ``frame``: the stress, or the displacement magnitude from frame 0."""
     if field == "stress":
         if series.stress is None:
-            raise ValueError(f"{series.label} has no stress; draw field='displacement' instead")
+            raise InputError(f"{series.label} has no stress; draw field='displacement' instead")
         return np.asarray(series.stress[frame]).reshape(-1)
     if field == "displacement":
         return np.linalg.norm(series.world_pos[frame] - series.world_pos[0], axis=-1)
-    raise ValueError(f"unknown field {field!r}; expected 'stress' or 'displacement'")
+    raise InputError(f"unknown field {field!r}; expected 'stress' or 'displacement'")
 
 
 def field_label(case: Case, field: str) -> str:
@@ -64,7 +65,7 @@ def check_frames(case: Case, frames: list[int]) -> list[int]:
     for f in frames:
         f = int(f)
         if not -case.num_frames <= f < case.num_frames:
-            raise ValueError(f"frame {f} out of range; trajectory {case.name} has frames 0..{case.num_frames - 1}")
+            raise InputError(f"frame {f} out of range; trajectory {case.name} has frames 0..{case.num_frames - 1}")
         out.append(f % case.num_frames)
     return out
 
@@ -119,7 +120,7 @@ def contour_figure(case: Case, frames: list[int] | None = None, *, field: str | 
     frames = check_frames(case, frames if frames is not None else default_frames(case))
     field = field or field_name(case)
     if scale not in SCALES:
-        raise ValueError(f"scale must be one of {SCALES}, got {scale!r}")
+        raise InputError(f"scale must be one of {SCALES}, got {scale!r}")
     norms = ([shared_norm(case, [f], field) for f in frames] if scale == "frame"
              else [shared_norm(case, frames, field)] * len(frames))
     series = case.series
@@ -128,10 +129,10 @@ def contour_figure(case: Case, frames: list[int] | None = None, *, field: str | 
     obj = case.object_id
     if zoom:
         if three_d:
-            raise ValueError("the zoomed view is for 2-D scenes; this dataset is 3-D")
+            raise InputError("the zoomed view is for 2-D scenes; this dataset is 3-D")
         windows = [impact_window(case.truth.world_pos[f], obj, case.truth.world_pos[0]) for f in frames]
         if any(w is None for w in windows):
-            raise ValueError(f"trajectory {case.name} has a single object: there is no impact to zoom on")
+            raise InputError(f"trajectory {case.name} has a single object: there is no impact to zoom on")
     else:
         windows = [view_box(case, frames)] * rows
     w, h = panel_size(windows[0], panel_width) if not three_d else (panel_width, panel_width * 0.8)

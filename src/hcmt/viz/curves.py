@@ -14,6 +14,7 @@ from pathlib import Path
 import h5py
 import numpy as np
 
+from hcmt.errors import InputError
 from hcmt.data.format import Split, read_meta
 from hcmt.inference.metrics import SCALE, step_rmse
 from hcmt.viz.meshplot import new_figure, save_figure
@@ -41,7 +42,7 @@ def rollout_errors(runs: list[Run | RunFolder], data: str | Path, split: str = "
     with Split(data, split, meta) as s:
         names = [n for n in s.names if n in names]
         if not names:
-            raise ValueError(f"the runs' rollout files ({', '.join(map(str, paths))}) share no trajectory of split "
+            raise InputError(f"the runs' rollout files ({', '.join(map(str, paths))}) share no trajectory of split "
                              f"{split!r}; roll them out on the same data")
         truths = {n: s[s.names.index(n)] for n in names}
     for label, path in zip(labels, paths):
@@ -117,7 +118,7 @@ def read_log(run: str | Path) -> tuple[dict[str, np.ndarray], dict[str, np.ndarr
         try:
             rec = json.loads(line)
         except json.JSONDecodeError:
-            raise ValueError(f"{path}, line {number}: not JSON ({line[:60]!r})") from None
+            raise InputError(f"{path}, line {number}: not JSON ({line[:60]!r})") from None
         (train if "loss" in rec else valid)[int(rec["step"])] = rec
     def columns(recs):
         steps = sorted(recs)

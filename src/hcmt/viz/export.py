@@ -28,6 +28,7 @@ from pathlib import Path
 import meshio
 import numpy as np
 
+from hcmt.errors import InputError
 from hcmt.files import atomic_path
 from hcmt.viz.rollouts import Case, Series
 
@@ -86,10 +87,10 @@ def write_pvd(path: Path, files: list[Path], times: list[float]) -> Path:
 def export_case(case: Case, out_dir: str | Path, fmt: str = "vtu", frames: list[int] | None = None) -> list[Path]:
     """Write every series of ``case`` as a time series; returns the files to open (``.pvd`` or ``.xdmf``)."""
     if fmt not in FORMATS:
-        raise ValueError(f"format must be one of {FORMATS}, got {fmt!r}")
+        raise InputError(f"format must be one of {FORMATS}, got {fmt!r}")
     cell_type = _CELL_TYPES.get(case.cells.shape[1])
     if cell_type is None:
-        raise ValueError(f"cells with {case.cells.shape[1]} vertices; export handles triangles and tetrahedra")
+        raise InputError(f"cells with {case.cells.shape[1]} vertices; export handles triangles and tetrahedra")
     out_dir = Path(out_dir).resolve()
     out_dir.mkdir(parents=True, exist_ok=True)
     frames = list(range(case.num_frames)) if frames is None else [int(f) for f in frames]

@@ -19,6 +19,7 @@ import numpy as np
 from matplotlib.lines import Line2D
 from mpl_toolkits.mplot3d.art3d import Line3DCollection
 
+from hcmt.errors import InputError
 from hcmt.data.format import NodeType
 from hcmt.graph.hierarchy import Hierarchy
 from hcmt.graph.quality import quality_summary
@@ -81,10 +82,10 @@ def _view(mesh_pos: np.ndarray, hierarchy: Hierarchy, zoom: bool):
     pos0 = np.asarray(mesh_pos, np.float64)
     three_d = pos0.shape[1] == 3
     if zoom and three_d:
-        raise ValueError("the zoomed view is for 2-D meshes")
+        raise InputError("the zoomed view is for 2-D meshes")
     box = impact_window(pos0, hierarchy.object_id) if zoom else (None if three_d else scene_box(pos0))
     if box is None and not three_d:
-        raise ValueError("a single object: there is no impact to zoom on")
+        raise InputError("a single object: there is no impact to zoom on")
     return pos0, three_d, box
 
 
@@ -95,7 +96,7 @@ def level_figure(mesh_pos: np.ndarray, hierarchy: Hierarchy, *, levels: list[int
     levels = list(range(hierarchy.levels + 1)) if levels is None else [int(l) for l in levels]
     for l in levels:
         if not 0 <= l <= hierarchy.levels:
-            raise ValueError(f"level {l} out of range; the hierarchy has levels 0..{hierarchy.levels}")
+            raise InputError(f"level {l} out of range; the hierarchy has levels 0..{hierarchy.levels}")
     pos0, three_d, box = _view(mesh_pos, hierarchy, zoom)
     colours = object_colours(hierarchy.object_id)
     cols = min(columns, len(levels))
@@ -126,9 +127,9 @@ def remeshing_figure(mesh_pos: np.ndarray, hierarchy: Hierarchy, *, zoom: bool =
     """Each level ``1..λ`` before (2-hop edges of the pooled nodes) and after Delaunay remeshing (Fig. 10); the
     pooled nodes are the black dots. Needs a hierarchy built with ``remesh=True``."""
     if not hierarchy.remesh:
-        raise ValueError("this hierarchy was built without remeshing; build it with remesh=True to compare")
+        raise InputError("this hierarchy was built without remeshing; build it with remesh=True to compare")
     if hierarchy.levels < 1:
-        raise ValueError("the hierarchy has no pooled level (levels=0): nothing was remeshed")
+        raise InputError("the hierarchy has no pooled level (levels=0): nothing was remeshed")
     pos0, three_d, box = _view(mesh_pos, hierarchy, zoom)
     colours = object_colours(hierarchy.object_id)
     k_cell = hierarchy.cells[0].shape[1]

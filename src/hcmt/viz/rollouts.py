@@ -13,7 +13,7 @@ from pathlib import Path
 import h5py
 import numpy as np
 
-from hcmt.data.errors import DatasetError
+from hcmt.errors import DatasetError, InputError
 from hcmt.data.format import Split, read_meta
 from hcmt.graph.contact import object_ids
 from hcmt.inference.evaluate import rollout_file
@@ -95,12 +95,12 @@ def trajectory_index(names: list[str], trajectory: int | str) -> int:
     """Position of a trajectory given by index (``0``, ``-1``) or by name (``traj_00003``)."""
     if isinstance(trajectory, str) and not trajectory.lstrip("-").isdigit():
         if trajectory not in names:
-            raise ValueError(f"trajectory {trajectory!r} is not in the split; it has {names[:5]}"
+            raise InputError(f"trajectory {trajectory!r} is not in the split; it has {names[:5]}"
                              + (" ..." if len(names) > 5 else ""))
         return names.index(trajectory)
     i = int(trajectory)
     if not -len(names) <= i < len(names):
-        raise ValueError(f"trajectory index {i} out of range; the split has {len(names)} trajectories")
+        raise InputError(f"trajectory index {i} out of range; the split has {len(names)} trajectories")
     return i % len(names)
 
 

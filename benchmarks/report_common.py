@@ -1,0 +1,105 @@
+"""What every docs/RESULTS.md section shares (benchmarks/report.py and its report_* modules): reading the result files,
+formatting mean ± std, and the rules that choose the report's judging words.
+
+Every judging phrase of the report ("ahead", "faster", "not reproduced", "the clearest effect", ...) is chosen by a
+comparison of the numbers it prints, by the rules below. A fact that no result file holds (the paper's numbers, the
+machine, the goals of an issue) is a named constant here or in its section's module."""
+from __future__ import annotations
+
+import json
+
+from common import RESULTS
+
+# The paper's numbers, quoted for comparison.
+PAPER_RATIO = {"position": 0.51, "stress": 0.41}  # Table 2, HCMT ÷ MGN RMSE-all
+PAPER_STEPS = 2_000_000  # training steps
+PAPER_TRAJECTORIES = 2_000  # training trajectories
+PAPER_WIDTH = 128  # hidden size
+PAPER_SIGMA_MM = 0.003  # Table 8's training noise σ, Impact Plate
+PAPER_LEVELS = [2208, 1108, 559, 285, 148, 78, 42]  # Table 6, nodes per level
+PAPER_QUALITY = {"jacobian": (0.32, 0.51), "min_angle": (16.7, 27.2), "max_angle": (120.4, 99.4)}  # Table 7
+PAPER_TRAIN_MS = (51.12, 51.56)  # GPU ms per training step, as quoted (Table 10 / Appendix E)
+PAPER_SPEEDUP = 176  # HCMT against ANSYS
+PAPER_ANSYS_MS = 14_280  # ANSYS, ms per step
+PAPER_WORST_ABLATION = "only-hmt"  # the worst variant of Table 3
+
+# This project's fixed facts.
+MACHINE = "2-core CPU"  # the development machine (no GPU)
+SHIPPED_STEPS = 36_000  # training steps of the shipped model (docs/MODELS.md)
+GOAL_NODES = 250_000  # issue "Fast on a GPU": the mesh size a GPU step should take
+# issue "Fast on a GPU": (goal, threshold, larger is better)
+GOALS = (("≥ 40× for one paper design", 40, True), ("≥ 400× for a 64-design sweep", 400, True),
+         ("≤ 12 ms per paper-size train step", 12, False), ("≥ 1,000 samples/s", 1000, True),
+         ("≤ 3 ms inference", 3, False))
+
+# The rules.
+SAME_SIZE = 2.0  # "of the same size": largest ÷ smallest below this factor
+ABOUT = 1.25  # "about as large as": within this factor
+TINY = 0.01  # "tiny next to the paper's": below this fraction of its budget
+PEAK_GOAL_PCT = 5.0  # the shipped model's peak plate stress goal (median error, issue "Impact physics")
+
+
+def load(name):
+    path = RESULTS / name
+    return json.loads(path.read_text()) if path.is_file() else None
+
+
+def pm(ms, digits=4):
+    return f"{ms['mean']:.{digits}g} ± {ms['std']:.2g}"
+
+
+def opened(lines, heading, *names):
+    """The result files ``names`` (one: itself), with the section's heading written first; None, and nothing written,
+    where one is missing."""
+    got = [load(n) for n in names]
+    if not all(got):
+        return None
+    lines += [heading, ""]
+    return got[0] if len(got) == 1 else got
+
+
+def separated(a, b) -> bool:
+    """Two mean ± std entries differ by more than the larger of the two stds over seeds."""
+    return abs(a["mean"] - b["mean"]) > max(a["std"], b["std"])
+
+
+def worse(x, y, key, larger_better=False) -> bool:
+    """x's mean of ``key`` is worse than y's by more than the larger std over seeds."""
+    return separated(x[key], y[key]) and (x[key]["mean"] < y[key]["mean"]) == larger_better
+
+
+def ratio(a, b, q, key="rmse_all") -> float:
+    """a's mean error of quantity ``q`` over b's."""
+    return a[q][key]["mean"] / b[q][key]["mean"]
+
+
+def on_gpu(device) -> bool:
+    return bool(device) and not str(device).lower().startswith("cpu")
+
+
+def gpu_check_ran() -> bool:
+    d = load("gpu_check.json")
+    return bool(d) and not d.get("smoke")
+
+
+def reached(value, threshold, larger_better) -> bool:
+    return value >= threshold if larger_better else value <= threshold
+
+
+def said(names: list[str]) -> str:
+    return names[0] if len(names) == 1 else ", ".join(names[:-1]) + " and " + names[-1]
+
+
+def keeps_up(p) -> bool:
+    """propagation.json, one preset: MGN's hops per step reach as far as the stress front moves per frame."""
+    return p["median"]["front_hops_per_frame"] <= p["models"]["mgn_gt_hops_per_step"]
+
+
+def hcmt_keeps_up(p) -> bool:
+    """The same for HCMT's reach per step."""
+    return p["median"]["front_hops_per_frame"] <= p["models"]["hcmt"]["hops_per_step"]
+
+
+def sentences(*parts: str) -> str:
+    """Short sentences into one paragraph; empty parts are left out."""
+    return " ".join(p for p in parts if p)

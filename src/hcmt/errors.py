@@ -1,0 +1,33 @@
+"""The library's exceptions for bad input: the ground floor, below everything that raises them.
+
+An :class:`InputError` is a mistake its caller can fix (a value, a file, a design); it names the parameter at fault
+(``param``), so that ``hcmt`` can print the command-line flag of that parameter instead (``batch`` -> ``--batch``)
+and exit 2 with one line. Any other exception is a bug and keeps its traceback.
+"""
+from __future__ import annotations
+
+
+class InputError(ValueError):
+    """Bad input, one line: ``param message`` (``batch must be >= 1, got 0``; ``param`` is the Python API's
+    parameter name, or None when the message names its file or key itself). A ``ValueError``, so
+    ``except ValueError`` still catches it."""
+
+    def __init__(self, message: str, *, param: str | None = None):
+        self.param, self.detail = param, message
+        super().__init__(f"{param} {message}" if param else message)
+
+    def worded(self, name: str | None) -> str:
+        """The message with the parameter called ``name`` (a flag: ``--batch must be >= 1, got 0``) instead of
+        its API name; unchanged for None."""
+        return f"{name} {self.detail}" if name and self.param else str(self)
+
+
+class DatasetError(InputError):
+    """Bad input data: names the file, trajectory and field at fault and what was expected."""
+
+    def __init__(self, message: str, *, file=None, trajectory=None, field=None):
+        where = ", ".join(
+            f"{k} {v!s}" for k, v in (("file", file), ("trajectory", trajectory), ("field", field)) if v is not None
+        )
+        super().__init__(f"{where}: {message}" if where else message)
+        self.file, self.trajectory, self.field = file, trajectory, field

@@ -22,6 +22,7 @@ import sys
 import time
 from pathlib import Path
 
+import numpy as np
 import torch
 
 HERE = Path(__file__).resolve().parent
@@ -31,9 +32,20 @@ sys.path.insert(0, str(HERE))
 from bench_models import _step_fn, _sync, impact_plate_graph  # noqa: E402
 from speed import _one  # noqa: E402
 
-from hcmt.files import atomic_path
+from hcmt.config import load_config  # noqa: E402
+from hcmt.data.runs import RunFolder  # noqa: E402
+from hcmt.design.check import check_designs  # noqa: E402
+from hcmt.files import atomic_path  # noqa: E402
 from hcmt.graph.batch import collate  # noqa: E402
+from hcmt.graph.build import frame_graph  # noqa: E402
+from hcmt.graph.hierarchy import build_hierarchy  # noqa: E402
+from hcmt.inference.evaluate import evaluate  # noqa: E402
+from hcmt.inference.run import Run  # noqa: E402
 from hcmt.physics.adapters import build_for_dataset, dataset_spec  # noqa: E402
+from hcmt.sim.generate import generate_dataset  # noqa: E402
+from hcmt.sim.mesh import impact_plate_mesh  # noqa: E402
+from hcmt.sim.scene import Settings, sample_design  # noqa: E402
+from hcmt.training import train  # noqa: E402
 
 
 class Check:
@@ -65,8 +77,8 @@ class Check:
 
 
 def cuda_tests(c: Check) -> dict:
-    r = subprocess.run([sys.executable, "-m", "pytest", "-q", "-k", "cuda", "tests/test_train.py",
-                        "tests/test_models_invariants.py", "-p", "no:cacheprovider"], cwd=ROOT, capture_output=True,
+    r = subprocess.run([sys.executable, "-m", "pytest", "-q", "-k", "cuda", "tests/training/test_train.py",
+                        "tests/models/test_models_invariants.py", "-p", "no:cacheprovider"], cwd=ROOT, capture_output=True,
                        text=True, timeout=max(c.left(), 10))
     lines = [l for l in r.stdout.splitlines() if "passed" in l or "failed" in l or "skipped" in l or "FAILED" in l]
     return {"returncode": r.returncode, "lines": lines[-12:]}
@@ -87,9 +99,6 @@ def _timed(fn, device, reps: int, warmup: int) -> float:
 
 def _graph(c: Check):
     if c.smoke:
-        from hcmt.graph.build import frame_graph
-        from hcmt.graph.hierarchy import build_hierarchy
-        from hcmt.sim.mesh import impact_plate_mesh
 
         mesh = impact_plate_mesh(0.75, 3.5, 0.4, plate_half_length=8.0)
         h = build_hierarchy(mesh["mesh_pos"], mesh["cells"], mesh["node_type"], levels=2)
@@ -145,11 +154,7 @@ def train_step(c: Check) -> dict:
 
 
 def rollout_vs_solver(c: Check) -> dict:
-    from hcmt.sim.scene import sample_design
-    from hcmt.design.check import check_designs
-    from hcmt.inference.run import Run
 
-    import numpy as np
 
     run = Run.load("pretrained:impact_plate_small", str(c.device))
     rng = np.random.default_rng(7)
@@ -185,34 +190,35 @@ def memory(c: Check) -> dict:
 
 def _generate(c: Check, out: Path) -> Path:
     data = out / "data"
-    if not (data / "test.h5").is_file():
-        counts = ["--train", "2", "--valid", "1", "--test", "1", "--frames", "6"] if c.smoke else \
-            ["--train", "128", "--valid", "8", "--test", "16", "--frames", "90"]
-        subprocess.run([sys.executable, "-m", "hcmt", "generate", "impact-plate", str(data), "--preset", "small",
-                        "--seed", "5", "--workers", str(max(os.cpu_count() or 1, 1)), "--no-progress", *counts],
-                       check=True, capture_output=True)
+    if not (data / "test.h5").is_file():  # the generator resumes where it stopped
+        counts, frames = (dict(train=2, valid=1, test=1), 6) if c.smoke else (dict(train=128, valid=8, test=16), 90)
+        generate_dataset(data, preset="small", counts=counts, seed=5, workers=max(os.cpu_count() or 1, 1),
+                         settings=Settings(frames=frames), progress=False)
     return data
 
 
+def _overrides(c: Check) -> list[str]:
+    """The config overrides of this check's training runs (a tiny model for the smoke run)."""
+    size = ["model.hidden=16", "model.levels=1", "model.L_C=1", "model.blocks=3", "train.normalizer_steps=1"] \
+        if c.smoke else ["model.hidden=128"]
+    return ["train.valid_every=0", *size]
+
+
 def _train_args(c: Check, data: Path, model: str, seed: int, out: Path, steps: int, extra=()) -> list[str]:
-    size = ["--set", "model.hidden=16", "--set", "model.levels=1", "--set", "model.L_C=1", "--set",
-            "model.blocks=3", "--set", "train.normalizer_steps=1"] if c.smoke else ["--set", "model.hidden=128"]
+    """``hcmt train`` in its own process (the accuracy runs train four at once on the one device)."""
+    sets = [a for o in [*_overrides(c), *extra] for a in ("--set", o)]
     return [sys.executable, "-m", "hcmt", "train", "--config", "impact_plate_cpu", "--data", str(data), "--model",
             model, "--seed", str(seed), "--steps", str(steps), "--out", str(out), "--device", str(c.device),
-            "--no-progress", "--threads", "1", "--set", "train.valid_every=0", *size, *extra]
+            "--no-progress", "--threads", "1", *sets]
 
 
 def deterministic_resume(c: Check) -> dict:
     """A run stopped half-way and resumed ends with the parameters of one that never stopped
     (``train.deterministic``: exact on CUDA too)."""
-    from hcmt.config import load_config
-    from hcmt.training import train
 
     data = _generate(c, c.out / "mini")
     steps = 4 if c.smoke else 40
-    sets = _train_args(c, data, "hcmt", 0, c.out, steps)
-    overrides = [sets[i + 1] for i, x in enumerate(sets) if x == "--set"]
-    cfg = load_config("impact_plate_cpu", overrides + [f"train.steps={steps}", "train.deterministic=true",
+    cfg = load_config("impact_plate_cpu", _overrides(c) + [f"train.steps={steps}", "train.deterministic=true",
                                                        f"train.checkpoint_every={steps // 2}"])
     once, twice = c.out / "det_once", c.out / "det_twice"
     for run in (once, twice):
@@ -221,8 +227,8 @@ def deterministic_resume(c: Check) -> dict:
     train(cfg, data, "hcmt", once, device=str(c.device), progress=False)
     train(cfg, data, "hcmt", twice, device=str(c.device), progress=False, stop_at=steps // 2)
     train(cfg, data, "hcmt", twice, device=str(c.device), progress=False, resume=True)
-    a = torch.load(once / "checkpoint.pt", weights_only=True)["model"]
-    b = torch.load(twice / "checkpoint.pt", weights_only=True)["model"]
+    a = torch.load(RunFolder(once).latest, weights_only=True)["model"]
+    b = torch.load(RunFolder(twice).latest, weights_only=True)["model"]
     diff = max(float((a[k].float() - b[k].float()).abs().max()) for k in a)
     return {"steps": steps, "max_abs_difference": diff, "exact": diff == 0.0}
 
@@ -236,14 +242,12 @@ def accuracy(c: Check) -> dict:
     for model in ("hcmt", "mgn"):
         for seed in (0, 1):
             out = c.out / f"acc_{model}_s{seed}"
-            extra = ["--set", "model.attention=official"] if model == "hcmt" else []
+            extra = ["model.attention=official"] if model == "hcmt" else []
             procs.append(subprocess.Popen(_train_args(c, data, model, seed, out, steps, extra),
                                           stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL))
             runs.append((model, seed, out))
     for p in procs:
         p.wait(timeout=max(c.left(), 10))
-    from hcmt.inference.evaluate import evaluate
-    from hcmt.inference.run import Run
 
     rows = []
     for model, seed, out in runs:

@@ -188,11 +188,11 @@ class Trainer:
             self.opt.load_state_dict(state["optimizer"])
         except (KeyError, RuntimeError, ValueError) as exc:
             raise InputError(f"{self.ckpt_path}: the checkpoint does not fit this run's model or optimizer "
-                             f"({exc.__class__.__name__}); --resume continues the run that wrote it") from None
+                             f"({exc.__class__.__name__}); resuming continues only the run that wrote it") from None
         self.step_count, self.best = int(state["step"]), float(state["best"])
         if self.step_count > self.steps:
-            raise InputError(f"{self.out}: --resume with train.steps {self.steps}, but the run has done "
-                             f"{self.step_count} steps; a run only grows (give --steps >= the steps done)")
+            raise InputError(f"{self.out}: train.steps {self.steps} is fewer than the {self.step_count} steps the run "
+                             "has done; a run only grows (train.steps, --steps in hcmt train, >= the steps done)")
         log = self.folder.log
         if self.rank == 0 and log.is_file():  # drop what was logged after the checkpoint: no duplicate steps
             kept = [l for l in log.read_text().splitlines() if l and json.loads(l)["step"] <= self.step_count]

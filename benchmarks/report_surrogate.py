@@ -19,9 +19,10 @@ NOTE_GOAL = 0.80
 OUTSIDE = [k for k in SETS if k != "in_range"]  # the held-out designs outside the training ranges, by name
 NO_CANDIDATE = 10.0  # a read-out whose median peak error is this many times the default's is no candidate
 POSITION_ERROR_MM = 1e-3  # a micrometre
-READOUT = ("The response surface predicts when the solver's ball leaves (`contact_end_ms`) and its upper 95 % bound "
-           "ends the window. After it, the plate's stress is its free-vibration bending stress `k E t w_max / R²` from "
-           "the predicted deflection (hcmt.design.readout).")
+BOUND_WORDS = {"lo": "lower 95 % bound", "mean": "mean", "hi": "upper 95 % bound"}
+READOUT = ("The response surface predicts when the solver's ball leaves (`contact_end_ms`); its {bound} ends the "
+           "window (`CONTACT_END_BOUND`). After it, the plate's stress is its free-vibration bending stress "
+           "`k E t w_max / R²` from the predicted deflection (hcmt.design.readout).")
 
 
 def _err(v: dict | None) -> str:
@@ -177,10 +178,13 @@ def ghost(lines: list[str], r: dict) -> None:
               f"{g['solver_median']:.2f}):", "",
               "| read-out | ghost difference (all / in range) | peak frames where the solver's ball is gone and its plate "
               "unloaded | peak plate stress error, median / worst |", "|---|---|---|---|"]
+    bound = g.get("bound", "hi")
+    other = "hi" if bound != "hi" else "lo"
     names = {"learned": "learned head, every frame (hcmt 0.1)", "contact_own": "contact window of the model's own ball",
-             "contact": "contact window bounded by the GP's contact end (default)",
+             "contact": f"contact window ended at the GP's {BOUND_WORDS[bound]} of the contact end (default)",
+             "contact_upper": f"contact window ended at the GP's {BOUND_WORDS[other]} of the contact end",
              "element": "element law on predicted positions"}
-    for key in ("learned", "contact_own", "contact", "element"):
+    for key in [k for k in ("learned", "contact_own", "contact_upper", "contact", "element") if k in g]:
         v = g[key]
         bad = v["peaks_where_solver_unloaded"]
         lines.append(f"| {names[key]} | {v['median_abs_diff']:.3f} / {v['median_abs_diff_in_range']:.3f} | "
@@ -199,9 +203,27 @@ def ghost(lines: list[str], r: dict) -> None:
                                    f"learned one leaves a median {abs(lag['median']):.0f} frames "
                                    f"{'later' if late else 'earlier'} ({lag['min']} to {lag['max']}).",
                                    "The ghost's cause is kinematic: a window read from the model's own contact keeps "
-                                   f"its stress ({own['median_abs_diff']:.3f})." if kinematic else "", READOUT),
+                                   f"its stress ({own['median_abs_diff']:.3f})." if kinematic else "",
+                                   READOUT.format(bound=BOUND_WORDS[bound])),
               f"- Peaks read where the solver's plate is unloaded: {len(unloaded)} with the default read-out{which}."]
+    if "contact_upper" in g:
+        lines.append("- " + bound_choice(g, bound, other))
     lines += element(g) + [""]
+
+
+def bound_choice(g: dict, bound: str, other: str) -> str:
+    """Why the default bound: its unloaded peaks, ghost difference and peak error against the other bound's."""
+    mine, theirs = g["contact"], g["contact_upper"]
+    n_mine, n_theirs = (len(v["peaks_where_solver_unloaded"]) for v in (mine, theirs))
+    same = mine["peak_error"]["median_abs_pct"] == theirs["peak_error"]["median_abs_pct"] and \
+        mine["peak_error"]["worst_abs_pct"] == theirs["peak_error"]["worst_abs_pct"]
+    before = g.get("solver_peak_before_lower_end_frames")
+    return sentences(f"Ending the window at the {BOUND_WORDS[bound]} instead of the {BOUND_WORDS[other]}: "
+                     f"{n_mine} peaks where the solver's plate is unloaded instead of {n_theirs}, ghost difference "
+                     f"{mine['median_abs_diff']:.3f} instead of {theirs['median_abs_diff']:.3f}, peak errors "
+                     f"{'unchanged' if same else _err(mine['peak_error']) + ' instead of ' + _err(theirs['peak_error'])}.",
+                     f"The solver's peak came {before['min']}-{before['max']} frames before the GP's lower bound."
+                     if before else "")
 
 
 def element(g: dict) -> list[str]:

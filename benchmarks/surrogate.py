@@ -34,11 +34,11 @@ from hcmt.files import atomic_path
 from hcmt.design.check import Prediction, TRUSTS, call_of, check_designs, summarize, trusted_interval, verify_designs
 from hcmt.design.inputs import region_of, settings_of
 from hcmt.sim.scene import middle_design
-from hcmt.design.readout import READOUTS, contact_gap, contact_window, ghost_ratio, summarize_fields
+from hcmt.design.readout import CONTACT_END_BOUND, READOUTS, contact_gap, contact_window, ghost_ratio, summarize_fields
 from hcmt.design.surrogate import QUANTITIES, Z95, Surrogate, dataset_answers
 from hcmt.inference.metrics import plate_mask
 from hcmt.inference.run import Run
-from hcmt.sim.scene import DESIGN_KEYS, Design, sample_design
+from hcmt.sim.scene import Design, sample_design
 
 #: the issue's four thickness sweeps (drop height mm, yield MPa); two more get the solver's median peak as yield
 SWEEPS = [(600.0, 750.0), (600.0, 700.0), (800.0, 800.0), (800.0, 720.0), (700.0, None), (950.0, None)]
@@ -104,14 +104,17 @@ def design_sets(run) -> dict[str, list[tuple[str, Design]]]:
     return sets
 
 
-def record(p, t, frame_dt: float, end: float | None) -> dict:
+def record(p, t, frame_dt: float, end) -> dict:
     """What the study keeps of one design: its parameters, the solver's and the model's readings (every
-    read-out; ``contact`` with the GP's bound ``end`` on when the ball leaves, ``contact_own`` with the model's own
-    contact window alone), the contact windows and the time-of-peak comparison."""
+    read-out; ``contact`` with the GP's bound on when the ball leaves, ``end`` being the GP's interval and
+    :data:`CONTACT_END_BOUND` the bound; ``contact_upper`` with its upper bound; ``contact_own`` with the model's
+    own contact window alone), the contact windows and the time-of-peak comparison."""
     fields = p.fields()
     plate = plate_mask(p.cells, p.node_type)
     solver_window = contact_window(contact_gap(t.world_pos, t.mesh_pos, plate))
-    model = {r: summarize_fields(fields, frame_dt, r, p.wall_s, end if r == "contact" else None) for r in READOUTS}
+    model = {r: summarize_fields(fields, frame_dt, r, p.wall_s,
+                                 getattr(end, CONTACT_END_BOUND) if r == "contact" else None) for r in READOUTS}
+    model["contact_upper"] = summarize_fields(fields, frame_dt, "contact", p.wall_s, end.hi)
     model["contact_own"] = summarize_fields(fields, frame_dt, "contact", p.wall_s)
     solver_stress = t.summary["plate_stress_history_mpa"]
     unloaded = [not w and h < UNLOADED * t.summary["peak_plate_stress_mpa"]
@@ -130,6 +133,8 @@ def record(p, t, frame_dt: float, end: float | None) -> dict:
     out["contact_end_lag_frames"] = round((model["contact_own"]["contact_end_ms"] - truth["contact_end_ms"])
                                           / frame_dt)  # the learned ball leaves this much later
     out["solver_ball_leaves"] = truth["contact_end_ms"] < len(truth["plate_stress_history_mpa"]) * frame_dt - 1e-9
+    # how far the solver's peak lies before the GP's lower bound of when its ball leaves (frames)
+    out["solver_peak_before_lower_end_frames"] = int(np.floor(end.lo / frame_dt)) - truth["peak_plate_frame"]
     out["critical_node_history_correlation"] = p.summary["verify"]["critical_node_history_correlation"]
     out["model_wall_s"] = p.wall_s
     return out
@@ -156,7 +161,7 @@ def run_group(run, name: str, designs, work: Path, batch: int, frame_dt: float, 
             np.savez_compressed(f, **arrays)
         print(f"  {name}: {len(designs)} designs, model and solver, {time.perf_counter() - t0:.0f} s", flush=True)
     rows = []
-    ends = [iv["contact_end_ms"].hi for iv in gp.predict([d for _, d in designs])]
+    ends = [iv["contact_end_ms"] for iv in gp.predict([d for _, d in designs])]  # the GP's intervals
     with np.load(path) as z:
         for i, (n, d) in enumerate(designs):
             wall = z[f"{i}_wall"]
@@ -165,7 +170,7 @@ def run_group(run, name: str, designs, work: Path, batch: int, frame_dt: float, 
                               modulus=z[f"{i}_modulus"])
             t = Prediction(n, d, z[f"{i}_solver_pos"], z[f"{i}_solver_stress"], *static, float(wall[1]),
                               modulus=z[f"{i}_modulus"])
-            p.summary = summarize(p, frame_dt, "contact", ends[i])
+            p.summary = summarize(p, frame_dt, "contact", getattr(ends[i], CONTACT_END_BOUND))
             t.summary = summarize(t, frame_dt, "learned")
             verify_designs([p], [t])
             rows.append(record(p, t, frame_dt, ends[i]))
@@ -354,7 +359,10 @@ def main() -> None:
                                allheld) if x["model"][r]["peak_where_solver_unloaded"]],
                            "peak_error": errors([x["model"][r]["peak_plate_stress_mpa"] for x in allheld],
                                                 [x["solver"]["peak_plate_stress_mpa"] for x in allheld])}
-                       for r in (*READOUTS, "contact_own")}
+                       for r in (*READOUTS, "contact_upper", "contact_own")}
+    result["ghost"]["bound"] = CONTACT_END_BOUND
+    before = [x["solver_peak_before_lower_end_frames"] for x in allheld]
+    result["ghost"]["solver_peak_before_lower_end_frames"] = {"min": int(min(before)), "max": int(max(before))}
     result["ghost"]["designs"] = len(allheld)
     lags = [x["contact_end_lag_frames"] for x in allheld if x["solver_ball_leaves"]]
     result["ghost"]["contact_end_lag_frames"] = {"median": float(np.median(lags)), "min": int(min(lags)),

@@ -196,6 +196,45 @@ def test_the_contact_readout_takes_no_ghost_peak_and_relaxes_after_the_ball_leav
     assert contact["peak_plate_t95_frame"] == 4 and contact["contact_frames"][1] <= last
 
 
+def test_a_bound_on_when_the_ball_leaves_ends_the_window_of_a_lingering_learned_ball():
+    """A learned ball that lingers on the plate (frames 2-11) with a late hump (650 MPa at frame 8): the window
+    ends at the bound the check passes, so the hump is no peak when the bound lies before it."""
+    f = two_body()
+    f["world_pos"][6:, 4:, 1] = f["world_pos"][5, 4:, 1]  # the ball stays on the plate
+    f["stress"][8, 0, 0] = 650.0
+    lingering = ro.summarize_fields(f, 0.002, "contact")
+    assert lingering["peak_plate_stress_mpa"] == 650.0  # its own window holds the hump
+    early = ro.summarize_fields(f, 0.002, "contact", contact_end_ms=6 * 0.002)
+    late = ro.summarize_fields(f, 0.002, "contact", contact_end_ms=9 * 0.002)
+    assert early["peak_plate_stress_mpa"] == 500.0 and early["peak_plate_frame"] == 4
+    assert late["peak_plate_stress_mpa"] == 650.0
+    assert ro.CONTACT_END_BOUND in ("lo", "mean", "hi")
+
+
+def test_the_check_ends_the_window_at_the_surrogates_chosen_bound(monkeypatch):
+    """check_designs hands the readout the surrogate's CONTACT_END_BOUND (lower 95 % bound) of contact_end_ms."""
+    import hcmt.design.check as check_module
+
+    run = Run.load("pretrained:impact_plate_small", "cpu")
+    designs = [("a", design_for(run)), ("b", design_for(run, thickness=0.95))]
+    seen = {}
+
+    class Stop(Exception):
+        pass
+
+    def spy(run_, designs_, **kw):
+        seen.update(kw)
+        raise Stop
+
+    monkeypatch.setattr(check_module, "predict", spy)
+    with pytest.raises(Stop):
+        check_designs(run, designs, progress=False)
+    intervals = check_module.for_run(run, True)[0].predict([d for _, d in designs])
+    assert ro.CONTACT_END_BOUND == "lo"
+    assert seen["contact_end_ms"] == [iv["contact_end_ms"].lo for iv in intervals]
+    assert all(iv["contact_end_ms"].lo < iv["contact_end_ms"].hi for iv in intervals)
+
+
 def test_t95_is_the_first_frame_of_a_plateau():
     f = two_body()
     f["stress"][2:6, 0, 0] = [480.0, 499.0, 500.0, 490.0]  # a plateau: 480 >= 0.95 * 500

@@ -24,7 +24,7 @@ from tqdm import tqdm
 
 from hcmt.errors import InputError
 from hcmt.design.inputs import confidence, outside, range_warnings, settings_of
-from hcmt.design.readout import history_correlation, summarize_fields
+from hcmt.design.readout import CONTACT_END_BOUND, history_correlation, summarize_fields
 from hcmt.design.surrogate import Surrogate, for_run, side_by_side
 from hcmt.inference.metrics import impact_metrics, plate_mask, rollout_rmse, summarize_impact
 from hcmt.inference.rollout import rollout_batch
@@ -179,8 +179,8 @@ def check_designs(run, designs: list[tuple[str, Design]], *, batch: int = 8, ver
     cannot = [surrogate.cannot_take(d) if surrogate is not None else [] for _, d in designs]
     if intervals is not None:
         intervals = [None if c else iv for iv, c in zip(intervals, cannot)]
-    ends = [iv["contact_end_ms"].hi if iv and "contact_end_ms" in iv else None for iv in intervals] \
-        if intervals else None
+    ends = [getattr(iv["contact_end_ms"], CONTACT_END_BOUND) if iv and "contact_end_ms" in iv else None
+            for iv in intervals] if intervals else None
     t0 = time.perf_counter()
     preds = predict(run, designs, batch=batch, progress=progress, compile=compile, readout=readout,
                     contact_end_ms=ends)

@@ -35,7 +35,9 @@ def _read(name_or_path: str) -> dict:
         raise FileNotFoundError(f"config {name_or_path!r}: neither a file nor a built-in config "
                                 f"(built-in: {', '.join(builtin_configs())})")
     try:
-        data = yaml.safe_load(path.read_text()) or {}
+        data = yaml.safe_load(path.read_text(encoding="utf-8")) or {}
+    except UnicodeDecodeError:
+        raise InputError(f"config {path}: not a text file (not UTF-8)") from None
     except yaml.YAMLError as exc:
         mark = getattr(exc, "problem_mark", None)
         where = f" line {mark.line + 1}, column {mark.column + 1}" if mark else ""
@@ -61,7 +63,10 @@ def parse_value(raw: str):
             return kind(raw)
         except ValueError:
             pass
-    return yaml.safe_load(raw)
+    try:
+        return yaml.safe_load(raw)
+    except yaml.YAMLError as exc:
+        raise InputError(f"--set value {raw!r}: not a YAML value ({getattr(exc, 'problem', None) or exc})") from None
 
 
 def load_config(name_or_path: str, overrides: list[str] | None = None) -> "Config":
@@ -217,18 +222,25 @@ class Config:
         if not isinstance(cfg, dict):
             raise InputError(f"config {source}: expected a mapping of sections, got {type(cfg).__name__}")
         check_schema(cfg, source)
-        sections = {}
+        return cls(dataset=cfg.get("dataset"),
+                   **{name: cls_(**(cfg.get(name) or {})) for name, cls_ in SECTIONS.items()})
+
+    def __post_init__(self):
+        """However the Config was made (:meth:`from_dict`, or by hand from the section classes), every value is
+        checked against the schema and cast to its declared type."""
+        plain = self.to_dict()
+        check_schema(plain, "Config")
         for name, cls_ in SECTIONS.items():
-            given = cfg.get(name) or {}
-            sections[name] = cls_(**{k: (v if v is None or SCHEMA[name][k].kind not in _CAST
-                                         else _CAST[SCHEMA[name][k].kind](v)) for k, v in given.items()})
-        return cls(dataset=cfg.get("dataset"), **sections)
+            object.__setattr__(self, name, cls_(**{
+                k: v if v is None or SCHEMA[name][k].kind not in _CAST else _CAST[SCHEMA[name][k].kind](v)
+                for k, v in plain[name].items()}))
 
     def to_dict(self) -> dict:
         """Plain types (lists, not tuples) for YAML and ``torch.load(weights_only=True)``."""
         out = asdict(self)
-        ex = out["data"]["exclude_trajectories"]
-        out["data"]["exclude_trajectories"] = None if ex is None else list(ex)
+        ex = out["data"].get("exclude_trajectories")
+        if ex is not None:
+            out["data"]["exclude_trajectories"] = list(ex)
         return out
 
     def with_overrides(self, overrides: list[str] | None) -> "Config":
@@ -283,7 +295,7 @@ def _bounds(spec: Spec, value) -> str | None:
 def _unknown(key: str, known: list[str], source: str):
     close = difflib.get_close_matches(key, known, n=1, cutoff=0.6)
     hint = f"; did you mean {close[0]}?" if close else f"; known: {', '.join(known)}"
-    return ValueError(f"config {source}: {key}: unknown key{hint}")
+    return InputError(f"config {source}: {key}: unknown key{hint}")
 
 
 def check_schema(cfg: dict, source: str = "config") -> None:
@@ -293,6 +305,8 @@ def check_schema(cfg: dict, source: str = "config") -> None:
     for top, value in cfg.items():
         if top in TOP:
             kind, allowed = TOP[top]
+            if value is None:  # not set yet (Config.for_training refuses it)
+                continue
             if not _ok(kind, value) or (allowed and value not in allowed):
                 raise InputError(f"config {source}: {top}: got {value!r}; expected one of {', '.join(allowed)}")
             continue

@@ -22,6 +22,11 @@ class InputError(ValueError):
         return f"{name} {self.detail}" if name and self.param else str(self)
 
 
+class RolloutError(RuntimeError):
+    """A learned rollout whose predicted state became non-finite (the model diverged on this input): one line
+    naming the trajectory and the step, no traceback; not a bug of hcmt's."""
+
+
 class DatasetError(InputError):
     """Bad input data: names the file, trajectory and field at fault and what was expected."""
 

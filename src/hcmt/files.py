@@ -1,15 +1,28 @@
 """Files written safely, the ground floor every layer may use: :func:`atomic_path` (write to a temporary file, then
-rename: nothing half-written), :func:`take_lock` (one writer per run folder or study row) and :func:`ensure_space`
-(refuse a write the disk cannot hold, before HDF5 tries)."""
+rename: nothing half-written), :func:`take_lock` (one writer per run folder or study row), :func:`ensure_space`
+(refuse a write the disk cannot hold, before HDF5 tries) and :func:`read_json` (a damaged file is one line)."""
 from __future__ import annotations
 
 import errno
+import json
 import os
 import shutil
 import tempfile
 from contextlib import contextmanager
 from pathlib import Path
 from typing import Iterator
+
+from hcmt.errors import InputError
+
+
+def read_json(path: str | os.PathLike, written_by: str):
+    """A JSON file's content; one that is not UTF-8 or not JSON (truncated, hand-edited) is one line naming it and
+    what writes it (``written_by``, e.g. "`hcmt evaluate`")."""
+    try:
+        return json.loads(Path(path).read_text(encoding="utf-8"))
+    except (UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise InputError(f"{path}: damaged, not readable JSON ({exc.__class__.__name__}: {str(exc)[:80]}); it is "
+                         f"written by {written_by}") from None
 
 
 @contextmanager

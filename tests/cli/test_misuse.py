@@ -442,3 +442,55 @@ def test_the_model_after_verify_and_names_across_design_and_designs(setup, tmp_p
     msg = one_line(capsys, cli(["predict", str(setup / "run"), "--design", "thickness=0.7", "--designs", str(path),
                                 "--no-progress"]))
     assert "'design_1' already names --design" in msg
+
+
+# -- damaged files that the change to tracebacks-for-bugs must keep one line ----------------------------------------
+def test_damaged_json_and_log_files_of_a_run_are_one_line(setup, tmp_path, capsys):
+    run = tmp_path / "run"
+    shutil.copytree(setup / "run", run)
+    data = setup / "data"
+    (run / "train_stats.json").write_text("garbage{")
+    msg = one_line(capsys, cli(["evaluate", str(run), "--data", str(data), "--no-progress"]))
+    assert "train_stats.json: damaged, not readable JSON" in msg and "hcmt train" in msg
+    (run / "train_stats.json").unlink()
+    assert cli(["evaluate", str(run), "--data", str(data), "--no-progress"]) == 0
+    capsys.readouterr()
+    (run / "metrics_test.json").write_bytes(b'{"broken\xff')
+    msg = one_line(capsys, cli(["compare", str(run)]))
+    assert "metrics_test.json: damaged" in msg and "hcmt evaluate" in msg
+    log = run / "log.jsonl"
+    log.write_text(log.read_text() + '{"step": 2, "loss"\n')  # a line cut short
+    msg = one_line(capsys, cli(["train", "--resume", "--out", str(run), "--steps", "3", "--no-progress"]))
+    assert "log.jsonl, line" in msg and "not a log record" in msg
+
+
+def test_a_binary_meta_json_or_config_and_a_bad_set_value_are_one_line(setup, tmp_path, capsys):
+    data = tmp_path / "data"
+    shutil.copytree(setup / "data", data)
+    (data / "meta.json").write_bytes(b"\xff\xfe\x00binary")
+    msg = one_line(capsys, cli(["info", str(data)]))
+    assert "meta.json" in msg and "not valid JSON" in msg
+    cfg = tmp_path / "bin.yaml"
+    cfg.write_bytes(b"\xff\xfe\x00binary")
+    base = ["train", "--data", str(setup / "data"), "--model", "mgn", "--out", str(tmp_path / "r"), "--no-progress"]
+    msg = one_line(capsys, cli(base + ["--config", str(cfg)]))
+    assert "bin.yaml" in msg and "not a text file" in msg
+    msg = one_line(capsys, cli(base + ["--config", "impact_plate_cpu", "--set", "train.lrr=1"]))
+    assert "train.lrr: unknown key; did you mean train.lr?" in msg
+    msg = one_line(capsys, cli(base + ["--config", "impact_plate_cpu", "--set", "train.lr=[1"]))
+    assert "--set value '[1'" in msg
+    assert not (tmp_path / "r").exists()
+
+
+def test_a_diverging_rollout_is_one_line(setup, tmp_path, capsys, monkeypatch):
+    """A model that diverges on an input is no bug of hcmt's: one line naming the trajectory and step."""
+    import hcmt.inference.evaluate as evaluate_module
+    from hcmt.errors import RolloutError
+
+    def diverge(*args, **kwargs):
+        raise RolloutError("trajectory traj_00000: the predicted state became non-finite at step 3 (frame 3 of 8); "
+                           "the model diverged")
+
+    monkeypatch.setattr(evaluate_module, "rollout_batch", diverge)
+    msg = one_line(capsys, cli(["rollout", str(setup / "run"), "--data", str(setup / "data"), "--no-progress"]))
+    assert "traj_00000" in msg and "non-finite at step 3" in msg

@@ -173,3 +173,14 @@ def test_ggns_bad_pickle(tmp_path, capsys):
     src.write_bytes(pickle.dumps([ggns_trajectory()])[:-20])
     assert cli(["convert", str(src), str(tmp_path / "out2")]) == 2
     assert "unpickled" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("field,value", [("nodes_grid", [[[0.0, 0.0]], [[0.0, 0.0], [1.0, 1.0]]]),
+                                         ("poisson_ratio", "abc"), ("triangles_grid", [[0, 1, "x"]])])
+def test_ggns_ragged_or_non_numeric_arrays_name_the_field(tmp_path, capsys, field, value):
+    bad = ggns_trajectory()
+    bad[field] = np.array(value, dtype=object) if field == "nodes_grid" else value
+    (tmp_path / "train.pkl").write_bytes(pickle.dumps([bad]))
+    assert cli(["convert", str(tmp_path / "train.pkl"), str(tmp_path / "out")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "trajectory 0" in err[0] and f"field {field}" in err[0] and "numeric" in err[0], err

@@ -15,7 +15,8 @@ from hcmt.physics.adapters import get_adapter
 from hcmt.inference.evaluate import evaluate
 from hcmt.inference.run import Run
 from hcmt.physics.trajectory import load_split
-from hcmt.inference.rollout import RolloutError, rollout
+from hcmt.errors import RolloutError
+from hcmt.inference.rollout import rollout
 from hcmt.inference.run import load_run
 from hcmt.training import train
 

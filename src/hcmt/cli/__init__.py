@@ -6,7 +6,8 @@ only when their command runs, so ``hcmt --help`` stays fast (no torch import).
 
 Errors: a user's mistake is one line and exit 2: a :class:`CommandError` raised here, or the library's
 :class:`hcmt.errors.InputError` (its parameter printed as the command's flag: ``batch`` -> ``--batch``), a missing
-file, a full disk. Any other exception is a bug and shows its traceback.
+file, a full disk; so is a model that diverged on the input (:class:`hcmt.errors.RolloutError`). Any other exception
+is a bug and shows its traceback.
 """
 from __future__ import annotations
 
@@ -18,7 +19,7 @@ import sys
 from pathlib import Path
 
 from hcmt.config import VERSION
-from hcmt.errors import InputError
+from hcmt.errors import InputError, RolloutError
 
 COMMANDS: dict[str, tuple[str, str]] = {
     "generate": ("hcmt.cli.data", "generate a dataset with the built-in FEM solver (impact-plate)"),
@@ -202,7 +203,7 @@ def main(argv: list[str] | None = None) -> int:
         flag = flag_of(getattr(parser, "command_parser", None), exc.param)
         print(f"hcmt {args.command}: error: {exc.worded(flag)}", file=sys.stderr)
         return 2
-    except (CommandError, FileNotFoundError) as exc:
+    except (CommandError, FileNotFoundError, RolloutError) as exc:
         print(f"hcmt {args.command}: error: {exc}", file=sys.stderr)
         return 2
     except OSError as exc:  # disk full, permissions, ...: the path and the system's reason

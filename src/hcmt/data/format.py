@@ -123,9 +123,9 @@ def read_meta(dataset_dir: str | os.PathLike) -> dict:
         raise DatasetError("not found; a dataset is a folder with meta.json and <split>.h5 files "
                            "(make one with `hcmt generate` or `hcmt convert`)", file=path)
     try:
-        meta = json.loads(path.read_text())
-    except json.JSONDecodeError as exc:
-        raise DatasetError(f"is not valid JSON ({exc})", file=path) from None
+        meta = json.loads(path.read_text(encoding="utf-8"))
+    except (UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise DatasetError(f"is not valid JSON ({exc.__class__.__name__}: {str(exc)[:80]})", file=path) from None
     check_meta(meta, path)
     return meta
 

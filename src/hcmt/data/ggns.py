@@ -39,14 +39,22 @@ def load_ggns_pickle(path: str | os.PathLike) -> list[dict]:
     return list(data)
 
 
+def _array(traj: dict, key: str, dtype, file, trajectory) -> np.ndarray:
+    """``traj[key]`` as an array of ``dtype``; a ragged or non-numeric value names the file, trajectory and field."""
+    try:
+        return np.asarray(traj[key], dtype=dtype)
+    except (ValueError, TypeError) as exc:
+        raise DatasetError(f"not a numeric array ({str(exc).splitlines()[0][:80]})", file=file,
+                           trajectory=trajectory, field=key) from None
+
+
 def ggns_to_native(traj: dict, *, file=None, trajectory=None) -> tuple[dict, dict]:
     """Map one GGNS trajectory dict to native fields and design-parameter attributes."""
     for key in REQUIRED:
         if key not in traj:
             raise DatasetError(f"missing; a GGNS trajectory needs {list(REQUIRED)}", file=file,
                                trajectory=trajectory, field=key)
-    grid = np.asarray(traj["nodes_grid"], dtype=np.float32)
-    collider = np.asarray(traj["nodes_collider"], dtype=np.float32)
+    grid, collider = (_array(traj, k, np.float32, file, trajectory) for k in ("nodes_grid", "nodes_collider"))
     for name, arr in (("nodes_grid", grid), ("nodes_collider", collider)):
         if arr.ndim != 3 or arr.shape[-1] != 2:
             raise DatasetError(f"shape {list(arr.shape)}; expected [T, N, 2]", file=file, trajectory=trajectory,
@@ -55,15 +63,17 @@ def ggns_to_native(traj: dict, *, file=None, trajectory=None) -> tuple[dict, dic
         raise DatasetError(f"{collider.shape[0]} steps but nodes_grid has {grid.shape[0]}", file=file,
                            trajectory=trajectory, field="nodes_collider")
     n = grid.shape[1]
-    tri_grid = np.asarray(traj["triangles_grid"], dtype=np.int64)
-    tri_coll = np.asarray(traj["triangles_collider"], dtype=np.int64)
+    tri_grid, tri_coll = (_array(traj, k, np.int64, file, trajectory) for k in ("triangles_grid", "triangles_collider"))
     for name, tri, count in (("triangles_grid", tri_grid, n), ("triangles_collider", tri_coll, collider.shape[1])):
         if tri.ndim != 2 or tri.shape[1] != 3:
             raise DatasetError(f"shape {list(tri.shape)}; expected [C, 3]", file=file, trajectory=trajectory, field=name)
         if tri.size and (tri.min() < 0 or tri.max() >= count):
             raise DatasetError(f"index out of range [{tri.min()}, {tri.max()}] for {count} nodes", file=file,
                                trajectory=trajectory, field=name)
-    nu = float(np.asarray(traj["poisson_ratio"]).reshape(-1)[0])
+    nu = _array(traj, "poisson_ratio", np.float64, file, trajectory).reshape(-1)
+    if nu.size == 0:
+        raise DatasetError("empty; expected one number", file=file, trajectory=trajectory, field="poisson_ratio")
+    nu = float(nu[0])
     world = np.concatenate([grid, collider], axis=1)
     total = world.shape[1]
     node_type = np.full((total, 1), int(NodeType.NORMAL), dtype=np.int32)

@@ -17,7 +17,7 @@ import yaml
 from hcmt.errors import InputError
 from hcmt.config import Config
 from hcmt.data.format import Split, read_meta
-from hcmt.files import atomic_path
+from hcmt.files import atomic_path, read_json
 
 PRETRAINED_DIR = Path(__file__).resolve().parent.parent / "pretrained"
 
@@ -102,7 +102,23 @@ class RunFolder:
         return self.path / "train_stats.json"
 
     def train_stats(self) -> dict | None:
-        return json.loads(self.stats_path.read_text()) if self.stats_path.is_file() else None
+        return read_json(self.stats_path, "`hcmt train`") if self.stats_path.is_file() else None
+
+    def log_records(self) -> list[dict]:
+        """``log.jsonl``'s records in order (each with an integer ``step``); a damaged line is one line naming the
+        file and the line."""
+        out = []
+        for number, line in enumerate(self.log.read_text(encoding="utf-8", errors="replace").splitlines(), 1):
+            if not line.strip():
+                continue
+            try:
+                rec = json.loads(line)
+                rec["step"] = int(rec["step"])
+            except (ValueError, TypeError, KeyError) as exc:
+                raise InputError(f"{self.log}, line {number}: not a log record ({exc.__class__.__name__}: "
+                                 f"{line[:60]!r}); it is written by `hcmt train`") from None
+            out.append(rec)
+        return out
 
     def write_stats(self, summary: dict) -> None:
         """``train_stats.json`` (standard JSON: non-finite numbers become null), atomically."""

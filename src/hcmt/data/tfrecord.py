@@ -39,9 +39,9 @@ def read_tf_meta(dataset_dir: str | os.PathLike) -> dict:
     if not path.is_file():
         raise DatasetError("not found; a TFRecord dataset is a folder with meta.json and <split>.tfrecord", file=path)
     try:
-        meta = json.loads(path.read_text())
-    except json.JSONDecodeError as exc:
-        raise DatasetError(f"is not valid JSON ({exc})", file=path) from None
+        meta = json.loads(path.read_text(encoding="utf-8"))
+    except (UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise DatasetError(f"is not valid JSON ({exc.__class__.__name__}: {str(exc)[:80]})", file=path) from None
     for key in ("features", "field_names"):
         if key not in meta:
             raise DatasetError(f"missing key {key!r} expected in a MeshGraphNets meta.json", file=path)

@@ -17,10 +17,11 @@ from tqdm import tqdm
 from hcmt.errors import InputError
 from hcmt.config import COMPILE_MODES, plural
 from hcmt.data.format import Split, read_meta
-from hcmt.files import atomic_path, ensure_space
+from hcmt.files import atomic_path, ensure_space, read_json
 from hcmt.inference.metrics import (SCALE, aggregate, format_physics, impact_groups, impact_metrics, plate_mask,
                                     rollout_rmse, step_rmse, summarize_impact, summarize_runs)
-from hcmt.inference.rollout import RolloutError, rollout, rollout_batch
+from hcmt.errors import RolloutError
+from hcmt.inference.rollout import rollout, rollout_batch
 from hcmt.inference.run import Run, check_dataset, dataset_warnings, model_label
 from hcmt.data.runs import RunFolder
 from hcmt.physics.trajectory import load_split
@@ -233,7 +234,7 @@ def compare(runs: list[str | Path | RunFolder | Run], split: str = "test") -> di
         mpath = folder.metrics_path(split)
         if not mpath.is_file():
             raise FileNotFoundError(f"{mpath}: run `hcmt evaluate {folder.path} --data ... --split {split}` first")
-        m = json.loads(mpath.read_text())
+        m = read_json(mpath, f"`hcmt evaluate {folder.path} --split {split}`")
         groups[(model_label(folder.info["model"]), m.get("data", "?"))].append(m)
     datasets = {d for _, d in groups}
     return {(label if len(datasets) == 1 else f"{label} [{Path(d).name}]"): summarize_runs(ms)

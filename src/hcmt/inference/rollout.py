@@ -16,16 +16,12 @@ import time
 
 import torch
 
-from hcmt.errors import InputError
+from hcmt.errors import InputError, RolloutError
 from hcmt.graph.batch import PadSizes, collate, pad_graph
 from hcmt.models.base import compile_simulator
 from hcmt.physics.adapters import Adapter, integrate
 from hcmt.physics.trajectory import Trajectory
 from hcmt.physics.frames import input_graph
-
-
-class RolloutError(RuntimeError):
-    """The predicted state became non-finite."""
 
 
 @torch.no_grad()

@@ -155,7 +155,7 @@ def generate_dataset(out, *, preset: str = "small", counts: dict[str, int], seed
         if split not in SPLITS:
             raise InputError(f"unknown split {split!r}; expected one of {SPLITS}")
         if int(n) < 0:
-            raise InputError(f"--{split} must be >= 0 trajectories, got {n}")
+            raise InputError(f"the {split} count must be >= 0 trajectories, got {n}")
     if int(workers) < 1:
         raise InputError(f"must be >= 1, got {workers}", param="workers")
     settings.validate()

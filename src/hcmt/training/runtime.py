@@ -33,9 +33,9 @@ def check_resume(saved: dict, run: dict, out: Path) -> None:
     for k in ("model", "config", "seed", "world_size"):
         changed += _differences(a.get(k, b[k]), b[k], k)
     if changed:
-        raise InputError(f"{out}: other settings than the run was started with: {'; '.join(changed)} (see "
-                         f"{out / 'run.yaml'}); `hcmt train --resume --out {out}` alone resumes with the saved "
-                         "settings", param="resume")
+        raise InputError(f"{out}: resuming with other settings than the run was started with: {'; '.join(changed)} "
+                         f"(see {out / 'run.yaml'}); `hcmt train --resume --out {out}` alone resumes with the saved "
+                         "settings")
 
 
 def _differences(a, b, key: str) -> list[str]:
@@ -98,7 +98,7 @@ def lock_run(out: Path) -> Path:
     holder = take_lock(lock)
     if holder is not None:
         raise InputError(f"{out} is being written by another training process (pid {holder}, {lock}); wait for "
-                         "it or choose another run folder", param="out")
+                         "it or choose another run folder")
     return lock
 
 

@@ -191,13 +191,13 @@ class Trainer:
                              f"({exc.__class__.__name__}); resuming continues only the run that wrote it") from None
         self.step_count, self.best = int(state["step"]), float(state["best"])
         if self.step_count > self.steps:
-            raise InputError(f"{self.out}: train.steps {self.steps} is fewer than the {self.step_count} steps the run "
-                             "has done; a run only grows (train.steps, --steps in hcmt train, >= the steps done)")
+            raise InputError(f"{self.out}: train.steps {self.steps}, but the run has done {self.step_count} steps; a "
+                             "run only grows (train.steps, --steps in hcmt train, >= the steps done)")
         log = self.folder.log
         if self.rank == 0 and log.is_file():  # drop what was logged after the checkpoint: no duplicate steps
-            kept = [l for l in log.read_text().splitlines() if l and json.loads(l)["step"] <= self.step_count]
+            kept = [r for r in self.folder.log_records() if r["step"] <= self.step_count]
             with atomic_path(log) as tmp:
-                tmp.write_text("".join(l + "\n" for l in kept))
+                tmp.write_text("".join(json.dumps(r) + "\n" for r in kept))
 
     def _loss_denominator(self, graph, mask) -> torch.Tensor:
         """``train.loss_denominator``: ``masked`` (hcmt: the number of unmasked entries, a mean over what is

@@ -8,7 +8,6 @@ are the data's and are not drawn.
 """
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 import h5py
@@ -108,18 +107,12 @@ def plot_error_curves(errors: dict[str, dict], meta: dict, path: str | Path, *, 
 def read_log(run: str | Path) -> tuple[dict[str, np.ndarray], dict[str, np.ndarray]]:
     """``RUN/log.jsonl`` as (training columns, validation columns), each ``{key: array}`` with ``step``.
     Lines written by an interrupted run that was resumed may repeat steps: the last line of a step wins."""
-    path = RunFolder(run, must_exist=False).log
-    if not path.is_file():
-        raise FileNotFoundError(f"{path}: no training log (written by `hcmt train`)")
+    folder = RunFolder(run, must_exist=False)
+    if not folder.log.is_file():
+        raise FileNotFoundError(f"{folder.log}: no training log (written by `hcmt train`)")
     train, valid = {}, {}
-    for number, line in enumerate(path.read_text().splitlines(), 1):
-        if not line.strip():
-            continue
-        try:
-            rec = json.loads(line)
-        except json.JSONDecodeError:
-            raise InputError(f"{path}, line {number}: not JSON ({line[:60]!r})") from None
-        (train if "loss" in rec else valid)[int(rec["step"])] = rec
+    for rec in folder.log_records():
+        (train if "loss" in rec else valid)[rec["step"]] = rec
     def columns(recs):
         steps = sorted(recs)
         keys = sorted({k for r in recs.values() for k in r})

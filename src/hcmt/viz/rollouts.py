@@ -93,7 +93,7 @@ def unique_labels(runs: list[Run | RunFolder]) -> list[str]:
 
 def trajectory_index(names: list[str], trajectory: int | str) -> int:
     """Position of a trajectory given by index (``0``, ``-1``) or by name (``traj_00003``)."""
-    if isinstance(trajectory, str) and not trajectory.lstrip("-").isdigit():
+    if isinstance(trajectory, str) and not trajectory.removeprefix("-").isdigit():
         if trajectory not in names:
             raise InputError(f"trajectory {trajectory!r} is not in the split; it has {names[:5]}"
                              + (" ..." if len(names) > 5 else ""))

@@ -27,6 +27,7 @@ import time
 import numpy as np
 import torch
 
+from hcmt.graph.batch import PadSizes, collate, pad_graph, pad_rows
 from hcmt.graph.build import frame_graph
 from hcmt.graph.hierarchy import build_hierarchy
 from hcmt.physics.adapters import build_for_dataset, dataset_spec
@@ -79,8 +80,6 @@ def _step_fn(model, graph, target, opt, compiled, mask):
 
 def bench_modes(device: torch.device, steps: int, batches: list[int], compile_: bool, warmup: int = 3) -> dict:
     """Eager vs compiled train step and inference (batch 1), and throughput per batch size, HCMT and MGN."""
-    from hcmt.graph.batch import PadSizes, collate, pad_graph, pad_rows
-
     base = impact_plate_graph()
     out_dim = dataset_spec("impact_plate")["out"]
     modes = ["eager", "compiled"] if compile_ else ["eager"]

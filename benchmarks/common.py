@@ -11,17 +11,21 @@ import shutil
 import time
 from pathlib import Path
 
+import h5py
+import numpy as np
+import torch
 
+from hcmt.config import load_config
+from hcmt.data.format import Split
+from hcmt.data.runs import RunFolder
 from hcmt.files import atomic_path, take_lock
 from hcmt.inference.evaluate import evaluate
+from hcmt.inference.metrics import plate_mask
+from hcmt.inference.metrics import rollout_details as details
 from hcmt.inference.run import Run
-from hcmt.data.runs import RunFolder
-from hcmt.config import load_config
 from hcmt.sim.generate import generate_dataset
 from hcmt.sim.scene import VARIANTS, Settings
 from hcmt.training import train
-
-import torch
 
 # Benchmarks run two scripts side by side on the 2-core machine: one intra-op thread each avoids oversubscription.
 torch.set_num_threads(1)
@@ -98,13 +102,6 @@ def _train_and_evaluate(run, data, model, seed, overrides, splits, ablation, con
 def rollout_details(run: Path, data: Path, split: str) -> dict:
     """Error by node group (plate: the body holding the clamped HANDLE nodes; ball: the other body) and by
     rollout step, averaged over the split's trajectories, from the run's rollout file."""
-    import h5py
-    import numpy as np
-
-    from hcmt.data.format import Split
-    from hcmt.inference.metrics import rollout_details as details
-    from hcmt.inference.metrics import plate_mask
-
     rows = []
     with h5py.File(RunFolder(run).rollout_path(split), "r") as f, Split(data, split) as s:
         index = {n: i for i, n in enumerate(s.names)}

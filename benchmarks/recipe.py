@@ -18,7 +18,7 @@ from pathlib import Path
 
 import numpy as np
 from scipy.stats import rankdata
-from common import RESULTS, dataset, run_and_evaluate, write_json
+from common import dataset, run_and_evaluate, write_json
 
 from hcmt.inference.metrics import mean_std
 from hcmt.inference.evaluate import evaluate

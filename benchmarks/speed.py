@@ -35,18 +35,18 @@ import torch
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from common import write_json  # noqa: E402
 
+from hcmt.graph.build import frame_graph  # noqa: E402
 from hcmt.graph.hierarchy import build_hierarchy  # noqa: E402
-from hcmt.physics.adapters import build_for_dataset  # noqa: E402
+from hcmt.inference.rollout import rollout  # noqa: E402
+from hcmt.inference.run import load_run  # noqa: E402
+from hcmt.physics.adapters import build_for_dataset, get_adapter  # noqa: E402
+from hcmt.physics.trajectory import prepare_trajectory  # noqa: E402
+from hcmt.sim.generate import trajectory_rng  # noqa: E402
 from hcmt.sim.mesh import impact_plate_mesh  # noqa: E402
+from hcmt.sim.scene import Settings, sample_design, simulate  # noqa: E402
 
 
 def _rollout(args) -> None:
-    from hcmt.sim.generate import trajectory_rng
-    from hcmt.sim.scene import Settings, sample_design, simulate
-    from hcmt.physics.adapters import get_adapter
-    from hcmt.physics.trajectory import prepare_trajectory
-    from hcmt.inference.rollout import rollout
-    from hcmt.inference.run import load_run
 
     adapter = get_adapter("impact_plate")
     models = {}
@@ -111,7 +111,6 @@ def _one(model_name: str, target: int, reps: int, checkpoint_blocks: bool = Fals
     if dev.type == "cpu":  # CUDA reserves address space far beyond its use: cap the CPU runs only
         cap = MEMORY_CAP_GB << 30
         resource.setrlimit(resource.RLIMIT_AS, (cap, cap))
-    from hcmt.graph.build import frame_graph
 
     mesh = mesh_with_nodes(target)
     n = len(mesh["mesh_pos"])

@@ -8,6 +8,7 @@ steps, MGN/GT blocks, a checkpoint or validation period, another width) appends 
 """
 import pytest
 
+from hcmt.cli import main as cli
 from hcmt.config import load_config
 
 TINY = ["model.levels=1", "model.L_C=1", "model.hidden=16", "model.heads=2", "train.normalizer_steps=1",
@@ -35,8 +36,6 @@ IMPACT_DATA = dict(train=12, valid=1, test=1, frames=8, seed=11)
 def impact_data(tmp_path_factory):
     """A dataset made by `hcmt generate impact-plate` once per test run (:data:`IMPACT_DATA`), shared by every
     module that needs real generator data (its meta.json, design attributes and solver trajectories)."""
-    from hcmt.cli import main as cli
-
     out = tmp_path_factory.mktemp("impact_data") / "data"
     spec = IMPACT_DATA
     assert cli(["generate", "impact-plate", str(out), "--preset", "small", "--train", str(spec["train"]), "--valid",

@@ -12,6 +12,9 @@ import scipy.sparse.csgraph as csgraph
 import torch
 
 from hcmt.graph.batch import Graph
+from hcmt.graph.build import frame_graph
+from hcmt.graph.hierarchy import build_hierarchy
+from hcmt.sim.mesh import preset_mesh
 
 
 def grid_edges(rows: int, cols: int) -> np.ndarray:
@@ -109,10 +112,6 @@ def paper_graph(seed: int = 0, levels: int = 6) -> Graph:
     """A paper-size Impact Plate sample: the ``paper`` preset mesh (about 2,200 nodes), its λ-level hierarchy
     (bi-stride pooling + Delaunay), a randomly perturbed world position and contact radius 0.4 (Table 8);
     Impact Plate node inputs (Table 9): node-type one-hot (9), velocity (2), density, modulus -> width 13."""
-    from hcmt.graph.build import frame_graph
-    from hcmt.graph.hierarchy import build_hierarchy
-    from hcmt.sim.mesh import preset_mesh
-
     rng = np.random.default_rng(seed)
     mesh = preset_mesh("paper")
     hierarchy = build_hierarchy(mesh["mesh_pos"], mesh["cells"], mesh["node_type"], levels=levels)

@@ -1,8 +1,16 @@
 """The README's Python API example runs as written (in a temporary folder)."""
+import ast
+import inspect
 import re
 from pathlib import Path
 
 import pytest
+
+from viz_runs import impact_dataset
+
+import hcmt
+from hcmt.data.runs import RunFolder
+from hcmt.inference.run import Run
 
 pytestmark = pytest.mark.slow  # the README example trains a run
 
@@ -23,10 +31,6 @@ def test_readme_api_example_runs_twice_in_a_row(tmp_path, monkeypatch):
 
 
 def test_train_api_refuses_a_held_folder_in_python_words(tmp_path):
-    import pytest
-
-    import hcmt
-
     (tmp_path / "run").mkdir()
     (tmp_path / "run" / "run.yaml").write_text("x: 1\n")
     with pytest.raises(ValueError, match=r"resume=True.*overwrite=True") as exc:
@@ -36,11 +40,6 @@ def test_train_api_refuses_a_held_folder_in_python_words(tmp_path):
 
 def test_train_api_applies_overrides_to_a_dict_and_any_model_case(tmp_path, tiny_config):
     """overrides reach a dict config too; "MGN" is the model mgn; Run.load takes the RunFolder it names."""
-    import hcmt
-    from hcmt.inference.run import Run
-    from hcmt.data.runs import RunFolder
-    from viz_runs import impact_dataset
-
     data = impact_dataset(tmp_path / "data", n_test=1)
     cfg = tiny_config("train.steps=5")
     summary = hcmt.train(cfg, data, "MGN", tmp_path / "run", overrides=["train.steps=2"], progress=False)
@@ -49,8 +48,6 @@ def test_train_api_applies_overrides_to_a_dict_and_any_model_case(tmp_path, tiny
     assert folder.info["model"]["name"] == "mgn" and folder.info["config"].train.steps == 2
     run = Run.load(folder, "cpu")
     assert run.label == "MGN" and run.folder.path == folder.path and folder.steps_done() == 2
-    import pytest
-
     with pytest.raises(ValueError, match="unknown model 'mesh'"):
         hcmt.train(cfg, data, "mesh", tmp_path / "other", progress=False)
 
@@ -58,11 +55,6 @@ def test_train_api_applies_overrides_to_a_dict_and_any_model_case(tmp_path, tiny
 def test_the_public_api_is_declared_for_type_checkers_and_loads_lazily():
     """Every lazy name is also imported under TYPE_CHECKING (what IDEs read), listed in __all__ and resolvable;
     the model classes document their constructor arguments."""
-    import ast
-    import inspect
-
-    import hcmt
-
     tree = ast.parse(inspect.getsource(hcmt))
     checked = {a.asname or a.name for node in ast.walk(tree) if isinstance(node, ast.If)
                and getattr(node.test, "id", "") == "TYPE_CHECKING" for imp in node.body for a in imp.names}

@@ -8,6 +8,8 @@ Imports of hcmt modules inside functions are refused too: they only ever dodged 
 from __future__ import annotations
 
 import ast
+import subprocess
+import sys
 from pathlib import Path
 
 import pytest
@@ -111,8 +113,5 @@ def test_the_checker_sees_violations(tmp_path, monkeypatch):
                                     "hcmt.training", "hcmt.viz.rollouts", "hcmt.design.check", "hcmt.cli"])
 def test_each_layer_imports_alone(module):
     """Each module imports in a fresh interpreter (no cycle hidden by import order)."""
-    import subprocess
-    import sys
-
     r = subprocess.run([sys.executable, "-c", f"import {module}"], capture_output=True, text=True)
     assert r.returncode == 0, r.stderr

@@ -1,11 +1,15 @@
 """The command surface: one registry, every documented subcommand listed with one line."""
+import argparse
 import subprocess
 import sys
 
 import pytest
 
-from hcmt.cli import COMMANDS, THREADED
+import hcmt.cli.design
+import hcmt.errors
+from hcmt.cli import COMMANDS, THREADED, flag_of
 from hcmt.cli import main as cli
+from hcmt.inference.evaluate import check_options
 
 DOCUMENTED = ["generate", "simulate", "convert", "info", "hierarchy", "train", "rollout", "evaluate", "compare",
               "predict", "sweep", "models", "surrogate", "plot", "export", "demo"]
@@ -40,9 +44,6 @@ def test_unknown_command_fails():
 
 # -- errors: a user's mistake is one line naming the flag, a bug keeps its traceback ---------------------------------
 def test_a_library_parameter_error_names_the_flag_on_the_command_line(impact_data, capsys):
-    import hcmt.errors
-    from hcmt.inference.evaluate import check_options
-
     with pytest.raises(hcmt.errors.InputError) as exc:
         check_options(batch=0, compile="none")
     assert str(exc.value) == "batch must be a whole number >= 1, got 0" and exc.value.param == "batch"  # the API's word
@@ -52,8 +53,6 @@ def test_a_library_parameter_error_names_the_flag_on_the_command_line(impact_dat
 
 
 def test_an_unexpected_exception_is_a_bug_and_keeps_its_traceback(monkeypatch, capsys):
-    import hcmt.cli.design
-
     def broken(args):
         raise ValueError("an internal invariant broke")  # a plain ValueError is no user error
 
@@ -67,10 +66,6 @@ def test_an_unexpected_exception_is_a_bug_and_keeps_its_traceback(monkeypatch, c
 
 
 def test_flag_of_maps_parameters_to_options_and_positionals():
-    import argparse
-
-    from hcmt.cli import flag_of
-
     p = argparse.ArgumentParser()
     p.add_argument("data")
     p.add_argument("--yield-mpa", type=float)

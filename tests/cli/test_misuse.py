@@ -13,20 +13,21 @@ import sys
 import time
 from pathlib import Path
 
-import numpy as np
 import pytest
-
-from conftest import IMPACT_DATA
 import torch
 
+from conftest import IMPACT_DATA
+from layouts import sphere_simple_tfrecord
+
+import hcmt.inference.evaluate as evaluate_module
 from hcmt.cli import main as cli
 from hcmt.cli import set_threads
-from hcmt.design.inputs import design_for, range_warnings, read_designs_csv
-from hcmt.sim.scene import middle_design
 from hcmt.data.runs import PRETRAINED_DIR
+from hcmt.design.inputs import design_for, range_warnings, read_designs_csv
+from hcmt.errors import RolloutError
 from hcmt.inference import run as run_module
 from hcmt.inference.run import Run
-from hcmt.sim.scene import Design, estimate
+from hcmt.sim.scene import Design, design_mesh, estimate, middle_design
 from hcmt.training import train
 from hcmt.viz.meshplot import new_figure, save_figure
 
@@ -68,8 +69,6 @@ def run_capped(argv: list[str], gib: float = 6.0, seconds: float = 120.0) -> sub
 
 # -- 1. memory: the cost estimate comes from the design's numbers -------------------------------------------------
 def test_the_estimate_needs_no_mesh_and_matches_it():
-    from hcmt.sim.scene import design_mesh
-
     d = Design(thickness=0.8, mesh_size=0.3, ball_radius=3.8, plate_half_length=12.0)
     e = estimate(d)
     assert abs(e["num_nodes"] - len(design_mesh(d)["mesh_pos"])) < 0.05 * e["num_nodes"]
@@ -324,8 +323,6 @@ def test_design_before_the_model_and_design_with_designs(setup, tmp_path, capsys
 
 
 def test_an_empty_tfrecord_is_refused(tmp_path, capsys):
-    from layouts import sphere_simple_tfrecord
-
     src = tmp_path / "src"
     sphere_simple_tfrecord(src)
     (src / "test.tfrecord").write_bytes(b"")
@@ -484,8 +481,6 @@ def test_a_binary_meta_json_or_config_and_a_bad_set_value_are_one_line(setup, tm
 
 def test_a_diverging_rollout_is_one_line(setup, tmp_path, capsys, monkeypatch):
     """A model that diverges on an input is no bug of hcmt's: one line naming the trajectory and step."""
-    import hcmt.inference.evaluate as evaluate_module
-    from hcmt.errors import RolloutError
 
     def diverge(*args, **kwargs):
         raise RolloutError("trajectory traj_00000: the predicted state became non-finite at step 3 (frame 3 of 8); "

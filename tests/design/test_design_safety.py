@@ -15,13 +15,14 @@ from conftest import IMPACT_DATA
 import hcmt.cli.design as cli_design
 import hcmt.design.reports as design_reports
 from hcmt.cli import main as cli
-from hcmt.sim.scene import Design
 from hcmt.design.check import Prediction, check_designs, cost_check, weak_reasons
 from hcmt.design.inputs import confidence, read_designs_csv, region_of
 from hcmt.design.reports import contour_picture
-from hcmt.sim.scene import DESIGN_KEYS, middle_design, parse_design
 from hcmt.inference.run import Run
+from hcmt.sim.scene import DESIGN_KEYS, Design, Settings, middle_design, parse_design
 from hcmt.training import train
+from hcmt.viz.contours import axis_names, shared_norm
+from hcmt.viz.rollouts import load_case
 
 pytestmark = pytest.mark.slow  # trained runs and solver verification
 
@@ -166,8 +167,6 @@ def test_options_are_checked_before_the_cache(setup, capsys):
 
 # -- 5. cost refusal -------------------------------------------------------------------------------------------
 def test_predict_refuses_a_mesh_far_beyond_the_training_data(setup):
-    from hcmt.sim.scene import Settings
-
     run = Run.load(setup / "run", "cpu")
     fine = [("fine", parse_design(["mesh_size=0.02"], middle_design(run.meta)))]
     with pytest.raises(ValueError, match=r"fine: about .* nodes at mesh_size 0.02 .*exceeds 600 s.*--force"):
@@ -227,9 +226,6 @@ def test_no_progress_is_everywhere(command, capsys):
 
 # -- 12. pictures ----------------------------------------------------------------------------------------------
 def test_pictures_name_r_and_stress_has_no_below_zero_arrow(setup):
-    from hcmt.viz.contours import axis_names, shared_norm
-    from hcmt.viz.rollouts import load_case
-
     run = setup / "run"
     case = load_case([Run.load(run, "cpu")], setup / "data", "test", 0, progress=False)
     assert axis_names(case) == ("r", "y")  # the generator's axisymmetric scene

@@ -5,18 +5,19 @@ import shutil
 
 import numpy as np
 import pytest
-
-from conftest import IMPACT_DATA
 import torch
 
+from conftest import IMPACT_DATA
+
+import hcmt
 from hcmt.cli import main as cli
-from hcmt.sim.scene import Design, Settings, initial_frames, simulate
+from hcmt.data.runs import available_pretrained
 from hcmt.design.check import Prediction, design_trajectory, predict, summarize
 from hcmt.design.inputs import settings_of
 from hcmt.inference.metrics import plate_mask
-from hcmt.sim.scene import middle_design, parse_design
+from hcmt.inference.rollout import rollout
 from hcmt.inference.run import Run
-from hcmt.data.runs import available_pretrained
+from hcmt.sim.scene import Design, Settings, initial_frames, middle_design, parse_design, simulate, start_frames
 from hcmt.training import train
 
 pytestmark = pytest.mark.slow  # trained runs and solver verification
@@ -137,14 +138,10 @@ def test_verify_compares_with_the_solver(tiny_run, tmp_path, capsys):
 def test_every_shipped_model_loads_and_predicts(name):
     if name == "<none shipped>":
         pytest.fail("no model ships in src/hcmt/pretrained/")
-    import hcmt
-
     run = hcmt.load_pretrained(name, device="cpu")
     assert name.startswith(run.config.dataset) and run.ranges and run.card.get("steps")
     settings = settings_of(run.meta)
     tr, _ = design_trajectory(run, "d", middle_design(run.meta), settings)
-    from hcmt.inference.rollout import rollout
-
     r = rollout(run.model, run.adapter, tr, run.radius, steps=1)
     assert r["world_pos"].shape[0] == 3 and torch.isfinite(r["world_pos"]).all()
     assert (tr.world_pos.shape[0] == settings.frames)
@@ -165,8 +162,6 @@ def test_demo_predicts_three_designs_beside_the_solver(tmp_path, capsys):
 def test_start_frames_solve_the_first_frame_only_when_the_ball_reaches_the_plate_within_it():
     """At 0.008 ms a 4 mm/ms ball crosses the 0.02 mm gap within the first frame: the learned rollout then starts
     from the solver's frame 1 (one frame of a solve); at 0.002 ms from initial_frames, no solver run."""
-    from hcmt.sim.scene import start_frames
-
     design = Design(drop_height=820.0, mesh_size=0.6, ball_radius=3.0, plate_half_length=8.0)
     coarse = Settings(frames=3, frame_dt=0.008)
     with pytest.raises(ValueError, match="gap"):

@@ -7,15 +7,17 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
+from sklearn.gaussian_process import GaussianProcessRegressor
 
 from conftest import IMPACT_DATA
 
+import hcmt.design.check as check_module
 from hcmt.cli import main as cli
-from hcmt.design.inputs import design_for
-from hcmt.design.check import MODEL_BAND, call_of, check_designs, predict_designs, trusted_interval
-from hcmt.design.reports import finite
 from hcmt.design import readout as ro
-from hcmt.design.surrogate import Surrogate, SurrogateError
+from hcmt.design.check import MODEL_BAND, call_of, check_designs, predict_designs, trusted_interval
+from hcmt.design.inputs import design_for
+from hcmt.design.reports import finite
+from hcmt.design.surrogate import Surrogate, SurrogateError, for_run
 from hcmt.inference.run import Run
 from hcmt.sim.scene import DESIGN_KEYS, FIRST_SCENE_KEYS, Design, Settings, sample_design, simulate
 from hcmt.training import train
@@ -67,7 +69,6 @@ def test_stored_as_json_and_loaded_without_an_optimizer_run(tmp_path, monkeypatc
     assert doc["format"] == "hcmt-surrogate" and len(doc["designs"]) == 20
     assert set(doc["kernels"]["peak_plate_stress_mpa"]) == {"constant", "length_scales", "noise"}
     assert doc["input_transform"]["kind"] == "log-standardize" and "peak_plate_stress_mpa" in doc["output_transform"]
-    from sklearn.gaussian_process import GaussianProcessRegressor
 
     def no_optimizer(*args, **kwargs):
         raise AssertionError("the optimizer ran on load")
@@ -213,8 +214,6 @@ def test_a_bound_on_when_the_ball_leaves_ends_the_window_of_a_lingering_learned_
 
 def test_the_check_ends_the_window_at_the_surrogates_chosen_bound(monkeypatch):
     """check_designs hands the readout the surrogate's CONTACT_END_BOUND (lower 95 % bound) of contact_end_ms."""
-    import hcmt.design.check as check_module
-
     run = Run.load("pretrained:impact_plate_small", "cpu")
     designs = [("a", design_for(run)), ("b", design_for(run, thickness=0.95))]
     seen = {}
@@ -377,8 +376,6 @@ def test_a_surrogate_of_other_parameters_is_refused(family, tmp_path, capsys):
 
 def test_the_shipped_model_carries_its_surrogate():
     run = Run.load("pretrained:impact_plate_small", "cpu")
-    from hcmt.design.surrogate import for_run
-
     s, note = for_run(run)
     assert note is None and len(s) == 120 and s.ranges()["thickness"] == pytest.approx(run.ranges["thickness"])
     (a,) = s.predict([design_for(run, thickness=0.6, drop_height=600)])

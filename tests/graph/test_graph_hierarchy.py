@@ -10,7 +10,9 @@ from scipy.sparse.csgraph import connected_components
 from scipy.spatial import ConvexHull
 
 from graph_meshes import annulus, cloth, grid_triangles, impact_plate, plate_and_ball, tet_box
+
 from hcmt.errors import DatasetError
+from hcmt.graph import hierarchy as mod
 from hcmt.graph.edges import cells_to_edges
 from hcmt.graph.hierarchy import (Hierarchy, MeshWarning, build_hierarchy, cached_hierarchy, hierarchy_key,
                                   pool, unpool)
@@ -183,8 +185,6 @@ def test_deterministic_and_cached(tmp_path):
             hierarchy_key(*args[:3], 4, True)}
     assert len(keys) == 4
     # a damaged cache file is rebuilt
-    from hcmt.graph import hierarchy as mod
-
     mod._MEMORY.clear()
     files[0].write_bytes(b"not an npz")
     again = cached_hierarchy(*args, cache_dir=tmp_path)

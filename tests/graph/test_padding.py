@@ -5,9 +5,11 @@ from __future__ import annotations
 import pytest
 import torch
 
+from models_grid import grid_graph
+
 from hcmt.graph.batch import PadSizes, bucket, collate, pad_graph
 from hcmt.models import build_model
-from models_grid import grid_graph
+from hcmt.models.base import compile_simulator
 
 NODE_IN, MESH_IN, CONTACT_IN, OUT = 5, 6, 3, 3
 CONFIGS = [
@@ -121,8 +123,6 @@ def test_eager_accumulate_equals_accumulating_forward(name, kw, padded):
 
 def test_compile_helper_holds_the_buckets_and_refuses_unknown_modes(monkeypatch):
     import torch._dynamo
-
-    from hcmt.models.base import compile_simulator
 
     seen = []
     monkeypatch.setattr(torch, "compile", lambda m, **kw: seen.append(kw) or m)

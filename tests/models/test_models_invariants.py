@@ -1,14 +1,16 @@
 """Model invariants: permutation equivariance, per-receiver softmax, gradients, batching, empty edge sets."""
 from __future__ import annotations
 
-
+import numpy as np
 import pytest
 import torch
+
+from models_grid import grid_graph, permute_graph
 
 from hcmt.graph.batch import collate
 from hcmt.models import build_model
 from hcmt.models.attention import EdgeGatedAttention, propagate
-from models_grid import grid_graph, permute_graph
+from hcmt.viz.attention import maps_from_model
 
 NODE_IN, MESH_IN, CONTACT_IN, OUT = 5, 6, 3, 3
 SMALL = dict(hidden=32, heads=4)
@@ -244,10 +246,6 @@ def test_activation_checkpointing_gives_the_same_gradients(name, kw):
 
 
 def test_official_attention_maps_are_normalized_per_receiver_for_display():
-    import numpy as np
-
-    from hcmt.viz.attention import maps_from_model
-
     g = grid_graph(9, 9, levels=2, node_in=NODE_IN, contacts=12)
     model = warm(make("hcmt", levels=2, L_C=1, attention="official"), g)
     levels = [np.arange(len(g.pool[0]))]  # level-0 index of level-1 nodes: any ids of the right count

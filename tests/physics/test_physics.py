@@ -5,21 +5,26 @@ import shutil
 
 import numpy as np
 import pytest
-
-from conftest import IMPACT_DATA
 import torch
 
+from conftest import IMPACT_DATA
+
+from hcmt.cli import auto_threads, set_threads
 from hcmt.cli import main as cli
+from hcmt.config import Config, load_config
 from hcmt.data.format import NodeType
 from hcmt.design import sweep as sw
-from hcmt.physics.adapters import (config_adapter, get_adapter, integrate, noise_gamma, noise_mask, position_mask,
-                                 target)
-from hcmt.config import Config, load_config
-from hcmt.training.dataset import FrameDataset
-from hcmt.inference.metrics import impact_metrics, summarize_impact
+from hcmt.graph.build import frame_graph
 from hcmt.inference.evaluate import evaluate
+from hcmt.inference.metrics import impact_metrics, summarize_impact
 from hcmt.inference.run import Run
+from hcmt.physics.adapters import (config_adapter, get_adapter, integrate, noise_gamma, noise_mask, position_mask,
+                                  target)
+from hcmt.physics.frames import input_graph
 from hcmt.training import train
+from hcmt.training.dataset import FrameDataset, collate_samples
+from hcmt.training.schedule import keras_epsilon
+from hcmt.training.trainer import Trainer
 
 pytestmark = pytest.mark.slow  # training runs on generated data
 
@@ -101,8 +106,6 @@ def test_pushforward_input_is_the_models_prediction_and_the_target_lands_on_the_
     graph, tgt, mask = ds.pushforward_item(key, run.model, 1.0)
     w = tr.world_pos
     with torch.no_grad():  # the model's own step from frame t-1
-        from hcmt.physics.frames import input_graph
-
         out = run.model.denormalize(run.model(input_graph(tr, w[t - 1], w[t - 2], w[t], run.radius),
                                               accumulate=False))
     pred, _ = integrate(adapter, out, w[t - 1], w[t - 2], w[t], tr.static["node_type"])
@@ -246,8 +249,6 @@ def test_sweep_cli_verifies_trends_and_the_limit(data, tmp_path, capsys, tiny_co
 
 
 def test_threads_option_sets_torchs_pool(tmp_path, capsys):
-    from hcmt.cli import auto_threads, set_threads
-
     before = torch.get_num_threads()
     try:
         assert set_threads(1) == 1 and torch.get_num_threads() == 1
@@ -261,8 +262,6 @@ def test_threads_option_sets_torchs_pool(tmp_path, capsys):
 
 # -- the authors' training loop ----------------------------------------------------------------------------------
 def test_keras_epsilon_hat_adam_equals_the_keras_update():
-    from hcmt.training.schedule import keras_epsilon
-
     g = torch.Generator().manual_seed(0)
     theta0 = torch.randn(5, generator=g, dtype=torch.float64)
     grads = [torch.randn(5, generator=g, dtype=torch.float64) * 1e-6 for _ in range(4)]  # ε matters at this scale
@@ -286,14 +285,10 @@ def test_keras_epsilon_hat_adam_equals_the_keras_update():
 
 
 def _trainer(cfg, data, out, model="hcmt"):
-    from hcmt.training.trainer import Trainer
-
     return Trainer(cfg, data, model, out, ablation=None, seed=0, resume=False, device="cpu", progress=False)
 
 
 def test_official_loop_options_normalizers_and_loss(data, tmp_path, tiny_config):
-    from hcmt.training.dataset import collate_samples
-
     warm = _trainer(tiny_config(*EXTRA, "train.normalizer_steps=2", "train.normalizer_warmup=nodes"), data,
                     tmp_path / "a")
     batch = collate_samples([warm.frames[0]])
@@ -321,8 +316,6 @@ def test_official_loop_options_normalizers_and_loss(data, tmp_path, tiny_config)
 
 
 def test_deformation_features_are_the_edges_strain_and_zero_at_rest(data):
-    from hcmt.graph.build import frame_graph
-
     adapter = config_adapter(Config.from_dict({"dataset": "impact_plate", "model": {"deformation": True}}))
     plain = get_adapter("impact_plate")
     assert adapter.widths()["mesh_in"] == plain.widths()["mesh_in"] + 3

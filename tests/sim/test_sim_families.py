@@ -8,12 +8,18 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
+import torch
 from scipy.sparse.linalg import spsolve
 
 from hertz import contact_history, hertz
 
 from hcmt.cli import main as cli
+from hcmt.data.format import Split, read_meta
+from hcmt.data.info import summarize
+from hcmt.inference.metrics import plate_mask
+from hcmt.physics.adapters import get_adapter, position_mask
 from hcmt.sim.contact import PenaltyContact
+from hcmt.sim.generate import generate_dataset
 from hcmt.sim.mesh import HANDLE, SYMMETRIC, WALL_BOUNDARY, impact_plate_mesh, layer_rows
 from hcmt.sim.scene import (FAMILIES, MATERIALS, Design, Settings, fixed_dofs, initial_frames, parse_stack,
                             sample_design, simulate, solver)
@@ -283,11 +289,6 @@ def test_boundary_conditions_of_the_supports():
 def test_learned_models_hold_a_ring_node_axially_and_find_the_plate_without_a_clamp():
     """The learned update holds WALL_BOUNDARY's y as the solver does (x predicted), and the metrics find the
     plate of a ring-supported panel (no HANDLE node) by its support."""
-    import torch
-
-    from hcmt.inference.metrics import plate_mask
-    from hcmt.physics.adapters import get_adapter, position_mask
-
     nt = torch.tensor([0, 1, 3, 6, 7])
     mask = position_mask(get_adapter("impact_plate"), nt, 2)
     assert mask.tolist() == [[1, 1], [1, 1], [0, 0], [1, 0], [0, 1]]
@@ -299,10 +300,6 @@ def test_learned_models_hold_a_ring_node_axially_and_find_the_plate_without_a_cl
 
 def test_generated_families_are_recorded_and_listed(tmp_path):
     """``generate --family`` takes the families in turn; meta.json records each trajectory's; info counts them."""
-    from hcmt.data.format import Split, read_meta
-    from hcmt.data.info import summarize
-    from hcmt.sim.generate import generate_dataset
-
     out = tmp_path / "d"
     generate_dataset(out, counts={"train": 3, "valid": 1}, families=("mono", "ring", "pen"), settings=Settings(
         frames=3), progress=False)

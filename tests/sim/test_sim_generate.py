@@ -2,14 +2,20 @@
 counts, resuming after an interruption, variant ranges, and refusal of impossible input."""
 from __future__ import annotations
 
+import shutil
+from collections import namedtuple
+
 import numpy as np
 import pytest
 
 import hcmt.sim.generate as gen
 from hcmt.cli import main
-from hcmt.errors import DatasetError
 from hcmt.data.format import NodeType, list_splits, open_split
-from hcmt.sim.scene import GRAVITY, RANGES, Design, Settings, sample_design, simulate
+from hcmt.errors import DatasetError
+from hcmt.inference.evaluate import evaluate
+from hcmt.inference.run import Run
+from hcmt.sim.scene import GRAVITY, RANGES, Design, Settings, design_mesh, plan, sample_design, simulate
+from hcmt.training import train
 
 SHORT = Settings(frames=6)  # impact begins at t = gap / v0 >= 0.0045 ms, i.e. within frames 2-3
 
@@ -162,8 +168,6 @@ def test_cli_simulate_refuses_bad_gap_and_times_a_design(tmp_path, capsys):
 
 def test_preset_node_counts():
     """paper ~2,200 nodes (Table 6: 2,208) on average, small 400-600; at least 4 layers through the plate."""
-    from hcmt.sim.scene import design_mesh
-
     for preset, (lo, hi) in dict(paper=(1900, 2500), small=(400, 600)).items():
         rng = np.random.default_rng(1)
         meshes = [design_mesh(sample_design(rng, preset)) for _ in range(20)]
@@ -198,9 +202,6 @@ def test_far_outside_the_validated_range_warns(capsys):
 
 
 def test_disk_full_is_one_line_and_a_rerun_resumes(tmp_path, monkeypatch, capsys):
-    import shutil
-    from collections import namedtuple
-
     real = shutil.disk_usage
     usage = namedtuple("usage", "total used free")
     monkeypatch.setattr(shutil, "disk_usage", lambda p: usage(1 << 30, 1 << 30, 1000))  # 1 kB free
@@ -239,8 +240,6 @@ def test_interrupted_generate_is_one_line_and_keeps_finished_work(tmp_path, monk
 def test_peak_stress_is_the_largest_stress_between_frames():
     """stress_max at a coarse interval equals the maximum over the substeps of a run that records every substep
     (same substep: the coarse frame holds n substeps, the fine run one), and is never below the frame's stress."""
-    from hcmt.sim.scene import plan
-
     d = Design(thickness=0.6, drop_height=900.0, mesh_size=0.6, plate_half_length=8.0, ball_radius=3.0)
     coarse = Settings(frames=6, frame_dt=0.008, peak_stress=True)
     n = plan(d, coarse)["substeps"] // (coarse.frames - 1)  # substeps per coarse frame
@@ -256,10 +255,6 @@ def test_peak_stress_is_the_largest_stress_between_frames():
 
 
 def test_generate_peak_stress_writes_the_field_and_a_model_trains_on_it(tmp_path, tiny_config):
-    from hcmt.inference.evaluate import evaluate
-    from hcmt.inference.run import Run
-    from hcmt.training import train
-
     out = tmp_path / "ip"
     assert main(["generate", "impact-plate", str(out), "--preset", "small", "--train", "1", "--valid", "1",
                  "--test", "1", "--frames", "5", "--frame-dt", "0.004", "--peak-stress", "--no-progress"]) == 0

@@ -11,10 +11,10 @@ from scipy.sparse.linalg import eigsh, spsolve
 from hertz import contact_history, hertz
 
 from hcmt.sim.contact import PenaltyContact
-from hcmt.sim.scene import fixed_dofs
 from hcmt.sim.mesh import SYMMETRIC, impact_plate_mesh, plate_mesh, preset_mesh
-from hcmt.sim.solver import (CentralDifference, build_model, internal_force, linear_stiffness, stable_time_step,
-                             strain_energy)
+from hcmt.sim.scene import fixed_dofs
+from hcmt.sim.solver import (CentralDifference, build_model, internal_force, linear_stiffness, nodal_von_mises,
+                             stable_time_step, strain_energy)
 
 STEEL = dict(density=7.85e-3, modulus=200e3, poisson=0.3)  # g/mm^3, MPa
 GLASS = dict(density=2.5e-3, modulus=70e3, poisson=0.22)
@@ -184,8 +184,6 @@ def test_von_mises_includes_out_of_plane_stress(formulation):
     """Plane strain stretch eps_xx = e: s_xx = (lambda + 2mu) e, s_yy = s_zz = lambda e, so sigma_vm = 2 mu e;
     axisymmetric radial expansion u_r = e r: s_rr = s_tt = 2(lambda + mu) e, s_zz = 2 lambda e, sigma_vm = 2 mu e.
     Without the out-of-plane component either would be wrong (sqrt of a different combination)."""
-    from hcmt.sim.solver import nodal_von_mises
-
     X, cells = plate_mesh(1.0, 5.0, 0.25)
     model = build_model(X, cells, 1e-3, 1000.0, 0.3, formulation=formulation)
     e = 1e-4

@@ -1,7 +1,11 @@
+import dataclasses
+
 import pytest
 import yaml
 
-from hcmt.config import builtin_configs, load_config
+from hcmt.config import Config, builtin_configs, load_config
+from hcmt.data.runs import RunFolder
+from hcmt.physics.adapters import dataset_spec
 
 TABLE8 = {  # dataset: (L_C, L_H, lambda, noise std, gamma, steps)
     "impact_plate": (2, 13, 6, 0.003, 0.4, 2_000_000),
@@ -43,8 +47,6 @@ TABLE9 = {"impact_plate": (9 + 2 + 1 + 1, 2 + 1 + 2 + 1, 3, 3, 1), "deforming_pl
 @pytest.mark.parametrize("name", TABLE8)
 def test_dataset_spec_holds_tables_8_and_9(name):
     """One source per dataset: Table 8 from its config, Table 9 from its adapter; both against the paper."""
-    from hcmt.physics.adapters import dataset_spec
-
     spec = dataset_spec(name)
     assert (spec["node_in"], spec["mesh_in"], spec["contact_in"], spec["out"], spec["integration"]) == TABLE9[name]
     assert (spec["L_C"], spec["L_H"], spec["levels"], spec["noise_std"], spec["radius"],
@@ -78,10 +80,6 @@ def test_every_builtin_config_passes_the_schema():
 
 
 def test_a_config_is_frozen_complete_and_typed():
-    import dataclasses
-
-    from hcmt.config import Config
-
     c = Config.from_dict({"dataset": "impact_plate", "train": {"lr": 1, "steps": 10.0, "contact_radius": 2},
                           "data": {"exclude_trajectories": [3]}})
     assert c.train.lr == 1.0 and isinstance(c.train.lr, float)  # a YAML 1 for a number is a float
@@ -106,8 +104,6 @@ def test_the_schema_holds_the_bounds(overrides, message):
 
 
 def test_training_needs_the_required_keys():
-    from hcmt.config import Config
-
     with pytest.raises(ValueError, match="train.lr is missing"):
         Config.from_dict({"dataset": "impact_plate", "train": {"steps": 3, "contact_radius": 1.0}}).for_training()
     with pytest.raises(ValueError, match="`dataset`"):
@@ -116,9 +112,6 @@ def test_training_needs_the_required_keys():
 
 
 def test_run_yaml_is_read_back_as_a_config(tmp_path):
-    from hcmt.config import Config
-    from hcmt.data.runs import RunFolder
-
     cfg = load_config("impact_plate_cpu", ["data.exclude_trajectories=[1]"])
     RunFolder(tmp_path, must_exist=False).write_info({"model": {"name": "mgn"}, "config": cfg})
     plain = yaml.safe_load((tmp_path / "run.yaml").read_text())  # plain YAML: no Python tags

@@ -1,27 +1,38 @@
 """Training, rollout and evaluation end to end on small data; resume equality; DDP; adapters; guards."""
 import json
 import os
+import pickle
+import signal
 import socket
 import subprocess
 import sys
+import time
 
+import h5py
 import numpy as np
 import pytest
 import torch
 
-from hcmt.cli import main as cli
-from hcmt.data.format import NodeType, open_split
-from hcmt.physics.adapters import get_adapter
-from hcmt.inference.evaluate import evaluate
-from hcmt.inference.run import Run
-from hcmt.physics.trajectory import load_split
-from hcmt.errors import RolloutError
-from hcmt.inference.rollout import rollout
-from hcmt.inference.run import load_run
-from hcmt.training import train
-
 from conftest import TINY
 from layouts import deforming_plate_tfrecord, ggns_pickles, sphere_simple_tfrecord, write_impact_like
+
+import hcmt.training.trainer as trainer_module
+from hcmt.cli import main as cli
+from hcmt.config import Config
+from hcmt.data.format import NodeType, open_split
+from hcmt.errors import DatasetError, RolloutError
+from hcmt.graph.batch import PadSizes
+from hcmt.inference.evaluate import evaluate, run_rollouts
+from hcmt.inference.rollout import rollout
+from hcmt.inference.run import Run, load_run
+from hcmt.models import Normalizer
+from hcmt.physics.adapters import config_adapter, get_adapter, node_features
+from hcmt.physics.frames import input_graph
+from hcmt.physics.trajectory import build_graph, load_split
+from hcmt.training import train
+from hcmt.training.dataset import FrameDataset, pad_sizes
+from hcmt.training.schedule import learning_rate
+from hcmt.viz.curves import rollout_errors
 
 pytestmark = pytest.mark.slow  # trains and rolls out real runs (DDP in a subprocess)
 
@@ -131,8 +142,6 @@ def test_adapters_on_official_layouts(tmp_path, kind, tiny_config):
     assert np.isfinite(m["position"]["rmse_all"])
     assert ("stress" in m) == get_adapter(kind).stress_output
     # prescribed obstacles and handles follow the data exactly
-    import h5py
-
     with h5py.File(tmp_path / "run" / "rollout_test.h5") as f, open_split(tmp_path / "data", "test") as s:
         pred, truth = f["traj_00000/world_pos"][()], s[0]
     fixed = np.isin(truth["node_type"].reshape(-1), [NodeType.HANDLE] + list(get_adapter(kind).prescribed))
@@ -170,16 +179,12 @@ def test_graph_batching_trains(impact, tmp_path, tiny_config):
 
 
 def test_learning_rate_decays_from_lr_to_lr_final():
-    from hcmt.training.schedule import learning_rate
-
     assert learning_rate(0, 100, 1e-4, 1e-6) == pytest.approx(1e-4)
     assert learning_rate(50, 100, 1e-4, 1e-6) == pytest.approx(1e-5)
     assert learning_rate(100, 100, 1e-4, 1e-6) == pytest.approx(1e-6)
 
 
 def test_evaluate_rolls_out_again_after_more_training(impact, tmp_path, tiny_config):
-    import h5py
-
     cfg = tiny_config(*EXTRA, "train.steps=2")
     train(cfg, impact, "mgn", tmp_path / "run", progress=False)
     evaluate(Run.load(tmp_path / "run", "cpu", "checkpoint"), impact, "test")
@@ -193,8 +198,6 @@ def test_evaluate_rolls_out_again_after_more_training(impact, tmp_path, tiny_con
 
 
 def test_dataset_without_the_adapters_fields_is_refused(tmp_path, tiny_config):
-    from hcmt.errors import DatasetError
-
     src = tmp_path / "src"
     sphere_simple_tfrecord(src)
     assert cli(["convert", str(src), str(tmp_path / "data")]) == 0
@@ -207,9 +210,6 @@ def test_dataset_without_the_adapters_fields_is_refused(tmp_path, tiny_config):
 
 
 def test_error_curves_roll_out_the_trajectories_an_old_rollout_lacks(tmp_path, tiny_config):
-    from hcmt.inference.evaluate import run_rollouts
-    from hcmt.viz.curves import rollout_errors
-
     data = write_impact_like(tmp_path / "data", n_test=2)
     train(tiny_config(*EXTRA, "train.steps=1"), data, "mgn", tmp_path / "run", progress=False)
     run = Run.load(tmp_path / "run", "cpu")
@@ -220,19 +220,12 @@ def test_error_curves_roll_out_the_trajectories_an_old_rollout_lacks(tmp_path, t
 
 def test_step_decay_is_the_authors_schedule():
     """train.lr_decay_steps: 1e-4 * 0.1^(step / 1e6), no floor (yuyudeep/hcmt run_model.py)."""
-    from hcmt.training.schedule import learning_rate
-
     assert learning_rate(0, 10, 1e-4, 1e-6, decay_steps=1_000_000) == pytest.approx(1e-4)
     assert learning_rate(1_000_000, 10, 1e-4, 1e-6, decay_steps=1_000_000) == pytest.approx(1e-5)
     assert learning_rate(3_000_000, 10, 1e-4, 1e-6, decay_steps=1_000_000) == pytest.approx(1e-7)  # below lr_final
 
 
 def test_official_contact_pairs_join_obstacle_and_normal_nodes_only(impact):
-    from hcmt.config import Config
-    from hcmt.physics.adapters import config_adapter
-    from hcmt.physics.trajectory import build_graph
-    from hcmt.physics.adapters import node_features
-
     radius = 10.0  # every pair of the two bodies is in range
     graphs = {}
     for pairs in ("all", "official"):
@@ -265,10 +258,6 @@ def test_bad_settings_are_refused_before_any_work(impact, tmp_path, capsys, args
 def test_interrupted_training_saves_and_says_how_to_resume(impact, tmp_path):
     """SIGINT in the middle of training: one line naming the saved step and the resume command; resuming
     finishes the run."""
-    import os
-    import signal
-    import time
-
     run = tmp_path / "run"
     cmd = [sys.executable, "-m", "hcmt", "train", "--config", "impact_plate_cpu", "--data", str(impact), "--model",
            "mgn", "--out", str(run), "--no-progress", "--steps", "400"]
@@ -292,8 +281,6 @@ def test_interrupted_training_saves_and_says_how_to_resume(impact, tmp_path):
 
 
 def test_batched_rollout_equals_one_by_one(impact, tmp_path, tiny_config):
-    import h5py
-
     cfg = tiny_config(*EXTRA, "train.steps=2")
     train(cfg, impact, "hcmt", tmp_path / "run", progress=False)
     assert cli(["rollout", str(tmp_path / "run"), "--data", str(impact), "--split", "train", "--batch", "2"]) == 0
@@ -309,8 +296,6 @@ def test_batched_rollout_equals_one_by_one(impact, tmp_path, tiny_config):
 def test_compiled_padded_rollout_equals_plain(impact, tmp_path, monkeypatch, tiny_config):
     """--compile rolls out on padded graphs through torch.compile (eager backend here: Dynamo traces, nothing is
     built); the trajectories equal the plain rollout's."""
-    import h5py
-
     cfg = tiny_config(*EXTRA, "train.steps=2")
     train(cfg, impact, "gt", tmp_path / "run", progress=False, device="cpu")
     compile_ = torch.compile
@@ -387,10 +372,6 @@ def test_dataloader_workers_change_no_result(impact, tmp_path, tiny_config):
 
 
 def test_frame_dataset_pickles_without_its_trajectories(impact):
-    import pickle
-
-    from hcmt.training.dataset import FrameDataset
-
     ds = FrameDataset(impact, "train", get_adapter("impact_plate"), 1, True, 0.3, noise_std=0.01, seed=1)
     graph, target, mask = ds[0]
     clone = pickle.loads(pickle.dumps(ds))
@@ -427,16 +408,14 @@ def test_compile_refuses_lpe_and_deterministic_is_scoped(impact, tmp_path, tiny_
     with pytest.raises(ValueError, match="lpe ablation"):
         train(cfg, impact, "hcmt", tmp_path / "lpe", ablation="lpe", progress=False, device="cpu")
     seen = []
-    from hcmt.training import trainer as tr
-
-    step = tr.Trainer.step
+    step = trainer_module.Trainer.step
     tr_step = lambda self, *a: seen.append(torch.are_deterministic_algorithms_enabled()) or step(self, *a)  # noqa
     cfg = tiny_config(*EXTRA, "train.steps=2", "train.deterministic=true")
     try:
-        tr.Trainer.step = tr_step
+        trainer_module.Trainer.step = tr_step
         train(cfg, impact, "hcmt", tmp_path / "det", progress=False, device="cpu")
     finally:
-        tr.Trainer.step = step
+        trainer_module.Trainer.step = step
     assert seen == [True, True] and not torch.are_deterministic_algorithms_enabled()
 
 
@@ -462,10 +441,6 @@ def test_resume_on_cuda(impact, tmp_path, deterministic, tiny_config):
 def test_pad_sizes_from_the_hierarchies_equal_those_of_the_frames_graphs(impact):
     """train.compile sizes its padding from each trajectory's hierarchy, without building a graph per trajectory:
     the same sizes as the built graphs give."""
-    from hcmt.graph.batch import PadSizes
-    from hcmt.physics.frames import input_graph
-    from hcmt.training.dataset import FrameDataset, pad_sizes
-
     ds = FrameDataset(impact, "train", get_adapter("impact_plate"), 1, True, 0.3)
     graphs = [input_graph(tr, tr.world_pos[1], tr.world_pos[0], tr.world_pos[2], 0.3) for tr in ds.trajectories]
     assert graphs[0].num_levels == 1
@@ -475,7 +450,6 @@ def test_pad_sizes_from_the_hierarchies_equal_those_of_the_frames_graphs(impact)
 
 # -- fine-tuning: train --init ---------------------------------------------------------------------------------------
 def _normalizer_buffers(model) -> dict:
-    from hcmt.models import Normalizer
     return {f"{n}.{b}": t.clone() for n, m in model.named_modules() if isinstance(m, Normalizer)
             for b, t in m.named_buffers()}
 

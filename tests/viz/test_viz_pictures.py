@@ -6,12 +6,15 @@ import numpy as np
 import pytest
 from PIL import Image
 
+from layouts import box_tetrahedra, impact_like
+from viz_runs import SHIFT, STRESS_OFFSET, fake_run, impact_dataset
+
 from hcmt.cli import main as cli
-from hcmt.inference.run import Run
-from hcmt.data.runs import RunFolder
 from hcmt.data.format import read_meta
+from hcmt.data.runs import RunFolder
 from hcmt.graph.contact import object_ids
 from hcmt.graph.hierarchy import build_hierarchy
+from hcmt.inference.run import Run
 from hcmt.training import train
 from hcmt.viz.animation import animate, animation_frames
 from hcmt.viz.attention import attention_matrix, frame_attention, object_order, plot_attention
@@ -19,10 +22,7 @@ from hcmt.viz.contours import contour_figure
 from hcmt.viz.curves import plot_error_curves, plot_training_curves, read_log, rollout_errors
 from hcmt.viz.hierarchy import level_figure, remeshing_figure
 from hcmt.viz.meshplot import impact_window
-from hcmt.viz.rollouts import Series, load_case
-
-from layouts import impact_like
-from viz_runs import SHIFT, STRESS_OFFSET, fake_run, impact_dataset
+from hcmt.viz.rollouts import Case, Series, load_case
 
 pytestmark = pytest.mark.slow  # trained runs rolled out
 
@@ -126,10 +126,6 @@ def test_contours_without_units_or_stress_say_so(tmp_path):
 
 
 def test_contours_of_a_3d_mesh(tmp_path):
-    from layouts import box_tetrahedra
-
-    from hcmt.viz.rollouts import Case
-
     pos, tets = box_tetrahedra(3, 2, 1, h=0.5)
     world = np.stack([pos, pos * [1, 1, 0.9]])
     stress = np.stack([np.zeros((len(pos), 1)), pos[:, :1]])

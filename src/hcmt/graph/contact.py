@@ -90,7 +90,6 @@ def contact_edges(world_pos, object_id, radius: float, *, node_type=None,
         method = "dense" if is_torch and world_pos.device.type != "cpu" else "kdtree"
     if method not in ("kdtree", "dense"):
         raise InputError(f"method must be 'auto', 'kdtree' or 'dense', got {method!r}")
-    n = int(world_pos.shape[0])
     allowed = _type_table(type_pairs)
     if method == "kdtree":
         args = [None if a is None else (a.detach().cpu().numpy() if isinstance(a, Tensor) else np.asarray(a))

@@ -322,7 +322,7 @@ def linear_stiffness(model: FEModel) -> sp.csr_matrix:
     zero = sp.csr_matrix((C, N))
     hoop = sp.diags(1.0 / model.Rc) @ D[2 * C:] if model.formulation == "axisymmetric" else zero
     B = sp.bmat([[Dx, zero], [zero, Dy], [Dy, Dx], [hoop, zero]]).tocsr()  # columns: all ux, then all uy
-    lam, mu, W = model.lam * model.W, model.mu * model.W, model.W
+    lam, mu = model.lam * model.W, model.mu * model.W
     a = lam + 2 * mu
     blocks = [[a, lam, None, lam], [lam, a, None, lam], [None, None, mu, None], [lam, lam, None, a]]
     Cmat = sp.bmat([[sp.diags(b) if b is not None else None for b in row] for row in blocks], format="csr")

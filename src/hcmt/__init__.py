@@ -18,9 +18,9 @@ The Python API (imported lazily, so ``import hcmt`` and ``hcmt --help`` stay fas
   docstrings), :func:`hcmt.build_model` (``name, node_in, mesh_in, contact_in, out, **args``) and
   :func:`hcmt.from_checkpoint`.
 
-The package's layers import only downward (tests/test_layers.py): ``errors`` → ``config`` → ``data`` → ``sim``, ``graph`` →
-``models`` → ``physics`` → ``inference`` → ``training``, ``viz`` → ``design`` → ``cli``. This module stands above
-them all and imports on first use (PEP 562 ``__getattr__``), so ``import hcmt`` stays fast.
+The package's layers import only downward (tests/test_layers.py): ``errors`` → ``config`` → ``data`` → ``sim``,
+``graph`` → ``models`` → ``physics`` → ``inference`` → ``training``, ``viz`` → ``design`` → ``cli``. This module
+stands above them all and imports on first use (PEP 562 ``__getattr__``), so ``import hcmt`` stays fast.
 """
 
 from __future__ import annotations

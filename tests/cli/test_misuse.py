@@ -161,6 +161,14 @@ def test_a_damaged_run_yaml_is_one_line(setup, tmp_path, capsys, text):
     assert "run.yaml" in msg
 
 
+def test_resuming_a_run_yaml_without_its_config_is_one_line(setup, tmp_path, capsys):
+    run = tmp_path / "run"
+    shutil.copytree(setup / "run", run)
+    (run / "run.yaml").write_text("model: {name: hcmt}\n")
+    msg = one_line(capsys, cli(["train", "--resume", "--out", str(run), "--steps", "3", "--no-progress"]))
+    assert "run.yaml: no config section" in msg
+
+
 def test_fuzz_run_files(setup, tmp_path, capsys):
     """Byte flips and cuts of run.yaml, checkpoint.pt, best.pt and data.json, and of a shipped model file: every
     case runs (exit 0) or is one line (exit 2), never a traceback."""

@@ -32,7 +32,7 @@ def parse_families(text: str) -> tuple[str, ...]:
     for name in names or ("",):
         if name not in FAMILIES:
             raise CommandError(f"--family {text!r}: family {name!r} does not exist; the families are "
-                             f"{', '.join(FAMILIES)}")
+                               f"{', '.join(FAMILIES)}")
     return names
 
 
@@ -156,8 +156,9 @@ def main_simulate(args) -> int:
           f"{cost['dt']:.3e} ms: estimated {cost['estimated_s']:.1f} s on one core", flush=True)
     if cost["estimated_s"] > MAX_ESTIMATED_SECONDS and not args.force:
         raise CommandError(f"estimated {cost['estimated_s']:.0f} s exceeds {MAX_ESTIMATED_SECONDS:.0f} s "
-                         f"({cost['num_nodes']} nodes x {cost['substeps']} substeps; mesh_size {design.mesh_size} mm, "
-                         f"plate_poisson {design.plate_poisson}); coarsen the mesh or pass --force")
+                           f"({cost['num_nodes']} nodes x {cost['substeps']} substeps; mesh_size "
+                           f"{design.mesh_size} mm, plate_poisson {design.plate_poisson}); coarsen the mesh or pass "
+                           "--force")
     bar = tqdm(total=settings.frames, desc="simulate", unit="frame",
                disable=args.no_progress or cost["estimated_s"] < 5.0)
     result = simulate(design, settings, progress=lambda k: bar.update(1))

@@ -136,11 +136,11 @@ def _design_run(args):
     run = Run.load(args.model, args.device)
     if run.config.dataset != "impact_plate":
         raise CommandError(f"{args.model}: predict is for Impact Plate models; this one was trained on "
-                         f"{run.config.dataset!r}")
+                           f"{run.config.dataset!r}")
     if run.meta is None and run.folder is not None:
         raise CommandError(f"{args.model}: its training data ({run.info.get('data')}) is gone and the run folder holds "
-                         f"no {run.folder.data_facts_path.name} (written by `hcmt train`): predict needs the "
-                         "generator's settings, the design ranges and keys; restore the dataset, or retrain")
+                           f"no {run.folder.data_facts_path.name} (written by `hcmt train`): predict needs the "
+                           "generator's settings, the design ranges and keys; restore the dataset, or retrain")
     return run
 
 
@@ -176,7 +176,7 @@ def main_sweep(args: argparse.Namespace) -> int:
     fixed = [item for item in args.design if design_key(item) == param]
     if fixed:
         raise CommandError(f"--vary {args.vary} and --design {fixed[0]}: {param} is the swept parameter; drop it "
-                         "from --design")
+                           "from --design")
     run = _design_run(args)
     base = parse_design(args.design, middle_design(run.meta, run.ranges))
     designs = sw.sweep_designs(base, param, lo, hi, n)

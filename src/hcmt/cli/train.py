@@ -56,7 +56,7 @@ def main_train(args: argparse.Namespace) -> int:
         missing = [f"--{k}" for k in ("config", "data", "model") if getattr(args, k) is None]
         if missing:
             raise CommandError(f"{', '.join(missing)} required (only `--resume --out RUN` of an existing run may leave "
-                             "them out)")
+                               "them out)")
         cfg, data, model, ablation = load_config(args.config, overrides), args.data, args.model, args.ablation
         seed = args.seed if args.seed is not None else 0
     summary = train(cfg, data, model, args.out, ablation=ablation, seed=seed,

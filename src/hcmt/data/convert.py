@@ -11,10 +11,10 @@ from __future__ import annotations
 import shutil
 from pathlib import Path
 
-from hcmt.errors import DatasetError
 from hcmt.data.format import make_meta, write_meta, write_split
 from hcmt.data.ggns import ggns_features, ggns_to_native, load_ggns_pickle
 from hcmt.data.tfrecord import iter_tfrecord, read_tf_meta
+from hcmt.errors import DatasetError
 
 _PICKLE_SUFFIXES = (".pkl", ".pickle", ".pk")
 

@@ -19,8 +19,8 @@ from pathlib import Path
 
 import numpy as np
 
-from hcmt.errors import DatasetError
 from hcmt.data.format import NodeType
+from hcmt.errors import DatasetError
 
 REQUIRED = ("nodes_grid", "triangles_grid", "nodes_collider", "triangles_collider", "poisson_ratio")
 

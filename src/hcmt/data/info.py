@@ -5,8 +5,8 @@ from pathlib import Path
 
 import numpy as np
 
-from hcmt.errors import DatasetError
 from hcmt.data.format import NodeType, Split, incomplete, list_splits, read_meta
+from hcmt.errors import DatasetError
 
 
 def summarize(dataset_dir: str | Path) -> str:

@@ -14,9 +14,9 @@ import numpy as np
 import torch
 import yaml
 
-from hcmt.errors import InputError
 from hcmt.config import Config
 from hcmt.data.format import Split, read_meta
+from hcmt.errors import InputError
 from hcmt.files import atomic_path, read_json
 
 PRETRAINED_DIR = Path(__file__).resolve().parent.parent / "pretrained"
@@ -127,10 +127,10 @@ class RunFolder:
                                        for k, v in summary.items()}, indent=2))
 
     def write_info(self, info: dict) -> None:
-        """``run.yaml`` (its config as plain YAML: :meth:`hcmt.config.Config.to_dict`), atomically."""
-        plain = dict(info, config=info["config"].to_dict()) if isinstance(info.get("config"), Config) else info
+        """``run.yaml`` (its :class:`hcmt.config.Config` as plain YAML, :meth:`~hcmt.config.Config.to_dict`),
+        atomically."""
         with atomic_path(self.run_yaml) as tmp:
-            tmp.write_text(yaml.safe_dump(plain, sort_keys=False))
+            tmp.write_text(yaml.safe_dump(dict(info, config=info["config"].to_dict()), sort_keys=False))
         self.info = info
 
     @property
@@ -248,6 +248,9 @@ def check_start(folder: RunFolder, resume: bool, *, flags: bool = False) -> None
     else in the Python API's (``resume=True``, ``overwrite=True``)."""
     if resume and folder.damaged:
         raise InputError(folder.damaged)
+    if resume and folder.info is not None and "config" not in folder.info:
+        raise InputError(f"{folder.run_yaml}: no config section, so the run cannot be resumed; it is written by "
+                         "`hcmt train` (restore it, or train the run again)")
     if resume and not folder.latest.is_file():
         raise FileNotFoundError(f"{folder.latest}: nothing to resume; start without "
                                 f"{'--resume' if flags else 'resume=True'}")

@@ -22,10 +22,10 @@ from pathlib import Path
 import numpy as np
 from tqdm import tqdm
 
-from hcmt.errors import InputError
 from hcmt.design.inputs import confidence, outside, range_warnings, settings_of
 from hcmt.design.readout import CONTACT_END_BOUND, history_correlation, summarize_fields
 from hcmt.design.surrogate import Surrogate, for_run, side_by_side
+from hcmt.errors import InputError
 from hcmt.inference.metrics import impact_metrics, plate_mask, rollout_rmse, summarize_impact
 from hcmt.inference.rollout import rollout_batch
 from hcmt.physics.trajectory import prepare_trajectory

@@ -20,11 +20,11 @@
 * ``learned``: the model's stress head in every frame, the peak over every frame (hcmt 0.1's reading);
 * ``contact`` (recommended, the design check's default): the stress head while the predicted ball touches the
   plate, the window ending no later than the response surface's lower 95 % bound of when the solver's ball leaves
-  (``contact_end_ms``, :data:`CONTACT_END_BOUND`: a learned ball rebounds late); after that, the plate's free-vibration bending stress from its predicted
-  deflection, ``σ ≈ k E t w_max / R²`` (Kirchhoff plate: bending stress is linear in the deflection; ``k`` =
-  :data:`BENDING_K`, the median over the shipped model's 120 training runs' post-separation frames; the static
-  clamped-plate point-load solution gives ``2 / (1 − ν²) ≈ 2.1`` at the clamp, the measured ratio holds the
-  vibrating shape's higher curvature near the centre);
+  (``contact_end_ms``, :data:`CONTACT_END_BOUND`: a learned ball rebounds late); after that, the plate's
+  free-vibration bending stress from its predicted deflection, ``σ ≈ k E t w_max / R²`` (Kirchhoff plate: bending
+  stress is linear in the deflection; ``k`` = :data:`BENDING_K`, the median over the shipped model's 120 training
+  runs' post-separation frames; the static clamped-plate point-load solution gives ``2 / (1 − ν²) ≈ 2.1`` at the
+  clamp, the measured ratio holds the vibrating shape's higher curvature near the centre);
 * ``element``: the solver's own element law (CST, St Venant-Kirchhoff) on the predicted positions. Measured: its
   peak is off by a median +459 % on 8 designs (a 1 µm position error across a 0.3 mm element is a strain of
   3e-3, 230 MPa in glass), so it is offered for study, not used.

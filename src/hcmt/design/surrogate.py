@@ -32,8 +32,8 @@ from sklearn.exceptions import ConvergenceWarning
 from sklearn.gaussian_process import GaussianProcessRegressor
 from sklearn.gaussian_process.kernels import RBF, ConstantKernel, WhiteKernel
 
-from hcmt.errors import InputError
 from hcmt.data.format import Split, read_meta
+from hcmt.errors import InputError
 from hcmt.files import atomic_path
 from hcmt.design.readout import summarize_fields
 from hcmt.data.runs import PRETRAINED_DIR

@@ -18,10 +18,10 @@ from pathlib import Path
 
 import numpy as np
 
-from hcmt.errors import InputError
 from hcmt.config import plural
 from hcmt.design.check import Check, check_designs
 from hcmt.design.reports import finite, to_json
+from hcmt.errors import InputError
 from hcmt.sim.scene import DESIGN_KEYS, Design
 from hcmt.viz.meshplot import new_figure, save_figure
 

@@ -31,8 +31,8 @@ from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 from torch import Tensor
 
-from hcmt.errors import InputError
 from hcmt.data.format import NodeType
+from hcmt.errors import InputError
 from hcmt.graph.edges import cells_to_edges, unique_sorted
 
 OBSTACLE, NORMAL = int(NodeType.OBSTACLE), int(NodeType.NORMAL)

@@ -18,8 +18,8 @@ import math
 import numpy as np
 from tqdm import tqdm
 
-from hcmt.errors import DatasetError, InputError
 from hcmt.data.format import open_split
+from hcmt.errors import DatasetError, InputError
 from hcmt.graph.hierarchy import Hierarchy, cached_hierarchy, hierarchy_cache_dir
 from hcmt.graph.quality import quality_summary
 from hcmt.graph.remesh import clique_cells, two_hop_edges

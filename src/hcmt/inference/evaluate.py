@@ -14,16 +14,15 @@ import h5py
 import numpy as np
 from tqdm import tqdm
 
-from hcmt.errors import InputError
 from hcmt.config import COMPILE_MODES, plural
 from hcmt.data.format import Split, read_meta
+from hcmt.data.runs import RunFolder
+from hcmt.errors import InputError, RolloutError
 from hcmt.files import atomic_path, ensure_space, read_json
 from hcmt.inference.metrics import (SCALE, aggregate, format_physics, impact_groups, impact_metrics, plate_mask,
                                     rollout_rmse, step_rmse, summarize_impact, summarize_runs)
-from hcmt.errors import RolloutError
 from hcmt.inference.rollout import rollout, rollout_batch
 from hcmt.inference.run import Run, check_dataset, dataset_warnings, model_label
-from hcmt.data.runs import RunFolder
 from hcmt.physics.trajectory import load_split
 
 

@@ -20,9 +20,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from hcmt.errors import InputError
 from hcmt.config import plural
 from hcmt.data.format import NodeType
+from hcmt.errors import InputError
 from hcmt.graph.contact import object_ids
 
 SCALE = 1e3

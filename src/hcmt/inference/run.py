@@ -20,10 +20,10 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from hcmt.errors import InputError
 from hcmt.config import Config
 from hcmt.data.format import Split, read_meta
 from hcmt.data.runs import RunFolder, available_pretrained, read_checkpoint
+from hcmt.errors import InputError
 from hcmt.files import atomic_path
 from hcmt.models import REGISTRY, from_checkpoint, resolve_device, uses_hierarchy
 from hcmt.physics.adapters import config_adapter
@@ -51,9 +51,7 @@ def load_run(run: str | Path | RunFolder, which: str = "best", device: str = "cp
                          f" {str(exc).splitlines()[0][:200]})") from None
     try:  # a hand-edited or damaged run.yaml: its settings must still make the run's adapter and graph
         info = dict(folder.info)
-        config_adapter(info["config"])  # a KeyError when run.yaml has no config
-        if info["config"].train.contact_radius is None:
-            raise InputError("train.contact_radius is missing")
+        config_adapter(info["config"].for_training())  # a KeyError when run.yaml has no config
         uses_hierarchy(info["model"])
         info["checkpoint"] = {"file": path.name, "step": int(state["step"])}
     except (TypeError, ValueError, KeyError, AttributeError) as exc:
@@ -104,8 +102,8 @@ class Run:
         except (KeyError, TypeError, RuntimeError, ValueError) as exc:
             raise InputError(f"{shipped[name]}: a damaged shipped model ({exc.__class__.__name__}); reinstall hcmt") \
                 from None
-        info = {"model": pack["model_args"], "config": Config.from_dict(pack["config"], str(shipped[name])), "data": None,
-                "checkpoint": {"file": shipped[name].name, "step": int(pack["card"].get("steps", 0))}}
+        info = {"model": pack["model_args"], "config": Config.from_dict(pack["config"], str(shipped[name])),
+                "data": None, "checkpoint": {"file": shipped[name].name, "step": int(pack["card"].get("steps", 0))}}
         ranges = {k: (float(v[0]), float(v[1])) for k, v in pack["ranges"].items()}
         return cls(model.to(device), info, f"pretrained:{name}", pack["meta"], ranges, pack["card"])
 

@@ -9,8 +9,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from hcmt.errors import InputError
 from hcmt.config import ModelConfig
+from hcmt.errors import InputError
 
 from .attention import MODES as ATTENTION_MODES, check_mode
 from .base import Simulator, resolve_device

@@ -9,8 +9,8 @@ import numpy as np
 import torch
 from torch import Tensor
 
-from hcmt.errors import DatasetError
 from hcmt.data.format import Split
+from hcmt.errors import DatasetError
 from hcmt.graph.batch import Graph
 from hcmt.graph.build import frame_graph
 from hcmt.graph.hierarchy import Hierarchy, cached_hierarchy, hierarchy_cache_dir

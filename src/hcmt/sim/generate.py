@@ -20,8 +20,8 @@ import h5py
 import numpy as np
 from tqdm import tqdm
 
-from hcmt.errors import DatasetError, InputError
 from hcmt.data.format import make_meta, read_meta, write_meta, write_split
+from hcmt.errors import DatasetError, InputError
 from hcmt.sim.scene import (CONTACT_RADIUS, FAMILIES, RANGES, UNITS, VARIANTS, Design, Settings,
                             family_ranges, feature_spec, resolve_relative, sample_design, simulate)
 

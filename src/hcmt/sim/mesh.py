@@ -12,8 +12,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from hcmt.errors import InputError
 from hcmt.data.format import NodeType
+from hcmt.errors import InputError
 from scipy.spatial import Delaunay
 
 NORMAL, OBSTACLE, HANDLE, SYMMETRIC = NodeType.NORMAL, NodeType.OBSTACLE, NodeType.HANDLE, NodeType.SYMMETRIC

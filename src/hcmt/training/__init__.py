@@ -7,9 +7,9 @@ import os
 import shutil
 from pathlib import Path
 
-from hcmt.errors import InputError
 from hcmt.config import as_config
 from hcmt.data.runs import RunFolder, check_start
+from hcmt.errors import InputError
 from hcmt.models import MODELS
 from hcmt.training.runtime import deterministic_scope, lock_run
 from hcmt.training.trainer import Trainer
@@ -22,12 +22,12 @@ def train(config, data, model: str, out, *, overrides=None, resume: bool = False
     returns the training summary (final loss, steps, ms per step, best validation metric); :meth:`hcmt.Run.load`
     (``out``) gives the trained model.
 
-    ``config`` is a :class:`hcmt.config.Config`, a config mapping, a built-in config name or a YAML path; ``overrides`` a list of
-    ``section.key=value``; ``resume=True`` continues the run in ``out`` exactly, ``overwrite=True`` deletes it and
-    starts afresh (otherwise a folder holding a run is refused). ``stop_at`` ends this call after that global step
-    (checkpointed), as an interruption would. The run folder is locked while training (a second process writing
-    the same ``out`` is refused at once), and a run that fails before its first checkpoint leaves nothing
-    behind.
+    ``config`` is a :class:`hcmt.config.Config`, a config mapping, a built-in config name or a YAML path;
+    ``overrides`` a list of ``section.key=value``; ``resume=True`` continues the run in ``out`` exactly,
+    ``overwrite=True`` deletes it and starts afresh (otherwise a folder holding a run is refused). ``stop_at`` ends
+    this call after that global step (checkpointed), as an interruption would. The run folder is locked while
+    training (a second process writing the same ``out`` is refused at once), and a run that fails before its first
+    checkpoint leaves nothing behind.
 
     ``init`` (a run folder or ``pretrained:NAME``) starts from that model's weights (fine-tuning; its constructor
     arguments must equal this run's, else one line lists what differs); ``init_normalizers`` ``keep`` freezes its

@@ -16,7 +16,6 @@ import torch.distributed as dist
 import yaml
 
 from hcmt.errors import InputError
-from hcmt.config import Config
 from hcmt.files import atomic_path, take_lock
 
 
@@ -24,7 +23,7 @@ def check_resume(saved: dict, run: dict, out: Path) -> None:
     """An exact continuation needs the settings the run started with; only ``train.steps`` may grow (the
     learning-rate schedule then stretches to the new length)."""
     def strip(r):
-        r = yaml.safe_load(yaml.safe_dump(dict(r, config=Config.from_dict(r["config"]).to_dict())))
+        r = yaml.safe_load(yaml.safe_dump(dict(r, config=r["config"].to_dict())))  # both read through Config
         r["config"]["train"].pop("steps", None)
         return r
 

@@ -43,10 +43,10 @@ import torch.distributed as dist
 from torch.utils.tensorboard import SummaryWriter
 from tqdm import tqdm
 
-from hcmt.errors import InputError
 from hcmt.config import Config
 from hcmt.data.format import read_meta
 from hcmt.data.runs import RunFolder, check_start, read_checkpoint
+from hcmt.errors import InputError
 from hcmt.files import atomic_path
 from hcmt.inference.evaluate import validation_rmse
 from hcmt.inference.run import Run

@@ -31,8 +31,8 @@ from matplotlib import colors
 
 import torch
 
-from hcmt.errors import InputError
 from hcmt.data.format import NodeType, Split
+from hcmt.errors import InputError
 from hcmt.graph.hierarchy import hierarchy_cache_dir
 from hcmt.inference.run import Run
 from hcmt.models import REGISTRY

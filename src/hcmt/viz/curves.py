@@ -13,8 +13,8 @@ from pathlib import Path
 import h5py
 import numpy as np
 
-from hcmt.errors import InputError
 from hcmt.data.format import Split, read_meta
+from hcmt.errors import InputError
 from hcmt.inference.metrics import SCALE, step_rmse
 from hcmt.viz.meshplot import new_figure, save_figure
 from hcmt.inference.evaluate import rollout_file

@@ -19,8 +19,8 @@ import numpy as np
 from matplotlib.lines import Line2D
 from mpl_toolkits.mplot3d.art3d import Line3DCollection
 
-from hcmt.errors import InputError
 from hcmt.data.format import NodeType
+from hcmt.errors import InputError
 from hcmt.graph.hierarchy import Hierarchy
 from hcmt.graph.quality import quality_summary
 from hcmt.graph.remesh import clique_cells, two_hop_edges

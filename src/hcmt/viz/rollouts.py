@@ -13,8 +13,8 @@ from pathlib import Path
 import h5py
 import numpy as np
 
-from hcmt.errors import DatasetError, InputError
 from hcmt.data.format import Split, read_meta
+from hcmt.errors import DatasetError, InputError
 from hcmt.graph.contact import object_ids
 from hcmt.inference.evaluate import rollout_file
 from hcmt.inference.run import Run, model_label

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import sys
 
 from hcmt.cli import CommandError
 from hcmt.design.surrogate import QUANTITIES, RESTARTS, Surrogate
@@ -38,6 +39,10 @@ def main(args: argparse.Namespace) -> int:
                               stress_field=args.stress_field)
     if args.label:
         s.source = args.label
+    if s.censored:
+        print(f"hcmt surrogate: warning: {args.data}: in {s.censored} of its {len(s)} runs the window "
+              f"({s.dataset['frames']} frames) ends before the ball leaves the plate: peaks may be missed and its "
+              "bound of when the ball leaves will not be used (generate with more --frames)", file=sys.stderr)
     path = s.save(args.out)
     print(f"fitted on {s.source}: {len(s.parameters)} parameters ({', '.join(s.parameters)}); held fixed: "
           + (", ".join(f"{k}={v:g}" for k, v in s.fixed.items()) or "none"))

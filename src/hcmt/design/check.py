@@ -171,7 +171,7 @@ def check_designs(run, designs: list[tuple[str, Design]], *, batch: int = 8, ver
     if batch < 1:
         raise InputError(f"must be >= 1, got {batch}", param="batch")
     settings = settings_of(run.meta)
-    surrogate, note = for_run(run, surrogate)
+    surrogate, note, ends_window = for_run(run, surrogate)
     notes = [note] if note else []
     cost_check(run, designs, settings, bool(verify), force)
     intervals = surrogate.predict([d for _, d in designs]) if surrogate is not None else None
@@ -180,7 +180,7 @@ def check_designs(run, designs: list[tuple[str, Design]], *, batch: int = 8, ver
     if intervals is not None:
         intervals = [None if c else iv for iv, c in zip(intervals, cannot)]
     ends = [getattr(iv["contact_end_ms"], CONTACT_END_BOUND) if iv and "contact_end_ms" in iv else None
-            for iv in intervals] if intervals else None
+            for iv in intervals] if intervals and ends_window else None
     t0 = time.perf_counter()
     preds = predict(run, designs, batch=batch, progress=progress, compile=compile, readout=readout,
                     contact_end_ms=ends)

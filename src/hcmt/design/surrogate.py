@@ -17,7 +17,11 @@ its peak and the time the ball leaves the plate (which bounds the mesh model's c
 
 Stored without pickle (:meth:`Surrogate.save`, :meth:`Surrogate.load`): JSON with the kernel's hyperparameters,
 the training designs and their solver answers, and the transforms; loading refits the posterior with the stored
-hyperparameters (``optimizer=None``), so a loaded surrogate predicts what the fitted one did, to rounding.
+hyperparameters (``optimizer=None``), so a loaded surrogate predicts what the fitted one did, to rounding. Format
+version 2 adds ``dataset`` (:func:`dataset_facts`: the training data's frame window and interval, families, stress
+field, units and how many runs the window ended before the ball left); version 1 files (no ``dataset``) still load.
+A surrogate meets a model in :func:`for_run`: one that does not fit it (:meth:`Surrogate.check_model`) is refused,
+and one whose window is not known to be the model's never ends the model's read-out window.
 """
 from __future__ import annotations
 
@@ -37,12 +41,16 @@ from hcmt.errors import InputError
 from hcmt.files import atomic_path
 from hcmt.design.readout import summarize_fields
 from hcmt.data.runs import PRETRAINED_DIR
-from hcmt.sim.scene import DESIGN_KEYS, FIRST_SCENE_KEYS, Design, design_from_attrs
+from hcmt.sim.scene import DESIGN_KEYS, DESIGN_UNITS, FIRST_SCENE_KEYS, Design, design_from_attrs
 
 #: the scalar answers a surrogate predicts (keys of a design's summary)
 QUANTITIES = ("peak_plate_stress_mpa", "peak_ball_stress_mpa", "max_deflection_mm", "peak_plate_t95_ms",
               "contact_end_ms")
-FORMAT, VERSION = "hcmt-surrogate", 1
+FORMAT, VERSION = "hcmt-surrogate", 2
+READS = (1, 2)  # the format versions this hcmt loads (1: no "dataset" block)
+#: the unit of each answer (:data:`QUANTITIES`)
+ANSWER_UNITS = {"peak_plate_stress_mpa": "MPa", "peak_ball_stress_mpa": "MPa", "max_deflection_mm": "mm",
+                "peak_plate_t95_ms": "ms", "contact_end_ms": "ms"}
 Z95 = 1.959963984540054  # the standard normal's 97.5 % quantile: a central 95 % interval
 RESTARTS = 3  # optimizer restarts of the marginal likelihood (the issue's comparison used 3)
 
@@ -74,12 +82,14 @@ class Surrogate:
         kernels: answer name -> ``{"constant", "length_scales" [d], "noise"}``: the fitted hyperparameters
             (None: fit them by maximizing the marginal likelihood, ``restarts`` restarts, ``seed``).
         source: where the training designs came from (recorded in the file).
+        dataset: what the training data was (:func:`dataset_facts`; None: not known, as in a version 1 file).
     """
 
     def __init__(self, parameters: list[str], fixed: dict[str, float], X, Y: dict[str, np.ndarray],
                  kernels: dict | None = None, *, source: str = "", restarts: int = RESTARTS, seed: int = 0,
-                 linear: list[str] | None = None, strict: bool = True):
+                 linear: list[str] | None = None, strict: bool = True, dataset: dict | None = None):
         self.parameters, self.fixed, self.source = list(parameters), dict(fixed), source
+        self.dataset = dict(dataset) if dataset is not None else None
         if not self.parameters:
             raise InputError("no design parameter varies over the training designs: nothing to fit")
         self.X = np.asarray(X, np.float64).reshape(-1, len(self.parameters))
@@ -126,8 +136,10 @@ class Surrogate:
         """Fit on the solver trajectories of an hcmt-generated Impact Plate dataset's ``split`` (the first
         ``limit`` when given): :func:`dataset_answers`."""
         designs, answers = dataset_answers(data, split, limit, stress_field)
-        return cls.fit(designs, answers, source=f"{Path(data)} ({split}, {len(designs)} trajectories)",
-                       restarts=restarts, seed=seed)
+        s = cls.fit(designs, answers, source=f"{Path(data)} ({split}, {len(designs)} trajectories)",
+                    restarts=restarts, seed=seed)
+        s.dataset = dataset_facts(read_meta(data), split, stress_field, answers)
+        return s
 
     @classmethod
     def fit(cls, designs: list[Design], answers: dict[str, list[float]], *, source: str = "",
@@ -143,6 +155,11 @@ class Surrogate:
         fixed = {k: float(values[0, j]) for j, (k, s) in enumerate(zip(DESIGN_KEYS, spread)) if not s}
         return cls(params, fixed, values[:, spread], answers, source=source, restarts=restarts, seed=seed,
                    strict=strict)
+
+    @property
+    def censored(self) -> int:
+        """How many training runs' window ended before the ball left (0 when not known)."""
+        return int((self.dataset or {}).get("censored", 0))
 
     # -- predicting ------------------------------------------------------------------------------------------------
     def _x(self, X: np.ndarray) -> np.ndarray:
@@ -197,6 +214,7 @@ class Surrogate:
     # -- storing ---------------------------------------------------------------------------------------------------
     def to_dict(self) -> dict:
         return {"format": FORMAT, "version": VERSION, "source": self.source,
+                **({"dataset": self.dataset} if self.dataset is not None else {}),
                 "model": "GaussianProcessRegressor: ConstantKernel * RBF(ARD) + WhiteKernel on standardized log "
                          "inputs and log outputs; 95 % interval = exp(m + s (mu +- 1.96 sd))",
                 "parameters": self.parameters, "fixed": self.fixed,
@@ -234,9 +252,9 @@ class Surrogate:
     def from_dict(cls, doc, where: str = "surrogate") -> "Surrogate":
         if not isinstance(doc, dict) or doc.get("format") != FORMAT:
             raise SurrogateError(f"{where}: not an hcmt surrogate (expected \"format\": \"{FORMAT}\")")
-        if doc.get("version") != VERSION:
+        if doc.get("version") not in READS:
             raise SurrogateError(f"{where}: surrogate format version {doc.get('version')!r}, this hcmt reads "
-                                 f"{VERSION}")
+                                 f"{' and '.join(map(str, READS))}")
         try:
             params, fixed, designs = list(doc["parameters"]), dict(doc["fixed"]), doc["designs"]
             answers, kernels = dict(doc["answers"]), dict(doc["kernels"])
@@ -263,7 +281,8 @@ class Surrogate:
                 raise SurrogateError(f"{where}: \"input_transform\": expected {{\"linear\": [parameters taken "
                                      "linearly]}}")
             return cls(params, {k: float(v) for k, v in fixed.items()}, X, answers, kernels,
-                       source=str(doc.get("source", "")), linear=linear)
+                       source=str(doc.get("source", "")), linear=linear,
+                       dataset=_read_facts(doc.get("dataset"), where) if doc.get("version", 1) >= 2 else None)
         except SurrogateError:
             raise
         except (KeyError, TypeError, ValueError, OverflowError) as exc:
@@ -271,13 +290,105 @@ class Surrogate:
             raise SurrogateError(f"{where}: not a usable surrogate: {what}") from None
 
     # -- use against a model ---------------------------------------------------------------------------------------
-    def check_parameters(self, ranges: dict[str, tuple[float, float]], where: str) -> None:
+    def check_parameters(self, ranges: dict[str, tuple[float, float]], where: str, param: str | None = None) -> None:
         """Refuse a surrogate whose parameters differ from the model's varied ones (``ranges``: the model's
         training ranges)."""
         varied = sorted(k for k, (lo, hi) in ranges.items() if k in DESIGN_KEYS and hi > lo)
         if varied and sorted(self.parameters) != varied:
             raise SurrogateError(f"{where}: the surrogate takes {sorted(self.parameters)}, the model's training "
-                                 f"designs vary {varied}: fit it on the model's own data (`hcmt surrogate fit`)")
+                                 f"designs vary {varied}: fit it on the model's own data (`hcmt surrogate fit`)",
+                                 param=param)
+
+    def check_model(self, ranges: dict[str, tuple[float, float]], meta: dict | None, stress_field: str, where: str,
+                    param: str | None = None) -> None:
+        """Refuse, in one line naming ``where`` and what differs, a surrogate that does not fit the model: other
+        parameters, training ranges that do not cover the model's, a parameter held at another value, and (when
+        the file records its data, format 2) another frame window or interval, stress field, family or unit."""
+        self.check_parameters(ranges, where, param)
+        differ = _data_differences(self.dataset, meta, stress_field) if self.dataset is not None and meta else []
+        narrow = self._range_differences(ranges)
+        if narrow:
+            others = [n.split(" ", 1)[0] for n in narrow[1:]]
+            differ.append(f"its training ranges do not cover the model's: {narrow[0]}"
+                          + (f" (also {', '.join(others[:2])}{', ...' if len(others) > 2 else ''})" if others else ""))
+        if differ:
+            more = f" (and {len(differ) - 1} more)" if len(differ) > 1 else ""
+            raise SurrogateError(f"{where}: does not fit the model: {differ[0]}{more}; fit it on the model's own "
+                                 "training data", param=param)
+
+    def _range_differences(self, ranges: dict[str, tuple[float, float]]) -> list[str]:
+        """Each parameter whose training range does not cover the model's, or held at another value."""
+        own = self.ranges()
+        out = []
+        for k, (lo, hi) in ranges.items():
+            if k not in own:
+                continue
+            a, b = own[k]
+            tol = 1e-6 * max(abs(lo), abs(hi), 1e-12)
+            if a > lo + tol or b < hi - tol:
+                out.append(f"{k} {a:.3g}..{b:.3g} vs {lo:.3g}..{hi:.3g}")
+        return out
+
+
+def dataset_facts(meta: dict, split: str, stress_field: str, answers: dict[str, list[float]]) -> dict:
+    """What a surrogate records of its training data (its ``dataset`` block): the frame window and interval, the
+    families of the split, the stress field, the units of the design parameters and answers, and ``censored``:
+    how many runs' window ended before the ball left (or before it touched), whose ``contact_end_ms`` is then the
+    window's, not the ball's."""
+    frames, dt = _window(meta)
+    ends = np.asarray(answers.get("contact_end_ms", []), np.float64)
+    censored = int(np.sum((ends >= (frames - 0.5) * dt) | (ends <= 1.5 * dt)))
+    return {"frames": frames, "frame_dt_ms": dt, "split": split, "families": _families(meta, split),
+            "stress_field": stress_field, "units": dict(DESIGN_UNITS), "answer_units": dict(ANSWER_UNITS),
+            "censored": censored, "runs": int(len(ends))}
+
+
+def _window(meta: dict | None) -> tuple[int, float]:
+    """(frames, frame interval in ms) of a dataset's meta.json (0, 0.0 when it records none)."""
+    settings = ((meta or {}).get("generator") or {}).get("settings") or {}
+    return int(settings.get("frames") or 0), float((meta or {}).get("dt") or settings.get("frame_dt") or 0.0)
+
+
+def _families(meta: dict | None, split: str = "train") -> list[str]:
+    """The design families of a dataset's split (``mono`` for data made before them)."""
+    listed = ((meta or {}).get("families") or {}).get(split) or ((meta or {}).get("generator") or {}).get("families")
+    return sorted(set(listed or ["mono"]))
+
+
+def _data_differences(facts: dict, meta: dict, stress_field: str) -> list[str]:
+    """What differs between a surrogate's recorded training data (``facts``) and a model's (``meta``)."""
+    frames, dt = _window(meta)
+    out = []
+    if facts["frames"] != frames or not math.isclose(facts["frame_dt_ms"], dt, rel_tol=1e-6):
+        out.append(f"fitted on a window of {facts['frames']} frames of {facts['frame_dt_ms']:g} ms, the model's is "
+                   f"{frames} frames of {dt:g} ms")
+    if facts["stress_field"] != stress_field:
+        out.append(f"fitted on {facts['stress_field']!r}, the model learned {stress_field!r}")
+    missing = sorted(set(_families(meta)) - set(facts["families"]))
+    if missing:
+        out.append(f"fitted on the families {', '.join(facts['families'])}, the model trained on {', '.join(missing)} too")
+    units = [f"{k} in {u}" for k, u in {**facts["units"], **facts["answer_units"]}.items()
+             if {**DESIGN_UNITS, **ANSWER_UNITS}.get(k, u) != u]
+    if units:
+        out.append(f"its units differ ({', '.join(units[:3])})")
+    return out
+
+
+def _read_facts(facts, where: str) -> dict:
+    """A version 2 file's ``dataset`` block, checked."""
+    try:
+        out = dict(facts)
+        out.update(frames=int(out["frames"]), frame_dt_ms=float(out["frame_dt_ms"]), censored=int(out["censored"]),
+                   stress_field=str(out["stress_field"]), families=[str(f) for f in out["families"]],
+                   units=dict(out.get("units") or {}), answer_units=dict(out.get("answer_units") or {}))
+        if out["frames"] < 2 or not (math.isfinite(out["frame_dt_ms"]) and out["frame_dt_ms"] > 0) \
+                or out["censored"] < 0:
+            raise ValueError("frames >= 2, frame_dt_ms > 0 and censored >= 0 expected")
+        return out
+    except (KeyError, TypeError, ValueError) as exc:
+        what = f"missing key {exc}" if isinstance(exc, KeyError) else str(exc).splitlines()[0][:120]
+        raise SurrogateError(f"{where}: \"dataset\" block not usable ({what}); it is written by `hcmt surrogate "
+                             "fit`") from None
 
 
 def dataset_answers(data: str | Path, split: str = "train", limit: int | None = None, stress_field: str = "stress"
@@ -287,7 +398,7 @@ def dataset_answers(data: str | Path, split: str = "train", limit: int | None = 
     ``stress_field``: the stress a model learned (``stress_max`` for ``generate --peak-stress`` data)."""
     data = Path(data)
     meta = read_meta(data)
-    frame_dt = float(meta.get("dt") or ((meta.get("generator") or {}).get("settings") or {}).get("frame_dt", 0))
+    frame_dt = _window(meta)[1]
     designs, answers = [], {q: [] for q in QUANTITIES}
     with Split(data, split, meta) as s:
         count = len(s) if limit is None else min(limit, len(s))
@@ -344,22 +455,35 @@ def run_surrogate_path(run) -> Path | None:
     return folder.path / "surrogate.json" if folder is not None else None
 
 
-def for_run(run, choice: "Surrogate | str | Path | bool | None" = True) -> tuple["Surrogate | None", str | None]:
-    """(surrogate, note) for a run: ``True``, the run's own (:func:`run_surrogate_path`; note when it has none);
-    a path, that file; a :class:`Surrogate`, itself; ``False`` / ``None``, none. A surrogate whose parameters are
-    not the model's varied ones is refused (:meth:`Surrogate.check_parameters`)."""
+def for_run(run, choice: "Surrogate | str | Path | bool | None" = True
+            ) -> tuple["Surrogate | None", str | None, bool]:
+    """(surrogate, note, ends_window) for a run: ``True``, the run's own (:func:`run_surrogate_path`; note when it
+    has none); a path, that file; a :class:`Surrogate`, itself; ``False`` / ``None``, none. A surrogate that does
+    not fit the model is refused (:meth:`Surrogate.check_model`; ``param`` surrogate when it was given).
+    ``ends_window``: whether its bound of when the ball leaves may end the model's read-out window: only when its
+    training window is known to be the model's (recorded, or the run's own file) and the ball left in every
+    training run; otherwise the model's answer is its own and the note says why."""
     if choice is None or choice is False:
-        return None, None
+        return None, None, False
+    own = choice is True
     if isinstance(choice, Surrogate):
         s, where = choice, "surrogate"
-    elif choice is True:
+    elif own:
         path = run_surrogate_path(run)
         if path is None or not path.is_file():
             return None, (f"{run.source} has no response surface ({path or 'no run folder'}); fit one with "
-                          "`hcmt surrogate fit DATA --out FILE` and pass --surrogate FILE")
+                          "`hcmt surrogate fit DATA --out FILE` and pass --surrogate FILE"), False
         s, where = Surrogate.load(path), str(path)
     else:
         s, where = Surrogate.load(choice), str(choice)
+    stress_field = getattr(getattr(run, "adapter", None), "stress_field", "stress")
     if getattr(run, "ranges", None):
-        s.check_parameters(run.ranges, where)
-    return s, None
+        s.check_model(run.ranges, getattr(run, "meta", None), stress_field, where, None if own else "surrogate")
+    if s.censored:
+        return s, (f"{where}: the window of {s.censored} of its {s.dataset.get('runs', len(s))} training runs ended "
+                   "before the ball left; its bound of when the ball leaves is not used (the model's window "
+                   "stands)"), False
+    if s.dataset is None and not own:
+        return s, (f"{where}: records no training window (written before format 2, or fitted without a dataset); "
+                   "its bound of when the ball leaves is not used (the model's window stands)"), False
+    return s, None, True

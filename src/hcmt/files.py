@@ -1,6 +1,8 @@
 """Files written safely, the ground floor every layer may use: :func:`atomic_path` (write to a temporary file, then
-rename: nothing half-written), :func:`take_lock` (one writer per run folder or study row), :func:`ensure_space`
-(refuse a write the disk cannot hold, before HDF5 tries) and :func:`read_json` (a damaged file is one line)."""
+rename: nothing half-written), :func:`check_apart` (no output on an input, or in a folder a command reads),
+:func:`undo_on_error` (a failed command leaves none of its new files), :func:`take_lock` (one writer per run folder
+or study row), :func:`ensure_space` (refuse a write the disk cannot hold, before HDF5 tries) and :func:`read_json`
+(a damaged file is one line)."""
 from __future__ import annotations
 
 import errno
@@ -45,6 +47,64 @@ def atomic_path(path: str | os.PathLike) -> Iterator[Path]:
     finally:
         if tmp.exists():
             tmp.unlink()
+
+
+def check_apart(outputs: dict[str, str | os.PathLike | None],
+                inputs: dict[str, str | os.PathLike | None] | list[tuple[str, str | os.PathLike | None]],
+                owned: tuple[str, ...] = ()) -> None:
+    """The one rule of where a command may write: refuse (one line naming both, :class:`InputError`) an output that
+    is one of the inputs or lies inside an input folder (a dataset, a run folder the command reads), and an output
+    folder named in ``owned`` (one the command fills or may delete) that holds an input. Keys are what the message
+    calls each path (a flag, ``DATA``; ``inputs`` may be (name, path) pairs, for names repeated); None values are
+    skipped. Paths are compared resolved (relative, ``..``,
+    symlinks: :func:`os.path.realpath`) and, where both exist, by file identity (hard links)."""
+    for out_name, out in outputs.items():
+        if out is None or not str(out).strip():
+            continue
+        o = Path(os.path.realpath(out))
+        for in_name, inp in (inputs.items() if isinstance(inputs, dict) else inputs):
+            if inp is None or not str(inp).strip():
+                continue
+            i = Path(os.path.realpath(inp))
+            kind = "folder" if i.is_dir() else "file"
+            if o == i or (o.exists() and i.exists() and os.path.samefile(o, i)):
+                raise InputError(f"{out_name} {out}: the same {kind} as {in_name} {inp}, which this command reads; "
+                                 "write the output elsewhere")
+            if i.is_dir() and o.is_relative_to(i):
+                raise InputError(f"{out_name} {out}: inside {in_name} {inp}, a folder this command reads; write the "
+                                 "output outside it")
+            if out_name in owned and i.is_relative_to(o):
+                raise InputError(f"{out_name} {out}: holds {in_name} {inp}, which this command reads; choose another "
+                                 "folder")
+
+
+@contextmanager
+def undo_on_error(*paths: str | os.PathLike | None) -> Iterator[None]:
+    """Around a command's writing: when the block fails, delete what it added under ``paths`` (output files and
+    folders; None skipped): a file that did not exist before, and in a folder every file and sub-folder that was not
+    there (the folder too when the block created it), so a failed command leaves nothing behind."""
+    before: dict[Path, set[Path] | None] = {}
+    for p in paths:
+        if p is not None:
+            p = Path(p)
+            before[p] = set(p.rglob("*")) if p.is_dir() else ({p} if p.exists() else None)
+    try:
+        yield
+    except BaseException:
+        for p, had in before.items():
+            if p.is_dir():
+                new = sorted(set(p.rglob("*")) - (had or set()), key=lambda q: len(q.parts), reverse=True)
+                for q in new:
+                    if q.is_dir() and not q.is_symlink():
+                        if not any(q.iterdir()):
+                            q.rmdir()
+                    else:
+                        q.unlink(missing_ok=True)
+                if had is None and not any(p.iterdir()):
+                    p.rmdir()
+            elif had is None and (p.exists() or p.is_symlink()):
+                p.unlink(missing_ok=True)
+        raise
 
 
 def take_lock(lock: str | os.PathLike) -> int | None:

@@ -17,11 +17,11 @@ from hcmt.config import plural
 from hcmt.data.convert import convert
 from hcmt.data.format import write_meta, write_split
 from hcmt.data.info import summarize
-from hcmt.files import atomic_path
+from hcmt.files import atomic_path, check_apart
 from hcmt.graph.report import dataset_quality, format_table
-from hcmt.sim.generate import dataset_meta, generate_dataset, preset_design, trajectory_name
+from hcmt.sim.generate import dataset_meta, generate_dataset, generation_cost, preset_design, trajectory_name
 from hcmt.sim.scene import (CONTACT_RADIUS, DESIGN_UNITS, FAMILIES, MATERIALS, MAX_ESTIMATED_SECONDS, RANGES,
-                            VARIANTS, Design, Settings, describe_family, parse_stack, plan, simulate,
+                            VARIANTS, Design, Settings, check_cost, describe_family, parse_stack, plan, simulate,
                             validated_warnings)
 
 
@@ -81,6 +81,8 @@ def configure_generate(parser: argparse.ArgumentParser) -> None:
                         help="design families, taking each split's trajectories in turn: "
                              + "; ".join(f"{k}: {describe_family(k)}" for k in FAMILIES) + " (default mono)")
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
+    parser.add_argument("--force", action="store_true",
+                        help=f"generate even when a trajectory is estimated to take over {MAX_ESTIMATED_SECONDS:.0f} s")
     _settings_arguments(parser)
 
 
@@ -91,14 +93,13 @@ def main_generate(args) -> int:
     total = sum(max(int(v), 0) for v in counts.values())
     families = parse_families(args.family)
     if total:
-        cost = max((plan(preset_design(args.preset, f), _settings(args)) for f in families),
-                   key=lambda c: c["estimated_s"])
+        _, cost = generation_cost(args.preset, families, _settings(args))
         print(f"{plural(total, 'trajectory', 'trajectories')} of about {cost['num_nodes']} nodes and {cost['substeps']} substeps each: about "
               f"{cost['estimated_s']:.1f} s per trajectory on one core, {total * cost['estimated_s'] / 60:.1f} "
               f"core-minutes in all (finished trajectories are reused on a rerun)", flush=True)
     result = generate_dataset(args.out, preset=args.preset, counts=counts, seed=args.seed, workers=args.workers,
                               settings=_settings(args), progress=not args.no_progress,
-                              edge_fraction=args.edge_fraction, families=families)
+                              edge_fraction=args.edge_fraction, families=families, force=args.force)
     print(f"{args.out}: simulated {plural(result['simulated'], 'trajectory', 'trajectories')}, reused "
           f"{result['skipped']}; splits: "
           + ", ".join(f"{k} ({counts[k]})" for k in result["splits"]))
@@ -154,11 +155,7 @@ def main_simulate(args) -> int:
     cost = plan(design, settings)
     print(f"{cost['num_nodes']} nodes, {cost['num_cells']} triangles, {cost['substeps']} substeps of "
           f"{cost['dt']:.3e} ms: estimated {cost['estimated_s']:.1f} s on one core", flush=True)
-    if cost["estimated_s"] > MAX_ESTIMATED_SECONDS and not args.force:
-        raise CommandError(f"estimated {cost['estimated_s']:.0f} s exceeds {MAX_ESTIMATED_SECONDS:.0f} s "
-                           f"({cost['num_nodes']} nodes x {cost['substeps']} substeps; mesh_size "
-                           f"{design.mesh_size} mm, plate_poisson {design.plate_poisson}); coarsen the mesh or pass "
-                           "--force")
+    check_cost(cost["estimated_s"], cost["num_nodes"], design, args.force, what=f" ({cost['substeps']} substeps)")
     bar = tqdm(total=settings.frames, desc="simulate", unit="frame",
                disable=args.no_progress or cost["estimated_s"] < 5.0)
     result = simulate(design, settings, progress=lambda k: bar.update(1))
@@ -187,6 +184,7 @@ def configure_convert(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("out", help="output folder for the native dataset (meta.json + <split>.h5)")
 
 def main_convert(args: argparse.Namespace) -> int:
+    check_apart({"OUT": args.out}, {"SRC": args.src}, owned=("OUT",))
     meta = convert(args.src, args.out)
     print(f"converted {args.src} -> {args.out}")
     print(summarize(args.out))
@@ -216,6 +214,7 @@ def configure_hierarchy(parser: argparse.ArgumentParser) -> None:
 
 
 def main_hierarchy(args: argparse.Namespace) -> int:
+    check_apart({"--json": args.json}, {"DATASET": args.dataset})
     count, rows = dataset_quality(args.dataset, args.split, args.levels, trajectories=args.trajectories,
                                   cache=not args.no_cache)
     print(f"{args.dataset} [{args.split}]: {plural(count, 'trajectory', 'trajectories')}, {args.levels} levels")

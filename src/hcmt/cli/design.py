@@ -11,7 +11,7 @@ from hcmt.cli import CommandError
 from hcmt.config import plural
 from hcmt.cli import check_outputs
 from hcmt.cli.train import compile_arg
-from hcmt.files import atomic_path
+from hcmt.files import atomic_path, check_apart, undo_on_error
 from hcmt.design.check import check_designs
 from hcmt.design.inputs import range_warnings, read_designs_csv, settings_of
 from hcmt.design.reports import contour_picture, format_calls, format_table, to_json, write_csv
@@ -19,7 +19,7 @@ from hcmt.sim.scene import DESIGN_KEYS, middle_design, parse_design
 from hcmt.design import sweep as sw
 from hcmt.design.surrogate import run_surrogate_path
 from hcmt.inference.run import Run
-from hcmt.data.runs import available_pretrained
+from hcmt.data.runs import PRETRAINED_DIR, available_pretrained
 from hcmt.sim.scene import DESIGN_UNITS, FAMILIES, describe_family, design_key
 
 
@@ -99,6 +99,8 @@ def main_predict(args: argparse.Namespace) -> int:
     options = check_options(args)  # before the model loads
     check_outputs({"--json": args.json, "--csv": args.csv}, {"--out": args.out} if args.images else {})
     run = _design_run(args)
+    check_apart({"--json": args.json, "--csv": args.csv, "--out": args.out if args.images else None},
+                {**read_paths(args, run), "--designs": args.designs})
     defaults = middle_design(run.meta, run.ranges)
     designs = [(f"design_{i + 1}", parse_design(items, defaults)) for i, items in enumerate(args.design)]
     if args.designs:
@@ -117,18 +119,28 @@ def main_predict(args: argparse.Namespace) -> int:
     print(format_table(preds, check.verified))
     if args.yield_mpa is not None:
         print(format_calls(preds, args.yield_mpa))
-    if args.images:
-        for i, p in enumerate(preds):
-            path = contour_picture(p, truth[i] if truth else None, run.meta, args.out, run.label)
-            print(f"contours {p.name}: {path}")
-    if args.csv:
-        print(f"wrote {write_csv(preds, args.csv)}")
-    if args.json:
-        with atomic_path(Path(args.json)) as tmp:
-            tmp.write_text(json.dumps(to_json(preds, check.verified, run.source, str(run.device), check),
-                                      indent=2))
-        print(f"wrote {args.json}")
+    with undo_on_error(args.out if args.images else None, args.csv, args.json):  # all outputs or none
+        if args.images:
+            for i, p in enumerate(preds):
+                path = contour_picture(p, truth[i] if truth else None, run.meta, args.out, run.label)
+                print(f"contours {p.name}: {path}")
+        if args.csv:
+            print(f"wrote {write_csv(preds, args.csv)}")
+        if args.json:
+            with atomic_path(Path(args.json)) as tmp:
+                tmp.write_text(json.dumps(to_json(preds, check.verified, run.source, str(run.device), check),
+                                          indent=2))
+            print(f"wrote {args.json}")
     return 0
+
+
+def read_paths(args, run) -> dict[str, str | Path | None]:
+    """What predict and sweep read, for :func:`hcmt.files.check_apart`: the model (its run folder, or the shipped
+    models' folder), the model's training data and the --surrogate file."""
+    folder = run.folder
+    return {"MODEL": folder.path if folder is not None else PRETRAINED_DIR,
+            "the model's training data": folder.train_data if folder is not None else None,
+            "--surrogate": args.surrogate}
 
 
 def _design_run(args):
@@ -178,6 +190,7 @@ def main_sweep(args: argparse.Namespace) -> int:
         raise CommandError(f"--vary {args.vary} and --design {fixed[0]}: {param} is the swept parameter; drop it "
                            "from --design")
     run = _design_run(args)
+    check_apart({"--json": args.json, "--csv": args.csv, "--out": args.out}, read_paths(args, run))
     base = parse_design(args.design, middle_design(run.meta, run.ranges))
     designs = sw.sweep_designs(base, param, lo, hi, n)
     for w in sorted({w for _, d in designs for w in range_warnings(d, run.ranges)}):  # each distinct one once
@@ -192,13 +205,14 @@ def main_sweep(args: argparse.Namespace) -> int:
     if args.yield_mpa is not None:
         print(format_calls(check.preds, args.yield_mpa, param, lambda p: f"{getattr(p.design, param):.6g}"))
     print(sw.format_analysis(analysis))
-    print(f"plot: {sw.plot_sweep(check, analysis, args.out, run.label)}")
-    if args.csv:
-        print(f"wrote {write_csv(check.preds, args.csv)}")
-    if args.json:
-        with atomic_path(Path(args.json)) as tmp:
-            tmp.write_text(json.dumps(sw.sweep_json(check, analysis, run.source, str(run.device)), indent=2))
-        print(f"wrote {args.json}")
+    with undo_on_error(args.out, args.csv, args.json):  # all outputs or none
+        print(f"plot: {sw.plot_sweep(check, analysis, args.out, run.label)}")
+        if args.csv:
+            print(f"wrote {write_csv(check.preds, args.csv)}")
+        if args.json:
+            with atomic_path(Path(args.json)) as tmp:
+                tmp.write_text(json.dumps(sw.sweep_json(check, analysis, run.source, str(run.device)), indent=2))
+            print(f"wrote {args.json}")
     return 0
 
 

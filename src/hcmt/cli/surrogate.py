@@ -7,6 +7,7 @@ import sys
 
 from hcmt.cli import CommandError
 from hcmt.design.surrogate import QUANTITIES, RESTARTS, Surrogate
+from hcmt.files import check_apart
 
 
 def configure(p: argparse.ArgumentParser) -> None:
@@ -35,6 +36,7 @@ def main(args: argparse.Namespace) -> int:
         raise CommandError(f"--limit must be >= 1, got {args.limit}")
     if args.restarts < 0:
         raise CommandError(f"--restarts must be >= 0, got {args.restarts}")
+    check_apart({"--out": args.out}, {"DATA": args.data})
     s = Surrogate.fit_dataset(args.data, args.split, limit=args.limit, restarts=args.restarts, seed=args.seed,
                               stress_field=args.stress_field)
     if args.label:

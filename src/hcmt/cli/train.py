@@ -9,7 +9,7 @@ from pathlib import Path
 
 from hcmt.cli import CommandError
 from hcmt.config import COMPILE_MODES, load_config
-from hcmt.files import atomic_path
+from hcmt.files import atomic_path, check_apart
 from hcmt.inference.evaluate import check_options, compare, evaluate, format_compare, format_metrics, run_rollouts
 from hcmt.inference.run import Run, dataset_warnings
 from hcmt.data.runs import RunFolder, check_start
@@ -59,11 +59,17 @@ def main_train(args: argparse.Namespace) -> int:
                                "them out)")
         cfg, data, model, ablation = load_config(args.config, overrides), args.data, args.model, args.ablation
         seed = args.seed if args.seed is not None else 0
+    check_apart({"--out": args.out}, {"--data": data, "--init": _folder(args.init)}, owned=("--out",))
     summary = train(cfg, data, model, args.out, ablation=ablation, seed=seed,
                     resume=args.resume, device=args.device, progress=not args.no_progress, init=args.init,
                     init_normalizers=args.init_normalizers)
     print(json.dumps(summary, indent=2))
     return 0
+
+
+def _folder(model: str | None) -> str | None:
+    """A model given as a run folder (None for ``pretrained:NAME`` or none)."""
+    return None if model is None or model.startswith("pretrained:") else model
 
 
 # -- rollout -------------------------------------------------------------------------------------------------------
@@ -98,6 +104,7 @@ def _load(args) -> Run:
     check_options(batch=args.batch, compile=args.compile)  # bad options: one line before the model loads
     if args.limit is not None and args.limit < 1:
         raise CommandError(f"--limit must be >= 1 (the first N trajectories), got {args.limit}")
+    check_apart({"RUN": args.run}, {"--data": args.data})  # its rollouts and metrics go to RUN
     return Run.load(args.run, args.device, args.checkpoint)
 
 
@@ -132,6 +139,7 @@ def configure_compare(p: argparse.ArgumentParser) -> None:
 
 
 def main_compare(args: argparse.Namespace) -> int:
+    check_apart({"--json": args.json}, [("RUN", r) for r in args.runs])
     table = compare(args.runs, args.split)
     print(f"split {args.split}; runs grouped by model and dataset")
     print(format_compare(table))

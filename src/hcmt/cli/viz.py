@@ -30,6 +30,7 @@ from hcmt.graph.hierarchy import cached_hierarchy, hierarchy_cache_dir
 from hcmt.inference.evaluate import rollout_file
 from hcmt.inference.run import Run
 from hcmt.data.runs import RunFolder
+from hcmt.files import check_apart
 from hcmt.models import REGISTRY, uses_hierarchy
 from hcmt.viz.animation import animate
 from hcmt.viz.attention import frame_attention, plot_attention
@@ -86,6 +87,11 @@ def configure_plot(p: argparse.ArgumentParser) -> None:
     p.add_argument("--limit", type=int, help="error curves: roll out only the first N trajectories where needed")
 
 
+def read_paths(args) -> list[tuple[str, str]]:
+    """What plot and export read (:func:`hcmt.files.check_apart`): --data and every RUN."""
+    return [("--data", args.data), *(("RUN", r) for r in args.runs)]
+
+
 def _slug(label: str) -> str:
     return re.sub(r"[^a-z0-9]+", "_", label.lower()).strip("_")
 
@@ -106,6 +112,7 @@ def main_plot(args: argparse.Namespace) -> int:
     if args.cmap not in matplotlib.colormaps:
         raise CommandError(f"--cmap {args.cmap!r}: not a matplotlib colour map (e.g. viridis, magma, jet)")
     check_outputs({}, {"--out": args.out})
+    check_apart({"--out": args.out}, read_paths(args))
     out = Path(args.out)
     runs = _load_runs(args)
     labels = unique_labels(runs)
@@ -173,6 +180,7 @@ def configure_export(p: argparse.ArgumentParser) -> None:
 def main_export(args: argparse.Namespace) -> int:
     if args.stride < 1:
         raise CommandError(f"--stride must be >= 1, got {args.stride}")
+    check_apart({"--out": args.out}, read_paths(args))
     with Split(args.data, args.split) as s:
         names = list(s.names)
     runs = _load_runs(args)

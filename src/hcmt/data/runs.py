@@ -209,19 +209,32 @@ def read_run_yaml(path: Path) -> dict:
 
 def read_checkpoint(path: Path, device="cpu", earlier: Path | None = None) -> dict:
     """A checkpoint (``torch.load(weights_only=True)``) as a dict; a truncated, empty or foreign file is one line
-    naming it, and the other checkpoint of the run when there is one."""
-    other = f"; another checkpoint of the run exists: {earlier} (copy it over {path.name} to go on from it)" \
-        if earlier is not None and earlier.is_file() and earlier != path else ""
+    naming it and what can be done: copy the run's other checkpoint (``earlier``) over it when that one is readable,
+    else train the run again."""
     try:
         state = torch.load(path, map_location=device, weights_only=True)
-    except FileNotFoundError:
+        if not isinstance(state, dict) or "model" not in state:
+            raise InputError(f"{path}: not an hcmt checkpoint (no model weights){_other_checkpoint(path, earlier)}")
+    except (FileNotFoundError, InputError):
         raise
     except Exception as exc:  # torch raises RuntimeError, EOFError, UnpicklingError, ...: all mean "damaged"
-        raise InputError(f"{path}: not a readable checkpoint (truncated or corrupt: {exc.__class__.__name__}){other}") \
-            from None
-    if not isinstance(state, dict) or "model" not in state:
-        raise InputError(f"{path}: not an hcmt checkpoint (no model weights){other}")
+        raise InputError(f"{path}: not a readable checkpoint (truncated or corrupt: {exc.__class__.__name__})"
+                         f"{_other_checkpoint(path, earlier)}") from None
     return state
+
+
+def _other_checkpoint(path: Path, earlier: Path | None) -> str:
+    """The advice of a damaged checkpoint: the run's other one, only when it can be read."""
+    if earlier is None or not earlier.is_file() or earlier == path:
+        return "; restore it, or train the run again"
+    try:
+        state = torch.load(earlier, map_location="cpu", weights_only=True)
+        usable = isinstance(state, dict) and "model" in state
+    except Exception:  # damaged as well
+        usable = False
+    if usable:
+        return f"; another checkpoint of the run is readable: {earlier} (copy it over {path.name} to go on from it)"
+    return f"; {earlier.name} is damaged too: restore them, or train the run again"
 
 
 def _data_facts(data: str | None) -> tuple[dict | None, dict[str, tuple[float, float]]]:

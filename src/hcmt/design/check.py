@@ -29,7 +29,7 @@ from hcmt.errors import InputError
 from hcmt.inference.metrics import impact_metrics, plate_mask, rollout_rmse, summarize_impact
 from hcmt.inference.rollout import rollout_batch
 from hcmt.physics.trajectory import prepare_trajectory
-from hcmt.sim.scene import (MAX_ESTIMATED_SECONDS, Design, Settings, check_size, simulate, start_frames,
+from hcmt.sim.scene import (Design, Settings, check_cost, check_size, simulate, start_frames,
                             validated_warnings)
 
 
@@ -144,10 +144,8 @@ def cost_check(run, designs: list[tuple[str, Design]], settings: Settings, verif
         cost = check_size(d, settings, where=f"{name}: ")
         seconds = MODEL_SECONDS_PER_NODE_STEP * cost["num_nodes"] * (settings.frames - 2) + (
             cost["estimated_s"] if verify else 0.0)
-        if seconds > MAX_ESTIMATED_SECONDS and not force:
-            raise InputError(f"{name}: about {cost['num_nodes']:.0f} nodes at mesh_size {d.mesh_size:g} mm: estimated "
-                             f"{seconds:.0f} s {'(model and solver)' if verify else '(model rollout)'} exceeds "
-                             f"{MAX_ESTIMATED_SECONDS:.0f} s; coarsen the mesh or force it (force=True, --force)")
+        check_cost(seconds, cost["num_nodes"], d, force, f"{name}: ",
+                   " (model and solver)" if verify else " (model rollout)")
 
 
 def check_designs(run, designs: list[tuple[str, Design]], *, batch: int = 8, verify: bool | str = False,

@@ -282,7 +282,7 @@ class Surrogate:
                                      "linearly]}}")
             return cls(params, {k: float(v) for k, v in fixed.items()}, X, answers, kernels,
                        source=str(doc.get("source", "")), linear=linear,
-                       dataset=_read_facts(doc.get("dataset"), where) if doc.get("version", 1) >= 2 else None)
+                       dataset=_read_facts(doc["dataset"], where) if "dataset" in doc else None)
         except SurrogateError:
             raise
         except (KeyError, TypeError, ValueError, OverflowError) as exc:
@@ -366,7 +366,8 @@ def _data_differences(facts: dict, meta: dict, stress_field: str) -> list[str]:
         out.append(f"fitted on {facts['stress_field']!r}, the model learned {stress_field!r}")
     missing = sorted(set(_families(meta)) - set(facts["families"]))
     if missing:
-        out.append(f"fitted on the families {', '.join(facts['families'])}, the model trained on {', '.join(missing)} too")
+        out.append(f"fitted on the families {', '.join(facts['families'])}, the model trained on "
+                   f"{', '.join(missing)} too")
     units = [f"{k} in {u}" for k, u in {**facts["units"], **facts["answer_units"]}.items()
              if {**DESIGN_UNITS, **ANSWER_UNITS}.get(k, u) != u]
     if units:
@@ -378,8 +379,9 @@ def _read_facts(facts, where: str) -> dict:
     """A version 2 file's ``dataset`` block, checked."""
     try:
         out = dict(facts)
-        out.update(frames=int(out["frames"]), frame_dt_ms=float(out["frame_dt_ms"]), censored=int(out["censored"]),
-                   stress_field=str(out["stress_field"]), families=[str(f) for f in out["families"]],
+        out.update(frames=int(out["frames"]), frame_dt_ms=float(out["frame_dt_ms"]),
+                   censored=int(out["censored"]), stress_field=str(out["stress_field"]),
+                   families=[str(f) for f in out["families"]],
                    units=dict(out.get("units") or {}), answer_units=dict(out.get("answer_units") or {}))
         if out["frames"] < 2 or not (math.isfinite(out["frame_dt_ms"]) and out["frame_dt_ms"] > 0) \
                 or out["censored"] < 0:

@@ -22,8 +22,8 @@ from tqdm import tqdm
 
 from hcmt.data.format import make_meta, read_meta, write_meta, write_split
 from hcmt.errors import DatasetError, InputError
-from hcmt.sim.scene import (CONTACT_RADIUS, FAMILIES, RANGES, UNITS, VARIANTS, Design, Settings,
-                            family_ranges, feature_spec, resolve_relative, sample_design, simulate)
+from hcmt.sim.scene import (CONTACT_RADIUS, FAMILIES, RANGES, UNITS, VARIANTS, Design, Settings, check_cost,
+                            family_ranges, feature_spec, plan, resolve_relative, sample_design, simulate)
 
 #: Split names and their stable codes in the per-trajectory seed.
 SPLITS = ("train", "valid", "test", "test_thicker", "test_higher", "test_thicker_higher")
@@ -133,12 +133,14 @@ def _differences(old: dict, new: dict, prefix: str = "") -> str:
 
 def generate_dataset(out, *, preset: str = "small", counts: dict[str, int], seed: int = 0, workers: int = 1,
                      settings: Settings = Settings(), progress: bool = True, edge_fraction: float = 0.0,
-                     families: tuple[str, ...] = ("mono",)) -> dict:
+                     families: tuple[str, ...] = ("mono",), force: bool = False) -> dict:
     """Generate (or finish) an Impact Plate dataset in ``out``. ``counts`` maps split names (of :data:`SPLITS`) to
     trajectory counts; ``edge_fraction`` of the training designs are drawn at the ranges' edges (thin plates, high
     drops: :data:`hcmt.sim.scene.EDGES`); ``families`` (:data:`hcmt.sim.scene.FAMILIES`) take the trajectories of
     every split in turn, and meta.json's ``families`` lists each trajectory's. Returns ``{"simulated": n,
-    "skipped": n, "splits": {split: path}}``."""
+    "skipped": n, "splits": {split: path}}``. A trajectory estimated at over
+    :data:`hcmt.sim.scene.MAX_ESTIMATED_SECONDS` (:func:`generation_cost`) is refused before anything is written,
+    unless ``force``."""
     families = tuple(families)
     if not families:
         raise InputError(f"family: give at least one of {', '.join(FAMILIES)}")
@@ -162,6 +164,8 @@ def generate_dataset(out, *, preset: str = "small", counts: dict[str, int], seed
     counts = {k: int(v) for k, v in counts.items() if int(v) > 0}
     if not counts:
         raise InputError("nothing to generate: every trajectory count (train, valid, test) is 0")
+    design, cost = generation_cost(preset, families, settings)
+    check_cost(cost["estimated_s"], cost["num_nodes"], design, force, what=" per trajectory")
     out = Path(out)
     meta = dataset_meta(preset, seed, counts, settings, edge_fraction, families)
     meta["families"] = {split: [trajectory_family(meta, i) for i in range(n)] for split, n in counts.items()}
@@ -213,6 +217,12 @@ def generate_dataset(out, *, preset: str = "small", counts: dict[str, int], seed
     if parts.is_dir() and not any(parts.iterdir()):
         parts.rmdir()
     return dict(simulated=len(todo), skipped=skipped, splits=done_splits)
+
+
+def generation_cost(preset: str, families: tuple[str, ...], settings: Settings) -> tuple[Design, dict]:
+    """(design, :func:`hcmt.sim.scene.plan`) of the costliest family's nominal design: what a trajectory costs."""
+    return max(((d, plan(d, settings)) for d in (preset_design(preset, f) for f in families)),
+               key=lambda dc: dc[1]["estimated_s"])
 
 
 def preset_design(preset: str, family: str = "mono") -> Design:

@@ -436,6 +436,16 @@ def check_size(design: Design, settings: Settings = Settings(), where: str = "")
     return e
 
 
+def check_cost(seconds: float, nodes: float, design: Design, force: bool = False, where: str = "",
+               what: str = "") -> None:
+    """The one cost rule of simulate, generate, predict and sweep: refuse, unless ``force``, a plan estimated at
+    over :data:`MAX_ESTIMATED_SECONDS` (one line: the estimate, ``what`` it covers, the mesh, how to go on)."""
+    if seconds > MAX_ESTIMATED_SECONDS and not force:
+        raise InputError(f"{where}about {nodes:.0f} nodes at mesh_size {design.mesh_size:g} mm: estimated "
+                         f"{seconds:.0f} s{what} exceeds {MAX_ESTIMATED_SECONDS:.0f} s; coarsen the mesh, record fewer "
+                         "frames or force it (force=True, --force)")
+
+
 def plan(design: Design, settings: Settings = Settings()) -> dict:
     """What a solve will cost before running it: nodes, cells, substeps, time step and estimated seconds. The
     mesh is built only after :func:`check_size` has refused a design too large to build."""

@@ -10,6 +10,7 @@ from pathlib import Path
 from hcmt.config import as_config
 from hcmt.data.runs import RunFolder, check_start
 from hcmt.errors import InputError
+from hcmt.files import check_apart
 from hcmt.models import MODELS
 from hcmt.training.runtime import deterministic_scope, lock_run
 from hcmt.training.trainer import Trainer
@@ -38,6 +39,8 @@ def train(config, data, model: str, out, *, overrides=None, resume: bool = False
     if model not in MODELS:
         raise InputError(f"hcmt.train: unknown model {model!r}; expected one of {', '.join(MODELS)}")
     out = Path(out)
+    check_apart({"out": out}, {"data": data, "init": None if str(init or "").startswith("pretrained:") else init},
+                owned=("out",))
     folder = RunFolder(out, must_exist=False)
     if folder.holds_run() and not resume and overwrite:
         shutil.rmtree(out)

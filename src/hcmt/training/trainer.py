@@ -121,10 +121,6 @@ class Trainer:
             run["init"] = started_from
         if resume and self.folder.info is not None:
             check_resume(self.folder.info, run, out)
-        if self.rank == 0:
-            out.mkdir(parents=True, exist_ok=True)
-            self.folder.write_info(run)
-            self.folder.write_data_facts(data)
 
         self.compile = tc.compile
         if self.compile != "none" and self.args.get("ablation") == "lpe":
@@ -164,6 +160,12 @@ class Trainer:
         self.step_count, self.best = 0, math.inf
         if resume:
             self._resume()
+        if self.rank == 0:  # every check passed: only now is the run folder written (a refused start changes nothing)
+            out.mkdir(parents=True, exist_ok=True)
+            self.folder.write_info(run)
+            self.folder.write_data_facts(data)
+            if resume:
+                self._trim_log()
         self.net = self.model
         if self.world > 1:
             self.net = torch.nn.parallel.DistributedDataParallel(
@@ -193,11 +195,14 @@ class Trainer:
         if self.step_count > self.steps:
             raise InputError(f"{self.out}: train.steps {self.steps}, but the run has done {self.step_count} steps; a "
                              "run only grows (train.steps, --steps in hcmt train, >= the steps done)")
-        log = self.folder.log
-        if self.rank == 0 and log.is_file():  # drop what was logged after the checkpoint: no duplicate steps
-            kept = [r for r in self.folder.log_records() if r["step"] <= self.step_count]
-            with atomic_path(log) as tmp:
-                tmp.write_text("".join(json.dumps(r) + "\n" for r in kept))
+        self._kept_log = ([r for r in self.folder.log_records() if r["step"] <= self.step_count]
+                          if self.rank == 0 and self.folder.log.is_file() else None)  # read (and checked) here
+
+    def _trim_log(self) -> None:
+        """Drop what was logged after the resumed checkpoint: no duplicate steps."""
+        if self._kept_log is not None:
+            with atomic_path(self.folder.log) as tmp:
+                tmp.write_text("".join(json.dumps(r) + "\n" for r in self._kept_log))
 
     def _loss_denominator(self, graph, mask) -> torch.Tensor:
         """``train.loss_denominator``: ``masked`` (hcmt: the number of unmasked entries, a mean over what is

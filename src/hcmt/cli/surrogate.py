@@ -43,8 +43,9 @@ def main(args: argparse.Namespace) -> int:
         s.source = args.label
     if s.censored:
         print(f"hcmt surrogate: warning: {args.data}: in {s.censored} of its {len(s)} runs the window "
-              f"({s.dataset['frames']} frames) ends before the ball leaves the plate: peaks may be missed and its "
-              "bound of when the ball leaves will not be used (generate with more --frames)", file=sys.stderr)
+              f"({s.dataset['frames']} frames) ends before the ball leaves the plate: contact_end_ms is the window's "
+              "end there" + ("; in all, so peaks may be missed and predict will not use that bound (generate with "
+                             "more --frames)" if s.censored >= len(s) else ""), file=sys.stderr)
     path = s.save(args.out)
     print(f"fitted on {s.source}: {len(s.parameters)} parameters ({', '.join(s.parameters)}); held fixed: "
           + (", ".join(f"{k}={v:g}" for k, v in s.fixed.items()) or "none"))

@@ -295,9 +295,11 @@ class Surrogate:
         training ranges)."""
         varied = sorted(k for k, (lo, hi) in ranges.items() if k in DESIGN_KEYS and hi > lo)
         if varied and sorted(self.parameters) != varied:
-            raise SurrogateError(f"{where}: the surrogate takes {sorted(self.parameters)}, the model's training "
-                                 f"designs vary {varied}: fit it on the model's own data (`hcmt surrogate fit`)",
-                                 param=param)
+            missing, extra = sorted(set(varied) - set(self.parameters)), sorted(set(self.parameters) - set(varied))
+            differ = "; ".join(f"{w}: {', '.join(ks)}" for w, ks in (("not taken", missing), ("not varied by the "
+                               "model", extra)) if ks)
+            raise SurrogateError(f"{where}: the surrogate takes other parameters than the model's training designs "
+                                 f"vary ({differ}); fit it on the model's own data (`hcmt surrogate fit`)", param=param)
 
     def check_model(self, ranges: dict[str, tuple[float, float]], meta: dict | None, stress_field: str, where: str,
                     param: str | None = None) -> None:
@@ -463,8 +465,9 @@ def for_run(run, choice: "Surrogate | str | Path | bool | None" = True
     has none); a path, that file; a :class:`Surrogate`, itself; ``False`` / ``None``, none. A surrogate that does
     not fit the model is refused (:meth:`Surrogate.check_model`; ``param`` surrogate when it was given).
     ``ends_window``: whether its bound of when the ball leaves may end the model's read-out window: only when its
-    training window is known to be the model's (recorded, or the run's own file) and the ball left in every
-    training run; otherwise the model's answer is its own and the note says why."""
+    training window is known to be the model's (recorded, or the run's own file) and the ball left within it in
+    some training run (in none: its bound is the window's end, not the ball's); otherwise the model's answer is its
+    own and the note says why."""
     if choice is None or choice is False:
         return None, None, False
     own = choice is True
@@ -481,10 +484,9 @@ def for_run(run, choice: "Surrogate | str | Path | bool | None" = True
     stress_field = getattr(getattr(run, "adapter", None), "stress_field", "stress")
     if getattr(run, "ranges", None):
         s.check_model(run.ranges, getattr(run, "meta", None), stress_field, where, None if own else "surrogate")
-    if s.censored:
-        return s, (f"{where}: the window of {s.censored} of its {s.dataset.get('runs', len(s))} training runs ended "
-                   "before the ball left; its bound of when the ball leaves is not used (the model's window "
-                   "stands)"), False
+    if s.censored >= len(s):
+        return s, (f"{where}: in none of its {len(s)} training runs did the ball leave the plate within the window; "
+                   "its bound of when the ball leaves is not used (the model's window stands)"), False
     if s.dataset is None and not own:
         return s, (f"{where}: records no training window (written before format 2, or fitted without a dataset); "
                    "its bound of when the ball leaves is not used (the model's window stands)"), False

@@ -233,7 +233,7 @@ def _other_checkpoint(path: Path, earlier: Path | None) -> str:
     except Exception:  # damaged as well
         usable = False
     if usable:
-        return f"; another checkpoint of the run is readable: {earlier} (copy it over {path.name} to go on from it)"
+        return f"; the run's {earlier.name} is readable (copy it over {path.name} to go on from it)"
     return f"; {earlier.name} is damaged too: restore them, or train the run again"
 
 

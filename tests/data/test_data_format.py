@@ -183,3 +183,51 @@ def test_info_validates_as_training_does(tmp_path, meta, capsys, corrupt, messag
     assert cli(["info", str(tmp_path)]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and message in err[0] and "traj_00000" in err[0] and "Traceback" not in err[0]
+
+
+def test_dynamic_fields_are_chunked_by_frame_and_read_per_frame(tmp_path, meta):
+    """Training reads a few frames per item: new files chunk dynamic fields one frame each; Split.layout gives the
+    shapes without reading and Split.read a frame range equal to the whole field's slice, also from a file whose
+    chunks span several frames (files written before the per-frame chunks)."""
+    traj = trajectory(n=3000)
+    write_split(tmp_path / "train.h5", meta, [("traj_00000", traj, {})])
+    with h5py.File(tmp_path / "train.h5", "r") as f:
+        assert f["traj_00000/world_pos"].chunks == (1, 3000, 2) and f["traj_00000/stress"].chunks == (1, 3000, 1)
+        assert f["traj_00000/mesh_pos"].chunks != (1, 2)
+    old = tmp_path / "old"
+    old.mkdir()
+    with h5py.File(old / "train.h5", "w") as f:  # h5py's own chunks, several frames each
+        for k, v in traj.items():
+            f.create_dataset(f"traj_00000/{k}", data=v, compression="gzip", chunks=(T, 100, 1)[:v.ndim]
+                             if k in ("world_pos", "stress") else None)
+    write_meta(old, meta)
+    write_meta(tmp_path, meta)
+    for folder in (tmp_path, old):
+        s = open_split(folder, "train")
+        assert s.layout(0) == {k: v.shape for k, v in traj.items()}
+        got = s.read(0, ["world_pos", "stress", "cells"], slice(1, 3), num_nodes=3000)
+        assert np.array_equal(got["world_pos"], traj["world_pos"][1:3]) and np.array_equal(got["cells"], traj["cells"])
+        assert np.array_equal(got["stress"], traj["stress"][1:3])
+
+
+def test_a_frame_read_alone_is_still_checked(tmp_path, meta):
+    """Split.read checks the values it reads as Split[i] does: a NaN in a frame, a cell index out of range, one
+    line naming the file, trajectory and field; Split.layout checks the shapes."""
+    traj = trajectory()
+    write_split(tmp_path / "train.h5", meta, [("traj_00000", traj, {})])
+    write_meta(tmp_path, meta)
+    with h5py.File(tmp_path / "train.h5", "r+") as f:
+        f["traj_00000/world_pos"][2, 1, 0] = np.nan
+        f["traj_00000/cells"][0, 0] = 99
+    s = open_split(tmp_path, "train")
+    assert s.read(0, ["world_pos"], slice(0, 2))["world_pos"].shape == (2, 6, 2)
+    with pytest.raises(DatasetError, match=r"train\.h5, trajectory traj_00000, field world_pos: non-finite"):
+        s.read(0, ["world_pos"], slice(1, 3))
+    with pytest.raises(DatasetError, match=r"field cells: cell index out of range \[1, 99\]; the trajectory has 6"):
+        s.read(0, ["cells"], num_nodes=6)
+    s.close()
+    with h5py.File(tmp_path / "train.h5", "r+") as f:
+        del f["traj_00000/stress"]
+        f["traj_00000/stress"] = np.zeros((T, 5, 1), np.float32)
+    with pytest.raises(DatasetError, match=r"field stress: has 5 nodes but other per-node fields have 6"):
+        open_split(tmp_path, "train").layout(0)

@@ -80,7 +80,7 @@ def test_noise_on_predicted_nodes_moves_the_ball_in_training_samples(data):
     adapter = get_adapter("impact_plate")
     a = FrameDataset(data, "train", adapter, 0, True, 0.4, noise_std=1e-3, seed=1, noise_nodes="normal")
     b = FrameDataset(data, "train", adapter, 0, True, 0.4, noise_std=1e-3, seed=1, noise_nodes="predicted")
-    tr = a.trajectories[0]
+    tr = a.trajectory(0)
     ball = (tr.static["node_type"].reshape(-1) == NodeType.OBSTACLE)
     ga, ta, _ = a[0]
     gb, tb, _ = b[0]
@@ -99,7 +99,7 @@ def test_pushforward_input_is_the_models_prediction_and_the_target_lands_on_the_
     ds = FrameDataset(data, "train", adapter, 0, True, run.radius, noise_std=0.0, seed=3)
     i = next(k for k in range(len(ds)) if ds.frames[k][1] >= 2)
     ti, t = (int(v) for v in ds.frames[i])
-    tr = ds.trajectories[ti]
+    tr = ds.trajectory(ti)
     key = (i, 0, 0, ())
     plain = ds.pushforward_item(key, run.model, 0.0)
     torch.testing.assert_close(plain[1], ds[key][1])  # probability 0: the ordinary sample
@@ -320,7 +320,7 @@ def test_deformation_features_are_the_edges_strain_and_zero_at_rest(data):
     plain = get_adapter("impact_plate")
     assert adapter.widths()["mesh_in"] == plain.widths()["mesh_in"] + 3
     ds = FrameDataset(data, "train", plain, 1, True, 0.4)
-    tr = ds.trajectories[0]
+    tr = ds.trajectory(0)
     mesh = tr.static["mesh_pos"]
     feats = torch.zeros(tr.num_nodes, 3)
     rest = frame_graph(feats, mesh, mesh.clone(), tr.hierarchy, 0.4, deformation=True)

@@ -1,4 +1,5 @@
 """Training, rollout and evaluation end to end on small data; resume equality; DDP; adapters; guards."""
+import functools
 import json
 import os
 import pickle
@@ -19,7 +20,7 @@ from layouts import deforming_plate_tfrecord, ggns_pickles, sphere_simple_tfreco
 import hcmt.training.trainer as trainer_module
 from hcmt.cli import main as cli
 from hcmt.config import Config
-from hcmt.data.format import NodeType, open_split
+from hcmt.data.format import NodeType, Split, open_split
 from hcmt.errors import DatasetError, RolloutError
 from hcmt.graph.batch import PadSizes
 from hcmt.inference.evaluate import evaluate, run_rollouts
@@ -30,7 +31,7 @@ from hcmt.physics.adapters import config_adapter, get_adapter, node_features
 from hcmt.physics.frames import input_graph
 from hcmt.physics.trajectory import build_graph, load_split
 from hcmt.training import train
-from hcmt.training.dataset import FrameDataset, pad_sizes
+from hcmt.training.dataset import FrameDataset, StepSampler, pad_sizes
 from hcmt.training.schedule import learning_rate
 from hcmt.viz.curves import rollout_errors
 
@@ -375,9 +376,78 @@ def test_frame_dataset_pickles_without_its_trajectories(impact):
     ds = FrameDataset(impact, "train", get_adapter("impact_plate"), 1, True, 0.3, noise_std=0.01, seed=1)
     graph, target, mask = ds[0]
     clone = pickle.loads(pickle.dumps(ds))
-    assert clone._trajs is None  # reopened lazily in the worker
+    assert clone.source._split is None and not clone.source._static  # reopened lazily in the worker
     g2, t2, m2 = clone[0]
     assert torch.equal(target, t2) and torch.equal(graph.node_features, g2.node_features) and len(ds) == len(clone)
+    eager = FrameDataset(impact, "train", get_adapter("impact_plate"), 1, True, 0.3, noise_std=0.01, seed=1,
+                         in_memory=True)
+    assert pickle.loads(pickle.dumps(eager)).source._trajs is None
+
+
+def test_lazily_read_run_ends_with_the_eager_in_memory_runs_parameters(impact, tmp_path, monkeypatch, tiny_config):
+    """The training path reads the frames of each item from the file (FrameDataset's SplitReader); the run ends
+    bit for bit as one that holds the split in memory (load_split), pushforward items included."""
+    cfg = tiny_config(*EXTRA, "train.steps=5", "train.noise_std=0.01", "train.batch_size=2", "train.pushforward=0.5")
+    train(cfg, impact, "hcmt", tmp_path / "lazy", seed=4, progress=False, device="cpu")
+    monkeypatch.setattr(trainer_module, "FrameDataset", functools.partial(FrameDataset, in_memory=True))
+    train(cfg, impact, "hcmt", tmp_path / "eager", seed=4, progress=False, device="cpu")
+    a, b = (torch.load(tmp_path / name / "checkpoint.pt", weights_only=True)["model"] for name in ("lazy", "eager"))
+    assert a.keys() == b.keys() and all(torch.equal(a[k], b[k]) for k in a)
+
+
+def _held_arrays(obj, seen=None) -> list:
+    """Every numpy array and tensor reachable from ``obj`` through attributes, dicts, lists and tuples."""
+    seen = set() if seen is None else seen
+    if id(obj) in seen or isinstance(obj, (str, bytes, int, float, type, type(None))):
+        return []
+    seen.add(id(obj))
+    if isinstance(obj, (np.ndarray, torch.Tensor)):
+        return [obj]
+    if isinstance(obj, dict):
+        items = list(obj.keys()) + list(obj.values())
+    elif isinstance(obj, (list, tuple, set)):
+        items = list(obj)
+    else:
+        items = list(getattr(obj, "__dict__", {}).values())
+    return [a for item in items for a in _held_arrays(item, seen)]
+
+
+def test_frame_dataset_holds_no_per_trajectory_arrays_after_building_items(tmp_path):
+    """After building items of every trajectory, the dataset holds the index and the static fields and hierarchy
+    of at most ``keep`` trajectories (an LRU), and no frames."""
+    data = write_impact_like(tmp_path / "data", n_train=6, steps=6)
+    ds = FrameDataset(data, "train", get_adapter("impact_plate"), 1, True, 0.3, noise_std=0.01, seed=1, keep=2)
+    assert not _held_arrays(ds.source._static) and ds.source._split is None  # the index only: no array read yet
+    for i in range(len(ds)):
+        ds[i]
+    held = _held_arrays(ds)
+    assert len(ds.source._static) == 2 and len({int(t) for t in ds.frames[:, 0]}) == 6
+    assert not [a for a in held if a.ndim == 3 and a.shape[0] > 0]  # no [T, N, d] field, not even one frame
+    statics = {id(a) for a in _held_arrays(ds.source._static)}  # the LRU's trajectories: static fields, hierarchy
+    index = {id(a) for a in (ds.frames, ds.source.steps, ds.source.nodes, ds.source.index)}
+    assert {id(a) for a in held} - statics == index
+
+
+def test_a_rank_reads_only_the_frames_of_its_own_keys(tmp_path, monkeypatch):
+    """Each DDP rank's StepSampler keys name the frames it builds: the rank reads those frames (x^{t-1}..x^{t+1})
+    and the static fields of their trajectories, nothing else, and never a whole trajectory."""
+    data = write_impact_like(tmp_path / "data", n_train=6, steps=6)
+    reads = []
+    read = Split.read
+    monkeypatch.setattr(Split, "read", lambda self, i, fields, frames=None, num_nodes=None: reads.append(
+        (self.names[i], frames)) or read(self, i, fields, frames, num_nodes))
+    monkeypatch.setattr(Split, "__getitem__", lambda self, i: pytest.fail("a whole trajectory was read"))
+    for rank in (0, 1):
+        ds = FrameDataset(data, "train", get_adapter("impact_plate"), 1, True, 0.3, keep=1)
+        reads.clear()
+        keys = [k for step in StepSampler(ds, 2, seed=5, start=0, end=3, world=2, rank=rank) for k in step]
+        for key in keys:
+            ds[key]
+        mine = [(ds.source.names[int(ds.frames[k[0]][0])], int(ds.frames[k[0]][1])) for k in keys]
+        frames = {(name, t) for name, t in mine}
+        got = {(name, t) for name, sl in reads if sl is not None for t in range(sl.start, sl.stop)}
+        assert got == {(name, t + dt) for name, t in frames for dt in (-1, 0, 1)}
+        assert {name for name, sl in reads if sl is None} <= {name for name, _ in mine}
 
 
 def test_compiled_padded_training_matches_eager(impact, tmp_path, monkeypatch, tiny_config):
@@ -442,7 +512,8 @@ def test_pad_sizes_from_the_hierarchies_equal_those_of_the_frames_graphs(impact)
     """train.compile sizes its padding from each trajectory's hierarchy, without building a graph per trajectory:
     the same sizes as the built graphs give."""
     ds = FrameDataset(impact, "train", get_adapter("impact_plate"), 1, True, 0.3)
-    graphs = [input_graph(tr, tr.world_pos[1], tr.world_pos[0], tr.world_pos[2], 0.3) for tr in ds.trajectories]
+    trajs = [ds.trajectory(ti) for ti in range(len(ds.source))]
+    graphs = [input_graph(tr, tr.world_pos[1], tr.world_pos[0], tr.world_pos[2], 0.3) for tr in trajs]
     assert graphs[0].num_levels == 1
     for batch in (1, 3):
         assert pad_sizes(ds, batch) == PadSizes.of(graphs, batch)

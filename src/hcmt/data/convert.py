@@ -73,19 +73,31 @@ def convert_ggns(src: Path, out: Path) -> dict:
         raise DatasetError("no pickle files (*.pkl) and no TFRecord dataset (meta.json + *.tfrecord) found", file=src)
     meta = None
     for path in files:
-        trajs = load_ggns_pickle(path)
-        converted = [ggns_to_native(t, file=path, trajectory=i) for i, t in enumerate(trajs)]
-        steps = {c[0]["world_pos"].shape[0] for c in converted}
-        if len(steps) != 1 or (meta and meta["trajectory_length"] not in steps):
-            raise DatasetError(f"trajectories have different lengths {sorted(steps)}", file=path)
+        trajs = load_ggns_pickle(path)  # a pickle is read whole; its trajectories are converted one at a time
+        if not trajs:
+            raise DatasetError("holds no trajectories", file=path)
+        steps = ggns_to_native(trajs[0], file=path, trajectory=0)[0]["world_pos"].shape[0]
+        if meta is not None and steps != meta["trajectory_length"]:
+            raise DatasetError(f"trajectories have different lengths {sorted({steps, meta['trajectory_length']})}",
+                               file=path)
         if meta is None:
-            meta = make_meta(ggns_features(steps.pop()), trajectory_length=converted[0][0]["world_pos"].shape[0],
-                             dimension=2, dt=None, units={},
+            meta = make_meta(ggns_features(steps), trajectory_length=steps, dimension=2, dt=None, units={},
                              generator={"converted_from": str(src), "source_format": "ggns-pickle"})
-        split = path.stem
-        write_split(out / f"{split}.h5", meta, ((f"traj_{i:05d}", f, a) for i, (f, a) in enumerate(converted)))
+        write_split(out / f"{path.stem}.h5", meta, _ggns_trajectories(trajs, steps, path))
     write_meta(out, meta)
     return meta
+
+
+def _ggns_trajectories(trajs: list[dict], steps: int, path: Path):
+    """``(name, fields, attrs)`` of a pickle's trajectories, converted one at a time (each source dict dropped once
+    converted), all of ``steps`` frames."""
+    for i in range(len(trajs)):
+        fields, attrs = ggns_to_native(trajs[i], file=path, trajectory=i)
+        trajs[i] = None
+        if fields["world_pos"].shape[0] != steps:
+            raise DatasetError(f"trajectories have different lengths {sorted({steps, fields['world_pos'].shape[0]})}",
+                               file=path)
+        yield f"traj_{i:05d}", fields, attrs
 
 
 def convert(src: str | Path, out: str | Path) -> dict:

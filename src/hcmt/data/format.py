@@ -150,57 +150,70 @@ def validate_trajectory(meta: Mapping, fields: Mapping[str, np.ndarray], *, file
     consistent (node count shared by all per-node fields, time axis equal to ``trajectory_length``); dtype
     kind (float vs integer); finite values; cell indices within the node count; node types within the enum.
     """
+    arrays = {name: np.asarray(value) for name, value in fields.items()}
+    check_layout(meta, {k: (v.shape, v.dtype) for k, v in arrays.items()}, file=file, trajectory=trajectory)
+    return check_values(meta, {name: arrays[name] for name in meta["field_names"]}, file=file, trajectory=trajectory)
+
+
+def check_layout(meta: Mapping, shapes: Mapping[str, tuple], *, file=None, trajectory=None) -> int | None:
+    """The checks of :func:`validate_trajectory` that need no values, on ``{field: (shape, dtype)}`` (an HDF5
+    file's dataset shapes, read without reading the arrays); returns the node count."""
     specs = meta["features"]
-    missing = [k for k in meta["field_names"] if k not in fields]
+    missing = [k for k in meta["field_names"] if k not in shapes]
     if missing:
         raise DatasetError(f"missing; meta.json declares {meta['field_names']}", file=file, trajectory=trajectory,
                            field=missing[0])
-    extra = [k for k in fields if k not in specs]
+    extra = [k for k in shapes if k not in specs]
     if extra:
         raise DatasetError(f"unexpected field; meta.json declares only {meta['field_names']}", file=file,
                            trajectory=trajectory, field=extra[0])
-    out = {}
     num_nodes = None
     for name in meta["field_names"]:
-        spec = specs[name]
-        value = np.asarray(fields[name])
-        shape = list(spec["shape"])
+        where = dict(file=file, trajectory=trajectory, field=name)
+        spec, (got, dtype) = specs[name], shapes[name]
+        got, shape, want = tuple(got), list(spec["shape"]), np.dtype(spec["dtype"])
         if spec["type"] == "dynamic" and shape and shape[0] in (-1, None) and int(meta["trajectory_length"]) > 0:
             shape[0] = int(meta["trajectory_length"])  # a time axis declared -1 still has trajectory_length frames
-        want = np.dtype(spec["dtype"])
-        if value.ndim != len(shape):
-            raise DatasetError(f"shape {list(value.shape)} has rank {value.ndim}; meta.json declares shape {shape}",
-                               file=file, trajectory=trajectory, field=name)
-        for axis, (got, exp) in enumerate(zip(value.shape, shape)):
-            if exp != -1 and got != exp:
-                raise DatasetError(f"shape {list(value.shape)} disagrees with meta.json shape {shape} at axis {axis}",
-                                   file=file, trajectory=trajectory, field=name)
-        if value.dtype.kind != want.kind and not (value.dtype.kind in "iu" and want.kind in "iu"):
-            raise DatasetError(f"dtype {value.dtype} disagrees with meta.json dtype {want}", file=file,
-                               trajectory=trajectory, field=name)
+        if len(got) != len(shape):
+            raise DatasetError(f"shape {list(got)} has rank {len(got)}; meta.json declares shape {shape}", **where)
+        for axis, (g, exp) in enumerate(zip(got, shape)):
+            if exp != -1 and g != exp:
+                raise DatasetError(f"shape {list(got)} disagrees with meta.json shape {shape} at axis {axis}", **where)
+        if np.dtype(dtype).kind != want.kind and not (np.dtype(dtype).kind in "iu" and want.kind in "iu"):
+            raise DatasetError(f"dtype {np.dtype(dtype)} disagrees with meta.json dtype {want}", **where)
+        if name != "cells":  # every other field is per node: its node axis must agree with mesh_pos's
+            n = got[1] if spec["type"] == "dynamic" else got[0]
+            if num_nodes is not None and n != num_nodes:
+                raise DatasetError(f"has {n} nodes but other per-node fields have {num_nodes}", **where)
+            num_nodes = n
+    return num_nodes
+
+
+def check_values(meta: Mapping, arrays: Mapping[str, np.ndarray], *, file=None, trajectory=None,
+                 num_nodes: int | None = None) -> dict:
+    """The value checks of :func:`validate_trajectory` on some fields of a trajectory whose layout passed
+    :func:`check_layout` (a dynamic field may be a few frames of it): finite values, cell indices within the node
+    count, node types within the enum; returns them as arrays of the declared dtypes."""
+    out = {}
+    for name, value in arrays.items():
         if value.dtype.kind == "f" and not np.isfinite(value).all():
             bad = np.argwhere(~np.isfinite(value))[0].tolist()
             raise DatasetError(f"non-finite value (NaN or Inf) at index {bad}", file=file, trajectory=trajectory,
                                field=name)
-        if name != "cells":  # every other field is per node: its node axis must agree with mesh_pos's
-            n = value.shape[1] if spec["type"] == "dynamic" else value.shape[0]
-            if num_nodes is None:
-                num_nodes = n
-            elif n != num_nodes:
-                raise DatasetError(f"has {n} nodes but other per-node fields have {num_nodes}", file=file,
-                                   trajectory=trajectory, field=name)
-        out[name] = value.astype(want, copy=False)
-    if "cells" in out and num_nodes is not None:
-        cells = out["cells"]
-        if cells.size and (cells.min() < 0 or cells.max() >= num_nodes):
-            raise DatasetError(f"cell index out of range [{int(cells.min())}, {int(cells.max())}]; the trajectory has "
-                               f"{num_nodes} nodes", file=file, trajectory=trajectory, field="cells")
+        spec = meta["features"][name]
+        if num_nodes is None and name != "cells" and value.ndim:
+            num_nodes = value.shape[1] if spec["type"] == "dynamic" else value.shape[0]
+        out[name] = value.astype(np.dtype(spec["dtype"]), copy=False)
+    cells = out.get("cells")
+    if cells is not None and num_nodes is not None and cells.size and (cells.min() < 0 or cells.max() >= num_nodes):
+        raise DatasetError(f"cell index out of range [{int(cells.min())}, {int(cells.max())}]; the trajectory has "
+                           f"{num_nodes} nodes", file=file, trajectory=trajectory, field="cells")
     if "node_type" in out:
-        nt = out["node_type"]
-        unknown = np.setdiff1d(np.unique(nt), [int(t) for t in NodeType])
+        unknown = np.setdiff1d(np.unique(out["node_type"]), [int(t) for t in NodeType])
         if unknown.size:
-            raise DatasetError(f"unknown node type(s) {unknown.tolist()}; expected {[f'{t.name}={int(t)}' for t in NodeType]}",
-                               file=file, trajectory=trajectory, field="node_type")
+            raise DatasetError(f"unknown node type(s) {unknown.tolist()}; expected "
+                               f"{[f'{t.name}={int(t)}' for t in NodeType]}", file=file, trajectory=trajectory,
+                               field="node_type")
     return out
 
 
@@ -230,12 +243,22 @@ def write_split(
                 for key, value in arrays.items():
                     big = value.size > 4096
                     g.create_dataset(key, data=value, compression=compression if big else None,
-                                     shuffle=bool(compression and big), fletcher32=value.size > 0)
+                                     shuffle=bool(compression and big), fletcher32=value.size > 0,
+                                     chunks=frame_chunks(meta, key, value.shape))
                 for key, value in (attrs or {}).items():
                     g.attrs[key] = value
                 count += 1
             f.attrs["num_trajectories"] = count
     return path
+
+
+def frame_chunks(meta: Mapping, name: str, shape: tuple) -> tuple | None:
+    """HDF5 chunks of one frame for a dynamic field (training reads a few frames of a trajectory per item: only
+    their chunks are read and decompressed); None (h5py's choice) for static fields. Files written before this
+    read the same, a frame at a time from larger chunks."""
+    if meta["features"][name]["type"] != "dynamic" or len(shape) < 2 or 0 in shape:
+        return None
+    return (1, *shape[1:])
 
 
 class Split:
@@ -276,6 +299,35 @@ class Split:
 
     def __iter__(self):
         return (self[i] for i in range(len(self)))
+
+    def layout(self, i: int) -> dict[str, tuple[int, ...]]:
+        """The shapes of trajectory ``i``'s fields from the file's metadata, no array read; checked against
+        meta.json as :func:`validate_trajectory` checks them (rank, dimensions, dtype kind, node count)."""
+        name = self.names[i]
+        try:
+            group = self._file[name]
+            shapes = {k: (group[k].shape, group[k].dtype) for k in group.keys()}
+        except (OSError, KeyError, RuntimeError) as exc:
+            raise DatasetError(f"cannot be read (truncated or corrupt file?): {exc}", file=self.path,
+                               trajectory=name) from None
+        check_layout(self.meta, shapes, file=self.path, trajectory=name)
+        return {k: tuple(shape) for k, (shape, _) in shapes.items()}
+
+    def read(self, i: int, fields: Iterable[str], frames: slice | None = None,
+             num_nodes: int | None = None) -> dict[str, np.ndarray]:
+        """Some fields of trajectory ``i``, value-checked (:func:`check_values`; ``num_nodes`` from
+        :meth:`layout` for the cell indices' range), dynamic ones only at ``frames`` (an HDF5 hyperslab: only
+        those frames' chunks are read)."""
+        name, out = self.names[i], {}
+        for key in fields:
+            dynamic = self.meta["features"][key]["type"] == "dynamic"
+            try:
+                data = self._file[name][key]
+                out[key] = data[frames] if dynamic and frames is not None else data[()]
+            except (OSError, KeyError, RuntimeError, ValueError) as exc:
+                raise DatasetError(f"cannot be read (truncated or corrupt file?): {exc}", file=self.path,
+                                   trajectory=name, field=key) from None
+        return check_values(self.meta, out, file=self.path, trajectory=name, num_nodes=num_nodes)
 
     def attrs(self, i: int) -> dict:
         try:

@@ -285,11 +285,12 @@ def hierarchy_cache_dir(dataset_dir: str | os.PathLike) -> Path:
 
 
 def cached_hierarchy(mesh_pos, cells, node_type=None, levels: int = 1, remesh: bool = True,
-                     cache_dir: str | os.PathLike | None = None) -> Hierarchy:
+                     cache_dir: str | os.PathLike | None = None, memory: bool = True) -> Hierarchy:
     """:func:`build_hierarchy`, memoized in memory and (with ``cache_dir``) on disk as ``<key>.npz``.
 
     The key hashes the mesh and the settings, so a changed mesh or setting builds anew; an unreadable cache
-    file is rebuilt and replaced."""
+    file is rebuilt and replaced. ``memory=False`` keeps a hierarchy it reads or builds out of the in-process memo
+    (:class:`hcmt.physics.trajectory.SplitReader` keeps its own few)."""
     key = hierarchy_key(mesh_pos, cells, node_type, levels, remesh)
     if key in _MEMORY:
         _MEMORY.move_to_end(key)
@@ -305,6 +306,8 @@ def cached_hierarchy(mesh_pos, cells, node_type=None, levels: int = 1, remesh: b
         h = build_hierarchy(mesh_pos, cells, node_type, levels, remesh)
         if path is not None:
             h.save(path)
+    if not memory:
+        return h
     _MEMORY[key] = h
     if len(_MEMORY) > _MEMORY_SIZE:
         _MEMORY.popitem(last=False)

@@ -5,7 +5,9 @@ item ``i`` is training frame ``i`` (``frames[i] = (trajectory, t)``), with noise
   from a generator seeded by ``(seed, i)``; the trainer instead asks for ``(i, step, rank, previous)`` keys
   (:class:`StepSampler`), which draw the noise exactly as the training loop always has (one generator per step,
   seeded by ``(seed, step, rank)``, the step's frames in order), so the number of workers never changes a result.
-  The HDF5 file is opened lazily in each process (a dataset pickles without its trajectories).
+  The split is read per item (the frames it needs, a few trajectories' static fields and hierarchies) from an HDF5
+  file opened lazily in each process: a DataLoader worker or DDP rank holds the index, not the split, and reads
+  only the trajectories of its own keys.
 """
 from __future__ import annotations
 
@@ -21,7 +23,44 @@ from torch.utils.data import Dataset, Sampler
 from hcmt.graph.batch import Graph, PadSizes, collate, pad_graph, pad_rows
 from hcmt.physics.adapters import Adapter, noise_mask
 from hcmt.physics.frames import pushforward_sample, step_seed, training_sample
-from hcmt.physics.trajectory import Trajectory, load_split
+from hcmt.physics.trajectory import SplitReader, Trajectory, load_split
+
+
+class InMemorySplit:
+    """A split held whole in memory (:func:`load_split`), with :class:`SplitReader`'s interface: the eager path
+    (``FrameDataset(in_memory=True)``), for small data and to check the lazy path against. Loaded lazily in each
+    process; pickles without its trajectories."""
+
+    def __init__(self, dataset, split: str, adapter: Adapter, levels: int, remesh: bool,
+                 exclude: list[int] | None = None):
+        self.args = (dataset, split, adapter, levels, remesh)
+        self.exclude, self._trajs = exclude, None
+        self.steps = np.asarray([tr.num_steps for tr in self.trajectories], np.int64)
+        self.nodes = np.asarray([tr.num_nodes for tr in self.trajectories], np.int64)
+
+    @property
+    def trajectories(self) -> list[Trajectory]:
+        if self._trajs is None:  # opened lazily: in each DataLoader worker on its first item
+            self._trajs = load_split(*self.args, exclude=self.exclude)
+        return self._trajs
+
+    def __getstate__(self):
+        return {**self.__dict__, "_trajs": None}  # workers read the file themselves
+
+    def __len__(self) -> int:
+        return len(self.steps)
+
+    def static(self, ti: int) -> Trajectory:
+        return self.trajectories[ti]
+
+    def window(self, ti: int, lo: int, hi: int) -> Trajectory:
+        return self.trajectories[ti]
+
+    def trajectory(self, ti: int) -> Trajectory:
+        return self.trajectories[ti]
+
+    def close(self) -> None:
+        pass
 
 
 class FrameDataset(Dataset):
@@ -32,48 +71,46 @@ class FrameDataset(Dataset):
     ``noise_nodes`` (``normal`` or ``predicted``) and ``gamma`` the target correction; ``seed`` for the noise.
     Works with ``DataLoader(num_workers=N)``. :meth:`pushforward_item` builds an item with the model's help (in
     the training process).
+
+    The split is read per item (:class:`hcmt.physics.trajectory.SplitReader`: the index, a few trajectories'
+    static fields and hierarchies, the frames ``x^{t-h-1} .. x^{t+1}`` an item needs), so a process's memory does
+    not grow with the split; ``keep`` trajectories stay in its LRU. ``in_memory=True`` holds the whole split
+    instead (:func:`load_split`); both give the same items bit for bit.
     """
 
     def __init__(self, data: str | Path, split: str, adapter: Adapter, levels: int, remesh: bool, radius: float,
                  noise_std: float = 0.0, gamma: float = 1.0, seed: int = 0, exclude: list[int] | None = None,
-                 noise_nodes: str = "normal"):
+                 noise_nodes: str = "normal", in_memory: bool = False, keep: int = 4):
         self.data, self.split, self.adapter = Path(data), split, adapter
         self.levels, self.remesh, self.radius = levels, remesh, float(radius)
         self.noise_std, self.gamma, self.seed, self.exclude = float(noise_std), float(gamma), int(seed), exclude
         self.noise_nodes = noise_nodes
-        self._trajs: list[Trajectory] | None = None
-        self.frames = np.asarray([(i, t) for i, tr in enumerate(self.trajectories)
-                                  for t in range(adapter.history, tr.num_steps - 1)], np.int64).reshape(-1, 2)
-
-    @property
-    def trajectories(self) -> list[Trajectory]:
-        if self._trajs is None:  # opened lazily: in each DataLoader worker on its first item
-            self._trajs = load_split(self.data, self.split, self.adapter, self.levels, self.remesh,
-                                     exclude=self.exclude)
-        return self._trajs
-
-    def __getstate__(self):
-        state = dict(self.__dict__)
-        state["_trajs"] = None  # workers read the file themselves
-        return state
+        self.source = (InMemorySplit(data, split, adapter, levels, remesh, exclude) if in_memory
+                       else SplitReader(data, split, adapter, levels, remesh, exclude, keep))
+        self.frames = np.asarray([(i, t) for i, steps in enumerate(self.source.steps)
+                                  for t in range(adapter.history, int(steps) - 1)], np.int64).reshape(-1, 2)
 
     def __len__(self) -> int:
         return len(self.frames)
 
     def num_nodes(self, i: int) -> int:
-        return self.trajectories[int(self.frames[i][0])].num_nodes
+        return int(self.source.nodes[int(self.frames[i][0])])
+
+    def trajectory(self, ti: int) -> Trajectory:
+        """Trajectory ``ti`` of the split with all its frames (tests, tools; training reads per item)."""
+        return self.source.trajectory(ti)
 
     def __getitem__(self, key) -> tuple[Graph, Tensor, Tensor]:
         """``i`` (frame ``i``, noise seeded by ``(seed, i)``) or ``(i, step, rank, previous)`` (the trainer's key:
         noise drawn from the step's generator after the draws of the step's ``previous`` frames' node counts)."""
-        tr, t, noise, _ = self._draw(key)
+        tr, t, noise, _ = self._draw(key, self.adapter.history)
         return training_sample(tr, t, noise, self.gamma, self.radius)
 
     def pushforward_item(self, key, model, probability: float) -> tuple[Graph, Tensor, Tensor]:
         """Item ``key`` as :meth:`__getitem__` (the same noise), except that with ``probability`` (drawn from the
         item's generator after its noise) and where frame ``t − 1`` has its history, it is a
         :func:`pushforward_sample` from frame ``t − 1``."""
-        tr, t, noise, gen = self._draw(key)
+        tr, t, noise, gen = self._draw(key, self.adapter.history + 1)
         u = float(torch.rand((), generator=gen))
         if u < probability and t - 1 >= self.adapter.history:
             return pushforward_sample(model, tr, t, noise, self._noise(tr, gen), self.gamma, self.radius)
@@ -84,14 +121,15 @@ class FrameDataset(Dataset):
         return (torch.randn((tr.num_nodes, d), generator=gen) * self.noise_std
                 * noise_mask(self.adapter, tr.static["node_type"], d, self.noise_nodes))
 
-    def _draw(self, key) -> tuple[Trajectory, int, Tensor, torch.Generator]:
+    def _draw(self, key, back: int) -> tuple[Trajectory, int, Tensor, torch.Generator]:
+        """The item's trajectory with frames ``t - back .. t + 1`` read, ``t``, its noise and generator."""
         if isinstance(key, (int, np.integer)):
             i, gen, previous = int(key), torch.Generator().manual_seed(step_seed(self.seed, int(key), 0)), ()
         else:
             i, step, rank, previous = key
             gen = torch.Generator().manual_seed(step_seed(self.seed, step, rank))
         ti, t = (int(v) for v in self.frames[i])
-        tr = self.trajectories[ti]
+        tr = self.source.window(ti, t - back, t + 2)
         d = tr.world_pos.shape[-1]
         for n in previous:  # replay the draws of the frames before this one in the step's batch
             torch.randn((n, d), generator=gen)
@@ -109,10 +147,12 @@ def pad_sizes(dataset: FrameDataset, batch: int) -> PadSizes:
     and hierarchy of every trajectory are fixed (a frame's graph takes its mesh edges, pooling and level edges
     from the trajectory's hierarchy), so the largest trajectory bounds every level."""
     counts = []
-    for tr in dataset.trajectories:
+    for ti in range(len(dataset.source)):
+        tr = dataset.source.static(ti)
         h = tr.hierarchy
         counts.append((tr.num_nodes, int(h.edges[0].shape[1]),
                        [(len(h.pool[l]), int(h.edges[l + 1].shape[1])) for l in range(h.levels)]))
+    dataset.source.close()  # DataLoader workers open the file themselves
     return PadSizes.fit(counts, batch)
 
 

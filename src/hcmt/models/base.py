@@ -9,6 +9,9 @@ Layer", "Decoder and Updater"; MeshGraphNets' encode-process-decode).
 """
 from __future__ import annotations
 
+import os
+from pathlib import Path
+
 import torch
 from torch import Tensor, nn
 from torch.utils.checkpoint import checkpoint
@@ -49,8 +52,19 @@ def compile_simulator(model: nn.Module, mode: str) -> nn.Module:
         raise InputError(f"compile mode {mode!r}: expected one of {', '.join(COMPILE_MODES[1:])}")
     import torch._dynamo
 
+    os.environ.setdefault("TORCHINDUCTOR_CACHE_DIR", str(compile_cache_dir()))
+
     torch._dynamo.config.recompile_limit = max(torch._dynamo.config.recompile_limit, 64)
     return torch.compile(model, mode=None if mode == "default" else mode, dynamic=False)
+
+
+def compile_cache_dir() -> Path:
+    """Where compiled kernels persist across processes and sessions (Inductor's FX-graph and AOT-autograd caches):
+    ``$TORCHINDUCTOR_CACHE_DIR`` when set, else ``$XDG_CACHE_HOME/hcmt/inductor`` (``~/.cache/hcmt/inductor``), not
+    Inductor's default under the temporary folder, so a shape's compilation is paid once per machine."""
+    if os.environ.get("TORCHINDUCTOR_CACHE_DIR"):
+        return Path(os.environ["TORCHINDUCTOR_CACHE_DIR"])
+    return Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / "hcmt" / "inductor"
 
 
 class Simulator(nn.Module):

@@ -21,6 +21,15 @@ CONFIG_DIR = Path(__file__).resolve().parent / "configs"
 DATASET_NAMES = ("impact_plate", "deforming_plate", "sphere_simple", "deformable_plate")
 #: ``torch.compile`` modes (``train.compile``, ``--compile``); ``none`` is eager
 COMPILE_MODES = ("none", "default", "reduce-overhead", "max-autotune")
+#: the models (:data:`hcmt.models.REGISTRY`, in this order) and HCMT's ablations (paper Tables 3, 10-12)
+MODELS = ("hcmt", "mgn", "gt")
+ABLATIONS = ("late-contact", "only-cmt", "only-hmt", "lpe", "single-branch", "no-remesh")
+#: ``init_normalizers``: a fine-tuned run keeps its source's normalizer statistics, frozen (the few runs of a new
+#: family make poor statistics), or zeroes them and accumulates them afresh on its own data
+INIT_NORMALIZERS = ("keep", "reaccumulate")
+#: the bounds of the counts every command and API function takes (one rule: above the bound, refused in one line):
+#: trajectories of one split, designs of one design check or sweep, trajectories or designs in one batch
+MAX_TRAJECTORIES, MAX_DESIGNS, MAX_BATCH = 100_000, 10_000, 1024
 
 
 def builtin_configs() -> list[str]:

@@ -33,18 +33,15 @@ from sklearn.gaussian_process import GaussianProcessRegressor
 from sklearn.gaussian_process.kernels import RBF, ConstantKernel, WhiteKernel
 
 from hcmt.data.format import Split, read_meta
+from hcmt.design.basics import QUANTITIES, RESTARTS
 from hcmt.errors import InputError
 from hcmt.files import atomic_path
 from hcmt.design.readout import summarize_fields
 from hcmt.data.runs import PRETRAINED_DIR
 from hcmt.sim.scene import DESIGN_KEYS, FIRST_SCENE_KEYS, Design, design_from_attrs
 
-#: the scalar answers a surrogate predicts (keys of a design's summary)
-QUANTITIES = ("peak_plate_stress_mpa", "peak_ball_stress_mpa", "max_deflection_mm", "peak_plate_t95_ms",
-              "contact_end_ms")
 FORMAT, VERSION = "hcmt-surrogate", 1
 Z95 = 1.959963984540054  # the standard normal's 97.5 % quantile: a central 95 % interval
-RESTARTS = 3  # optimizer restarts of the marginal likelihood (the comparison used 3)
 
 
 class SurrogateError(InputError):

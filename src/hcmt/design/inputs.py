@@ -34,8 +34,8 @@ def read_designs_csv(path: str | Path, defaults: Design, first: int = 1,
                 name = check_name(v.strip(), f"{path} line {n}, column {col} (name)")
                 if name in seen:
                     where = seen[name] if isinstance(seen[name], str) else f"line {seen[name]}"
-                    raise InputError(f"{path} line {n}, column {col} (name): {clip(name)!r} already names {where}; every "
-                                     "design needs its own name")
+                    raise InputError(f"{path} line {n}, column {col} (name): {clip(name)!r} already names {where}; "
+                                     "every design needs its own name")
                 seen[name] = n
                 continue
             if not v.strip():

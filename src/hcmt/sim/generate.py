@@ -20,10 +20,11 @@ import h5py
 import numpy as np
 from tqdm import tqdm
 
+from hcmt.config import MAX_TRAJECTORIES, machine_cores
 from hcmt.data.format import make_meta, read_meta, write_meta, write_split
 from hcmt.errors import DatasetError, InputError
-from hcmt.sim.scene import (CONTACT_RADIUS, FAMILIES, RANGES, UNITS, VARIANTS, Design, Settings,
-                            family_ranges, feature_spec, resolve_relative, sample_design, simulate)
+from hcmt.sim.scene import (CONTACT_RADIUS, FAMILIES, RANGES, UNITS, VARIANTS, Settings, family_ranges, feature_spec,
+                            sample_design, simulate)
 
 #: Split names and their stable codes in the per-trajectory seed.
 SPLITS = ("train", "valid", "test", "test_thicker", "test_higher", "test_thicker_higher")
@@ -154,10 +155,10 @@ def generate_dataset(out, *, preset: str = "small", counts: dict[str, int], seed
     for split, n in counts.items():
         if split not in SPLITS:
             raise InputError(f"unknown split {split!r}; expected one of {SPLITS}")
-        if int(n) < 0:
-            raise InputError(f"the {split} count must be >= 0 trajectories, got {n}")
-    if int(workers) < 1:
-        raise InputError(f"must be >= 1, got {workers}", param="workers")
+        if not 0 <= int(n) <= MAX_TRAJECTORIES:
+            raise InputError(f"{split}: expected 0 to {MAX_TRAJECTORIES:,} trajectories, got {n}", param="counts")
+    if not 1 <= int(workers) <= machine_cores():
+        raise InputError(f"must be 1 to this machine's {machine_cores()} cores, got {workers}", param="workers")
     settings.validate()
     counts = {k: int(v) for k, v in counts.items() if int(v) > 0}
     if not counts:
@@ -213,8 +214,3 @@ def generate_dataset(out, *, preset: str = "small", counts: dict[str, int], seed
     if parts.is_dir() and not any(parts.iterdir()):
         parts.rmdir()
     return dict(simulated=len(todo), skipped=skipped, splits=done_splits)
-
-
-def preset_design(preset: str, family: str = "mono") -> Design:
-    """The nominal design of a preset and family: the middle of every sampling range (:func:`family_ranges`)."""
-    return Design(**resolve_relative({k: 0.5 * (lo + hi) for k, (lo, hi) in family_ranges(preset, family).items()}))

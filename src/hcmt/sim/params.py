@@ -4,7 +4,7 @@ solver, the mesh or scipy; :mod:`hcmt.sim.scene` builds and simulates designs fr
 choices and units)."""
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass, fields
+from dataclasses import dataclass, fields
 
 import numpy as np
 
@@ -340,3 +340,8 @@ def parse_number(raw: str, what: str, param: str | None = None) -> float:
     if not np.isfinite(v):
         raise InputError(f"{what} must be a finite number, got {clip(raw.strip())!r}", param=param)
     return v
+
+
+def preset_design(preset: str, family: str = "mono") -> Design:
+    """The nominal design of a preset and family: the middle of every sampling range (:func:`family_ranges`)."""
+    return Design(**resolve_relative({k: 0.5 * (lo + hi) for k, (lo, hi) in family_ranges(preset, family).items()}))

@@ -39,13 +39,15 @@ def builtin_configs() -> list[str]:
     return sorted(p.stem for p in CONFIG_DIR.glob("*.yaml"))
 
 
-def _read(name_or_path: str) -> dict:
+def _read(name_or_path: str, within: str | None = None) -> dict:
+    """A config file's keys, its ``base`` chain merged (``within``: the file naming ``name_or_path`` as its base)."""
     path = Path(name_or_path)
     if not path.is_file():
         path = CONFIG_DIR / f"{name_or_path}.yaml"
     if not path.is_file():
-        raise FileNotFoundError(f"config {name_or_path!r}: neither a file nor a built-in config "
-                                f"(built-in: {', '.join(builtin_configs())})")
+        raise InputError(f"{clip(name_or_path)!r}{f' (the base of {within})' if within else ''}: neither a file nor "
+                         f"a built-in config (built-in: {', '.join(builtin_configs())})",
+                         param=None if within else "name_or_path")
     try:
         data = yaml.safe_load(path.read_text(encoding="utf-8")) or {}
     except UnicodeDecodeError:
@@ -58,7 +60,7 @@ def _read(name_or_path: str) -> dict:
         raise InputError(f"config {path}: expected a mapping at top level")
     base = data.pop("base", None)
     check_schema(data, str(path))
-    return merge(_read(base), data) if base else data
+    return merge(_read(base, str(path)), data) if base else data
 
 
 def merge(base: dict, over: dict) -> dict:

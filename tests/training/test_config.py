@@ -5,6 +5,7 @@ import yaml
 
 from hcmt.config import Config, builtin_configs, load_config
 from hcmt.data.runs import RunFolder
+from hcmt.errors import InputError
 from hcmt.physics.adapters import dataset_spec
 
 TABLE8 = {  # dataset: (L_C, L_H, lambda, noise std, gamma, steps)
@@ -33,8 +34,9 @@ def test_base_and_overrides(tmp_path):
     f = tmp_path / "mine.yaml"
     f.write_text("base: impact_plate\ntrain:\n  steps: 7\n")
     assert load_config(str(f)).train.steps == 7
-    with pytest.raises(FileNotFoundError, match="built-in"):
+    with pytest.raises(InputError, match="built-in") as exc:
         load_config("nope")
+    assert exc.value.param == "name_or_path"  # `hcmt train` words it as --config
     with pytest.raises(ValueError, match="section.key=value"):
         load_config("impact_plate", ["oops"])
 

@@ -160,9 +160,12 @@ def build_parser() -> argparse.ArgumentParser:
 
 def flag_of(parser: argparse.ArgumentParser | None, param: str | None) -> str | None:
     """The command-line name of the library parameter ``param`` in this command: its option (``--batch``), its
-    positional argument's name (``DATA``), or None when the command has no such argument."""
+    positional argument's name (``DATA``), the name :func:`hcmt.cli.parsers.same_as` gave it (``path`` ->
+    ``MODEL``), or None when the command has no such argument."""
     if parser is None or not param:
         return None
+    if param in getattr(parser, "param_flags", {}):
+        return parser.param_flags[param]
     for action in parser._actions:
         if action.dest == param.replace("-", "_"):
             return max(action.option_strings, key=len) if action.option_strings else action.dest.upper()

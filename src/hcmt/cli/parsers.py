@@ -14,7 +14,7 @@ from pathlib import Path
 
 from hcmt.cli import CommandError, check_outputs
 from hcmt.config import (ABLATIONS, COMPILE_MODES, INIT_NORMALIZERS, MAX_BATCH, MAX_DESIGNS, MAX_TRAJECTORIES, MODELS,
-                         available_pretrained, machine_cores)
+                         available_pretrained, load_config, machine_cores)
 from hcmt.design.basics import QUANTITIES, RESTARTS, parse_vary, read_table
 from hcmt.errors import clip
 from hcmt.sim.params import (CONTACT_RADIUS, DESIGN_UNITS, FAMILIES, MATERIALS, MAX_ESTIMATED_SECONDS, RANGES,
@@ -83,6 +83,13 @@ def surrogate_args(p: argparse.ArgumentParser) -> None:
 def model_arg(p: argparse.ArgumentParser) -> None:
     p.add_argument("model", nargs="?", help="run folder made by `hcmt train`, or pretrained:NAME (`hcmt models` "
                    "lists them)")
+    same_as(p, path="MODEL")
+
+
+def same_as(p: argparse.ArgumentParser, **flags: str) -> None:
+    """Name library parameters that this command calls otherwise (``path="MODEL"``: ``Run.load``'s ``path`` is
+    ``hcmt predict``'s MODEL), so that their errors name the flag (:func:`hcmt.cli.flag_of`)."""
+    p.param_flags = {**getattr(p, "param_flags", {}), **flags}
 
 
 def check_run(name: str, text: str) -> None:
@@ -260,6 +267,7 @@ check_hierarchy = check_info
 # -- train, rollout, evaluate, compare -----------------------------------------------------------------------------
 def configure_train(p: argparse.ArgumentParser) -> None:
     p.add_argument("--config", help="built-in config name (impact_plate, impact_plate_cpu, ...) or a YAML file")
+    same_as(p, name_or_path="--config")
     p.add_argument("--data", help="native dataset folder")
     p.add_argument("--model", choices=MODELS)
     p.add_argument("--ablation", choices=ABLATIONS, help="HCMT ablation (paper Tables 3, 10-12)")
@@ -282,6 +290,8 @@ def configure_train(p: argparse.ArgumentParser) -> None:
 
 
 def check_train(args) -> None:
+    if args.config is not None:  # its file and every --set, one line before torch loads (main_train reads it again)
+        load_config(args.config, list(args.overrides))
     if args.data is not None:
         check_folder("--data", args.data, "a native dataset folder (meta.json + <split>.h5)")
     if args.init is not None:
@@ -290,6 +300,7 @@ def check_train(args) -> None:
 
 def _run_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("run", help="run folder made by `hcmt train`")
+    same_as(p, path="RUN")
     p.add_argument("--data", required=True, help="native dataset folder")
     p.add_argument("--split", default="test")
     p.add_argument("--limit", type=count(1, MAX_TRAJECTORIES), metavar="N",
@@ -524,6 +535,7 @@ def check_export(args) -> None:
 def configure_demo(p: argparse.ArgumentParser) -> None:
     p.add_argument("--out", default="demo_out", help="folder for pictures (and with --train the data and run)")
     p.add_argument("--model", default="pretrained:impact_plate_small", help="model for the design check")
+    same_as(p, path="--model")
     p.add_argument("--device", help="cpu, cuda, cuda:N (default: cuda when available)")
     p.add_argument("--train", action="store_true", help="train a model from scratch instead (generate, train, "
                    "evaluate; several minutes)")

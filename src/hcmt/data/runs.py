@@ -39,7 +39,7 @@ class RunFolder:
                 self.damaged = str(exc)
         elif must_exist:
             hint = f"; the shipped model is pretrained:{self.path}" if str(self.path) in available_pretrained() else ""
-            raise FileNotFoundError(f"{self.path / 'run.yaml'}: not a run folder (made by `hcmt train --out RUN`)"
+            raise InputError(f"{self.path / 'run.yaml'}: not a run folder (made by `hcmt train --out RUN`)"
                                     f"{hint}")
 
     def __repr__(self) -> str:

@@ -34,11 +34,11 @@ from sklearn.gaussian_process.kernels import RBF, ConstantKernel, WhiteKernel
 
 from hcmt.data.format import Split, read_meta
 from hcmt.design.basics import QUANTITIES, RESTARTS
-from hcmt.errors import InputError
+from hcmt.errors import InputError, clip
 from hcmt.files import atomic_path
 from hcmt.design.readout import summarize_fields
 from hcmt.data.runs import PRETRAINED_DIR
-from hcmt.sim.scene import DESIGN_KEYS, FIRST_SCENE_KEYS, Design, design_from_attrs
+from hcmt.sim.scene import DESIGN_KEYS, FIRST_SCENE_KEYS, Design, check_size, design_from_attrs
 
 FORMAT, VERSION = "hcmt-surrogate", 1
 Z95 = 1.959963984540054  # the standard normal's 97.5 % quantile: a central 95 % interval
@@ -259,6 +259,12 @@ class Surrogate:
             if not isinstance(linear, list) or any(k not in params for k in linear):
                 raise SurrogateError(f"{where}: \"input_transform\": expected {{\"linear\": [parameters taken "
                                      "linearly]}}")
+            for i, row in enumerate(X):  # each training design one hcmt could build (a 1e308 mm plate is none)
+                try:
+                    check_size(Design(**{**fixed, **dict(zip(params, map(float, row)))}).validate())
+                except InputError as exc:
+                    raise SurrogateError(f"{where}: training design {i + 1} is no design hcmt builds: "
+                                         f"{clip(exc, 160)}") from None
             return cls(params, {k: float(v) for k, v in fixed.items()}, X, answers, kernels,
                        source=str(doc.get("source", "")), linear=linear)
         except SurrogateError:

@@ -101,12 +101,12 @@ class Design:
         for name in ("thickness", "ball_radius", "mesh_size", "plate_half_length", "drop_height", "gap"):
             v = getattr(self, name)
             if not np.isfinite(v) or v <= 0:
-                raise InputError(f"{name} must be > 0 (mm), got {v}")
+                raise InputError(f"must be > 0 (mm), got {v}", param=name)
         for name in ("layer2_thickness", "layer3_thickness", "layer4_thickness", "support_radius",
                      "backing_thickness", "pen_tip_radius"):
             v = getattr(self, name)
             if not np.isfinite(v) or v < 0:
-                raise InputError(f"{name} must be >= 0 mm (0: none), got {v}")
+                raise InputError(f"must be >= 0 mm (0: none), got {v}", param=name)
         check_material("plate", self.plate_density, self.plate_modulus, self.plate_poisson)
         check_material("ball", self.ball_density, self.ball_modulus, self.ball_poisson)
         for k in (2, 3, 4):
@@ -132,7 +132,7 @@ class Design:
                                  f"({self.mesh_size:g} mm) and 10 x the panel's thickness "
                                  f"({10 * self.total_thickness:g} mm)")
             if not (np.isfinite(self.pen_mass) and self.pen_mass > 0):
-                raise InputError(f"pen_mass must be > 0 g, got {self.pen_mass}")
+                raise InputError(f"must be > 0 g, got {self.pen_mass}", param="pen_mass")
         elif self.mesh_size > self.ball_radius / 3:
             raise InputError(f"mesh_size ({self.mesh_size} mm) must be at most ball_radius / 3 "
                              f"({self.ball_radius / 3:.3g} mm)")
@@ -251,15 +251,16 @@ def resolve_relative(values: dict[str, float]) -> dict[str, float]:
 
 
 def check_material(name: str, density, modulus, poisson) -> None:
-    """Refuse impossible materials with a message naming the parameter and the expected range."""
-    for what, v, ok, expected in (
+    """Refuse impossible materials with a message naming the parameter (``plate_density``: param=, so that the
+    command names its flag) and the expected range."""
+    for key, v, ok, expected in (
         ("density", density, lambda a: a > 0, "> 0 g/mm^3"),
-        ("Young's modulus", modulus, lambda a: a > 0, "> 0 MPa"),
-        ("Poisson ratio", poisson, lambda a: (a > -1) & (a < 0.5), "in (-1, 0.5)"),
+        ("modulus", modulus, lambda a: a > 0, "> 0 MPa (Young's modulus)"),
+        ("poisson", poisson, lambda a: (a > -1) & (a < 0.5), "in (-1, 0.5) (Poisson ratio)"),
     ):
         a = np.asarray(v, float)
         if not np.all(np.isfinite(a)) or not np.all(ok(a)):
-            raise InputError(f"{name} {what} must be {expected}, got {v}")
+            raise InputError(f"must be {expected}, got {clip(v)}", param=f"{name}_{key}")
 
 
 def describe_family(family: str) -> str:

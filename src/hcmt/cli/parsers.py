@@ -21,8 +21,8 @@ from hcmt.sim.params import (CONTACT_RADIUS, DESIGN_UNITS, FAMILIES, MATERIALS, 
                              Design, Settings, describe_family, design_key, parse_stack, preset_design)
 
 #: the largest count of a few options without a natural bound: training steps, frames a picture shows per second,
-#: optimizer restarts, hierarchy levels
-MAX_STEPS, MAX_FPS, MAX_RESTARTS, MAX_LEVELS = 10**9, 100, 100, 16
+#: optimizer restarts, hierarchy levels, a picture's frame stride
+MAX_STEPS, MAX_FPS, MAX_RESTARTS, MAX_LEVELS, MAX_STRIDE = 10**9, 100, 100, 16, 10_000
 PICTURES = ("contours", "animation", "errors", "training", "hierarchy", "attention")
 
 
@@ -103,13 +103,13 @@ def check_run(name: str, text: str) -> None:
     if not (path / "run.yaml").is_file():
         hint = f"; the shipped model is pretrained:{text}" if text in available_pretrained() else ""
         what = "no such folder" if not path.exists() else "not a run folder (no run.yaml)"
-        raise CommandError(f"{name} {clip(text)}: {what}; expected a folder made by `hcmt train --out RUN`, or "
+        raise CommandError(f"{name} {clip(text, 200)}: {what}; expected a folder made by `hcmt train --out RUN`, or "
                            f"pretrained:NAME{hint}")
 
 
 def check_folder(name: str, text: str, what: str) -> None:
     if not Path(text).is_dir():
-        raise CommandError(f"{name} {clip(text)}: no such folder; expected {what}")
+        raise CommandError(f"{name} {clip(text, 200)}: no such folder; expected {what}")
 
 
 # -- generate, simulate ---------------------------------------------------------------------------------------------
@@ -237,7 +237,7 @@ def configure_convert(parser: argparse.ArgumentParser) -> None:
 
 def check_convert(args) -> None:
     if not Path(args.src).exists():
-        raise CommandError(f"SRC {clip(args.src)}: no such file or folder; expected a TFRecord dataset folder or "
+        raise CommandError(f"SRC {clip(args.src, 200)}: no such file or folder; expected a TFRecord dataset folder or "
                            "GGNS pickle(s)")
 
 
@@ -499,8 +499,8 @@ def configure_plot(p: argparse.ArgumentParser) -> None:
                    help="contour colour scale: one per frame (row) or one for the whole figure")
     p.add_argument("--fps", type=count(1, MAX_FPS), default=10, metavar="N",
                    help=f"animation frames per second, {span(1, MAX_FPS)} (default 10)")
-    p.add_argument("--stride", type=count(1, MAX_STEPS), metavar="N",
-                   help="animate every N-th frame, N >= 1 (default: at most 100 frames)")
+    p.add_argument("--stride", type=count(1, MAX_STRIDE), metavar="N",
+                   help=f"animate every N-th frame, {span(1, MAX_STRIDE)} (default: at most 100 frames)")
     p.add_argument("--levels", type=count(1, MAX_LEVELS), metavar="N",
                    help=f"hierarchy levels to draw when no run is an HCMT with a hierarchy, {span(1, MAX_LEVELS)}")
     p.add_argument("--attention-frame", type=int, help="frame of the attention maps (default: the impact)")
@@ -521,8 +521,8 @@ def configure_export(p: argparse.ArgumentParser) -> None:
     p.add_argument("--format", default="vtu", choices=["vtu", "xdmf"],
                    help="vtu: one file per frame + a .pvd collection; xdmf: one .xdmf + .h5 per series")
     p.add_argument("--trajectory", default="0", help="index or name of the trajectory, or 'all' (default 0)")
-    p.add_argument("--stride", type=count(1, MAX_STEPS), default=1, metavar="N",
-                   help="export every N-th frame, N >= 1 (default 1: all)")
+    p.add_argument("--stride", type=count(1, MAX_STRIDE), default=1, metavar="N",
+                   help=f"export every N-th frame, {span(1, MAX_STRIDE)} (default 1: all)")
 
 
 def check_export(args) -> None:

@@ -68,7 +68,10 @@ def test_every_error_line_is_at_most_300_characters(monkeypatch, capsys):
     monkeypatch.setattr(hcmt.cli.design, "main_models", long_error)
     line = refused(capsys, ["models", "--json"])
     assert line.startswith("hcmt models: error: --json xxx") and line.endswith("expected the end to stay")
-    assert one_line("short") == "short" and len(one_line("y" * 1000, "; tail")) == LINE
+    assert one_line("short") == "short" and len(one_line("word " * 200, "; tail")) == LINE
+    path = "/" + "/".join(["folder"] * 30) + "/data.json:"
+    assert one_line(f"{path} damaged {'x ' * 200}").startswith("/folder/fold…") and "der/folder/data.json: damaged" \
+        in one_line(f"{path} damaged {'x ' * 200}")  # a long path keeps its file's name
 
 
 # -- 8. refused before the heavy imports, in one line --------------------------------------------------------------

@@ -123,10 +123,14 @@ class Parser(argparse.ArgumentParser):
 
 
 def one_line(text: str, tail: str = "") -> str:
-    """``text + tail`` on one line of at most :data:`LINE` characters: a longer ``text`` keeps its start (the
-    command and the flag) and its end (what was expected), the middle cut ("…")."""
+    """``text + tail`` on one line of at most :data:`LINE` characters: a longer ``text`` first has each word over 40
+    characters (a path, a value) cut in its middle, keeping its start and its end (the file's name), then, if
+    still too long, its own middle cut, keeping its start (the command and the flag) and its end (what was
+    expected)."""
     text = " ".join(str(text).split())
     room = LINE - len(tail)
+    if len(text) > room:
+        text = " ".join(w if len(w) <= 40 else w[:12] + "…" + w[-27:] for w in text.split(" "))
     if len(text) > room:
         head = room * 2 // 3
         text = text[:head - 1] + "…" + text[len(text) - (room - head):]

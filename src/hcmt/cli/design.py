@@ -70,9 +70,9 @@ def _design_run(args):
         raise CommandError(f"{args.model}: predict is for Impact Plate models; this one was trained on "
                            f"{run.config.dataset!r}")
     if run.meta is None and run.folder is not None:
-        raise CommandError(f"{args.model}: its training data ({run.info.get('data')}) is gone and the run folder holds "
-                           f"no {run.folder.data_facts_path.name} (written by `hcmt train`): predict needs the "
-                           "generator's settings, the design ranges and keys; restore the dataset, or retrain")
+        raise CommandError(f"{args.model}: its training data ({run.info.get('data')}) is gone and the run holds no "
+                           f"{run.folder.data_facts_path.name} (by `hcmt train`) with the generator's settings, design "
+                           "ranges and keys that predict needs; restore the dataset, or retrain")
     return run
 
 

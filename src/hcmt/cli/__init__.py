@@ -9,8 +9,8 @@ only once the command line has parsed and passed those checks: ``hcmt --help`` a
 Errors: a user's mistake is one line and exit 2: a :class:`CommandError` raised here, or the library's
 :class:`hcmt.errors.InputError` (its parameter printed as the command's flag: ``batch`` -> ``--batch``), a missing
 file, a full disk; so is a model that diverged on the input (:class:`hcmt.errors.RolloutError`). Any other exception
-is a bug and shows its traceback. Every such line is at most :data:`LINE` characters (a long value a user gave is
-cut in the middle, "…"). Ctrl-C exits 130, SIGTERM 143 (128 + the signal's number).
+is a bug and shows its traceback. A value a user gave is echoed cut to 60 characters ("…"), so that a line stays
+under :data:`LINE` characters but for its paths, and no line exceeds :data:`GUARD`. Ctrl-C exits 130, SIGTERM 143 (128 + the signal's number).
 """
 from __future__ import annotations
 
@@ -51,8 +51,8 @@ COMMANDS: dict[str, tuple[str, str]] = {
 #: commands that compute with torch: they take ``--threads``
 THREADED = ("generate", "simulate", "convert", "info", "hierarchy", "train", "rollout", "evaluate", "compare", "predict",
             "sweep", "plot", "export", "demo")
-#: the longest line an error may print
-LINE = 300
+#: the longest error line with its values cut (``hcmt.errors.clip``), paths aside; and the longest any may print
+LINE, GUARD = 300, 600
 
 
 def auto_threads() -> int:
@@ -123,14 +123,12 @@ class Parser(argparse.ArgumentParser):
 
 
 def one_line(text: str, tail: str = "") -> str:
-    """``text + tail`` on one line of at most :data:`LINE` characters: a longer ``text`` first has each word over 40
-    characters (a path, a value) cut in its middle, keeping its start and its end (the file's name), then, if
-    still too long, its own middle cut, keeping its start (the command and the flag) and its end (what was
-    expected)."""
-    text = " ".join(str(text).split())
-    room = LINE - len(tail)
-    if len(text) > room:
-        text = " ".join(w if len(w) <= 40 else w[:12] + "…" + w[-27:] for w in text.split(" "))
+    """``text + tail`` on one line, a last guard behind the values cut where they are echoed (``clip``: a line
+    stays under :data:`LINE` characters but for its paths): a word over 100 characters (a path, a value) is cut in
+    its middle, keeping its start and its end (the file's name), and a line still over :data:`GUARD` characters
+    is cut in its own middle, keeping its start (the command and the flag) and its end (what was expected)."""
+    text = " ".join(w if len(w) <= 100 else w[:30] + "…" + w[-69:] for w in str(text).split())
+    room = GUARD - len(tail)
     if len(text) > room:
         head = room * 2 // 3
         text = text[:head - 1] + "…" + text[len(text) - (room - head):]

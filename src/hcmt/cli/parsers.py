@@ -103,13 +103,13 @@ def check_run(name: str, text: str) -> None:
     if not (path / "run.yaml").is_file():
         hint = f"; the shipped model is pretrained:{text}" if text in available_pretrained() else ""
         what = "no such folder" if not path.exists() else "not a run folder (no run.yaml)"
-        raise CommandError(f"{name} {clip(text, 200)}: {what}; expected a folder made by `hcmt train --out RUN`, or "
+        raise CommandError(f"{name} {text}: {what}; expected a folder made by `hcmt train --out RUN`, or "
                            f"pretrained:NAME{hint}")
 
 
 def check_folder(name: str, text: str, what: str) -> None:
     if not Path(text).is_dir():
-        raise CommandError(f"{name} {clip(text, 200)}: no such folder; expected {what}")
+        raise CommandError(f"{name} {text}: no such folder; expected {what}")
 
 
 # -- generate, simulate ---------------------------------------------------------------------------------------------
@@ -237,7 +237,7 @@ def configure_convert(parser: argparse.ArgumentParser) -> None:
 
 def check_convert(args) -> None:
     if not Path(args.src).exists():
-        raise CommandError(f"SRC {clip(args.src, 200)}: no such file or folder; expected a TFRecord dataset folder or "
+        raise CommandError(f"SRC {args.src}: no such file or folder; expected a TFRecord dataset folder or "
                            "GGNS pickle(s)")
 
 

@@ -77,6 +77,7 @@ def test_no_error_line_is_longer_than_the_guard(monkeypatch, capsys):
 def cases(tmp: Path) -> list[tuple[list[str], str]]:
     (tmp / "empty.csv").write_text("")
     (tmp / "dup.csv").write_text("thickness,drop_height,thickness\n0.8,700,0.9\n")
+    (tmp / "long.csv").write_text(f"name,thickness\n{LONG},0.8\n")
     model = "pretrained:impact_plate_small"
     out = str(tmp / "gen")
     return [
@@ -84,6 +85,8 @@ def cases(tmp: Path) -> list[tuple[list[str], str]]:
         (["predict", model, "--designs", str(tmp / "empty.csv")], "empty.csv: no designs"),
         (["predict", model, "--designs", str(tmp / "dup.csv")], "the column 'thickness' appears twice"),
         (["predict", model, "--designs", str(tmp / "missing.csv")], "missing.csv: no such designs file"),
+        (["predict", model, "--designs", str(tmp / "long.csv")], "'" + "n" * 59 + "…' is 5,000 characters long"),
+        (["predict", model, "--design", LONG + "=1"], "unknown parameter '" + "n" * 59 + "…'"),
         (["predict", str(tmp / "nothere"), "--design", "thickness=0.7"], "MODEL " + str(tmp / "nothere")),
         (["predict", model, "--design", "thickness=0.7", "--batch", "100000"], "argument --batch: expected"),
         (["sweep", model, "--vary", "thickness=0.5:1:1000"], "--vary 'thickness=0.5:1:1000': N must be between"),

@@ -18,7 +18,8 @@ from hcmt.config import (ABLATIONS, COMPILE_MODES, INIT_NORMALIZERS, MAX_BATCH, 
 from hcmt.design.basics import QUANTITIES, RESTARTS, parse_vary, read_table
 from hcmt.errors import clip
 from hcmt.sim.params import (CONTACT_RADIUS, DESIGN_UNITS, FAMILIES, MATERIALS, MAX_ESTIMATED_SECONDS, RANGES,
-                             Design, Settings, describe_family, design_key, parse_stack, preset_design)
+                             Design, Settings, describe_family, design_key, design_values, parse_stack,
+                             preset_design)
 
 #: the largest count of a few options without a natural bound: training steps, frames a picture shows per second,
 #: optimizer restarts, hierarchy levels, a picture's frame stride
@@ -386,6 +387,8 @@ def check_predict(args) -> None:
     take_model(args, args.design)
     if not args.design and not args.designs:
         raise CommandError("give designs with --design KEY=VALUE ... or --designs FILE.csv")
+    for items in args.design:
+        design_values(items)
     check_options(args)
     check_outputs({"--json": args.json, "--csv": args.csv}, {"--out": args.out} if args.images else {})
     rows = len(read_table(Path(args.designs))[2]) if args.designs else 0
@@ -420,6 +423,7 @@ def configure_sweep(p: argparse.ArgumentParser) -> None:
 def check_sweep(args) -> None:
     param = parse_vary(args.vary)[0]
     take_model(args, [args.design])
+    design_values(args.design)
     check_options(args)
     check_outputs({"--json": args.json, "--csv": args.csv}, {"--out": args.out})
     fixed = [item for item in args.design if design_key(item) == param]

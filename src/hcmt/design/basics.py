@@ -39,8 +39,9 @@ def check_name(name, where: str) -> str:
 
 def read_table(path: Path) -> tuple[int, list[str], list[tuple[int, list[str]]]]:
     """(header line, header, numbered body rows) of a designs CSV: a UTF-8 text file (a BOM and CRLF line ends
-    are fine; blank lines skipped) whose header names known parameters (or ``name``), each once, and at most
-    :data:`hcmt.config.MAX_DESIGNS` rows; anything else one line naming the file, line and column."""
+    are fine; blank lines skipped) whose header names known parameters (or ``name``), each once, safe names
+    (:func:`check_name`) and at most :data:`hcmt.config.MAX_DESIGNS` rows; anything else one line naming the file,
+    line and column."""
     path = Path(path)
     if not path.is_file():
         raise InputError(f"{path}: no such designs file" + (" (a folder)" if path.is_dir() else ""))
@@ -65,6 +66,11 @@ def read_table(path: Path) -> tuple[int, list[str], list[tuple[int, list[str]]]]
             raise InputError(f"{path} line {head_line}, column {col}: the column {h!r} appears twice in the header "
                              f"(columns {seen[h]} and {col}); give each parameter once")
         seen[h] = col
+    if "name" in header:  # names checked here, before any model loads (read_designs_csv: distinct ones)
+        col = header.index("name")
+        for n, row in body:
+            if col < len(row):
+                check_name(row[col].strip(), f"{path} line {n}, column {col + 1} (name)")
     if len(body) > MAX_DESIGNS:
         raise InputError(f"{path}: {len(body):,} designs; expected at most {MAX_DESIGNS:,} in one file")
     return head_line, header, body

@@ -6,7 +6,7 @@ from __future__ import annotations
 from dataclasses import asdict, fields
 from pathlib import Path
 
-from hcmt.design.basics import check_name, read_table
+from hcmt.design.basics import read_table
 from hcmt.errors import InputError, clip
 from hcmt.sim.scene import (DESIGN_KEYS, EDGES, FIRST_SCENE_KEYS, Design, Settings, middle_design, parse_design,
                             parse_number)
@@ -31,7 +31,7 @@ def read_designs_csv(path: str | Path, defaults: Design, first: int = 1,
         name, items = f"design_{len(out) + first}", []
         for col, (h, v) in enumerate(zip(header, row), start=1):
             if h == "name":
-                name = check_name(v.strip(), f"{path} line {n}, column {col} (name)")
+                name = v.strip()  # a safe name: read_table checked it
                 if name in seen:
                     where = seen[name] if isinstance(seen[name], str) else f"line {seen[name]}"
                     raise InputError(f"{path} line {n}, column {col} (name): {clip(name)!r} already names {where}; "

@@ -4,7 +4,8 @@ solver, the mesh or scipy; :mod:`hcmt.sim.scene` builds and simulates designs fr
 choices and units)."""
 from __future__ import annotations
 
-from dataclasses import dataclass, fields
+import difflib
+from dataclasses import asdict, dataclass, fields
 
 import numpy as np
 
@@ -324,6 +325,36 @@ DESIGN_UNITS = {"thickness": "mm", "drop_height": "mm", "plate_density": "g/mm^3
                                                                      ("modulus", "MPa"), ("poisson", "-"))},
                 "support_radius": "mm", "backing_thickness": "mm", "backing_modulus": "MPa", "pen_tip_radius": "mm",
                 "pen_mass": "g"}
+
+
+def design_values(items: list[str], where: str = "--design") -> dict[str, float]:
+    """``["thickness=0.8", "drop_height=900"]`` -> ``{"thickness": 0.8, ...}``: names as ``hcmt simulate``'s
+    options, with ``_`` or ``-``, each once; values finite numbers; else one line naming ``where``."""
+    values = {}
+    for item in items:
+        key, sep, raw = item.partition("=")
+        key, shown = design_key(key), clip(item)
+        if not sep:
+            raise InputError(f"{where} {shown!r}: expected KEY=VALUE, e.g. thickness=0.8")
+        if key not in DESIGN_KEYS:
+            close = difflib.get_close_matches(key, DESIGN_KEYS, n=1)
+            raise InputError(f"{where} {shown!r}: unknown parameter {clip(key)!r}; "
+                             + (f"did you mean {close[0]}? " if close else "")
+                             + "the parameters are `hcmt simulate --help`'s (`hcmt models` lists them)")
+        if key in values:
+            raise InputError(f"{where} {shown!r}: {key} is given twice in one design; give it once")
+        values[key] = parse_number(raw, f"{where} {shown!r}: {key}")
+    return values
+
+
+def parse_design(items: list[str], defaults: Design, where: str = "--design") -> Design:
+    """``["thickness=0.8", "drop_height=900"]`` -> a validated :class:`Design` (other parameters from
+    ``defaults``; :func:`design_values`)."""
+    values = design_values(items, where)
+    try:
+        return Design(**{**asdict(defaults), **values}).validate()
+    except ValueError as exc:
+        raise InputError(f"{where} {exc}") from None
 
 
 def design_key(text: str) -> str:

@@ -16,19 +16,18 @@ a steel ball (7.75-8.0e-3 g/mm^3, 190-210 GPa, nu 0.3) of radius 3-4 mm; the pla
 """
 from __future__ import annotations
 
-import difflib
 import time
 from dataclasses import asdict, replace
 
 import numpy as np
 
-from hcmt.errors import InputError, clip
+from hcmt.errors import InputError
 from hcmt.sim.contact import PenaltyContact
 from hcmt.sim.mesh import HANDLE, SYMMETRIC, WALL_BOUNDARY, impact_plate_mesh
 from hcmt.sim.params import (BACKING_DENSITY, BACKING_POISSON, CONTACT_RADIUS, DESIGN_KEYS, DESIGN_UNITS, EDGES,
                              FAMILIES, FIRST_SCENE_KEYS, GRAVITY, MATERIALS, MAX_ESTIMATED_SECONDS, RANGES, RELATIVE,
-                             UNITS, VARIANTS, Design, Settings, describe_family, design_key, family_ranges,
-                             parse_number, parse_stack, resolve_relative)
+                             UNITS, VARIANTS, Design, Settings, describe_family, design_key, design_values,
+                             family_ranges, parse_design, parse_number, parse_stack, resolve_relative)
 from hcmt.sim.solver import CentralDifference, build_model, deformation, nodal_von_mises, stable_time_step
 
 def sample_design(rng: np.random.Generator, preset: str = "small", variant: str | None = None,
@@ -345,7 +344,8 @@ __all__ = ["Design", "Settings", "RANGES", "VARIANTS", "FAMILIES", "MATERIALS", 
            "initial_frames", "start_frames", "feature_spec", "design_mesh",
            # from hcmt.sim.params, where the command's parsers take them without the solver
            "BACKING_DENSITY", "BACKING_POISSON", "DESIGN_KEYS", "DESIGN_UNITS", "EDGES", "FIRST_SCENE_KEYS",
-           "MAX_ESTIMATED_SECONDS", "RELATIVE", "describe_family", "design_key", "parse_number", "resolve_relative"]
+           "MAX_ESTIMATED_SECONDS", "RELATIVE", "describe_family", "design_key", "design_values", "parse_design",
+           "parse_number", "resolve_relative"]
 
 
 def design_from_attrs(attrs: dict) -> Design:
@@ -362,27 +362,3 @@ def middle_design(meta: dict | None, ranges: dict[str, tuple[float, float]] | No
     values = {k: 0.5 * (lo + hi) for k, (lo, hi) in RANGES.get(preset, RANGES["paper"]).items()}
     values.update({k: 0.5 * (float(lo) + float(hi)) for k, (lo, hi) in (ranges or {}).items() if k in DESIGN_KEYS})
     return Design(**values)
-
-
-def parse_design(items: list[str], defaults: Design, where: str = "--design") -> Design:
-    """``["thickness=0.8", "drop_height=900"]`` -> a validated :class:`Design` (other parameters from
-    ``defaults``). Names as ``hcmt simulate``'s options, with ``_`` or ``-``; values finite numbers."""
-    values = {}
-    for item in items:
-        key, sep, raw = item.partition("=")
-        key, shown = design_key(key), clip(item)
-        if not sep:
-            raise InputError(f"{where} {shown!r}: expected KEY=VALUE, e.g. thickness=0.8")
-        if key not in DESIGN_KEYS:
-            close = difflib.get_close_matches(key, DESIGN_KEYS, n=1)
-            raise InputError(f"{where} {shown!r}: unknown parameter {clip(key)!r}; "
-                             + (f"did you mean {close[0]}? " if close else "")
-                             + "the parameters are `hcmt simulate --help`'s (`hcmt models` lists them)")
-        if key in values:
-            raise InputError(f"{where} {shown!r}: {key} is given twice in one design; give it once")
-        values[key] = parse_number(raw, f"{where} {shown!r}: {key}")
-    try:
-        return Design(**{**asdict(defaults), **values}).validate()
-    except ValueError as exc:
-        raise InputError(f"{where} {exc}") from None
-

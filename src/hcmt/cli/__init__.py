@@ -10,7 +10,8 @@ Errors: a user's mistake is one line and exit 2: a :class:`CommandError` raised 
 :class:`hcmt.errors.InputError` (its parameter printed as the command's flag: ``batch`` -> ``--batch``), a missing
 file, a full disk; so is a model that diverged on the input (:class:`hcmt.errors.RolloutError`). Any other exception
 is a bug and shows its traceback. A value a user gave is echoed cut to 60 characters ("…"), so that a line stays
-under :data:`LINE` characters but for its paths, and no line exceeds :data:`GUARD`. Ctrl-C exits 130, SIGTERM 143 (128 + the signal's number).
+under :data:`LINE` characters but for its paths, and no line exceeds :data:`GUARD`. Ctrl-C exits 130, SIGTERM 143
+(128 + the signal's number).
 """
 from __future__ import annotations
 

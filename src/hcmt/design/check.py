@@ -77,9 +77,7 @@ def predict(run, designs: list[tuple[str, Design]], batch: int = 8, progress: bo
     (``compile``: as :func:`hcmt.inference.rollout.rollout_batch`); ``readout``: how the plate's stress is read
     (:data:`hcmt.design.readout.READOUTS`; ``contact``: the peak from contact frames, no ghost stress after);
     ``contact_end_ms``: per design, a bound on when the ball leaves (the surrogate's), or None."""
-    if isinstance(batch, bool) or not isinstance(batch, int) or not 1 <= batch <= MAX_BATCH:
-        raise InputError(f"must be a whole number from 1 to {MAX_BATCH:,}, got {clip(batch)}", param="batch")
-    check_design_list(designs)
+    check_design_list(designs, batch)
     settings = settings_of(run.meta)
     h = run.adapter.history
     bar = tqdm(total=len(designs) * (settings.frames - 1 - h), desc="predict", unit="step",
@@ -153,10 +151,13 @@ def cost_check(run, designs: list[tuple[str, Design]], settings: Settings, verif
                              f"{MAX_ESTIMATED_SECONDS:.0f} s; coarsen the mesh or force it (force=True, --force)")
 
 
-def check_design_list(designs) -> None:
+def check_design_list(designs, batch: int = 1) -> None:
     """Refuse (``param="designs"``) what is not 1 to :data:`hcmt.config.MAX_DESIGNS` pairs (name, valid
     :class:`~hcmt.sim.scene.Design`) with safe, distinct names (:func:`hcmt.design.basics.check_name`): the checks
-    a ``--designs`` CSV gets, for the Python API."""
+    a ``--designs`` CSV gets, for the Python API; and a ``batch`` that is no whole number from 1 to
+    :data:`hcmt.config.MAX_BATCH`."""
+    if isinstance(batch, bool) or not isinstance(batch, int) or not 1 <= batch <= MAX_BATCH:
+        raise InputError(f"must be a whole number from 1 to {MAX_BATCH:,}, got {clip(batch)}", param="batch")
     if not isinstance(designs, (list, tuple)) or not 1 <= len(designs) <= MAX_DESIGNS:
         got = f"{len(designs):,} items" if isinstance(designs, (list, tuple)) else type(designs).__name__
         raise InputError(f"expected a list of 1 to {MAX_DESIGNS:,} (name, Design) pairs, got {got}", param="designs")
@@ -197,9 +198,7 @@ def check_designs(run, designs: list[tuple[str, Design]], *, batch: int = 8, ver
     if verify == "auto" and yield_mpa is None:
         raise InputError("auto runs the solver on the designs whose call is undecided: it needs a yield stress "
                          "(yield_mpa; --yield-mpa Y in hcmt predict and sweep)", param="verify")
-    if isinstance(batch, bool) or not isinstance(batch, int) or not 1 <= batch <= MAX_BATCH:
-        raise InputError(f"must be a whole number from 1 to {MAX_BATCH:,}, got {clip(batch)}", param="batch")
-    check_design_list(designs)
+    check_design_list(designs, batch)
     settings = settings_of(run.meta)
     surrogate, note = for_run(run, surrogate)
     notes = [note] if note else []

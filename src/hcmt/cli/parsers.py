@@ -23,7 +23,7 @@ from hcmt.sim.params import (CONTACT_RADIUS, DESIGN_UNITS, FAMILIES, MATERIALS, 
 
 #: the largest count of a few options without a natural bound: training steps, frames a picture shows per second,
 #: optimizer restarts, hierarchy levels, a picture's frame stride
-MAX_STEPS, MAX_FPS, MAX_RESTARTS, MAX_LEVELS, MAX_STRIDE = 10**9, 100, 100, 16, 10_000
+MAX_STEPS, MAX_FPS, MAX_RESTARTS, MAX_LEVELS, MAX_STRIDE = 10**9, 100, 100, 64, 10_000
 PICTURES = ("contours", "animation", "errors", "training", "hierarchy", "attention")
 
 

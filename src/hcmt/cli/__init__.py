@@ -190,7 +190,12 @@ def main(argv: list[str] | None = None) -> int:
     command, started, parser = _requested_command(sys.argv[1:]) or "", False, None
     try:
         parser = build_parser()
-        args = parser.parse_args(sys.argv[1:])
+        try:
+            args = parser.parse_args(sys.argv[1:])
+        except SystemExit as stop:  # --help, --version: 0; a mistake: Parser.error's one line was printed, 2
+            if stop.code == 2:
+                return 2
+            raise
         if not getattr(args, "_module", None):
             parser.print_help()
             return 0 if args.command is None else 2

@@ -63,8 +63,8 @@ def read_table(path: Path) -> tuple[int, list[str], list[tuple[int, list[str]]]]
             raise InputError(f"{path} line {head_line}, column {col}: unknown column {clip(h)!r} in the header; "
                              "expected `name` or a design parameter (`hcmt models` lists them)")
         if h in seen:
-            raise InputError(f"{path} line {head_line}, column {col}: the column {h!r} appears twice in the header "
-                             f"(columns {seen[h]} and {col}); give each parameter once")
+            raise InputError(f"{path} line {head_line}, column {col}: the column {h!r} appears twice (columns "
+                             f"{seen[h]} and {col}) in the header; give each parameter once")
         seen[h] = col
     if "name" in header:  # names checked here, before any model loads (read_designs_csv: distinct ones)
         col = header.index("name")

@@ -80,7 +80,8 @@ def cases(tmp: Path) -> list[tuple[list[str], str]]:
     return [
         (["predict", model, "--threads", "0"], "argument --threads: expected a whole number from 1 to"),
         (["predict", model, "--designs", str(tmp / "empty.csv")], "empty.csv: no designs"),
-        (["predict", model, "--designs", str(tmp / "dup.csv")], "the column 'thickness' appears twice (columns 1 and 3)"),
+        (["predict", model, "--designs", str(tmp / "dup.csv")],
+         "the column 'thickness' appears twice (columns 1 and 3)"),
         (["predict", model, "--designs", str(tmp / "missing.csv")], "missing.csv: no such designs file"),
         (["predict", model, "--designs", str(tmp / "long.csv")], "'" + "n" * 59 + "…' is 5,000 characters long"),
         (["predict", model, "--design", LONG + "=1"], "unknown parameter '" + "n" * 59 + "…'"),

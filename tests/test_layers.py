@@ -110,7 +110,8 @@ def test_the_checker_sees_violations(tmp_path, monkeypatch):
 
 @pytest.mark.slow  # one fresh interpreter per module
 @pytest.mark.parametrize("module", ["hcmt.config", "hcmt.models", "hcmt.physics.adapters", "hcmt.inference.run",
-                                    "hcmt.training", "hcmt.viz.rollouts", "hcmt.design.check", "hcmt.cli"])
+                                    "hcmt.training", "hcmt.viz.rollouts", "hcmt.design.check", "hcmt.cli",
+                                    "hcmt.sim.params", "hcmt.design.basics", "hcmt.cli.parsers"])
 def test_each_layer_imports_alone(module):
     """Each module imports in a fresh interpreter (no cycle hidden by import order)."""
     r = subprocess.run([sys.executable, "-c", f"import {module}"], capture_output=True, text=True)

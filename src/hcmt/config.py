@@ -4,6 +4,7 @@ command line as ``section.key=value`` (the value is parsed as YAML: ``train.lr=3
 from __future__ import annotations
 
 import copy
+import os
 import difflib
 from dataclasses import asdict, dataclass, field, fields
 from typing import Optional, get_args, get_origin, get_type_hints
@@ -11,29 +12,42 @@ from pathlib import Path
 
 import yaml
 
-from hcmt.errors import InputError
+from hcmt.errors import InputError, clip
 
 
 #: the package version (``hcmt --version``, ``hcmt.__version__``)
 VERSION = "0.1.0"
 CONFIG_DIR = Path(__file__).resolve().parent / "configs"
+#: the models shipped inside the package (``pretrained:NAME``)
+PRETRAINED_DIR = Path(__file__).resolve().parent / "pretrained"
 #: the datasets hcmt knows (a config's ``dataset``; each has an adapter in :mod:`hcmt.physics.adapters`)
 DATASET_NAMES = ("impact_plate", "deforming_plate", "sphere_simple", "deformable_plate")
 #: ``torch.compile`` modes (``train.compile``, ``--compile``); ``none`` is eager
 COMPILE_MODES = ("none", "default", "reduce-overhead", "max-autotune")
+#: the models (:data:`hcmt.models.REGISTRY`, in this order) and HCMT's ablations (paper Tables 3, 10-12)
+MODELS = ("hcmt", "mgn", "gt")
+ABLATIONS = ("late-contact", "only-cmt", "only-hmt", "lpe", "single-branch", "no-remesh")
+#: ``init_normalizers``: a fine-tuned run keeps its source's normalizer statistics, frozen (the few runs of a new
+#: family make poor statistics), or zeroes them and accumulates them afresh on its own data
+INIT_NORMALIZERS = ("keep", "reaccumulate")
+#: the bounds of the counts every command and API function takes (one rule: above the bound, refused in one line):
+#: trajectories of one split, designs of one design check or sweep, trajectories or designs in one batch
+MAX_TRAJECTORIES, MAX_DESIGNS, MAX_BATCH = 100_000, 10_000, 1024
 
 
 def builtin_configs() -> list[str]:
     return sorted(p.stem for p in CONFIG_DIR.glob("*.yaml"))
 
 
-def _read(name_or_path: str) -> dict:
+def _read(name_or_path: str, within: str | None = None) -> dict:
+    """A config file's keys, its ``base`` chain merged (``within``: the file naming ``name_or_path`` as its base)."""
     path = Path(name_or_path)
     if not path.is_file():
         path = CONFIG_DIR / f"{name_or_path}.yaml"
     if not path.is_file():
-        raise FileNotFoundError(f"config {name_or_path!r}: neither a file nor a built-in config "
-                                f"(built-in: {', '.join(builtin_configs())})")
+        raise InputError(f"{clip(name_or_path)!r}{f' (the base of {within})' if within else ''}: neither a file nor "
+                         f"a built-in config (built-in: {', '.join(builtin_configs())})",
+                         param=None if within else "name_or_path")
     try:
         data = yaml.safe_load(path.read_text(encoding="utf-8")) or {}
     except UnicodeDecodeError:
@@ -46,7 +60,7 @@ def _read(name_or_path: str) -> dict:
         raise InputError(f"config {path}: expected a mapping at top level")
     base = data.pop("base", None)
     check_schema(data, str(path))
-    return merge(_read(base), data) if base else data
+    return merge(_read(base, str(path)), data) if base else data
 
 
 def merge(base: dict, over: dict) -> dict:
@@ -66,30 +80,36 @@ def parse_value(raw: str):
     try:
         return yaml.safe_load(raw)
     except yaml.YAMLError as exc:
-        raise InputError(f"--set value {raw!r}: not a YAML value ({getattr(exc, 'problem', None) or exc})") from None
+        raise InputError(f"the value {clip(raw)!r} is not a YAML value ({getattr(exc, 'problem', None) or exc})") \
+            from None
 
 
 def load_config(name_or_path: str, overrides: list[str] | None = None) -> "Config":
     """A config by name or path, its ``base`` chain merged, then ``section.key=value`` overrides
     (:func:`apply_overrides`), as a complete :class:`Config`; every key and value checked against the schema (one
-    line naming the file or ``--set``, the key, what was expected)."""
+    line naming the file or the override, the key, what was expected; a bad override is an :class:`InputError`
+    of the parameter ``overrides``, which ``hcmt train`` words as its ``--set``)."""
     return Config.from_dict(apply_overrides(_read(name_or_path), overrides), name_or_path)
 
 
 def apply_overrides(cfg: dict, overrides: list[str] | None) -> dict:
     """``cfg`` (a copy) with ``section.key=value`` items applied, each checked against the schema first (the one
-    path of ``--set``, for a new run and for ``--resume``)."""
+    path of every override, ``hcmt train --set`` for a new run and for ``--resume``)."""
     cfg = copy.deepcopy(cfg)
     for item in overrides or []:
-        key, sep, raw = item.partition("=")
-        if not sep or not key:
-            raise InputError(f"--set {item!r}: expected section.key=value")
-        *parents, leaf = key.split(".")
-        check_schema(_nest(parents + [leaf], parse_value(raw)), f"--set {item}")
+        try:
+            key, sep, raw = str(item).partition("=")
+            if not sep or not key:
+                raise InputError("expected section.key=value")
+            *parents, leaf = key.split(".")
+            value = parse_value(raw)
+            check_schema(_nest(parents + [leaf], value), None)
+        except InputError as exc:  # param: `hcmt train` prints its flag, --set
+            raise InputError(f"{clip(item)!r}: {exc.detail}", param="overrides") from None
         node = cfg
         for p in parents:
             node = node.setdefault(p, {})
-        node[leaf] = parse_value(raw)
+        node[leaf] = value
     return cfg
 
 
@@ -294,11 +314,16 @@ def _bounds(spec: Spec, value) -> str | None:
 
 def _unknown(key: str, known: list[str], source: str):
     close = difflib.get_close_matches(key, known, n=1, cutoff=0.6)
-    hint = f"; did you mean {close[0]}?" if close else f"; known: {', '.join(known)}"
-    return InputError(f"config {source}: {key}: unknown key{hint}")
+    hint = f"; did you mean {close[0]}?" if close else f"; known: {clip(', '.join(known), 120)}"
+    return InputError(f"{_head(source)}{clip(key)}: unknown key{hint}")
 
 
-def check_schema(cfg: dict, source: str = "config") -> None:
+def _head(source: str | None) -> str:
+    """How a schema message starts: ``config FILE: `` (None: the caller names the source itself)."""
+    return f"config {source}: " if source is not None else ""
+
+
+def check_schema(cfg: dict, source: str | None = "config") -> None:
     """Refuse unknown keys (with the closest known one), values of the wrong type, values outside a fixed set and
     values outside a key's bounds."""
     sections = list(SCHEMA)
@@ -308,14 +333,14 @@ def check_schema(cfg: dict, source: str = "config") -> None:
             if value is None:  # not set yet (Config.for_training refuses it)
                 continue
             if not _ok(kind, value) or (allowed and value not in allowed):
-                raise InputError(f"config {source}: {top}: got {value!r}; expected one of {', '.join(allowed)}")
+                raise InputError(f"{_head(source)}{top}: got {clip(repr(value))}; expected one of {', '.join(allowed)}")
             continue
         if top == "base":
             continue
         if top not in SCHEMA:
             raise _unknown(top, sections + list(TOP), source)
         if not isinstance(value, dict):
-            raise InputError(f"config {source}: {top}: expected a section of keys, got {value!r}")
+            raise InputError(f"{_head(source)}{top}: expected a section of keys, got {clip(repr(value))}")
         for key, v in value.items():
             if key not in SCHEMA[top]:
                 raise _unknown(f"{top}.{key}", [f"{top}.{k}" for k in SCHEMA[top]]
@@ -324,15 +349,25 @@ def check_schema(cfg: dict, source: str = "config") -> None:
             if v is None and spec.nullable:
                 continue
             if not _ok(spec.kind, v):
-                raise InputError(f"config {source}: {top}.{key}: got {v!r}; expected {spec.kind}")
+                raise InputError(f"{_head(source)}{top}.{key}: got {clip(repr(v))}; expected {spec.kind}")
             if spec.allowed and v not in spec.allowed:
-                raise InputError(f"config {source}: {top}.{key}: unknown value {v!r}; expected one of "
+                raise InputError(f"{_head(source)}{top}.{key}: unknown value {clip(repr(v))}; expected one of "
                                  f"{', '.join(spec.allowed)}")
             broken = _bounds(spec, v) if isinstance(v, (int, float)) else None
             if broken:
-                raise InputError(f"config {source}: {top}.{key} must be {broken}, got {v!r}")
+                raise InputError(f"{_head(source)}{top}.{key} must be {broken}, got {clip(repr(v))}")
 
 
 def plural(n: int, word: str, many: str | None = None) -> str:
     """``1 trajectory``, ``2 trajectories``: a count with its noun (``many``: the plural when not ``word + s``)."""
     return f"{n} {word if n == 1 else (many or word + 's')}"
+
+
+def machine_cores() -> int:
+    """The CPU cores this process may run on: the bound of ``--threads`` and ``--workers``."""
+    return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
+
+
+def available_pretrained() -> dict[str, Path]:
+    """Shipped models by name (``impact_plate_small``, ...)."""
+    return {p.stem: p for p in sorted(PRETRAINED_DIR.glob("*.pt"))}

@@ -36,3 +36,10 @@ class DatasetError(InputError):
         )
         super().__init__(f"{where}: {message}" if where else message)
         self.file, self.trajectory, self.field = file, trajectory, field
+
+
+def clip(text, limit: int = 60) -> str:
+    """A value a user gave, shortened for a one-line message: at most ``limit`` characters, the cut marked
+    with "…" (a 5,000-character design name is echoed as its first 59 characters and "…")."""
+    text = str(text)
+    return text if len(text) <= limit else text[: limit - 1] + "…"

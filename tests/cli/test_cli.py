@@ -46,10 +46,10 @@ def test_unknown_command_fails():
 def test_a_library_parameter_error_names_the_flag_on_the_command_line(impact_data, capsys):
     with pytest.raises(hcmt.errors.InputError) as exc:
         check_options(batch=0, compile="none")
-    assert str(exc.value) == "batch must be a whole number >= 1, got 0" and exc.value.param == "batch"  # the API's word
-    rc = cli(["hierarchy", str(impact_data), "--levels", "1", "--trajectories", "-1"])
+    assert str(exc.value) == "batch must be a whole number from 1 to 1,024, got 0" and exc.value.param == "batch"
+    rc = cli(["simulate", "--frames", "0"])  # Settings.validate's frames, the API's word
     err = capsys.readouterr().err.strip().splitlines()
-    assert rc == 2 and err == ["hcmt hierarchy: error: --trajectories must be >= 0 (0: all), got -1"]  # the flag
+    assert rc == 2 and err == ["hcmt simulate: error: --frames must be >= 2, got 0"]  # the flag
 
 
 def test_an_unexpected_exception_is_a_bug_and_keeps_its_traceback(monkeypatch, capsys):

@@ -14,14 +14,12 @@ import time
 from pathlib import Path
 
 import pytest
-import torch
 
 from conftest import IMPACT_DATA
 from layouts import sphere_simple_tfrecord
 
 import hcmt.inference.evaluate as evaluate_module
 from hcmt.cli import main as cli
-from hcmt.cli import set_threads
 from hcmt.data.runs import PRETRAINED_DIR
 from hcmt.design.inputs import design_for, range_warnings, read_designs_csv
 from hcmt.errors import RolloutError
@@ -270,13 +268,12 @@ def test_plot_refused_for_bad_options_leaves_no_folder(setup, tmp_path, capsys):
 
 
 # -- 7. threads ---------------------------------------------------------------------------------------------------
-def test_threads_are_capped_at_the_cores(capsys):
-    before = torch.get_num_threads()
-    try:
-        n = set_threads(1000)
-        assert n == len(os.sched_getaffinity(0)) and "more than this machine's" in capsys.readouterr().err
-    finally:
-        torch.set_num_threads(before)
+def test_threads_above_the_cores_are_refused(capsys):
+    """One rule for every count option (hcmt.cli.parsers): above its bound, one line; --threads no longer caps."""
+    rc = cli(["predict", "pretrained:impact_plate_small", "--design", "thickness=0.7", "--threads", "1000"])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert rc == 2 and len(err) == 1
+    assert f"--threads: expected a whole number from 1 to {len(os.sched_getaffinity(0))}" in err[0]
 
 
 # -- 8, 9. defaults and a self-contained run folder ----------------------------------------------------------------
@@ -303,10 +300,10 @@ def test_a_run_folder_predicts_without_its_dataset(setup, tmp_path, capsys):
 @pytest.mark.parametrize("argv,message", [
     (["predict", "{run}", "--design", "thickness=0.7", "thickness=0.8"], "thickness is given twice"),
     (["sweep", "{run}", "--vary", "thickness=0.6:0.8:2", "--design", "thickness=0.7"], "the swept parameter"),
-    (["sweep", "{run}", "--vary", "thickness=0.6:0.8:2", "--batch", "0"], "--batch must be >= 1"),
-    (["hierarchy", "{data}", "--levels", "1", "--trajectories", "-1"], "--trajectories must be >= 0"),
+    (["sweep", "{run}", "--vary", "thickness=0.6:0.8:2", "--batch", "0"], "argument --batch: expected a whole number"),
+    (["hierarchy", "{data}", "--levels", "1", "--trajectories", "-1"], "argument --trajectories: expected a whole"),
     (["predict", "{run}", "--design", "thickness=0.7", "--csv", ""], "--csv: an empty path"),
-    (["rollout", "{run}", "--data", "{data}", "--split", "test", "--limit", "0"], "--limit must be >= 1"),
+    (["rollout", "{run}", "--data", "{data}", "--split", "test", "--limit", "0"], "argument --limit: expected a whole"),
     (["predict", "impact_plate_small", "--design", "thickness=0.7"], "pretrained:impact_plate_small"),
     (["simulate", "--out", "{tmp}/x.txt", "--mesh-size", "0.5", "--thickness", "0.6", "--ball-radius", "3"],
      "--out must name an .h5 file"),
@@ -367,7 +364,7 @@ def test_sigterm_during_predict_says_what_happened():
     time.sleep(6)  # starting (imports) or rolling out: either way one line
     p.send_signal(signal.SIGTERM)
     _, err = p.communicate(timeout=60)
-    assert p.returncode == 130 and "interrupted" in err and "Traceback" not in err, err
+    assert p.returncode == 143 and "interrupted" in err and "Traceback" not in err, err  # 128 + SIGTERM
 
 
 # -- 13. progress and flags -----------------------------------------------------------------------------------------
@@ -483,7 +480,7 @@ def test_a_binary_meta_json_or_config_and_a_bad_set_value_are_one_line(setup, tm
     msg = one_line(capsys, cli(base + ["--config", "impact_plate_cpu", "--set", "train.lrr=1"]))
     assert "train.lrr: unknown key; did you mean train.lr?" in msg
     msg = one_line(capsys, cli(base + ["--config", "impact_plate_cpu", "--set", "train.lr=[1"]))
-    assert "--set value '[1'" in msg
+    assert "--set 'train.lr=[1': the value '[1' is not a YAML value" in msg
     assert not (tmp_path / "r").exists()
 
 

@@ -57,7 +57,8 @@ def _one_line_error(capsys, rc):
     ("name,thick\na,0.8\n", "line 1, column 2: unknown column 'thick'"),
     ("name,thickness\na,inf\n", "line 2, column 2 (thickness) must be a finite number"),
     ("name,thickness\na,thin\n", "line 2, column 2 (thickness) must be a number, got 'thin'"),
-    ("name,thickness,thickness\na,0.7,0.8\n", "line 1: a column appears twice"),
+    ("name,thickness,thickness\na,0.7,0.8\n",
+     "line 1, column 3: the column 'thickness' appears twice (columns 2 and 3)"),
     ("name,thickness\n", "a header but no designs"),
 ])
 def test_bad_designs_csv_is_refused_naming_file_line_and_column(setup, tmp_path, capsys, text, message):

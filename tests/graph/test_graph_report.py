@@ -50,8 +50,8 @@ def test_hierarchy_command_writes_the_table_as_json(tmp_path, capsys):
 
 def test_hierarchy_command_reports_bad_input(tmp_path, capsys):
     make_dataset(tmp_path / "ds", sizes=(0.1,))
-    assert main(["hierarchy", str(tmp_path / "ds"), "--levels", "-1"]) == 2
-    assert "--levels" in capsys.readouterr().err
+    assert main(["hierarchy", str(tmp_path / "ds"), "--levels", "-1"]) == 2  # out of its bounds: argparse's line
+    assert "argument --levels: expected a whole number from 0 to 64" in capsys.readouterr().err
     assert main(["hierarchy", str(tmp_path / "missing"), "--levels", "2"]) == 2
     capsys.readouterr()
     assert main(["hierarchy", str(tmp_path / "ds"), "--levels", "40"]) == 2  # more levels than the mesh has

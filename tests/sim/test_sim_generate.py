@@ -158,7 +158,8 @@ def test_impossible_designs_are_refused_before_work(change, word, monkeypatch):
 def test_cli_simulate_refuses_bad_gap_and_times_a_design(tmp_path, capsys):
     assert main(["simulate", "--gap", "0.5"]) == 2
     assert "contact radius" in capsys.readouterr().err
-    assert main(["generate", "impact-plate", str(tmp_path / "x"), "--workers", "0"]) == 2
+    assert main(["generate", "impact-plate", str(tmp_path / "x"), "--workers", "0"]) == 2  # out of its bounds
+    assert "argument --workers: expected a whole number from 1" in capsys.readouterr().err
     assert not (tmp_path / "x").exists()
     out = tmp_path / "one.h5"
     assert main(["simulate", "--preset", "small", "--thickness", "0.6", "--frames", "3", "--out", str(out)]) == 0

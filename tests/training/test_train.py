@@ -245,8 +245,9 @@ def test_official_contact_pairs_join_obstacle_and_normal_nodes_only(impact):
 @pytest.mark.parametrize("args,message", [
     (["--set", "model.attention=softmax"], "model.attention: unknown value 'softmax'; expected one of paper, official"),
     (["--set", "train.contact_pairs=some"], "train.contact_pairs: unknown value 'some'; expected one of all, official"),
-    (["--steps", "0"], "train.steps must be a whole number >= 1, got 0"),
-    (["--steps", "-5"], "train.steps must be a whole number >= 1, got -5"),
+    (["--steps", "0"], "argument --steps: expected a whole number from 1 to 1,000,000,000, got '0'"),
+    (["--steps", "-5"], "argument --steps: expected a whole number from 1 to 1,000,000,000, got '-5'"),
+    (["--set", "train.steps=0"], "--set 'train.steps=0': train.steps must be a whole number >= 1, got 0"),
 ])
 def test_bad_settings_are_refused_before_any_work(impact, tmp_path, capsys, args, message):
     rc = cli(["train", "--config", "impact_plate_cpu", "--data", str(impact), "--model", "hcmt", "--out",

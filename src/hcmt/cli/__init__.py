@@ -1,13 +1,17 @@
 """The `hcmt` command.
 
 Every subcommand is registered in :data:`COMMANDS` below, and nowhere else: name -> (module, one-line help).
-Each module defines ``configure(parser)`` (adds its arguments) and ``main(args) -> int``. Modules are imported
-only when their command runs, so ``hcmt --help`` stays fast (no torch import).
+Each command's arguments and first checks are in :mod:`hcmt.cli.parsers` (``configure_NAME(parser)``,
+``check_NAME(args)``: light, no torch), its work in its module (``main_NAME(args) -> int``, or ``main``), imported
+only once the command line has parsed and passed those checks: ``hcmt --help`` and a mistake in the command line
+(``hcmt predict MODEL --threads 0``) are answered in a fraction of a second, in one line.
 
 Errors: a user's mistake is one line and exit 2: a :class:`CommandError` raised here, or the library's
 :class:`hcmt.errors.InputError` (its parameter printed as the command's flag: ``batch`` -> ``--batch``), a missing
 file, a full disk; so is a model that diverged on the input (:class:`hcmt.errors.RolloutError`). Any other exception
-is a bug and shows its traceback.
+is a bug and shows its traceback. A value a user gave is echoed cut to 60 characters ("…"), so that a line stays
+under :data:`LINE` characters but for its paths, and no line exceeds :data:`GUARD`. Ctrl-C exits 130, SIGTERM 143
+(128 + the signal's number).
 """
 from __future__ import annotations
 
@@ -18,7 +22,7 @@ import signal
 import sys
 from pathlib import Path
 
-from hcmt.config import VERSION
+from hcmt.config import VERSION, machine_cores
 from hcmt.errors import InputError, RolloutError
 
 COMMANDS: dict[str, tuple[str, str]] = {
@@ -48,18 +52,8 @@ COMMANDS: dict[str, tuple[str, str]] = {
 #: commands that compute with torch: they take ``--threads``
 THREADED = ("generate", "simulate", "convert", "info", "hierarchy", "train", "rollout", "evaluate", "compare", "predict",
             "sweep", "plot", "export", "demo")
-
-
-def threads_arg(text: str) -> int | str:
-    if text == "auto":
-        return text
-    try:
-        n = int(text)
-    except ValueError:
-        n = 0
-    if n < 1:
-        raise argparse.ArgumentTypeError(f"expected a whole number >= 1 or auto, got {text!r}")
-    return n
+#: the longest error line with its values cut (``hcmt.errors.clip``), paths aside; and the longest any may print
+LINE, GUARD = 300, 600
 
 
 def auto_threads() -> int:
@@ -75,22 +69,13 @@ def auto_threads() -> int:
 
 
 def set_threads(threads: int | str) -> int:
-    """Apply ``--threads`` to torch's intra-op pool; returns the number set."""
+    """Apply ``--threads`` (1 to the machine's cores, or ``auto``: refused above by its parser) to torch's intra-op
+    pool; returns the number set."""
     import torch  # heavy: loaded only by commands that compute, so `hcmt --help` stays fast
 
-    cores = machine_cores()
     n = auto_threads() if threads == "auto" else int(threads)
-    if n > cores:
-        print(f"hcmt: warning: --threads {n} is more than this machine's {cores} cores; using {cores} (more threads "
-              "than cores only compete for them)", file=sys.stderr)
-        n = cores
     torch.set_num_threads(n)
     return n
-
-
-def machine_cores() -> int:
-    """The CPU cores this process may run on."""
-    return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
 
 
 class CommandError(Exception):
@@ -129,8 +114,30 @@ def check_outputs(files: dict[str, str | None], folders: dict[str, str | None] |
             seen[key] = option
 
 
+class Parser(argparse.ArgumentParser):
+    """argparse's parser, its mistakes one line (``hcmt predict: error: argument --threads: ...; see 'hcmt predict
+    --help'``) and exit 2 instead of the usage block."""
+
+    def error(self, message: str):
+        print(one_line(f"{self.prog}: error: {message}", f"; see '{self.prog} --help'"), file=sys.stderr)
+        raise SystemExit(2)
+
+
+def one_line(text: str, tail: str = "") -> str:
+    """``text + tail`` on one line, a last guard behind the values cut where they are echoed (``clip``: a line
+    stays under :data:`LINE` characters but for its paths): a word over 100 characters (a path, a value) is cut in
+    its middle, keeping its start and its end (the file's name), and a line still over :data:`GUARD` characters
+    is cut in its own middle, keeping its start (the command and the flag) and its end (what was expected)."""
+    text = " ".join(w if len(w) <= 100 else w[:30] + "…" + w[-69:] for w in str(text).split())
+    room = GUARD - len(tail)
+    if len(text) > room:
+        head = room * 2 // 3
+        text = text[:head - 1] + "…" + text[len(text) - (room - head):]
+    return text + tail
+
+
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
+    parser = Parser(
         prog="hcmt", description="Learned simulation of flexible bodies in contact: the Hierarchical Contact Mesh "
         "Transformer (ICLR 2024), its baselines, and a built-in FEM generator of ground truth.",
         epilog="`hcmt COMMAND --help` gives each command's options.")
@@ -139,26 +146,29 @@ def build_parser() -> argparse.ArgumentParser:
     requested = _requested_command(sys.argv[1:])
     for name, (module, help_text) in COMMANDS.items():
         p = sub.add_parser(name, help=help_text, description=help_text)
-        if name == requested:  # import only the module that will run
-            mod = importlib.import_module(module)
-            configure = getattr(mod, f"configure_{name}", None) or mod.configure
-            configure(p)
+        if name == requested:  # only the command that will run gets its arguments (light: hcmt.cli.parsers)
+            getattr(importlib.import_module("hcmt.cli.parsers"), f"configure_{name}")(p)
             if name in THREADED and not any(a.dest == "no_progress" for a in p._actions):
                 p.add_argument("--no-progress", action="store_true", help="no progress bars")
             if name in THREADED:
+                threads_arg = importlib.import_module("hcmt.cli.parsers").threads_arg
                 p.add_argument("--threads", type=threads_arg, default="auto", metavar="N",
-                               help="CPU threads for torch, at most the machine's cores (default auto: the cores "
-                                    "not busy with other work, from the 1-minute load average, at least 1)")
-            p.set_defaults(_run=getattr(mod, f"main_{name}", None) or mod.main)
+                               help=f"CPU threads for torch, 1 to this machine's cores ({machine_cores()}), or auto "
+                                    "(default: the cores not busy with other work, from the 1-minute load average, "
+                                    "at least 1)")
+            p.set_defaults(_module=module)
             parser.command_parser = p
     return parser
 
 
 def flag_of(parser: argparse.ArgumentParser | None, param: str | None) -> str | None:
     """The command-line name of the library parameter ``param`` in this command: its option (``--batch``), its
-    positional argument's name (``DATA``), or None when the command has no such argument."""
+    positional argument's name (``DATA``), the name :func:`hcmt.cli.parsers.same_as` gave it (``path`` ->
+    ``MODEL``), or None when the command has no such argument."""
     if parser is None or not param:
         return None
+    if param in getattr(parser, "param_flags", {}):
+        return parser.param_flags[param]
     for action in parser._actions:
         if action.dest == param.replace("-", "_"):
             return max(action.option_strings, key=len) if action.option_strings else action.dest.upper()
@@ -175,50 +185,64 @@ def _requested_command(argv: list[str]) -> str | None:
 def main(argv: list[str] | None = None) -> int:
     if argv is not None:
         sys.argv = [sys.argv[0], *argv]
+    _stopped_by.clear()
     previous = signal.signal(signal.SIGTERM, _terminate)  # SIGTERM ends a command as Ctrl-C does, from the start
+    command, started, parser = _requested_command(sys.argv[1:]) or "", False, None
     try:
-        parser = build_parser()  # imports the command's module: torch, seconds on a busy machine
-        args = parser.parse_args(sys.argv[1:])
-    except KeyboardInterrupt:
-        signal.signal(signal.SIGTERM, previous)
-        print(f"hcmt {_requested_command(sys.argv[1:]) or ''}: interrupted while starting; nothing was written",
-              file=sys.stderr)
-        return 130
-    except BaseException:
-        signal.signal(signal.SIGTERM, previous)
-        raise
-    if not getattr(args, "_run", None):
-        signal.signal(signal.SIGTERM, previous)
-        parser.print_help()
-        return 0 if args.command is None else 2
-
-    try:
+        parser = build_parser()
+        try:
+            args = parser.parse_args(sys.argv[1:])
+        except SystemExit as stop:  # --help, --version: 0; a mistake: Parser.error's one line was printed, 2
+            if stop.code == 2:
+                return 2
+            raise
+        if not getattr(args, "_module", None):
+            parser.print_help()
+            return 0 if args.command is None else 2
+        command = args.command
+        check = getattr(importlib.import_module("hcmt.cli.parsers"), f"check_{command}", None)
+        if check is not None:
+            check(args)  # the cheap checks: one line before torch loads
+        module = importlib.import_module(args._module)  # torch: seconds on a busy machine
         if getattr(args, "threads", None) is not None:
             set_threads(args.threads)
-        return int(args._run(args) or 0)
+        run = getattr(module, f"main_{command}", None) or module.main
+        started = True
+        return int(run(args) or 0)
     except BrokenPipeError:  # the reader went away (`hcmt models --json | head`): nothing more to say to it
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         return 0
     except InputError as exc:
         flag = flag_of(getattr(parser, "command_parser", None), exc.param)
-        print(f"hcmt {args.command}: error: {exc.worded(flag)}", file=sys.stderr)
-        return 2
+        return _error(command, exc.worded(flag))
     except (CommandError, FileNotFoundError, RolloutError) as exc:
-        print(f"hcmt {args.command}: error: {exc}", file=sys.stderr)
-        return 2
+        return _error(command, str(exc))
     except OSError as exc:  # disk full, permissions, ...: the path and the system's reason
         where = f"{exc.filename}: " if getattr(exc, "filename", None) else ""
-        print(f"hcmt {args.command}: error: {where}{exc.strerror or exc}", file=sys.stderr)
-        return 2
+        return _error(command, f"{where}{exc.strerror or exc}")
     except KeyboardInterrupt as exc:
-        print(f"hcmt {args.command}: {str(exc) or 'interrupted'}; {_resume_hint(args.command)}",
-              file=sys.stderr)
-        return 130
+        signum = _stopped_by[-1] if _stopped_by else signal.SIGINT
+        what = "interrupted" + (" (SIGTERM)" if signum == signal.SIGTERM else "")
+        if started:
+            print(f"hcmt {command}: {str(exc) or what}; {_resume_hint(command)}", file=sys.stderr)
+        else:
+            print(f"hcmt {command}: {what} while starting; nothing was written", file=sys.stderr)
+        return 128 + int(signum)
     finally:
         signal.signal(signal.SIGTERM, previous)
 
 
+def _error(command: str, text: str) -> int:
+    print(one_line(f"hcmt {command}: error: {text}"), file=sys.stderr)
+    return 2
+
+
+#: the signal that stopped the command (SIGTERM), for its exit status 128 + N
+_stopped_by: list[int] = []
+
+
 def _terminate(signum, frame):
+    _stopped_by.append(signum)
     raise KeyboardInterrupt
 
 

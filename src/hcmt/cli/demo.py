@@ -16,7 +16,6 @@ import argparse
 import time
 from pathlib import Path
 
-from hcmt.cli import CommandError
 from hcmt.config import load_config
 from hcmt.design.check import check_designs
 from hcmt.design.inputs import settings_of
@@ -33,24 +32,7 @@ DEMO_DESIGNS = [{"thickness": 0.6, "drop_height": 600.0}, {"thickness": 0.8, "dr
                 {"thickness": 0.95, "drop_height": 950.0}]
 
 
-def configure(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--out", default="demo_out", help="folder for pictures (and with --train the data and run)")
-    p.add_argument("--model", default="pretrained:impact_plate_small", help="model for the design check")
-    p.add_argument("--device", help="cpu, cuda, cuda:N (default: cuda when available)")
-    p.add_argument("--train", action="store_true", help="train a model from scratch instead (generate, train, "
-                   "evaluate; several minutes)")
-    p.add_argument("--steps", type=int, help="--train: training steps (default: the demo config's)")
-    p.add_argument("--train-trajectories", type=int, default=12, help="--train: training trajectories to generate")
-    p.add_argument("--test", type=int, default=2, help="--train: test trajectories to generate")
-    p.add_argument("--seed", type=int, default=0)
-    p.add_argument("--workers", type=int, default=2)
-    p.add_argument("--no-progress", action="store_true", help="no progress bars")
-
-
 def main(args: argparse.Namespace) -> int:
-    if args.steps is not None and not args.train:
-        raise CommandError("--steps sets the training length of `hcmt demo --train`; the default demo trains nothing "
-                           "(it uses the shipped model)")
     return train_demo(args) if args.train else design_demo(args)
 
 
@@ -87,8 +69,6 @@ def design_demo(args: argparse.Namespace) -> int:
 
 
 def train_demo(args: argparse.Namespace) -> int:
-    if args.steps is not None and args.steps < 1:
-        raise CommandError(f"--steps must be >= 1, got {args.steps}")
     out = Path(args.out)
     data, run = out / "impact_plate_small", out / "run_hcmt"
     t0 = time.perf_counter()

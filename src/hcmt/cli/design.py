@@ -1,5 +1,5 @@
-"""``hcmt predict / sweep / models``: argument parsing and printing only; the library functions live in
-:mod:`hcmt.design.check` and :mod:`hcmt.design.sweep`."""
+"""``hcmt predict / sweep / models``: printing only (their arguments and first checks: :mod:`hcmt.cli.parsers`); the
+library functions live in :mod:`hcmt.design.check` and :mod:`hcmt.design.sweep`."""
 from __future__ import annotations
 
 import argparse
@@ -8,59 +8,18 @@ import sys
 from pathlib import Path
 
 from hcmt.cli import CommandError
+from hcmt.cli.parsers import check_options
 from hcmt.config import plural
-from hcmt.cli import check_outputs
-from hcmt.cli.train import compile_arg
-from hcmt.files import atomic_path, check_apart, undo_on_error
+from hcmt.data.runs import PRETRAINED_DIR, available_pretrained
+from hcmt.design import sweep as sw
+from hcmt.design.basics import parse_vary
 from hcmt.design.check import check_designs
 from hcmt.design.inputs import range_warnings, read_designs_csv, settings_of
 from hcmt.design.reports import contour_picture, format_calls, format_table, to_json, write_csv
-from hcmt.sim.scene import DESIGN_KEYS, middle_design, parse_design
-from hcmt.design import sweep as sw
 from hcmt.design.surrogate import run_surrogate_path
+from hcmt.files import atomic_path, check_apart, undo_on_error
 from hcmt.inference.run import Run
-from hcmt.data.runs import PRETRAINED_DIR, available_pretrained
-from hcmt.sim.scene import DESIGN_UNITS, FAMILIES, describe_family, design_key
-
-
-# -- shared options ------------------------------------------------------------------------------------------------
-def verify_arg(p: argparse.ArgumentParser, what: str) -> None:
-    p.add_argument("--verify", nargs="?", const="all", metavar="auto",
-                   help=f"also run the built-in solver on every design and {what}; `--verify auto` (with "
-                        "--yield-mpa) runs it only on the designs whose call is undecided, and their final call is "
-                        "the solver's")
-
-
-def surrogate_args(p: argparse.ArgumentParser) -> None:
-    g = p.add_mutually_exclusive_group()
-    g.add_argument("--surrogate", metavar="FILE.json", help="the response surface to report beside the model (made "
-                   "by `hcmt surrogate fit`; default: the model's own, shipped with it or RUN/surrogate.json)")
-    g.add_argument("--no-surrogate", action="store_true", help="no response surface: the mesh model alone")
-
-
-def take_model(args, design_lists: list[list[str]]) -> None:
-    """Accept the model after the options (``--design ... MODEL``, ``--verify MODEL``): argparse gives it to the
-    option before it. Also checks ``--verify``'s value (nothing, or ``auto``)."""
-    if args.verify not in (None, "all", "auto"):
-        if args.model is not None:
-            raise CommandError(f"--verify {args.verify!r}: expected nothing (every design) or auto")
-        args.model, args.verify = args.verify, "all"
-    if args.model is None and design_lists and design_lists[-1]:
-        last = design_lists[-1][-1]
-        if "=" not in last or last.startswith("pretrained:") or Path(last).exists():
-            args.model = design_lists[-1].pop()
-    if args.model is None:
-        raise CommandError("give the model: a run folder made by `hcmt train`, or pretrained:NAME (`hcmt models`)")
-    design_lists[:] = [items for items in design_lists if items]
-
-
-def check_options(args) -> dict:
-    """The design-check options shared by predict and sweep."""
-    verify = {"all": True, "auto": "auto", None: False}[args.verify]
-    if verify == "auto" and args.yield_mpa is None:
-        raise CommandError("--verify auto runs the solver on the designs whose call is undecided: give --yield-mpa Y")
-    return {"verify": verify, "yield_mpa": args.yield_mpa,
-            "surrogate": False if args.no_surrogate else (args.surrogate or True)}
+from hcmt.sim.scene import DESIGN_KEYS, DESIGN_UNITS, FAMILIES, describe_family, middle_design, parse_design
 
 
 def print_notes(command: str, check) -> None:
@@ -69,35 +28,8 @@ def print_notes(command: str, check) -> None:
 
 
 # -- predict / models ----------------------------------------------------------------------------------------------
-def configure_predict(p: argparse.ArgumentParser) -> None:
-    p.add_argument("model", nargs="?", help="run folder made by `hcmt train`, or pretrained:NAME (`hcmt models` "
-                   "lists them)")
-    p.add_argument("--design", nargs="+", action="append", default=[], metavar="KEY=VALUE",
-                   help="one design, e.g. --design thickness=0.8 drop_height=900 (repeat for more designs); "
-                        "parameters as `hcmt simulate`'s, unspecified ones at the middle of the training ranges")
-    p.add_argument("--designs", metavar="FILE.csv", help="designs from a CSV file: header of parameter names "
-                   "(optional `name` column), one design per row; with --design too, the --design ones come first")
-    p.add_argument("--device", help="cpu, cuda, cuda:N (default: cuda when available)")
-    p.add_argument("--batch", type=int, default=8, help="designs rolled out together (default 8)")
-    compile_arg(p)
-    p.add_argument("--yield-mpa", type=float, help="report the margin of the peak plate stress to this stress (MPa) "
-                   "and a pass / fail / undecided call per design from the trusted interval")
-    verify_arg(p, "report the errors and the speedup")
-    surrogate_args(p)
-    p.add_argument("--images", action="store_true", help="stress-contour PNG at each design's peak frame")
-    p.add_argument("--out", default="predict_out", help="folder for --images (default predict_out)")
-    p.add_argument("--force", action="store_true", help="run even designs estimated to take over 600 s")
-    p.add_argument("--json", help="write the results as JSON")
-    p.add_argument("--csv", help="write the table as CSV")
-    p.add_argument("--no-progress", action="store_true")
-
-
 def main_predict(args: argparse.Namespace) -> int:
-    take_model(args, args.design)
-    if not args.design and not args.designs:
-        raise CommandError("give designs with --design KEY=VALUE ... or --designs FILE.csv")
-    options = check_options(args)  # before the model loads
-    check_outputs({"--json": args.json, "--csv": args.csv}, {"--out": args.out} if args.images else {})
+    options = check_options(args)  # check_predict has refused bad options before the model loads
     run = _design_run(args)
     check_apart({"--json": args.json, "--csv": args.csv, "--out": args.out if args.images else None},
                 {**read_paths(args, run), "--designs": args.designs})
@@ -150,45 +82,16 @@ def _design_run(args):
         raise CommandError(f"{args.model}: predict is for Impact Plate models; this one was trained on "
                            f"{run.config.dataset!r}")
     if run.meta is None and run.folder is not None:
-        raise CommandError(f"{args.model}: its training data ({run.info.get('data')}) is gone and the run folder holds "
-                           f"no {run.folder.data_facts_path.name} (written by `hcmt train`): predict needs the "
-                           "generator's settings, the design ranges and keys; restore the dataset, or retrain")
+        raise CommandError(f"{args.model}: its training data ({run.info.get('data')}) is gone and the run holds no "
+                           f"{run.folder.data_facts_path.name} (by `hcmt train`) with the generator's settings, design "
+                           "ranges and keys that predict needs; restore the dataset, or retrain")
     return run
 
 
 # -- sweep ---------------------------------------------------------------------------------------------------------
-def configure_sweep(p: argparse.ArgumentParser) -> None:
-    p.add_argument("model", nargs="?", help="run folder made by `hcmt train`, or pretrained:NAME (`hcmt models` "
-                   "lists them)")
-    p.add_argument("--vary", required=True, metavar="PARAM=LO:HI:N",
-                   help="the parameter swept and its range, e.g. thickness=0.5:1.0:6 (N points, ends included)")
-    p.add_argument("--design", nargs="+", default=[], metavar="KEY=VALUE",
-                   help="the other parameters, e.g. --design drop_height=750 (default: the middle of the training "
-                        "ranges)")
-    verify_arg(p, "compare the trends")
-    p.add_argument("--yield-mpa", type=float, help="report the smallest / largest parameter value that keeps the "
-                   "peak plate stress below this stress (MPa) from the final calls, for model and solver")
-    surrogate_args(p)
-    p.add_argument("--device", help="cpu, cuda, cuda:N (default: cuda when available)")
-    p.add_argument("--batch", type=int, help="designs per model call (default: the whole sweep in one batch)")
-    compile_arg(p)
-    p.add_argument("--force", action="store_true", help="run even designs estimated to take over 600 s")
-    p.add_argument("--out", default="sweep_out", help="folder for the plot (default sweep_out)")
-    p.add_argument("--json", help="write the points (as predict's JSON, each with its verify block) and the "
-                   "analysis as JSON")
-    p.add_argument("--csv", help="write the points as CSV")
-    p.add_argument("--no-progress", action="store_true")
-
-
 def main_sweep(args: argparse.Namespace) -> int:
-    param, lo, hi, n = sw.parse_vary(args.vary)
-    take_model(args, [args.design])
-    options = check_options(args)  # before the model loads
-    check_outputs({"--json": args.json, "--csv": args.csv}, {"--out": args.out})
-    fixed = [item for item in args.design if design_key(item) == param]
-    if fixed:
-        raise CommandError(f"--vary {args.vary} and --design {fixed[0]}: {param} is the swept parameter; drop it "
-                           "from --design")
+    param, lo, hi, n = parse_vary(args.vary)
+    options = check_options(args)  # check_sweep has refused bad options before the model loads
     run = _design_run(args)
     check_apart({"--json": args.json, "--csv": args.csv, "--out": args.out}, read_paths(args, run))
     base = parse_design(args.design, middle_design(run.meta, run.ranges))
@@ -214,10 +117,6 @@ def main_sweep(args: argparse.Namespace) -> int:
                 tmp.write_text(json.dumps(sw.sweep_json(check, analysis, run.source, str(run.device)), indent=2))
             print(f"wrote {args.json}")
     return 0
-
-
-def configure_models(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--json", action="store_true", help="print the model cards as JSON")
 
 
 def trained_families(meta: dict | None) -> dict[str, int]:

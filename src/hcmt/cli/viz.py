@@ -23,8 +23,8 @@ from pathlib import Path
 
 import matplotlib
 
-from hcmt.cli import CommandError
-from hcmt.cli import check_outputs
+from hcmt.cli import CommandError, check_outputs
+from hcmt.cli.parsers import frames_of, pictures_of
 from hcmt.data.format import Split, read_meta
 from hcmt.graph.hierarchy import cached_hierarchy, hierarchy_cache_dir
 from hcmt.inference.evaluate import rollout_file
@@ -39,52 +39,6 @@ from hcmt.viz.curves import plot_error_curves, plot_training_curves, rollout_err
 from hcmt.viz.export import export_case
 from hcmt.viz.hierarchy import plot_hierarchy
 from hcmt.viz.rollouts import load_case, unique_labels
-
-PICTURES = ("contours", "animation", "errors", "training", "hierarchy", "attention")
-
-
-def _frames(text: str | None) -> list[int] | None:
-    if text is None:
-        return None
-    try:
-        return [int(t) for t in text.split(",") if t.strip()]
-    except ValueError:
-        raise CommandError(f"--frames {text!r}: expected comma-separated frame numbers, e.g. 0,10,25,51") from None
-
-
-def _only(text: str | None) -> list[str]:
-    if not text:
-        return list(PICTURES)
-    picked = [t.strip() for t in text.split(",") if t.strip()]
-    unknown = [t for t in picked if t not in PICTURES]
-    if unknown:
-        raise CommandError(f"--only {', '.join(unknown)}: expected some of {', '.join(PICTURES)}")
-    return picked
-
-
-def _common(p: argparse.ArgumentParser) -> None:
-    p.add_argument("runs", nargs="+", metavar="RUN", help="run folder(s) made by `hcmt train`")
-    p.add_argument("--data", required=True, help="native dataset folder")
-    p.add_argument("--out", required=True, help="output folder")
-    p.add_argument("--split", default="test")
-    p.add_argument("--device", help="where missing rollouts run: cpu, cuda, cuda:N (default: cuda when available)")
-    p.add_argument("--no-progress", action="store_true", help="no progress bar")
-
-
-# -- plot ----------------------------------------------------------------------------------------------------------
-def configure_plot(p: argparse.ArgumentParser) -> None:
-    _common(p)
-    p.add_argument("--trajectory", default="0", help="index or name of the trajectory to draw (default 0)")
-    p.add_argument("--frames", help="frames of the contour figure, e.g. 0,10,25,51 (default: 4 spread evenly)")
-    p.add_argument("--only", help=f"comma-separated subset of {','.join(PICTURES)} (default: all)")
-    p.add_argument("--cmap", default="viridis", help="matplotlib colour map (default viridis)")
-    p.add_argument("--scale", default="frame", choices=["frame", "all"],
-                   help="contour colour scale: one per frame (row) or one for the whole figure")
-    p.add_argument("--fps", type=int, default=10, help="animation frames per second")
-    p.add_argument("--stride", type=int, help="animate every N-th frame (default: at most 100 frames)")
-    p.add_argument("--levels", type=int, help="hierarchy levels to draw when no run is an HCMT with a hierarchy")
-    p.add_argument("--attention-frame", type=int, help="frame of the attention maps (default: the impact)")
-    p.add_argument("--limit", type=int, help="error curves: roll out only the first N trajectories where needed")
 
 
 def read_paths(args) -> list[tuple[str, str]]:
@@ -107,8 +61,8 @@ def _load_runs(args) -> list[Run | RunFolder]:
 
 
 def main_plot(args: argparse.Namespace) -> int:
-    only = _only(args.only)
-    frames = _frames(args.frames)
+    only = pictures_of(args.only)
+    frames = frames_of(args.frames)
     if args.cmap not in matplotlib.colormaps:
         raise CommandError(f"--cmap {args.cmap!r}: not a matplotlib colour map (e.g. viridis, magma, jet)")
     check_outputs({}, {"--out": args.out})
@@ -169,17 +123,7 @@ def main_plot(args: argparse.Namespace) -> int:
 
 
 # -- export --------------------------------------------------------------------------------------------------------
-def configure_export(p: argparse.ArgumentParser) -> None:
-    _common(p)
-    p.add_argument("--format", default="vtu", choices=["vtu", "xdmf"],
-                   help="vtu: one file per frame + a .pvd collection; xdmf: one .xdmf + .h5 per series")
-    p.add_argument("--trajectory", default="0", help="index or name of the trajectory, or 'all' (default 0)")
-    p.add_argument("--stride", type=int, default=1, help="export every N-th frame (default: all)")
-
-
 def main_export(args: argparse.Namespace) -> int:
-    if args.stride < 1:
-        raise CommandError(f"--stride must be >= 1, got {args.stride}")
     check_apart({"--out": args.out}, read_paths(args))
     with Split(args.data, args.split) as s:
         names = list(s.names)

@@ -14,18 +14,10 @@ import numpy as np
 import torch
 import yaml
 
-from hcmt.config import Config
+from hcmt.config import PRETRAINED_DIR, Config, available_pretrained  # noqa: F401 (PRETRAINED_DIR: re-exported)
 from hcmt.data.format import Split, read_meta
 from hcmt.errors import InputError
 from hcmt.files import atomic_path, read_json
-
-PRETRAINED_DIR = Path(__file__).resolve().parent.parent / "pretrained"
-
-
-def available_pretrained() -> dict[str, Path]:
-    """Shipped models by name (``impact_plate_small``, ...)."""
-    return {p.stem: p for p in sorted(PRETRAINED_DIR.glob("*.pt"))}
-
 
 class RunFolder:
     """A run folder made by ``hcmt train``: the one owner of its file names, ``run.yaml`` parsed once.
@@ -47,7 +39,7 @@ class RunFolder:
                 self.damaged = str(exc)
         elif must_exist:
             hint = f"; the shipped model is pretrained:{self.path}" if str(self.path) in available_pretrained() else ""
-            raise FileNotFoundError(f"{self.path / 'run.yaml'}: not a run folder (made by `hcmt train --out RUN`)"
+            raise InputError(f"{self.path / 'run.yaml'}: not a run folder (made by `hcmt train --out RUN`)"
                                     f"{hint}")
 
     def __repr__(self) -> str:

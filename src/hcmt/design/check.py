@@ -22,10 +22,12 @@ from pathlib import Path
 import numpy as np
 from tqdm import tqdm
 
+from hcmt.config import MAX_BATCH, MAX_DESIGNS
+from hcmt.design.basics import check_name
 from hcmt.design.inputs import confidence, outside, range_warnings, settings_of
 from hcmt.design.readout import CONTACT_END_BOUND, history_correlation, summarize_fields
 from hcmt.design.surrogate import Surrogate, for_run, side_by_side
-from hcmt.errors import InputError
+from hcmt.errors import InputError, clip
 from hcmt.inference.metrics import impact_metrics, plate_mask, rollout_rmse, summarize_impact
 from hcmt.inference.rollout import rollout_batch
 from hcmt.physics.trajectory import prepare_trajectory
@@ -75,8 +77,7 @@ def predict(run, designs: list[tuple[str, Design]], batch: int = 8, progress: bo
     (``compile``: as :func:`hcmt.inference.rollout.rollout_batch`); ``readout``: how the plate's stress is read
     (:data:`hcmt.design.readout.READOUTS`; ``contact``: the peak from contact frames, no ghost stress after);
     ``contact_end_ms``: per design, a bound on when the ball leaves (the surrogate's), or None."""
-    if batch < 1:
-        raise InputError(f"must be >= 1, got {batch}", param="batch")
+    check_design_list(designs, batch)
     settings = settings_of(run.meta)
     h = run.adapter.history
     bar = tqdm(total=len(designs) * (settings.frames - 1 - h), desc="predict", unit="step",
@@ -148,6 +149,35 @@ def cost_check(run, designs: list[tuple[str, Design]], settings: Settings, verif
                    " (model and solver)" if verify else " (model rollout)")
 
 
+def check_design_list(designs, batch: int = 1) -> None:
+    """Refuse (``param="designs"``) what is not 1 to :data:`hcmt.config.MAX_DESIGNS` pairs (name, valid
+    :class:`~hcmt.sim.scene.Design`) with safe, distinct names (:func:`hcmt.design.basics.check_name`): the checks
+    a ``--designs`` CSV gets, for the Python API; and a ``batch`` that is no whole number from 1 to
+    :data:`hcmt.config.MAX_BATCH`."""
+    if isinstance(batch, bool) or not isinstance(batch, int) or not 1 <= batch <= MAX_BATCH:
+        raise InputError(f"must be a whole number from 1 to {MAX_BATCH:,}, got {clip(batch)}", param="batch")
+    if not isinstance(designs, (list, tuple)) or not 1 <= len(designs) <= MAX_DESIGNS:
+        got = f"{len(designs):,} items" if isinstance(designs, (list, tuple)) else type(designs).__name__
+        raise InputError(f"expected a list of 1 to {MAX_DESIGNS:,} (name, Design) pairs, got {got}", param="designs")
+    seen: dict[str, int] = {}
+    for i, item in enumerate(designs):
+        if not (isinstance(item, (list, tuple)) and len(item) == 2 and isinstance(item[1], Design)):
+            raise InputError(f"item {i}: expected a (name, Design) pair, e.g. ('a', hcmt.design_for(run, "
+                             f"thickness=0.7)), got {clip(repr(item))}", param="designs")
+        try:
+            check_name(item[0], f"item {i}")
+        except InputError as exc:
+            raise InputError(str(exc), param="designs") from None
+        try:
+            item[1].validate()
+        except InputError as exc:
+            raise InputError(f"item {i} ({clip(item[0])!r}): {exc}", param="designs") from None
+        if item[0] in seen:
+            raise InputError(f"item {i}: the name {clip(item[0])!r} already names item {seen[item[0]]}; every design "
+                             "needs its own name", param="designs")
+        seen[item[0]] = i
+
+
 def check_designs(run, designs: list[tuple[str, Design]], *, batch: int = 8, verify: bool | str = False,
                   yield_mpa: float | None = None, compile: str = "none", progress: bool = True,
                   force: bool = False, surrogate: Surrogate | str | Path | bool | None = True,
@@ -166,8 +196,7 @@ def check_designs(run, designs: list[tuple[str, Design]], *, batch: int = 8, ver
     if verify == "auto" and yield_mpa is None:
         raise InputError("auto runs the solver on the designs whose call is undecided: it needs a yield stress "
                          "(yield_mpa; --yield-mpa Y in hcmt predict and sweep)", param="verify")
-    if batch < 1:
-        raise InputError(f"must be >= 1, got {batch}", param="batch")
+    check_design_list(designs, batch)
     settings = settings_of(run.meta)
     surrogate, note, ends_window = for_run(run, surrogate)
     notes = [note] if note else []
@@ -369,14 +398,14 @@ def weak_reasons(p: Prediction) -> list[str]:
     c = p.summary.get("confidence")
     if c and c["region"] == "outside":
         out.append(f"{p.name}: outside the training ranges: the model card has no measured error there"
-                   + ("" if "verify" in p.summary else "; verify with the solver (--verify)"))
+                   + verify_hint(p))
     g = (p.summary.get("surrogate") or {}).get("peak_plate_stress_mpa")
     if g:
         gap = (p.summary["peak_plate_stress_mpa"] - g["mean"]) / g["mean"]
         if abs(gap) > NOTE_DISAGREEMENT:
             out.append(f"{p.name}: the mesh model's peak plate stress is {100 * gap:+.0f} % from the response "
                        f"surface's {g['mean']:.0f} MPa [{g['lo']:.0f}, {g['hi']:.0f}]; low confidence"
-                       + ("" if "verify" in p.summary else ", verify with the solver"))
+                       + verify_hint(p))
         return out
     if not c or c["region"] == "outside":
         return out
@@ -385,4 +414,19 @@ def weak_reasons(p: Prediction) -> list[str]:
         return out
     return out + [f"{p.name}: {c['label']}: the model card measured a median peak plate stress error of {med:.1f} % "
                   f"(worst {worst:+.1f} %) over {c['designs']} such designs; low confidence"
-                  + ("" if "verify" in p.summary else ", verify with the solver")]
+                  + verify_hint(p)]
+
+
+def verify_hint(p: Prediction) -> str:
+    """How a low-confidence note ends: nothing once the solver ran; for a decided call (pass / fail), that the call
+    already allows for it (its whole trusted interval lies on one side of the yield stress, so ``--verify auto``
+    rightly leaves it to the model); else the advice to verify with the solver."""
+    s = p.summary
+    if "verify" in s:
+        return ""
+    if s.get("call") in ("pass", "fail") and s.get("call_interval_mpa"):
+        iv = s["call_interval_mpa"]
+        side = "below" if s["call"] == "pass" else "above"
+        return (f"; the {s['call']} call already allows for it: its whole interval {iv['lo']:.0f}-{iv['hi']:.0f} MPa "
+                f"lies {side} the yield stress")
+    return "; verify with the solver (--verify)"

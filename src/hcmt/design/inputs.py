@@ -3,12 +3,11 @@ their names, and where they lie against a model's training data (ranges, regions
 confidence, the recorded window's settings)."""
 from __future__ import annotations
 
-import csv
 from dataclasses import asdict, fields
 from pathlib import Path
 
-
-from hcmt.errors import InputError
+from hcmt.design.basics import read_table
+from hcmt.errors import InputError, clip
 from hcmt.sim.scene import (DESIGN_KEYS, EDGES, FIRST_SCENE_KEYS, Design, Settings, middle_design, parse_design,
                             parse_number)
 
@@ -21,26 +20,7 @@ def read_designs_csv(path: str | Path, defaults: Design, first: int = 1,
     fine). Anything else is refused naming the file, the line and the column. Unnamed rows are ``design_<first>``,
     ... ; ``taken``: names already given elsewhere (name -> where), which a row may not take again."""
     path = Path(path)
-    if not path.is_file():
-        raise FileNotFoundError(f"{path}: no such designs file")
-    try:
-        text = path.read_text(encoding="utf-8-sig")
-    except UnicodeDecodeError as exc:
-        raise InputError(f"{path}: not a UTF-8 text file ({exc.reason} at byte {exc.start})") from None
-    try:
-        rows = [(n, r) for n, r in enumerate(csv.reader(text.splitlines()), start=1) if any(c.strip() for c in r)]
-    except csv.Error as exc:
-        raise InputError(f"{path}: not a readable CSV file ({exc})") from None
-    if not rows:
-        raise InputError(f"{path}: no designs (expected a header line of parameter names and one row per design)")
-    (head_line, head), body = rows[0], rows[1:]
-    header = [h.strip().replace("-", "_") for h in head]
-    for col, h in enumerate(header, start=1):
-        if h != "name" and h not in DESIGN_KEYS:
-            raise InputError(f"{path} line {head_line}, column {col}: unknown column {h!r} in the header; expected "
-                             f"`name` or parameters of {', '.join(DESIGN_KEYS)}")
-    if len(set(header)) != len(header):
-        raise InputError(f"{path} line {head_line}: a column appears twice in the header")
+    head_line, header, body = read_table(path)
     if not body:
         raise InputError(f"{path}: a header but no designs (one row per design after the header)")
     out, seen = [], dict(taken or {})
@@ -51,11 +31,11 @@ def read_designs_csv(path: str | Path, defaults: Design, first: int = 1,
         name, items = f"design_{len(out) + first}", []
         for col, (h, v) in enumerate(zip(header, row), start=1):
             if h == "name":
-                name = check_name(v.strip(), f"{path} line {n}, column {col} (name)")
+                name = v.strip()  # a safe name: read_table checked it
                 if name in seen:
                     where = seen[name] if isinstance(seen[name], str) else f"line {seen[name]}"
-                    raise InputError(f"{path} line {n}, column {col} (name): {name!r} already names {where}; every "
-                                     "design needs its own name")
+                    raise InputError(f"{path} line {n}, column {col} (name): {clip(name)!r} already names {where}; "
+                                     "every design needs its own name")
                 seen[name] = n
                 continue
             if not v.strip():
@@ -66,23 +46,6 @@ def read_designs_csv(path: str | Path, defaults: Design, first: int = 1,
                              "CSV a name column")
         out.append((name, parse_design(items, defaults, where=f"{path} line {n}:")))
     return out
-
-
-def check_name(name: str, where: str) -> str:
-    """A design name that is safe as a folder name under ``--out`` (pictures are written to ``OUT/NAME/``): not
-    empty, no path separator, not ``.`` or ``..``, no control character; else one line naming ``where``."""
-    bad = None
-    if not name:
-        bad = "is empty"
-    elif any(c in name for c in "/\\") or name in (".", ".."):
-        bad = "would be a path outside its own folder (no '/', '\\', '.' or '..')"
-    elif any(ord(c) < 32 or ord(c) == 127 for c in name):
-        bad = "holds a control character"
-    elif len(name) > 200:
-        bad = "is longer than 200 characters"
-    if bad:
-        raise InputError(f"{where}: the design name {name!r} {bad}; names become folder names under --out")
-    return name
 
 
 def with_family_defaults(ranges: dict[str, tuple[float, float]]) -> dict[str, tuple[float, float]]:

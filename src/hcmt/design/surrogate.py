@@ -37,22 +37,19 @@ from sklearn.gaussian_process import GaussianProcessRegressor
 from sklearn.gaussian_process.kernels import RBF, ConstantKernel, WhiteKernel
 
 from hcmt.data.format import Split, read_meta
-from hcmt.errors import InputError
+from hcmt.design.basics import QUANTITIES, RESTARTS
+from hcmt.errors import InputError, clip
 from hcmt.files import atomic_path
 from hcmt.design.readout import summarize_fields
 from hcmt.data.runs import PRETRAINED_DIR
-from hcmt.sim.scene import DESIGN_KEYS, DESIGN_UNITS, FIRST_SCENE_KEYS, Design, design_from_attrs
+from hcmt.sim.scene import DESIGN_KEYS, DESIGN_UNITS, FIRST_SCENE_KEYS, Design, check_size, design_from_attrs
 
-#: the scalar answers a surrogate predicts (keys of a design's summary)
-QUANTITIES = ("peak_plate_stress_mpa", "peak_ball_stress_mpa", "max_deflection_mm", "peak_plate_t95_ms",
-              "contact_end_ms")
 FORMAT, VERSION = "hcmt-surrogate", 2
 READS = (1, 2)  # the format versions this hcmt loads (1: no "dataset" block)
-#: the unit of each answer (:data:`QUANTITIES`)
+#: the unit of each answer (:data:`hcmt.design.basics.QUANTITIES`)
 ANSWER_UNITS = {"peak_plate_stress_mpa": "MPa", "peak_ball_stress_mpa": "MPa", "max_deflection_mm": "mm",
                 "peak_plate_t95_ms": "ms", "contact_end_ms": "ms"}
 Z95 = 1.959963984540054  # the standard normal's 97.5 % quantile: a central 95 % interval
-RESTARTS = 3  # optimizer restarts of the marginal likelihood (the comparison used 3)
 
 
 class SurrogateError(InputError):
@@ -280,6 +277,12 @@ class Surrogate:
             if not isinstance(linear, list) or any(k not in params for k in linear):
                 raise SurrogateError(f"{where}: \"input_transform\": expected {{\"linear\": [parameters taken "
                                      "linearly]}}")
+            for i, row in enumerate(X):  # each training design one hcmt could build (a 1e308 mm plate is none)
+                try:
+                    check_size(Design(**{**fixed, **dict(zip(params, map(float, row)))}).validate())
+                except InputError as exc:
+                    raise SurrogateError(f"{where}: training design {i + 1} is no design hcmt builds: "
+                                         f"{clip(exc, 160)}") from None
             return cls(params, {k: float(v) for k, v in fixed.items()}, X, answers, kernels,
                        source=str(doc.get("source", "")), linear=linear,
                        dataset=_read_facts(doc["dataset"], where) if "dataset" in doc else None)

@@ -19,40 +19,16 @@ from pathlib import Path
 import numpy as np
 
 from hcmt.config import plural
+from hcmt.design.basics import parse_vary  # noqa: F401 (hcmt.design.sweep.parse_vary, as before)
 from hcmt.design.check import Check, check_designs
 from hcmt.design.reports import finite, to_json
 from hcmt.errors import InputError
-from hcmt.sim.scene import DESIGN_KEYS, Design
+from hcmt.sim.scene import Design
 from hcmt.viz.meshplot import new_figure, save_figure
 
 #: steps smaller than this share of a series' range count as flat in the monotonicity test
 TREND_TOL = 0.02
 QUANTITIES = {"peak_plate_stress_mpa": "peak plate stress (MPa)", "max_deflection_mm": "max deflection (mm)"}
-
-
-def parse_vary(text: str) -> tuple[str, float, float, int]:
-    """``PARAM=LO:HI:N`` -> (param, lo, hi, n); one line naming what is wrong otherwise."""
-    key, sep, spec = text.partition("=")
-    key = key.strip().replace("-", "_")
-    parts = spec.split(":")
-    if not sep or len(parts) != 3:
-        raise InputError(f"{text!r}: expected PARAM=LO:HI:N, e.g. thickness=0.5:1.0:6", param="vary")
-    if key not in DESIGN_KEYS:
-        raise InputError(f"{text!r}: unknown parameter {key!r}; expected one of {', '.join(DESIGN_KEYS)}",
-                         param="vary")
-    try:
-        lo, hi = float(parts[0]), float(parts[1])
-    except ValueError:
-        raise InputError(f"{text!r}: LO and HI must be numbers", param="vary") from None
-    if not (np.isfinite(lo) and np.isfinite(hi)) or not lo < hi:
-        raise InputError(f"{text!r}: expected finite LO < HI, got {parts[0]} and {parts[1]}", param="vary")
-    try:
-        n = int(parts[2])
-    except ValueError:
-        raise InputError(f"{text!r}: N must be a whole number, got {parts[2]!r}", param="vary") from None
-    if not 2 <= n <= 256:
-        raise InputError(f"{text!r}: N must be between 2 and 256, got {n}", param="vary")
-    return key, lo, hi, n
 
 
 def sweep_designs(base: Design, param: str, lo: float, hi: float, n: int) -> list[tuple[str, Design]]:

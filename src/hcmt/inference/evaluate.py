@@ -14,10 +14,10 @@ import h5py
 import numpy as np
 from tqdm import tqdm
 
-from hcmt.config import COMPILE_MODES, plural
+from hcmt.config import COMPILE_MODES, MAX_BATCH, plural
 from hcmt.data.format import Split, read_meta
 from hcmt.data.runs import RunFolder
-from hcmt.errors import InputError, RolloutError
+from hcmt.errors import InputError, RolloutError, clip
 from hcmt.files import atomic_path, ensure_space, read_json
 from hcmt.inference.metrics import (SCALE, aggregate, format_physics, impact_groups, impact_metrics, plate_mask,
                                     rollout_rmse, step_rmse, summarize_impact, summarize_runs)
@@ -28,8 +28,8 @@ from hcmt.physics.trajectory import load_split
 
 def check_options(*, batch: int = 1, compile: str = "none") -> None:
     """Refuse bad rollout options in one line before any cache is consulted or work done."""
-    if isinstance(batch, bool) or not isinstance(batch, int) or batch < 1:
-        raise InputError(f"must be a whole number >= 1, got {batch}", param="batch")
+    if isinstance(batch, bool) or not isinstance(batch, int) or not 1 <= batch <= MAX_BATCH:
+        raise InputError(f"must be a whole number from 1 to {MAX_BATCH:,}, got {clip(batch)}", param="batch")
     if compile not in COMPILE_MODES:
         raise InputError(f"must be one of {', '.join(COMPILE_MODES)}, got {compile!r}", param="compile")
 

@@ -23,7 +23,7 @@ import torch
 from hcmt.config import Config
 from hcmt.data.format import Split, read_meta
 from hcmt.data.runs import RunFolder, available_pretrained, read_checkpoint
-from hcmt.errors import InputError
+from hcmt.errors import InputError, clip
 from hcmt.files import atomic_path
 from hcmt.models import REGISTRY, from_checkpoint, resolve_device, uses_hierarchy
 from hcmt.physics.adapters import config_adapter
@@ -42,7 +42,7 @@ def load_run(run: str | Path | RunFolder, which: str = "best", device: str = "cp
     folder = run if isinstance(run, RunFolder) else RunFolder(run)
     path = folder.checkpoint(which)
     if not path.is_file():
-        raise FileNotFoundError(f"{folder.path}: no checkpoint yet (best.pt / checkpoint.pt)")
+        raise InputError(f"{folder.path}: no checkpoint yet (best.pt / checkpoint.pt)")
     state = read_checkpoint(path, device, earlier=folder.latest if path == folder.best else folder.best)
     try:
         model = from_checkpoint(state)
@@ -85,6 +85,10 @@ class Run:
         dev = resolve_device(device)
         if not isinstance(path, RunFolder) and str(path).startswith("pretrained:"):
             return cls._pretrained(str(path).split(":", 1)[1], dev)
+        if not isinstance(path, RunFolder) and not (Path(path) / "run.yaml").is_file():
+            raise InputError(f"{clip(path)!r}: " + ("no such folder" if not Path(path).exists() else "no run.yaml")
+                             + "; expected a run folder made by `hcmt train`, or pretrained:NAME "
+                             "(hcmt.available_pretrained())", param="path")
         folder = path if isinstance(path, RunFolder) else RunFolder(path)  # run.yaml parsed once
         model, info = load_run(folder, which, device="cpu")
         meta, ranges = folder.data_facts()
@@ -94,8 +98,8 @@ class Run:
     def _pretrained(cls, name: str, device: torch.device) -> "Run":
         shipped = available_pretrained()
         if name not in shipped:
-            raise InputError(f"pretrained:{name}: no such shipped model; available: "
-                             f"{', '.join(shipped) or 'none'} (`hcmt models` lists them)")
+            raise InputError(f"'pretrained:{clip(name)}': no such shipped model; available: "
+                             f"{', '.join(shipped) or 'none'} (`hcmt models` lists them)", param="path")
         pack = read_checkpoint(shipped[name])
         try:
             model = from_checkpoint(pack)

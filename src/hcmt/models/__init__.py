@@ -9,7 +9,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from hcmt.config import ModelConfig
+from hcmt.config import MODELS, ModelConfig
 from hcmt.errors import InputError
 
 from .attention import MODES as ATTENTION_MODES, check_mode
@@ -30,13 +30,12 @@ class ModelInfo:
     has_attention: bool  # returns attention maps (``return_attention=True``)
 
 
-#: one table of the models: name -> :class:`ModelInfo`
-REGISTRY: dict[str, ModelInfo] = {
-    "hcmt": ModelInfo("HCMT", True, True),
-    "mgn": ModelInfo("MGN", False, False),
-    "gt": ModelInfo("GT (Graph Transformer)", False, True),  # "GT" alone reads as "ground truth" beside it
-}
-MODELS = tuple(REGISTRY)
+#: one table of the models: name (:data:`hcmt.config.MODELS`, in its order) -> :class:`ModelInfo`
+REGISTRY: dict[str, ModelInfo] = dict(zip(MODELS, (
+    ModelInfo("HCMT", True, True),
+    ModelInfo("MGN", False, False),
+    ModelInfo("GT (Graph Transformer)", False, True),  # "GT" alone reads as "ground truth" beside it
+)))
 
 
 _M = ModelConfig  # the schema's defaults are the defaults (hcmt.config)

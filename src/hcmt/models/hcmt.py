@@ -37,6 +37,7 @@ from __future__ import annotations
 import torch
 from torch import Tensor, nn
 
+from hcmt.config import ABLATIONS
 from hcmt.errors import DatasetError, InputError
 from hcmt.graph.batch import Graph
 from hcmt.graph.hierarchy import pool as pool_nodes, unpool
@@ -45,9 +46,6 @@ from .base import Simulator
 from .attention import AttentionMap, check_mode
 from .block import TransformerBlock
 from .lpe import LaplacianPE
-
-ABLATIONS = ("late-contact", "only-cmt", "only-hmt", "lpe", "single-branch", "no-remesh")
-
 
 class HMT(nn.Module):
     """The hierarchical mesh Transformer layer: ``2λ + 1`` one-branch blocks over the levels' mesh edges."""

@@ -20,10 +20,12 @@ import h5py
 import numpy as np
 from tqdm import tqdm
 
+from hcmt.config import MAX_TRAJECTORIES, machine_cores
 from hcmt.data.format import make_meta, read_meta, write_meta, write_split
 from hcmt.errors import DatasetError, InputError
+from hcmt.sim.params import preset_design
 from hcmt.sim.scene import (CONTACT_RADIUS, FAMILIES, RANGES, UNITS, VARIANTS, Design, Settings, check_cost,
-                            family_ranges, feature_spec, plan, resolve_relative, sample_design, simulate)
+                            family_ranges, feature_spec, plan, sample_design, simulate)
 
 #: Split names and their stable codes in the per-trajectory seed.
 SPLITS = ("train", "valid", "test", "test_thicker", "test_higher", "test_thicker_higher")
@@ -139,7 +141,7 @@ def generate_dataset(out, *, preset: str = "small", counts: dict[str, int], seed
     drops: :data:`hcmt.sim.scene.EDGES`); ``families`` (:data:`hcmt.sim.scene.FAMILIES`) take the trajectories of
     every split in turn, and meta.json's ``families`` lists each trajectory's. Returns ``{"simulated": n,
     "skipped": n, "splits": {split: path}}``. A trajectory estimated at over
-    :data:`hcmt.sim.scene.MAX_ESTIMATED_SECONDS` (:func:`generation_cost`) is refused before anything is written,
+    :data:`hcmt.sim.params.MAX_ESTIMATED_SECONDS` (:func:`generation_cost`) is refused before anything is written,
     unless ``force``."""
     families = tuple(families)
     if not families:
@@ -156,10 +158,10 @@ def generate_dataset(out, *, preset: str = "small", counts: dict[str, int], seed
     for split, n in counts.items():
         if split not in SPLITS:
             raise InputError(f"unknown split {split!r}; expected one of {SPLITS}")
-        if int(n) < 0:
-            raise InputError(f"the {split} count must be >= 0 trajectories, got {n}")
-    if int(workers) < 1:
-        raise InputError(f"must be >= 1, got {workers}", param="workers")
+        if not 0 <= int(n) <= MAX_TRAJECTORIES:
+            raise InputError(f"{split}: expected 0 to {MAX_TRAJECTORIES:,} trajectories, got {n}", param="counts")
+    if not 1 <= int(workers) <= machine_cores():
+        raise InputError(f"must be 1 to this machine's {machine_cores()} cores, got {workers}", param="workers")
     settings.validate()
     counts = {k: int(v) for k, v in counts.items() if int(v) > 0}
     if not counts:
@@ -220,11 +222,7 @@ def generate_dataset(out, *, preset: str = "small", counts: dict[str, int], seed
 
 
 def generation_cost(preset: str, families: tuple[str, ...], settings: Settings) -> tuple[Design, dict]:
-    """(design, :func:`hcmt.sim.scene.plan`) of the costliest family's nominal design: what a trajectory costs."""
+    """(design, :func:`hcmt.sim.scene.plan`) of the costliest family's nominal design
+    (:func:`hcmt.sim.params.preset_design`): what a trajectory costs."""
     return max(((d, plan(d, settings)) for d in (preset_design(preset, f) for f in families)),
                key=lambda dc: dc[1]["estimated_s"])
-
-
-def preset_design(preset: str, family: str = "mono") -> Design:
-    """The nominal design of a preset and family: the middle of every sampling range (:func:`family_ranges`)."""
-    return Design(**resolve_relative({k: 0.5 * (lo + hi) for k, (lo, hi) in family_ranges(preset, family).items()}))

@@ -31,8 +31,8 @@ import numpy as np
 import scipy.sparse as sp
 
 from hcmt.errors import InputError
+from hcmt.sim.params import FORMULATIONS, check_material
 
-FORMULATIONS = ("axisymmetric", "plane_strain")
 
 
 @dataclass
@@ -73,18 +73,6 @@ def lame(modulus, poisson):
     """(lambda, mu) of Young's modulus E and Poisson ratio nu: lambda = E nu / ((1+nu)(1-2nu)), mu = E / (2(1+nu))."""
     modulus, poisson = np.asarray(modulus, float), np.asarray(poisson, float)
     return modulus * poisson / ((1 + poisson) * (1 - 2 * poisson)), modulus / (2 * (1 + poisson))
-
-
-def check_material(name: str, density, modulus, poisson) -> None:
-    """Refuse impossible materials with a message naming the parameter and the expected range."""
-    for what, v, ok, expected in (
-        ("density", density, lambda a: a > 0, "> 0 g/mm^3"),
-        ("Young's modulus", modulus, lambda a: a > 0, "> 0 MPa"),
-        ("Poisson ratio", poisson, lambda a: (a > -1) & (a < 0.5), "in (-1, 0.5)"),
-    ):
-        a = np.asarray(v, float)
-        if not np.all(np.isfinite(a)) or not np.all(ok(a)):
-            raise InputError(f"{name} {what} must be {expected}, got {v}")
 
 
 def build_model(X: np.ndarray, cells: np.ndarray, density, modulus, poisson, *, formulation: str = "axisymmetric",

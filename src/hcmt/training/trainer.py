@@ -43,7 +43,7 @@ import torch.distributed as dist
 from torch.utils.tensorboard import SummaryWriter
 from tqdm import tqdm
 
-from hcmt.config import Config
+from hcmt.config import INIT_NORMALIZERS, Config
 from hcmt.data.format import read_meta
 from hcmt.data.runs import RunFolder, check_start, read_checkpoint
 from hcmt.errors import InputError
@@ -61,11 +61,6 @@ from hcmt.training.runtime import (InterruptFlag, TrainingInterrupted, check_res
 from hcmt.training.schedule import keras_epsilon, learning_rate
 
 logger = logging.getLogger("hcmt.train")  # rank-zero messages (hcmt.training.runtime.rank_zero_logging)
-
-
-#: ``init_normalizers``: a fine-tuned run keeps its source's normalizer statistics, frozen (the few runs of a new
-#: family make poor statistics), or zeroes them and accumulates them afresh on its own data
-INIT_NORMALIZERS = ("keep", "reaccumulate")
 
 
 def init_source(init: str, args: dict) -> Run:

@@ -5,8 +5,9 @@
 
 For every round, thread count and recipe, ``hcmt train`` runs ``--steps`` steps in each checkout (its own
 ``src`` on ``PYTHONPATH``, a fresh process, the same interpreter), old and new alternating so that both see the
-same load. The figure is the trainer's own median time of a step (loading the batch, forward, loss, backward,
-Adam), read from the run's ``train_stats.json``; samples per second is the batch size over it. Recipes:
+same load. The figure is the trainer's own median wall time of a step (loading the batch, forward, loss, backward,
+Adam), read from the run's ``train_stats.json``; samples per second is the batch size over it (the new checkout
+also records its CPU time per step, which another job's load moves less). Recipes:
 
 * ``cpu``: the defaults of ``impact_plate_cpu`` (HCMT, paper attention, velocity target, no pushforward);
 * ``ship``: the shipped model's recipe (docs/MODELS.md: official attention, acceleration target, deformation
@@ -53,8 +54,10 @@ def one_run(tree: Path, data: Path, recipe: str, threads: int, steps: int, work:
     run = (out / "run.yaml").read_text()
     batch = 1 if "batch_size" not in run else int(run.split("batch_size:")[1].split()[0])
     ms = float(stats["train_ms_per_step"])
+    cpu = stats.get("train_cpu_ms_per_step")  # absent at commits before it was recorded
     shutil.rmtree(out, ignore_errors=True)
-    return {"ms_per_step": ms, "samples_per_s": 1e3 * batch / ms, "wall_s": wall, "batch": batch}
+    return {"ms_per_step": ms, "cpu_ms_per_step": cpu, "samples_per_s": 1e3 * batch / ms, "wall_s": wall,
+            "batch": batch}
 
 
 def main() -> None:

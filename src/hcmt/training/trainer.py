@@ -77,6 +77,13 @@ def init_source(init: str, args: dict) -> Run:
     return source
 
 
+def step_times(times: list[tuple[float, float]]) -> dict:
+    """Median wall time and CPU time (this process, all its threads: robust to other load on one thread) per step,
+    in ms, of ``(wall s, cpu s)`` pairs."""
+    wall, cpu = (1e3 * float(np.median([t[k] for t in times])) if times else None for k in (0, 1))
+    return {"ms_per_step": wall, "cpu_ms_per_step": cpu}
+
+
 class Trainer:
     """One training run in four parts a reader can follow: :meth:`__init__` (setup: config, run folder, model,
     data, optimizer, resume), :meth:`step` (one optimizer step on one batch), :meth:`validate` (validation
@@ -296,9 +303,9 @@ class Trainer:
         self.model.train()
         try:
             while self.step_count < end:
-                t0 = time.perf_counter()
+                t0, c0 = time.perf_counter(), time.process_time()
                 loss, lr = self.step(*next(loader))
-                times.append(time.perf_counter() - t0)
+                times.append((time.perf_counter() - t0, time.process_time() - c0))  # wall and this process's CPU
                 finite, stop = stop_together(self.world, self.device, loss, interrupted.set)
                 step = self.step_count
                 if not finite:
@@ -309,8 +316,7 @@ class Trainer:
                     bar.set_postfix(loss=f"{loss:.4g}", lr=f"{lr:.2e}")
                     self.writer.add_scalar("train/loss", loss, step)
                     self.writer.add_scalar("train/lr", lr, step)
-                    self._record({"step": step, "loss": loss, "lr": lr,
-                                  "ms_per_step": 1e3 * float(np.median(times[-log_every:]))})
+                    self._record({"step": step, "loss": loss, "lr": lr, **step_times(times[-log_every:])})
                 if rank == 0 and self.valid_trajs and valid_every and (step % valid_every == 0 or step == self.steps):
                     self.validate()
                 if rank == 0 and (step % ckpt_every == 0 or step == end or stop):
@@ -333,7 +339,7 @@ class Trainer:
 
     def _finish(self, times: list[float], loss: float) -> dict:
         summary = {"steps": self.step_count, "final_loss": loss,
-                   "train_ms_per_step": 1e3 * float(np.median(times)) if times else None,
+                   **{f"train_{k}": v for k, v in step_times(times).items()},
                    "best_valid_position_rmse_all": self.best if math.isfinite(self.best) else None,
                    "world_size": self.world, "device": str(self.device)}
         if self.rank == 0 and self.step_count == self.steps:

@@ -14,6 +14,7 @@ from hcmt.cli.train import compile_arg
 from hcmt.files import atomic_path, check_apart, undo_on_error
 from hcmt.design.check import check_designs
 from hcmt.design.inputs import range_warnings, read_designs_csv, settings_of
+from hcmt.design.readout import DEFAULT_READOUT, READOUTS
 from hcmt.design.reports import contour_picture, format_calls, format_table, to_json, write_csv
 from hcmt.sim.scene import DESIGN_KEYS, middle_design, parse_design
 from hcmt.design import sweep as sw
@@ -38,6 +39,16 @@ def surrogate_args(p: argparse.ArgumentParser) -> None:
     g.add_argument("--no-surrogate", action="store_true", help="no response surface: the mesh model alone")
 
 
+def readout_arg(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--readout", choices=READOUTS, default=DEFAULT_READOUT,
+                   help="raw (default): the mesh model's answer is its own outputs (stress field and positions) in "
+                        "every frame, whatever the response surface; contact: also report (as contact_*) the peak "
+                        "from the frames the ball touches the plate, the window ending at the response surface's "
+                        "bound of when the ball leaves, and a bending formula after it; element: also report (as "
+                        "element_*) the solver's element law on the predicted positions. The calls and trends use "
+                        "the chosen read-out; the JSON records it")
+
+
 def take_model(args, design_lists: list[list[str]]) -> None:
     """Accept the model after the options (``--design ... MODEL``, ``--verify MODEL``): argparse gives it to the
     option before it. Also checks ``--verify``'s value (nothing, or ``auto``)."""
@@ -59,8 +70,13 @@ def check_options(args) -> dict:
     verify = {"all": True, "auto": "auto", None: False}[args.verify]
     if verify == "auto" and args.yield_mpa is None:
         raise CommandError("--verify auto runs the solver on the designs whose call is undecided: give --yield-mpa Y")
-    return {"verify": verify, "yield_mpa": args.yield_mpa,
+    return {"verify": verify, "yield_mpa": args.yield_mpa, "readout": args.readout,
             "surrogate": False if args.no_surrogate else (args.surrogate or True)}
+
+
+def readout_words(readout: str) -> str:
+    """The header's words for the read-out used."""
+    return "raw (the model's own outputs)" if readout == "raw" else f"{readout} (as {readout}_*, beside the raw)"
 
 
 def print_notes(command: str, check) -> None:
@@ -84,6 +100,7 @@ def configure_predict(p: argparse.ArgumentParser) -> None:
                    "and a pass / fail / undecided call per design from the trusted interval")
     verify_arg(p, "report the errors and the speedup")
     surrogate_args(p)
+    readout_arg(p)
     p.add_argument("--images", action="store_true", help="stress-contour PNG at each design's peak frame")
     p.add_argument("--out", default="predict_out", help="folder for --images (default predict_out)")
     p.add_argument("--force", action="store_true", help="run even designs estimated to take over 600 s")
@@ -114,7 +131,8 @@ def main_predict(args: argparse.Namespace) -> int:
     print_notes("predict", check)
     preds, truth = check.preds, check.truth
     print(f"{run.label} ({run.source}) on {run.device}: {plural(len(preds), 'design')}, {check.settings.frames} frames of "
-          f"{check.settings.frame_dt} ms, {check.wall_s:.2f} s in all; stresses are von Mises [MPa], lengths [mm]"
+          f"{check.settings.frame_dt} ms, {check.wall_s:.2f} s in all; stresses are von Mises [MPa], lengths [mm]; "
+          f"read-out: {readout_words(check.readout)}"
           + (f"; response surface: {check.surrogate}" if check.surrogate else ""))
     print(format_table(preds, check.verified))
     if args.yield_mpa is not None:
@@ -169,6 +187,7 @@ def configure_sweep(p: argparse.ArgumentParser) -> None:
     p.add_argument("--yield-mpa", type=float, help="report the smallest / largest parameter value that keeps the "
                    "peak plate stress below this stress (MPa) from the final calls, for model and solver")
     surrogate_args(p)
+    readout_arg(p)
     p.add_argument("--device", help="cpu, cuda, cuda:N (default: cuda when available)")
     p.add_argument("--batch", type=int, help="designs per model call (default: the whole sweep in one batch)")
     compile_arg(p)
@@ -199,7 +218,8 @@ def main_sweep(args: argparse.Namespace) -> int:
                                compile=args.compile, force=args.force, **options)
     print_notes("sweep", check)
     print(f"{run.label} ({run.source}) on {run.device}: {param} from {lo:g} to {hi:g} in {n} points, "
-          f"{check.wall_s:.2f} s in all; stresses are von Mises [MPa], lengths [mm]"
+          f"{check.wall_s:.2f} s in all; stresses are von Mises [MPa], lengths [mm]; "
+          f"read-out: {readout_words(check.readout)}"
           + (f"; response surface: {check.surrogate}" if check.surrogate else ""))
     print(format_table(check.preds, check.verified))
     if args.yield_mpa is not None:

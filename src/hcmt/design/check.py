@@ -152,6 +152,36 @@ def cost_check(run, designs: list[tuple[str, Design]], settings: Settings, verif
                    " (model and solver)" if verify else " (model rollout)")
 
 
+def beside_model(p: Prediction, run, surrogate: Surrogate | None, interval: dict | None, cannot: list[str]) -> None:
+    """The surrogate's answer beside the model's in ``p.summary`` (and its range warnings), or the warning that it
+    cannot take the design."""
+    if cannot:
+        p.summary["warnings"].append(
+            f"the response surface cannot take {', '.join(cannot)} (held fixed over its training designs: "
+            "another design family); no surrogate answer for this design, the call trusts the model's band")
+    if interval is not None:
+        p.summary.update(side_by_side(p.summary, interval))
+        # a user's own surrogate has its own training ranges: warn for a parameter outside them too
+        own = set(outside(p.design, run.ranges))
+        p.summary["warnings"] += range_warnings(
+            p.design, {k: r for k, r in surrogate.ranges().items() if k not in own},
+            "the response surface's training designs")
+
+
+def check_options(verify, yield_mpa: float | None, batch: int, readout: str) -> None:
+    """:func:`check_designs`'s options, each refused naming its parameter."""
+    check_readout(readout)
+    if verify not in (True, False, "auto"):
+        raise InputError(f"must be True, False or 'auto', got {verify!r}", param="verify")
+    if yield_mpa is not None and not (np.isfinite(yield_mpa) and yield_mpa > 0):
+        raise InputError(f"must be a number > 0, got {yield_mpa}", param="yield_mpa")
+    if verify == "auto" and yield_mpa is None:
+        raise InputError("auto runs the solver on the designs whose call is undecided: it needs a yield stress "
+                         "(yield_mpa; --yield-mpa Y in hcmt predict and sweep)", param="verify")
+    if batch < 1:
+        raise InputError(f"must be >= 1, got {batch}", param="batch")
+
+
 def check_designs(run, designs: list[tuple[str, Design]], *, batch: int = 8, verify: bool | str = False,
                   yield_mpa: float | None = None, compile: str = "none", progress: bool = True,
                   force: bool = False, surrogate: Surrogate | str | Path | bool | None = True,
@@ -166,16 +196,7 @@ def check_designs(run, designs: list[tuple[str, Design]], *, batch: int = 8, ver
     answer is its own outputs whatever the surrogate; ``readout`` (:data:`hcmt.design.readout.READOUTS`) adds a
     derived read-out under its own names, which the calls then use (recorded as ``readout``); only ``contact``
     reads the surrogate (its bound on when the ball leaves)."""
-    check_readout(readout)
-    if verify not in (True, False, "auto"):
-        raise InputError(f"must be True, False or 'auto', got {verify!r}", param="verify")
-    if yield_mpa is not None and not (np.isfinite(yield_mpa) and yield_mpa > 0):
-        raise InputError(f"must be a number > 0, got {yield_mpa}", param="yield_mpa")
-    if verify == "auto" and yield_mpa is None:
-        raise InputError("auto runs the solver on the designs whose call is undecided: it needs a yield stress "
-                         "(yield_mpa; --yield-mpa Y in hcmt predict and sweep)", param="verify")
-    if batch < 1:
-        raise InputError(f"must be >= 1, got {batch}", param="batch")
+    check_options(verify, yield_mpa, batch, readout)
     settings = settings_of(run.meta)
     surrogate, note, ends_window = for_run(run, surrogate)
     notes = [note] if note else []
@@ -195,17 +216,7 @@ def check_designs(run, designs: list[tuple[str, Design]], *, batch: int = 8, ver
         p.summary["model"] = run.source
         p.summary["warnings"] = range_warnings(p.design, run.ranges)
         p.summary["confidence"] = confidence(p.design, run)
-        if cannot[i]:
-            p.summary["warnings"].append(
-                f"the response surface cannot take {', '.join(cannot[i])} (held fixed over its training designs: "
-                "another design family); no surrogate answer for this design, the call trusts the model's band")
-        if intervals is not None and intervals[i] is not None:
-            p.summary.update(side_by_side(p.summary, intervals[i]))
-            # a user's own surrogate has its own training ranges: warn for a parameter outside them too
-            own = set(outside(p.design, run.ranges))
-            p.summary["warnings"] += range_warnings(
-                p.design, {k: r for k, r in surrogate.ranges().items() if k not in own},
-                "the response surface's training designs")
+        beside_model(p, run, surrogate, intervals[i] if intervals is not None else None, cannot[i])
         p.summary["low_confidence"] = bool(weak_reasons(p))
     add_margin(preds, yield_mpa)
     add_calls(preds, yield_mpa, trust)

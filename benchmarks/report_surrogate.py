@@ -20,9 +20,10 @@ OUTSIDE = [k for k in SETS if k != "in_range"]  # the held-out designs outside t
 NO_CANDIDATE = 10.0  # a read-out whose median peak error is this many times the default's is no candidate
 POSITION_ERROR_MM = 1e-3  # a micrometre
 BOUND_WORDS = {"lo": "lower 95 % bound", "mean": "mean", "hi": "upper 95 % bound"}
-READOUT = ("The response surface predicts when the solver's ball leaves (`contact_end_ms`); its {bound} ends the "
-           "window (`CONTACT_END_BOUND`). After it, the plate's stress is its free-vibration bending stress "
-           "`k E t w_max / R²` from the predicted deflection (hcmt.design.readout).")
+READOUT = ("The contact read-out (`--readout contact`, reported as `contact_*`): the response surface predicts when "
+           "the solver's ball leaves (`contact_end_ms`); its {bound} ends the window (`CONTACT_END_BOUND`). After it, "
+           "the plate's stress is its free-vibration bending stress `k E t w_max / R²` from the predicted deflection "
+           "(hcmt.design.readout).")
 
 
 def _err(v: dict | None) -> str:
@@ -180,17 +181,20 @@ def ghost(lines: list[str], r: dict) -> None:
               "unloaded | peak plate stress error, median / worst |", "|---|---|---|---|"]
     bound = g.get("bound", "hi")
     other = "hi" if bound != "hi" else "lo"
-    names = {"learned": "learned head, every frame (hcmt 0.1)", "contact_own": "contact window of the model's own ball",
-             "contact": f"contact window ended at the GP's {BOUND_WORDS[bound]} of the contact end (default)",
+    first = g.get("default", "contact")  # results recorded before the model's own read-out was the default: contact
+    names = {"raw": "the model's own stress head, every frame", "learned": "learned head, every frame (hcmt 0.1)",
+             "contact_own": "contact window of the model's own ball",
+             "contact": f"contact window ended at the GP's {BOUND_WORDS[bound]} of the contact end",
              "contact_upper": f"contact window ended at the GP's {BOUND_WORDS[other]} of the contact end",
              "element": "element law on predicted positions"}
-    for key in [k for k in ("learned", "contact_own", "contact_upper", "contact", "element") if k in g]:
+    names[first] += " (default)"
+    for key in [k for k in ("raw", "learned", "contact_own", "contact_upper", "contact", "element") if k in g]:
         v = g[key]
         bad = v["peaks_where_solver_unloaded"]
         lines.append(f"| {names[key]} | {v['median_abs_diff']:.3f} / {v['median_abs_diff_in_range']:.3f} | "
                      f"{len(bad)}{' (' + ', '.join(bad[:4]) + (', ...' if len(bad) > 4 else '') + ')' if bad else ''} | "
                      f"{_err(v['peak_error'])} |")
-    default, own, lag = g["contact"], g["contact_own"], g["contact_end_lag_frames"]
+    default, own, lag = g[first], g["contact_own"], g["contact_end_lag_frames"]
     ok = default["median_abs_diff"] <= GHOST_GOAL
     late = lag["median"] > 0
     kinematic = late and own["median_abs_diff"] > default["median_abs_diff"]
@@ -228,7 +232,7 @@ def bound_choice(g: dict, bound: str, other: str) -> str:
 
 def element(g: dict) -> list[str]:
     """The element law on predicted positions against the default read-out, and the strain behind it."""
-    el, de = (g[k]["peak_error"]["median_abs_pct"] for k in ("element", "contact"))
+    el, de = (g[k]["peak_error"]["median_abs_pct"] for k in ("element", g.get("default", "contact")))
     verdict = "is no candidate" if el >= NO_CANDIDATE * de else "is a candidate"
     out = [f"The element law on predicted positions {verdict}: its median peak plate stress error is {el:.1f} % "
            f"against the default's {de:.1f} %."]

@@ -34,15 +34,25 @@ from hcmt.files import atomic_path
 from hcmt.design.check import Prediction, TRUSTS, call_of, check_designs, summarize, trusted_interval, verify_designs
 from hcmt.design.inputs import region_of, settings_of
 from hcmt.sim.scene import middle_design
-from hcmt.design.readout import CONTACT_END_BOUND, READOUTS, contact_gap, contact_window, ghost_ratio, summarize_fields
+from hcmt.design.readout import (CONTACT_END_BOUND, DEFAULT_READOUT, DERIVED_KEYS, READOUTS, readout_key,
+                                 summarize_fields)
+from hcmt.inference.quantities import contact_gap, contact_window, ghost_ratio
 from hcmt.design.surrogate import QUANTITIES, Z95, Surrogate, dataset_answers
-from hcmt.inference.metrics import plate_mask
+from hcmt.inference.quantities import plate_mask
 from hcmt.inference.run import Run
 from hcmt.sim.scene import Design, sample_design
 
 #: the issue's four thickness sweeps (drop height mm, yield MPa); two more get the solver's median peak as yield
 SWEEPS = [(600.0, 750.0), (600.0, 700.0), (800.0, 800.0), (800.0, 720.0), (700.0, None), (950.0, None)]
 SCALARS = ("peak_plate_stress_mpa", "max_deflection_mm", "peak_ball_stress_mpa")
+#: the read-out whose answer is "the model's" in the study: the design check's default (the model's own outputs)
+MODEL = DEFAULT_READOUT
+
+
+def as_read(s: dict, readout: str) -> dict:
+    """A summary with ``readout``'s derived fields (hcmt.design.readout.readout_key) read as the plain names: the
+    study compares read-outs side by side."""
+    return {**s, **{k: s[readout_key(k, readout)] for k in DERIVED_KEYS if readout_key(k, readout) in s}}
 #: the solver's plate is unloaded where its ball is gone and its plate stress is below this share of its peak
 UNLOADED = 0.10
 CURVE = (15, 30, 60, 120)
@@ -112,10 +122,11 @@ def record(p, t, frame_dt: float, end) -> dict:
     fields = p.fields()
     plate = plate_mask(p.cells, p.node_type)
     solver_window = contact_window(contact_gap(t.world_pos, t.mesh_pos, plate))
-    model = {r: summarize_fields(fields, frame_dt, r, p.wall_s,
-                                 getattr(end, CONTACT_END_BOUND) if r == "contact" else None) for r in READOUTS}
-    model["contact_upper"] = summarize_fields(fields, frame_dt, "contact", p.wall_s, end.hi)
-    model["contact_own"] = summarize_fields(fields, frame_dt, "contact", p.wall_s)
+    model = {r: as_read(summarize_fields(fields, frame_dt, r, p.wall_s,
+                                         getattr(end, CONTACT_END_BOUND) if r == "contact" else None), r)
+             for r in READOUTS}
+    model["contact_upper"] = as_read(summarize_fields(fields, frame_dt, "contact", p.wall_s, end.hi), "contact")
+    model["contact_own"] = as_read(summarize_fields(fields, frame_dt, "contact", p.wall_s), "contact")
     solver_stress = t.summary["plate_stress_history_mpa"]
     unloaded = [not w and h < UNLOADED * t.summary["peak_plate_stress_mpa"]
                 for w, h in zip(solver_window, solver_stress)]
@@ -170,8 +181,8 @@ def run_group(run, name: str, designs, work: Path, batch: int, frame_dt: float, 
                               modulus=z[f"{i}_modulus"])
             t = Prediction(n, d, z[f"{i}_solver_pos"], z[f"{i}_solver_stress"], *static, float(wall[1]),
                               modulus=z[f"{i}_modulus"])
-            p.summary = summarize(p, frame_dt, "contact", getattr(ends[i], CONTACT_END_BOUND))
-            t.summary = summarize(t, frame_dt, "learned")
+            p.summary = summarize(p, frame_dt)
+            t.summary = summarize(t, frame_dt)
             verify_designs([p], [t])
             rows.append(record(p, t, frame_dt, ends[i]))
     return rows
@@ -190,8 +201,8 @@ def compare(rows, fits) -> dict:
     answers = {name: f.predict(designs) for name, f in fits.items() if f is not None}
     for q in SCALARS:
         true = [r["solver"][q] for r in rows]
-        row = {"hcmt": errors([r["model"]["contact"][q] for r in rows], true),
-               "hcmt_learned_readout": errors([r["model"]["learned"][q] for r in rows], true)}
+        row = {"hcmt": errors([r["model"][MODEL][q] for r in rows], true),
+               **{f"hcmt_{k}_readout": errors([r["model"][k][q] for r in rows], true) for k in READOUTS if k != MODEL}}
         for name, a in answers.items():
             if not a or q not in a[0]:
                 continue
@@ -212,7 +223,7 @@ def calls(rows, gp, yield_mpa: float) -> dict:
     solver_pass = [r["solver"]["peak_plate_stress_mpa"] < yield_mpa for r in rows]
     out = {"yield_mpa": yield_mpa, "solver_minimum": _minimum(thick, solver_pass),
            "solver_peaks": [r["solver"]["peak_plate_stress_mpa"] for r in rows],
-           "model_peaks": [r["model"]["contact"]["peak_plate_stress_mpa"] for r in rows],
+           "model_peaks": [r["model"][MODEL]["peak_plate_stress_mpa"] for r in rows],
            "gp": [asdict(g["peak_plate_stress_mpa"]) for g in gps]}
     for trust in TRUSTS:
         made, final = [], []
@@ -226,7 +237,7 @@ def calls(rows, gp, yield_mpa: float) -> dict:
                       "wrong_fail": int(sum(f == "fail" and ok for f, ok in zip(final, solver_pass))),
                       "solver_runs": int(sum(c == "undecided" for c in made)),
                       "minimum": _minimum(thick, [f == "pass" for f in final])}
-    model_pass = [r["model"]["contact"]["peak_plate_stress_mpa"] < yield_mpa for r in rows]
+    model_pass = [r["model"][MODEL]["peak_plate_stress_mpa"] < yield_mpa for r in rows]
     out["model_alone"] = {"unsafe": int(sum(m and not ok for m, ok in zip(model_pass, solver_pass))),
                           "minimum": _minimum(thick, model_pass)}
     return out
@@ -235,7 +246,7 @@ def calls(rows, gp, yield_mpa: float) -> dict:
 def _summary(r: dict, g: dict) -> dict:
     """The part of a design check summary :func:`hcmt.design.check.trusted_interval` reads: the model's peak
     (default read-out) and the GP's interval of it."""
-    return {"peak_plate_stress_mpa": r["model"]["contact"]["peak_plate_stress_mpa"],
+    return {"peak_plate_stress_mpa": r["model"][MODEL]["peak_plate_stress_mpa"],
             "surrogate": {"peak_plate_stress_mpa": asdict(g["peak_plate_stress_mpa"])}}
 
 
@@ -264,7 +275,7 @@ def note_rules(rows, gp, card) -> dict:
     designs = [Design(**r["design"]) for r in rows]
     out = []
     for r, d, g in zip(rows, designs, gp.predict(designs)):
-        m = r["model"]["contact"]["peak_plate_stress_mpa"]
+        m = r["model"][MODEL]["peak_plate_stress_mpa"]
         iv = g["peak_plate_stress_mpa"]
         out.append({"error_pct": 100 * (m - r["solver"]["peak_plate_stress_mpa"]) / r["solver"]["peak_plate_stress_mpa"],
                     "region": card(d), "outside_interval": not iv.lo <= m <= iv.hi,
@@ -361,6 +372,7 @@ def main() -> None:
                                                 [x["solver"]["peak_plate_stress_mpa"] for x in allheld])}
                        for r in (*READOUTS, "contact_upper", "contact_own")}
     result["ghost"]["bound"] = CONTACT_END_BOUND
+    result["ghost"]["default"] = MODEL
     before = [x["solver_peak_before_lower_end_frames"] for x in allheld]
     result["ghost"]["solver_peak_before_lower_end_frames"] = {"min": int(min(before)), "max": int(max(before))}
     result["ghost"]["designs"] = len(allheld)
@@ -369,8 +381,8 @@ def main() -> None:
                                                  "max": int(max(lags)), "designs": len(lags)}
     result["ghost"]["solver_median"] = float(np.median([x["solver_ghost"] for x in allheld]))
     result["time_of_peak"] = {
-        "t95_frames_off_median": float(np.median([abs(x["model"]["contact"]["t95_frame_error"]) for x in allheld])),
-        "argmax_frames_off_median": float(np.median([abs(x["model"]["contact"]["argmax_frame_error"])
+        "t95_frames_off_median": float(np.median([abs(x["model"][MODEL]["t95_frame_error"]) for x in allheld])),
+        "argmax_frames_off_median": float(np.median([abs(x["model"][MODEL]["argmax_frame_error"])
                                                      for x in allheld])),
         "critical_node_correlation_median": float(np.nanmedian([x["critical_node_history_correlation"]
                                                                 for x in allheld])),

@@ -44,7 +44,7 @@ from hcmt.data.format import Split, read_meta, write_meta, write_split
 from hcmt.files import atomic_path
 from hcmt.design.surrogate import Surrogate, dataset_answers
 from hcmt.inference.evaluate import evaluate
-from hcmt.inference.metrics import plate_mask
+from hcmt.inference.quantities import peak, plate_mask
 from hcmt.inference.run import Run
 from hcmt.data.runs import RunFolder
 from hcmt.sim.scene import Settings, design_from_attrs, simulate
@@ -95,11 +95,10 @@ def critical_distance(rollout: Path, data: Path, split: str, limit: int) -> dict
     with h5py.File(rollout, "r") as f, Split(data, split) as s:
         for i, name in enumerate(s.names[:limit]):
             t = s[i]
-            plate = np.flatnonzero(plate_mask(t["cells"], t["node_type"]))
+            plate = plate_mask(t["cells"], t["node_type"])
             start = int(f[name].attrs["start"])
-            pred, true = f[name]["stress"][start:, plate, 0], t["stress"][start:, plate, 0]
-            a = plate[np.argmax(pred.max(0))]
-            b = plate[np.argmax(true.max(0))]
+            a = peak(f[name]["stress"][start:], plate)[2]
+            b = peak(t["stress"][start:], plate)[2]
             out[name] = float(np.linalg.norm(t["mesh_pos"][a] - t["mesh_pos"][b]))
     return out
 

@@ -88,6 +88,8 @@ def cases(tmp: Path) -> list[tuple[list[str], str]]:
         (["predict", str(tmp / "nothere"), "--design", "thickness=0.7"], "MODEL " + str(tmp / "nothere")),
         (["predict", model, "--design", "thickness=0.7", "--batch", "100000"], "argument --batch: expected"),
         (["sweep", model, "--vary", "thickness=0.5:1:1000"], "--vary 'thickness=0.5:1:1000': N must be between"),
+        (["predict", model, "--design", "thickness=0.7", "--readout", "peak"], "argument --readout: invalid choice"),
+        (["sweep", model, "--vary", "thickness=0.5:1:3", "--readout", "learned"], "argument --readout: invalid"),
         (["generate", "impact-plate", out, "--workers", "100000"], "argument --workers: expected a whole number"),
         (["generate", "impact-plate", out, "--train", str(MAX_TRAJECTORIES + 1)], "argument --train: expected"),
         (["generate", "impact-plate", out, "--family", "nosuch"], "--family 'nosuch'"),

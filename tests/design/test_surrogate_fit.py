@@ -135,9 +135,9 @@ def test_a_window_that_never_saw_the_ball_leave_is_not_used(run, tmp_path, monke
     for name, censored in (("fits.json", 69), ("never.json", 120)):
         doc["dataset"]["censored"] = censored
         with pytest.raises(Stop):
-            check_designs(run, designs, progress=False, surrogate=write(tmp_path, doc, name))
+            check_designs(run, designs, progress=False, surrogate=write(tmp_path, doc, name), readout="contact")
     with pytest.raises(Stop):
-        check_designs(run, designs, progress=False, surrogate=SHIPPED)  # format 1 given as a file
+        check_designs(run, designs, progress=False, surrogate=SHIPPED, readout="contact")  # format 1 as a file
     lo = [iv["contact_end_ms"].lo for iv in Surrogate.load(SHIPPED).predict([d for _, d in designs])]
     assert seen[0] == pytest.approx(lo) and seen[1] is None and seen[2] is None
     assert "did the ball leave" in for_run(run, tmp_path / "never.json")[1]

@@ -22,6 +22,11 @@ from hcmt.inference.run import Run
 from hcmt.sim.scene import DESIGN_KEYS, DESIGN_UNITS, FAMILIES, describe_family, middle_design, parse_design
 
 
+def readout_words(readout: str) -> str:
+    """The header's words for the read-out used."""
+    return "raw (the model's own outputs)" if readout == "raw" else f"{readout} (as {readout}_*, beside the raw)"
+
+
 def print_notes(command: str, check) -> None:
     for note in check.notes:
         print(f"hcmt {command}: note: {note}", file=sys.stderr)
@@ -46,7 +51,8 @@ def main_predict(args: argparse.Namespace) -> int:
     print_notes("predict", check)
     preds, truth = check.preds, check.truth
     print(f"{run.label} ({run.source}) on {run.device}: {plural(len(preds), 'design')}, {check.settings.frames} frames of "
-          f"{check.settings.frame_dt} ms, {check.wall_s:.2f} s in all; stresses are von Mises [MPa], lengths [mm]"
+          f"{check.settings.frame_dt} ms, {check.wall_s:.2f} s in all; stresses are von Mises [MPa], lengths [mm]; "
+          f"read-out: {readout_words(check.readout)}"
           + (f"; response surface: {check.surrogate}" if check.surrogate else ""))
     print(format_table(preds, check.verified))
     if args.yield_mpa is not None:
@@ -102,7 +108,8 @@ def main_sweep(args: argparse.Namespace) -> int:
                                compile=args.compile, force=args.force, **options)
     print_notes("sweep", check)
     print(f"{run.label} ({run.source}) on {run.device}: {param} from {lo:g} to {hi:g} in {n} points, "
-          f"{check.wall_s:.2f} s in all; stresses are von Mises [MPa], lengths [mm]"
+          f"{check.wall_s:.2f} s in all; stresses are von Mises [MPa], lengths [mm]; "
+          f"read-out: {readout_words(check.readout)}"
           + (f"; response surface: {check.surrogate}" if check.surrogate else ""))
     print(format_table(check.preds, check.verified))
     if args.yield_mpa is not None:

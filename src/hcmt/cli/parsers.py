@@ -15,7 +15,7 @@ from pathlib import Path
 from hcmt.cli import CommandError, check_outputs
 from hcmt.config import (ABLATIONS, COMPILE_MODES, INIT_NORMALIZERS, MAX_BATCH, MAX_DESIGNS, MAX_TRAJECTORIES, MODELS,
                          available_pretrained, load_config, machine_cores)
-from hcmt.design.basics import QUANTITIES, RESTARTS, parse_vary, read_table
+from hcmt.design.basics import DEFAULT_READOUT, QUANTITIES, READOUTS, RESTARTS, parse_vary, read_table
 from hcmt.errors import clip
 from hcmt.sim.params import (CONTACT_RADIUS, DESIGN_UNITS, FAMILIES, MATERIALS, MAX_ESTIMATED_SECONDS, RANGES,
                              Design, Settings, describe_family, design_key, design_values, parse_stack,
@@ -79,6 +79,16 @@ def surrogate_args(p: argparse.ArgumentParser) -> None:
     g.add_argument("--surrogate", metavar="FILE.json", help="the response surface to report beside the model (made "
                    "by `hcmt surrogate fit`; default: the model's own, shipped with it or RUN/surrogate.json)")
     g.add_argument("--no-surrogate", action="store_true", help="no response surface: the mesh model alone")
+
+
+def readout_arg(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--readout", choices=READOUTS, default=DEFAULT_READOUT,
+                   help="raw (default): the mesh model's answer is its own outputs (stress field and positions) in "
+                        "every frame, whatever the response surface; contact: also report (as contact_*) the peak "
+                        "from the frames the ball touches the plate, the window ending at the response surface's "
+                        "bound of when the ball leaves, and a bending formula after it; element: also report (as "
+                        "element_*) the solver's element law on the predicted positions. The calls and trends use "
+                        "the chosen read-out; the JSON records it")
 
 
 def model_arg(p: argparse.ArgumentParser) -> None:
@@ -351,6 +361,7 @@ def configure_predict(p: argparse.ArgumentParser) -> None:
                    "and a pass / fail / undecided call per design from the trusted interval")
     verify_arg(p, "report the errors and the speedup")
     surrogate_args(p)
+    readout_arg(p)
     p.add_argument("--images", action="store_true", help="stress-contour PNG at each design's peak frame")
     p.add_argument("--out", default="predict_out", help="folder for --images (default predict_out)")
     p.add_argument("--force", action="store_true", help="run even designs estimated to take over 600 s")
@@ -381,7 +392,7 @@ def check_options(args) -> dict:
     verify = {"all": True, "auto": "auto", None: False}[args.verify]
     if verify == "auto" and args.yield_mpa is None:
         raise CommandError("--verify auto runs the solver on the designs whose call is undecided: give --yield-mpa Y")
-    return {"verify": verify, "yield_mpa": args.yield_mpa,
+    return {"verify": verify, "yield_mpa": args.yield_mpa, "readout": args.readout,
             "surrogate": False if args.no_surrogate else (args.surrogate or True)}
 
 
@@ -411,6 +422,7 @@ def configure_sweep(p: argparse.ArgumentParser) -> None:
     p.add_argument("--yield-mpa", type=float, help="report the smallest / largest parameter value that keeps the "
                    "peak plate stress below this stress (MPa) from the final calls, for model and solver")
     surrogate_args(p)
+    readout_arg(p)
     p.add_argument("--device", help="cpu, cuda, cuda:N (default: cuda when available)")
     batch_arg(p, "designs per model call", None, "the whole sweep in one batch")
     compile_arg(p)

@@ -1,6 +1,6 @@
 """The design check's light pieces: what the command's parsers and its first checks need before torch, scikit-learn
 or the solver load (a refused ``--designs`` file or ``--vary`` in a fraction of a second): the surrogate's answers
-and restarts, design names, the table of a designs CSV and a sweep's range."""
+and restarts, the read-outs' names, design names, the table of a designs CSV and a sweep's range."""
 from __future__ import annotations
 
 import csv
@@ -15,6 +15,10 @@ from hcmt.sim.params import DESIGN_KEYS
 QUANTITIES = ("peak_plate_stress_mpa", "peak_ball_stress_mpa", "max_deflection_mm", "peak_plate_t95_ms",
               "contact_end_ms")
 RESTARTS = 3  # optimizer restarts of the marginal likelihood (the issue's comparison used 3)
+#: the design check's read-outs (:mod:`hcmt.design.readout`): ``raw``, the model's own outputs alone (the default);
+#: the others add a derived read-out under their own names
+READOUTS = ("raw", "contact", "element")
+DEFAULT_READOUT = "raw"
 
 
 def check_name(name, where: str) -> str:

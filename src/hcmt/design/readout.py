@@ -1,33 +1,28 @@
-"""What an engineer reads off an Impact Plate trajectory (predicted or simulated): peaks, their time, deflection.
+"""What the design check reads off an Impact Plate trajectory (predicted or simulated), and its derived read-outs.
 
 :func:`summarize_fields` turns a trajectory's fields (``world_pos [T, N, 2]``, ``stress [T, N, 1]``, ``mesh_pos``,
-``cells``, ``node_type``, ``modulus``) into the design check's numbers:
+``cells``, ``node_type``, ``modulus``) into the design check's numbers. Its default fields are always the
+trajectory's own quantities (:func:`hcmt.inference.quantities.impact_summary`: peak plate and ball stress, where,
+when, ``peak_plate_t95_ms`` (the rise time: the first frame at 95 % of the peak), maximum and far-field
+deflection, the contact frames, ``contact_end_ms``, ``ghost_ratio``, ``rebounds`` and
+``plate_stress_history_mpa``): for a learned model its stress head and its positions in every frame, nothing
+else. They do not depend on the response surface.
 
-* ``peak_plate_stress_mpa`` (where, mm; when, ms; ``peak_plate_frame``: the argmax frame); with the ``contact``
-  read-out only from frames where the ball touches the plate (:func:`contact_gap` ≤ :data:`CONTACT_TOL`, up to
-  :data:`CONTACT_GRACE` frames after the last touch): the solver's peak lies inside contact in every one of the
-  120 training runs of the shipped model, and a learned head's stress left over after the ball has gone ("ghost
-  stress") is no peak;
-* ``peak_plate_t95_ms``: the first frame whose plate stress reaches 95 % of the peak. The solver's peak is a
-  plateau (a median of 7.5 frames lie within 5 % of it), so the argmax frame swings by ±10 frames on noise; the
-  first 95 % crossing does not;
-* ``plate_stress_history_mpa``: the plate's largest von Mises per frame, as read with ``readout`` (below);
-* the ball's peak, ``max_deflection_mm = max |u_y|`` over the plate's nodes and frames, the contact frames and
-  ``contact_end_ms``, when the ball leaves (the frame after its last touch; the window's end when it never does).
+``readout`` (:data:`READOUTS`, recorded as ``readout``) may add one *derived* read-out, every number of which lies
+under its own name, prefixed by the read-out's (:func:`readout_key`), never under a default field's:
 
-``readout`` is how a *learned* trajectory's plate stress is read (:data:`READOUTS`):
-
-* ``learned``: the model's stress head in every frame, the peak over every frame (hcmt 0.1's reading);
-* ``contact`` (recommended, the design check's default): the stress head while the predicted ball touches the
-  plate, the window ending no later than the response surface's lower 95 % bound of when the solver's ball leaves
-  (``contact_end_ms``, :data:`CONTACT_END_BOUND`: a learned ball rebounds late); after that, the plate's
-  free-vibration bending stress from its predicted deflection, ``σ ≈ k E t w_max / R²`` (Kirchhoff plate: bending
-  stress is linear in the deflection; ``k`` = :data:`BENDING_K`, the median over the shipped model's 120 training
-  runs' post-separation frames; the static clamped-plate point-load solution gives ``2 / (1 − ν²) ≈ 2.1`` at the
-  clamp, the measured ratio holds the vibrating shape's higher curvature near the centre);
-* ``element``: the solver's own element law (CST, St Venant-Kirchhoff) on the predicted positions. Measured: its
-  peak is off by a median +459 % on 8 designs (a 1 µm position error across a 0.3 mm element is a strain of
-  3e-3, 230 MPa in glass), so it is offered for study, not used.
+* ``raw`` (default): none; the model's own answer is the answer;
+* ``contact``: ``contact_peak_plate_*`` from the frames where the predicted ball touches the plate only
+  (:func:`hcmt.inference.quantities.contact_window`), the window ending no later than a bound on when the solver's
+  ball leaves when one is given (the design check passes the response surface's :data:`CONTACT_END_BOUND`;
+  ``contact_window_end_ms`` and ``contact_window_end_from`` say where it ended), and
+  ``contact_plate_stress_history_mpa``: the stress head inside the window, after it the plate's free-vibration
+  bending stress from its predicted deflection, ``σ ≈ k E t w_max / R²`` (Kirchhoff plate; ``k`` =
+  :data:`BENDING_K`, fitted to the shipped model's 120 training runs' post-separation frames). This read-out
+  depends on the response surface and on a fitted constant: it hides what the model predicts after contact;
+* ``element``: ``element_peak_plate_*`` and ``element_plate_stress_history_mpa`` from the solver's own element
+  law (CST, St Venant-Kirchhoff) on the predicted positions. Measured: its peak is off by a median +459 % on 8
+  designs (a 1 µm position error across a 0.3 mm element is a strain of 3e-3, 230 MPa in glass): for study.
 
 docs/MODELS.md, "Ghost stress", has the comparison.
 """
@@ -35,53 +30,40 @@ from __future__ import annotations
 
 import numpy as np
 
+from hcmt.design.basics import DEFAULT_READOUT, READOUTS  # noqa: F401 (light: the parsers read them there)
 from hcmt.errors import InputError
-from hcmt.inference.metrics import plate_mask
+from hcmt.inference import quantities as q
+from hcmt.inference.quantities import contact_gap, contact_window, ghost_ratio, plate_mask  # noqa: F401
 from hcmt.sim.solver import build_model, nodal_von_mises
 
-#: the ball touches the plate when its lowest point on the axis is at most this far above the plate's top (mm).
-#: The solver's penalty contact penetrates 4-7 µm and opens 0-8 µm in the first frame after separation, but a
-#: learned rollout's ball floats up to 26 µm above a plate it still loads (a thin plate, 70 µm position RMSE):
-#: 50 µm, a sixth of the mesh size, tells touching from gone for both
-CONTACT_TOL = 0.05
-#: frames after the last touch still searched for the peak (the stress wave needs a frame to leave the zone)
-CONTACT_GRACE = 1
 #: the post-separation bending coefficient of the ``contact`` read-out: σ = k E t w_max / R² (median of
 #: σ_plate / (E t w_max / R²) over the post-separation frames of the shipped model's 120 training runs, which
 #: ranged 3.8-8.1)
 BENDING_K = 5.0
-READOUTS = ("contact", "learned", "element")
 #: which bound of the response surface's 95 % interval of ``contact_end_ms`` ends the ``contact`` read-out's window:
-#: ``lo``, the frames where the solver's ball has surely not left yet. Measured on the 46 held-out designs
-#: (benchmarks/surrogate.py, docs/RESULTS.md "Ghost stress"): with ``hi`` one peak (both_3, outside the training
-#: ranges, where the interval widens to 15 frames) came from a frame where the solver's ball had gone and its
-#: plate was unloaded; with ``lo`` none, the peak errors unchanged and the ghost difference 0.037 instead of
-#: 0.051 (the solver's peak came 11-55 frames before the lower bound)
+#: ``lo``, the frames where the solver's ball has surely not left yet (docs/RESULTS.md "Ghost stress")
 CONTACT_END_BOUND = "lo"
+#: the keys a derived read-out reports under its own name (:func:`readout_key`)
+DERIVED_KEYS = ("peak_plate_stress_mpa", "peak_plate_where_mm", "peak_plate_when_ms", "peak_plate_frame",
+                "peak_plate_node", "peak_plate_t95_frame", "peak_plate_t95_ms", "plate_stress_history_mpa")
 
 
-def axis_nodes(mesh_pos: np.ndarray, plate: np.ndarray) -> tuple[int, int]:
-    """(the ball's lowest node, the plate's top node) on the symmetry axis ``x = 0`` at rest."""
-    axis = np.abs(mesh_pos[:, 0]) < 1e-6
-    ball_axis, plate_axis = np.flatnonzero(~plate & axis), np.flatnonzero(plate & axis)
-    if not len(ball_axis) or not len(plate_axis):
-        raise InputError("no ball and plate nodes on the symmetry axis x = 0: not an Impact Plate mesh")
-    return int(ball_axis[np.argmin(mesh_pos[ball_axis, 1])]), int(plate_axis[np.argmax(mesh_pos[plate_axis, 1])])
+def check_readout(readout: str) -> str:
+    """``readout`` when it is one of :data:`READOUTS`; InputError (param ``readout``) otherwise."""
+    if readout not in READOUTS:
+        raise InputError(f"must be one of {', '.join(READOUTS)}, got {readout!r}", param="readout")
+    return readout
 
 
-def contact_gap(world_pos: np.ndarray, mesh_pos: np.ndarray, plate: np.ndarray) -> np.ndarray:
-    """[T] the gap between the ball's lowest point and the plate's top on the axis (mm; negative: penetration)."""
-    ball_node, plate_node = axis_nodes(mesh_pos, plate)
-    return world_pos[:, ball_node, 1] - world_pos[:, plate_node, 1]
+def readout_key(key: str, readout: str) -> str:
+    """Where ``readout`` reports ``key``: the default field for ``raw`` and for keys it does not derive, else
+    ``<readout>_<key>``."""
+    return key if readout == "raw" or key not in DERIVED_KEYS else f"{readout}_{key}"
 
 
-def contact_window(gap: np.ndarray, tol: float = CONTACT_TOL, grace: int = CONTACT_GRACE) -> np.ndarray:
-    """[T] bool: the frames from the first touch to ``grace`` frames after the last (all False when none)."""
-    touch = np.flatnonzero(gap <= tol)
-    out = np.zeros(len(gap), bool)
-    if len(touch):
-        out[touch[0]:min(len(gap), touch[-1] + grace + 1)] = True
-    return out
+def chosen(summary: dict, key: str) -> float:
+    """``key`` as the summary's chosen read-out (its ``readout``) reports it."""
+    return summary[readout_key(key, summary.get("readout", "raw"))]
 
 
 def bending_stress(world_pos: np.ndarray, mesh_pos: np.ndarray, plate: np.ndarray, modulus: np.ndarray,
@@ -90,7 +72,7 @@ def bending_stress(world_pos: np.ndarray, mesh_pos: np.ndarray, plate: np.ndarra
     E = float(np.median(np.asarray(modulus).reshape(-1)[plate]))
     y, r = mesh_pos[plate, 1], mesh_pos[plate, 0]
     t, R = float(y.max() - y.min()), float(r.max())
-    w = np.abs(world_pos[:, plate, 1] - mesh_pos[None, plate, 1]).max(1)
+    w = np.abs(q.deflection(world_pos, mesh_pos, plate)).max(1)
     return k * E * t * w / R**2
 
 
@@ -106,71 +88,61 @@ def element_stress(world_pos: np.ndarray, fields: dict, formulation: str = "axis
     return np.stack([nodal_von_mises(model, np.asarray(x, np.float64)) for x in world_pos])
 
 
-def plate_history(fields: dict, readout: str = "learned", *, plate: np.ndarray | None = None,
-                  window: np.ndarray | None = None, field: np.ndarray | None = None,
-                  k: float = BENDING_K) -> np.ndarray:
-    """[T] the plate's largest von Mises stress per frame as read with ``readout`` (:data:`READOUTS`); ``field``
-    [T, N]: the nodal stress already read (default: the ``stress`` field, or the element law for ``element``)."""
-    if readout not in READOUTS:
-        raise InputError(f"stress read-out must be one of {', '.join(READOUTS)}, got {readout!r}")
-    plate = plate_mask(fields["cells"], fields["node_type"]) if plate is None else plate
-    x, X = np.asarray(fields["world_pos"]), np.asarray(fields["mesh_pos"])
-    if field is None:
-        field = element_stress(x, fields) if readout == "element" else np.asarray(fields["stress"])[..., 0]
-    s = field[:, plate].max(1).astype(np.float64)
-    if readout == "contact":
-        window = contact_window(contact_gap(x, X, plate)) if window is None else window
-        after = np.arange(len(s)) > (np.flatnonzero(window)[-1] if window.any() else len(s))
-        s = np.where(after, bending_stress(x, X, plate, fields["modulus"], k), s)
-    return s
+def _plate_readout(stress, plate, x, frame_dt: float, frames=None, history=None) -> dict:
+    """The plate's peak block (:data:`DERIVED_KEYS`) of a stress field read on ``frames`` (default all)."""
+    out = q.peak_fields(stress, plate, x, frame_dt, "plate", frames)
+    history = q.body_history(stress, plate) if history is None else history
+    first = q.rise_frame(history, out["peak_plate_stress_mpa"], frames)
+    out.update(peak_plate_t95_frame=first, peak_plate_t95_ms=float(max(first, 1) * frame_dt),
+               plate_stress_history_mpa=[float(v) for v in history])
+    return out
 
 
-def summarize_fields(fields: dict, frame_dt: float, readout: str = "learned", wall_s: float = 0.0,
-                     contact_end_ms: float | None = None) -> dict:
-    """The design check's numbers of one trajectory (module docstring); ``readout`` as :func:`plate_history`
-    (a solver trajectory is read with ``learned``: its stress is the truth). ``contact_end_ms``: a bound on when
-    the ball leaves (the response surface's :data:`CONTACT_END_BOUND` of the solver's ``contact_end_ms``); the
-    ``contact`` read-out's window ends there even when the learned ball lingers (a rollout's ball rebounds late:
-    5-38 frames on thick plates, the cause of its ghost stress)."""
-    cells, node_type = np.asarray(fields["cells"]), np.asarray(fields["node_type"]).reshape(-1)
+def contact_readout(fields: dict, frame_dt: float, contact_end_ms: float | None = None,
+                    k: float = BENDING_K) -> dict:
+    """The ``contact`` read-out's fields (module docstring), every key prefixed ``contact_``."""
     x, X = np.asarray(fields["world_pos"]), np.asarray(fields["mesh_pos"])
-    if readout not in READOUTS:
-        raise InputError(f"stress read-out must be one of {', '.join(READOUTS)}, got {readout!r}")
-    s = element_stress(x, fields) if readout == "element" else np.asarray(fields["stress"])[..., 0]
-    plate = plate_mask(cells, node_type)
-    gap = contact_gap(x, X, plate)
-    window = contact_window(gap)
-    if contact_end_ms is not None and np.isfinite(contact_end_ms) and readout == "contact" and window.any():
+    plate = plate_mask(fields["cells"], fields["node_type"])
+    window, source = contact_window(contact_gap(x, X, plate)), "the predicted ball's last touch"
+    if not window.any():
+        window, source = np.ones(len(x), bool), "the ball never touches: every frame"
+    elif contact_end_ms is not None and np.isfinite(contact_end_ms):
         cut = max(int(np.floor(contact_end_ms / frame_dt)), int(np.flatnonzero(window)[0]))
-        window[cut + 1:] = False
-    # the contact read-out's peak comes from contact frames only (every frame when the ball never touches)
-    eligible = window if readout == "contact" and window.any() else np.ones(len(s), bool)
-    history = plate_history(fields, readout, plate=plate, window=window, field=s)
-    out = {}
-    for body, mask in (("plate", plate), ("ball", ~plate)):
-        nodes = np.flatnonzero(mask)
-        sb = np.where(eligible[:, None], s[:, nodes], -np.inf) if body == "plate" else s[:, nodes]
-        t, j = np.unravel_index(np.argmax(sb), sb.shape)
-        node = nodes[j]
-        out[f"peak_{body}_stress_mpa"] = float(s[t, node])
-        out[f"peak_{body}_where_mm"] = [float(v) for v in x[t, node]]
-        out[f"peak_{body}_when_ms"] = float(t * frame_dt)
-        out[f"peak_{body}_frame"] = int(t)
-        if body == "plate":
-            out["peak_plate_node"] = int(node)
-    peak = out["peak_plate_stress_mpa"]
-    first = int(np.flatnonzero((history >= 0.95 * peak) & eligible)[0]) if np.any(
-        (history >= 0.95 * peak) & eligible) else out["peak_plate_frame"]
-    out["peak_plate_t95_frame"] = first
-    out["peak_plate_t95_ms"] = float(max(first, 1) * frame_dt)  # > 0: the surrogate takes its log
-    u_y = np.abs(x[:, plate, 1] - X[None, plate, 1])
-    out["max_deflection_mm"] = float(u_y.max())
-    touch = np.flatnonzero(gap <= CONTACT_TOL)
-    out["contact_frames"] = [int(touch[0]), int(touch[-1])] if len(touch) else None
-    # when the ball leaves: the frame after its last touch (the window's end when it never leaves: censored)
-    out["contact_end_ms"] = float((touch[-1] + 1 if len(touch) else 1) * frame_dt)
-    out["stress_readout"] = readout
-    out["plate_stress_history_mpa"] = [float(v) for v in history]
+        if window[cut + 1:].any():
+            window[cut + 1:] = False
+            source = f"the response surface's {CONTACT_END_BOUND} bound of when the solver's ball leaves"
+    last = int(np.flatnonzero(window)[-1])
+    history = q.body_history(fields["stress"], plate)
+    after = np.arange(len(history)) > last
+    history = np.where(after, bending_stress(x, X, plate, fields["modulus"], k), history)
+    out = _plate_readout(fields["stress"], plate, x, frame_dt, window, history)
+    out = {readout_key(key, "contact"): v for key, v in out.items()}
+    return {**out, "contact_window_end_ms": float((last + 1) * frame_dt), "contact_window_end_from": source,
+            "contact_bending_k": float(k)}
+
+
+def element_readout(fields: dict, frame_dt: float) -> dict:
+    """The ``element`` read-out's fields (module docstring), every key prefixed ``element_``."""
+    x = np.asarray(fields["world_pos"])
+    plate = plate_mask(fields["cells"], fields["node_type"])
+    out = _plate_readout(element_stress(x, fields), plate, x, frame_dt)
+    return {readout_key(key, "element"): v for key, v in out.items()}
+
+
+def summarize_fields(fields: dict, frame_dt: float, readout: str = DEFAULT_READOUT, wall_s: float = 0.0,
+                     contact_end_ms: float | None = None) -> dict:
+    """The design check's numbers of one trajectory (module docstring): its own quantities, and with a derived
+    ``readout`` that read-out's fields under their own names; ``contact_end_ms``: the ``contact`` read-out's bound
+    on when the ball leaves (ignored by the others)."""
+    check_readout(readout)
+    x, X = np.asarray(fields["world_pos"]), np.asarray(fields["mesh_pos"])
+    plate = plate_mask(fields["cells"], fields["node_type"])
+    out = q.impact_summary(x, fields["stress"], X, plate, frame_dt)
+    out["readout"] = readout
+    if readout == "contact":
+        out.update(contact_readout(fields, frame_dt, contact_end_ms))
+    elif readout == "element":
+        out.update(element_readout(fields, frame_dt))
     out["wall_s"] = float(wall_s)
     return out
 
@@ -181,8 +153,3 @@ def history_correlation(model_stress: np.ndarray, solver_stress: np.ndarray, nod
     if a.std() == 0 or b.std() == 0:
         return float("nan")
     return float(np.corrcoef(a, b)[0, 1])
-
-
-def ghost_ratio(history, peak: float, last: int = 10) -> float:
-    """Mean plate stress over the last ``last`` frames ÷ the peak: how much stress remains at the window's end."""
-    return float(np.mean(np.asarray(history)[-last:]) / peak)

@@ -15,6 +15,7 @@ from hcmt.sim.scene import DESIGN_KEYS
 from hcmt.viz.contours import plot_contours
 from hcmt.viz.rollouts import Case, Series
 from hcmt.design.check import Check, Prediction, weak_reasons
+from hcmt.design.readout import chosen, readout_key
 
 
 # -- output --------------------------------------------------------------------------------------------------------
@@ -40,6 +41,9 @@ def _interval(block: dict | None, fmt: str = "{:.0f}") -> str:
 
 def table_rows(preds: list[Prediction]) -> tuple[list[str], list[list[str]]]:
     cols = [c for c in COLUMNS if c[2] != "yield_margin_mpa" or "yield_margin_mpa" in preds[0].summary]
+    derived = readout_key("peak_plate_stress_mpa", preds[0].summary.get("readout", "raw"))
+    if derived != "peak_plate_stress_mpa":  # the chosen derived read-out's peak beside the model's own
+        cols.insert(2, (f"{preds[0].summary['readout']} MPa", "{:.1f}", derived))
     with_surrogate = any("surrogate" in p.summary for p in preds)
     vcols = VERIFY_COLUMNS if any("verify" in p.summary for p in preds) else []
     head = [c[0] for c in cols[:2]] + (["surrogate MPa [95 %]"] if with_surrogate else []) + \
@@ -65,15 +69,14 @@ def format_table(preds: list[Prediction], verified: dict | None = None) -> str:
     if verified:
         v = verified
         lines.append(
-            f"against the solver over {plural(v['designs'], 'design')}: peak plate stress error median "
-            f"{v['peak_plate_stress_error_pct']['median']:.1f} % (worst {v['peak_plate_stress_error_pct']['max']:.1f} %), "
-            f"location median {v['peak_plate_location_error_mm']['median']:.2f} mm, deflection error median "
-            f"{v['max_deflection_error_pct']['median']:.1f} % (worst {v['max_deflection_error_pct']['max']:.1f} %), "
-            f"speedup median {v['speedup']['median']:.1f}x")
-        lines.append(f"  time of the peak (first frame at 95 % of it): median {v['peak_plate_t95_frame_error']['median']:.1f} "
-                     f"frames off; the critical node's stress history, model against solver: correlation median "
-                     f"{v['critical_node_history_correlation']['median']:.2f} (lowest "
-                     f"{v['critical_node_history_correlation']['min']:.2f})")
+            f"against the solver over {plural(v['designs'], 'design')}: location of the plate's peak median "
+            f"{v['peak_plate_location_error_mm']['median']:.2f} mm off, speedup median {v['speedup']['median']:.1f}x")
+        lines.append(f"  rise time (first frame at 95 % of the plate's peak): median "
+                     f"{v['peak_plate_t95_frame_error']['median']:.1f} frames off; the critical node's stress history, "
+                     f"model against solver: correlation median {v['critical_node_history_correlation']['median']:.2f} "
+                     f"(lowest {v['critical_node_history_correlation']['min']:.2f})")
+        lines += [f"  {k.split('_peak')[0]} read-out's peak plate stress error median {e['median']:.1f} % (worst "
+                  f"{e['max']:.1f} %)" for k, e in v.items() if k.endswith("_peak_plate_stress_error_pct")]
         lines += [line[2:] for line in format_physics(v["physics"])]
     lines += [f"solver warning: {p.name}: {w}" for p in preds for w in p.summary.get("verify", {}).get(
         "solver_warnings", [])]
@@ -85,12 +88,14 @@ def format_calls(preds: list[Prediction], yield_mpa: float, label: str = "design
     """The limit calls as a table: value, model, surrogate ± interval, the interval trusted, call, solver (where
     run) and the final call; then how many designs needed the solver."""
     value = value or (lambda p: p.name)
-    head = [label, "model MPa", "surrogate MPa [95 %]", "trusted [lo, hi]", "call", "solver MPa", "final"]
+    readout = preds[0].summary.get("readout", "raw")
+    model = "model MPa" if readout == "raw" else f"model ({readout}) MPa"
+    head = [label, model, "surrogate MPa [95 %]", "trusted [lo, hi]", "call", "solver MPa", "final"]
     rows = []
     for p in preds:
         s, iv = p.summary, p.summary["call_interval_mpa"]
         solver = (s.get("verify") or {}).get("solver_peak_plate_stress_mpa")
-        rows.append([str(value(p)), f"{s['peak_plate_stress_mpa']:.0f}",
+        rows.append([str(value(p)), f"{chosen(s, 'peak_plate_stress_mpa'):.0f}",
                      _interval((s.get("surrogate") or {}).get("peak_plate_stress_mpa")),
                      f"{iv['from']} [{iv['lo']:.0f}, {iv['hi']:.0f}]", s["call"],
                      "-" if solver is None else f"{solver:.0f}", s.get("final_call", s["call"])])
@@ -108,8 +113,7 @@ def format_calls(preds: list[Prediction], yield_mpa: float, label: str = "design
 
 #: summary keys that are not CSV columns: lists over frames, nested blocks (flattened below) and text
 _NOT_COLUMNS = ("verify", "warnings", "model", "confidence", "surrogate", "disagreement_by_answer",
-                "call_interval_mpa", "plate_stress_history_mpa", "solver_plate_stress_history_mpa", "contact_frames",
-                "stress_readout")
+                "call_interval_mpa", "contact_frames", "readout", "contact_window_end_from")
 
 
 def csv_rows(preds: list[Prediction]) -> tuple[list[str], list[list]]:
@@ -119,7 +123,7 @@ def csv_rows(preds: list[Prediction]) -> tuple[list[str], list[list]]:
     head = ["name", *DESIGN_KEYS]
     keys = []
     for p in preds:
-        keys += [k for k in p.summary if k not in _NOT_COLUMNS and k not in keys]
+        keys += [k for k in p.summary if k not in _NOT_COLUMNS and not k.endswith("history_mpa") and k not in keys]
     skeys = []
     for p in preds:
         skeys += [q for q in (p.summary.get("surrogate") or {}) if q not in skeys]
@@ -129,7 +133,7 @@ def csv_rows(preds: list[Prediction]) -> tuple[list[str], list[list]]:
     for k in keys:
         head += [k.replace("where_mm", "r_mm"), k.replace("where_mm", "y_mm")] if k.endswith("where_mm") else [k]
     head += [f"surrogate_{q}_{b}" for q in skeys for b in ("mean", "lo", "hi")]
-    head += [f"verify_{k}" for k in vkeys] + ["model", "warnings"]
+    head += [f"verify_{k}" for k in vkeys] + ["model", "readout", "warnings"]
     rows = []
     for p in preds:
         row = [p.name, *(getattr(p.design, k) for k in DESIGN_KEYS)]
@@ -140,7 +144,7 @@ def csv_rows(preds: list[Prediction]) -> tuple[list[str], list[list]]:
         row += [block.get(q, {}).get(b) for q in skeys for b in ("mean", "lo", "hi")]
         row += [p.summary.get("verify", {}).get(k) for k in vkeys]
         warnings = p.summary.get("warnings", []) + p.summary.get("verify", {}).get("solver_warnings", []) + weak_reasons(p)
-        row += [p.summary.get("model", ""), "; ".join(warnings)]
+        row += [p.summary.get("model", ""), p.summary.get("readout", "raw"), "; ".join(warnings)]
         rows.append([repr(v) if isinstance(v, float) else "" if v is None else v for v in row])  # repr: every digit
     return head, rows
 
@@ -157,13 +161,15 @@ def write_csv(preds: list[Prediction], path: str | Path) -> Path:
 
 def to_json(preds: list[Prediction], verified: dict | None, run_source: str, device: str,
             check: "Check | None" = None) -> dict:
-    """The design check as JSON: per design its parameters and summary (the surrogate's answers, ``disagreement``,
-    the calls, the plate's stress history and the notes), the verify summary, the surrogate's source and the
-    solver runs."""
+    """The design check as JSON: per design its parameters and summary (the model's own answer, a derived
+    read-out's fields under their own names, the surrogate's answers, ``disagreement``, the calls, the plate's
+    stress history and the notes), the verify summary, the read-out used, the surrogate's source and the solver
+    runs."""
     out = {"model": run_source, "device": device, "units": {"stress": "MPa", "length": "mm", "time": "ms"},
            "designs": [{"name": p.name, "design": asdict(p.design), **p.summary, "notes": weak_reasons(p)} for p in preds],
            **({"verify": verified} if verified else {})}
     if check is not None:
+        out["readout"] = check.readout
         out["surrogate"] = check.surrogate
         out["solver_runs"] = check.solver_runs
         out["notes"] = check.notes

@@ -5,8 +5,9 @@ deflection) rise or fall with the parameter, steadily or not, and which value is
 keeps the peak below a yield stress ``Y``? :func:`sweep` answers them for the model and, with ``verify``, for the
 solver on the same points, and says whether the two agree:
 
-* trend: the sign of ``last − first`` and whether the series is monotonic (every step of the same sign, steps
-  smaller than ``TREND_TOL`` of the series' range counting as flat);
+* trend: the change from the first point to the last (% of the first), its sign and whether the series is
+  monotonic (every step of the same sign, steps smaller than ``TREND_TOL`` of the series' range counting as flat);
+  model and solver agree when their changes are alike in size, not only in sign (:func:`trends_agree`);
 * limit: the parameter values whose peak is below ``Y``; the call is the smallest passing value when passing
   values lie above failing ones (thickness), the largest when below (drop height); the model's call agrees when it
   is within one sweep step of the solver's.
@@ -21,6 +22,7 @@ import numpy as np
 from hcmt.config import plural
 from hcmt.design.basics import parse_vary  # noqa: F401 (hcmt.design.sweep.parse_vary, as before)
 from hcmt.design.check import Check, check_designs
+from hcmt.design.readout import chosen
 from hcmt.design.reports import finite, to_json
 from hcmt.errors import InputError
 from hcmt.sim.scene import Design
@@ -29,6 +31,11 @@ from hcmt.viz.meshplot import new_figure, save_figure
 #: steps smaller than this share of a series' range count as flat in the monotonicity test
 TREND_TOL = 0.02
 QUANTITIES = {"peak_plate_stress_mpa": "peak plate stress (MPa)", "max_deflection_mm": "max deflection (mm)"}
+#: the trends agree when the model's and the solver's changes over the sweep differ by at most this many
+#: percentage points (both about flat: noise), ...
+TREND_ABS_PCT = 2.0
+#: ... or have the same sign and the larger is at most this factor of the smaller
+TREND_FACTOR = 2.0
 
 
 def sweep_designs(base: Design, param: str, lo: float, hi: float, n: int) -> list[tuple[str, Design]]:
@@ -52,6 +59,18 @@ def trend(values: np.ndarray) -> dict:
     sign = int(np.sign(v[-1] - v[0])) if abs(v[-1] - v[0]) > TREND_TOL * span else 0
     return {"sign": sign, "monotonic": bool(np.all(steps > 0) or np.all(steps < 0)),
             "change_pct": float(100.0 * (v[-1] - v[0]) / v[0]) if v[0] else None}
+
+
+def trends_agree(model_pct: float | None, solver_pct: float | None) -> bool | None:
+    """Whether a model's change over a sweep (%, first to last point) agrees with the solver's: within
+    :data:`TREND_ABS_PCT` percentage points, or of the same sign and within a factor :data:`TREND_FACTOR` (None
+    when either is unknown: a series starting at 0)."""
+    if model_pct is None or solver_pct is None:
+        return None
+    if abs(model_pct - solver_pct) <= TREND_ABS_PCT:
+        return True
+    small, large = sorted((abs(model_pct), abs(solver_pct)))
+    return bool(np.sign(model_pct) == np.sign(solver_pct) and large <= TREND_FACTOR * small)
 
 
 def limit_call(params: np.ndarray, peaks: np.ndarray, yield_mpa: float) -> dict:
@@ -88,14 +107,16 @@ def analyse(check: Check, param: str, yield_mpa: float | None) -> dict:
     series = {"model": [p.summary for p in check.preds]}
     if check.truth is not None and all(t is not None for t in check.truth):
         series["solver"] = [t.summary for t in check.truth]
+    out["readout"] = check.readout  # the model's values: as this read-out reports them (hcmt.design.readout)
     for q in QUANTITIES:
-        row = {who: trend([s[q] for s in rows]) for who, rows in series.items()}
+        row = {who: trend([chosen(s, q) for s in rows]) for who, rows in series.items()}
         if "solver" in row:
-            row["agree"] = row["model"]["sign"] == row["solver"]["sign"] and (
-                row["model"]["monotonic"] == row["solver"]["monotonic"])
+            row["agree"] = trends_agree(row["model"]["change_pct"], row["solver"]["change_pct"])
+            row["rule"] = (f"within {TREND_ABS_PCT:g} percentage points, or the same sign within a factor "
+                           f"{TREND_FACTOR:g}")
         out["trend"][q] = row
     if yield_mpa is not None:
-        calls = {who: limit_call(params, np.array([s["peak_plate_stress_mpa"] for s in rows]), yield_mpa)
+        calls = {who: limit_call(params, np.array([chosen(s, "peak_plate_stress_mpa") for s in rows]), yield_mpa)
                  for who, rows in series.items()}
         if "solver" in calls:
             a, b = calls["model"], calls["solver"]
@@ -147,8 +168,10 @@ def format_analysis(a: dict) -> str:
                 t = row[who]
                 change = f" ({t['change_pct']:+.1f} %)" if t["change_pct"] is not None else ""
                 parts.append(f"{who} {word[t['sign']]}{change}{'' if t['monotonic'] else ', not monotonic'}")
-        agree = "" if "agree" not in row else ("  -> trends agree" if row["agree"] else "  -> TRENDS DISAGREE")
-        lines.append(f"{label} against {a['param']}: " + "; ".join(parts) + agree)
+        agree = "" if row.get("agree") is None else ("  -> trends agree" if row["agree"] else "  -> TRENDS DISAGREE")
+        agree += f" (agree: the changes {row['rule']})" if "rule" in row else ""
+        how = "" if a.get("readout", "raw") == "raw" or q != "peak_plate_stress_mpa" else f" [{a['readout']} read-out]"
+        lines.append(f"{label}{how} against {a['param']}: " + "; ".join(parts) + agree)
     if a.get("not_learned"):
         lines.append(f"warning: {a['not_learned']}")
     lim = a["limit"]
@@ -182,6 +205,8 @@ def plot_sweep(check: Check, analysis: dict, out_dir: str | Path, label: str) ->
     axes = fig.subplots(1, 2)
     for ax, (q, name) in zip(axes, QUANTITIES.items()):
         ax.plot(x, [p.summary[q] for p in check.preds], "o-", label=label)
+        if any(chosen(p.summary, q) != p.summary[q] for p in check.preds):  # a derived read-out, beside it
+            ax.plot(x, [chosen(p.summary, q) for p in check.preds], "o:", label=f"{label} ({check.readout} read-out)")
         if check.truth is not None:
             ran = [(v, t.summary[q]) for v, t in zip(x, check.truth) if t is not None]
             if ran:

@@ -21,9 +21,9 @@ from __future__ import annotations
 import numpy as np
 
 from hcmt.config import plural
-from hcmt.data.format import NodeType
 from hcmt.errors import InputError
-from hcmt.graph.contact import object_ids
+from hcmt.inference import quantities as q
+from hcmt.inference.quantities import impact_groups, plate_mask  # noqa: F401  (their home before quantities)
 
 SCALE = 1e3
 HORIZONS = {"rmse_1": 1, "rmse_50": 50, "rmse_all": None}
@@ -80,53 +80,33 @@ def rollout_details(pred: np.ndarray, true: np.ndarray, start: int, groups: dict
     return out
 
 
-# -- Impact Plate: the physics an engineer reads ------------------------------------------------------------------
-def plate_mask(cells: np.ndarray, node_type: np.ndarray) -> np.ndarray:
-    """[N] bool: the plate, i.e. the body holding the supported nodes (clamped HANDLE, or a ring's
-    WALL_BOUNDARY), else the one holding NORMAL nodes; the other body is the impactor (OBSTACLE nodes)."""
-    node_type = np.asarray(node_type).reshape(-1)
-    obj = object_ids(np.asarray(cells), len(node_type))
-    for kind in (NodeType.HANDLE, NodeType.WALL_BOUNDARY, NodeType.NORMAL):
-        held = obj[node_type == kind]
-        if len(held):
-            return obj == held[0]
-    raise InputError("no clamped (HANDLE), supported (WALL_BOUNDARY) or NORMAL nodes: cannot tell the plate from "
-                     "the impactor")
-
-
-def impact_groups(rest: np.ndarray, plate: np.ndarray) -> dict[str, np.ndarray]:
-    """Node masks ``ball``, ``contact`` (plate nodes with ``r = |x| <=`` half the plate's radius) and ``far``
-    (plate nodes beyond it), ``rest`` the [N, 2] positions at rest (frame 0)."""
-    r = np.abs(rest[:, 0])
-    half = 0.5 * r[plate].max()
-    return {"ball": ~plate, "contact": plate & (r <= half), "far": plate & (r > half)}
-
-
+# -- Impact Plate: the physics an engineer reads (each quantity defined once, in hcmt.inference.quantities) -------
 def impact_metrics(pred_pos, pred_stress, true_pos, true_stress, plate: np.ndarray, start: int = 2) -> dict:
     """One Impact Plate trajectory, model (``pred_*``) against solver (``true_*``): positions [T, N, 2] mm,
-    stress [T, N, 1] MPa, ``plate`` [N] bool (:func:`plate_mask`), ``start`` the first predicted frame."""
+    stress [T, N, 1] MPa, ``plate`` [N] bool (:func:`plate_mask`), ``start`` the first predicted frame; the rest
+    positions are the solver's frame 0. Each quantity as :mod:`hcmt.inference.quantities` defines it."""
     pp, tp = np.asarray(pred_pos, np.float64), np.asarray(true_pos, np.float64)
-    ps, ts = np.asarray(pred_stress, np.float64)[..., 0], np.asarray(true_stress, np.float64)[..., 0]
-    ball = ~plate
+    rest = tp[0]
     out = {}
     for who, x in (("model", pp), ("solver", tp)):
-        out[f"{who}_ball_vy_end"] = float((x[-1, ball, 1] - x[-2, ball, 1]).mean())  # mm per frame
-    out["model_rebounds"] = out["model_ball_vy_end"] > 0
-    out["solver_rebounds"] = out["solver_ball_vy_end"] > 0
+        out[f"{who}_ball_vy_end"] = q.ball_vy_end(x, plate)  # mm per frame
+        out[f"{who}_rebounds"] = q.rebounds(x, plate)
     out["rebound_agrees"] = out["model_rebounds"] == out["solver_rebounds"]
-    for body, mask in (("plate", plate), ("ball", ball)):
-        a, b = ps[:, mask].max(), ts[:, mask].max()
-        out[f"peak_{body}_stress_mpa"], out[f"solver_peak_{body}_stress_mpa"] = float(a), float(b)
+    for body, mask in (("plate", plate), ("ball", ~plate)):
+        (a, fa, _), (b, fb, _) = q.peak(pred_stress, mask), q.peak(true_stress, mask)
+        out[f"peak_{body}_stress_mpa"], out[f"solver_peak_{body}_stress_mpa"] = a, b
         out[f"peak_{body}_stress_error_pct"] = float(100.0 * (a - b) / b)
-    out["peak_plate_frame_error"] = int(ps[:, plate].max(1).argmax() - ts[:, plate].max(1).argmax())
-    u_pred, u_true = pp[:, plate, 1] - tp[0, plate, 1], tp[:, plate, 1] - tp[0, plate, 1]
-    a, b = np.abs(u_pred).max(), np.abs(u_true).max()
-    out["max_deflection_mm"], out["solver_max_deflection_mm"] = float(a), float(b)
+        if body == "plate":
+            out["peak_plate_frame_error"] = fa - fb
+    a, b = q.max_deflection(pp, rest, plate), q.max_deflection(tp, rest, plate)
+    out["max_deflection_mm"], out["solver_max_deflection_mm"] = a, b
     out["max_deflection_error_pct"] = float(100.0 * (a - b) / b)
-    far = impact_groups(tp[0], plate)["far"][plate]
-    err = np.abs(u_pred[start:, far] - u_true[start:, far])
+    far = q.impact_groups(rest, plate)["far"]
+    err = np.abs(q.deflection(pp, rest, far) - q.deflection(tp, rest, far))[start:]
     out["far_deflection_error_um"] = float(err.mean() * 1e3)
-    out["far_deflection_error_pct"] = float(100.0 * err.mean() / max(np.abs(u_true[:, far]).max(), 1e-12))
+    out["far_deflection_error_pct"] = float(100.0 * err.mean() / max(q.far_deflection(tp, rest, plate), 1e-12))
+    for who, s in (("model", pred_stress), ("solver", true_stress)):
+        out[f"{who}_ghost_ratio"] = q.ghost_ratio(q.body_history(s, plate), q.peak(s, plate)[0])
     return out
 
 

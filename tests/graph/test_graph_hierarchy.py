@@ -11,7 +11,7 @@ from scipy.spatial import ConvexHull
 
 from graph_meshes import annulus, cloth, grid_triangles, impact_plate, plate_and_ball, tet_box
 
-from hcmt.errors import DatasetError
+from hcmt.errors import DatasetError, InputError
 from hcmt.graph import hierarchy as mod
 from hcmt.graph.edges import cells_to_edges
 from hcmt.graph.hierarchy import (Hierarchy, MeshWarning, build_hierarchy, cached_hierarchy, hierarchy_key,
@@ -171,12 +171,21 @@ def test_deterministic_and_cached(tmp_path):
         for x, y in zip(getattr(a, name), getattr(b, name)):
             np.testing.assert_array_equal(x, y)
     h = cached_hierarchy(*args, cache_dir=tmp_path)
-    files = list(tmp_path.glob("*.npz"))
+    files = list(tmp_path.glob("*.npy"))
     assert len(files) == 1 and files[0].stem == hierarchy_key(*args, True)
     loaded = Hierarchy.load(files[0])
     for name in ("pool", "edges", "nodes", "cells"):
+        assert len(getattr(loaded, name)) == len(getattr(h, name))
         for x, y in zip(getattr(h, name), getattr(loaded, name)):
+            assert x.shape == y.shape
             np.testing.assert_array_equal(x, y)
+    np.testing.assert_array_equal(loaded.object_id, h.object_id)
+    assert loaded.remesh == h.remesh and loaded.levels == 3
+    flat = np.load(files[0])
+    for damaged in (flat[:-3], np.r_[flat, 7], np.r_[flat[:1] + 1, flat[1:]]):  # cut, grown, another version
+        np.save(tmp_path / "damaged.npy", damaged)
+        with pytest.raises(InputError):
+            Hierarchy.load(tmp_path / "damaged.npy")
     assert cached_hierarchy(*args, cache_dir=tmp_path) is h  # memory cache
     # a changed mesh or setting is a different key
     moved = m["mesh_pos"].copy()
@@ -186,7 +195,7 @@ def test_deterministic_and_cached(tmp_path):
     assert len(keys) == 4
     # a damaged cache file is rebuilt
     mod._MEMORY.clear()
-    files[0].write_bytes(b"not an npz")
+    files[0].write_bytes(b"not a hierarchy file")
     again = cached_hierarchy(*args, cache_dir=tmp_path)
     np.testing.assert_array_equal(again.pool[0], h.pool[0])
     assert Hierarchy.load(files[0]).levels == 3

@@ -45,7 +45,7 @@ def test_hierarchy_command_writes_the_table_as_json(tmp_path, capsys):
     assert np.mean([r["jacobian_after"] for r in rows[1:]]) > np.mean([r["jacobian_before"] for r in rows[1:]])
     assert all(a["nodes"] > b["nodes"] for a, b in zip(rows, rows[1:]))
     # the hierarchies were cached beside the dataset
-    assert len(list((tmp_path / "ds" / ".cache" / "hierarchy").glob("*.npz"))) == 2
+    assert len(list((tmp_path / "ds" / ".cache" / "hierarchy").glob("*.npy"))) == 2
 
 
 def test_hierarchy_command_reports_bad_input(tmp_path, capsys):

@@ -171,8 +171,8 @@ class SplitReader:
         static, hierarchy = prepare_static(fields, self.adapter, self.levels, self.remesh,
                                            hierarchy_cache_dir(self.dataset), memory=False)
         empty = FrameWindow(torch.zeros((0, int(self.nodes[ti]), 0)), 0, int(self.steps[ti]))
-        tr = Trajectory(self.names[ti], static, empty, empty if self.stress_field else None, hierarchy, self.adapter,
-                        s.attrs(i))
+        # no attributes: training reads none, and 30 HDF5 attributes cost more than the item (trajectory() reads them)
+        tr = Trajectory(self.names[ti], static, empty, empty if self.stress_field else None, hierarchy, self.adapter)
         self._static[ti] = tr
         if len(self._static) > self.keep:
             self._static.popitem(last=False)
@@ -198,8 +198,8 @@ class SplitReader:
     def trajectory(self, ti: int) -> Trajectory:
         """Trajectory ``ti`` with all its frames (as :func:`load_split` gives it)."""
         tr = self.window(ti, 0, int(self.steps[ti]))
-        return Trajectory(tr.name, tr.static, tr.world_pos.data,
-                          tr.stress.data if tr.stress is not None else None, tr.hierarchy, self.adapter, tr.attrs)
+        return Trajectory(tr.name, tr.static, tr.world_pos.data, tr.stress.data if tr.stress is not None else None,
+                          tr.hierarchy, self.adapter, self._file().attrs(int(self.index[ti])))
 
 
 def build_graph(traj: Trajectory, pos: Tensor, node_feats: Tensor, radius: float) -> Graph:

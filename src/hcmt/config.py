@@ -182,6 +182,9 @@ class DataConfig:
 
     exclude_trajectories: Optional[tuple] = None  # trajectory indices of the train split to leave out
     stress_field: str = _field("stress", "stress", "stress_max")  # stress_max: `generate --peak-stress`
+    # hold the training split in memory instead of reading each item's frames from the file: ~8 ms less per item
+    # on the `small` preset (benchmarks/train_speed.py), memory that grows with the split (docs/RESULTS.md)
+    in_memory: bool = False
 
 
 SECTIONS = {"model": ModelConfig, "train": TrainConfig, "data": DataConfig}

@@ -150,7 +150,7 @@ class Trainer:
         self.radius = tc.contact_radius
         self.frames = FrameDataset(data, "train", self.adapter, levels, remesh, self.radius,
                                    tc.noise_std, noise_gamma(cfg, self.adapter), seed,
-                                   cfg.data.exclude_trajectories, tc.noise_nodes)
+                                   cfg.data.exclude_trajectories, tc.noise_nodes, in_memory=cfg.data.in_memory)
         # pushforward: with this probability a frame's input is the model's own prediction (frames.pushforward_item)
         self.pushforward = tc.pushforward
         self.pushforward_start = tc.pushforward_start

@@ -176,12 +176,17 @@ def test_every_count_option_has_its_bound_in_its_help_and_is_refused_above_it(mo
 
 def test_sigterm_exits_143_and_sigint_130(monkeypatch, capsys):
     handler = signal.getsignal(signal.SIGTERM)
-    for signum, code in ((signal.SIGTERM, 143), (signal.SIGINT, 130)):
-        monkeypatch.setattr(hcmt.cli.design, "main_models", lambda args, s=signum: os.kill(os.getpid(), s))
-        assert cli(["models"]) == code
-        err = capsys.readouterr().err
-        assert "interrupted" in err and "Traceback" not in err
-    assert signal.getsignal(signal.SIGTERM) == handler  # restored
+    before = signal.signal(signal.SIGINT, signal.SIG_IGN)  # a caller that ignores Ctrl-C: the command still stops
+    try:
+        for signum, code in ((signal.SIGTERM, 143), (signal.SIGINT, 130)):
+            monkeypatch.setattr(hcmt.cli.design, "main_models", lambda args, s=signum: os.kill(os.getpid(), s))
+            assert cli(["models"]) == code
+            err = capsys.readouterr().err
+            assert "interrupted" in err and "Traceback" not in err
+        assert signal.getsignal(signal.SIGTERM) == handler  # both restored
+        assert signal.getsignal(signal.SIGINT) == signal.SIG_IGN
+    finally:
+        signal.signal(signal.SIGINT, before)
 
 
 # -- 10. the Python API refuses what the command refuses ----------------------------------------------------------

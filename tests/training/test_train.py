@@ -558,5 +558,7 @@ def test_init_with_another_architecture_is_one_line_listing_the_differences(impa
     assert rc == 2 and len(err.splitlines()) == 1
     assert "its model differs from this run's: hidden 16 there, 24 here" in err
     assert not (tmp_path / "b").exists()
-    rc = cli(["train", "--out", str(tmp_path / "src"), "--resume", "--init", str(tmp_path / "src")])
+    rc = cli(["train", "--out", str(tmp_path / "src"), "--resume", "--init", "pretrained:impact_plate_small"])
     assert rc == 2 and "give one of them" in capsys.readouterr().err
+    rc = cli(["train", "--out", str(tmp_path / "src"), "--resume", "--init", str(tmp_path / "src")])
+    assert rc == 2 and "the same folder as --init" in capsys.readouterr().err  # refused before it reads anything

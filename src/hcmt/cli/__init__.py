@@ -187,6 +187,8 @@ def main(argv: list[str] | None = None) -> int:
         sys.argv = [sys.argv[0], *argv]
     _stopped_by.clear()
     previous = signal.signal(signal.SIGTERM, _terminate)  # SIGTERM ends a command as Ctrl-C does, from the start
+    # Ctrl-C interrupts whatever handler the embedding process left (a caller that ignored SIGINT, for instance)
+    previous_int = signal.signal(signal.SIGINT, signal.default_int_handler)
     command, started, parser = _requested_command(sys.argv[1:]) or "", False, None
     try:
         parser = build_parser()
@@ -230,6 +232,7 @@ def main(argv: list[str] | None = None) -> int:
         return 128 + int(signum)
     finally:
         signal.signal(signal.SIGTERM, previous)
+        signal.signal(signal.SIGINT, previous_int)
 
 
 def _error(command: str, text: str) -> int:

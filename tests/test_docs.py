@@ -32,3 +32,18 @@ def test_cli_reference_has_every_command_and_no_machine_numbers(monkeypatch):
     assert "this machine's cores (N)" in text
     assert (ROOT / "docs" / "cli.md").read_text() == text
     assert hcmt.cli.machine_cores() >= 1  # restored: a real count again
+
+
+def test_architecture_map_names_every_module_and_the_layers():
+    """docs/architecture.md, the map of the code, names every module of src/hcmt and every layer of
+    tests/test_layers.py."""
+    from test_layers import LAYERS
+
+    text = (ROOT / "docs" / "architecture.md").read_text()
+    src = ROOT / "src" / "hcmt"
+    missing = [str(p.relative_to(src)) for p in sorted(src.rglob("*.py"))
+               if p.name != "__init__.py" and p.name not in text]
+    assert missing == [], f"docs/architecture.md does not name {missing}"
+    chain = re.search(r"```\n(errors .*?)\n```", text).group(1)
+    assert set(re.findall(r"\w+", chain)) == set(LAYERS)
+

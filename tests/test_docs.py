@@ -47,3 +47,16 @@ def test_architecture_map_names_every_module_and_the_layers():
     chain = re.search(r"```\n(errors .*?)\n```", text).group(1)
     assert set(re.findall(r"\w+", chain)) == set(LAYERS)
 
+
+
+def test_readme_is_a_front_door():
+    """The README stays under 200 lines and every relative link in it leads to a file."""
+    text = (ROOT / "README.md").read_text()
+    assert text.count("\n") < 200
+    links = re.findall(r"\]\(([^)#]+)(?:#[^)]*)?\)", text)
+    assert "docs/cli.md" in links and "docs/architecture.md" in links and "docs/MODELS.md" in links
+    assert [link for link in links if "://" not in link and not (ROOT / link).exists()] == []
+    for name in ("architecture.md", "design-check.md", "gpu.md", "results-summary.md"):
+        page = ROOT / "docs" / name
+        links = re.findall(r"\]\(([^)#]+)(?:#[^)]*)?\)", page.read_text())
+        assert [link for link in links if "://" not in link and not (page.parent / link).exists()] == [], name

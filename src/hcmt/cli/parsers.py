@@ -204,8 +204,9 @@ _DESIGN_HELP = {"layer2_thickness": "mm, a bonded layer under the top one (0: no
 
 
 def configure_simulate(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--preset", choices=sorted(RANGES), default="paper",
-                        help="defaults for unspecified parameters: the middle of the preset's ranges (default paper)")
+    parser.add_argument("--preset", choices=sorted(RANGES), default="small",
+                        help="defaults for unspecified parameters: the middle of the preset's ranges (default small, "
+                             "as `hcmt generate`)")
     parser.add_argument("--family", default="mono",
                         help=f"defaults from this family's ranges instead: one of {', '.join(FAMILIES)} (default mono)")
     parser.add_argument("--stack", default=None, metavar="SPEC",

@@ -19,6 +19,7 @@ import hcmt.cli.design
 from hcmt.cli import COMMANDS, GUARD, LINE, build_parser, one_line
 from hcmt.cli import main as cli
 from hcmt.config import MAX_TRAJECTORIES, PRETRAINED_DIR, load_config
+from hcmt.data.convert import convert
 from hcmt.design.check import weak_reasons
 from hcmt.design.inputs import read_designs_csv
 from hcmt.design.surrogate import Surrogate, SurrogateError
@@ -270,3 +271,10 @@ def test_a_decided_call_is_not_told_to_verify():
     assert "verify with the solver (--verify)" in note_of("undecided") and "verify with" in note_of(None)
     assert "verify" not in note_of("undecided", verified=True)
 
+
+
+def test_convert_of_a_missing_source_is_an_input_error(tmp_path):
+    with pytest.raises(InputError) as exc:
+        convert(tmp_path / "missing", tmp_path / "out")
+    assert exc.value.param == "src" and "no such file or folder" in str(exc.value)
+    assert not (tmp_path / "out").exists()

@@ -14,7 +14,7 @@ from pathlib import Path
 from hcmt.data.format import make_meta, write_meta, write_split
 from hcmt.data.ggns import ggns_features, ggns_to_native, load_ggns_pickle
 from hcmt.data.tfrecord import iter_tfrecord, read_tf_meta
-from hcmt.errors import DatasetError
+from hcmt.errors import DatasetError, InputError
 
 _PICKLE_SUFFIXES = (".pkl", ".pickle", ".pk")
 
@@ -104,7 +104,8 @@ def convert(src: str | Path, out: str | Path) -> dict:
     """Convert SRC into a native dataset at OUT; on any error nothing new is left at OUT."""
     src, out = Path(src), Path(out)
     if not src.exists():
-        raise FileNotFoundError(f"{src}: no such file or folder")
+        raise InputError(f"{src}: no such file or folder; expected a TFRecord dataset folder or GGNS pickle(s)",
+                         param="src")
     if (out / "meta.json").exists():
         raise DatasetError("already holds a dataset; choose another output folder or delete it", file=out)
     existed = out.exists()

@@ -12,9 +12,8 @@ import argparse
 from pathlib import Path
 
 from common import dataset, fmt, run_and_evaluate, write_json
-
-from hcmt.models import MODELS
 from hcmt.inference.metrics import summarize_runs
+from hcmt.models import MODELS
 
 
 def main() -> None:

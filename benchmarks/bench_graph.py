@@ -23,7 +23,6 @@ from hcmt.graph.contact import OFFICIAL_IMPACT_PLATE_TYPES, contact_edges
 from hcmt.graph.hierarchy import build_hierarchy
 from hcmt.sim.mesh import preset_mesh
 
-
 CPU_MS: dict[str, float] = {}  # process CPU time per call, beside the wall-clock medians
 
 

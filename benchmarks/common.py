@@ -20,8 +20,7 @@ from hcmt.data.format import Split
 from hcmt.data.runs import RunFolder
 from hcmt.files import atomic_path, take_lock
 from hcmt.inference.evaluate import evaluate
-from hcmt.inference.metrics import plate_mask
-from hcmt.inference.metrics import rollout_details as details
+from hcmt.inference.metrics import plate_mask, rollout_details as details
 from hcmt.inference.run import Run
 from hcmt.sim.generate import generate_dataset
 from hcmt.sim.scene import VARIANTS, Settings

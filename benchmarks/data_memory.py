@@ -33,9 +33,9 @@ from pathlib import Path
 
 import numpy as np
 import torch
-from common import write_json
 from tfrecord.writer import TFRecordWriter
 
+from common import write_json
 from hcmt.data.format import NodeType, make_meta, write_meta, write_split
 from hcmt.physics.adapters import get_adapter
 from hcmt.sim.scene import Settings, feature_spec, initial_frames, sample_design

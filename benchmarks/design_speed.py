@@ -16,12 +16,12 @@ import time
 
 import numpy as np
 import torch
-from common import write_json
 
-from hcmt.sim.scene import sample_design
+from common import write_json
 from hcmt.design.check import predict, solve
 from hcmt.design.inputs import settings_of
 from hcmt.inference.run import Run
+from hcmt.sim.scene import sample_design
 
 
 def main() -> None:

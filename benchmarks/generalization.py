@@ -11,7 +11,6 @@ import argparse
 from pathlib import Path
 
 from common import dataset, run_and_evaluate, write_json
-
 from hcmt.inference.metrics import summarize_runs
 
 SPLITS = ("test", "test_thicker", "test_higher", "test_thicker_higher")

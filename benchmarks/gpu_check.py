@@ -30,8 +30,6 @@ ROOT = HERE.parent
 sys.path.insert(0, str(HERE))
 
 from bench_models import _step_fn, _sync, impact_plate_graph  # noqa: E402
-from speed import _one  # noqa: E402
-
 from hcmt.config import load_config  # noqa: E402
 from hcmt.data.runs import RunFolder  # noqa: E402
 from hcmt.design.check import check_designs  # noqa: E402
@@ -46,6 +44,7 @@ from hcmt.sim.generate import generate_dataset  # noqa: E402
 from hcmt.sim.mesh import impact_plate_mesh  # noqa: E402
 from hcmt.sim.scene import Settings, sample_design  # noqa: E402
 from hcmt.training import train  # noqa: E402
+from speed import _one  # noqa: E402
 
 
 class Check:

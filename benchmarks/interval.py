@@ -24,14 +24,14 @@ import time
 from pathlib import Path
 
 import numpy as np
-from common import RESULTS, dataset, run_and_evaluate, write_json
-from propagation import hcmt_reach, trajectory_numbers
 
+from common import RESULTS, dataset, run_and_evaluate, write_json
 from hcmt.data.format import Split
 from hcmt.design.check import check_designs
-from hcmt.sim.scene import DESIGN_KEYS, Design
 from hcmt.inference.metrics import mean_std
 from hcmt.inference.run import Run
+from hcmt.sim.scene import DESIGN_KEYS, Design
+from propagation import hcmt_reach, trajectory_numbers
 
 WINDOW_FRAMES = {0.002: 89, 0.004: 45, 0.008: 23}  # 88 x 0.002 = 44 x 0.004 = 22 x 0.008 = 0.176 ms
 DATA = dict(preset="small", train=40, valid=4, test=12, seed=2026, variants=0)

@@ -15,8 +15,8 @@ import json
 from pathlib import Path
 
 import numpy as np
-from common import RESULTS, dataset, run_and_evaluate, write_json
 
+from common import RESULTS, dataset, run_and_evaluate, write_json
 from hcmt.inference.metrics import mean_std, summarize_runs
 
 PAPER = dict(preset="paper", train=32, valid=4, test=6, seed=2024, variants=0)

@@ -10,7 +10,6 @@ from __future__ import annotations
 import argparse
 
 from common import write_json
-
 from hcmt.inference.quantities import max_deflection, peak, plate_mask
 from hcmt.sim.scene import Design, Settings, simulate
 

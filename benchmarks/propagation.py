@@ -26,8 +26,8 @@ import argparse
 import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.csgraph as csgraph
-from common import write_json
 
+from common import write_json
 from hcmt.data.format import NodeType, Split
 from hcmt.graph.hierarchy import build_hierarchy
 from hcmt.inference.metrics import plate_mask

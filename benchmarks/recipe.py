@@ -18,10 +18,10 @@ from pathlib import Path
 
 import numpy as np
 from scipy.stats import rankdata
-from common import dataset, run_and_evaluate, write_json
 
-from hcmt.inference.metrics import mean_std
+from common import dataset, run_and_evaluate, write_json
 from hcmt.inference.evaluate import evaluate
+from hcmt.inference.metrics import mean_std
 from hcmt.inference.run import Run
 
 # 40 / 4 / 12 designs of the `small` preset over a 90-frame window (0.178 ms: the whole impact of every design of

@@ -4,8 +4,22 @@ budget and what it shows, the ablations and levels (benchmarks/ablations.py) and
 from __future__ import annotations
 
 from common import DATASET
-from report_common import (ABOUT, PAPER_RATIO, PAPER_STEPS, PAPER_WORST_ABLATION, SAME_SIZE, TINY, keeps_up, load,
-                           opened, pm, ratio, said, sentences, separated)
+from report_common import (
+    ABOUT,
+    PAPER_RATIO,
+    PAPER_STEPS,
+    PAPER_WORST_ABLATION,
+    SAME_SIZE,
+    TINY,
+    keeps_up,
+    load,
+    opened,
+    pm,
+    ratio,
+    said,
+    sentences,
+    separated,
+)
 
 SETTINGS = ("Settings of this table: the `small` preset study above (config `impact_plate_cpu`, σ = 0.003 mm from "
             "Table 8, paper attention), run before the parity study; not re-run with the σ chosen there (no budget left "

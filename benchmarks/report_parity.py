@@ -3,8 +3,25 @@ sweep, the propagation in hops behind it (benchmarks/propagation.py) and the hie
 (`hcmt hierarchy`)."""
 from __future__ import annotations
 
-from report_common import (PAPER_LEVELS, PAPER_QUALITY, PAPER_RATIO, PAPER_SIGMA_MM, PAPER_STEPS, PAPER_TRAJECTORIES,
-                           PAPER_WIDTH, hcmt_keeps_up, keeps_up, load, on_gpu, opened, pm, ratio, said, sentences, separated)
+from report_common import (
+    PAPER_LEVELS,
+    PAPER_QUALITY,
+    PAPER_RATIO,
+    PAPER_SIGMA_MM,
+    PAPER_STEPS,
+    PAPER_TRAJECTORIES,
+    PAPER_WIDTH,
+    hcmt_keeps_up,
+    keeps_up,
+    load,
+    on_gpu,
+    opened,
+    pm,
+    ratio,
+    said,
+    sentences,
+    separated,
+)
 
 LABELS = {"hcmt": "HCMT (paper attention)", "hcmt-official": "HCMT (official attention)", "mgn": "MGN",
           "gt": "GT"}

@@ -3,8 +3,18 @@ learned rollout against the solver and the scaling with node count (benchmarks/s
 (benchmarks/threads.py) and the old-against-new CPU check (benchmarks/cpu_ab.sh)."""
 from __future__ import annotations
 
-from report_common import (GOAL_NODES, PAPER_ANSYS_MS, PAPER_SPEEDUP, PAPER_TRAIN_MS, gpu_check_ran, load, on_gpu,
-                           opened, said, sentences)
+from report_common import (
+    GOAL_NODES,
+    PAPER_ANSYS_MS,
+    PAPER_SPEEDUP,
+    PAPER_TRAIN_MS,
+    gpu_check_ran,
+    load,
+    on_gpu,
+    opened,
+    said,
+    sentences,
+)
 from speed import MEMORY_CAP_GB
 
 SCALING_HEAD = ["| model | nodes | mesh edges | train ms/step | peak RSS MB | peak kB per node |",

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
+
 from report_common import SHIPPED_STEPS, said, sentences
 
 DATA = ("hcmt generate impact-plate /work/data/fam_train --preset small --family mono,stack2,ring --train 60 "

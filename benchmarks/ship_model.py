@@ -20,18 +20,17 @@ from pathlib import Path
 
 import numpy as np
 import torch
-from common import write_json
 
-from hcmt.sim.scene import sample_design
+from common import write_json
+from hcmt.data.runs import PRETRAINED_DIR
+from hcmt.design import sweep as sw
 from hcmt.design.check import check_designs, predict
 from hcmt.design.inputs import region_of
 from hcmt.design.reports import format_table
-from hcmt.sim.scene import middle_design, parse_design
-from hcmt.design import sweep as sw
-from hcmt.inference.evaluate import evaluate
 from hcmt.design.surrogate import Surrogate
+from hcmt.inference.evaluate import evaluate
 from hcmt.inference.run import Run
-from hcmt.data.runs import PRETRAINED_DIR
+from hcmt.sim.scene import middle_design, parse_design, sample_design
 
 
 def main() -> None:

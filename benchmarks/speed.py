@@ -34,7 +34,6 @@ import torch
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from common import write_json  # noqa: E402
-
 from hcmt.graph.build import frame_graph  # noqa: E402
 from hcmt.graph.hierarchy import build_hierarchy  # noqa: E402
 from hcmt.inference.rollout import rollout  # noqa: E402

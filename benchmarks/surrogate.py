@@ -26,21 +26,25 @@ from pathlib import Path
 
 import numpy as np
 import torch
-from common import write_json
 from sklearn.preprocessing import PolynomialFeatures
 
+from common import write_json
 from hcmt.data.runs import PRETRAINED_DIR
-from hcmt.files import atomic_path
-from hcmt.design.check import Prediction, TRUSTS, call_of, check_designs, summarize, trusted_interval, verify_designs
+from hcmt.design.check import TRUSTS, Prediction, call_of, check_designs, summarize, trusted_interval, verify_designs
 from hcmt.design.inputs import region_of, settings_of
-from hcmt.sim.scene import middle_design
-from hcmt.design.readout import (CONTACT_END_BOUND, DEFAULT_READOUT, DERIVED_KEYS, READOUTS, readout_key,
-                                 summarize_fields)
-from hcmt.inference.quantities import contact_gap, contact_window, ghost_ratio
+from hcmt.design.readout import (
+    CONTACT_END_BOUND,
+    DEFAULT_READOUT,
+    DERIVED_KEYS,
+    READOUTS,
+    readout_key,
+    summarize_fields,
+)
 from hcmt.design.surrogate import QUANTITIES, Z95, Surrogate, dataset_answers
-from hcmt.inference.quantities import plate_mask
+from hcmt.files import atomic_path
+from hcmt.inference.quantities import contact_gap, contact_window, ghost_ratio, plate_mask
 from hcmt.inference.run import Run
-from hcmt.sim.scene import Design, sample_design
+from hcmt.sim.scene import Design, middle_design, sample_design
 
 #: the issue's four thickness sweeps (drop height mm, yield MPa); two more get the solver's median peak as yield
 SWEEPS = [(600.0, 750.0), (600.0, 700.0), (800.0, 800.0), (800.0, 720.0), (700.0, None), (950.0, None)]

@@ -14,6 +14,7 @@ import sys
 import time
 
 import numpy as np
+
 from common import write_json
 
 DESIGNS = {1: ["--design", "thickness=0.7"],

@@ -41,12 +41,12 @@ import torch
 from common import claim, write_json
 from hcmt.config import load_config
 from hcmt.data.format import Split, read_meta, write_meta, write_split
-from hcmt.files import atomic_path
+from hcmt.data.runs import RunFolder
 from hcmt.design.surrogate import Surrogate, dataset_answers
+from hcmt.files import atomic_path
 from hcmt.inference.evaluate import evaluate
 from hcmt.inference.quantities import peak, plate_mask
 from hcmt.inference.run import Run
-from hcmt.data.runs import RunFolder
 from hcmt.sim.scene import Settings, design_from_attrs, simulate
 from hcmt.training import train
 

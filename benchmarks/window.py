@@ -9,10 +9,10 @@ from __future__ import annotations
 
 import numpy as np
 import torch
-from common import write_json
 
-from hcmt.sim.scene import RANGES, Design, Settings, simulate
+from common import write_json
 from hcmt.inference.quantities import body_history, deflection, peak, plate_mask
+from hcmt.sim.scene import RANGES, Design, Settings, simulate
 
 CORNERS = [(0.5, 500), (0.5, 1000), (0.6, 1000), (0.75, 750), (1.0, 1000), (1.0, 500)]
 

@@ -6,11 +6,10 @@ from pathlib import Path
 
 import pytest
 
-from viz_runs import impact_dataset
-
 import hcmt
 from hcmt.data.runs import RunFolder
 from hcmt.inference.run import Run
+from viz_runs import impact_dataset
 
 pytestmark = pytest.mark.slow  # the README example trains a run
 

@@ -8,7 +8,6 @@ import numpy as np
 import yaml
 
 from hcmt.data.format import Split, read_meta, write_meta
-
 from layouts import write_impact_like
 
 SHIFT = np.array([0.03, 0.04], np.float32)  # position error of a fake run: |SHIFT| = 0.05 at every node

@@ -33,12 +33,12 @@ from hcmt.config import VERSION as __version__
 if TYPE_CHECKING:  # what IDEs and type checkers see; at run time each name loads on first use (_LAZY)
     from hcmt.config import Config, load_config
     from hcmt.data.format import load_dataset
+    from hcmt.data.runs import available_pretrained
     from hcmt.design.check import predict_designs
     from hcmt.design.inputs import design_for
     from hcmt.design.surrogate import Surrogate
     from hcmt.inference.evaluate import evaluate
     from hcmt.inference.run import Run
-    from hcmt.data.runs import available_pretrained
     from hcmt.models import GT, HCMT, MGN, build_model, from_checkpoint
     from hcmt.sim.generate import generate_dataset
     from hcmt.sim.scene import Design, Settings

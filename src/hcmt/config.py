@@ -4,16 +4,15 @@ command line as ``section.key=value`` (the value is parsed as YAML: ``train.lr=3
 from __future__ import annotations
 
 import copy
-import os
 import difflib
+import os
 from dataclasses import asdict, dataclass, field, fields
-from typing import Optional, get_args, get_origin, get_type_hints
 from pathlib import Path
+from typing import Optional, get_args, get_origin, get_type_hints
 
 import yaml
 
 from hcmt.errors import InputError, clip
-
 
 #: the package version (``hcmt --version``, ``hcmt.__version__``)
 VERSION = "0.1.0"

@@ -7,8 +7,7 @@ import pytest
 
 import hcmt.cli.design
 import hcmt.errors
-from hcmt.cli import COMMANDS, THREADED, flag_of
-from hcmt.cli import main as cli
+from hcmt.cli import COMMANDS, THREADED, flag_of, main as cli
 from hcmt.inference.evaluate import check_options
 
 DOCUMENTED = ["generate", "simulate", "convert", "info", "hierarchy", "train", "rollout", "evaluate", "compare",

@@ -7,10 +7,9 @@ import signal
 import numpy as np
 import pytest
 
+from conftest import TINY
 from hcmt.cli import main as cli
 from hcmt.data.format import open_split
-
-from conftest import TINY
 from layouts import sphere_simple_tfrecord, write_impact_like
 
 CASES = 14  # per file kind: flips at random offsets, then truncations

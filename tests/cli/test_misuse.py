@@ -15,10 +15,8 @@ from pathlib import Path
 
 import pytest
 
-from conftest import IMPACT_DATA
-from layouts import sphere_simple_tfrecord
-
 import hcmt.inference.evaluate as evaluate_module
+from conftest import IMPACT_DATA
 from hcmt.cli import main as cli
 from hcmt.data.runs import PRETRAINED_DIR
 from hcmt.design.inputs import design_for, range_warnings, read_designs_csv
@@ -28,6 +26,7 @@ from hcmt.inference.run import Run
 from hcmt.sim.scene import Design, design_mesh, estimate, middle_design
 from hcmt.training import train
 from hcmt.viz.meshplot import new_figure, save_figure
+from layouts import sphere_simple_tfrecord
 
 pytestmark = pytest.mark.slow  # trained runs, subprocesses under memory limits
 

@@ -16,8 +16,7 @@ import pytest
 
 import hcmt
 import hcmt.cli.design
-from hcmt.cli import COMMANDS, GUARD, LINE, build_parser, one_line
-from hcmt.cli import main as cli
+from hcmt.cli import COMMANDS, GUARD, LINE, build_parser, main as cli, one_line
 from hcmt.config import MAX_TRAJECTORIES, PRETRAINED_DIR, load_config
 from hcmt.data.convert import convert
 from hcmt.design.check import weak_reasons

@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 from hcmt.cli import main as cli
-from hcmt.errors import DatasetError
 from hcmt.data.format import NodeType, make_meta, open_split, read_meta, write_meta, write_split
+from hcmt.errors import DatasetError
 
 T = 4
 

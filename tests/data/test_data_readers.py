@@ -5,10 +5,9 @@ import numpy as np
 import pytest
 
 from hcmt.cli import main as cli
-from hcmt.errors import DatasetError
 from hcmt.data.format import NodeType, open_split, read_meta
 from hcmt.data.tfrecord import iter_tfrecord
-
+from hcmt.errors import DatasetError
 from layouts import sphere_simple_tfrecord, write_tf_dataset
 
 

@@ -10,10 +10,9 @@ import shutil
 import numpy as np
 import pytest
 
-from conftest import IMPACT_DATA
-
 import hcmt.cli.design as cli_design
 import hcmt.design.reports as design_reports
+from conftest import IMPACT_DATA
 from hcmt.cli import main as cli
 from hcmt.design.check import Prediction, check_designs, cost_check, weak_reasons
 from hcmt.design.inputs import confidence, read_designs_csv, region_of

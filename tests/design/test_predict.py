@@ -7,9 +7,8 @@ import numpy as np
 import pytest
 import torch
 
-from conftest import IMPACT_DATA
-
 import hcmt
+from conftest import IMPACT_DATA
 from hcmt.cli import main as cli
 from hcmt.data.runs import available_pretrained
 from hcmt.design.check import Prediction, design_trajectory, predict, summarize

@@ -9,9 +9,8 @@ import numpy as np
 import pytest
 from sklearn.gaussian_process import GaussianProcessRegressor
 
-from conftest import IMPACT_DATA
-
 import hcmt.design.check as check_module
+from conftest import IMPACT_DATA
 from hcmt.cli import main as cli
 from hcmt.design import readout as ro
 from hcmt.design.check import MODEL_BAND, call_of, check_designs, predict_designs, trusted_interval

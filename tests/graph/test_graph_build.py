@@ -5,8 +5,8 @@ import torch
 from graph_meshes import cloth, impact_plate, plate_and_ball
 from hcmt.graph.batch import collate
 from hcmt.graph.build import frame_graph
-from hcmt.graph.edges import mesh_edge_features
 from hcmt.graph.contact import OFFICIAL_IMPACT_PLATE_TYPES, contact_edges, near_pairs
+from hcmt.graph.edges import mesh_edge_features
 from hcmt.graph.hierarchy import build_hierarchy
 
 

@@ -3,7 +3,7 @@ import numpy as np
 import pytest
 import torch
 
-from graph_meshes import OBSTACLE, NORMAL, SYMMETRIC, cloth, plate_and_ball
+from graph_meshes import NORMAL, OBSTACLE, SYMMETRIC, cloth, plate_and_ball
 from hcmt.graph.contact import OFFICIAL_IMPACT_PLATE_TYPES, contact_edges, near_pairs, object_ids
 from hcmt.graph.edges import cells_to_edges
 

@@ -10,12 +10,10 @@ from scipy.sparse.csgraph import connected_components
 from scipy.spatial import ConvexHull
 
 from graph_meshes import annulus, cloth, grid_triangles, impact_plate, plate_and_ball, tet_box
-
 from hcmt.errors import DatasetError, InputError
 from hcmt.graph import hierarchy as mod
 from hcmt.graph.edges import cells_to_edges
-from hcmt.graph.hierarchy import (Hierarchy, MeshWarning, build_hierarchy, cached_hierarchy, hierarchy_key,
-                                  pool, unpool)
+from hcmt.graph.hierarchy import Hierarchy, MeshWarning, build_hierarchy, cached_hierarchy, hierarchy_key, pool, unpool
 from hcmt.graph.quality import quality_summary
 from hcmt.graph.remesh import clique_cells, delaunay_remesh, prepare_domain, two_hop_edges
 

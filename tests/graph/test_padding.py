@@ -5,11 +5,10 @@ from __future__ import annotations
 import pytest
 import torch
 
-from models_grid import grid_graph
-
 from hcmt.graph.batch import PadSizes, bucket, collate, pad_graph
 from hcmt.models import build_model
 from hcmt.models.base import compile_simulator
+from models_grid import grid_graph
 
 NODE_IN, MESH_IN, CONTACT_IN, OUT = 5, 6, 3, 3
 CONFIGS = [

@@ -8,6 +8,7 @@ from hcmt.inference import quantities as q
 from hcmt.inference.metrics import impact_metrics
 from impact_trajectory import DT, GAP, T, trajectory
 
+
 def test_bodies_and_groups():
     x, stress, rest, cells, node_type = trajectory()
     plate = q.plate_mask(cells, node_type)

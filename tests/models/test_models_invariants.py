@@ -5,12 +5,11 @@ import numpy as np
 import pytest
 import torch
 
-from models_grid import grid_graph, permute_graph
-
 from hcmt.graph.batch import collate
 from hcmt.models import build_model
 from hcmt.models.attention import EdgeGatedAttention, propagate
 from hcmt.viz.attention import maps_from_model
+from models_grid import grid_graph, permute_graph
 
 NODE_IN, MESH_IN, CONTACT_IN, OUT = 5, 6, 3, 3
 SMALL = dict(hidden=32, heads=4)

@@ -9,10 +9,10 @@ import torch
 
 from hcmt.config import DATASET_NAMES
 from hcmt.models import ABLATIONS, build_model
-from hcmt.physics.updater import update_positions
-from hcmt.physics.adapters import build_for_dataset, dataset_spec
 from hcmt.models.lpe import LaplacianPE, laplacian_pe
 from hcmt.models.normalizer import Normalizer
+from hcmt.physics.adapters import build_for_dataset, dataset_spec
+from hcmt.physics.updater import update_positions
 
 
 # -- normalizer ----------------------------------------------------------------------------------------------------

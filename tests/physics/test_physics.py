@@ -8,9 +8,7 @@ import pytest
 import torch
 
 from conftest import IMPACT_DATA
-
-from hcmt.cli import auto_threads, set_threads
-from hcmt.cli import main as cli
+from hcmt.cli import auto_threads, main as cli, set_threads
 from hcmt.config import Config, load_config
 from hcmt.data.format import NodeType
 from hcmt.design import sweep as sw
@@ -18,8 +16,7 @@ from hcmt.graph.build import frame_graph
 from hcmt.inference.evaluate import evaluate
 from hcmt.inference.metrics import impact_metrics, summarize_impact
 from hcmt.inference.run import Run
-from hcmt.physics.adapters import (config_adapter, get_adapter, integrate, noise_gamma, noise_mask, position_mask,
-                                  target)
+from hcmt.physics.adapters import config_adapter, get_adapter, integrate, noise_gamma, noise_mask, position_mask, target
 from hcmt.physics.frames import input_graph
 from hcmt.training import train
 from hcmt.training.dataset import FrameDataset, collate_samples

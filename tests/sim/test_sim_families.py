@@ -11,8 +11,6 @@ import pytest
 import torch
 from scipy.sparse.linalg import spsolve
 
-from hertz import contact_history, hertz
-
 from hcmt.cli import main as cli
 from hcmt.data.format import Split, read_meta
 from hcmt.data.info import summarize
@@ -21,9 +19,20 @@ from hcmt.physics.adapters import get_adapter, position_mask
 from hcmt.sim.contact import PenaltyContact
 from hcmt.sim.generate import generate_dataset
 from hcmt.sim.mesh import HANDLE, SYMMETRIC, WALL_BOUNDARY, impact_plate_mesh, layer_rows
-from hcmt.sim.scene import (FAMILIES, MATERIALS, Design, Settings, fixed_dofs, initial_frames, parse_stack,
-                            sample_design, simulate, solver)
+from hcmt.sim.scene import (
+    FAMILIES,
+    MATERIALS,
+    Design,
+    Settings,
+    fixed_dofs,
+    initial_frames,
+    parse_stack,
+    sample_design,
+    simulate,
+    solver,
+)
 from hcmt.sim.solver import CentralDifference, build_model, linear_stiffness, stable_time_step
+from hertz import contact_history, hertz
 
 STEEL = (7.85e-3, 200e3, 0.3)
 

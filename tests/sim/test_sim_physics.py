@@ -8,13 +8,19 @@ import numpy as np
 import pytest
 from scipy.sparse.linalg import eigsh, spsolve
 
-from hertz import contact_history, hertz
-
 from hcmt.sim.contact import PenaltyContact
 from hcmt.sim.mesh import SYMMETRIC, impact_plate_mesh, plate_mesh, preset_mesh
 from hcmt.sim.scene import fixed_dofs
-from hcmt.sim.solver import (CentralDifference, build_model, internal_force, linear_stiffness, nodal_von_mises,
-                             stable_time_step, strain_energy)
+from hcmt.sim.solver import (
+    CentralDifference,
+    build_model,
+    internal_force,
+    linear_stiffness,
+    nodal_von_mises,
+    stable_time_step,
+    strain_energy,
+)
+from hertz import contact_history, hertz
 
 STEEL = dict(density=7.85e-3, modulus=200e3, poisson=0.3)  # g/mm^3, MPa
 GLASS = dict(density=2.5e-3, modulus=70e3, poisson=0.22)

@@ -4,10 +4,9 @@ Adam, the reference implementation."""
 import pytest
 import torch
 
-from layouts import write_impact_like
-
 import hcmt.training.trainer as trainer_module
 from hcmt.training import train
+from layouts import write_impact_like
 
 pytestmark = pytest.mark.slow  # trains real (tiny) runs
 

@@ -14,10 +14,8 @@ import numpy as np
 import pytest
 import torch
 
-from conftest import TINY
-from layouts import deforming_plate_tfrecord, ggns_pickles, sphere_simple_tfrecord, write_impact_like
-
 import hcmt.training.trainer as trainer_module
+from conftest import TINY
 from hcmt.cli import main as cli
 from hcmt.config import Config
 from hcmt.data.format import NodeType, Split, open_split
@@ -34,6 +32,7 @@ from hcmt.training import train
 from hcmt.training.dataset import FrameDataset, StepSampler, pad_sizes
 from hcmt.training.schedule import learning_rate
 from hcmt.viz.curves import rollout_errors
+from layouts import deforming_plate_tfrecord, ggns_pickles, sphere_simple_tfrecord, write_impact_like
 
 pytestmark = pytest.mark.slow  # trains and rolls out real runs (DDP in a subprocess)
 

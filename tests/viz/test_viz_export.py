@@ -11,7 +11,6 @@ from hcmt.data.runs import RunFolder
 from hcmt.errors import DatasetError
 from hcmt.viz.export import export_case
 from hcmt.viz.rollouts import Case, Series, load_case
-
 from layouts import box_tetrahedra
 from viz_runs import SHIFT, STRESS_OFFSET, fake_run, impact_dataset
 

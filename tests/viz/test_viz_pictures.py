@@ -6,9 +6,6 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from layouts import box_tetrahedra, impact_like
-from viz_runs import SHIFT, STRESS_OFFSET, fake_run, impact_dataset
-
 from hcmt.cli import main as cli
 from hcmt.data.format import read_meta
 from hcmt.data.runs import RunFolder
@@ -23,6 +20,8 @@ from hcmt.viz.curves import plot_error_curves, plot_training_curves, read_log, r
 from hcmt.viz.hierarchy import level_figure, remeshing_figure
 from hcmt.viz.meshplot import impact_window
 from hcmt.viz.rollouts import Case, Series, load_case
+from layouts import box_tetrahedra, impact_like
+from viz_runs import SHIFT, STRESS_OFFSET, fake_run, impact_dataset
 
 pytestmark = pytest.mark.slow  # trained runs rolled out
 

@@ -17,14 +17,14 @@ import time
 from pathlib import Path
 
 from hcmt.config import load_config
+from hcmt.data.runs import RunFolder
 from hcmt.design.check import check_designs
 from hcmt.design.inputs import settings_of
 from hcmt.design.reports import contour_picture, format_table
-from hcmt.sim.scene import middle_design, parse_design
 from hcmt.inference.evaluate import evaluate, format_metrics
 from hcmt.inference.run import Run
-from hcmt.data.runs import RunFolder
 from hcmt.sim.generate import generate_dataset
+from hcmt.sim.scene import middle_design, parse_design
 from hcmt.training import train
 
 #: three designs inside the shipped model's training ranges, chosen by hand (not sampled from its data)

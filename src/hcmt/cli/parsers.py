@@ -13,13 +13,35 @@ from dataclasses import asdict, fields
 from pathlib import Path
 
 from hcmt.cli import CommandError, check_outputs
-from hcmt.config import (ABLATIONS, COMPILE_MODES, INIT_NORMALIZERS, MAX_BATCH, MAX_DESIGNS, MAX_TRAJECTORIES, MODELS,
-                         available_pretrained, load_config, machine_cores)
+from hcmt.config import (
+    ABLATIONS,
+    COMPILE_MODES,
+    INIT_NORMALIZERS,
+    MAX_BATCH,
+    MAX_DESIGNS,
+    MAX_TRAJECTORIES,
+    MODELS,
+    available_pretrained,
+    load_config,
+    machine_cores,
+)
 from hcmt.design.basics import DEFAULT_READOUT, QUANTITIES, READOUTS, RESTARTS, parse_vary, read_table
 from hcmt.errors import clip
-from hcmt.sim.params import (CONTACT_RADIUS, DESIGN_UNITS, FAMILIES, MATERIALS, MAX_ESTIMATED_SECONDS, RANGES,
-                             Design, Settings, describe_family, design_key, design_values, parse_stack,
-                             preset_design)
+from hcmt.sim.params import (
+    CONTACT_RADIUS,
+    DESIGN_UNITS,
+    FAMILIES,
+    MATERIALS,
+    MAX_ESTIMATED_SECONDS,
+    RANGES,
+    Design,
+    Settings,
+    describe_family,
+    design_key,
+    design_values,
+    parse_stack,
+    preset_design,
+)
 
 #: the largest count of a few options without a natural bound: training steps, frames a picture shows per second,
 #: optimizer restarts, hierarchy levels, a picture's frame stride

@@ -9,10 +9,10 @@ from pathlib import Path
 
 from hcmt.cli import CommandError
 from hcmt.config import load_config
+from hcmt.data.runs import RunFolder, check_start
 from hcmt.files import atomic_path, check_apart
 from hcmt.inference.evaluate import check_options, compare, evaluate, format_compare, format_metrics, run_rollouts
 from hcmt.inference.run import Run, dataset_warnings
-from hcmt.data.runs import RunFolder, check_start
 from hcmt.training import train
 
 

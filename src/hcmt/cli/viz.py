@@ -26,11 +26,11 @@ import matplotlib
 from hcmt.cli import CommandError, check_outputs
 from hcmt.cli.parsers import frames_of, pictures_of
 from hcmt.data.format import Split, read_meta
+from hcmt.data.runs import RunFolder
+from hcmt.files import check_apart
 from hcmt.graph.hierarchy import cached_hierarchy, hierarchy_cache_dir
 from hcmt.inference.evaluate import rollout_file
 from hcmt.inference.run import Run
-from hcmt.data.runs import RunFolder
-from hcmt.files import check_apart
 from hcmt.models import REGISTRY, uses_hierarchy
 from hcmt.viz.animation import animate
 from hcmt.viz.attention import frame_attention, plot_attention

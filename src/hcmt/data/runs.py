@@ -19,6 +19,7 @@ from hcmt.data.format import Split, read_meta
 from hcmt.errors import InputError
 from hcmt.files import atomic_path, read_json
 
+
 class RunFolder:
     """A run folder made by ``hcmt train``: the one owner of its file names, ``run.yaml`` parsed once.
 

@@ -25,16 +25,22 @@ from tqdm import tqdm
 from hcmt.config import MAX_BATCH, MAX_DESIGNS
 from hcmt.design.basics import check_name
 from hcmt.design.inputs import confidence, outside, range_warnings, settings_of
-from hcmt.design.readout import (CONTACT_END_BOUND, DEFAULT_READOUT, check_readout, chosen, history_correlation,
-                                 readout_key, summarize_fields)
+from hcmt.design.readout import (
+    CONTACT_END_BOUND,
+    DEFAULT_READOUT,
+    check_readout,
+    chosen,
+    history_correlation,
+    readout_key,
+    summarize_fields,
+)
 from hcmt.design.surrogate import Surrogate, for_run, side_by_side
 from hcmt.errors import InputError, clip
 from hcmt.inference.metrics import impact_metrics, rollout_rmse, summarize_impact
 from hcmt.inference.quantities import plate_mask
 from hcmt.inference.rollout import rollout_batch
 from hcmt.physics.trajectory import prepare_trajectory
-from hcmt.sim.scene import (Design, Settings, check_cost, check_size, simulate, start_frames,
-                            validated_warnings)
+from hcmt.sim.scene import Design, Settings, check_cost, check_size, simulate, start_frames, validated_warnings
 
 
 @dataclass

@@ -8,8 +8,16 @@ from pathlib import Path
 
 from hcmt.design.basics import read_table
 from hcmt.errors import InputError, clip
-from hcmt.sim.scene import (DESIGN_KEYS, EDGES, FIRST_SCENE_KEYS, Design, Settings, middle_design, parse_design,
-                            parse_number)
+from hcmt.sim.scene import (
+    DESIGN_KEYS,
+    EDGES,
+    FIRST_SCENE_KEYS,
+    Design,
+    Settings,
+    middle_design,
+    parse_design,
+    parse_number,
+)
 
 
 # -- designs -----------------------------------------------------------------------------------------------------

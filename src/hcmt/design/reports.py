@@ -9,14 +9,13 @@ from pathlib import Path
 import numpy as np
 
 from hcmt.config import plural
+from hcmt.design.check import Check, Prediction, weak_reasons
+from hcmt.design.readout import chosen, readout_key
 from hcmt.files import atomic_path
 from hcmt.inference.metrics import format_physics
 from hcmt.sim.scene import DESIGN_KEYS
 from hcmt.viz.contours import plot_contours
 from hcmt.viz.rollouts import Case, Series
-from hcmt.design.check import Check, Prediction, weak_reasons
-from hcmt.design.readout import chosen, readout_key
-
 
 # -- output --------------------------------------------------------------------------------------------------------
 COLUMNS = [("design", "{}", "name"), ("plate MPa", "{:.1f}", "peak_plate_stress_mpa"),

@@ -37,11 +37,11 @@ from sklearn.gaussian_process import GaussianProcessRegressor
 from sklearn.gaussian_process.kernels import RBF, ConstantKernel, WhiteKernel
 
 from hcmt.data.format import Split, read_meta
+from hcmt.data.runs import PRETRAINED_DIR
 from hcmt.design.basics import QUANTITIES, RESTARTS
+from hcmt.design.readout import summarize_fields
 from hcmt.errors import InputError, clip
 from hcmt.files import atomic_path
-from hcmt.design.readout import summarize_fields
-from hcmt.data.runs import PRETRAINED_DIR
 from hcmt.sim.scene import DESIGN_KEYS, DESIGN_UNITS, FIRST_SCENE_KEYS, Design, check_size, design_from_attrs
 
 FORMAT, VERSION = "hcmt-surrogate", 2

@@ -19,8 +19,16 @@ from hcmt.data.format import Split, read_meta
 from hcmt.data.runs import RunFolder
 from hcmt.errors import InputError, RolloutError, clip
 from hcmt.files import atomic_path, ensure_space, read_json
-from hcmt.inference.metrics import (SCALE, aggregate, format_physics, impact_metrics, rollout_rmse, step_rmse,
-                                    summarize_impact, summarize_runs)
+from hcmt.inference.metrics import (
+    SCALE,
+    aggregate,
+    format_physics,
+    impact_metrics,
+    rollout_rmse,
+    step_rmse,
+    summarize_impact,
+    summarize_runs,
+)
 from hcmt.inference.quantities import impact_groups, plate_mask
 from hcmt.inference.rollout import rollout, rollout_batch
 from hcmt.inference.run import Run, check_dataset, dataset_warnings, model_label

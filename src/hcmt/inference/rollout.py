@@ -20,8 +20,8 @@ from hcmt.errors import InputError, RolloutError
 from hcmt.graph.batch import PadSizes, collate, pad_graph
 from hcmt.models.base import compile_simulator
 from hcmt.physics.adapters import Adapter, integrate
-from hcmt.physics.trajectory import Trajectory
 from hcmt.physics.frames import input_graph
+from hcmt.physics.trajectory import Trajectory
 
 
 @torch.no_grad()

@@ -28,6 +28,7 @@ from hcmt.files import atomic_path
 from hcmt.models import REGISTRY, from_checkpoint, resolve_device, uses_hierarchy
 from hcmt.physics.adapters import config_adapter
 
+
 def model_label(args: dict) -> str:
     """The display label of a model from its constructor arguments (:data:`hcmt.models.REGISTRY`), with its
     ablation."""

@@ -20,7 +20,6 @@ from .mgn import MGN
 from .normalizer import Normalizer
 
 
-
 @dataclass(frozen=True)
 class ModelInfo:
     """What the rest of hcmt needs to know of a model without building it."""

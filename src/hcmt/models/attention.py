@@ -52,7 +52,6 @@ from torch_geometric.utils import scatter, softmax
 
 from hcmt.errors import InputError
 
-
 MODES = ("paper", "official")
 
 

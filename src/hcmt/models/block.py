@@ -19,10 +19,10 @@ from __future__ import annotations
 import torch
 from torch import Tensor, nn
 
+from hcmt.errors import InputError
+
 from .attention import EdgeGatedAttention
 from .mlp import ffn
-
-from hcmt.errors import InputError
 
 
 class TransformerBlock(nn.Module):

@@ -42,10 +42,11 @@ from hcmt.errors import DatasetError, InputError
 from hcmt.graph.batch import Graph
 from hcmt.graph.hierarchy import pool as pool_nodes, unpool
 
-from .base import Simulator
 from .attention import AttentionMap, check_mode
+from .base import Simulator
 from .block import TransformerBlock
 from .lpe import LaplacianPE
+
 
 class HMT(nn.Module):
     """The hierarchical mesh Transformer layer: ``2λ + 1`` one-branch blocks over the levels' mesh edges."""

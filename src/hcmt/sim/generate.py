@@ -24,8 +24,20 @@ from hcmt.config import MAX_TRAJECTORIES, machine_cores
 from hcmt.data.format import make_meta, read_meta, write_meta, write_split
 from hcmt.errors import DatasetError, InputError
 from hcmt.sim.params import preset_design
-from hcmt.sim.scene import (CONTACT_RADIUS, FAMILIES, RANGES, UNITS, VARIANTS, Design, Settings, check_cost,
-                            family_ranges, feature_spec, plan, sample_design, simulate)
+from hcmt.sim.scene import (
+    CONTACT_RADIUS,
+    FAMILIES,
+    RANGES,
+    UNITS,
+    VARIANTS,
+    Design,
+    Settings,
+    check_cost,
+    feature_spec,
+    plan,
+    sample_design,
+    simulate,
+)
 
 #: Split names and their stable codes in the per-trajectory seed.
 SPLITS = ("train", "valid", "test", "test_thicker", "test_higher", "test_thicker_higher")

@@ -11,10 +11,10 @@ on ``x = 0`` (plate and ball) SYMMETRIC 7 (x fixed), plate nodes on ``x = L`` HA
 from __future__ import annotations
 
 import numpy as np
+from scipy.spatial import Delaunay
 
 from hcmt.data.format import NodeType
 from hcmt.errors import InputError
-from scipy.spatial import Delaunay
 
 NORMAL, OBSTACLE, HANDLE, SYMMETRIC = NodeType.NORMAL, NodeType.OBSTACLE, NodeType.HANDLE, NodeType.SYMMETRIC
 WALL_BOUNDARY = NodeType.WALL_BOUNDARY

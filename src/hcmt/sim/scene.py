@@ -24,11 +24,35 @@ import numpy as np
 from hcmt.errors import InputError
 from hcmt.sim.contact import PenaltyContact
 from hcmt.sim.mesh import HANDLE, SYMMETRIC, WALL_BOUNDARY, impact_plate_mesh
-from hcmt.sim.params import (BACKING_DENSITY, BACKING_POISSON, CONTACT_RADIUS, DESIGN_KEYS, DESIGN_UNITS, EDGES,
-                             FAMILIES, FIRST_SCENE_KEYS, GRAVITY, MATERIALS, MAX_ESTIMATED_SECONDS, RANGES, RELATIVE,
-                             UNITS, VARIANTS, Design, Settings, describe_family, design_key, design_values,
-                             family_ranges, parse_design, parse_number, parse_stack, resolve_relative)
+from hcmt.sim.params import (
+    BACKING_DENSITY,
+    BACKING_POISSON,
+    CONTACT_RADIUS,
+    DESIGN_KEYS,
+    DESIGN_UNITS,
+    EDGES,
+    FAMILIES,
+    FIRST_SCENE_KEYS,
+    GRAVITY,
+    MATERIALS,
+    MAX_ESTIMATED_SECONDS,
+    RANGES,
+    RELATIVE,
+    UNITS,
+    VARIANTS,
+    Design,
+    Settings,
+    describe_family,
+    design_key,
+    design_values,
+    family_ranges,
+    parse_design,
+    parse_number,
+    parse_stack,
+    resolve_relative,
+)
 from hcmt.sim.solver import CentralDifference, build_model, deformation, nodal_von_mises, stable_time_step
+
 
 def sample_design(rng: np.random.Generator, preset: str = "small", variant: str | None = None,
                   edge_fraction: float = 0.0, family: str = "mono") -> Design:

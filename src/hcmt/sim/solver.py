@@ -34,7 +34,6 @@ from hcmt.errors import InputError
 from hcmt.sim.params import FORMULATIONS, check_material
 
 
-
 @dataclass
 class FEModel:
     """Precomputed operators of a triangle mesh (reference configuration ``X``)."""

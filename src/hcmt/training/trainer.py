@@ -56,8 +56,15 @@ from hcmt.physics.adapters import config_adapter, model_args, noise_gamma
 from hcmt.physics.frames import step_seed
 from hcmt.physics.trajectory import load_split
 from hcmt.training.dataset import FrameDataset, StepSampler, pad_sizes, step_loader
-from hcmt.training.runtime import (InterruptFlag, TrainingInterrupted, check_resume, distributed, rank_zero_logging,
-                                   save_atomic, stop_together)
+from hcmt.training.runtime import (
+    InterruptFlag,
+    TrainingInterrupted,
+    check_resume,
+    distributed,
+    rank_zero_logging,
+    save_atomic,
+    stop_together,
+)
 from hcmt.training.schedule import keras_epsilon, learning_rate
 
 logger = logging.getLogger("hcmt.train")  # rank-zero messages (hcmt.training.runtime.rank_zero_logging)

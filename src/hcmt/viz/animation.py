@@ -19,8 +19,16 @@ from PIL import Image
 from hcmt.errors import InputError
 from hcmt.files import atomic_path
 from hcmt.viz.contours import field_label, field_name, field_values, view_box
-from hcmt.viz.meshplot import (box_3d, closest_pair, draw_field_2d, draw_field_3d, extend_of, impact_window, new_figure,
-                               panel_size)
+from hcmt.viz.meshplot import (
+    box_3d,
+    closest_pair,
+    draw_field_2d,
+    draw_field_3d,
+    extend_of,
+    impact_window,
+    new_figure,
+    panel_size,
+)
 from hcmt.viz.rollouts import Case, quantity_label
 
 

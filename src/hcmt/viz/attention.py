@@ -27,9 +27,8 @@ from pathlib import Path
 
 import numpy as np
 import scipy.sparse as sp
-from matplotlib import colors
-
 import torch
+from matplotlib import colors
 
 from hcmt.data.format import NodeType, Split
 from hcmt.errors import InputError

@@ -23,9 +23,18 @@ from matplotlib.patches import Rectangle
 
 from hcmt.errors import InputError
 from hcmt.inference.metrics import step_rmse
-
-from hcmt.viz.meshplot import (box_3d, draw_field_2d, draw_field_3d, extend_of, field_limits, impact_window, new_figure,
-                               panel_size, save_figure, scene_box)
+from hcmt.viz.meshplot import (
+    box_3d,
+    draw_field_2d,
+    draw_field_3d,
+    extend_of,
+    field_limits,
+    impact_window,
+    new_figure,
+    panel_size,
+    save_figure,
+    scene_box,
+)
 from hcmt.viz.rollouts import Case, Series, quantity_label
 
 STRESS_NAME = "von Mises stress"

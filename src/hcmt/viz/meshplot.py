@@ -17,7 +17,6 @@ from __future__ import annotations
 from pathlib import Path
 
 import matplotlib
-
 import numpy as np
 from matplotlib import colors
 from matplotlib.backends.backend_agg import FigureCanvasAgg

@@ -14,11 +14,11 @@ import h5py
 import numpy as np
 
 from hcmt.data.format import Split, read_meta
+from hcmt.data.runs import RunFolder
 from hcmt.errors import DatasetError, InputError
 from hcmt.graph.contact import object_ids
 from hcmt.inference.evaluate import rollout_file
 from hcmt.inference.run import Run, model_label
-from hcmt.data.runs import RunFolder
 
 
 @dataclass

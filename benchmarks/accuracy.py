@@ -43,10 +43,12 @@ def main() -> None:
     path = write_json(a.json, table)
     if not table:
         return
-    print(f"\n{'model':<6}{'pos RMSE-1':>18}{'pos RMSE-all':>20}{'stress RMSE-1':>20}{'stress RMSE-all':>22}{'train ms':>12}")
+    print(f"\n{'model':<6}{'pos RMSE-1':>18}{'pos RMSE-all':>20}{'stress RMSE-1':>20}{'stress RMSE-all':>22}"
+          f"{'train ms':>12}")
     for m, r in table.items():
         print(f"{m:<6}{fmt(r['position']['rmse_1']):>18}{fmt(r['position']['rmse_all']):>20}"
-              f"{fmt(r['stress']['rmse_1']):>20}{fmt(r['stress']['rmse_all']):>22}{r['train_ms_per_step']['mean']:>12.1f}")
+              f"{fmt(r['stress']['rmse_1']):>20}{fmt(r['stress']['rmse_all']):>22}"
+              f"{r['train_ms_per_step']['mean']:>12.1f}")
     if "hcmt" not in table or "mgn" not in table:
         return
     h, g = table["hcmt"], table["mgn"]

@@ -39,7 +39,8 @@ DATASET = dict(preset="small", train=40, valid=4, test=10, seed=2024, variants=2
 def dataset(work: Path, spec: dict = DATASET) -> Path:
     """The benchmark's dataset under ``work``, generated (or finished: the generator skips what exists) by
     :func:`hcmt.sim.generate.generate_dataset`."""
-    data = work / (f"impact_plate_{spec['preset']}_{spec['train']}" + (f"_{spec['frames']}" if spec.get("frames") else "")
+    data = work / (f"impact_plate_{spec['preset']}_{spec['train']}"
+                   + (f"_{spec['frames']}" if spec.get("frames") else "")
                    + (f"_dt{spec['frame_dt']:g}" if spec.get("frame_dt") else ""))
     counts = {"train": spec["train"], "valid": spec["valid"], "test": spec["test"]}
     if spec.get("variants"):

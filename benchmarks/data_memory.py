@@ -94,7 +94,8 @@ def box_tets(nx: int, ny: int, nz: int, origin=(0.0, 0.0, 0.0), h: float = 0.01)
     """A box of ``nx * ny * nz`` cubes of side ``h``, six tetrahedra each."""
     grid = np.stack(np.meshgrid(*(np.arange(k + 1) for k in (nx, ny, nz)), indexing="ij"), -1).reshape(-1, 3)
     pos = (grid * h + np.asarray(origin)).astype(np.float32)
-    nid = lambda i, j, k: (i * (ny + 1) + j) * (nz + 1) + k  # noqa: E731
+    def nid(i, j, k):
+        return (i * (ny + 1) + j) * (nz + 1) + k
     paths = [(0, 1, 3, 7), (0, 1, 5, 7), (0, 2, 3, 7), (0, 2, 6, 7), (0, 4, 5, 7), (0, 4, 6, 7)]
     tets = []
     for i, j, k in np.ndindex(nx, ny, nz):

@@ -77,8 +77,8 @@ class Check:
 
 def cuda_tests(c: Check) -> dict:
     r = subprocess.run([sys.executable, "-m", "pytest", "-q", "-k", "cuda", "tests/training/test_train.py",
-                        "tests/models/test_models_invariants.py", "-p", "no:cacheprovider"], cwd=ROOT, capture_output=True,
-                       text=True, timeout=max(c.left(), 10))
+                        "tests/models/test_models_invariants.py", "-p", "no:cacheprovider"], cwd=ROOT,
+                       capture_output=True, text=True, timeout=max(c.left(), 10))
     lines = [l for l in r.stdout.splitlines() if "passed" in l or "failed" in l or "skipped" in l or "FAILED" in l]
     return {"returncode": r.returncode, "lines": lines[-12:]}
 

@@ -235,7 +235,7 @@ def figure(out: dict) -> Path:
     return path
 
 
-# -- speed: the design check at each interval ---------------------------------------------------------------------------
+# -- speed: the design check at each interval ---------------------------------------------------------------------
 def speed(work: Path, steps: int, datasets: dict[float, Path], form: str = "recipe") -> dict:
     """``predict --verify`` of the 12 test designs with each interval's HCMT (seed 0, chosen σ): learned and solver
     wall time per design, one design at a time and all 12 in one batch, on this machine (one thread)."""
@@ -272,7 +272,8 @@ def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--work", type=Path, default=Path("benchmarks/work"))
     p.add_argument("--steps", type=int, default=1000)
-    p.add_argument("--table-only", action="store_true", help="write results/interval.json and the figure; train nothing")
+    p.add_argument("--table-only", action="store_true",
+                   help="write results/interval.json and the figure; train nothing")
     p.add_argument("--speed", action="store_true", help="the design check at each interval (after training)")
     a = p.parse_args()
     datasets = {dt: dataset(a.work, data_spec(dt)) for dt in WINDOW_FRAMES}

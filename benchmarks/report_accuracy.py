@@ -22,8 +22,8 @@ from report_common import (
 )
 
 SETTINGS = ("Settings of this table: the `small` preset study above (config `impact_plate_cpu`, σ = 0.003 mm from "
-            "Table 8, paper attention), run before the parity study; not re-run with the σ chosen there (no budget left "
-            "on this machine).")
+            "Table 8, paper attention), run before the parity study; not re-run with the σ chosen there (no budget "
+            "left on this machine).")
 WHY = {"only-hmt": "HMT alone never sees contact edges"}  # what an ablation removes, where it explains the result
 PAPER_CLAIM = "The paper's case for the hierarchy is long-range propagation (hops table above)."
 FIGURES = ["![rollout error per step](img/rollout_error_seed0.png)", "",
@@ -46,8 +46,9 @@ def accuracy(lines):
               f"Data: `hcmt generate impact-plate` with preset `{DATASET['preset']}` (~400-570 nodes), "
               f"{DATASET['train']} train / {DATASET['valid']} valid / {DATASET['test']} test trajectories of 52 frames "
               f"(seed {DATASET['seed']}). Config `impact_plate_cpu` (hidden 64, HCMT L_C 2 / λ 4 / L_H 9, MGN and GT "
-              f"11 blocks), {any_model['steps']} steps each (the same budget for every model), batch 1, lr 1e-3 → 1e-5, "
-              "one CPU thread per run. RMSE ×10³ over the test split (position in mm, stress in MPa), mean ± std over "
+              f"11 blocks), {any_model['steps']} steps each (the same budget for every model), batch 1, "
+              "lr 1e-3 → 1e-5, one CPU thread per run. RMSE ×10³ over the test split (position in mm, stress in MPa), "
+              "mean ± std over "
               "seeds. Code: commit 2bd7e5a (the study, its ablations, level sensitivity and generalization ran from a "
               "frozen worktree of it); a later commit made the learning rate end exactly at lr_final, where these "
               "runs ended at 1.6e-5 instead of 1e-5 (the schedule was held during the 200 normalizer steps).", "",
@@ -61,7 +62,8 @@ def accuracy(lines):
     if "hcmt" in acc and "mgn" in acc:
         h, g = acc["hcmt"], acc["mgn"]
         lines += ["", f"HCMT ÷ MGN, RMSE-all: position **{ratio(h, g, 'position'):.2f}**, stress "
-                  f"**{ratio(h, g, 'stress'):.2f}** (paper: {PAPER_RATIO['position']:g} and {PAPER_RATIO['stress']:g})."]
+                  f"**{ratio(h, g, 'stress'):.2f}** "
+                  f"(paper: {PAPER_RATIO['position']:g} and {PAPER_RATIO['stress']:g})."]
     lines.append("")
 
 
@@ -76,7 +78,8 @@ def longer(lines):
               f"Commands: `python benchmarks/accuracy.py --steps {h['steps']} --seeds 0 --models hcmt --json "
               f"accuracy_long_hcmt.json` and the same with `--models mgn` (one seed; commit d111c37, with the "
               "corrected learning-rate schedule).", "",
-              "| model | steps | position RMSE-1 | position RMSE-all | stress RMSE-1 | stress RMSE-all | train ms/step |",
+              "| model | steps | position RMSE-1 | position RMSE-all | stress RMSE-1 | stress RMSE-all "
+              "| train ms/step |",
               "|---|---|---|---|---|---|---|"]
     for name, r in (("HCMT", h), ("MGN", g)):
         lines.append(f"| {name} | {r['steps']} | {r['position']['rmse_1']['mean']:.4g} | "
@@ -139,7 +142,8 @@ def reach(acc) -> list[str]:
     steps = max(int(k.split("_")[1]) for k in acc["mgn"]["position"] if k.split("_")[1].isdigit())
     paper = f" ({prop['paper']['median']['impact_to_clamp_hops']:.0f} on the `paper` preset)" if "paper" in prop else ""
     levels = f"HCMT's λ = {sm['models']['hcmt']['levels']} levels"
-    hcmt = (f"{levels} reach about the whole plate" if hh * ABOUT >= clamp else f"{levels} reach {hh:.0f} hops per step")
+    hcmt = (f"{levels} reach about the whole plate" if hh * ABOUT >= clamp
+            else f"{levels} reach {hh:.0f} hops per step")
     travel = "more" if steps * m > clamp else "less"
     regime = ("The CPU study therefore probes a regime where the shortcut matters less than on the `paper` preset."
               if "paper" in prop and keeps_up(sm) and not keeps_up(prop["paper"]) else "")
@@ -156,8 +160,8 @@ def ablations(lines):
     abl, lev = load("ablations.json"), load("levels.json")
     if abl:
         lines += ["## Ablations (paper Tables 3, 10-12)", "", SETTINGS, "",
-                  f"Command: `python benchmarks/ablations.py --steps {abl['steps']} --part ablations` (seed {abl['seed']}, "
-                  "same data and budget as the accuracy study). RMSE-all ×10³.", ""]
+                  f"Command: `python benchmarks/ablations.py --steps {abl['steps']} --part ablations` "
+                  f"(seed {abl['seed']}, same data and budget as the accuracy study). RMSE-all ×10³.", ""]
         rows = abl["rows"]
         table(lines, "variant", rows)
         acc = load("accuracy.json")
@@ -204,8 +208,9 @@ def generalization(lines):
         return
     lines += [SETTINGS, "",
               f"Command: `python benchmarks/generalization.py --steps {gen['steps']} --seeds "
-              f"{' '.join(map(str, gen['seeds']))}` (the accuracy runs, trained on thickness 0.5-1.0 mm and drop height "
-              "500-1000 mm, evaluated on 20 trajectories of each out-of-range split). RMSE-all ×10³, mean ± std over seeds.",
+              f"{' '.join(map(str, gen['seeds']))}` (the accuracy runs, trained on thickness 0.5-1.0 mm and drop "
+              "height 500-1000 mm, evaluated on 20 trajectories of each out-of-range split). RMSE-all ×10³, "
+              "mean ± std over seeds.",
               "", "| split | MGN position | MGN stress | HCMT position | HCMT stress |", "|---|---|---|---|---|"]
     for s in (k for k, v in gen["rows"]["hcmt"].items() if isinstance(v, dict)):
         g, h = gen["rows"]["mgn"][s], gen["rows"]["hcmt"][s]

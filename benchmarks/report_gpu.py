@@ -7,9 +7,9 @@ import json
 
 from report_common import GOAL_NODES, GOALS, MACHINE, gpu_check_ran, load, on_gpu, reached, sentences
 
-NO_GPU = ("GPU rows: **not measured**: no GPU was lent to the sessions that ran these commands (the code paths are the "
-          "same; on CUDA `bench_models.py --compile` uses `reduce-overhead`, i.e. CUDA graphs, and fused Adam). The rows "
-          "below are the CPU's.")
+NO_GPU = ("GPU rows: **not measured**: no GPU was lent to the sessions that ran these commands (the code paths are "
+          "the same; on CUDA `bench_models.py --compile` uses `reduce-overhead`, i.e. CUDA graphs, and fused Adam). "
+          "The rows below are the CPU's.")
 AGREES = ("agrees with the eager step to float tolerance, not bit for bit (tests/training/test_train.py): "
           "`train.compile` stays off by default.")
 
@@ -123,8 +123,8 @@ def gpu_check(lines):
     lines += ["## GPU check", ""]
     if not d or d.get("smoke"):
         every = ", ".join(g for g, _, _ in GOALS) + f", a {GOAL_NODES:,}-node step"
-        lines += [sentences("`PYTHONPATH=src python benchmarks/gpu_check.py --out OUT` has not run on a GPU yet (no GPU "
-                            "lent).", f"Every GPU goal ({every}) is **not measured**."), ""]
+        lines += [sentences("`PYTHONPATH=src python benchmarks/gpu_check.py --out OUT` has not run on a GPU yet "
+                            "(no GPU lent).", f"Every GPU goal ({every}) is **not measured**."), ""]
         return
     lines += [f"`benchmarks/gpu_check.py` on {d['device']} (torch {d['torch']}, budget {d['budget_s']:.0f} s).", "",
               "| model | mode | batch | train ms | samples/s | inference ms |", "|---|---|---|---|---|---|"]

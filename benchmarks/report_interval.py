@@ -40,7 +40,8 @@ def interval(lines):
         if any(form in table.get(dt, {}) for dt in dts):
             form_table(lines, table, form, dts)
     trend = ratio_table(lines, table, dts)
-    lines += ["", "![HCMT ÷ baseline against the front's hops per frame ÷ the baseline's reach](img/interval_ratio.png)",
+    lines += ["",
+              "![HCMT ÷ baseline against the front's hops per frame ÷ the baseline's reach](img/interval_ratio.png)",
               ""]
     lines += reading(t, dts, trend)
     speed_table(lines, t, dts)
@@ -92,7 +93,8 @@ def form_table(lines, table, form, dts):
                 continue
             lines.append(f"| {dt} | {model} | {r['sigma_mm']:g} | {r['seeds']} | {pm(r['position_rmse_all'], 3)} | "
                          f"{pm(r['stress_rmse_all'], 3)} | {pm(r['rebound_agreement'], 2)} | "
-                         f"{pm(r['peak_plate_stress_error_pct'], 3)} | {pm(r['peak_plate_stress_error_pct_signed'], 3)} | "
+                         f"{pm(r['peak_plate_stress_error_pct'], 3)} | "
+                         f"{pm(r['peak_plate_stress_error_pct_signed'], 3)} | "
                          f"{r['peak_time_error_ms']['mean']:.3f} | {pm(r['max_deflection_error_pct'], 3)} | "
                          f"{pm(r['far_deflection_error_um'], 3)} | {r['train_ms_per_step']['mean']:.0f} | "
                          f"{r['inference_ms_per_step']['mean']:.1f} | {r['model_steps_per_design']} |")
@@ -174,9 +176,10 @@ def reading(t, dts, trend) -> list[str]:
                 for k, r in table.get(dt, {}).get(form, {}).items() if k != "ratios")
     drift = worst > LARGE_DRIFT_PCT
     out += ["- Budget: " + sentences(
-        f"{t['steps']} steps per run; max-deflection errors reach {worst:.0f} % (median over designs, mean over seeds).",
-        "At this budget the rollout's drift exceeds the deflection itself" + (", and no margin shows." if not grown
-                                                                               else ".") if drift else "",
+        f"{t['steps']} steps per run; max-deflection errors reach {worst:.0f} % "
+        "(median over designs, mean over seeds).",
+        "At this budget the rollout's drift exceeds the deflection itself"
+        + (", and no margin shows." if not grown else ".") if drift else "",
         f"docs/MODELS.md has a model trained {SHIPPED_STEPS / t['steps']:.0f}× longer."), ""]
     return out
 

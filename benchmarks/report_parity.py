@@ -34,8 +34,8 @@ HOPS = ("Command: `python benchmarks/propagation.py --data small=DATA_SMALL --da
         "plate's mesh edges from the node under the impact; the stress front is the farthest plate node above 0.5 % of "
         "the trajectory's peak von Mises stress; HCMT's reach per step is L_C plus the median level-0 span of each HMT "
         "block's edges (down, bottom, up).")
-LEVELS = ("Command: `hcmt generate impact-plate benchmarks/work/impact_plate_paper_5 --preset paper --train 5 --valid 0 "
-          "--test 0 --seed 7` then `hcmt hierarchy benchmarks/work/impact_plate_paper_5 --levels 6 --json "
+LEVELS = ("Command: `hcmt generate impact-plate benchmarks/work/impact_plate_paper_5 --preset paper --train 5 "
+          "--valid 0 --test 0 --seed 7` then `hcmt hierarchy benchmarks/work/impact_plate_paper_5 --levels 6 --json "
           "benchmarks/results/hierarchy_paper.json` (means over the 5 trajectories).")
 SHARED = ("`train ms/step` in the table was measured while two study processes (and at times the test suite) shared "
           "the machine's two cores; it is not a speed benchmark (see Speed below).")
@@ -50,8 +50,9 @@ def parity(lines):
     d, steps = par["dataset"], par["steps"]
     lines += [f"Command: `python benchmarks/parity.py --work benchmarks/work --steps {steps}` (resumable; several "
               f"processes may share the work). Data: `hcmt generate impact-plate --preset paper` (~"
-              f"{round(PAPER_LEVELS[0], -2):,} nodes, the paper's mesh size), {d['train']} train / {d['valid']} valid / "
-              f"{d['test']} test trajectories (seed {d['seed']}). Config `{par['config']}`: the paper's depths (HCMT λ 6, "
+              f"{round(PAPER_LEVELS[0], -2):,} nodes, the paper's mesh size), {d['train']} train / "
+              f"{d['valid']} valid / {d['test']} test trajectories (seed {d['seed']}). Config `{par['config']}`: "
+              "the paper's depths (HCMT λ 6, "
               f"L_C 2, L_H 13; MGN and GT 15 blocks) at width {WIDTH}, {steps} steps per run (equal budget), batch 1, "
               "lr 1e-3 → 1e-5, one CPU thread per run. The training noise σ of each model is the one with the lowest "
               "validation position RMSE-all in the sweep below (the test split is not used to choose). RMSE ×10³ on "
@@ -183,13 +184,14 @@ def propagation(lines):
     prop = opened(lines, "### Why the hierarchy matters on `paper` and less on `small`: hops", "propagation.json")
     if not prop:
         return
-    lines += [HOPS, "", "| preset | impact → clamp (hops) | stress front (hops / frame) | P wave (hops / frame) | MGN / GT "
-              "(hops / step) | HCMT (hops / step) | HCMT level spans |", "|---|---|---|---|---|---|---|"]
+    lines += [HOPS, "", "| preset | impact → clamp (hops) | stress front (hops / frame) | P wave (hops / frame) "
+              "| MGN / GT (hops / step) | HCMT (hops / step) | HCMT level spans |", "|---|---|---|---|---|---|---|"]
     for preset, r in prop.items():
         md, mo = r["median"], r["models"]
         lines.append(f"| {preset} | {md['impact_to_clamp_hops']:.0f} | {md['front_hops_per_frame']:.1f} | "
                      f"{md['p_wave_hops_per_frame']:.0f} | {mo['mgn_gt_hops_per_step']} | "
-                     f"{mo['hcmt']['hops_per_step']:.0f} | {', '.join(f'{x:.0f}' for x in mo['hcmt']['span_per_level'])} |")
+                     f"{mo['hcmt']['hops_per_step']:.0f} | "
+                     f"{', '.join(f'{x:.0f}' for x in mo['hcmt']['span_per_level'])} |")
     if "small" in prop and "paper" in prop:
         sm, pa = prop["small"], prop["paper"]
         m_p, h_p = pa["models"]["mgn_gt_hops_per_step"], pa["models"]["hcmt"]["hops_per_step"]
@@ -212,10 +214,12 @@ def hierarchy(lines):
     rows = opened(lines, "## Hierarchy statistics (paper Tables 6-7)", "hierarchy_paper.json")
     if not rows:
         return
-    lines += [LEVELS, "", "| level | nodes (hcmt) | nodes (paper) | scaled Jacobian before → after | min angle ° | max angle ° |",
+    lines += [LEVELS, "",
+              "| level | nodes (hcmt) | nodes (paper) | scaled Jacobian before → after | min angle ° | max angle ° |",
               "|---|---|---|---|---|---|"]
     for r, p in zip(rows, PAPER_LEVELS):
-        lines.append(f"| {r['level']} | {r['nodes']:.0f} | {p} | {r['jacobian_before']:.2f} → {r['jacobian_after']:.2f} | "
+        lines.append(f"| {r['level']} | {r['nodes']:.0f} | {p} | "
+                     f"{r['jacobian_before']:.2f} → {r['jacobian_after']:.2f} | "
                      f"{r['min_angle_before']:.1f} → {r['min_angle_after']:.1f} | "
                      f"{r['max_angle_before']:.1f} → {r['max_angle_after']:.1f} |")
     coarse = rows[1:]
@@ -226,6 +230,8 @@ def hierarchy(lines):
     (jb, ja), (nb, na), (xb, xa) = (PAPER_QUALITY[k] for k in ("jacobian", "min_angle", "max_angle"))
     lines += ["", "Mean over levels 1-6 (paper Table 7, Impact Plate, before → after): "
               f"Jacobian {mean('jacobian_before'):.2f} → {mean('jacobian_after'):.2f} (paper {jb:.2f} → {ja:.2f}); "
-              f"min angle {mean('min_angle_before'):.1f}° → {mean('min_angle_after'):.1f}° (paper {nb:.1f}° → {na:.1f}°); "
-              f"max angle {mean('max_angle_before'):.1f}° → {mean('max_angle_after'):.1f}° (paper {xb:.1f}° → {xa:.1f}°).",
+              f"min angle {mean('min_angle_before'):.1f}° → {mean('min_angle_after'):.1f}° "
+              f"(paper {nb:.1f}° → {na:.1f}°); "
+              f"max angle {mean('max_angle_before'):.1f}° → {mean('max_angle_after'):.1f}° "
+              f"(paper {xb:.1f}° → {xa:.1f}°).",
               ""]

@@ -51,7 +51,8 @@ def models_table(lines, models):
               "Command: `python benchmarks/bench_models.py --steps 5 --threads 1 --json "
               "benchmarks/results/models_cpu.json` (one CPU thread; paper sizes: hidden 128, HCMT L_C 2 / λ 6, "
               "MGN and GT 15 blocks; the 2,152-node `paper` preset mesh with its contact edges).", "",
-              "| device | threads | model | parameters | train ms/step | inference ms/step |", "|---|---|---|---|---|---|"]
+              "| device | threads | model | parameters | train ms/step | inference ms/step |",
+              "|---|---|---|---|---|---|"]
     gpu = "" if any(on_gpu(e["device"]) for e in models) else "No GPU was available to this project's runs."
     for entry in models:
         for name, r in entry["models"].items():
@@ -96,8 +97,9 @@ def scaling(lines, scal):
     lines += ["", "Fitted time ∝ N^k: " + ", ".join(f"{m.upper()} k = {k:.2f}" for m, k in scal["exponent"].items()),
               "", sentences(f"Each measurement process is capped at {MEMORY_CAP_GB} GB of address space (speed.py "
                             "MEMORY_CAP_GB): an oversized graph fails instead of swapping, so a failed row needs more.",
-                            "Meshes are refined at a fixed contact radius γ = 0.4 mm, so contact edges grow faster than "
-                            "the node count" + (", which likely contributes to the exponents above 1." if above else ".")),
+                            "Meshes are refined at a fixed contact radius γ = 0.4 mm, so contact edges grow faster "
+                            "than the node count"
+                            + (", which likely contributes to the exponents above 1." if above else ".")),
               ""]
     ckpt = [r for r in scal["rows"] if r.get("checkpoint_blocks")]
     if not ckpt:
@@ -155,7 +157,8 @@ def cpu_ab(lines):
               "Command: `git worktree add --detach ../old c18dfe3 && PYTHON=.venv/bin/python bash benchmarks/cpu_ab.sh "
               "../old .` (c18dfe3: the last commit before the compiled/padded paths; old and new alternate, twice, "
               "one thread each, while a training run held the other core). Paper-size graph, eager, median of 5 "
-              "steps, ms:", "", "| model | train old | train new | new ÷ old | inference old | inference new | new ÷ old |",
+              "steps, ms:", "",
+              "| model | train old | train new | new ÷ old | inference old | inference new | new ÷ old |",
               "|---|---|---|---|---|---|---|"]
     for m in MODELS:
         for i in (1, 2):

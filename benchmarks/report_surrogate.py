@@ -50,8 +50,9 @@ def curve_table(r: dict) -> list[str]:
              "stress | GP 95 % covers (peak) | union with HCMT covers |", "|---|---|---|---|---|---|"]
     for n, c in r["learning_curve"].items():
         q = c["peak_plate_stress_mpa"]
+        quadratic = _err(q.get("quadratic")) if q.get("quadratic") else f"cannot fit ({r['quadratic_terms']} terms)"
         lines.append(f"| {n} | {_err(q.get('gp'))} | {_err(c['max_deflection_mm'].get('gp'))} | "
-                     f"{_err(q.get('quadratic')) if q.get('quadratic') else 'cannot fit (' + str(r['quadratic_terms']) + ' terms)'}"
+                     f"{quadratic}"
                      f" | {c['trusted_coverage']['surrogate']['covered']} / 30 | "
                      f"{c['trusted_coverage']['union']['covered']} / 30 |")
     return lines
@@ -63,7 +64,8 @@ def sweeps_table(r: dict) -> tuple[list[str], dict]:
              "runs |", "|---|---|---|---|---|---|"]
     totals = {t: {"unsafe": 0, "solver_runs": 0} for t in ("surrogate", "union", "model")}
     totals["model_alone"] = {"unsafe": 0}
-    fmt = lambda v: "none passes" if v is None else f"{v:g} mm"  # noqa: E731
+    def fmt(v):
+        return "none passes" if v is None else f"{v:g} mm"
     for name, s in r["sweeps"].items():
         for t in ("surrogate", "union", "model"):
             for k in ("unsafe", "solver_runs"):
@@ -98,7 +100,8 @@ def surrogate(lines: list[str], r: dict | None) -> None:
     ghost(lines, r)
     t = r["time_of_peak"]
     lines += [sentences(f"**Time of the peak**: the first frame at 95 % of the peak is off by a median "
-                        f"{t['t95_frames_off_median']:.1f} frames, the argmax frame by {t['argmax_frames_off_median']:.1f}.",
+                        f"{t['t95_frames_off_median']:.1f} frames, the argmax frame by "
+                        f"{t['argmax_frames_off_median']:.1f}.",
                         "The critical node's stress history (the solver's peak node), model against solver, correlates "
                         f"with a median {t['critical_node_correlation_median']:.2f} (lowest "
                         f"{t['critical_node_correlation_min']:.2f}) over {t['designs']} designs."), ""]
@@ -120,7 +123,8 @@ def accuracy_read(r: dict) -> list[str]:
             "- " + sentences(f"Seconds per design on this machine: HCMT {sec['hcmt']:.2f} s (batched rollout), solver "
                              f"{sec['solver']:.2f} s (both while another job shared the two cores), GP "
                              f"{sec['gp'] * 1e3:.2f} ms, quadratic {sec['quadratic'] * 1e3:.3f} ms.",
-                             f"Fitting the GP took {r['fit_s']['gp']:.1f} s (one GP per answer, 3 optimizer restarts).")]
+                             f"Fitting the GP took {r['fit_s']['gp']:.1f} s "
+                             "(one GP per answer, 3 optimizer restarts).")]
 
 
 def _coverage(r: dict) -> tuple[list[str], dict, dict, int]:
@@ -161,8 +165,8 @@ def calls_read(r: dict, totals: dict) -> list[str]:
     return ["- " + sentences(f"In-range coverage of the trusted interval: GP {share['surrogate']}, union "
                              f"{share['union']}, ±60 % band {share['model']} (goal {COVERAGE_GOAL:.0%}).",
                              "Outside the ranges: {covered} / {of} (union).".format(**r["coverage_outside"]["union"])),
-            "- " + sentences(f"Unsafe final calls over {points} sweep points: GP {totals['surrogate']['unsafe']}, union "
-                             f"{totals['union']['unsafe']}, HCMT alone {totals['model_alone']['unsafe']}.",
+            "- " + sentences(f"Unsafe final calls over {points} sweep points: GP {totals['surrogate']['unsafe']}, "
+                             f"union {totals['union']['unsafe']}, HCMT alone {totals['model_alone']['unsafe']}.",
                              f"Solver runs: GP {totals['surrogate']['solver_runs']}, union "
                              f"{totals['union']['solver_runs']}, ±60 % band {totals['model']['solver_runs']}."),
             "- " + sentences(f"hcmt trusts the **{TRUST}** (`TRUST` in hcmt.design.check).",
@@ -177,8 +181,8 @@ def ghost(lines: list[str], r: dict) -> None:
     lines += ["**Ghost stress** (median over the 46 held-out designs of |model − solver| in (mean plate stress over "
               "the last 10 frames) ÷ peak; the solver's own median ratio is "
               f"{g['solver_median']:.2f}):", "",
-              "| read-out | ghost difference (all / in range) | peak frames where the solver's ball is gone and its plate "
-              "unloaded | peak plate stress error, median / worst |", "|---|---|---|---|"]
+              "| read-out | ghost difference (all / in range) | peak frames where the solver's ball is gone and its "
+              "plate unloaded | peak plate stress error, median / worst |", "|---|---|---|---|"]
     bound = g.get("bound", "hi")
     other = "hi" if bound != "hi" else "lo"
     first = g.get("default", "contact")  # results recorded before the model's own read-out was the default: contact
@@ -191,8 +195,9 @@ def ghost(lines: list[str], r: dict) -> None:
     for key in [k for k in ("raw", "learned", "contact_own", "contact_upper", "contact", "element") if k in g]:
         v = g[key]
         bad = v["peaks_where_solver_unloaded"]
+        listed = " (" + ", ".join(bad[:4]) + (", ..." if len(bad) > 4 else "") + ")" if bad else ""
         lines.append(f"| {names[key]} | {v['median_abs_diff']:.3f} / {v['median_abs_diff_in_range']:.3f} | "
-                     f"{len(bad)}{' (' + ', '.join(bad[:4]) + (', ...' if len(bad) > 4 else '') + ')' if bad else ''} | "
+                     f"{len(bad)}{listed} | "
                      f"{_err(v['peak_error'])} |")
     default, own, lag = g[first], g["contact_own"], g["contact_end_lag_frames"]
     ok = default["median_abs_diff"] <= GHOST_GOAL
@@ -222,10 +227,11 @@ def bound_choice(g: dict, bound: str, other: str) -> str:
     same = mine["peak_error"]["median_abs_pct"] == theirs["peak_error"]["median_abs_pct"] and \
         mine["peak_error"]["worst_abs_pct"] == theirs["peak_error"]["worst_abs_pct"]
     before = g.get("solver_peak_before_lower_end_frames")
+    errors = "unchanged" if same else _err(mine["peak_error"]) + " instead of " + _err(theirs["peak_error"])
     return sentences(f"Ending the window at the {BOUND_WORDS[bound]} instead of the {BOUND_WORDS[other]}: "
                      f"{n_mine} peaks where the solver's plate is unloaded instead of {n_theirs}, ghost difference "
                      f"{mine['median_abs_diff']:.3f} instead of {theirs['median_abs_diff']:.3f}, peak errors "
-                     f"{'unchanged' if same else _err(mine['peak_error']) + ' instead of ' + _err(theirs['peak_error'])}.",
+                     f"{errors}.",
                      f"The solver's peak came {before['min']}-{before['max']} frames before the GP's lower bound."
                      if before else "")
 

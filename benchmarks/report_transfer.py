@@ -167,13 +167,15 @@ def analysis(r: dict, shots: list[int]) -> list[str]:
     if fams:
         out.append("- " + zero_shot(rows, fams, zero, shots[0]))
     wins = [(k, n) for k in fams for n in shots if _peak(rows, k, n) is not None
-            and all(v is None or _peak(rows, k, n) < v for v in (_mean(rows, m, f"_{k}_{n}", "peak") for m, _ in MODELS))]
+            and all(v is None or _peak(rows, k, n) < v
+                    for v in (_mean(rows, m, f"_{k}_{n}", "peak") for m, _ in MODELS))]
     base = _mean(rows, "hcmt", "_base", "deflection")
     if base is not None:
         out.append("- " + deflection(r, fams, shots, base, wins))
     tuned = [(m, k, n) for m, _ in MODELS for k in fams for n in shots
              if _mean(rows, m, f"_{k}_{n}", "peak") is not None and _mean(rows, m, f"_{k}_zero", "peak") is not None]
-    rose = [t for t in tuned if _mean(rows, t[0], f"_{t[1]}_{t[2]}", "peak") > _mean(rows, t[0], f"_{t[1]}_zero", "peak")]
+    rose = [t for t in tuned
+            if _mean(rows, t[0], f"_{t[1]}_{t[2]}", "peak") > _mean(rows, t[0], f"_{t[1]}_zero", "peak")]
     if tuned:
         out.append("- " + sentences(
             f"**Fine-tuning as run here**: in {len(rose)} of {len(tuned)} (model, family, runs) cases the median peak "

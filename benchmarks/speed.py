@@ -52,10 +52,12 @@ def _rollout(args) -> None:
     if args.run:
         for run in args.run:
             m, info = load_run(run)
-            models[info["model"]["name"]] = (m, int(info["model"].get("levels", 0)) if info["model"]["name"] == "hcmt" else 0)
+            levels = int(info["model"].get("levels", 0)) if info["model"]["name"] == "hcmt" else 0
+            models[info["model"]["name"]] = (m, levels)
     else:
         torch.manual_seed(0)
-        models = {"hcmt": (build_for_dataset("hcmt", "impact_plate"), 6), "mgn": (build_for_dataset("mgn", "impact_plate"), 0)}
+        models = {"hcmt": (build_for_dataset("hcmt", "impact_plate"), 6),
+                  "mgn": (build_for_dataset("mgn", "impact_plate"), 0)}
     rows = []
     for i in range(args.n):
         design = sample_design(trajectory_rng(args.seed, "test", i), "paper")

@@ -281,7 +281,8 @@ def note_rules(rows, gp, card) -> dict:
     for r, d, g in zip(rows, designs, gp.predict(designs)):
         m = r["model"][MODEL]["peak_plate_stress_mpa"]
         iv = g["peak_plate_stress_mpa"]
-        out.append({"error_pct": 100 * (m - r["solver"]["peak_plate_stress_mpa"]) / r["solver"]["peak_plate_stress_mpa"],
+        solver = r["solver"]["peak_plate_stress_mpa"]
+        out.append({"error_pct": 100 * (m - solver) / solver,
                     "region": card(d), "outside_interval": not iv.lo <= m <= iv.hi,
                     "disagreement_pct": 100 * abs(m - iv.mean) / iv.mean})
     return out
@@ -322,8 +323,8 @@ def main() -> None:
         held, _ = dataset_answers(a.data, split)
         tune += run_group(run, f"tune_{split}", [(f"{split}_{i}", d) for i, d in enumerate(held)], a.work, a.batch,
                           frame_dt, gp)
-    shipped = Surrogate.load(PRETRAINED_DIR
-                             / f"{a.model.split(':', 1)[-1]}.surrogate.json") if a.model.startswith("pretrained:") else None
+    shipped = (Surrogate.load(PRETRAINED_DIR / f"{a.model.split(':', 1)[-1]}.surrogate.json")
+               if a.model.startswith("pretrained:") else None)
     X = gp.matrix(designs)
     t0 = time.perf_counter()
     quad = Quadratic(gp.parameters, X, {q: answers[q] for q in SCALARS})
@@ -394,7 +395,8 @@ def main() -> None:
         "designs": len(allheld)}
 
     # the low-confidence note: candidates tuned on the dataset's own designs, judged on the held-out ones
-    region = lambda d: region_of(d, run.ranges)  # noqa: E731
+    def region(d):
+        return region_of(d, run.ranges)
     card = {r["region"]: r for r in run.card.get("confidence", [])}
 
     def region_flag(d):

@@ -43,7 +43,8 @@ def main() -> None:
         busy.kill()
     write_json("threads.json", {"cores": os.cpu_count(), "other_job": "one busy Python loop", "results": rows,
                                 "note": f"--threads {os.cpu_count()} is torch's default, what hcmt did before "
-                                        "--threads existed; no option is now auto", "command": "python benchmarks/threads.py"})
+                                        "--threads existed; no option is now auto",
+                                "command": "python benchmarks/threads.py"})
 
 
 if __name__ == "__main__":

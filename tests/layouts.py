@@ -34,7 +34,8 @@ def box_tetrahedra(nx, ny, nz, origin=(0, 0, 0), h=1.0):
     """Structured tetrahedral box: each hexahedron split into 6 tetrahedra (Kuhn)."""
     g = np.stack(np.meshgrid(*(np.arange(n + 1) for n in (nx, ny, nz)), indexing="ij"), -1).reshape(-1, 3)
     pos = g * h + np.asarray(origin, float)
-    idx = lambda x, y, z: (x * (ny + 1) + y) * (nz + 1) + z  # noqa: E731
+    def idx(x, y, z):
+        return (x * (ny + 1) + y) * (nz + 1) + z
     cx, cy, cz = np.meshgrid(np.arange(nx), np.arange(ny), np.arange(nz), indexing="ij")
     cx, cy, cz = cx.ravel(), cy.ravel(), cz.ravel()
     v = [idx(cx + (k >> 0 & 1), cy + (k >> 1 & 1), cz + (k >> 2 & 1)) for k in range(8)]
@@ -84,7 +85,8 @@ def write_impact_like(folder, n_train=2, n_valid=1, n_test=1, steps=6):
     folder.mkdir(parents=True, exist_ok=True)
     for split, count, seed in (("train", n_train, 0), ("valid", n_valid, 1), ("test", n_test, 2)):
         trajs = impact_like(count, steps, seed)
-        write_split(folder / f"{split}.h5", meta, ((f"traj_{i:05d}", t, {"thickness": 0.5}) for i, t in enumerate(trajs)))
+        write_split(folder / f"{split}.h5", meta,
+                    ((f"traj_{i:05d}", t, {"thickness": 0.5}) for i, t in enumerate(trajs)))
     write_meta(folder, meta)
     return folder
 

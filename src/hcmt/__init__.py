@@ -82,5 +82,5 @@ def __getattr__(name):
 
 
 __all__ = ["Config", "GT", "HCMT", "MGN", "Design", "FrameDataset", "Run", "Settings", "Surrogate", "__version__",
-           "available_pretrained", "build_model", "design_for", "evaluate", "from_checkpoint", "generate_dataset", "load_config",
-           "load_dataset", "load_pretrained", "predict_designs", "train"]
+           "available_pretrained", "build_model", "design_for", "evaluate", "from_checkpoint", "generate_dataset",
+           "load_config", "load_dataset", "load_pretrained", "predict_designs", "train"]

@@ -74,7 +74,8 @@ def test_round_trip_keeps_fields_attrs_and_varying_node_counts(tmp_path, meta):
         (lambda t: t.__setitem__("stress", t["stress"][:, :-1]), "stress", "nodes"),
     ],
 )
-def test_bad_trajectory_is_refused_naming_file_trajectory_field_and_leaves_no_file(tmp_path, meta, mutate, field, words):
+def test_bad_trajectory_is_refused_naming_file_trajectory_field_and_leaves_no_file(tmp_path, meta, mutate, field,
+                                                                                    words):
     good, bad = trajectory(6, 0), trajectory(6, 1)
     mutate(bad)
     path = tmp_path / "train.h5"

@@ -139,7 +139,8 @@ def test_tfrecord_disagreeing_with_meta_is_refused(tmp_path, capsys, case):
 def ggns_trajectory(steps=5, nu=0.3):
     grid = np.random.rand(steps, 4, 2).astype(np.float32)
     coll = np.random.rand(steps, 3, 2).astype(np.float32)
-    return {"nodes_grid": grid, "edge_index_grid": np.array([[0, 1], [1, 0]]), "triangles_grid": np.array([[0, 1, 2], [1, 2, 3]]),
+    return {"nodes_grid": grid, "edge_index_grid": np.array([[0, 1], [1, 0]]),
+            "triangles_grid": np.array([[0, 1, 2], [1, 2, 3]]),
             "nodes_collider": coll, "triangles_collider": np.array([[0, 1, 2]]), "poisson_ratio": nu,
             "pcd_points": np.random.rand(10, 2)}
 

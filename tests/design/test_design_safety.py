@@ -236,7 +236,8 @@ def test_pictures_name_r_and_stress_has_no_below_zero_arrow(setup):
 
 def test_contour_pair_shows_both_peaks(setup, monkeypatch):
     seen = {}
-    monkeypatch.setattr(design_reports, "plot_contours", lambda case, out, frames: seen.setdefault("f", frames) or [out])
+    monkeypatch.setattr(design_reports, "plot_contours",
+                        lambda case, out, frames: seen.setdefault("f", frames) or [out])
     run = Run.load(setup / "run", "cpu")
     check = check_designs(run, [("d", parse_design(["thickness=0.7"], middle_design(run.meta)))],
                              verify=True, progress=False)

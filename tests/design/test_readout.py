@@ -109,8 +109,9 @@ def test_the_sweep_says_disagree_for_a_small_change_against_a_large_one():
     values = [0.5, 0.75, 1.0]
     model = [1000.0, 995.0, 990.0]  # -1 %
     solver = [1000.0, 850.0, 760.0]  # -24 %
-    mk = (lambda v, s: SimpleNamespace(design=Design(thickness=v), summary={
-        "peak_plate_stress_mpa": s, "max_deflection_mm": 0.1 * s / 1000, "readout": "raw"}))
+    def mk(v, s):
+        return SimpleNamespace(design=Design(thickness=v), summary={
+            "peak_plate_stress_mpa": s, "max_deflection_mm": 0.1 * s / 1000, "readout": "raw"})
     check = SimpleNamespace(preds=[mk(v, s) for v, s in zip(values, model)],
                             truth=[mk(v, s) for v, s in zip(values, solver)], readout="raw", solver_runs=3)
     a = analyse(check, "thickness", None)

@@ -210,7 +210,8 @@ def test_trend_and_limit_call():
     assert sw.limit_call(x, np.full(5, 100.0), 703)["side"] == "all pass"
 
 
-@pytest.mark.parametrize("text,message", [("thickness=0.5:1.0", "PARAM=LO:HI:N"), ("thick=0.5:1:3", "unknown parameter"),
+@pytest.mark.parametrize("text,message", [("thickness=0.5:1.0", "PARAM=LO:HI:N"),
+                                          ("thick=0.5:1:3", "unknown parameter"),
                                           ("thickness=1:0.5:3", "LO < HI"), ("thickness=0.5:1:1", "between 2"),
                                           ("thickness=0.5:inf:3", "finite")])
 def test_bad_vary_is_refused_in_one_line(text, message):
@@ -329,6 +330,7 @@ def test_deformation_features_are_the_edges_strain_and_zero_at_rest(data):
     g = frame_graph(feats, mesh, moved, tr.hierarchy, 0.4, deformation=True)
     s, r = g.mesh_edges
     torch.testing.assert_close(g.mesh_features[:, 6:8], (moved[s] - moved[r]) - (mesh[s] - mesh[r]))
-    torch.testing.assert_close(g.mesh_features[:, 8], (moved[s] - moved[r]).norm(dim=1) - (mesh[s] - mesh[r]).norm(dim=1))
+    torch.testing.assert_close(g.mesh_features[:, 8],
+                               (moved[s] - moved[r]).norm(dim=1) - (mesh[s] - mesh[r]).norm(dim=1))
     with pytest.raises(ValueError, match="deformation.*dimension"):
         config_adapter(Config.from_dict({"dataset": "sphere_simple", "model": {"deformation": True}}))

@@ -118,9 +118,10 @@ def free_port() -> int:
 
 
 def test_two_process_ddp(impact, tmp_path):
-    cmd = [sys.executable, "-m", "torch.distributed.run", "--nproc_per_node=2", f"--master_port={free_port()}", "-m", "hcmt",
-           "train", "--config", "impact_plate_cpu", "--data", str(impact), "--model", "hcmt", "--steps", "3",
-           "--out", str(tmp_path / "ddp"), "--no-progress"] + sum((["--set", s] for s in TINY + EXTRA), [])
+    cmd = [sys.executable, "-m", "torch.distributed.run", "--nproc_per_node=2", f"--master_port={free_port()}",
+           "-m", "hcmt", "train", "--config", "impact_plate_cpu", "--data", str(impact), "--model", "hcmt",
+           "--steps", "3", "--out", str(tmp_path / "ddp"), "--no-progress"]
+    cmd += sum((["--set", s] for s in TINY + EXTRA), [])
     r = subprocess.run(cmd, capture_output=True, text=True, timeout=300)
     assert r.returncode == 0, r.stderr[-3000:]
     stats = json.loads((tmp_path / "ddp" / "train_stats.json").read_text())
@@ -266,7 +267,8 @@ def test_interrupted_training_saves_and_says_how_to_resume(impact, tmp_path):
     proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
                             env={**os.environ, "OMP_NUM_THREADS": "1"})
     deadline = time.time() + 120
-    while time.time() < deadline and not ((run / "log.jsonl").is_file() and (run / "log.jsonl").read_text().count("\n") >= 3):
+    log = run / "log.jsonl"
+    while time.time() < deadline and not (log.is_file() and log.read_text().count("\n") >= 3):
         time.sleep(0.05)
     proc.send_signal(signal.SIGINT)
     out, err = proc.communicate(timeout=120)
@@ -479,7 +481,8 @@ def test_compile_refuses_lpe_and_deterministic_is_scoped(impact, tmp_path, tiny_
         train(cfg, impact, "hcmt", tmp_path / "lpe", ablation="lpe", progress=False, device="cpu")
     seen = []
     step = trainer_module.Trainer.step
-    tr_step = lambda self, *a: seen.append(torch.are_deterministic_algorithms_enabled()) or step(self, *a)  # noqa
+    def tr_step(self, *a):
+        return seen.append(torch.are_deterministic_algorithms_enabled()) or step(self, *a)
     cfg = tiny_config(*EXTRA, "train.steps=2", "train.deterministic=true")
     try:
         trainer_module.Trainer.step = tr_step
@@ -527,8 +530,8 @@ def _normalizer_buffers(model) -> dict:
 
 def test_init_starts_from_the_source_weights_and_keeps_or_reaccumulates_normalizers(impact, tmp_path, tiny_config):
     """``init``: step 0 of the new run holds the source's parameters exactly (a 0-step run is refused, so one step
-    with lr 1e-30, below float32 resolution, shows it); ``keep`` leaves the source's normalizer statistics untouched through training;
-    ``reaccumulate`` zeroes them and counts afresh; run.yaml records the source."""
+    with lr 1e-30, below float32 resolution, shows it); ``keep`` leaves the source's normalizer statistics untouched
+    through training; ``reaccumulate`` zeroes them and counts afresh; run.yaml records the source."""
     src = tmp_path / "src"
     train(tiny_config(*EXTRA, "train.steps=4"), impact, "hcmt", src, seed=1, progress=False)
     source = Run.load(src, "cpu").model

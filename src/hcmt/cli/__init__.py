@@ -28,12 +28,14 @@ from hcmt.errors import InputError, RolloutError
 COMMANDS: dict[str, tuple[str, str]] = {
     "generate": ("hcmt.cli.data", "generate a dataset with the built-in FEM solver (impact-plate)"),
     "simulate": ("hcmt.cli.data", "simulate one Impact Plate design with explicit parameters (solver baseline)"),
-    "convert": ("hcmt.cli.data", "convert a MeshGraphNets/HCMT TFRecord or Deformable Plate pickle dataset to native HDF5"),
+    "convert": ("hcmt.cli.data",
+                "convert a MeshGraphNets/HCMT TFRecord or Deformable Plate pickle dataset to native HDF5"),
     "info": ("hcmt.cli.data", "summarize a native dataset: splits, trajectories, nodes, fields, design parameters"),
     "hierarchy": ("hcmt.cli.data", "build the HCMT mesh hierarchy of a dataset and report its quality per level"),
     "train": ("hcmt.cli.train", "train HCMT, MeshGraphNets or Graph Transformer on a dataset"),
     "rollout": ("hcmt.cli.train", "roll a trained model out over a dataset split (writes HDF5 predictions)"),
-    "evaluate": ("hcmt.cli.train", "compute the paper's RMSE metrics of a run on a split (writes RUN/metrics_<split>.json)"),
+    "evaluate": ("hcmt.cli.train",
+                 "compute the paper's RMSE metrics of a run on a split (writes RUN/metrics_<split>.json)"),
     "compare": ("hcmt.cli.train", "aggregate several runs into the paper's Table 2 layout (mean +- std)"),
     "predict": ("hcmt.cli.design", "peak stress and deflection of new Impact Plate designs from a trained model, "
                 "no solver run (--verify compares with the solver)"),
@@ -50,8 +52,8 @@ COMMANDS: dict[str, tuple[str, str]] = {
 
 
 #: commands that compute with torch: they take ``--threads``
-THREADED = ("generate", "simulate", "convert", "info", "hierarchy", "train", "rollout", "evaluate", "compare", "predict",
-            "sweep", "plot", "export", "demo")
+THREADED = ("generate", "simulate", "convert", "info", "hierarchy", "train", "rollout", "evaluate", "compare",
+            "predict", "sweep", "plot", "export", "demo")
 #: the longest error line with its values cut (``hcmt.errors.clip``), paths aside; and the longest any may print
 LINE, GUARD = 300, 600
 

@@ -50,7 +50,8 @@ def main_predict(args: argparse.Namespace) -> int:
                              force=args.force, **options)
     print_notes("predict", check)
     preds, truth = check.preds, check.truth
-    print(f"{run.label} ({run.source}) on {run.device}: {plural(len(preds), 'design')}, {check.settings.frames} frames of "
+    print(f"{run.label} ({run.source}) on {run.device}: {plural(len(preds), 'design')}, "
+          f"{check.settings.frames} frames of "
           f"{check.settings.frame_dt} ms, {check.wall_s:.2f} s in all; stresses are von Mises [MPa], lengths [mm]; "
           f"read-out: {readout_words(check.readout)}"
           + (f"; response surface: {check.surrogate}" if check.surrogate else ""))
@@ -162,7 +163,8 @@ def main_models(args: argparse.Namespace) -> int:
               "columns; unset ones take the default):")
         for k, d in c["design_parameters"].items():
             rng = d["training_range"]
-            trained = "not varied in training" if rng is None or rng[0] == rng[1] else f"trained {rng[0]:.6g} .. {rng[1]:.6g}"
+            trained = ("not varied in training" if rng is None or rng[0] == rng[1]
+                       else f"trained {rng[0]:.6g} .. {rng[1]:.6g}")
             print(f"    {k:<18} {d['unit']:<7} default {d['default']:<10.6g} {trained}")
         print("  trained on the families " + ", ".join(f"{k} ({n})" for k, n in c["families"].items())
               + f"; the generator's families (hcmt generate --family): {', '.join(FAMILIES)}; a design of another "

@@ -72,7 +72,8 @@ def make_meta(
         "format": FORMAT_NAME,
         "version": FORMAT_VERSION,
         "field_names": list(features),
-        "features": {k: {"type": v["type"], "shape": list(v["shape"]), "dtype": str(v["dtype"])} for k, v in features.items()},
+        "features": {k: {"type": v["type"], "shape": list(v["shape"]), "dtype": str(v["dtype"])}
+                     for k, v in features.items()},
         "trajectory_length": int(trajectory_length),
         "dimension": int(dimension),
         "dt": dt,
@@ -99,7 +100,8 @@ def check_meta(meta: Mapping, where: str | os.PathLike) -> None:
         if spec.get("type") not in ("static", "dynamic", "static_varlen", "dynamic_varlen"):
             raise DatasetError(f"type {spec.get('type')!r}; expected static or dynamic", file=where, field=name)
         if str(spec.get("dtype")) not in _DTYPES:
-            raise DatasetError(f"dtype {spec.get('dtype')!r}; expected one of {sorted(_DTYPES)}", file=where, field=name)
+            raise DatasetError(f"dtype {spec.get('dtype')!r}; expected one of {sorted(_DTYPES)}", file=where,
+                               field=name)
     if "dt" not in meta:
         raise DatasetError("missing key 'dt' (time between frames; null when the source does not record it)",
                            file=where)
@@ -133,7 +135,8 @@ def read_meta(dataset_dir: str | os.PathLike) -> dict:
 def incomplete(dataset_dir: str | os.PathLike) -> str:
     """What a dataset folder with meta.json but no split file is, and what to do."""
     parts = " (an interrupted `hcmt generate` left .parts/)" if (Path(dataset_dir) / ".parts").is_dir() else ""
-    return f"incomplete dataset: meta.json but no split files{parts}; rerun the same `hcmt generate` command to finish it"
+    return (f"incomplete dataset: meta.json but no split files{parts}; "
+            "rerun the same `hcmt generate` command to finish it")
 
 
 def list_splits(dataset_dir: str | os.PathLike) -> list[str]:

@@ -66,7 +66,8 @@ def ggns_to_native(traj: dict, *, file=None, trajectory=None) -> tuple[dict, dic
     tri_grid, tri_coll = (_array(traj, k, np.int64, file, trajectory) for k in ("triangles_grid", "triangles_collider"))
     for name, tri, count in (("triangles_grid", tri_grid, n), ("triangles_collider", tri_coll, collider.shape[1])):
         if tri.ndim != 2 or tri.shape[1] != 3:
-            raise DatasetError(f"shape {list(tri.shape)}; expected [C, 3]", file=file, trajectory=trajectory, field=name)
+            raise DatasetError(f"shape {list(tri.shape)}; expected [C, 3]", file=file, trajectory=trajectory,
+                               field=name)
         if tri.size and (tri.min() < 0 or tri.max() >= count):
             raise DatasetError(f"index out of range [{tri.min()}, {tri.max()}] for {count} nodes", file=file,
                                trajectory=trajectory, field=name)

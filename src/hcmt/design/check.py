@@ -1,4 +1,5 @@
-"""Design check, the check itself: the peak stress and deflection of new Impact Plate designs from a learned model, no solver run.
+"""Design check, the check itself: the peak stress and deflection of new Impact Plate designs from a learned model,
+no solver run.
 
 For each design (the parameters of ``hcmt simulate``, :class:`hcmt.sim.scene.Design`) the generator's scene code
 builds the mesh and the first two frames (:func:`hcmt.sim.scene.initial_frames`: the ball in free flight just above

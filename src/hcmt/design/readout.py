@@ -33,7 +33,7 @@ import numpy as np
 from hcmt.design.basics import DEFAULT_READOUT, READOUTS  # noqa: F401 (light: the parsers read them there)
 from hcmt.errors import InputError
 from hcmt.inference import quantities as q
-from hcmt.inference.quantities import contact_gap, contact_window, ghost_ratio, plate_mask  # noqa: F401
+from hcmt.inference.quantities import contact_gap, contact_window, ghost_ratio, plate_mask  # noqa: F401 (re-exported)
 from hcmt.sim.solver import build_model, nodal_von_mises
 
 #: the post-separation bending coefficient of the ``contact`` read-out: σ = k E t w_max / R² (median of

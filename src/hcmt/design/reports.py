@@ -142,7 +142,8 @@ def csv_rows(preds: list[Prediction]) -> tuple[list[str], list[list]]:
         block = p.summary.get("surrogate") or {}
         row += [block.get(q, {}).get(b) for q in skeys for b in ("mean", "lo", "hi")]
         row += [p.summary.get("verify", {}).get(k) for k in vkeys]
-        warnings = p.summary.get("warnings", []) + p.summary.get("verify", {}).get("solver_warnings", []) + weak_reasons(p)
+        warnings = (p.summary.get("warnings", []) + p.summary.get("verify", {}).get("solver_warnings", [])
+                    + weak_reasons(p))
         row += [p.summary.get("model", ""), p.summary.get("readout", "raw"), "; ".join(warnings)]
         rows.append([repr(v) if isinstance(v, float) else "" if v is None else v for v in row])  # repr: every digit
     return head, rows
@@ -165,7 +166,8 @@ def to_json(preds: list[Prediction], verified: dict | None, run_source: str, dev
     stress history and the notes), the verify summary, the read-out used, the surrogate's source and the solver
     runs."""
     out = {"model": run_source, "device": device, "units": {"stress": "MPa", "length": "mm", "time": "ms"},
-           "designs": [{"name": p.name, "design": asdict(p.design), **p.summary, "notes": weak_reasons(p)} for p in preds],
+           "designs": [{"name": p.name, "design": asdict(p.design), **p.summary, "notes": weak_reasons(p)}
+                       for p in preds],
            **({"verify": verified} if verified else {})}
     if check is not None:
         out["readout"] = check.readout

@@ -151,7 +151,8 @@ def evaluate(run: Run, data, split: str = "test", *, limit: int | None = None, b
             g = f[name]
             start = int(g.attrs["start"])
             row = {"trajectory": name}
-            row.update({f"position_{k}": v for k, v in rollout_rmse(g["world_pos"][()], truth["world_pos"], start).items()})
+            position = rollout_rmse(g["world_pos"][()], truth["world_pos"], start)
+            row.update({f"position_{k}": v for k, v in position.items()})
             if "stress" in g and "stress" in truth:
                 row.update({f"stress_{k}": v for k, v in rollout_rmse(g["stress"][()], truth["stress"], start).items()})
             per_traj.append(row)
@@ -182,7 +183,8 @@ def evaluate(run: Run, data, split: str = "test", *, limit: int | None = None, b
 
 
 def validation_rmse(model, adapter, trajs, radius: float) -> dict:
-    """Mean RMSE-all of validation rollouts (training's best.pt criterion); a diverging rollout counts as infinite error (early training)."""
+    """Mean RMSE-all of validation rollouts (training's best.pt criterion); a diverging rollout counts as infinite
+    error (early training)."""
     pos, stress = [], []
     for tr in trajs:
         try:
@@ -219,12 +221,14 @@ def metric_unit(m: dict, quantity: str) -> str:
 
 def format_metrics(m: dict) -> str:
     """The RMSE table in the data's units (metrics.json keeps the paper's ×10³ values)."""
-    lines = [f"split {m['split']}: {plural(m['trajectories'], 'trajectory', 'trajectories')}, RMSE over the rollout's steps 1, 1-50 and all",
+    lines = [f"split {m['split']}: {plural(m['trajectories'], 'trajectory', 'trajectories')}, "
+             "RMSE over the rollout's steps 1, 1-50 and all",
              f"  {'':<18}{'rmse_1':>12}{'rmse_50':>12}{'rmse_all':>12}"]
     for q in ("position", "stress"):
         if q in m:
             name = f"{q} [{metric_unit(m, q)}]"
-            lines.append(f"  {name:<18}" + "".join(f"{m[q][k] / SCALE:>12.4g}" for k in ("rmse_1", "rmse_50", "rmse_all")))
+            lines.append(f"  {name:<18}"
+                         + "".join(f"{m[q][k] / SCALE:>12.4g}" for k in ("rmse_1", "rmse_50", "rmse_all")))
     lines.append(f"  inference {m['inference_ms_per_step']:.2f} ms/step"
                  + (f", training {m['train_ms_per_step']:.2f} ms/step" if m.get("train_ms_per_step") else ""))
     if "physics" in m:

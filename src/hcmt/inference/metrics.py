@@ -62,9 +62,9 @@ def summarize_runs(metrics: list[dict]) -> dict:
     """Mean ± std over runs (seeds) of ``metrics.json`` dicts: ``{"position": {"rmse_1": {mean, std, n}, ...},
     "stress": ..., "train_ms_per_step": ..., "inference_ms_per_step": ...}`` (a missing time counts as NaN)."""
     out = {}
-    for q in ("position", "stress"):
-        if all(q in m for m in metrics):
-            out[q] = {k: mean_std(m[q][k] for m in metrics) for k in HORIZONS}
+    for field in ("position", "stress"):
+        if all(field in m for m in metrics):
+            out[field] = {k: mean_std(m[field][k] for m in metrics) for k in HORIZONS}
     for key in ("train_ms_per_step", "inference_ms_per_step"):
         out[key] = mean_std(np.nan if m.get(key) is None else m[key] for m in metrics)
     return out

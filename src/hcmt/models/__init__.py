@@ -2,8 +2,9 @@
 
 ``build_model(name, node_in, mesh_in, contact_in, out, ...)`` makes one; :data:`REGISTRY` says, per model name, its
 display label, whether it needs the mesh hierarchy and whether it returns attention maps;
-:func:`hcmt.physics.adapters.build_for_dataset` fills the widths (Table 9) and depths (Table 8) of a dataset. Every model maps a :class:`hcmt.graph.batch.Graph` to a
-normalized output ``[N, out]`` and owns its normalizers (``normalize_target``, ``denormalize``).
+:func:`hcmt.physics.adapters.build_for_dataset` fills the widths (Table 9) and depths (Table 8) of a dataset. Every
+model maps a :class:`hcmt.graph.batch.Graph` to a normalized output ``[N, out]`` and owns its normalizers
+(``normalize_target``, ``denormalize``).
 """
 from __future__ import annotations
 
@@ -94,4 +95,5 @@ def uses_hierarchy(args: dict) -> tuple[int, bool]:
 
 
 __all__ = ["ABLATIONS", "ATTENTION_MODES", "GT", "HCMT", "MGN", "MODELS", "REGISTRY", "ModelInfo", "Normalizer",
-           "Simulator", "build_model", "checkpoint_state", "from_checkpoint", "make_model", "resolve_device", "uses_hierarchy"]
+           "Simulator", "build_model", "checkpoint_state", "from_checkpoint", "make_model", "resolve_device",
+           "uses_hierarchy"]

@@ -18,7 +18,8 @@ r"""Hierarchical Contact Mesh Transformer (paper §3.2): encoder → CMT → HMT
     uses the (L_H−ℓ)-th edge feature after reaching the final level λ").
 
 * **Decoder and updater**: the decoder (no LayerNorm) gives the normalized output; ``denormalize`` then
-  :func:`hcmt.physics.updater.update_positions` (first order, :math:`\hat x^{t+1} = x^t + \hat{\dot x}^t`) give positions.
+  :func:`hcmt.physics.updater.update_positions` (first order, :math:`\hat x^{t+1} = x^t + \hat{\dot x}^t`) give
+  positions.
 
 * **Ablations** (``ablation=``): ``late-contact`` (HMT, then CMT), ``only-cmt`` (:math:`L_C + L_H` CMT blocks, so the
   depth :math:`L = 15` of the paper is kept; no hierarchy), ``only-hmt`` (HMT alone, :math:`L_H` blocks, contact
@@ -57,8 +58,8 @@ class HMT(nn.Module):
         if levels < 0:
             raise InputError(f"number of levels λ must be >= 0, got {levels}")
         self.levels = levels
-        make = lambda: TransformerBlock(hidden, heads, clip, edge_types=1, attention=attention,  # noqa: E731
-                                        ffn_bias=ffn_bias)
+        def make():
+            return TransformerBlock(hidden, heads, clip, edge_types=1, attention=attention, ffn_bias=ffn_bias)
         self.down = nn.ModuleList(make() for _ in range(levels))
         self.bottom = make()
         self.up = nn.ModuleList(make() for _ in range(levels))
@@ -109,7 +110,8 @@ class HCMT(Simulator):
 
     Shapes: ``graph.node_features [N, node_in]``, ``graph.mesh_features [E, mesh_in]`` with ``mesh_edges [2, E]``,
     ``graph.contact_features [C, contact_in]`` with ``contact_edges [2, C]``; ``forward`` returns the normalized
-    output ``[N, out]`` (hierarchy: ``graph.pool``, ``graph.level_edges``, ``graph.level_features``), ``denormalize`` the physical one. Save with :func:`hcmt.models.checkpoint_state`, load with
+    output ``[N, out]`` (hierarchy: ``graph.pool``, ``graph.level_edges``, ``graph.level_features``),
+    ``denormalize`` the physical one. Save with :func:`hcmt.models.checkpoint_state`, load with
     :func:`hcmt.models.from_checkpoint` (the constructor arguments travel with the weights).
     """
     def __init__(self, node_in: int, mesh_in: int, contact_in: int, out: int, *, L_C: int = 2, levels: int = 6,

@@ -28,5 +28,6 @@ def mlp(in_size: int, hidden: int, out_size: int, *, layers: int = 2, layer_norm
 def ffn(size: int, bias: bool = True) -> nn.Sequential:
     """The Transformer FFN of HCMT (and of the GT baseline, paper appendix): three linear layers, two ReLUs.
     ``bias=False`` is the authors' code (``core_model.FFN``: ``snt.Linear(with_bias=False)``)."""
-    lin = lambda: nn.Linear(size, size, bias=bias)  # noqa: E731
+    def lin():
+        return nn.Linear(size, size, bias=bias)
     return nn.Sequential(lin(), nn.ReLU(), lin(), nn.ReLU(), lin())

@@ -264,8 +264,8 @@ def simulate(design: Design, settings: Settings = Settings(), *, progress=None) 
         fields_["stress_max"] = peak
     attrs = {**asdict(design), "impact_speed": design.impact_speed, "formulation": settings.formulation,
              "family": design.family}
-    info = dict(wall_time=time.perf_counter() - start, cpu_time=time.process_time() - cpu_start, substeps=substeps * (T - 1), dt=dt, num_nodes=N,
-                num_cells=len(cells), energy=sim.energies())
+    info = dict(wall_time=time.perf_counter() - start, cpu_time=time.process_time() - cpu_start,
+                substeps=substeps * (T - 1), dt=dt, num_nodes=N, num_cells=len(cells), energy=sim.energies())
     return dict(fields=fields_, attrs=attrs, info=info)
 
 

@@ -89,7 +89,8 @@ def build_model(X: np.ndarray, cells: np.ndarray, density, modulus, poisson, *, 
     p = X[cells]  # [C,3,2]
     # grad N_a = perp(x_c - x_b) / (2A) for the cyclic triple (a, b, c)
     nxt, prv = p[:, [1, 2, 0]], p[:, [2, 0, 1]]
-    A = 0.5 * ((p[:, 1, 0] - p[:, 0, 0]) * (p[:, 2, 1] - p[:, 0, 1]) - (p[:, 1, 1] - p[:, 0, 1]) * (p[:, 2, 0] - p[:, 0, 0]))
+    A = 0.5 * ((p[:, 1, 0] - p[:, 0, 0]) * (p[:, 2, 1] - p[:, 0, 1])
+               - (p[:, 1, 1] - p[:, 0, 1]) * (p[:, 2, 0] - p[:, 0, 0]))
     if np.any(A <= 0):
         bad = np.flatnonzero(A <= 0)[:5]
         raise InputError(f"cells must be counter-clockwise with positive area; cells {bad.tolist()} are not")
@@ -154,7 +155,8 @@ def internal_force(model: FEModel, x: np.ndarray, v: np.ndarray | None = None) -
     reference gradients, so it is a pure dissipation ``W q tr(eps_dot) >= 0``).
 
     This is the hot path: one sparse product for F (and the velocity gradient), elementwise SVK algebra, one sparse
-    product back to the nodes; the algebra is written out rather than calling :func:`deformation` to save temporaries."""
+    product back to the nodes; the algebra is written out rather than calling :func:`deformation` to save
+    temporaries."""
     C = model.num_cells
     visc = v is not None and model.bulk_viscosity > 0
     G = model.D @ (np.concatenate((x, v), axis=1) if visc else x)

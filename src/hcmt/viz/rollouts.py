@@ -1,9 +1,9 @@
 """What the pictures show: one trajectory's ground truth beside the rollouts of one or more runs.
 
 A run's predictions live in ``RUN/rollout_<split>.h5`` (one group per trajectory, written by
-:func:`hcmt.inference.evaluate.run_rollouts`); when that file is missing, or lacks the trajectory asked for, it is rolled out
-first. Every series is checked against the dataset (node count, dimension, frame count) so a rollout of another
-dataset is refused rather than drawn on the wrong mesh.
+:func:`hcmt.inference.evaluate.run_rollouts`); when that file is missing, or lacks the trajectory asked for, it is
+rolled out first. Every series is checked against the dataset (node count, dimension, frame count) so a rollout of
+another dataset is refused rather than drawn on the wrong mesh.
 """
 from __future__ import annotations
 

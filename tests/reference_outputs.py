@@ -4,7 +4,7 @@ output of a forward pass that accumulates the normalizers, then the gradients of
 
     python tests/reference_outputs.py      # rewrite tests/data/reference_outputs.pt (only after an intended change)
 
-tests/test_reference_outputs.py compares the current code against the stored file.
+tests/models/test_reference_outputs.py compares the current code against the stored file.
 """
 from __future__ import annotations
 

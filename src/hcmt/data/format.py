@@ -17,7 +17,7 @@ Trajectories may differ in node count.
 Every file is written atomically (a temp file in the same folder, then ``os.replace``), so an interrupted write
 never leaves a file that looks complete. Split files carry checksums (HDF5 ``libver="latest"`` object headers and
 a Fletcher-32 checksum per dataset chunk): a corrupted byte makes reading fail with one clear line instead of
-yielding different data (tests/test_fuzz.py).
+yielding different data (tests/cli/test_fuzz.py).
 """
 from __future__ import annotations
 

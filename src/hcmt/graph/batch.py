@@ -147,7 +147,7 @@ def pad_rows(x: Tensor, size: int, what: str = "rows") -> tuple[Tensor, Tensor]:
 def pad_graph(g: Graph, sizes: PadSizes) -> Graph:
     """``g`` with dummy rows appended to every node and edge tensor up to ``sizes`` (contact edges to
     ``bucket(C)``), and the masks that mark them. A real node's output and every gradient are unchanged
-    (tests/test_padding.py): dummy edges only ever reach dummy nodes."""
+    (tests/graph/test_padding.py): dummy edges only ever reach dummy nodes."""
     if g.node_mask is not None:
         raise InputError("graph is padded already")
     counts = [g.num_nodes] + [int(p.shape[0]) for p in g.pool]

@@ -4,7 +4,7 @@ conditions are imposed and contact edges recomputed at every step.
 Several trajectories roll out together (:func:`rollout_batch`): at each step their graphs are collated into one
 disconnected graph and the model runs once, so a batch costs about one model call per step on a GPU. Every model is
 node-local (a node's output depends on its own graph only; the normalizers do not accumulate in rollout), so a batch
-gives what one-by-one rollouts give, up to float summation order (tests/test_train.py).
+gives what one-by-one rollouts give, up to float summation order (tests/training/test_train.py).
 
 ``compile`` (``--compile`` of ``hcmt rollout / evaluate / predict``) runs the model through ``torch.compile`` on
 padded graphs (:func:`hcmt.graph.batch.pad_graph`): the mesh and hierarchy of a batch never change along a rollout

@@ -81,7 +81,7 @@ class Simulator(nn.Module):
 
     ``checkpoint_blocks = True`` (``train.checkpoint_blocks``) recomputes each processor block's activations in
     the backward pass instead of keeping them (:func:`torch.utils.checkpoint.checkpoint`): memory for depth, the
-    same gradients (tests/test_models_invariants.py)."""
+    same gradients (tests/models/test_models_invariants.py)."""
 
     checkpoint_blocks: bool = False
 

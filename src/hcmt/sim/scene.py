@@ -314,8 +314,8 @@ def initial_frames(design: Design, settings: Settings = Settings()) -> dict:
     Frame 0 is the mesh at rest with the ball ``gap`` above the plate; frame 1 is one ``frame_dt`` later in free
     flight, ``x^1 = x^0 - (v0 dt + g dt^2 / 2) e_y`` for the ball and ``- g dt^2 / 2`` for the plate's unclamped
     nodes (the ball cannot reach the plate in one frame: ``v0 dt < gap`` is checked). The solver's frame 1 agrees
-    to float32 precision (tests/test_predict.py). Stress is zero in both frames. Returns ``fields`` (static fields,
-    ``world_pos [2, N, 2]``, ``stress [2, N, 1]``) and ``attrs``, as :func:`simulate`."""
+    to float32 precision (tests/design/test_predict.py). Stress is zero in both frames. Returns ``fields`` (static
+    fields, ``world_pos [2, N, 2]``, ``stress [2, N, 1]``) and ``attrs``, as :func:`simulate`."""
     design.validate()
     settings.validate()
     check_size(design, settings)

@@ -1,19 +1,25 @@
 # Two entry points for a fresh machine with only python3 and pip:
-#   make demo   -- create .venv, install hcmt, run the quickstart
-#   make test   -- create .venv, install hcmt with test extras, run the whole suite
+#   make demo   -- create .venv, install hcmt with the extras the demo uses, run the quickstart
+#   make test   -- create .venv, install hcmt with the test extras, run the whole suite
 #   make quick  -- the quick loop: every test not marked slow (no training, no subprocess)
+#   make lint   -- ruff over src, tests and benchmarks (pyproject's [tool.ruff])
 PYTHON ?= python3
 VENV   ?= .venv
 BIN     = $(VENV)/bin
+# The exact torch: this machine's local CPU wheel, installed first (pyproject only asks for a range; a range left to
+# pip pulls the CUDA build and GBs of CUDA packages).
+TORCH  ?= torch==2.13.0
+# all: matplotlib + meshio (pictures, export), tensorboard (training scalars), tfrecord + crc32c (TFRecord datasets)
+# test: what the suite needs (every extra) and ruff
+EXTRAS ?= all,test
 
-.PHONY: setup demo test quick clean
+.PHONY: setup demo test quick lint clean
 
 $(BIN)/hcmt: pyproject.toml
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install -q --upgrade pip
-	# torch first, pinned: the local CPU wheel; otherwise pip pulls the CUDA build.
-	$(BIN)/python -m pip install -q torch==2.13.0
-	$(BIN)/python -m pip install -q -e '.[test]'
+	$(BIN)/python -m pip install -q '$(TORCH)'
+	$(BIN)/python -m pip install -q -e '.[$(EXTRAS)]'
 	touch $(BIN)/hcmt
 
 setup: $(BIN)/hcmt
@@ -26,6 +32,9 @@ test: setup
 
 quick: setup
 	$(BIN)/python -m pytest -q -m "not slow" tests
+
+lint: setup
+	$(BIN)/ruff check src tests benchmarks
 
 clean:
 	rm -rf $(VENV) build src/*.egg-info

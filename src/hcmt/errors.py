@@ -6,6 +6,9 @@ and exit 2 with one line. Any other exception is a bug and keeps its traceback.
 """
 from __future__ import annotations
 
+import importlib
+import importlib.util
+
 
 class InputError(ValueError):
     """Bad input, one line: ``param message`` (``batch must be >= 1, got 0``; ``param`` is the Python API's
@@ -36,6 +39,37 @@ class DatasetError(InputError):
         )
         super().__init__(f"{where}: {message}" if where else message)
         self.file, self.trajectory, self.field = file, trajectory, field
+
+
+class MissingExtra(InputError, ImportError):
+    """An optional dependency is not installed: one line naming the extra that installs it
+    (``matplotlib is not installed; pip install 'hcmt[viz]'``). An :class:`InputError` (the command line prints it in
+    one line) and an ``ImportError``."""
+
+
+def _missing(module: str, extra: str) -> MissingExtra:
+    top = module.split(".")[0]
+    return MissingExtra(f"{top} is not installed (the {extra} extra); pip install 'hcmt[{extra}]'")
+
+
+def require(module: str, extra: str):
+    """Import the optional dependency ``module`` (installed by ``pip install 'hcmt[EXTRA]'``) and return it, or
+    raise :class:`MissingExtra` naming the extra."""
+    try:
+        return importlib.import_module(module)
+    except ImportError:
+        raise _missing(module, extra) from None
+
+
+def require_installed(extra: str, *modules: str) -> None:
+    """Fail with :class:`MissingExtra` unless every one of ``modules`` can be imported; imports nothing."""
+    for module in modules:
+        try:
+            found = importlib.util.find_spec(module) is not None
+        except (ImportError, ValueError):  # a parent package missing, or a module set to None in sys.modules
+            found = False
+        if not found:
+            raise _missing(module, extra)
 
 
 def clip(text, limit: int = 60) -> str:

@@ -21,8 +21,6 @@ import argparse
 import re
 from pathlib import Path
 
-import matplotlib
-
 from hcmt.cli import CommandError, check_outputs
 from hcmt.cli.parsers import frames_of, pictures_of
 from hcmt.data.format import Split, read_meta
@@ -63,6 +61,8 @@ def _load_runs(args) -> list[Run | RunFolder]:
 def main_plot(args: argparse.Namespace) -> int:
     only = pictures_of(args.only)
     frames = frames_of(args.frames)
+    import matplotlib  # here, not above: hcmt.viz's import checked it first (one line naming the viz extra)
+
     if args.cmap not in matplotlib.colormaps:
         raise CommandError(f"--cmap {args.cmap!r}: not a matplotlib colour map (e.g. viridis, magma, jet)")
     check_outputs({}, {"--out": args.out})

@@ -10,7 +10,8 @@ bytes (``np.ndarray.tobytes``) of the dtype named in meta.json. The schema is al
 
 The record framing (length, masked CRC-32C of the length, payload, masked CRC-32C of the payload) is read here
 rather than by the ``tfrecord`` package so that truncation and checksum errors name the file and record; the
-protobuf message itself is parsed with ``tfrecord.example_pb2``.
+protobuf message itself is parsed with ``tfrecord.example_pb2``. Both packages (``tfrecord``, ``crc32c``) come with
+the ``tfrecord`` extra (``pip install 'hcmt[tfrecord]'``) and are imported on first use.
 """
 from __future__ import annotations
 
@@ -20,17 +21,15 @@ import struct
 from pathlib import Path
 from typing import Iterator
 
-import crc32c
 import numpy as np
-from tfrecord import example_pb2
 
-from hcmt.errors import DatasetError
+from hcmt.errors import DatasetError, require
 
 _MASK_DELTA = 0xA282EAD8
 
 
 def _masked_crc(data: bytes) -> int:
-    crc = crc32c.crc32c(data)
+    crc = require("crc32c", "tfrecord").crc32c(data)
     return (((crc >> 15) | (crc << 17)) + _MASK_DELTA) & 0xFFFFFFFF
 
 
@@ -93,7 +92,7 @@ def _decode(raw: bytes, dtype: str, shape, *, file, trajectory, field) -> np.nda
 
 def parse_example(payload: bytes, meta: dict, *, file=None, trajectory=None) -> dict:
     """Decode one record into numpy arrays following meta.json (see module docstring)."""
-    example = example_pb2.Example()
+    example = require("tfrecord.example_pb2", "tfrecord").Example()
     try:
         example.ParseFromString(payload)
     except Exception as exc:  # protobuf raises its own DecodeError type

@@ -2,13 +2,13 @@
 acceleration) and stress, Gaussian noise on NORMAL nodes' positions with the target corrected (GNS/MGN), Adam,
 exponential learning-rate decay from ``lr`` to ``lr_final`` over the run, batch size 1 by default.
 
-A run folder holds ``run.yaml`` (everything needed to rebuild the model), ``checkpoint.pt`` (latest) and
-``best.pt`` (best validation rollout), ``log.jsonl``, TensorBoard scalars under ``tb/`` and ``train_stats.json``.
-Checkpoints are written atomically. ``resume=True`` continues exactly: model, optimizer, normalizers and step are
-restored; the learning rate (:func:`learning_rate`), the data order and every random draw (noise, LPE sign flips) are
-pure functions of (seed, step, rank), so a run stopped and resumed ends with the same parameters as one that never
-stopped. Normalizer statistics accumulate through training (MeshGraphNets); the first ``normalizer_steps`` steps
-only accumulate them, without parameter updates.
+A run folder holds ``run.yaml`` (everything needed to rebuild the model), ``checkpoint.pt`` (latest) and ``best.pt``
+(best validation rollout), ``log.jsonl``, TensorBoard scalars under ``tb/`` (with the ``tensorboard`` extra) and
+``train_stats.json``. Checkpoints are written atomically. ``resume=True`` continues exactly: model, optimizer,
+normalizers and step are restored; the learning rate (:func:`learning_rate`), the data order and every random draw
+(noise, LPE sign flips) are pure functions of (seed, step, rank), so a run stopped and resumed ends with the same
+parameters as one that never stopped. Normalizer statistics accumulate through training (MeshGraphNets); the first
+``normalizer_steps`` steps only accumulate them, without parameter updates.
 
 Several processes: under ``torchrun`` (``WORLD_SIZE`` set by it) training uses DistributedDataParallel with gloo on
 CPU and NCCL on GPU; each rank takes its share of the shared permutation. DDP broadcasts buffers from rank 0 at
@@ -40,7 +40,6 @@ from pathlib import Path
 import numpy as np
 import torch
 import torch.distributed as dist
-from torch.utils.tensorboard import SummaryWriter
 from tqdm import tqdm
 
 from hcmt.config import INIT_NORMALIZERS, Config
@@ -68,6 +67,36 @@ from hcmt.training.runtime import (
 from hcmt.training.schedule import keras_epsilon, learning_rate
 
 logger = logging.getLogger("hcmt.train")  # rank-zero messages (hcmt.training.runtime.rank_zero_logging)
+_no_tensorboard_said = False  # the info line that no TensorBoard scalars are written: once per process
+
+
+class _NoScalars:
+    """Stands in for TensorBoard's ``SummaryWriter`` when tensorboard is not installed: writes nothing (the
+    scalars are in log.jsonl all the same)."""
+
+    def add_scalar(self, *args, **kwargs) -> None:
+        pass
+
+    def close(self) -> None:
+        pass
+
+
+def summary_writer(folder: Path, purge_step: int | None):
+    """TensorBoard's ``SummaryWriter`` on ``folder`` (``tb/``), or :class:`_NoScalars` without the ``tensorboard``
+    extra (``pip install 'hcmt[tensorboard]'``)."""
+    try:
+        from torch.utils.tensorboard import SummaryWriter
+    except ImportError:
+        return _NoScalars()
+    return SummaryWriter(str(folder), purge_step=purge_step)
+
+
+def _say_no_tensorboard() -> None:
+    global _no_tensorboard_said
+    if not _no_tensorboard_said:
+        _no_tensorboard_said = True
+        logger.info("no TensorBoard scalars: tensorboard is not installed (pip install 'hcmt[tensorboard]'); "
+                    "log.jsonl has them")
 
 
 def init_source(init: str, args: dict) -> Run:
@@ -186,12 +215,14 @@ class Trainer:
             self.net = compile_simulator(self.net, self.compile)
         self.writer = self.log = None
         if self.rank == 0:
-            self.writer = SummaryWriter(str(self.folder.tensorboard), purge_step=self.step_count if resume else None)
+            self.writer = summary_writer(self.folder.tensorboard, self.step_count if resume else None)
             self.log = open(self.folder.log, "a")
         self.progress = progress
         self._handler = rank_zero_logging(self.rank, self.folder.text_log)
         logger.info("%s: %s on %s, %d training frames, steps %d -> %d", out, model_name, self.device,
                     len(self.frames), self.step_count, self.steps)
+        if isinstance(self.writer, _NoScalars):
+            _say_no_tensorboard()
 
     def _resume(self) -> None:
         state = read_checkpoint(self.ckpt_path, self.device, earlier=self.folder.best)

@@ -9,4 +9,10 @@
 * :mod:`~hcmt.viz.attention`: CMT/HMT attention maps as sparse matrices (Fig. 6, 15-18);
 * :mod:`~hcmt.viz.export`: VTU (+ .pvd) or XDMF time series through meshio;
 * :mod:`~hcmt.cli.viz`: the two commands.
+
+matplotlib (and meshio, for the export) come with the ``viz`` extra (``pip install 'hcmt[viz]'``); without
+matplotlib, importing this package fails in one line naming it.
 """
+from hcmt.errors import require_installed
+
+require_installed("viz", "matplotlib")

@@ -25,10 +25,9 @@ import re
 import xml.etree.ElementTree as ET
 from pathlib import Path
 
-import meshio
 import numpy as np
 
-from hcmt.errors import InputError
+from hcmt.errors import InputError, require
 from hcmt.files import atomic_path
 from hcmt.viz.rollouts import Case, Series
 
@@ -91,6 +90,7 @@ def export_case(case: Case, out_dir: str | Path, fmt: str = "vtu", frames: list[
     cell_type = _CELL_TYPES.get(case.cells.shape[1])
     if cell_type is None:
         raise InputError(f"cells with {case.cells.shape[1]} vertices; export handles triangles and tetrahedra")
+    meshio = require("meshio", "viz")
     out_dir = Path(out_dir).resolve()
     out_dir.mkdir(parents=True, exist_ok=True)
     frames = list(range(case.num_frames)) if frames is None else [int(f) for f in frames]

@@ -1,0 +1,89 @@
+"""The optional dependencies (pyproject's extras): each is imported where it is used, and without it that use fails
+in one line naming the extra to install (TensorBoard scalars are simply left out); one version source."""
+from __future__ import annotations
+
+import logging
+import sys
+from pathlib import Path
+
+import pytest
+
+import hcmt
+from hcmt.cli import main as cli
+from hcmt.errors import InputError, MissingExtra, require, require_installed
+from hcmt.training import trainer
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def pyproject() -> dict:
+    tomllib = pytest.importorskip("tomllib")  # Python 3.11+
+    return tomllib.loads((ROOT / "pyproject.toml").read_text())
+
+
+def test_a_missing_module_names_its_extra():
+    with pytest.raises(MissingExtra) as exc:
+        require("hcmt_no_such_module.sub", "viz")
+    assert str(exc.value) == "hcmt_no_such_module is not installed (the viz extra); pip install 'hcmt[viz]'"
+    assert isinstance(exc.value, InputError) and isinstance(exc.value, ImportError)
+    with pytest.raises(MissingExtra, match=r"pip install 'hcmt\[tfrecord\]'"):
+        require_installed("tfrecord", "json", "hcmt_no_such_module")
+    assert require("json", "viz") is sys.modules["json"]
+    require_installed("viz", "json")
+
+
+def test_pictures_without_matplotlib_are_refused_in_one_line(tmp_path, monkeypatch, capsys):
+    for name in [m for m in sys.modules if m == "hcmt.viz" or m.startswith(("hcmt.viz.", "hcmt.cli.viz"))]:
+        monkeypatch.delitem(sys.modules, name)
+    monkeypatch.setitem(sys.modules, "matplotlib", None)  # what an uninstalled package looks like to import
+    (tmp_path / "run").mkdir()
+    (tmp_path / "data").mkdir()
+    rc = cli(["plot", str(tmp_path / "run"), "--data", str(tmp_path / "data"), "--out", str(tmp_path / "out")])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert rc == 2 and len(err) == 1, err
+    assert err[0] == "hcmt plot: error: matplotlib is not installed (the viz extra); pip install 'hcmt[viz]'"
+
+
+def test_tfrecords_without_the_tfrecord_extra_are_refused_in_one_line(tmp_path, monkeypatch):
+    from hcmt.data.tfrecord import iter_records
+
+    path = tmp_path / "train.tfrecord"
+    path.write_bytes(bytes(16))
+    monkeypatch.setitem(sys.modules, "crc32c", None)
+    with pytest.raises(MissingExtra, match=r"^crc32c is not installed \(the tfrecord extra\); "
+                                           r"pip install 'hcmt\[tfrecord\]'$"):
+        next(iter_records(path))
+
+
+def test_training_without_tensorboard_writes_no_scalars_and_says_so_once(tmp_path, monkeypatch, caplog):
+    monkeypatch.setitem(sys.modules, "torch.utils.tensorboard", None)
+    monkeypatch.setattr(trainer, "_no_tensorboard_said", False)
+    writer = trainer.summary_writer(tmp_path / "tb", None)
+    writer.add_scalar("train/loss", 1.0, 1)
+    writer.close()
+    assert isinstance(writer, trainer._NoScalars) and not (tmp_path / "tb").exists()
+    with caplog.at_level(logging.INFO, logger="hcmt.train"):
+        trainer._say_no_tensorboard()
+        trainer._say_no_tensorboard()
+    said = [r.getMessage() for r in caplog.records if "TensorBoard" in r.getMessage()]
+    assert said == ["no TensorBoard scalars: tensorboard is not installed (pip install 'hcmt[tensorboard]'); "
+                    "log.jsonl has them"]
+
+
+def test_one_version_source():
+    project = pyproject()
+    assert "version" not in project["project"] and "version" in project["project"]["dynamic"]
+    assert project["tool"]["setuptools"]["dynamic"]["version"] == {"attr": "hcmt.config.VERSION"}
+    assert hcmt.__version__ == hcmt.config.VERSION
+
+
+def test_torch_is_a_range_and_the_makefile_pins_it():
+    project = pyproject()
+    torch = [d for d in project["project"]["dependencies"] if d.startswith("torch") and "geometric" not in d]
+    assert torch == ["torch>=2.4"]
+    extras = project["project"]["optional-dependencies"]
+    hard = " ".join(project["project"]["dependencies"])
+    for name in ("matplotlib", "meshio", "tensorboard", "tfrecord", "crc32c"):
+        assert name not in hard and any(d.startswith(name) for d in extras["all"]) and \
+            any(d.startswith(name) for d in extras["test"])
+    assert "TORCH  ?= torch==2.13.0" in (ROOT / "Makefile").read_text()

@@ -37,7 +37,6 @@ import torch
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))  # benchmarks/: common, report_common
 from common import RESULTS, claim  # noqa: E402
-
 from hcmt.config import COMPILE_MODES, load_config  # noqa: E402
 from hcmt.data.format import Split  # noqa: E402
 from hcmt.data.runs import RunFolder  # noqa: E402

@@ -20,6 +20,7 @@ from report_recipe import recipe  # noqa: E402
 from report_speed import cpu_ab, speed, threads  # noqa: E402
 from report_surrogate import surrogate as surrogate_section  # noqa: E402
 from report_transfer import transfer as transfer_section  # noqa: E402
+from scaling.report import scaling as scaling_section  # noqa: E402
 
 DOC = ROOT.parent / "docs" / "RESULTS.md"
 INTRO = ("Every number below was produced by the command quoted with it, on this project's development machine "
@@ -33,6 +34,7 @@ def main() -> None:
     lines = ["# Results", "", INTRO, ""]
     surrogate_section(lines, load("surrogate.json"))
     transfer_section(lines, load("transfer.json"))
+    scaling_section(lines, load("scaling.json"))
     for section in SECTIONS:
         section(lines)
     DOC.parent.mkdir(exist_ok=True)

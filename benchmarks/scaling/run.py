@@ -44,6 +44,7 @@ from hcmt.files import atomic_path  # noqa: E402
 from hcmt.inference.evaluate import evaluate  # noqa: E402
 from hcmt.inference.run import Run  # noqa: E402
 from hcmt.training import train  # noqa: E402
+from hcmt.training.runtime import TrainingInterrupted  # noqa: E402
 
 #: the shipped model's recipe (docs/MODELS.md); pushforward_start, validation and checkpoints are set per budget
 RECIPE = ["model.attention=official", "train.noise_std=0.0003", "model.target=acceleration",
@@ -186,7 +187,12 @@ def main(argv=None) -> None:
           flush=True)
     for q in points:
         ovr = overrides(q["budget"], q["designs"], total, valid, a.compile, a.set)
-        row = point(a.work, data, q, a.config, ovr, a.eval)
+        try:
+            row = point(a.work, data, q, a.config, ovr, a.eval)
+        except (TrainingInterrupted, KeyboardInterrupt) as exc:
+            write(a.out, header, finished(a.work, points), len(points))
+            raise SystemExit(f"{exc or 'interrupted'}; {a.out} holds the finished points: run the same command "
+                             "again to resume") from None
         if row is None:
             continue
         done = finished(a.work, points)  # this process's points and those other processes finished

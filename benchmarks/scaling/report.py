@@ -1,0 +1,150 @@
+"""docs/RESULTS.md's section "Scaling with budget and designs", from benchmarks/results/scaling.json
+(``python benchmarks/scaling/run.py``). Every verdict is computed from the numbers the section prints; with no
+point run yet it says so. ``python benchmarks/scaling/report.py [JSON]`` prints the section alone."""
+from __future__ import annotations
+
+import json
+import sys
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent))  # benchmarks/
+from report_common import PAPER_STEPS, PAPER_TRAJECTORIES, sentences  # noqa: E402
+from scaling.analysis import METRICS, extrapolate, fit_power_law, margin_trend, means_by  # noqa: E402
+
+HEADING = "## Scaling with budget and designs"
+MODELS = (("hcmt", "HCMT"), ("mgn", "MGN"))
+DATA = ("hcmt generate impact-plate /work/data/ip480 --preset small --train 480 --valid 12 --test 24 --variants "
+        "--variant-count 8 --seed 3035 --frames 90 --edge-fraction 0.35 --peak-stress --workers 1")
+COMMAND = "python benchmarks/scaling/run.py --data /work/data/ip480 --work WORK"
+# The rules.
+MARGIN_FLAT = 0.05  # |exponent of HCMT ÷ MGN against the axis| below this: the margin is "about constant"
+FALLS = 0.0  # a fitted exponent above this: the error falls along the axis
+LOOSE = 0.8  # a fit's R² below this: marked "loose fit" next to its extrapolation
+
+
+def _cell(values: list[float], fmt: str) -> str:
+    """The mean over seeds, each seed in brackets when there are several."""
+    if not values:
+        return "-"
+    mean = fmt.format(float(np.mean(values)))
+    return mean + (f" ({' / '.join(fmt.format(v) for v in values)})" if len(values) > 1 else "")
+
+
+FORMATS = {"position_rmse_all": "{:.4g}", "stress_rmse_all": "{:.4g}", "peak_error_pct": "{:.1f}",
+           "deflection_error_pct": "{:.1f}", "ghost_difference": "{:.3f}"}
+
+
+def _table(points: list[dict], axis: str, fixed: dict, label: str) -> list[str]:
+    rows = sorted({(p[axis], p["model"]) for p in points if all(p[k] == v for k, v in fixed.items())},
+                  key=lambda t: (t[0], [m for m, _ in MODELS].index(t[1]) if t[1] in dict(MODELS) else 9))
+    out = [f"| {label} | model | seeds | " + " | ".join(n for _, n in METRICS) + " | ms per step | best step |",
+           "|---" * (len(METRICS) + 5) + "|"]
+    for x, model in rows:
+        got = sorted((p for p in points if p[axis] == x and p["model"] == model
+                      and all(p[k] == v for k, v in fixed.items())), key=lambda p: p["seed"])
+        cells = [_cell([p["errors"][k] for p in got], FORMATS[k]) for k, _ in METRICS]
+        ms = float(np.mean([p["train_ms_per_step"] for p in got]))
+        best = " / ".join(str(p["checkpoint_step"]) for p in got)
+        out.append(f"| {x:,} | {dict(MODELS).get(model, model)} | {len(got)} | " + " | ".join(cells)
+                   + f" | {ms:.0f} | {best} |")
+    return out + [""]
+
+
+def _fits(points: list[dict], axis: str, fixed: dict, target: int, what: str, unit: str) -> list[str]:
+    """Per model and metric: the fitted exponent, R², and the law's value at ``target`` (an extrapolation)."""
+    largest = max(p[axis] for p in points if all(p[k] == v for k, v in fixed.items()))
+    out = [f"| model | error | points ({unit}) | k in error ∝ {what}^-k | R² | at the paper's {target:,} "
+           f"{unit} (extrapolated {target / largest:,.0f}× beyond the largest run) |", "|---|---|---|---|---|---|"]
+    for model, mname in MODELS:
+        for key, label in METRICS:
+            means = means_by(points, model, axis, key, fixed)
+            fit = fit_power_law(list(means), list(means.values()))
+            if fit is None:
+                if means:
+                    out.append(f"| {mname} | {label} | {len(means)} | - | - | fewer than two {unit} with a positive "
+                               "error: no fit |")
+                continue
+            at = extrapolate(fit, target)
+            said = (FORMATS[key].format(at) + (" (loose fit)" if fit["r2"] < LOOSE else "") if fit["k"] > FALLS
+                    else "does not fall with " + what + ": no extrapolation")
+            out.append(f"| {mname} | {label} | {fit['points']} | {fit['k']:.3f} | {fit['r2']:.2f} | {said} |")
+    return out + [""]
+
+
+def _margins(points: list[dict], axis: str, fixed: dict, unit: str) -> list[str]:
+    """Whether HCMT's margin over MGN grows along the axis, per metric, from the ratios the lines print."""
+    out = []
+    for key, label in METRICS:
+        trend = margin_trend(means_by(points, "hcmt", axis, key, fixed), means_by(points, "mgn", axis, key, fixed))
+        if trend is None:
+            continue
+        k, last = trend["fit"]["k"], list(trend["ratios"].values())[-1]
+        lead = "HCMT ahead" if last < 1 else "MGN ahead"
+        word = ("HCMT gains on MGN (its error falls faster)" if k > MARGIN_FLAT else
+                "HCMT loses ground to MGN (MGN's error falls faster)" if k < -MARGIN_FLAT else
+                "the margin stays about the same")
+        ratios = ", ".join(f"{r:.2f} at {x:,}" for x, r in trend["ratios"].items())
+        out.append(f"- {label}: HCMT ÷ MGN {ratios} {unit} ({lead} at the largest); the ratio ∝ {unit}^{-k:+.3f}: "
+                   f"{word}.")
+    if out:
+        out.append(f"- The rule: HCMT gains when the ratio falls along the axis faster than {unit}^-{MARGIN_FLAT}, "
+                   f"loses ground when it rises faster than {unit}^+{MARGIN_FLAT}; a ratio below 1 is HCMT ahead, "
+                   "so \"HCMT's margin grows\" is a gain while HCMT is ahead.")
+    return out + ([""] if out else [])
+
+
+def scaling(lines: list[str], r: dict | None) -> None:
+    lines += [HEADING, ""]
+    if not r or not r.get("points"):
+        lines += [sentences(
+            "**Not run yet**: no point of the study has been trained and judged, so this section has no numbers.",
+            "The data and the command (benchmarks/scaling/README.md has the cost):"), "", "```bash", DATA, COMMAND,
+            "```", ""]
+        if r:
+            lines += [f"`{r['command']}` planned {r['planned']} points; none is finished.", ""]
+        return
+    pts = r["points"]
+    partial = r["done"] < r["planned"]
+    lines += ["```bash", r["command"], "```", "",
+              sentences(f"Data: `{r['data']}` ({r['train_designs_in_data']} training designs; the first N of them "
+                        "for a design count N); judged on its held-out test designs "
+                        f"({pts[0]['trajectories']} per point). Device: {r['device']}.",
+                        f"**Partial: {r['done']} of {r['planned']} planned points run so far**; every fit below uses "
+                        "only them." if partial else f"All {r['planned']} planned points ran.",
+                        "Errors: position and stress RMSE-all ×10⁻³ (the paper's metric, mean over trajectories); "
+                        "medians over trajectories of |peak plate stress error|, |max deflection error| and the ghost "
+                        "difference |model ghost ratio − solver ghost ratio|."), ""]
+    lines += ["Points run: " + ", ".join(f"{p['model']} {p['budget']:,} steps / {p['designs']} designs / seed "
+                                         f"{p['seed']}" for p in pts) + ".", ""]
+    full = max(r["designs"])
+    lines += [f"**Against the training budget** ({full} training designs)", ""]
+    lines += _table(pts, "budget", {"designs": full}, "steps")
+    if len({p["budget"] for p in pts if p["designs"] == full}) >= 2:
+        lines += _fits(pts, "budget", {"designs": full}, PAPER_STEPS, "steps", "steps")
+        lines += [sentences(f"The last column is **an extrapolation**: the fitted law carried to the paper's "
+                            f"{PAPER_STEPS:,} steps, far beyond anything run here; it holds only if the trend does."),
+                  ""]
+        lines += _margins(pts, "budget", {"designs": full}, "steps")
+    axis = [p for p in pts if p["budget"] == r["designs_budget"]]
+    if axis:
+        lines += [f"**Against the number of training designs** ({r['designs_budget']:,} steps)", ""]
+        lines += _table(pts, "designs", {"budget": r["designs_budget"]}, "designs")
+        if len({p["designs"] for p in axis}) >= 2:
+            lines += _fits(pts, "designs", {"budget": r["designs_budget"]}, PAPER_TRAJECTORIES, "designs",
+                           "designs")
+            lines += _margins(pts, "designs", {"budget": r["designs_budget"]}, "designs")
+
+
+def main() -> None:
+    from common import RESULTS
+
+    path = Path(sys.argv[1]) if len(sys.argv) > 1 else RESULTS / "scaling.json"
+    lines: list[str] = []
+    scaling(lines, json.loads(path.read_text()) if path.is_file() else None)
+    print("\n".join(lines))
+
+
+if __name__ == "__main__":
+    main()

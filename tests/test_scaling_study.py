@@ -1,0 +1,60 @@
+"""The scaling study's arithmetic and report (benchmarks/scaling): the power-law fit recovers a known law, the
+plan has the points the issue asks for, and docs/RESULTS.md's section says "not run yet" without points and
+words only the numbers it prints with them."""
+import sys
+from pathlib import Path
+
+import pytest
+
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "benchmarks"))
+from scaling.analysis import extrapolate, fit_power_law, margin_trend, means_by  # noqa: E402
+from scaling.report import scaling  # noqa: E402
+from scaling.run import name, overrides, plan  # noqa: E402
+
+
+def test_fit_recovers_a_known_power_law():
+    budgets = [1000, 3000, 10000, 30000]
+    fit = fit_power_law(budgets, [7.0 * b ** -0.35 for b in budgets])
+    assert fit["k"] == pytest.approx(0.35) and fit["c"] == pytest.approx(7.0) and fit["r2"] == pytest.approx(1.0)
+    assert extrapolate(fit, 2_000_000) == pytest.approx(7.0 * 2_000_000 ** -0.35)
+    assert fit_power_law([1000, 1000], [1.0, 2.0]) is None  # one distinct budget: no fit
+    assert fit_power_law([10, 100, 1000], [0.0, 1.0, 0.5])["points"] == 2  # a zero error cannot be logged
+
+
+def test_margin_trend_and_means_over_seeds():
+    pts = [{"model": m, "budget": b, "designs": 6, "seed": s, "errors": {"e": (1 if m == "mgn" else b ** -0.2) + s}}
+           for m in ("hcmt", "mgn") for b in (10, 100) for s in (0, 1)]
+    hcmt, mgn = (means_by(pts, m, "budget", "e", {"designs": 6}) for m in ("hcmt", "mgn"))
+    assert mgn == {10: 1.5, 100: 1.5} and hcmt[10] == pytest.approx(10 ** -0.2 + 0.5)
+    assert margin_trend(hcmt, mgn)["fit"]["k"] > 0  # HCMT's error falls, MGN's does not
+
+
+def test_plan_points_and_overrides():
+    pts = plan([1000, 3000, 10000, 30000], [60, 120, 480], 10000, [0, 1], 2, ["hcmt", "mgn"])
+    keys = {(p["model"], p["budget"], p["designs"], p["seed"]) for p in pts}
+    assert len(pts) == len(keys) == 16
+    assert ("mgn", 3000, 480, 1) in keys and ("hcmt", 30000, 480, 1) not in keys and ("hcmt", 10000, 60, 0) in keys
+    assert [p["budget"] for p in pts] == sorted(p["budget"] for p in pts)  # cheapest first
+    assert name(pts[0]) == "hcmt_b1000_d480_s0"
+    ovr = overrides(3000, 2, 5, 4, "none", ["data.in_memory=true"])
+    assert "train.pushforward_start=167" in ovr and "data.exclude_trajectories=[2,3,4]" in ovr
+    assert ovr[-1] == "data.in_memory=true" and not any("exclude" in o for o in overrides(3000, 5, 5, 4, "none", []))
+
+
+def test_report_says_not_run_yet_and_words_points():
+    for r in (None, {"command": "python benchmarks/scaling/run.py", "planned": 16, "done": 0, "points": []}):
+        lines = []
+        scaling(lines, r)
+        assert "**Not run yet**" in "\n".join(lines)
+    pts = [{"model": m, "budget": b, "designs": 480, "seed": 0, "trajectories": 24, "train_ms_per_step": 90.0,
+            "checkpoint_step": b, "errors": {k: (3.0 if m == "mgn" else 2.0) * b ** -0.3 for k in
+                                             ("position_rmse_all", "stress_rmse_all", "peak_error_pct",
+                                              "deflection_error_pct", "ghost_difference")}}
+           for m in ("hcmt", "mgn") for b in (1000, 30000)]
+    r = {"command": "c", "data": "d", "train_designs_in_data": 480, "device": "cpu", "planned": 16, "done": 4,
+         "points": pts, "designs": [60, 120, 480], "designs_budget": 10000}
+    lines = []
+    scaling(lines, r)
+    text = "\n".join(lines)
+    assert "Partial: 4 of 16 planned points" in text and "**an extrapolation**" in text
+    assert "| 0.300 | 1.00 |" in text and "the margin stays about the same" in text

@@ -15,6 +15,7 @@ from report_accuracy import ablations, accuracy, generalization, longer  # noqa:
 from report_common import load  # noqa: E402
 from report_gpu import gpu_check, gpu_path  # noqa: E402
 from report_interval import interval  # noqa: E402
+from report_memory import memory  # noqa: E402
 from report_parity import hierarchy, parity, propagation  # noqa: E402
 from report_recipe import recipe  # noqa: E402
 from report_speed import cpu_ab, speed, threads  # noqa: E402
@@ -26,8 +27,8 @@ DOC = ROOT.parent / "docs" / "RESULTS.md"
 INTRO = ("Every number below was produced by the command quoted with it, on this project's development machine "
          "(2 CPU cores, no GPU) unless stated. This file is written by `python benchmarks/report.py` from "
          "`benchmarks/results/*.json`; the paper's numbers are quoted for comparison only.")
-SECTIONS = (recipe, interval, threads, parity, propagation, accuracy, longer, ablations, generalization, speed,
-            gpu_path, cpu_ab, gpu_check, hierarchy)
+SECTIONS = (recipe, interval, threads, parity, propagation, accuracy, longer, ablations, generalization, memory,
+            speed, gpu_path, cpu_ab, gpu_check, hierarchy)
 
 
 def main() -> None:

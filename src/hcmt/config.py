@@ -181,8 +181,8 @@ class DataConfig:
 
     exclude_trajectories: Optional[tuple] = None  # trajectory indices of the train split to leave out
     stress_field: str = _field("stress", "stress", "stress_max")  # stress_max: `generate --peak-stress`
-    # hold the training split in memory instead of reading each item's frames from the file: ~8 ms less per item
-    # on the `small` preset (benchmarks/train_speed.py), memory that grows with the split (docs/RESULTS.md)
+    # hold the training split in memory instead of reading each item's frames from the file: a step of the shipped
+    # recipe took 145 against 160 ms of CPU on the `small` preset; memory grows with the split (docs/RESULTS.md)
     in_memory: bool = False
 
 

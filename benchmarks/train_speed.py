@@ -38,11 +38,12 @@ RECIPES = {
 }
 
 
-def one_run(tree: Path, data: Path, recipe: str, threads: int, steps: int, work: Path) -> dict:
+def one_run(tree: Path, data: Path, recipe: str, threads: int, steps: int, work: Path, extra=()) -> dict:
     out = work / f"run_{tree.name}_{recipe}_{threads}"
     shutil.rmtree(out, ignore_errors=True)
     sets = [f"--set={s}" for s in RECIPES[recipe] + ["train.valid_every=0", "train.normalizer_steps=10",
-                                                      "train.checkpoint_every=100000", "train.log_every=10"]]
+                                                      "train.checkpoint_every=100000", "train.log_every=10",
+                                                      *extra]]
     env = dict(os.environ, PYTHONPATH=str(tree / "src"), OMP_NUM_THREADS=str(threads))
     cmd = [sys.executable, "-c", "import sys; from hcmt.cli import main; sys.argv[0] = 'hcmt'; sys.exit(main())",
            "train", "--config", "impact_plate_cpu", "--data", str(data), "--model", "hcmt", "--out", str(out),
@@ -69,6 +70,9 @@ def main() -> None:
     p.add_argument("--recipes", nargs="+", default=list(RECIPES), choices=list(RECIPES))
     p.add_argument("--steps", type=int, default=150)
     p.add_argument("--rounds", type=int, default=2)
+    p.add_argument("--new-set", action="append", default=[], metavar="KEY=VALUE",
+                   help="a setting for the new checkout only, e.g. train.compile=default: what `auto` (the default) "
+                        "chooses for a run of 5,000 steps or more, which a short timed run would not trigger")
     p.add_argument("--json", type=Path, default=Path(__file__).parent / "results" / "train_speed.json")
     a = p.parse_args()
     trees = {"old": a.old.resolve(), "new": a.new.resolve()}
@@ -80,7 +84,8 @@ def main() -> None:
             for threads in a.threads:
                 for recipe in a.recipes:
                     for side in ("old", "new") if rnd % 2 == 0 else ("new", "old"):  # alternate who goes first
-                        r = one_run(trees[side], a.data, recipe, threads, a.steps, Path(tmp))
+                        r = one_run(trees[side], a.data, recipe, threads, a.steps, Path(tmp),
+                                    a.new_set if side == "new" else ())
                         rows.append({"round": rnd, "threads": threads, "recipe": recipe, "side": side, **r})
                         print(json.dumps(rows[-1]), flush=True)
     summary = []
@@ -94,7 +99,8 @@ def main() -> None:
                   f"ratio {med['new'] / med['old']:.2f}x")
     a.json.parent.mkdir(parents=True, exist_ok=True)
     a.json.write_text(json.dumps({"commits": commits, "device": platform.processor() or platform.machine(),
-                                  "cpu": _cpu_name(), "steps": a.steps, "rounds": a.rounds, "data": str(a.data),
+                                  "cpu": _cpu_name(), "steps": a.steps, "rounds": a.rounds,
+                                  "new_set": a.new_set, "command": "python " + " ".join(sys.argv), "data": str(a.data),
                                   "summary": summary, "rows": rows}, indent=1) + "\n")
     print(f"wrote {a.json}")
 

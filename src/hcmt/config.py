@@ -21,8 +21,10 @@ CONFIG_DIR = Path(__file__).resolve().parent / "configs"
 PRETRAINED_DIR = Path(__file__).resolve().parent / "pretrained"
 #: the datasets hcmt knows (a config's ``dataset``; each has an adapter in :mod:`hcmt.physics.adapters`)
 DATASET_NAMES = ("impact_plate", "deforming_plate", "sphere_simple", "deformable_plate")
-#: ``torch.compile`` modes (``train.compile``, ``--compile``); ``none`` is eager
-COMPILE_MODES = ("none", "default", "reduce-overhead", "max-autotune")
+#: ``torch.compile`` modes (``train.compile``, ``--compile``); ``none`` is eager, ``auto`` compiles a long run where
+#: a compiler exists (:func:`hcmt.models.base.resolve_compile`); the rest are ``torch.compile``'s own modes
+COMPILE_MODES = ("none", "auto", "default", "reduce-overhead", "max-autotune")
+TORCH_COMPILE_MODES = COMPILE_MODES[2:]
 #: the models (:data:`hcmt.models.REGISTRY`, in this order) and HCMT's ablations (paper Tables 3, 10-12)
 MODELS = ("hcmt", "mgn", "gt")
 ABLATIONS = ("late-contact", "only-cmt", "only-hmt", "lpe", "single-branch", "no-remesh")
@@ -171,7 +173,7 @@ class TrainConfig:
     workers: int = _field(0, minimum=0)
     checkpoint_blocks: bool = False
     precision: str = _field("fp32", "fp32", "bf16")
-    compile: str = _field("none", *COMPILE_MODES)
+    compile: str = _field("auto", *COMPILE_MODES)
     deterministic: bool = False
 
 

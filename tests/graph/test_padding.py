@@ -7,7 +7,7 @@ import torch
 
 from hcmt.graph.batch import PadSizes, bucket, collate, pad_graph
 from hcmt.models import build_model
-from hcmt.models.base import compile_simulator
+from hcmt.models.base import AUTO_COMPILE_STEPS, compile_simulator, resolve_compile
 from models_grid import grid_graph
 
 NODE_IN, MESH_IN, CONTACT_IN, OUT = 5, 6, 3, 3
@@ -140,3 +140,20 @@ def test_pad_sizes_are_bucket_sizes():
     sizes = [sa.nodes, sa.mesh, *[x for lv in sa.levels for x in lv]]
     assert all(bucket(x) == x for x in sizes)
     assert (sa.nodes, sa.mesh) == (sb.nodes, sb.mesh) and a.num_nodes != b.num_nodes
+
+
+def test_auto_compile_compiles_only_long_runs_where_a_compiler_exists(monkeypatch):
+    """``train.compile: auto`` (the default): a long run is compiled where Inductor has its compiler; a short run,
+    the lpe ablation and a machine without a C++ compiler run eager; explicit modes are kept."""
+    from hcmt.models import base
+
+    cpu = torch.device("cpu")
+    monkeypatch.setattr(base.shutil, "which", lambda name: f"/usr/bin/{name}")
+    assert resolve_compile("auto", steps=AUTO_COMPILE_STEPS, device=cpu) == "default"
+    assert resolve_compile("auto", steps=AUTO_COMPILE_STEPS - 1, device=cpu) == "none"
+    assert resolve_compile("auto", steps=10**6, device=cpu, lpe=True) == "none"
+    assert resolve_compile("none", steps=10**6, device=cpu) == "none"
+    assert resolve_compile("max-autotune", steps=1, device=cpu) == "max-autotune"
+    monkeypatch.setattr(base.shutil, "which", lambda name: None)
+    monkeypatch.delenv("CXX", raising=False)
+    assert resolve_compile("auto", steps=10**6, device=cpu) == "none"

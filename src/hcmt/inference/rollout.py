@@ -18,7 +18,7 @@ import torch
 
 from hcmt.errors import InputError, RolloutError
 from hcmt.graph.batch import PadSizes, collate, pad_graph
-from hcmt.models.base import compile_simulator
+from hcmt.models.base import compile_simulator, resolve_compile
 from hcmt.physics.adapters import Adapter, integrate
 from hcmt.physics.frames import input_graph
 from hcmt.physics.trajectory import Trajectory
@@ -45,9 +45,10 @@ def rollout_batch(model, adapter: Adapter, trajs: list[Trajectory], radius: floa
     ``ms_per_step`` is the batch's time per step divided by the number of trajectories (compilation included)."""
     model.eval()
     net, pad = model, None
+    device = next(model.parameters()).device  # graphs go where the model is; results come back to the CPU
+    compile = resolve_compile(compile, steps=len(trajs[0].world_pos) if trajs else 0, device=device)
     if compile != "none":
         net = compile_simulator(model, compile)
-    device = next(model.parameters()).device  # graphs go where the model is; results come back to the CPU
     lengths = {int(tr.world_pos.shape[0]) for tr in trajs}
     if len(lengths) != 1:
         raise InputError(f"trajectories of different lengths {sorted(lengths)} cannot roll out in one batch")

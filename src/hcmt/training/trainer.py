@@ -50,7 +50,7 @@ from hcmt.files import atomic_path
 from hcmt.inference.evaluate import validation_rmse
 from hcmt.inference.run import Run
 from hcmt.models import Normalizer, checkpoint_state, make_model, resolve_device, uses_hierarchy
-from hcmt.models.base import compile_simulator
+from hcmt.models.base import compile_simulator, resolve_compile
 from hcmt.physics.adapters import config_adapter, model_args, noise_gamma
 from hcmt.physics.frames import step_seed
 from hcmt.physics.trajectory import load_split
@@ -160,8 +160,9 @@ class Trainer:
         if resume and self.folder.info is not None:
             check_resume(self.folder.info, run, out)
 
-        self.compile = tc.compile
-        if self.compile != "none" and self.args.get("ablation") == "lpe":
+        lpe = self.args.get("ablation") == "lpe"
+        self.compile = resolve_compile(tc.compile, steps=tc.steps, device=self.device, lpe=lpe)
+        if self.compile != "none" and lpe:
             raise InputError("train.compile: the lpe ablation computes its eigenvectors per graph outside the model's "
                              "tensors; use train.compile=none with it")
         if tc.deterministic:

@@ -42,7 +42,7 @@ from hcmt.inference.run import Run  # noqa: E402
 from hcmt.physics.adapters import build_for_dataset, dataset_spec  # noqa: E402
 from hcmt.sim.generate import generate_dataset  # noqa: E402
 from hcmt.sim.mesh import impact_plate_mesh  # noqa: E402
-from hcmt.sim.scene import Settings, sample_design  # noqa: E402
+from hcmt.sim.params import Settings, sample_design  # noqa: E402
 from hcmt.training import train  # noqa: E402
 from speed import _one  # noqa: E402
 

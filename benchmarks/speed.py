@@ -40,9 +40,10 @@ from hcmt.inference.rollout import rollout  # noqa: E402
 from hcmt.inference.run import load_run  # noqa: E402
 from hcmt.physics.adapters import build_for_dataset, get_adapter  # noqa: E402
 from hcmt.physics.trajectory import prepare_trajectory  # noqa: E402
+from hcmt.sim.driver import simulate  # noqa: E402
 from hcmt.sim.generate import trajectory_rng  # noqa: E402
 from hcmt.sim.mesh import impact_plate_mesh  # noqa: E402
-from hcmt.sim.scene import Settings, sample_design, simulate  # noqa: E402
+from hcmt.sim.params import Settings, sample_design  # noqa: E402
 
 
 def _rollout(args) -> None:

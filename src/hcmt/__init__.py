@@ -41,7 +41,7 @@ if TYPE_CHECKING:  # what IDEs and type checkers see; at run time each name load
     from hcmt.inference.run import Run
     from hcmt.models import GT, HCMT, MGN, build_model, from_checkpoint
     from hcmt.sim.generate import generate_dataset
-    from hcmt.sim.scene import Design, Settings
+    from hcmt.sim.params import Design, Settings
     from hcmt.training import train
     from hcmt.training.dataset import FrameDataset
 
@@ -50,8 +50,8 @@ _LAZY = {
     "available_pretrained": ("hcmt.data.runs", "available_pretrained"),
     "evaluate": ("hcmt.inference.evaluate", "evaluate"),
     "train": ("hcmt.training", "train"),
-    "Design": ("hcmt.sim.scene", "Design"),
-    "Settings": ("hcmt.sim.scene", "Settings"),
+    "Design": ("hcmt.sim.params", "Design"),
+    "Settings": ("hcmt.sim.params", "Settings"),
     "generate_dataset": ("hcmt.sim.generate", "generate_dataset"),
     "predict_designs": ("hcmt.design.check", "predict_designs"),
     "design_for": ("hcmt.design.inputs", "design_for"),

@@ -23,8 +23,9 @@ from tqdm import tqdm
 from hcmt.config import MAX_TRAJECTORIES, machine_cores
 from hcmt.data.format import make_meta, read_meta, write_meta, write_split
 from hcmt.errors import DatasetError, InputError
-from hcmt.sim.params import preset_design
-from hcmt.sim.scene import (
+from hcmt.sim.cost import check_cost, plan
+from hcmt.sim.driver import simulate
+from hcmt.sim.params import (
     CONTACT_RADIUS,
     FAMILIES,
     RANGES,
@@ -32,12 +33,10 @@ from hcmt.sim.scene import (
     VARIANTS,
     Design,
     Settings,
-    check_cost,
-    feature_spec,
-    plan,
+    preset_design,
     sample_design,
-    simulate,
 )
+from hcmt.sim.scene import feature_spec
 
 #: Split names and their stable codes in the per-trajectory seed.
 SPLITS = ("train", "valid", "test", "test_thicker", "test_higher", "test_thicker_higher")
@@ -150,7 +149,7 @@ def generate_dataset(out, *, preset: str = "small", counts: dict[str, int], seed
                      families: tuple[str, ...] = ("mono",), force: bool = False) -> dict:
     """Generate (or finish) an Impact Plate dataset in ``out``. ``counts`` maps split names (of :data:`SPLITS`) to
     trajectory counts; ``edge_fraction`` of the training designs are drawn at the ranges' edges (thin plates, high
-    drops: :data:`hcmt.sim.scene.EDGES`); ``families`` (:data:`hcmt.sim.scene.FAMILIES`) take the trajectories of
+    drops: :data:`hcmt.sim.params.EDGES`); ``families`` (:data:`hcmt.sim.params.FAMILIES`) take the trajectories of
     every split in turn, and meta.json's ``families`` lists each trajectory's. Returns ``{"simulated": n,
     "skipped": n, "splits": {split: path}}``. A trajectory estimated at over
     :data:`hcmt.sim.params.MAX_ESTIMATED_SECONDS` (:func:`generation_cost`) is refused before anything is written,
@@ -234,7 +233,7 @@ def generate_dataset(out, *, preset: str = "small", counts: dict[str, int], seed
 
 
 def generation_cost(preset: str, families: tuple[str, ...], settings: Settings) -> tuple[Design, dict]:
-    """(design, :func:`hcmt.sim.scene.plan`) of the costliest family's nominal design
+    """(design, :func:`hcmt.sim.cost.plan`) of the costliest family's nominal design
     (:func:`hcmt.sim.params.preset_design`): what a trajectory costs."""
     return max(((d, plan(d, settings)) for d in (preset_design(preset, f) for f in families)),
                key=lambda dc: dc[1]["estimated_s"])

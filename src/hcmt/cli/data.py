@@ -1,6 +1,7 @@
 """``hcmt generate / simulate / convert / info / hierarchy``: the data commands, printing only (their arguments and
 first checks: :mod:`hcmt.cli.parsers`); the library functions live in :mod:`hcmt.sim.generate`,
-:mod:`hcmt.sim.scene`, :mod:`hcmt.data.convert`, :mod:`hcmt.data.info` and :mod:`hcmt.graph.report`."""
+:mod:`hcmt.sim.driver`, :mod:`hcmt.sim.cost`, :mod:`hcmt.data.convert`, :mod:`hcmt.data.info`
+and :mod:`hcmt.graph.report`."""
 from __future__ import annotations
 
 import argparse

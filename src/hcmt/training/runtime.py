@@ -17,13 +17,16 @@ import yaml
 
 from hcmt.errors import InputError
 from hcmt.files import atomic_path, take_lock
+from hcmt.physics.adapters import own_args
 
 
 def check_resume(saved: dict, run: dict, out: Path) -> None:
     """An exact continuation needs the settings the run started with; only ``train.steps`` may grow (the
     learning-rate schedule then stretches to the new length)."""
     def strip(r):
-        r = yaml.safe_load(yaml.safe_dump(dict(r, config=r["config"].to_dict())))  # both read through Config
+        # both read through Config; the model's arguments less those it does not take (runs saved before
+        # hcmt.physics.adapters.MODEL_KEYS kept every model's)
+        r = yaml.safe_load(yaml.safe_dump(dict(r, config=r["config"].to_dict(), model=own_args(r["model"]))))
         r["config"]["train"].pop("steps", None)
         return r
 

@@ -51,7 +51,7 @@ from hcmt.inference.evaluate import validation_rmse
 from hcmt.inference.run import Run
 from hcmt.models import Normalizer, checkpoint_state, make_model, resolve_device, uses_hierarchy
 from hcmt.models.base import compile_simulator
-from hcmt.physics.adapters import config_adapter, model_args, noise_gamma
+from hcmt.physics.adapters import config_adapter, model_args, noise_gamma, own_args
 from hcmt.physics.frames import step_seed
 from hcmt.physics.trajectory import load_split
 from hcmt.training.dataset import FrameDataset, StepSampler, pad_sizes, step_loader
@@ -103,7 +103,7 @@ def init_source(init: str, args: dict) -> Run:
     """The model a run starts from (a run folder's best checkpoint or ``pretrained:NAME``), refused in one line
     listing what differs when its constructor arguments (architecture, feature widths) are not this run's."""
     source = Run.load(init, "cpu")
-    theirs = source.info["model"]
+    theirs = own_args(source.info["model"])  # a model saved before MODEL_KEYS held other models' keys too
     differ = [f"{k} {theirs.get(k)!r} there, {args.get(k)!r} here" for k in sorted(set(theirs) | set(args))
               if theirs.get(k) != args.get(k)]
     if differ:

@@ -38,7 +38,7 @@ from tfrecord.writer import TFRecordWriter
 from common import write_json
 from hcmt.data.format import NodeType, make_meta, write_meta, write_split
 from hcmt.design.start import initial_frames
-from hcmt.physics.adapters import get_adapter
+from hcmt.domains.adapters import get_adapter
 from hcmt.sim.params import Settings, sample_design
 from hcmt.sim.scene import feature_spec
 from hcmt.training.dataset import FrameDataset, StepSampler, collate_samples, step_loader

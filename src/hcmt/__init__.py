@@ -19,7 +19,7 @@ The Python API (imported lazily, so ``import hcmt`` and ``hcmt --help`` stay fas
   :func:`hcmt.from_checkpoint`.
 
 The package's layers import only downward (tests/test_layers.py): ``errors`` → ``config`` → ``data`` → ``sim``,
-``graph`` → ``models`` → ``physics`` → ``inference`` → ``training``, ``viz`` → ``design`` → ``cli``. This module
+``graph`` → ``models`` → ``domains`` → ``inference`` → ``training``, ``viz`` → ``design`` → ``cli``. This module
 stands above them all and imports on first use (PEP 562 ``__getattr__``), so ``import hcmt`` stays fast.
 """
 

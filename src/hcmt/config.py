@@ -19,7 +19,7 @@ VERSION = "0.1.0"
 CONFIG_DIR = Path(__file__).resolve().parent / "configs"
 #: the models shipped inside the package (``pretrained:NAME``)
 PRETRAINED_DIR = Path(__file__).resolve().parent / "pretrained"
-#: the datasets hcmt knows (a config's ``dataset``; each has an adapter in :mod:`hcmt.physics.adapters`)
+#: the datasets hcmt knows (a config's ``dataset``; each has an adapter in :mod:`hcmt.domains.adapters`)
 DATASET_NAMES = ("impact_plate", "deforming_plate", "sphere_simple", "deformable_plate")
 #: ``torch.compile`` modes (``train.compile``, ``--compile``); ``none`` is eager
 COMPILE_MODES = ("none", "default", "reduce-overhead", "max-autotune")

@@ -15,8 +15,8 @@ from hcmt.cli import main as cli
 from hcmt.data.format import Split, read_meta
 from hcmt.data.info import summarize
 from hcmt.design.start import initial_frames
+from hcmt.domains.adapters import get_adapter, position_mask
 from hcmt.inference.metrics import plate_mask
-from hcmt.physics.adapters import get_adapter, position_mask
 from hcmt.sim.contact import PenaltyContact
 from hcmt.sim.driver import simulate, solver
 from hcmt.sim.generate import generate_dataset

@@ -37,11 +37,11 @@ from hcmt.design.readout import (
 )
 from hcmt.design.start import start_frames
 from hcmt.design.surrogate import Surrogate, for_run, side_by_side
+from hcmt.domains.trajectory import prepare_trajectory
 from hcmt.errors import InputError, clip
 from hcmt.inference.metrics import impact_metrics, rollout_rmse, summarize_impact
 from hcmt.inference.quantities import plate_mask
 from hcmt.inference.rollout import rollout_batch
-from hcmt.physics.trajectory import prepare_trajectory
 from hcmt.sim.cost import check_cost, check_size, validated_warnings
 from hcmt.sim.driver import simulate
 from hcmt.sim.params import Design, Settings

@@ -16,12 +16,12 @@ import time
 
 import torch
 
+from hcmt.domains.adapters import Adapter, integrate
+from hcmt.domains.frames import input_graph
+from hcmt.domains.trajectory import Trajectory
 from hcmt.errors import InputError, RolloutError
 from hcmt.graph.batch import PadSizes, collate, pad_graph
 from hcmt.models.base import compile_simulator
-from hcmt.physics.adapters import Adapter, integrate
-from hcmt.physics.frames import input_graph
-from hcmt.physics.trajectory import Trajectory
 
 
 @torch.no_grad()

@@ -15,9 +15,9 @@ import torch
 import torch.distributed as dist
 import yaml
 
+from hcmt.domains.adapters import own_args
 from hcmt.errors import InputError
 from hcmt.files import atomic_path, take_lock
-from hcmt.physics.adapters import own_args
 
 
 def check_resume(saved: dict, run: dict, out: Path) -> None:
@@ -25,7 +25,7 @@ def check_resume(saved: dict, run: dict, out: Path) -> None:
     learning-rate schedule then stretches to the new length)."""
     def strip(r):
         # both read through Config; the model's arguments less those it does not take (runs saved before
-        # hcmt.physics.adapters.MODEL_KEYS kept every model's)
+        # hcmt.domains.adapters.MODEL_KEYS kept every model's)
         r = yaml.safe_load(yaml.safe_dump(dict(r, config=r["config"].to_dict(), model=own_args(r["model"]))))
         r["config"]["train"].pop("steps", None)
         return r

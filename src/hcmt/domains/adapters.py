@@ -28,10 +28,10 @@ from torch import Tensor
 
 from hcmt.config import DATASET_NAMES, Config, load_config
 from hcmt.data.format import NODE_TYPE_SIZE, NodeType
+from hcmt.domains.updater import update_positions
 from hcmt.errors import InputError
 from hcmt.graph.contact import OFFICIAL_IMPACT_PLATE_TYPES
 from hcmt.models import Simulator, build_model
-from hcmt.physics.updater import update_positions
 
 
 @dataclass(frozen=True, kw_only=True)

@@ -5,9 +5,9 @@ from pathlib import Path
 import pytest
 
 from hcmt.config import load_config
+from hcmt.domains.adapters import ADAPTERS, MODEL_KEYS, Adapter, model_args, own_args
 from hcmt.errors import InputError
 from hcmt.models import make_model
-from hcmt.physics.adapters import ADAPTERS, MODEL_KEYS, Adapter, model_args, own_args
 from hcmt.training.runtime import check_resume
 
 META = {"dimension": 2, "features": {"mesh_pos": {"shape": [-1, 2]}}}

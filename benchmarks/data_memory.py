@@ -37,8 +37,10 @@ from tfrecord.writer import TFRecordWriter
 
 from common import write_json
 from hcmt.data.format import NodeType, make_meta, write_meta, write_split
-from hcmt.physics.adapters import get_adapter
-from hcmt.sim.scene import Settings, feature_spec, initial_frames, sample_design
+from hcmt.design.start import initial_frames
+from hcmt.domains.adapters import get_adapter
+from hcmt.sim.params import Settings, sample_design
+from hcmt.sim.scene import feature_spec
 from hcmt.training.dataset import FrameDataset, StepSampler, collate_samples, step_loader
 
 torch.set_num_threads(1)

@@ -21,7 +21,7 @@ from common import write_json
 from hcmt.design.check import predict, solve
 from hcmt.design.inputs import settings_of
 from hcmt.inference.run import Run
-from hcmt.sim.scene import sample_design
+from hcmt.sim.params import sample_design
 
 
 def main() -> None:

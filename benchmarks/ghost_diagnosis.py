@@ -28,11 +28,11 @@ import torch
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from common import write_json  # noqa: E402
+from hcmt.domains.frames import input_graph  # noqa: E402
+from hcmt.domains.trajectory import load_split  # noqa: E402
 from hcmt.inference import quantities as q  # noqa: E402
 from hcmt.inference.rollout import rollout  # noqa: E402
 from hcmt.inference.run import Run  # noqa: E402
-from hcmt.physics.frames import input_graph  # noqa: E402
-from hcmt.physics.trajectory import load_split  # noqa: E402
 
 
 @torch.no_grad()

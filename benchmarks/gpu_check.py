@@ -33,16 +33,16 @@ from bench_models import _step_fn, _sync, impact_plate_graph  # noqa: E402
 from hcmt.config import load_config  # noqa: E402
 from hcmt.data.runs import RunFolder  # noqa: E402
 from hcmt.design.check import check_designs  # noqa: E402
+from hcmt.domains.adapters import build_for_dataset, dataset_spec  # noqa: E402
 from hcmt.files import atomic_path  # noqa: E402
 from hcmt.graph.batch import collate  # noqa: E402
 from hcmt.graph.build import frame_graph  # noqa: E402
 from hcmt.graph.hierarchy import build_hierarchy  # noqa: E402
 from hcmt.inference.evaluate import evaluate  # noqa: E402
 from hcmt.inference.run import Run  # noqa: E402
-from hcmt.physics.adapters import build_for_dataset, dataset_spec  # noqa: E402
 from hcmt.sim.generate import generate_dataset  # noqa: E402
 from hcmt.sim.mesh import impact_plate_mesh  # noqa: E402
-from hcmt.sim.scene import Settings, sample_design  # noqa: E402
+from hcmt.sim.params import Settings, sample_design  # noqa: E402
 from hcmt.training import train  # noqa: E402
 from speed import _one  # noqa: E402
 

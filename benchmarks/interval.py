@@ -30,7 +30,7 @@ from hcmt.data.format import Split
 from hcmt.design.check import check_designs
 from hcmt.inference.metrics import mean_std
 from hcmt.inference.run import Run
-from hcmt.sim.scene import DESIGN_KEYS, Design
+from hcmt.sim.params import DESIGN_KEYS, Design
 from propagation import hcmt_reach, trajectory_numbers
 
 WINDOW_FRAMES = {0.002: 89, 0.004: 45, 0.008: 23}  # 88 x 0.002 = 44 x 0.004 = 22 x 0.008 = 0.176 ms

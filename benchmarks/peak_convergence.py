@@ -11,7 +11,8 @@ import argparse
 
 from common import write_json
 from hcmt.inference.quantities import max_deflection, peak, plate_mask
-from hcmt.sim.scene import Design, Settings, simulate
+from hcmt.sim.driver import simulate
+from hcmt.sim.params import Design, Settings
 
 
 def main() -> None:

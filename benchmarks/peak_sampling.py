@@ -38,7 +38,10 @@ from pathlib import Path  # noqa: E402
 import numpy as np  # noqa: E402
 
 from hcmt.data.format import open_split, read_meta  # noqa: E402
-from hcmt.sim.scene import Design, Settings, design_mesh, plan, simulate  # noqa: E402
+from hcmt.sim.cost import plan  # noqa: E402
+from hcmt.sim.driver import simulate  # noqa: E402
+from hcmt.sim.params import Design, Settings  # noqa: E402
+from hcmt.sim.scene import design_mesh  # noqa: E402
 
 DATA = "/work/interval/impact_plate_small_40_89_dt0.002"
 OUT = Path(__file__).resolve().parent / "results" / "peak_sampling.json"

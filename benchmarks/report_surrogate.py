@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from hcmt.design.check import TRUST
-from hcmt.sim.scene import Design
+from hcmt.sim.params import Design
 from report_common import load, said, sentences
 
 COMMAND = ("python benchmarks/surrogate.py --data DATA --work WORK --threads 1   # DATA: the shipped model's "

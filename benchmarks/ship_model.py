@@ -30,7 +30,7 @@ from hcmt.design.reports import format_table
 from hcmt.design.surrogate import Surrogate
 from hcmt.inference.evaluate import evaluate
 from hcmt.inference.run import Run
-from hcmt.sim.scene import middle_design, parse_design, sample_design
+from hcmt.sim.params import middle_design, parse_design, sample_design
 
 
 def main() -> None:

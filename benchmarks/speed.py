@@ -34,15 +34,16 @@ import torch
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from common import write_json  # noqa: E402
+from hcmt.domains.adapters import build_for_dataset, get_adapter  # noqa: E402
+from hcmt.domains.trajectory import prepare_trajectory  # noqa: E402
 from hcmt.graph.build import frame_graph  # noqa: E402
 from hcmt.graph.hierarchy import build_hierarchy  # noqa: E402
 from hcmt.inference.rollout import rollout  # noqa: E402
 from hcmt.inference.run import load_run  # noqa: E402
-from hcmt.physics.adapters import build_for_dataset, get_adapter  # noqa: E402
-from hcmt.physics.trajectory import prepare_trajectory  # noqa: E402
+from hcmt.sim.driver import simulate  # noqa: E402
 from hcmt.sim.generate import trajectory_rng  # noqa: E402
 from hcmt.sim.mesh import impact_plate_mesh  # noqa: E402
-from hcmt.sim.scene import Settings, sample_design, simulate  # noqa: E402
+from hcmt.sim.params import Settings, sample_design  # noqa: E402
 
 
 def _rollout(args) -> None:

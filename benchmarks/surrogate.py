@@ -44,7 +44,7 @@ from hcmt.design.surrogate import QUANTITIES, Z95, Surrogate, dataset_answers
 from hcmt.files import atomic_path
 from hcmt.inference.quantities import contact_gap, contact_window, ghost_ratio, plate_mask
 from hcmt.inference.run import Run
-from hcmt.sim.scene import Design, middle_design, sample_design
+from hcmt.sim.params import Design, middle_design, sample_design
 
 #: the issue's four thickness sweeps (drop height mm, yield MPa); two more get the solver's median peak as yield
 SWEEPS = [(600.0, 750.0), (600.0, 700.0), (800.0, 800.0), (800.0, 720.0), (700.0, None), (950.0, None)]

@@ -47,7 +47,8 @@ from hcmt.files import atomic_path
 from hcmt.inference.evaluate import evaluate
 from hcmt.inference.quantities import peak, plate_mask
 from hcmt.inference.run import Run
-from hcmt.sim.scene import Settings, design_from_attrs, simulate
+from hcmt.sim.driver import simulate
+from hcmt.sim.params import Settings, design_from_attrs
 from hcmt.training import train
 
 #: the shipped model's recipe (docs/MODELS.md), validation thinned for the CPU budget

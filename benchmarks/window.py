@@ -12,7 +12,8 @@ import torch
 
 from common import write_json
 from hcmt.inference.quantities import body_history, deflection, peak, plate_mask
-from hcmt.sim.scene import RANGES, Design, Settings, simulate
+from hcmt.sim.driver import simulate
+from hcmt.sim.params import RANGES, Design, Settings
 
 CORNERS = [(0.5, 500), (0.5, 1000), (0.6, 1000), (0.75, 750), (1.0, 1000), (1.0, 500)]
 

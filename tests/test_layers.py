@@ -17,7 +17,7 @@ import pytest
 SRC = Path(__file__).resolve().parent.parent / "src" / "hcmt"
 
 #: layer of each top-level module or subpackage of hcmt, bottom (0) to top; equal numbers may not import each other
-LAYERS = {"config": 0, "data": 1, "sim": 2, "graph": 2, "models": 3, "physics": 4, "inference": 5, "training": 6,
+LAYERS = {"config": 0, "data": 1, "sim": 2, "graph": 2, "models": 3, "domains": 4, "inference": 5, "training": 6,
           "viz": 6, "design": 7, "cli": 8, "files": 0, "errors": -1}
 
 
@@ -96,20 +96,20 @@ def test_the_checker_sees_violations(tmp_path, monkeypatch):
     (fake / "models").mkdir(parents=True)
     (fake / "inference").mkdir()
     (fake / "models" / "__init__.py").write_text("from hcmt.inference.run import Run\n")
-    (fake / "models" / "m.py").write_text("def f():\n    from ..physics import adapters\n")
+    (fake / "models" / "m.py").write_text("def f():\n    from ..domains import adapters\n")
     (fake / "inference" / "__init__.py").write_text("def g():\n    import hcmt.models\n")
     (fake / "inference" / "ok.py").write_text("from hcmt.models import build_model\nfrom . import metrics\n")
     monkeypatch.setattr(__import__(__name__), "SRC", fake)
     found = violations()
     assert any("models/__init__.py:1 imports hcmt.inference.run: models (layer 3) may not import inference" in v
                for v in found)
-    assert any("models/m.py:2 imports hcmt.physics" in v for v in found)
+    assert any("models/m.py:2 imports hcmt.domains" in v for v in found)
     assert any("inference/__init__.py:2 imports hcmt.models inside a function" in v for v in found)
     assert not any("ok.py" in v for v in found)
 
 
 @pytest.mark.slow  # one fresh interpreter per module
-@pytest.mark.parametrize("module", ["hcmt.config", "hcmt.models", "hcmt.physics.adapters", "hcmt.inference.run",
+@pytest.mark.parametrize("module", ["hcmt.config", "hcmt.models", "hcmt.domains.adapters", "hcmt.inference.run",
                                     "hcmt.training", "hcmt.viz.rollouts", "hcmt.design.check", "hcmt.cli",
                                     "hcmt.sim.params", "hcmt.design.basics", "hcmt.cli.parsers"])
 def test_each_layer_imports_alone(module):

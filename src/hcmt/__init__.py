@@ -19,7 +19,7 @@ The Python API (imported lazily, so ``import hcmt`` and ``hcmt --help`` stay fas
   :func:`hcmt.from_checkpoint`.
 
 The package's layers import only downward (tests/test_layers.py): ``errors`` → ``config`` → ``data`` → ``sim``,
-``graph`` → ``models`` → ``physics`` → ``inference`` → ``training``, ``viz`` → ``design`` → ``cli``. This module
+``graph`` → ``models`` → ``domains`` → ``inference`` → ``training``, ``viz`` → ``design`` → ``cli``. This module
 stands above them all and imports on first use (PEP 562 ``__getattr__``), so ``import hcmt`` stays fast.
 """
 
@@ -41,7 +41,7 @@ if TYPE_CHECKING:  # what IDEs and type checkers see; at run time each name load
     from hcmt.inference.run import Run
     from hcmt.models import GT, HCMT, MGN, build_model, from_checkpoint
     from hcmt.sim.generate import generate_dataset
-    from hcmt.sim.scene import Design, Settings
+    from hcmt.sim.params import Design, Settings
     from hcmt.training import train
     from hcmt.training.dataset import FrameDataset
 
@@ -50,8 +50,8 @@ _LAZY = {
     "available_pretrained": ("hcmt.data.runs", "available_pretrained"),
     "evaluate": ("hcmt.inference.evaluate", "evaluate"),
     "train": ("hcmt.training", "train"),
-    "Design": ("hcmt.sim.scene", "Design"),
-    "Settings": ("hcmt.sim.scene", "Settings"),
+    "Design": ("hcmt.sim.params", "Design"),
+    "Settings": ("hcmt.sim.params", "Settings"),
     "generate_dataset": ("hcmt.sim.generate", "generate_dataset"),
     "predict_designs": ("hcmt.design.check", "predict_designs"),
     "design_for": ("hcmt.design.inputs", "design_for"),

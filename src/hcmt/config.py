@@ -19,7 +19,7 @@ VERSION = "0.1.0"
 CONFIG_DIR = Path(__file__).resolve().parent / "configs"
 #: the models shipped inside the package (``pretrained:NAME``)
 PRETRAINED_DIR = Path(__file__).resolve().parent / "pretrained"
-#: the datasets hcmt knows (a config's ``dataset``; each has an adapter in :mod:`hcmt.physics.adapters`)
+#: the datasets hcmt knows (a config's ``dataset``; each has an adapter in :mod:`hcmt.domains.adapters`)
 DATASET_NAMES = ("impact_plate", "deforming_plate", "sphere_simple", "deformable_plate")
 #: ``torch.compile`` modes (``train.compile``, ``--compile``); ``none`` is eager, ``auto`` compiles a long run where
 #: a compiler exists (:func:`hcmt.models.base.resolve_compile`); the rest are ``torch.compile``'s own modes

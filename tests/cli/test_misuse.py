@@ -23,7 +23,9 @@ from hcmt.design.inputs import design_for, range_warnings, read_designs_csv
 from hcmt.errors import RolloutError
 from hcmt.inference import run as run_module
 from hcmt.inference.run import Run
-from hcmt.sim.scene import Design, design_mesh, estimate, middle_design
+from hcmt.sim.cost import estimate
+from hcmt.sim.params import Design, middle_design
+from hcmt.sim.scene import design_mesh
 from hcmt.training import train
 from hcmt.viz.meshplot import new_figure, save_figure
 from layouts import sphere_simple_tfrecord

@@ -24,7 +24,7 @@ from hcmt.design.inputs import read_designs_csv
 from hcmt.design.surrogate import Surrogate, SurrogateError
 from hcmt.errors import InputError
 from hcmt.sim.generate import generate_dataset
-from hcmt.sim.scene import Design, Settings, parse_design
+from hcmt.sim.params import Design, Settings, parse_design
 
 ROOT = Path(__file__).resolve().parents[2]
 HEAVY = ("torch", "scipy", "sklearn", "matplotlib")

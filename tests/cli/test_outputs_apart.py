@@ -15,7 +15,7 @@ from hcmt.cli import main as cli
 from hcmt.errors import InputError
 from hcmt.files import check_apart, undo_on_error
 from hcmt.sim.generate import generate_dataset
-from hcmt.sim.scene import Settings
+from hcmt.sim.params import Settings
 from hcmt.training import train
 
 SPELLINGS = ("same", "relative", "dotdot", "symlink")

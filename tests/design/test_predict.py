@@ -13,10 +13,12 @@ from hcmt.cli import main as cli
 from hcmt.data.runs import available_pretrained
 from hcmt.design.check import Prediction, design_trajectory, predict, summarize
 from hcmt.design.inputs import settings_of
+from hcmt.design.start import initial_frames, start_frames
 from hcmt.inference.metrics import plate_mask
 from hcmt.inference.rollout import rollout
 from hcmt.inference.run import Run
-from hcmt.sim.scene import Design, Settings, initial_frames, middle_design, parse_design, simulate, start_frames
+from hcmt.sim.driver import simulate
+from hcmt.sim.params import Design, Settings, middle_design, parse_design
 from hcmt.training import train
 
 pytestmark = pytest.mark.slow  # trained runs and solver verification

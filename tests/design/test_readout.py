@@ -16,7 +16,7 @@ from hcmt.design.surrogate import dataset_facts
 from hcmt.design.sweep import analyse, format_analysis, trends_agree
 from hcmt.errors import InputError
 from hcmt.inference.run import Run
-from hcmt.sim.scene import Design
+from hcmt.sim.params import Design
 from impact_trajectory import DT, fields
 
 CONTACT_KEYS = {"contact_peak_plate_stress_mpa", "contact_peak_plate_where_mm", "contact_peak_plate_when_ms",

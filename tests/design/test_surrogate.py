@@ -18,7 +18,8 @@ from hcmt.design.inputs import design_for
 from hcmt.design.reports import finite
 from hcmt.design.surrogate import Surrogate, SurrogateError, for_run
 from hcmt.inference.run import Run
-from hcmt.sim.scene import DESIGN_KEYS, FIRST_SCENE_KEYS, Design, Settings, sample_design, simulate
+from hcmt.sim.driver import simulate
+from hcmt.sim.params import DESIGN_KEYS, FIRST_SCENE_KEYS, Design, Settings, sample_design
 from hcmt.training import train
 
 pytestmark = pytest.mark.slow  # trained runs, fitted response surfaces, solver verification

@@ -8,11 +8,11 @@ import pytest
 import torch
 
 from hcmt.config import DATASET_NAMES
+from hcmt.domains.adapters import build_for_dataset, dataset_spec
+from hcmt.domains.updater import update_positions
 from hcmt.models import ABLATIONS, build_model
 from hcmt.models.lpe import LaplacianPE, laplacian_pe
 from hcmt.models.normalizer import Normalizer
-from hcmt.physics.adapters import build_for_dataset, dataset_spec
-from hcmt.physics.updater import update_positions
 
 
 # -- normalizer ----------------------------------------------------------------------------------------------------

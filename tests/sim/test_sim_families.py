@@ -14,23 +14,15 @@ from scipy.sparse.linalg import spsolve
 from hcmt.cli import main as cli
 from hcmt.data.format import Split, read_meta
 from hcmt.data.info import summarize
+from hcmt.design.start import initial_frames
+from hcmt.domains.adapters import get_adapter, position_mask
 from hcmt.inference.metrics import plate_mask
-from hcmt.physics.adapters import get_adapter, position_mask
 from hcmt.sim.contact import PenaltyContact
+from hcmt.sim.driver import simulate, solver
 from hcmt.sim.generate import generate_dataset
 from hcmt.sim.mesh import HANDLE, SYMMETRIC, WALL_BOUNDARY, impact_plate_mesh, layer_rows
-from hcmt.sim.scene import (
-    FAMILIES,
-    MATERIALS,
-    Design,
-    Settings,
-    fixed_dofs,
-    initial_frames,
-    parse_stack,
-    sample_design,
-    simulate,
-    solver,
-)
+from hcmt.sim.params import FAMILIES, MATERIALS, Design, Settings, parse_stack, sample_design
+from hcmt.sim.scene import fixed_dofs
 from hcmt.sim.solver import CentralDifference, build_model, linear_stiffness, stable_time_step
 from hertz import contact_history, hertz
 

@@ -14,7 +14,10 @@ from hcmt.data.format import NodeType, list_splits, open_split
 from hcmt.errors import DatasetError
 from hcmt.inference.evaluate import evaluate
 from hcmt.inference.run import Run
-from hcmt.sim.scene import GRAVITY, RANGES, Design, Settings, design_mesh, plan, sample_design, simulate
+from hcmt.sim.cost import plan
+from hcmt.sim.driver import simulate
+from hcmt.sim.params import GRAVITY, RANGES, Design, Settings, sample_design
+from hcmt.sim.scene import design_mesh
 from hcmt.training import train
 
 SHORT = Settings(frames=6)  # impact begins at t = gap / v0 >= 0.0045 ms, i.e. within frames 2-3
@@ -150,7 +153,7 @@ def test_cli_generate_writes_all_splits_with_variants(tmp_path, capsys):
     (dict(plate_density=0.0), "density"), (dict(drop_height=0.0), "drop_height"), (dict(mesh_size=2.0), "mesh_size"),
 ])
 def test_impossible_designs_are_refused_before_work(change, word, monkeypatch):
-    monkeypatch.setattr("hcmt.sim.scene.design_mesh", lambda d: pytest.fail("work started"))
+    monkeypatch.setattr("hcmt.sim.driver.design_mesh", lambda d: pytest.fail("work started"))
     with pytest.raises(ValueError, match=word):
         simulate(Design(**{**vars(Design()), **change}))
 

@@ -5,8 +5,8 @@ import yaml
 
 from hcmt.config import Config, builtin_configs, load_config
 from hcmt.data.runs import RunFolder
+from hcmt.domains.adapters import dataset_spec
 from hcmt.errors import InputError
-from hcmt.physics.adapters import dataset_spec
 
 TABLE8 = {  # dataset: (L_C, L_H, lambda, noise std, gamma, steps)
     "impact_plate": (2, 13, 6, 0.003, 0.4, 2_000_000),

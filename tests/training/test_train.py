@@ -19,15 +19,15 @@ from conftest import TINY
 from hcmt.cli import main as cli
 from hcmt.config import Config
 from hcmt.data.format import NodeType, Split, open_split
+from hcmt.domains.adapters import config_adapter, get_adapter, node_features
+from hcmt.domains.frames import input_graph
+from hcmt.domains.trajectory import build_graph, load_split
 from hcmt.errors import DatasetError, RolloutError
 from hcmt.graph.batch import PadSizes
 from hcmt.inference.evaluate import evaluate, run_rollouts
 from hcmt.inference.rollout import rollout
 from hcmt.inference.run import Run, load_run
 from hcmt.models import Normalizer
-from hcmt.physics.adapters import config_adapter, get_adapter, node_features
-from hcmt.physics.frames import input_graph
-from hcmt.physics.trajectory import build_graph, load_split
 from hcmt.training import train
 from hcmt.training.dataset import FrameDataset, StepSampler, pad_sizes
 from hcmt.training.schedule import learning_rate

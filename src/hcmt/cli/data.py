@@ -1,6 +1,7 @@
 """``hcmt generate / simulate / convert / info / hierarchy``: the data commands, printing only (their arguments and
 first checks: :mod:`hcmt.cli.parsers`); the library functions live in :mod:`hcmt.sim.generate`,
-:mod:`hcmt.sim.scene`, :mod:`hcmt.data.convert`, :mod:`hcmt.data.info` and :mod:`hcmt.graph.report`."""
+:mod:`hcmt.sim.driver`, :mod:`hcmt.sim.cost`, :mod:`hcmt.data.convert`, :mod:`hcmt.data.info`
+and :mod:`hcmt.graph.report`."""
 from __future__ import annotations
 
 import argparse
@@ -19,8 +20,10 @@ from hcmt.data.info import summarize
 from hcmt.files import atomic_path, check_apart
 from hcmt.graph.report import dataset_quality, format_table
 from hcmt.inference import quantities
+from hcmt.sim.cost import check_cost, plan, validated_warnings
+from hcmt.sim.driver import simulate
 from hcmt.sim.generate import dataset_meta, generate_dataset, generation_cost, trajectory_name
-from hcmt.sim.scene import VARIANTS, check_cost, plan, simulate, validated_warnings
+from hcmt.sim.params import VARIANTS
 
 
 # -- generate, simulate ---------------------------------------------------------------------------------------------

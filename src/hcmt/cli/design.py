@@ -19,7 +19,7 @@ from hcmt.design.reports import contour_picture, format_calls, format_table, to_
 from hcmt.design.surrogate import run_surrogate_path
 from hcmt.files import atomic_path, check_apart, undo_on_error
 from hcmt.inference.run import Run
-from hcmt.sim.scene import DESIGN_KEYS, DESIGN_UNITS, FAMILIES, describe_family, middle_design, parse_design
+from hcmt.sim.params import DESIGN_KEYS, DESIGN_UNITS, FAMILIES, describe_family, middle_design, parse_design
 
 
 def readout_words(readout: str) -> str:

@@ -41,7 +41,7 @@ def summarize(dataset_dir: str | Path) -> str:
                 for k, v in s.attrs(i).items():
                     if isinstance(v, (int, float, np.number)):
                         params.setdefault(k, []).append(float(v))
-                    elif k == "family":  # the design family of a generated panel (hcmt.sim.scene.FAMILIES)
+                    elif k == "family":  # the design family of a generated panel (hcmt.sim.params.FAMILIES)
                         families[str(v)] = families.get(str(v), 0) + 1
                 for field in position_fields(meta):
                     d = np.linalg.norm(np.diff(np.asarray(f[field], np.float64), axis=0), axis=-1)  # [T-1, N]

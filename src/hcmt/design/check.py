@@ -1,8 +1,8 @@
 """Design check, the check itself: the peak stress and deflection of new Impact Plate designs from a learned model,
 no solver run.
 
-For each design (the parameters of ``hcmt simulate``, :class:`hcmt.sim.scene.Design`) the generator's scene code
-builds the mesh and the first two frames (:func:`hcmt.sim.scene.initial_frames`: the ball in free flight just above
+For each design (the parameters of ``hcmt simulate``, :class:`hcmt.sim.params.Design`) the generator's scene code
+builds the mesh and the first two frames (:func:`hcmt.design.start.initial_frames`: the ball in free flight just above
 the plate), the model rolls out over the training data's recorded window (e.g. 52 frames of 0.002 ms), several
 designs as one batched graph per step (:func:`hcmt.inference.rollout.rollout_batch`), and :func:`summarize` reads off
 
@@ -35,13 +35,16 @@ from hcmt.design.readout import (
     readout_key,
     summarize_fields,
 )
+from hcmt.design.start import start_frames
 from hcmt.design.surrogate import Surrogate, for_run, side_by_side
+from hcmt.domains.trajectory import prepare_trajectory
 from hcmt.errors import InputError, clip
 from hcmt.inference.metrics import impact_metrics, rollout_rmse, summarize_impact
 from hcmt.inference.quantities import plate_mask
 from hcmt.inference.rollout import rollout_batch
-from hcmt.physics.trajectory import prepare_trajectory
-from hcmt.sim.scene import Design, Settings, check_cost, check_size, simulate, start_frames, validated_warnings
+from hcmt.sim.cost import check_cost, check_size, validated_warnings
+from hcmt.sim.driver import simulate
+from hcmt.sim.params import Design, Settings
 
 
 @dataclass
@@ -67,7 +70,7 @@ class Prediction:
 
 # -- prediction ----------------------------------------------------------------------------------------------------
 def design_trajectory(run, name: str, design: Design, settings: Settings):
-    """The rollout input of a design: frames 0 and 1 from :func:`hcmt.sim.scene.start_frames` (the solver's first
+    """The rollout input of a design: frames 0 and 1 from :func:`hcmt.design.start.start_frames` (the solver's first
     frame only when the ball reaches the plate within it), later frames holding only what the boundary conditions
     read (the clamped rim and the symmetry line do not move: frame 0's positions)."""
     start = start_frames(design, settings)
@@ -148,9 +151,9 @@ MODEL_SECONDS_PER_NODE_STEP = 1e-4
 
 
 def cost_check(run, designs: list[tuple[str, Design]], settings: Settings, verify: bool, force: bool) -> None:
-    """Refuse, before any array is built, a design whose mesh exceeds :data:`hcmt.sim.scene.MAX_NODES`
-    (:func:`hcmt.sim.scene.check_size`: always), and one whose estimated time (the learned rollout's, plus the
-    solver's for ``verify``, from :func:`hcmt.sim.scene.estimate`) exceeds ``MAX_ESTIMATED_SECONDS`` (600 s)
+    """Refuse, before any array is built, a design whose mesh exceeds :data:`hcmt.sim.cost.MAX_NODES`
+    (:func:`hcmt.sim.cost.check_size`: always), and one whose estimated time (the learned rollout's, plus the
+    solver's for ``verify``, from :func:`hcmt.sim.cost.estimate`) exceeds ``MAX_ESTIMATED_SECONDS`` (600 s)
     unless ``force``; as ``hcmt simulate`` does."""
     for name, d in designs:
         cost = check_size(d, settings, where=f"{name}: ")
@@ -162,7 +165,7 @@ def cost_check(run, designs: list[tuple[str, Design]], settings: Settings, verif
 
 def check_design_list(designs, batch: int = 1) -> None:
     """Refuse (``param="designs"``) what is not 1 to :data:`hcmt.config.MAX_DESIGNS` pairs (name, valid
-    :class:`~hcmt.sim.scene.Design`) with safe, distinct names (:func:`hcmt.design.basics.check_name`): the checks
+    :class:`~hcmt.sim.params.Design`) with safe, distinct names (:func:`hcmt.design.basics.check_name`): the checks
     a ``--designs`` CSV gets, for the Python API; and a ``batch`` that is no whole number from 1 to
     :data:`hcmt.config.MAX_BATCH`."""
     if isinstance(batch, bool) or not isinstance(batch, int) or not 1 <= batch <= MAX_BATCH:

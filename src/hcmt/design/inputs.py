@@ -8,7 +8,7 @@ from pathlib import Path
 
 from hcmt.design.basics import read_table
 from hcmt.errors import InputError, clip
-from hcmt.sim.scene import (
+from hcmt.sim.params import (
     DESIGN_KEYS,
     EDGES,
     FIRST_SCENE_KEYS,
@@ -93,7 +93,7 @@ def region_of(design: Design, ranges: dict[str, tuple[float, float]]) -> str:
     """Where a design lies in the training ranges, for the model card's measured error by region: ``thin``
     (thickness in the lowest fifth of its range), ``high`` (drop height in the top fifth), ``thin+high``,
     ``inside``, or ``outside`` (a parameter outside the training ranges). The fifths are those of the generator's
-    ``--edge-fraction`` (:data:`hcmt.sim.scene.EDGES`)."""
+    ``--edge-fraction`` (:data:`hcmt.sim.params.EDGES`)."""
     if range_warnings(design, ranges):
         return "outside"
     parts = []
@@ -127,6 +127,6 @@ def settings_of(meta: dict | None) -> Settings:
 
 
 def design_for(run, **params) -> Design:
-    """An Impact Plate :class:`~hcmt.sim.scene.Design` for a model: ``params`` (``thickness=0.7, ...``) over the
-    middle of the model's training ranges (:func:`hcmt.sim.scene.middle_design`), validated (``hcmt.design_for``)."""
+    """An Impact Plate :class:`~hcmt.sim.params.Design` for a model: ``params`` (``thickness=0.7, ...``) over the
+    middle of the model's training ranges (:func:`hcmt.sim.params.middle_design`), validated (``hcmt.design_for``)."""
     return parse_design([f"{k}={v}" for k, v in params.items()], middle_design(run.meta, run.ranges), where="design")

@@ -13,7 +13,7 @@ from hcmt.design.check import Check, Prediction, weak_reasons
 from hcmt.design.readout import chosen, readout_key
 from hcmt.files import atomic_path
 from hcmt.inference.metrics import format_physics
-from hcmt.sim.scene import DESIGN_KEYS
+from hcmt.sim.params import DESIGN_KEYS
 from hcmt.viz.contours import plot_contours
 from hcmt.viz.rollouts import Case, Series
 

@@ -42,7 +42,8 @@ from hcmt.design.basics import QUANTITIES, RESTARTS
 from hcmt.design.readout import summarize_fields
 from hcmt.errors import InputError, clip
 from hcmt.files import atomic_path
-from hcmt.sim.scene import DESIGN_KEYS, DESIGN_UNITS, FIRST_SCENE_KEYS, Design, check_size, design_from_attrs
+from hcmt.sim.cost import check_size
+from hcmt.sim.params import DESIGN_KEYS, DESIGN_UNITS, FIRST_SCENE_KEYS, Design, design_from_attrs
 
 FORMAT, VERSION = "hcmt-surrogate", 2
 READS = (1, 2)  # the format versions this hcmt loads (1: no "dataset" block)

@@ -25,7 +25,7 @@ from hcmt.design.check import Check, check_designs
 from hcmt.design.readout import chosen
 from hcmt.design.reports import finite, to_json
 from hcmt.errors import InputError
-from hcmt.sim.scene import Design
+from hcmt.sim.params import Design
 from hcmt.viz.meshplot import new_figure, save_figure
 
 #: steps smaller than this share of a series' range count as flat in the monotonicity test

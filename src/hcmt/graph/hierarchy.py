@@ -310,7 +310,7 @@ def cached_hierarchy(mesh_pos, cells, node_type=None, levels: int = 1, remesh: b
 
     The key hashes the mesh and the settings, so a changed mesh or setting builds anew; an unreadable cache
     file is rebuilt and replaced. ``memory=False`` keeps a hierarchy it reads or builds out of the in-process memo
-    (:class:`hcmt.physics.trajectory.SplitReader` keeps its own few)."""
+    (:class:`hcmt.domains.trajectory.SplitReader` keeps its own few)."""
     key = hierarchy_key(mesh_pos, cells, node_type, levels, remesh)
     if key in _MEMORY:
         _MEMORY.move_to_end(key)

@@ -17,6 +17,7 @@ from tqdm import tqdm
 from hcmt.config import COMPILE_MODES, MAX_BATCH, plural
 from hcmt.data.format import Split, read_meta
 from hcmt.data.runs import RunFolder
+from hcmt.domains.trajectory import load_split
 from hcmt.errors import InputError, RolloutError, clip
 from hcmt.files import atomic_path, ensure_space, read_json
 from hcmt.inference.metrics import (
@@ -32,7 +33,6 @@ from hcmt.inference.metrics import (
 from hcmt.inference.quantities import impact_groups, plate_mask
 from hcmt.inference.rollout import rollout, rollout_batch
 from hcmt.inference.run import Run, check_dataset, dataset_warnings, model_label
-from hcmt.physics.trajectory import load_split
 
 
 def check_options(*, batch: int = 1, compile: str = "none") -> None:

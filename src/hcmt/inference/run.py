@@ -23,10 +23,10 @@ import torch
 from hcmt.config import Config
 from hcmt.data.format import Split, read_meta
 from hcmt.data.runs import RunFolder, available_pretrained, read_checkpoint
+from hcmt.domains.adapters import config_adapter
 from hcmt.errors import InputError, clip
 from hcmt.files import atomic_path
 from hcmt.models import REGISTRY, from_checkpoint, resolve_device, uses_hierarchy
-from hcmt.physics.adapters import config_adapter
 
 
 def model_label(args: dict) -> str:

@@ -2,7 +2,7 @@
 
 ``build_model(name, node_in, mesh_in, contact_in, out, ...)`` makes one; :data:`REGISTRY` says, per model name, its
 display label, whether it needs the mesh hierarchy and whether it returns attention maps;
-:func:`hcmt.physics.adapters.build_for_dataset` fills the widths (Table 9) and depths (Table 8) of a dataset. Every
+:func:`hcmt.domains.adapters.build_for_dataset` fills the widths (Table 9) and depths (Table 8) of a dataset. Every
 model maps a :class:`hcmt.graph.batch.Graph` to a normalized output ``[N, out]`` and owns its normalizers
 (``normalize_target``, ``denormalize``).
 """

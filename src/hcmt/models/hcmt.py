@@ -18,7 +18,7 @@ r"""Hierarchical Contact Mesh Transformer (paper §3.2): encoder → CMT → HMT
     uses the (L_H−ℓ)-th edge feature after reaching the final level λ").
 
 * **Decoder and updater**: the decoder (no LayerNorm) gives the normalized output; ``denormalize`` then
-  :func:`hcmt.physics.updater.update_positions` (first order, :math:`\hat x^{t+1} = x^t + \hat{\dot x}^t`) give
+  :func:`hcmt.domains.updater.update_positions` (first order, :math:`\hat x^{t+1} = x^t + \hat{\dot x}^t`) give
   positions.
 
 * **Ablations** (``ablation=``): ``late-contact`` (HMT, then CMT), ``only-cmt`` (:math:`L_C + L_H` CMT blocks, so the

@@ -23,8 +23,9 @@ from tqdm import tqdm
 from hcmt.config import MAX_TRAJECTORIES, machine_cores
 from hcmt.data.format import make_meta, read_meta, write_meta, write_split
 from hcmt.errors import DatasetError, InputError
-from hcmt.sim.params import preset_design
-from hcmt.sim.scene import (
+from hcmt.sim.cost import check_cost, plan
+from hcmt.sim.driver import simulate
+from hcmt.sim.params import (
     CONTACT_RADIUS,
     FAMILIES,
     RANGES,
@@ -32,12 +33,10 @@ from hcmt.sim.scene import (
     VARIANTS,
     Design,
     Settings,
-    check_cost,
-    feature_spec,
-    plan,
+    preset_design,
     sample_design,
-    simulate,
 )
+from hcmt.sim.scene import feature_spec
 
 #: Split names and their stable codes in the per-trajectory seed.
 SPLITS = ("train", "valid", "test", "test_thicker", "test_higher", "test_thicker_higher")
@@ -150,11 +149,36 @@ def generate_dataset(out, *, preset: str = "small", counts: dict[str, int], seed
                      families: tuple[str, ...] = ("mono",), force: bool = False) -> dict:
     """Generate (or finish) an Impact Plate dataset in ``out``. ``counts`` maps split names (of :data:`SPLITS`) to
     trajectory counts; ``edge_fraction`` of the training designs are drawn at the ranges' edges (thin plates, high
-    drops: :data:`hcmt.sim.scene.EDGES`); ``families`` (:data:`hcmt.sim.scene.FAMILIES`) take the trajectories of
+    drops: :data:`hcmt.sim.params.EDGES`); ``families`` (:data:`hcmt.sim.params.FAMILIES`) take the trajectories of
     every split in turn, and meta.json's ``families`` lists each trajectory's. Returns ``{"simulated": n,
     "skipped": n, "splits": {split: path}}``. A trajectory estimated at over
     :data:`hcmt.sim.params.MAX_ESTIMATED_SECONDS` (:func:`generation_cost`) is refused before anything is written,
     unless ``force``."""
+    families, counts = _checked_arguments(preset, counts, workers, edge_fraction, families, settings)
+    design, cost = generation_cost(preset, families, settings)
+    check_cost(cost["estimated_s"], cost["num_nodes"], design, force, what=" per trajectory")
+    out = Path(out)
+    meta = dataset_meta(preset, seed, counts, settings, edge_fraction, families)
+    meta["families"] = {split: [trajectory_family(meta, i) for i in range(n)] for split, n in counts.items()}
+    if (out / "meta.json").is_file():
+        _check_growth(out, read_meta(out), meta, counts)
+    out.mkdir(parents=True, exist_ok=True)
+    write_meta(out, meta)
+    todo, done_splits, skipped = _tasks(out, meta, preset, seed, counts, settings)
+    _run_all(todo, workers, progress, f"impact-plate {preset}")
+    for split, n in counts.items():
+        if split not in done_splits:
+            done_splits[split] = _assemble(out, meta, split, n)
+    parts = out / ".parts"
+    if parts.is_dir() and not any(parts.iterdir()):
+        parts.rmdir()
+    return dict(simulated=len(todo), skipped=skipped, splits=done_splits)
+
+
+def _checked_arguments(preset: str, counts: dict[str, int], workers: int, edge_fraction: float,
+                       families: tuple[str, ...], settings: Settings) -> tuple[tuple[str, ...], dict[str, int]]:
+    """:func:`generate_dataset`'s arguments checked, each refusal one line naming its parameter: (the families,
+    the positive counts)."""
     families = tuple(families)
     if not families:
         raise InputError(f"family: give at least one of {', '.join(FAMILIES)}")
@@ -178,28 +202,29 @@ def generate_dataset(out, *, preset: str = "small", counts: dict[str, int], seed
     counts = {k: int(v) for k, v in counts.items() if int(v) > 0}
     if not counts:
         raise InputError("nothing to generate: every trajectory count (train, valid, test) is 0")
-    design, cost = generation_cost(preset, families, settings)
-    check_cost(cost["estimated_s"], cost["num_nodes"], design, force, what=" per trajectory")
-    out = Path(out)
-    meta = dataset_meta(preset, seed, counts, settings, edge_fraction, families)
-    meta["families"] = {split: [trajectory_family(meta, i) for i in range(n)] for split, n in counts.items()}
-    if (out / "meta.json").is_file():
-        old = read_meta(out)
-        old_gen, new_gen = dict(old.get("generator") or {}), dict(meta["generator"])
-        old_counts, _ = old_gen.pop("counts", {}), new_gen.pop("counts")
-        if old_gen != new_gen:
-            raise DatasetError(f"holds a dataset generated with other settings ({_differences(old_gen, new_gen)}); "
-                               "rerun with the dataset's own settings or choose another output folder",
-                               file=out / "meta.json")
-        fewer = {k: v for k, v in old_counts.items() if counts.get(k, 0) < v}
-        if fewer:
-            k, v = next(iter(fewer.items()))
-            raise DatasetError(f"holds {v} {k} trajectories; asking for {counts.get(k, 0)} would drop some. A dataset "
-                               "only grows (trajectory i of a split depends on seed, split and i alone): ask for at "
-                               "least as many, or choose another output folder", file=out / "meta.json")
-    out.mkdir(parents=True, exist_ok=True)
-    write_meta(out, meta)
+    return families, counts
 
+
+def _check_growth(out: Path, old: dict, meta: dict, counts: dict[str, int]) -> None:
+    """Refuse to write into a dataset generated with other settings, or to shrink one of its splits."""
+    old_gen, new_gen = dict(old.get("generator") or {}), dict(meta["generator"])
+    old_counts, _ = old_gen.pop("counts", {}), new_gen.pop("counts")
+    if old_gen != new_gen:
+        raise DatasetError(f"holds a dataset generated with other settings ({_differences(old_gen, new_gen)}); "
+                           "rerun with the dataset's own settings or choose another output folder",
+                           file=out / "meta.json")
+    fewer = {k: v for k, v in old_counts.items() if counts.get(k, 0) < v}
+    if fewer:
+        k, v = next(iter(fewer.items()))
+        raise DatasetError(f"holds {v} {k} trajectories; asking for {counts.get(k, 0)} would drop some. A dataset "
+                           "only grows (trajectory i of a split depends on seed, split and i alone): ask for at "
+                           "least as many, or choose another output folder", file=out / "meta.json")
+
+
+def _tasks(out: Path, meta: dict, preset: str, seed: int, counts: dict[str, int],
+           settings: Settings) -> tuple[list[tuple], dict[str, Path], int]:
+    """(the trajectories still to simulate, as :func:`_run_one` tasks; the splits already complete; how many
+    trajectories are done). A complete split's leftover parts are removed."""
     todo, done_splits, skipped = [], {}, 0
     for split, n in counts.items():
         if _split_complete(out / f"{split}.h5", n):
@@ -213,8 +238,12 @@ def generate_dataset(out, *, preset: str = "small", counts: dict[str, int], seed
                 skipped += 1
             else:
                 todo.append((str(out), meta, preset, int(seed), split, i, asdict(settings)))
+    return todo, done_splits, skipped
 
-    bar = tqdm(total=len(todo), desc=f"impact-plate {preset}", unit="traj", disable=not progress or not todo)
+
+def _run_all(todo: list[tuple], workers: int, progress: bool, desc: str) -> None:
+    """Run the tasks, in this process or a pool of ``workers`` spawned ones (Ctrl-C reaches this process only)."""
+    bar = tqdm(total=len(todo), desc=desc, unit="traj", disable=not progress or not todo)
     if workers == 1 or len(todo) <= 1:
         for task in todo:
             _run_one(task)
@@ -224,17 +253,10 @@ def generate_dataset(out, *, preset: str = "small", counts: dict[str, int], seed
             for _ in pool.imap_unordered(_run_one, todo):
                 bar.update(1)
     bar.close()
-    for split, n in counts.items():
-        if split not in done_splits:
-            done_splits[split] = _assemble(out, meta, split, n)
-    parts = out / ".parts"
-    if parts.is_dir() and not any(parts.iterdir()):
-        parts.rmdir()
-    return dict(simulated=len(todo), skipped=skipped, splits=done_splits)
 
 
 def generation_cost(preset: str, families: tuple[str, ...], settings: Settings) -> tuple[Design, dict]:
-    """(design, :func:`hcmt.sim.scene.plan`) of the costliest family's nominal design
+    """(design, :func:`hcmt.sim.cost.plan`) of the costliest family's nominal design
     (:func:`hcmt.sim.params.preset_design`): what a trajectory costs."""
     return max(((d, plan(d, settings)) for d in (preset_design(preset, f) for f in families)),
                key=lambda dc: dc[1]["estimated_s"])

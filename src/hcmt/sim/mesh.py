@@ -213,6 +213,40 @@ def impact_plate_mesh(thickness: float, ball_radius: float, mesh_size: float, *,
     ``rigid [N] bool``. ``ball_mesh_size`` defaults to ``mesh_size`` (a pen tip's to ``min(mesh_size, r / 3)``).
     """
     layers = [thickness] if layers is None else [float(t) for t in layers]
+    hb = _impactor_size(layers, ball_radius, mesh_size, plate_half_length, gap, ball_mesh_size, support_radius,
+                        impactor)
+    if plate_layers is not None or plate_y_growth != 1.0:  # one block with its own rows (the Hertz check)
+        if len(layers) > 1 or support_radius > 0 or backing_thickness > 0:
+            raise InputError("plate_layers and plate_y_growth make one clamped block: no stack, ring or backing")
+        p_pos, p_cells = plate_mesh(layers[0], plate_half_length, mesh_size, layers=plate_layers,
+                                    growth=plate_growth, h_max=plate_h_max, y_growth=plate_y_growth)
+        bounds = np.array([0.0, layers[0]])
+    else:
+        p_pos, p_cells, bounds = _stack_mesh(layers, plate_half_length, mesh_size, plate_growth, plate_h_max,
+                                             support_radius, backing_thickness)
+    if impactor == "pen":
+        b_pos, b_cells = pen_tip_mesh(ball_radius, hb, ball_radius + gap)
+    else:
+        b_pos, b_cells = ball_mesh(ball_radius, hb, ball_radius + gap, growth=ball_growth, h_max=ball_h_max)
+    pos = np.concatenate([p_pos, b_pos])
+    cells = np.concatenate([p_cells, b_cells + len(p_pos)])
+    body = np.concatenate([np.zeros(len(p_pos), np.int64), np.ones(len(b_pos), np.int64)])
+    node_type = _node_types(pos, body, bounds, float(np.sum(layers)), plate_half_length, support_radius,
+                            backing_thickness)
+    cell_body = np.concatenate([np.zeros(len(p_cells), np.int64), np.ones(len(b_cells), np.int64)])
+    centroid_depth = -p_pos[p_cells, 1].mean(1)
+    cell_layer = np.concatenate([np.searchsorted(bounds[1:-1], centroid_depth),
+                                 np.full(len(b_cells), -1)]).astype(np.int64)
+    rigid = np.zeros(len(pos), bool)
+    if impactor == "pen":
+        rigid[len(p_pos):] = np.abs(b_pos[:, 1] - (ball_radius + gap)) < 1e-9 * ball_radius
+    return dict(mesh_pos=pos, cells=cells, node_type=node_type, body=body, cell_body=cell_body,
+                cell_layer=cell_layer, rigid=rigid)
+
+
+def _impactor_size(layers: list[float], ball_radius: float, mesh_size: float, plate_half_length: float, gap: float,
+                   ball_mesh_size: float | None, support_radius: float, impactor: str) -> float:
+    """:func:`impact_plate_mesh`'s lengths checked (one line each); returns the impactor's element size."""
     for name, v in (("thickness", sum(layers)), ("ball_radius", ball_radius), ("mesh_size", mesh_size),
                     ("plate_half_length", plate_half_length), ("gap", gap), *((f"layer {i + 1} thickness", t)
                                                                               for i, t in enumerate(layers))):
@@ -227,42 +261,41 @@ def impact_plate_mesh(thickness: float, ball_radius: float, mesh_size: float, *,
     if not 0 <= support_radius < plate_half_length:
         raise InputError(f"support_radius ({support_radius} mm) must lie inside the plate (0 .. {plate_half_length})")
     if impactor == "pen":
-        hb = min(mesh_size, ball_radius / 3) if ball_mesh_size is None else ball_mesh_size
-    else:
-        hb = mesh_size if ball_mesh_size is None else ball_mesh_size
-        if hb > ball_radius / 3:
-            raise InputError(f"ball mesh size ({hb} mm) must be at most ball_radius / 3 ({ball_radius / 3:.3g} mm)")
-    if plate_layers is not None or plate_y_growth != 1.0:  # one block with its own rows (the Hertz check)
-        if len(layers) > 1 or support_radius > 0 or backing_thickness > 0:
-            raise InputError("plate_layers and plate_y_growth make one clamped block: no stack, ring or backing")
-        p_pos, p_cells = plate_mesh(layers[0], plate_half_length, mesh_size, layers=plate_layers,
-                                    growth=plate_growth, h_max=plate_h_max, y_growth=plate_y_growth)
-        bounds = np.array([0.0, layers[0]])
-    else:
-        rows = layer_rows(layers, mesh_size)
-        depth = [np.linspace(0.0, t, n + 1)[1:] for t, n in zip(layers, rows)]
-        bounds = np.concatenate([[0.0], np.cumsum(layers)])
-        if backing_thickness > 0:
-            nb = max(2, int(round(backing_thickness / mesh_size)))
-            depth.append(np.linspace(0.0, backing_thickness, nb + 1)[1:])
-            bounds = np.append(bounds, bounds[-1] + backing_thickness)
-        depth = np.concatenate([[0.0]] + [d + b for d, b in zip(depth, bounds[:-1])])
-        xs = graded_coordinates(plate_half_length, mesh_size, plate_growth, plate_h_max)
-        if support_radius > 0:  # the ring on a grid line: the nearest inner grid line moves there
-            j = int(np.argmin(np.abs(xs[1:-1] - support_radius))) + 1
-            xs[j] = support_radius
-        p_pos, p_cells = structured_triangles(xs, -depth[::-1])
-    if impactor == "pen":
-        b_pos, b_cells = pen_tip_mesh(ball_radius, hb, ball_radius + gap)
-    else:
-        b_pos, b_cells = ball_mesh(ball_radius, hb, ball_radius + gap, growth=ball_growth, h_max=ball_h_max)
-    pos = np.concatenate([p_pos, b_pos])
-    cells = np.concatenate([p_cells, b_cells + len(p_pos)])
-    body = np.concatenate([np.zeros(len(p_pos), np.int64), np.ones(len(b_pos), np.int64)])
+        return min(mesh_size, ball_radius / 3) if ball_mesh_size is None else ball_mesh_size
+    hb = mesh_size if ball_mesh_size is None else ball_mesh_size
+    if hb > ball_radius / 3:
+        raise InputError(f"ball mesh size ({hb} mm) must be at most ball_radius / 3 ({ball_radius / 3:.3g} mm)")
+    return hb
+
+
+def _stack_mesh(layers: list[float], plate_half_length: float, mesh_size: float, plate_growth: float,
+                plate_h_max: float | None, support_radius: float,
+                backing_thickness: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(positions, cells, layer bounds from the top face down) of the plate: the layers' rows (:func:`layer_rows`),
+    a backing under them, the ring's radius on a grid line."""
+    rows = layer_rows(layers, mesh_size)
+    depth = [np.linspace(0.0, t, n + 1)[1:] for t, n in zip(layers, rows)]
+    bounds = np.concatenate([[0.0], np.cumsum(layers)])
+    if backing_thickness > 0:
+        nb = max(2, int(round(backing_thickness / mesh_size)))
+        depth.append(np.linspace(0.0, backing_thickness, nb + 1)[1:])
+        bounds = np.append(bounds, bounds[-1] + backing_thickness)
+    depth = np.concatenate([[0.0]] + [d + b for d, b in zip(depth, bounds[:-1])])
+    xs = graded_coordinates(plate_half_length, mesh_size, plate_growth, plate_h_max)
+    if support_radius > 0:  # the ring on a grid line: the nearest inner grid line moves there
+        j = int(np.argmin(np.abs(xs[1:-1] - support_radius))) + 1
+        xs[j] = support_radius
+    p_pos, p_cells = structured_triangles(xs, -depth[::-1])
+    return p_pos, p_cells, bounds
+
+
+def _node_types(pos: np.ndarray, body: np.ndarray, bounds: np.ndarray, panel_depth: float, plate_half_length: float,
+                support_radius: float, backing_thickness: float) -> np.ndarray:
+    """[N] node types: NORMAL plate, OBSTACLE impactor; the support (a backing's bottom HANDLE, the ring's
+    WALL_BOUNDARY node, else the clamped rim's HANDLE); SYMMETRIC on the axis."""
     tol = 1e-9 * max(plate_half_length, 1.0)
     node_type = np.where(body == 0, NORMAL, OBSTACLE).astype(np.int64)
     plate = body == 0
-    panel_depth = float(np.sum(layers))
     if backing_thickness > 0:
         node_type[plate & (pos[:, 1] < -bounds[-1] + tol)] = HANDLE
     elif support_radius > 0:
@@ -271,15 +304,7 @@ def impact_plate_mesh(thickness: float, ball_radius: float, mesh_size: float, *,
     else:
         node_type[plate & (pos[:, 0] > plate_half_length - tol)] = HANDLE
     node_type[np.abs(pos[:, 0]) < tol] = SYMMETRIC
-    cell_body = np.concatenate([np.zeros(len(p_cells), np.int64), np.ones(len(b_cells), np.int64)])
-    centroid_depth = -p_pos[p_cells, 1].mean(1)
-    cell_layer = np.concatenate([np.searchsorted(bounds[1:-1], centroid_depth),
-                                 np.full(len(b_cells), -1)]).astype(np.int64)
-    rigid = np.zeros(len(pos), bool)
-    if impactor == "pen":
-        rigid[len(p_pos):] = np.abs(b_pos[:, 1] - (ball_radius + gap)) < 1e-9 * ball_radius
-    return dict(mesh_pos=pos, cells=cells, node_type=node_type, body=body, cell_body=cell_body,
-                cell_layer=cell_layer, rigid=rigid)
+    return node_type
 
 
 def preset_mesh(preset: str = "small", **overrides) -> dict[str, np.ndarray]:

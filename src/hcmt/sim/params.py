@@ -1,7 +1,8 @@
-"""The Impact Plate's design parameters, solver settings, presets, families and materials: the plain values and
-checks that the command's parsers need (``hcmt generate/simulate --help``, a refused ``--frames 0``) without the
-solver, the mesh or scipy; :mod:`hcmt.sim.scene` builds and simulates designs from them (see its docstring for the
-choices and units)."""
+"""The Impact Plate's design schema: the design parameters, solver settings, presets, families and materials, their
+sampling (:func:`sample_design`) and parsing (``--design K=V``, ``--stack``): the plain values and checks that the
+command's parsers need (``hcmt generate/simulate --help``, a refused ``--frames 0``) without the solver, the mesh or
+scipy. :mod:`hcmt.sim.scene` assembles a design's scene (its docstring has the choices and units),
+:mod:`hcmt.sim.driver` simulates it."""
 from __future__ import annotations
 
 import difflib
@@ -377,3 +378,37 @@ def parse_number(raw: str, what: str, param: str | None = None) -> float:
 def preset_design(preset: str, family: str = "mono") -> Design:
     """The nominal design of a preset and family: the middle of every sampling range (:func:`family_ranges`)."""
     return Design(**resolve_relative({k: 0.5 * (lo + hi) for k, (lo, hi) in family_ranges(preset, family).items()}))
+
+
+def sample_design(rng: np.random.Generator, preset: str = "small", variant: str | None = None,
+                  edge_fraction: float = 0.0, family: str = "mono") -> Design:
+    """Draw one design: every parameter of the family's ranges (:func:`family_ranges`) uniform, in sorted order,
+    a variant's ranges replacing the training ones. With ``edge_fraction`` > 0, that share of designs then has its
+    thickness or its drop height redrawn inside :data:`EDGES` (draws after the uniform ones: a design with
+    ``edge_fraction`` 0 is the same as before; a ``mono`` design the same as before families existed)."""
+    ranges = family_ranges(preset, family, variant)
+    names = sorted(ranges)
+    u = rng.random(len(names))
+    values = resolve_relative({k: float(ranges[k][0] + (ranges[k][1] - ranges[k][0]) * ui)
+                               for k, ui in zip(names, u)})
+    if edge_fraction > 0 and rng.random() < edge_fraction:
+        key = sorted(EDGES)[int(rng.random() < 0.5)]
+        (lo, hi), (a, b) = ranges[key], EDGES[key]
+        values[key] = float(lo + (hi - lo) * (a + (b - a) * rng.random()))
+    return Design(**values)
+
+
+def design_from_attrs(attrs: dict) -> Design:
+    """The :class:`Design` of a trajectory's attributes; parameters a dataset made before they existed take their
+    default (the first scene's: no layers under the top one, clamped, the ball)."""
+    return Design(**{k: float(attrs[k]) for k in DESIGN_KEYS if k in attrs})
+
+
+def middle_design(meta: dict | None, ranges: dict[str, tuple[float, float]] | None = None) -> Design:
+    """The middle of a model's training ranges (``ranges``: min and max of each parameter over its training
+    designs), every parameter they do not name at the middle of the training preset's ranges (``hcmt
+    simulate``'s defaults for that preset; the preset of a dataset's meta.json, ``paper`` when it names none)."""
+    preset = ((meta or {}).get("generator") or {}).get("preset", "paper")
+    values = {k: 0.5 * (lo + hi) for k, (lo, hi) in RANGES.get(preset, RANGES["paper"]).items()}
+    values.update({k: 0.5 * (float(lo) + float(hi)) for k, (lo, hi) in (ranges or {}).items() if k in DESIGN_KEYS})
+    return Design(**values)

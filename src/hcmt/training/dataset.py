@@ -20,10 +20,10 @@ import torch
 from torch import Tensor
 from torch.utils.data import Dataset, Sampler
 
+from hcmt.domains.adapters import Adapter, noise_mask
+from hcmt.domains.frames import pushforward_sample, step_seed, training_sample
+from hcmt.domains.trajectory import SplitReader, Trajectory, load_split
 from hcmt.graph.batch import Graph, PadSizes, collate, pad_graph, pad_rows
-from hcmt.physics.adapters import Adapter, noise_mask
-from hcmt.physics.frames import pushforward_sample, step_seed, training_sample
-from hcmt.physics.trajectory import SplitReader, Trajectory, load_split
 
 
 class InMemorySplit:
@@ -66,13 +66,13 @@ class InMemorySplit:
 class FrameDataset(Dataset):
     """The training frames ``(trajectory, t)`` of one split, each turned into ``(graph, target, mask)``.
 
-    ``data`` a native dataset folder; ``adapter`` the dataset's (:func:`hcmt.physics.adapters.config_adapter`);
+    ``data`` a native dataset folder; ``adapter`` the dataset's (:func:`hcmt.domains.adapters.config_adapter`);
     ``levels``/``remesh`` the hierarchy the model needs; ``radius`` the contact radius γ; ``noise_std`` σ on the
     ``noise_nodes`` (``normal`` or ``predicted``) and ``gamma`` the target correction; ``seed`` for the noise.
     Works with ``DataLoader(num_workers=N)``. :meth:`pushforward_item` builds an item with the model's help (in
     the training process).
 
-    The split is read per item (:class:`hcmt.physics.trajectory.SplitReader`: the index, a few trajectories'
+    The split is read per item (:class:`hcmt.domains.trajectory.SplitReader`: the index, a few trajectories'
     static fields and hierarchies, the frames ``x^{t-h-1} .. x^{t+1}`` an item needs), so a process's memory does
     not grow with the split; ``keep`` trajectories stay in its LRU. ``in_memory=True`` holds the whole split
     instead (:func:`load_split`); both give the same items bit for bit.

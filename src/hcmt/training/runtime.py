@@ -15,6 +15,7 @@ import torch
 import torch.distributed as dist
 import yaml
 
+from hcmt.domains.adapters import own_args
 from hcmt.errors import InputError
 from hcmt.files import atomic_path, take_lock
 
@@ -23,7 +24,9 @@ def check_resume(saved: dict, run: dict, out: Path) -> None:
     """An exact continuation needs the settings the run started with; only ``train.steps`` may grow (the
     learning-rate schedule then stretches to the new length)."""
     def strip(r):
-        r = yaml.safe_load(yaml.safe_dump(dict(r, config=r["config"].to_dict())))  # both read through Config
+        # both read through Config; the model's arguments less those it does not take (runs saved before
+        # hcmt.domains.adapters.MODEL_KEYS kept every model's)
+        r = yaml.safe_load(yaml.safe_dump(dict(r, config=r["config"].to_dict(), model=own_args(r["model"]))))
         r["config"]["train"].pop("steps", None)
         return r
 

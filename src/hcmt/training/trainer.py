@@ -45,15 +45,15 @@ from tqdm import tqdm
 from hcmt.config import INIT_NORMALIZERS, Config
 from hcmt.data.format import read_meta
 from hcmt.data.runs import RunFolder, check_start, read_checkpoint
+from hcmt.domains.adapters import config_adapter, model_args, noise_gamma, own_args
+from hcmt.domains.frames import step_seed
+from hcmt.domains.trajectory import load_split
 from hcmt.errors import InputError
 from hcmt.files import atomic_path
 from hcmt.inference.evaluate import validation_rmse
 from hcmt.inference.run import Run
 from hcmt.models import Normalizer, checkpoint_state, make_model, resolve_device, uses_hierarchy
 from hcmt.models.base import compile_simulator, resolve_compile
-from hcmt.physics.adapters import config_adapter, model_args, noise_gamma
-from hcmt.physics.frames import step_seed
-from hcmt.physics.trajectory import load_split
 from hcmt.training.dataset import FrameDataset, StepSampler, pad_sizes, step_loader
 from hcmt.training.runtime import (
     InterruptFlag,
@@ -103,7 +103,7 @@ def init_source(init: str, args: dict) -> Run:
     """The model a run starts from (a run folder's best checkpoint or ``pretrained:NAME``), refused in one line
     listing what differs when its constructor arguments (architecture, feature widths) are not this run's."""
     source = Run.load(init, "cpu")
-    theirs = source.info["model"]
+    theirs = own_args(source.info["model"])  # a model saved before MODEL_KEYS held other models' keys too
     differ = [f"{k} {theirs.get(k)!r} there, {args.get(k)!r} here" for k in sorted(set(theirs) | set(args))
               if theirs.get(k) != args.get(k)]
     if differ:

@@ -31,13 +31,13 @@ import torch
 from matplotlib import colors
 
 from hcmt.data.format import NodeType, Split
+from hcmt.domains.frames import input_graph
+from hcmt.domains.trajectory import prepare_trajectory
 from hcmt.errors import InputError
 from hcmt.graph.hierarchy import hierarchy_cache_dir
 from hcmt.inference.run import Run
 from hcmt.models import REGISTRY
 from hcmt.models.attention import AttentionMap
-from hcmt.physics.frames import input_graph
-from hcmt.physics.trajectory import prepare_trajectory
 from hcmt.viz.meshplot import closest_pair, new_figure, save_figure
 from hcmt.viz.rollouts import trajectory_index
 

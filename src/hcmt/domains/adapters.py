@@ -28,14 +28,15 @@ from torch import Tensor
 
 from hcmt.config import DATASET_NAMES, Config, load_config
 from hcmt.data.format import NODE_TYPE_SIZE, NodeType
+from hcmt.domains.updater import update_positions
 from hcmt.errors import InputError
 from hcmt.graph.contact import OFFICIAL_IMPACT_PLATE_TYPES
 from hcmt.models import Simulator, build_model
-from hcmt.physics.updater import update_positions
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, kw_only=True)
 class Adapter:
+    """One dataset's row of Table 9 and its boundary conditions; built with keywords (:data:`ADAPTERS`)."""
     name: str
     dim: int  # world dimension d
     mesh_dim: int  # mesh-space dimension (2 for cloth in 3-D)
@@ -75,19 +76,24 @@ def _pairs(*names: tuple[str, str]) -> tuple[tuple[int, int], ...]:
     return tuple((int(NodeType[a]), int(NodeType[b])) for a, b in names)
 
 
-ADAPTERS = {
-    "impact_plate": Adapter("impact_plate", 2, 2, ("density", "modulus"), True, False, True, 1, (), False,
-                            # ball <-> plate between different objects. The official code links OBSTACLE -> NORMAL
-                            # only; here SYMMETRIC nodes (on both bodies' symmetry line) take part too, so the
-                            # contact at x = 0 -- where the ball first touches -- is seen (hcmt's choice)
-                            _pairs(("OBSTACLE", "NORMAL"), ("OBSTACLE", "SYMMETRIC"), ("SYMMETRIC", "NORMAL"),
-                                   ("SYMMETRIC", "SYMMETRIC"))),
-    "deforming_plate": Adapter("deforming_plate", 3, 3, (), False, True, True, 1, (int(NodeType.OBSTACLE),), False,
-                               None),
-    "sphere_simple": Adapter("sphere_simple", 3, 2, (), True, False, False, 2, (), True, None),
-    "deformable_plate": Adapter("deformable_plate", 2, 2, ("poisson_ratio",), False, False, False, 1,
-                                (int(NodeType.OBSTACLE),), False, None),
-}
+ADAPTERS = {a.name: a for a in (
+    Adapter(name="impact_plate", dim=2, mesh_dim=2, node_fields=("density", "modulus"), velocity_input=True,
+            obstacle_velocity_input=False, stress_output=True, order=1, prescribed=(), self_contact=False,
+            # ball <-> plate between different objects. The official code links OBSTACLE -> NORMAL only; here
+            # SYMMETRIC nodes (on both bodies' symmetry line) take part too, so the contact at x = 0 -- where the
+            # ball first touches -- is seen (hcmt's choice)
+            contact_types=_pairs(("OBSTACLE", "NORMAL"), ("OBSTACLE", "SYMMETRIC"), ("SYMMETRIC", "NORMAL"),
+                                 ("SYMMETRIC", "SYMMETRIC"))),
+    Adapter(name="deforming_plate", dim=3, mesh_dim=3, node_fields=(), velocity_input=False,
+            obstacle_velocity_input=True, stress_output=True, order=1, prescribed=(int(NodeType.OBSTACLE),),
+            self_contact=False, contact_types=None),
+    Adapter(name="sphere_simple", dim=3, mesh_dim=2, node_fields=(), velocity_input=True,
+            obstacle_velocity_input=False, stress_output=False, order=2, prescribed=(), self_contact=True,
+            contact_types=None),
+    Adapter(name="deformable_plate", dim=2, mesh_dim=2, node_fields=("poisson_ratio",), velocity_input=False,
+            obstacle_velocity_input=False, stress_output=False, order=1, prescribed=(int(NodeType.OBSTACLE),),
+            self_contact=False, contact_types=None),
+)}
 
 
 # ``train.contact_pairs``: which node types may form contact edges, for every model alike.
@@ -221,17 +227,36 @@ def exclude_trajectories(names: list[str], excluded: list[int] | None) -> np.nda
     return np.flatnonzero(keep)
 
 
+#: each model's constructor arguments from ``model.*`` beyond the widths and ``hidden``
+#: (:func:`hcmt.models.build_model`): an MGN run's ``run.yaml`` holds no HCMT depth it does not use
+MODEL_KEYS = {"hcmt": ("levels", "L_C", "L_H", "heads", "clip", "attention", "ffn_bias"), "mgn": ("blocks",),
+              "gt": ("blocks", "heads", "clip")}
+
+
+def own_args(args: dict) -> dict:
+    """Saved constructor arguments (``run.yaml``'s ``model``, a checkpoint's ``model_args``) less the keys their
+    model does not take: a run saved before :data:`MODEL_KEYS` kept every model's depths (an MGN's ``levels``, an
+    HCMT's ``blocks``), which resuming or fine-tuning compares against this version's arguments."""
+    keep = {"name", "node_in", "mesh_in", "contact_in", "out", "hidden", *MODEL_KEYS.get(args.get("name"), ())}
+    if args.get("name") == "hcmt":
+        keep.add("ablation")
+    return {k: v for k, v in args.items() if k in keep}
+
+
 def model_args(cfg: Config, model_name: str, ablation: str | None, meta: dict) -> dict:
-    """Constructor arguments of the model (saved in ``run.yaml``), from the config and the dataset's dimensions
-    (meta.json)."""
+    """Constructor arguments of the model (saved in ``run.yaml``): the widths from the config's adapter and the
+    dataset's dimensions (meta.json), ``hidden``, and only the ``model.*`` keys the chosen model takes
+    (:data:`MODEL_KEYS`); ``ablation`` is HCMT's alone."""
+    if model_name not in MODEL_KEYS:
+        raise InputError(f"unknown model {model_name!r}; expected one of {', '.join(MODEL_KEYS)}", param="model")
+    if model_name != "hcmt" and ablation not in (None, "", "none"):
+        raise InputError(f"ablations apply to HCMT only, got ablation={ablation!r} for model {model_name!r}",
+                         param="ablation")
     adapter = config_adapter(cfg)
     widths = adapter.widths(int(meta["dimension"]), int(meta["features"]["mesh_pos"]["shape"][-1]))
-    mc = cfg.model
-    return {
-        "name": model_name, **widths, "ablation": ablation, "levels": mc.levels, "L_C": mc.L_C, "L_H": mc.L_H,
-        "hidden": mc.hidden, "heads": mc.heads, "clip": mc.clip, "blocks": mc.blocks,
-        **({"attention": mc.attention, "ffn_bias": mc.ffn_bias} if model_name == "hcmt" else {}),
-    }
+    own = {k: getattr(cfg.model, k) for k in MODEL_KEYS[model_name]}
+    return {"name": model_name, **widths, **({"ablation": ablation} if model_name == "hcmt" else {}),
+            "hidden": cfg.model.hidden, **own}
 
 
 def dataset_spec(name: str) -> dict:

@@ -18,11 +18,11 @@ import torch
 from torch import Tensor
 
 from hcmt.data.format import Split
+from hcmt.domains.adapters import Adapter, exclude_trajectories
 from hcmt.errors import DatasetError
 from hcmt.graph.batch import Graph
 from hcmt.graph.build import frame_graph
 from hcmt.graph.hierarchy import Hierarchy, cached_hierarchy, hierarchy_cache_dir
-from hcmt.physics.adapters import Adapter, exclude_trajectories
 
 
 class FrameWindow:

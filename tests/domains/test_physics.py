@@ -12,12 +12,12 @@ from hcmt.cli import auto_threads, main as cli, set_threads
 from hcmt.config import Config, load_config
 from hcmt.data.format import NodeType
 from hcmt.design import sweep as sw
+from hcmt.domains.adapters import config_adapter, get_adapter, integrate, noise_gamma, noise_mask, position_mask, target
+from hcmt.domains.frames import input_graph
 from hcmt.graph.build import frame_graph
 from hcmt.inference.evaluate import evaluate
 from hcmt.inference.metrics import impact_metrics, summarize_impact
 from hcmt.inference.run import Run
-from hcmt.physics.adapters import config_adapter, get_adapter, integrate, noise_gamma, noise_mask, position_mask, target
-from hcmt.physics.frames import input_graph
 from hcmt.training import train
 from hcmt.training.dataset import FrameDataset, collate_samples
 from hcmt.training.schedule import keras_epsilon

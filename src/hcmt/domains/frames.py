@@ -18,9 +18,9 @@ import numpy as np
 import torch
 from torch import Tensor
 
+from hcmt.domains.adapters import integrate, node_features, output_mask, target
+from hcmt.domains.trajectory import Trajectory, build_graph
 from hcmt.graph.batch import Graph
-from hcmt.physics.adapters import integrate, node_features, output_mask, target
-from hcmt.physics.trajectory import Trajectory, build_graph
 
 
 def input_graph(traj: Trajectory, pos: Tensor, prev: Tensor, next_prescribed: Tensor, radius: float) -> Graph:

@@ -1,0 +1,54 @@
+"""Issue 38 item 2: the adapters are built with keywords, and the config becomes only the chosen model's
+constructor arguments (an MGN run gets no HCMT depth)."""
+from pathlib import Path
+
+import pytest
+
+from hcmt.config import load_config
+from hcmt.domains.adapters import ADAPTERS, MODEL_KEYS, Adapter, model_args, own_args
+from hcmt.errors import InputError
+from hcmt.models import make_model
+from hcmt.training.runtime import check_resume
+
+META = {"dimension": 2, "features": {"mesh_pos": {"shape": [-1, 2]}}}
+TINY = ["model.levels=1", "model.L_C=1", "model.hidden=16", "model.heads=2", "model.blocks=2"]
+WIDTHS = {"name", "node_in", "mesh_in", "contact_in", "out", "hidden"}
+
+
+def test_adapters_are_built_with_keywords_only():
+    with pytest.raises(TypeError):
+        Adapter("impact_plate", 2, 2, (), True, False, True, 1, (), False, None)
+    assert all(name == a.name for name, a in ADAPTERS.items())
+    assert ADAPTERS["impact_plate"].node_in(2) == 9 + 2 + 2 and ADAPTERS["sphere_simple"].order == 2
+
+
+@pytest.mark.parametrize("model", ["hcmt", "mgn", "gt"])
+def test_model_args_hold_only_the_chosen_models_arguments(model):
+    cfg = load_config("impact_plate", TINY)
+    args = model_args(cfg, model, None, META)
+    assert set(args) == WIDTHS | set(MODEL_KEYS[model]) | ({"ablation"} if model == "hcmt" else set())
+    make_model(args)  # every key is one the model's constructor takes
+
+
+def test_an_mgn_run_gets_no_hcmt_depths_and_no_ablation():
+    args = model_args(load_config("impact_plate", TINY), "mgn", None, META)
+    assert not {"levels", "L_C", "L_H", "heads", "clip", "attention", "ffn_bias", "ablation"} & set(args)
+    with pytest.raises(InputError, match="ablations apply to HCMT only"):
+        model_args(load_config("impact_plate", TINY), "gt", "only-cmt", META)
+    with pytest.raises(InputError, match="unknown model 'pointnet'"):
+        model_args(load_config("impact_plate", TINY), "pointnet", None, META)
+
+
+def test_runs_saved_with_every_models_keys_still_resume():
+    """A run.yaml written before MODEL_KEYS held an MGN's levels and an HCMT's blocks: own_args drops them, so
+    resuming it compares equal."""
+    cfg = load_config("impact_plate", TINY)
+    for model in ("hcmt", "mgn"):
+        now = model_args(cfg, model, None, META)
+        old = {**now, "ablation": None, "levels": 1, "L_C": 1, "L_H": None, "heads": 2, "clip": 2.0, "blocks": 2,
+               "attention": "paper", "ffn_bias": True}
+        assert own_args(old) == now
+        run = {"model": now, "config": cfg, "seed": 0, "world_size": 1}
+        check_resume({**run, "model": old}, run, Path("run"))
+        with pytest.raises(InputError, match="hidden"):
+            check_resume({**run, "model": {**old, "hidden": 32}}, run, Path("run"))

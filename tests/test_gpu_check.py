@@ -10,7 +10,7 @@ import torch
 
 pytestmark = pytest.mark.slow  # runs a benchmark script
 
-SCRIPT = Path(__file__).resolve().parent.parent / "benchmarks" / "gpu_check.py"
+SCRIPT = Path(__file__).resolve().parent.parent / "benchmarks" / "gpu_check" / "run.py"
 
 
 def _run(*args):

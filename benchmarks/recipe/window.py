@@ -7,12 +7,16 @@ of the maximum deflection, and how far the peak within 52 frames (the old window
 """
 from __future__ import annotations
 
+import sys
+from pathlib import Path
+
 import numpy as np
 import torch
 
-from common import write_json
-from hcmt.inference.quantities import body_history, deflection, peak, plate_mask
-from hcmt.sim.scene import RANGES, Design, Settings, simulate
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent))  # benchmarks/: common
+from common import write_json  # noqa: E402
+from hcmt.inference.quantities import body_history, deflection, peak, plate_mask  # noqa: E402
+from hcmt.sim.scene import RANGES, Design, Settings, simulate  # noqa: E402
 
 CORNERS = [(0.5, 500), (0.5, 1000), (0.6, 1000), (0.75, 750), (1.0, 1000), (1.0, 500)]
 

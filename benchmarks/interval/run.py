@@ -20,18 +20,20 @@ from __future__ import annotations
 import argparse
 import json
 import platform
+import sys
 import time
 from pathlib import Path
 
 import numpy as np
 
-from common import RESULTS, dataset, run_and_evaluate, write_json
-from hcmt.data.format import Split
-from hcmt.design.check import check_designs
-from hcmt.inference.metrics import mean_std
-from hcmt.inference.run import Run
-from hcmt.sim.scene import DESIGN_KEYS, Design
-from propagation import hcmt_reach, trajectory_numbers
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent))  # benchmarks/: common
+from common import RESULTS, dataset, run_and_evaluate, write_json  # noqa: E402
+from hcmt.data.format import Split  # noqa: E402
+from hcmt.design.check import check_designs  # noqa: E402
+from hcmt.inference.metrics import mean_std  # noqa: E402
+from hcmt.inference.run import Run  # noqa: E402
+from hcmt.sim.scene import DESIGN_KEYS, Design  # noqa: E402
+from parity.propagation import hcmt_reach, trajectory_numbers  # noqa: E402
 
 WINDOW_FRAMES = {0.002: 89, 0.004: 45, 0.008: 23}  # 88 x 0.002 = 44 x 0.004 = 22 x 0.008 = 0.176 ms
 DATA = dict(preset="small", train=40, valid=4, test=12, seed=2026, variants=0)
@@ -229,7 +231,7 @@ def figure(out: dict) -> Path:
         ax.set_ylabel("HCMT ÷ baseline, RMSE-all (test, 3 seeds)")
         ax.set_title(q.split("_")[0])
         ax.legend(fontsize=7)
-    path = Path(__file__).resolve().parent.parent / "docs" / "img" / "interval_ratio.png"
+    path = Path(__file__).resolve().parents[2] / "docs" / "img" / "interval_ratio.png"
     path.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path, dpi=130)
     return path

@@ -41,7 +41,7 @@ from hcmt.data.format import open_split, read_meta  # noqa: E402
 from hcmt.sim.scene import Design, Settings, design_mesh, plan, simulate  # noqa: E402
 
 DATA = "/work/interval/impact_plate_small_40_89_dt0.002"
-OUT = Path(__file__).resolve().parent / "results" / "peak_sampling.json"
+OUT = Path(__file__).resolve().parent.parent / "results" / "peak_sampling.json"
 BASE_DT = 0.002  # ms, the finest recorded interval
 FACTORS = {0.002: 1, 0.004: 2, 0.008: 4}  # interval (ms) -> multiple of BASE_DT
 BODIES = {"plate": 0, "ball": 1}

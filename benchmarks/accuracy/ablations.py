@@ -8,9 +8,11 @@ Writes benchmarks/results/ablations.json and benchmarks/results/levels.json.
 from __future__ import annotations
 
 import argparse
+import sys
 from pathlib import Path
 
-from common import dataset, run_and_evaluate, write_json
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent))  # benchmarks/: common
+from common import dataset, run_and_evaluate, write_json  # noqa: E402
 
 ABLATIONS = [None, "late-contact", "only-hmt", "only-cmt", "lpe", "single-branch", "no-remesh"]
 CLIPS = [1.0, 3.0]

@@ -69,7 +69,8 @@ def main() -> None:
     p.add_argument("--recipes", nargs="+", default=list(RECIPES), choices=list(RECIPES))
     p.add_argument("--steps", type=int, default=150)
     p.add_argument("--rounds", type=int, default=2)
-    p.add_argument("--json", type=Path, default=Path(__file__).parent / "results" / "train_speed.json")
+    results = Path(__file__).resolve().parent.parent / "results"
+    p.add_argument("--json", type=Path, default=results / "train_speed.json")
     a = p.parse_args()
     trees = {"old": a.old.resolve(), "new": a.new.resolve()}
     commits = {k: subprocess.run(["git", "-C", str(t), "rev-parse", "--short", "HEAD"], capture_output=True,

@@ -20,6 +20,7 @@ from __future__ import annotations
 import argparse
 import json
 import platform
+import sys
 import time
 from dataclasses import asdict, replace
 from pathlib import Path
@@ -28,10 +29,11 @@ import numpy as np
 import torch
 from sklearn.preprocessing import PolynomialFeatures
 
-from common import write_json
-from hcmt.data.runs import PRETRAINED_DIR
-from hcmt.design.check import TRUSTS, Prediction, call_of, check_designs, summarize, trusted_interval, verify_designs
-from hcmt.design.inputs import region_of, settings_of
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent))  # benchmarks/: common
+from common import write_json  # noqa: E402
+from hcmt.data.runs import PRETRAINED_DIR  # noqa: E402
+from hcmt.design.check import TRUSTS, Prediction, call_of, check_designs, summarize, trusted_interval, verify_designs  # noqa: E402
+from hcmt.design.inputs import region_of, settings_of  # noqa: E402
 from hcmt.design.readout import (
     CONTACT_END_BOUND,
     DEFAULT_READOUT,
@@ -40,11 +42,11 @@ from hcmt.design.readout import (
     readout_key,
     summarize_fields,
 )
-from hcmt.design.surrogate import QUANTITIES, Z95, Surrogate, dataset_answers
-from hcmt.files import atomic_path
-from hcmt.inference.quantities import contact_gap, contact_window, ghost_ratio, plate_mask
-from hcmt.inference.run import Run
-from hcmt.sim.scene import Design, middle_design, sample_design
+from hcmt.design.surrogate import QUANTITIES, Z95, Surrogate, dataset_answers  # noqa: E402
+from hcmt.files import atomic_path  # noqa: E402
+from hcmt.inference.quantities import contact_gap, contact_window, ghost_ratio, plate_mask  # noqa: E402
+from hcmt.inference.run import Run  # noqa: E402
+from hcmt.sim.scene import Design, middle_design, sample_design  # noqa: E402
 
 #: the issue's four thickness sweeps (drop height mm, yield MPa); two more get the solver's median peak as yield
 SWEEPS = [(600.0, 750.0), (600.0, 700.0), (800.0, 800.0), (800.0, 720.0), (700.0, None), (950.0, None)]

@@ -16,21 +16,23 @@ from __future__ import annotations
 import argparse
 import json
 import platform
+import sys
 from pathlib import Path
 
 import numpy as np
 import torch
 
-from common import write_json
-from hcmt.data.runs import PRETRAINED_DIR
-from hcmt.design import sweep as sw
-from hcmt.design.check import check_designs, predict
-from hcmt.design.inputs import region_of
-from hcmt.design.reports import format_table
-from hcmt.design.surrogate import Surrogate
-from hcmt.inference.evaluate import evaluate
-from hcmt.inference.run import Run
-from hcmt.sim.scene import middle_design, parse_design, sample_design
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent))  # benchmarks/: common
+from common import write_json  # noqa: E402
+from hcmt.data.runs import PRETRAINED_DIR  # noqa: E402
+from hcmt.design import sweep as sw  # noqa: E402
+from hcmt.design.check import check_designs, predict  # noqa: E402
+from hcmt.design.inputs import region_of  # noqa: E402
+from hcmt.design.reports import format_table  # noqa: E402
+from hcmt.design.surrogate import Surrogate  # noqa: E402
+from hcmt.inference.evaluate import evaluate  # noqa: E402
+from hcmt.inference.run import Run  # noqa: E402
+from hcmt.sim.scene import middle_design, parse_design, sample_design  # noqa: E402
 
 
 def main() -> None:

@@ -22,15 +22,18 @@ Writes benchmarks/results/propagation.json.
 from __future__ import annotations
 
 import argparse
+import sys
+from pathlib import Path
 
 import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.csgraph as csgraph
 
-from common import write_json
-from hcmt.data.format import NodeType, Split
-from hcmt.graph.hierarchy import build_hierarchy
-from hcmt.inference.metrics import plate_mask
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent))  # benchmarks/: common
+from common import write_json  # noqa: E402
+from hcmt.data.format import NodeType, Split  # noqa: E402
+from hcmt.graph.hierarchy import build_hierarchy  # noqa: E402
+from hcmt.inference.metrics import plate_mask  # noqa: E402
 
 
 def hop_matrix(edges: np.ndarray, n: int, sources: np.ndarray) -> np.ndarray:

@@ -32,7 +32,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent))  # benchmarks/: common
 from common import write_json  # noqa: E402
 from hcmt.graph.build import frame_graph  # noqa: E402
 from hcmt.graph.hierarchy import build_hierarchy  # noqa: E402

@@ -35,11 +35,12 @@ import numpy as np
 import torch
 from tfrecord.writer import TFRecordWriter
 
-from common import write_json
-from hcmt.data.format import NodeType, make_meta, write_meta, write_split
-from hcmt.physics.adapters import get_adapter
-from hcmt.sim.scene import Settings, feature_spec, initial_frames, sample_design
-from hcmt.training.dataset import FrameDataset, StepSampler, collate_samples, step_loader
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent))  # benchmarks/: common
+from common import write_json  # noqa: E402
+from hcmt.data.format import NodeType, make_meta, write_meta, write_split  # noqa: E402
+from hcmt.physics.adapters import get_adapter  # noqa: E402
+from hcmt.sim.scene import Settings, feature_spec, initial_frames, sample_design  # noqa: E402
+from hcmt.training.dataset import FrameDataset, StepSampler, collate_samples, step_loader  # noqa: E402
 
 torch.set_num_threads(1)
 PAPER_NODES = 2208  # the paper's Impact Plate mean node count (Table 6)
@@ -237,7 +238,7 @@ def memory(work: Path, counts: list[int], items: int) -> dict:
 
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    p.add_argument("--work", default=str(Path(__file__).parent / "work" / "data_memory"))
+    p.add_argument("--work", default=str(Path(__file__).resolve().parent.parent / "work" / "data_memory"))
     p.add_argument("--counts", type=int, nargs=2, default=[4, 40], help="Impact Plate trajectory counts")
     p.add_argument("--items", type=int, default=120, help="items each RSS process builds")
     p.add_argument("--convert", type=int, nargs=2, default=[20, 200], help="trajectories of the converted files")

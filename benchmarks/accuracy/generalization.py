@@ -8,10 +8,12 @@ Writes benchmarks/results/generalization.json.
 from __future__ import annotations
 
 import argparse
+import sys
 from pathlib import Path
 
-from common import dataset, run_and_evaluate, write_json
-from hcmt.inference.metrics import summarize_runs
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent))  # benchmarks/: common
+from common import dataset, run_and_evaluate, write_json  # noqa: E402
+from hcmt.inference.metrics import summarize_runs  # noqa: E402
 
 SPLITS = ("test", "test_thicker", "test_higher", "test_thicker_higher")
 

@@ -9,11 +9,13 @@ Writes benchmarks/results/accuracy.json as {model: {"position": {"rmse_1": {"mea
 from __future__ import annotations
 
 import argparse
+import sys
 from pathlib import Path
 
-from common import dataset, fmt, run_and_evaluate, write_json
-from hcmt.inference.metrics import summarize_runs
-from hcmt.models import MODELS
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent))  # benchmarks/: common
+from common import dataset, fmt, run_and_evaluate, write_json  # noqa: E402
+from hcmt.inference.metrics import summarize_runs  # noqa: E402
+from hcmt.models import MODELS  # noqa: E402
 
 
 def main() -> None:

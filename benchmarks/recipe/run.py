@@ -14,15 +14,17 @@ from __future__ import annotations
 
 import argparse
 import json
+import sys
 from pathlib import Path
 
 import numpy as np
 from scipy.stats import rankdata
 
-from common import dataset, run_and_evaluate, write_json
-from hcmt.inference.evaluate import evaluate
-from hcmt.inference.metrics import mean_std
-from hcmt.inference.run import Run
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent))  # benchmarks/: common
+from common import dataset, run_and_evaluate, write_json  # noqa: E402
+from hcmt.inference.evaluate import evaluate  # noqa: E402
+from hcmt.inference.metrics import mean_std  # noqa: E402
+from hcmt.inference.run import Run  # noqa: E402
 
 # 40 / 4 / 12 designs of the `small` preset over a 90-frame window (0.178 ms: the whole impact of every design of
 # the ranges, docs/RESULTS.md "Window"); another seed than any other study's

@@ -26,8 +26,8 @@ import h5py
 import numpy as np
 import torch
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-from common import write_json  # noqa: E402
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent))  # benchmarks/: common
+from common import RESULTS, write_json  # noqa: E402
 from hcmt.inference import quantities as q  # noqa: E402
 from hcmt.inference.rollout import rollout  # noqa: E402
 from hcmt.inference.run import Run  # noqa: E402
@@ -94,7 +94,7 @@ def main() -> None:
     p.add_argument("--split", default="valid")
     p.add_argument("--limit", type=int)
     p.add_argument("--threads", type=int, default=1)
-    p.add_argument("--json", type=Path, default=Path(__file__).parent / "results" / "ghost_diagnosis.json")
+    p.add_argument("--json", type=Path, default=RESULTS / "ghost_diagnosis.json")
     a = p.parse_args()
     torch.set_num_threads(a.threads)
     run = Run.load(a.run, "cpu")

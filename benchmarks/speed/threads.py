@@ -12,10 +12,12 @@ import os
 import subprocess
 import sys
 import time
+from pathlib import Path
 
 import numpy as np
 
-from common import write_json
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent))  # benchmarks/: common
+from common import write_json  # noqa: E402
 
 DESIGNS = {1: ["--design", "thickness=0.7"],
            8: [x for t in (0.55, 0.6, 0.65, 0.7, 0.75, 0.8, 0.85, 0.9) for x in ("--design", f"thickness={t}")]}

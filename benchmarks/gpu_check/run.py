@@ -25,11 +25,10 @@ from pathlib import Path
 import numpy as np
 import torch
 
-HERE = Path(__file__).resolve().parent
+HERE = Path(__file__).resolve().parent.parent  # benchmarks/: micro, speed
 ROOT = HERE.parent
 sys.path.insert(0, str(HERE))
 
-from bench_models import _step_fn, _sync, impact_plate_graph  # noqa: E402
 from hcmt.config import load_config  # noqa: E402
 from hcmt.data.runs import RunFolder  # noqa: E402
 from hcmt.design.check import check_designs  # noqa: E402
@@ -44,7 +43,8 @@ from hcmt.sim.generate import generate_dataset  # noqa: E402
 from hcmt.sim.mesh import impact_plate_mesh  # noqa: E402
 from hcmt.sim.scene import Settings, sample_design  # noqa: E402
 from hcmt.training import train  # noqa: E402
-from speed import _one  # noqa: E402
+from micro.bench_models import _step_fn, _sync, impact_plate_graph  # noqa: E402
+from speed.run import _one  # noqa: E402
 
 
 class Check:

@@ -12,12 +12,14 @@ from __future__ import annotations
 
 import argparse
 import json
+import sys
 from pathlib import Path
 
 import numpy as np
 
-from common import RESULTS, dataset, run_and_evaluate, write_json
-from hcmt.inference.metrics import mean_std, summarize_runs
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent))  # benchmarks/: common
+from common import RESULTS, dataset, run_and_evaluate, write_json  # noqa: E402
+from hcmt.inference.metrics import mean_std, summarize_runs  # noqa: E402
 
 PAPER = dict(preset="paper", train=32, valid=4, test=6, seed=2024, variants=0)
 CONFIG = "impact_plate_paper_cpu"

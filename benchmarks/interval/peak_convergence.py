@@ -8,10 +8,13 @@ under the ball at each mesh size beside the deflection. Writes benchmarks/result
 from __future__ import annotations
 
 import argparse
+import sys
+from pathlib import Path
 
-from common import write_json
-from hcmt.inference.quantities import max_deflection, peak, plate_mask
-from hcmt.sim.scene import Design, Settings, simulate
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent))  # benchmarks/: common
+from common import write_json  # noqa: E402
+from hcmt.inference.quantities import max_deflection, peak, plate_mask  # noqa: E402
+from hcmt.sim.scene import Design, Settings, simulate  # noqa: E402
 
 
 def main() -> None:

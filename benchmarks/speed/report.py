@@ -15,7 +15,7 @@ from report_common import (
     said,
     sentences,
 )
-from speed import MEMORY_CAP_GB
+from speed.run import MEMORY_CAP_GB
 
 SCALING_HEAD = ["| model | nodes | mesh edges | train ms/step | peak RSS MB | peak kB per node |",
                 "|---|---|---|---|---|---|"]

@@ -12,16 +12,19 @@ from __future__ import annotations
 
 import argparse
 import platform
+import sys
 import time
+from pathlib import Path
 
 import numpy as np
 import torch
 
-from common import write_json
-from hcmt.design.check import predict, solve
-from hcmt.design.inputs import settings_of
-from hcmt.inference.run import Run
-from hcmt.sim.scene import sample_design
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent))  # benchmarks/: common
+from common import write_json  # noqa: E402
+from hcmt.design.check import predict, solve  # noqa: E402
+from hcmt.design.inputs import settings_of  # noqa: E402
+from hcmt.inference.run import Run  # noqa: E402
+from hcmt.sim.scene import sample_design  # noqa: E402
 
 
 def main() -> None:

@@ -31,6 +31,7 @@ from __future__ import annotations
 import argparse
 import json
 import platform
+import sys
 import time
 from pathlib import Path
 
@@ -38,17 +39,18 @@ import h5py
 import numpy as np
 import torch
 
-from common import claim, write_json
-from hcmt.config import load_config
-from hcmt.data.format import Split, read_meta, write_meta, write_split
-from hcmt.data.runs import RunFolder
-from hcmt.design.surrogate import Surrogate, dataset_answers
-from hcmt.files import atomic_path
-from hcmt.inference.evaluate import evaluate
-from hcmt.inference.quantities import peak, plate_mask
-from hcmt.inference.run import Run
-from hcmt.sim.scene import Settings, design_from_attrs, simulate
-from hcmt.training import train
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent))  # benchmarks/: common
+from common import claim, write_json  # noqa: E402
+from hcmt.config import load_config  # noqa: E402
+from hcmt.data.format import Split, read_meta, write_meta, write_split  # noqa: E402
+from hcmt.data.runs import RunFolder  # noqa: E402
+from hcmt.design.surrogate import Surrogate, dataset_answers  # noqa: E402
+from hcmt.files import atomic_path  # noqa: E402
+from hcmt.inference.evaluate import evaluate  # noqa: E402
+from hcmt.inference.quantities import peak, plate_mask  # noqa: E402
+from hcmt.inference.run import Run  # noqa: E402
+from hcmt.sim.scene import Settings, design_from_attrs, simulate  # noqa: E402
+from hcmt.training import train  # noqa: E402
 
 #: the shipped model's recipe (docs/MODELS.md), validation thinned for the CPU budget
 RECIPE = ["model.attention=official", "train.noise_std=0.0003", "model.target=acceleration",

@@ -2,8 +2,9 @@
 
     python benchmarks/report.py
 
-Each section is written by a report_* module next to this one; report_common.py holds what they share (reading the
-result files, the paper's numbers, and the rules that choose every judging word). This file keeps the order."""
+Each section is written by the report.py of its study's folder (accuracy/report.py, speed/report.py, ...);
+report_common.py, next to this file, holds what they share (reading the result files, the paper's numbers, and the rules
+that choose every judging word). This file keeps the order and puts benchmarks/ on sys.path for them."""
 from __future__ import annotations
 
 import sys

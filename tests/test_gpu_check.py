@@ -1,5 +1,6 @@
-"""The GPU acceptance script rehearsed on every CI run: `gpu_check.py --smoke --device cpu` runs the whole sequence
-at toy sizes and writes its JSON as it goes; a budget too small for a step skips it by name; no CUDA: one line."""
+"""The GPU acceptance script rehearsed on every CI run: `benchmarks/gpu_check/run.py --smoke --device cpu` runs the
+whole sequence at toy sizes and writes its JSON as it goes; a budget too small for a step skips it by name; no CUDA:
+one line."""
 import json
 import subprocess
 import sys

@@ -1,7 +1,7 @@
 """Paper Tables 3 and 10-12 (ablations) and Fig. 8 (sensitivity to the number of levels λ) on the accuracy
 study's data. Resumable.
 
-    python benchmarks/ablations.py --work benchmarks/work [--steps 3000] [--seed 0]
+    python benchmarks/accuracy/ablations.py --work benchmarks/work [--steps 3000] [--seed 0]
 
 Writes benchmarks/results/ablations.json and benchmarks/results/levels.json.
 """

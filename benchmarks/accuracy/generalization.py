@@ -1,7 +1,7 @@
 """Paper Table 13 (generalization): the accuracy study's HCMT and MGN runs (trained on the normal split), evaluated
 on the test, thicker, higher and thicker-and-higher splits. Resumable.
 
-    python benchmarks/generalization.py --work benchmarks/work [--steps 3000] [--seeds 0 1 2]
+    python benchmarks/accuracy/generalization.py --work benchmarks/work [--steps 3000] [--seeds 0 1 2]
 
 Writes benchmarks/results/generalization.json.
 """

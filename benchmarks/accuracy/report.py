@@ -1,6 +1,6 @@
-"""docs/RESULTS.md's accuracy sections on the `small` preset: the accuracy study (benchmarks/accuracy.py), its longer
-budget and what it shows, the ablations and levels (benchmarks/ablations.py) and generalization
-(benchmarks/generalization.py)."""
+"""docs/RESULTS.md's accuracy sections on the `small` preset: the accuracy study (benchmarks/accuracy/run.py), its
+longer budget and what it shows, the ablations and levels (benchmarks/accuracy/ablations.py) and generalization
+(benchmarks/accuracy/generalization.py)."""
 from __future__ import annotations
 
 from common import DATASET

@@ -1,7 +1,7 @@
 """Paper Table 2 on hcmt's own data: HCMT, MGN and GT with the same budget, several seeds, on a generated
 Impact Plate dataset (scale in benchmarks/common.py: DATASET). Resumable.
 
-    python benchmarks/accuracy.py --work benchmarks/work [--steps 3000] [--seeds 0 1 2]
+    python benchmarks/accuracy/run.py --work benchmarks/work [--steps 3000] [--seeds 0 1 2]
 
 Writes benchmarks/results/accuracy.json as {model: {"position": {"rmse_1": {"mean", "std"}, "rmse_all": ...},
 "stress": {...}, "train_ms_per_step": ..., "inference_ms_per_step": ...}} and prints the table.

@@ -1,6 +1,6 @@
 """Where the mesh model's stress after the ball leaves comes from (issue 35, item 3): its stress head or its rollout.
 
-    python benchmarks/ghost_diagnosis.py --data DATA [--run pretrained:impact_plate_small] [--split valid]
+    python benchmarks/ghost_diagnosis/run.py --data DATA [--run pretrained:impact_plate_small] [--split valid]
                                          [--limit N] [--threads 1] [--json benchmarks/results/ghost_diagnosis.json]
 
 For every trajectory of the split, the plate's stress history three ways, each read with
@@ -99,7 +99,7 @@ def main() -> None:
     torch.set_num_threads(a.threads)
     run = Run.load(a.run, "cpu")
     rows = diagnose(run, a.data, a.split, a.limit)
-    out = {"command": "python benchmarks/ghost_diagnosis.py " + " ".join(sys.argv[1:]), "run": a.run,
+    out = {"command": "python benchmarks/ghost_diagnosis/run.py " + " ".join(sys.argv[1:]), "run": a.run,
            "split": a.split, "trajectories": len(rows), **medians(rows), "rows": rows}
     print(json.dumps({k: v for k, v in out.items() if k != "rows"}, indent=1))
     write_json(a.json, out)

@@ -1,6 +1,6 @@
 """docs/RESULTS.md's sections of issue "Fast on a GPU": eager against compiled steps and batch throughput
-(benchmarks/bench_models.py --compile), the learned design sweep against the solver (benchmarks/design_speed.py), the
-issue's goals, and benchmarks/gpu_check.py's JSON."""
+(benchmarks/micro/bench_models.py --compile), the learned design sweep against the solver
+(benchmarks/micro/design_speed.py), the issue's goals, and benchmarks/gpu_check/run.py's JSON."""
 from __future__ import annotations
 
 import json
@@ -118,7 +118,7 @@ def goals(lines, modes, designs, models, roll):
 
 
 def gpu_check(lines):
-    """benchmarks/gpu_check.py's JSON (copied to benchmarks/results/gpu_check.json from a GPU machine)."""
+    """benchmarks/gpu_check/run.py's JSON (copied to benchmarks/results/gpu_check.json from a GPU machine)."""
     d = load("gpu_check.json")
     lines += ["## GPU check", ""]
     if not d or d.get("smoke"):

@@ -1,7 +1,7 @@
 """Every GPU number in one time-boxed command (issue "Every GPU number in one call of eight minutes").
 
-    python benchmarks/gpu_check.py --out $OUT [--budget-s 480]            # on a GPU machine
-    python benchmarks/gpu_check.py --smoke --device cpu --out /tmp/gc     # the CI rehearsal: toy sizes, < 1 min
+    python benchmarks/gpu_check/run.py --out $OUT [--budget-s 480]            # on a GPU machine
+    python benchmarks/gpu_check/run.py --smoke --device cpu --out /tmp/gc     # the CI rehearsal: toy sizes, < 1 min
 
 Steps, in order of value, each skipped (and named in the summary) when the time left is below its minimum:
 cuda tests, train step (HCMT paper / official attention, MGN: eager, compile default, compile reduce-overhead, bf16;

@@ -1,6 +1,6 @@
 """The peak plate stress and deflection of one plate as the mesh refines (docs/solver.md, "Panel families").
 
-    python benchmarks/peak_convergence.py [--sizes 0.3 0.2 0.15]
+    python benchmarks/interval/peak_convergence.py [--sizes 0.3 0.2 0.15]
 
 A 0.9 mm glass plate of the small preset (radius 12 mm, ball 3.75 mm, 750 mm drop, 45 frames): the nodal peak
 under the ball at each mesh size beside the deflection. Writes benchmarks/results/peak_convergence.json.
@@ -30,7 +30,7 @@ def main() -> None:
                      "peak_plate_stress_mpa": peak(f["stress"], plate)[0],
                      "max_deflection_mm": max_deflection(f["world_pos"], f["mesh_pos"], plate)})
         print(rows[-1], flush=True)
-    write_json("peak_convergence.json", {"command": "python benchmarks/peak_convergence.py --sizes "
+    write_json("peak_convergence.json", {"command": "python benchmarks/interval/peak_convergence.py --sizes "
                                          + " ".join(map(str, a.sizes)), "rows": rows})
 
 

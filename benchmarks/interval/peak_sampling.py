@@ -17,7 +17,7 @@ substep: ``Settings(frames=88 n + 1, frame_dt=0.002 / n)`` with ``n`` the subste
   peak against the fine run's grid at their interval (their solve chose its own substep, so expect small
   differences there).
 
-    PYTHONPATH=src python benchmarks/peak_sampling.py [--data DIR] [--split test] [--limit N]
+    PYTHONPATH=src python benchmarks/interval/peak_sampling.py [--data DIR] [--split test] [--limit N]
         # writes benchmarks/results/peak_sampling.json
 """
 from __future__ import annotations
@@ -212,7 +212,7 @@ def main(argv=None) -> int:
               + f" %; agreement {row['agreement_0.002']['plate_peak_diff_pct']:.2e} %  ({row['wall_s']} s)",
               flush=True)
     summary = summarise(rows)
-    result = {"command": "PYTHONPATH=src python benchmarks/peak_sampling.py"
+    result = {"command": "PYTHONPATH=src python benchmarks/interval/peak_sampling.py"
                          + (f" --data {args.data}" if args.data != DATA else "")
                          + (f" --split {args.split}" if args.split != "test" else "")
                          + (f" --limit {args.limit}" if args.limit is not None else ""),

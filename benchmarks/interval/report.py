@@ -1,5 +1,6 @@
-"""docs/RESULTS.md's frame-interval study (issue "The paper's mechanism at CPU scale"): benchmarks/interval.py, with
-the design check per interval (--speed) and what a coarse interval loses of the peak (benchmarks/peak_sampling.py)."""
+"""docs/RESULTS.md's frame-interval study (issue "The paper's mechanism at CPU scale"): benchmarks/interval/run.py,
+with the design check per interval (--speed) and what a coarse interval loses of the peak
+(benchmarks/interval/peak_sampling.py)."""
 from __future__ import annotations
 
 from report_common import ABOUT, PEAK_GOAL_PCT, SHIPPED_STEPS, load, opened, pm, said, sentences, worse
@@ -12,7 +13,7 @@ PEAK_FIELD = ("`hcmt generate --peak-stress` records `stress_max`, each node's l
 
 
 def interval(lines):
-    """The frame-interval study (issue "The paper's mechanism at CPU scale"): benchmarks/interval.py."""
+    """The frame-interval study (issue "The paper's mechanism at CPU scale"): benchmarks/interval/run.py."""
     t = opened(lines, "## Frame interval: HCMT against MGN as the impact outruns a message (`small` preset)",
                "interval.json")
     if not t:

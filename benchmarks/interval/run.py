@@ -10,10 +10,10 @@ trained at each of the candidates (3e-4 and 1e-3 mm at 0.002 ms, scaled with the
 motion) and the lowest validation position RMSE-all wins; seeds 1 and 2 then train at that σ. Resumable; several
 processes may share the work (run locks).
 
-    python benchmarks/interval.py --work /work/interval [--steps 1000]   # data + training + evaluation
-    python benchmarks/interval.py --work /work/interval --peaks          # recorded vs true peak stress
-    python benchmarks/interval.py --work /work/interval --speed          # design check per interval
-    python benchmarks/interval.py --work /work/interval --table-only     # results/interval.json + figure
+    python benchmarks/interval/run.py --work /work/interval [--steps 1000]   # data + training + evaluation
+    python benchmarks/interval/run.py --work /work/interval --peaks          # recorded vs true peak stress
+    python benchmarks/interval/run.py --work /work/interval --speed          # design check per interval
+    python benchmarks/interval/run.py --work /work/interval --table-only     # results/interval.json + figure
 """
 from __future__ import annotations
 
@@ -116,7 +116,7 @@ def train_all(work: Path, steps: int, datasets: dict[float, Path]) -> None:
 
 # -- propagation per interval ---------------------------------------------------------------------------------------
 def propagation(datasets: dict[float, Path], limit: int = 12) -> dict:
-    """Stress-front and P-wave hops per frame of each interval's test designs (benchmarks/propagation.py) against
+    """Stress-front and P-wave hops per frame of each interval's test designs (benchmarks/parity/propagation.py) against
     each model's hops per step: MGN one per block (11; deep 22), HCMT L_C + its hierarchy's spans."""
     out = {}
     for dt, path in datasets.items():

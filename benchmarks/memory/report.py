@@ -1,5 +1,5 @@
 """docs/RESULTS.md section "Memory and data feeding" from benchmarks/results/data_memory.json
-(``python benchmarks/data_memory.py``)."""
+(``python benchmarks/memory/run.py``)."""
 from __future__ import annotations
 
 import math

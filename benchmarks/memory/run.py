@@ -1,6 +1,6 @@
 """Issue 37 items 4-5: the memory of a process that builds training items, and how fast one builds them.
 
-    python benchmarks/data_memory.py            # writes benchmarks/results/data_memory.json (about 5-10 min)
+    python benchmarks/memory/run.py            # writes benchmarks/results/data_memory.json (about 5-10 min)
 
 * RSS: a fresh process builds ``--items`` training items (``FrameDataset`` + ``StepSampler``, batch 1) in one
   ``DataLoader`` worker, on paper-size Impact Plate datasets of 4 and 40 trajectories, with the split read per item
@@ -85,7 +85,7 @@ def impact_dataset(folder: Path, count: int, frames: int = 52) -> Path:
         return folder
     base = {k: v for k, v in paper_mesh().items() if k not in ("world_pos", "stress")}
     meta = make_meta(feature_spec(Settings(frames=frames)), trajectory_length=frames, dimension=2, dt=0.002,
-                     generator={"preset": "paper", "synthetic": "benchmarks/data_memory.py"})
+                     generator={"preset": "paper", "synthetic": "benchmarks/memory/run.py"})
     write_split(folder / "train.h5", meta, ((f"traj_{k:05d}", impact_copy(base, k, frames), {}) for k in range(count)))
     write_meta(folder, meta)
     return folder
@@ -250,7 +250,7 @@ def main() -> None:
     work = Path(args.work)
     base = subprocess.run([sys.executable, "-c", "import resource, hcmt.training.trainer; print(resource.getrusage("
                            "resource.RUSAGE_SELF).ru_maxrss / 1024)"], capture_output=True, text=True, check=True)
-    results = {"command": "python benchmarks/data_memory.py " + " ".join(sys.argv[1:]),
+    results = {"command": "python benchmarks/memory/run.py " + " ".join(sys.argv[1:]),
                "python_with_hcmt_training_imported_mb": float(base.stdout.strip()),
                "rss": memory(work, args.counts, args.items)}
     results["throughput"] = {

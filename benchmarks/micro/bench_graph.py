@@ -1,7 +1,7 @@
 """Graph construction speed (issue #4, item 8): the 6-level HCMT hierarchy of a paper-size Impact Plate mesh
 (target <= 50 ms) and the contact search of one step at ~2,200 nodes (target <= 2 ms); also one frame's Graph.
 
-    python benchmarks/bench_graph.py [--repeats 50] [--json benchmarks/results/graph.json]
+    python benchmarks/micro/bench_graph.py [--repeats 50] [--json benchmarks/results/graph.json]
 
 Medians over ``--repeats`` runs after a warm-up; the contact search runs on world positions with the ball
 pushed 0.1 mm into the plate's contact radius (a frame mid-impact).

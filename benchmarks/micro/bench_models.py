@@ -1,6 +1,6 @@
 """Train-step and inference time of HCMT, MeshGraphNets and Graph Transformer on a paper-size Impact Plate graph.
 
-    .venv/bin/python benchmarks/bench_models.py [--steps 10] [--threads N] [--device cpu|cuda|all] [--json FILE]
+    .venv/bin/python benchmarks/micro/bench_models.py [--steps 10] [--threads N] [--device cpu|cuda|all] [--json FILE]
 
 The graph: the ``paper`` preset mesh of :mod:`hcmt.sim.mesh` (about 2,200 nodes), its 6-level hierarchy
 (bi-stride + Delaunay) and the contact edges of radius 0.4 (Table 8) at a slightly perturbed position. Models use

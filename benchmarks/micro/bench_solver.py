@@ -1,6 +1,6 @@
 """Seconds per Impact Plate trajectory of the built-in explicit FEM solver, on one core.
 
-    .venv/bin/python benchmarks/bench_solver.py --preset paper --n 5
+    .venv/bin/python benchmarks/micro/bench_solver.py --preset paper --n 5
 
 Simulates ``n`` designs drawn as the generator draws them (seed 0, split train), one after the other in this
 process (single-threaded: the solver uses no thread pool; BLAS threads are set to 1), and prints per trajectory:

@@ -1,7 +1,7 @@
 """Learned design check against the built-in solver on the same designs and machine (issue "Fast on a GPU", the
 rollout rows): one design at a time and a batched sweep.
 
-    python benchmarks/design_speed.py [--model pretrained:impact_plate_small] [--designs 64] [--batches 1 64]
+    python benchmarks/micro/design_speed.py [--model pretrained:impact_plate_small] [--designs 64] [--batches 1 64]
                                       [--device cpu|cuda] [--threads 1] [--json design_speed_cpu.json]
 
 Designs are drawn from the model's training preset (seeded); the solver simulates each one (its wall time per
@@ -67,7 +67,7 @@ def main() -> None:
     out = {"model": a.model, "device": f"{dev}: {name}", "threads": a.threads, "designs": a.designs,
            "solver_s_median": float(np.median(solver)), "solver_s_total": float(solver.sum()), "batches": rows,
            "wall_total_s": time.perf_counter() - t0,
-           "command": f"python benchmarks/design_speed.py --model {a.model} --designs {a.designs} --batches "
+           "command": f"python benchmarks/micro/design_speed.py --model {a.model} --designs {a.designs} --batches "
                       + " ".join(map(str, a.batches)) + f" --threads {a.threads} --compile " + " ".join(a.compile)}
     print(f"wrote {write_json(a.json, out)}")
 

@@ -1,7 +1,7 @@
 """Training throughput of two checkouts side by side (issue 37, item 1): samples per second on the ``small`` preset.
 
-    python benchmarks/train_speed.py --old OLD_TREE --new NEW_TREE --data DATA [--threads 1 2] [--recipes cpu ship]
-                                     [--steps 150] [--rounds 2] [--json benchmarks/results/train_speed.json]
+    python benchmarks/micro/train_speed.py --old OLD_TREE --new NEW_TREE --data DATA [--threads 1 2]
+        [--recipes cpu ship] [--steps 150] [--rounds 2] [--json benchmarks/results/train_speed.json]
 
 For every round, thread count and recipe, ``hcmt train`` runs ``--steps`` steps in each checkout (its own
 ``src`` on ``PYTHONPATH``, a fresh process, the same interpreter), old and new alternating so that both see the

@@ -1,7 +1,7 @@
 """The propagation argument with numbers: how far (in mesh hops) the impact's stress travels per recorded frame, and
 how far each model can carry information in one step, on generated Impact Plate data of both presets.
 
-    python benchmarks/propagation.py --data small=PATH --data paper=PATH [--split test] [--levels-small 4]
+    python benchmarks/parity/propagation.py --data small=PATH --data paper=PATH [--split test] [--levels-small 4]
                                      [--levels-paper 6] [--L-C 2] [--blocks-small 11] [--blocks-paper 15]
 
 Per trajectory (plate only; hops counted on the plate's mesh edges from the plate node under the ball's first

@@ -1,5 +1,5 @@
-"""docs/RESULTS.md's headline (issue "Parity": the `paper` preset at CPU scale, benchmarks/parity.py) with its noise
-sweep, the propagation in hops behind it (benchmarks/propagation.py) and the hierarchy statistics
+"""docs/RESULTS.md's headline (issue "Parity": the `paper` preset at CPU scale, benchmarks/parity/run.py) with its noise
+sweep, the propagation in hops behind it (benchmarks/parity/propagation.py) and the hierarchy statistics
 (`hcmt hierarchy`)."""
 from __future__ import annotations
 

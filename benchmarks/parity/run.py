@@ -1,7 +1,7 @@
 """Issue "Parity": HCMT (paper and official attention), MGN and GT on the `paper` preset at CPU scale, with the
 training noise σ chosen per model on the validation split. Resumable (finished runs are skipped).
 
-    python benchmarks/parity.py --work benchmarks/work [--steps 800] [--sigmas 3e-4 1e-3 3e-3] [--seeds 0 1 2]
+    python benchmarks/parity/run.py --work benchmarks/work [--steps 800] [--sigmas 3e-4 1e-3 3e-3] [--seeds 0 1 2]
 
 Phase 1 (sweep): every model, seed 0, each σ; evaluated on valid and test. σ per model = the lowest validation
 position RMSE-all (the test split is never looked at to choose). Phase 2: the remaining seeds at the chosen σ.

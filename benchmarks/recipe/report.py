@@ -1,5 +1,5 @@
-"""docs/RESULTS.md's sections of issue "Impact physics": the recorded window (benchmarks/window.py) and the training
-recipe study (benchmarks/recipe.py)."""
+"""docs/RESULTS.md's sections of issue "Impact physics": the recorded window (benchmarks/recipe/window.py) and the
+training recipe study (benchmarks/recipe/run.py)."""
 from __future__ import annotations
 
 from report_common import opened, pm, said, sentences, separated, worse
@@ -48,7 +48,7 @@ def window(lines):
 
 
 def recipe(lines):
-    """The training-recipe study (issue "Impact physics"): benchmarks/recipe.py."""
+    """The training-recipe study (issue "Impact physics"): benchmarks/recipe/run.py."""
     window(lines)
     t = opened(lines, f"## Impact physics: the training recipe (`small` preset, {RECORDED_FRAMES} frames)",
                "recipe_small.json")

@@ -3,8 +3,8 @@ recommended attention (official, σ 3e-4 mm), equal steps, 3 seeds: today's form
 NORMAL nodes) against each option of the formulation, alone and combined. Resumable; several processes may share
 the work (run locks).
 
-    python benchmarks/recipe.py --work /work/study [--steps 3000] [--seeds 0 1 2]        # train + evaluate
-    python benchmarks/recipe.py --work /work/study --table-only                          # the tables
+    python benchmarks/recipe/run.py --work /work/study [--steps 3000] [--seeds 0 1 2]        # train + evaluate
+    python benchmarks/recipe/run.py --work /work/study --table-only                          # the tables
 
 Every run is evaluated on the validation and the test split (``metrics_<split>.json``, physics metrics included);
 the recipe is chosen on the validation split (:func:`choose`), never the test split. Writes

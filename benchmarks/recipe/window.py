@@ -3,7 +3,7 @@
 101 frames of 0.002 ms: the frame of the plate's peak stress, of the ball's rebound (vertical velocity > 0) and
 of the maximum deflection, and how far the peak within 52 frames (the old window) falls below the true one.
 
-    python benchmarks/window.py          # writes benchmarks/results/window.json
+    python benchmarks/recipe/window.py          # writes benchmarks/results/window.json
 """
 from __future__ import annotations
 
@@ -42,7 +42,7 @@ def main() -> None:
                          "max_deflection_frame": int(defl.argmax())})
             print(rows[-1], flush=True)
     write_json("window.json", {"frames": 101, "frame_dt_ms": 0.002, "designs": rows,
-                               "command": "python benchmarks/window.py"})
+                               "command": "python benchmarks/recipe/window.py"})
 
 
 if __name__ == "__main__":

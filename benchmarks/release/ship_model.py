@@ -1,6 +1,6 @@
 """Package a trained run as a shipped model and write its model card's numbers.
 
-    python benchmarks/ship_model.py RUN --data DATASET --name impact_plate_small [--designs 24] [--batch 8]
+    python benchmarks/release/ship_model.py RUN --data DATASET --name impact_plate_small [--designs 24] [--batch 8]
                                     [--command "how the run was trained"] [--data-command "how the data was made"]
 
 1. writes ``src/hcmt/pretrained/NAME.pt`` (fp16 weights, config, training-data meta and design ranges, card);
@@ -120,7 +120,7 @@ def main() -> None:
            "single_design_wall_s": single.wall_s,
            "solver_wall_s_median": float(np.median([t.wall_s for t in check.truth])),
            "device": "cpu: " + (platform.processor() or platform.machine()),
-           "command": "python benchmarks/ship_model.py " + " ".join(
+           "command": "python benchmarks/release/ship_model.py " + " ".join(
                [str(a.run), "--data", str(a.data), "--name", a.name, "--designs", str(a.designs), "--batch",
                 str(a.batch), "--design-seed", str(a.design_seed)])}
     print(f"wrote {write_json(f'model_{a.name}.json', out)}")

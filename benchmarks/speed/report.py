@@ -1,6 +1,6 @@
-"""docs/RESULTS.md's speed sections on the CPU: the models on a paper-size graph (benchmarks/bench_models.py), the
-learned rollout against the solver and the scaling with node count (benchmarks/speed.py), threads
-(benchmarks/threads.py) and the old-against-new CPU check (benchmarks/cpu_ab.sh)."""
+"""docs/RESULTS.md's speed sections on the CPU: the models on a paper-size graph (benchmarks/micro/bench_models.py), the
+learned rollout against the solver and the scaling with node count (benchmarks/speed/run.py), threads
+(benchmarks/speed/threads.py) and the old-against-new CPU check (benchmarks/speed/cpu_ab.sh)."""
 from __future__ import annotations
 
 from report_common import (

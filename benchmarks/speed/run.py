@@ -1,8 +1,8 @@
 """Speed (issue 8, item 4): learned rollout against the solver on the same trajectories, and how a training step's
 time and peak memory grow with node count.
 
-    python benchmarks/speed.py rollout --n 3 [--run RUN]        # paper preset: solver s/trajectory vs HCMT/MGN rollout
-    python benchmarks/speed.py scaling [--sizes 1000 2000 4000 8000 16000 32000 64000] [--models hcmt mgn]
+    python benchmarks/speed/run.py rollout --n 3 [--run RUN]    # paper preset: solver s/trajectory vs HCMT/MGN rollout
+    python benchmarks/speed/run.py scaling [--sizes 1000 2000 4000 8000 16000 32000 64000] [--models hcmt mgn]
                                        [--checkpoint-blocks] [--device cpu|cuda] [--json speed_scaling.json]
 
 ``rollout``: simulates ``n`` paper-preset designs with the generator's solver (timed), then rolls HCMT and MGN out

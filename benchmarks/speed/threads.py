@@ -1,7 +1,7 @@
 """--threads: the design check's wall time with another CPU-bound job on the machine, one thread, the old default
 (torch's, all cores) and `auto` (cores minus the load average), for one design and a batch of 8.
 
-    python benchmarks/threads.py         # writes benchmarks/results/threads.json
+    python benchmarks/speed/threads.py         # writes benchmarks/results/threads.json
 
 Each setting runs `hcmt predict pretrained:impact_plate_small` in a fresh process while a busy loop holds one core
 (after 70 s of warm-up, so the 1-minute load average sees it); the median of 3 runs per setting is reported.
@@ -46,7 +46,7 @@ def main() -> None:
     write_json("threads.json", {"cores": os.cpu_count(), "other_job": "one busy Python loop", "results": rows,
                                 "note": f"--threads {os.cpu_count()} is torch's default, what hcmt did before "
                                         "--threads existed; no option is now auto",
-                                "command": "python benchmarks/threads.py"})
+                                "command": "python benchmarks/speed/threads.py"})
 
 
 if __name__ == "__main__":

@@ -1,5 +1,5 @@
 """docs/RESULTS.md's section "The design check against a response surface", from benchmarks/results/surrogate.json
-(``python benchmarks/surrogate.py``). Every verdict below is computed from the numbers it prints."""
+(``python benchmarks/surrogate/run.py``). Every verdict below is computed from the numbers it prints."""
 from __future__ import annotations
 
 from hcmt.design.check import TRUST

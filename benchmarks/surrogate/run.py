@@ -3,7 +3,7 @@ the response surface"): the shipped HCMT, a Gaussian process and a quadratic res
 designs, the limit calls of each trusted interval on decision sweeps, ghost stress, the time of the peak and the
 low-confidence note.
 
-    python benchmarks/surrogate.py --data DATA --work WORK [--model pretrained:impact_plate_small] [--threads 1]
+    python benchmarks/surrogate/run.py --data DATA --work WORK [--model pretrained:impact_plate_small] [--threads 1]
 
 ``DATA`` is the shipped model's training dataset (docs/MODELS.md: ``hcmt generate impact-plate DATA --preset small
 --train 120 --valid 6 --test 12 --seed 2027 --frames 90 --edge-fraction 0.35``). Every group of designs (solver and

@@ -1,5 +1,5 @@
 """docs/RESULTS.md's section "Panel families: transfer", from benchmarks/results/transfer.json
-(``python benchmarks/transfer.py``). Every verdict is computed from the numbers the table prints."""
+(``python benchmarks/transfer/run.py``). Every verdict is computed from the numbers the table prints."""
 from __future__ import annotations
 
 import numpy as np

@@ -1,7 +1,7 @@
 """The transfer benchmark: a mesh model trained on some panel families, on a family it has not seen, against the
 response surface an engineer would fit on the new family's runs.
 
-    python benchmarks/transfer.py --work WORK --train-data DATA --new stack3=DATA3 --new pen=DATAP \
+    python benchmarks/transfer/run.py --work WORK --train-data DATA --new stack3=DATA3 --new pen=DATAP \
         [--models hcmt mgn] [--seeds 0 1] [--steps 8000] [--ft-steps 1500] [--shots 5 20] [--eval 8]
 
 The data (docs/RESULTS.md, "Panel families" has the commands): ``--train-data`` mixes the training families
@@ -260,7 +260,7 @@ def main() -> None:
     found = {f.stem: json.loads(f.read_text()) for f in sorted((work / "rows").glob("*.json"))}
     summary = {k: (v if k.startswith("solver") else summarize(v)) for k, v in found.items()}
     write_json("transfer.json", {
-        "command": "python benchmarks/transfer.py " + " ".join(
+        "command": "python benchmarks/transfer/run.py " + " ".join(
             [f"--work {work}", f"--train-data {a.train_data}", *(f"--new {x}" for x in a.new),
              f"--models {' '.join(a.models)}", f"--steps {a.steps}", f"--ft-steps {a.ft_steps}",
              f"--shots {' '.join(map(str, a.shots))}", f"--eval {a.eval}"]),

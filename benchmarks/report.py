@@ -2,26 +2,27 @@
 
     python benchmarks/report.py
 
-Each section is written by a report_* module next to this one; report_common.py holds what they share (reading the
-result files, the paper's numbers, and the rules that choose every judging word). This file keeps the order."""
+Each section is written by the report.py of its study's folder (accuracy/report.py, speed/report.py, ...);
+report_common.py, next to this file, holds what they share (reading the result files, the paper's numbers, and the rules
+that choose every judging word). This file keeps the order and puts benchmarks/ on sys.path for them."""
 from __future__ import annotations
 
 import sys
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
+from accuracy.report import ablations, accuracy, generalization, longer  # noqa: E402
 from common import ROOT  # noqa: E402
-from report_accuracy import ablations, accuracy, generalization, longer  # noqa: E402
+from gpu_check.report import gpu_check, gpu_path  # noqa: E402
+from interval.report import interval  # noqa: E402
+from memory.report import memory  # noqa: E402
+from parity.report import hierarchy, parity, propagation  # noqa: E402
+from recipe.report import recipe  # noqa: E402
 from report_common import load  # noqa: E402
-from report_gpu import gpu_check, gpu_path  # noqa: E402
-from report_interval import interval  # noqa: E402
-from report_memory import memory  # noqa: E402
-from report_parity import hierarchy, parity, propagation  # noqa: E402
-from report_recipe import recipe  # noqa: E402
-from report_speed import cpu_ab, speed, threads  # noqa: E402
-from report_surrogate import surrogate as surrogate_section  # noqa: E402
-from report_transfer import transfer as transfer_section  # noqa: E402
 from scaling.report import scaling as scaling_section  # noqa: E402
+from speed.report import cpu_ab, speed, threads  # noqa: E402
+from surrogate.report import surrogate as surrogate_section  # noqa: E402
+from transfer.report import transfer as transfer_section  # noqa: E402
 
 DOC = ROOT.parent / "docs" / "RESULTS.md"
 INTRO = ("Every number below was produced by the command quoted with it, on this project's development machine "

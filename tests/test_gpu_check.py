@@ -1,5 +1,6 @@
-"""The GPU acceptance script rehearsed on every CI run: `gpu_check.py --smoke --device cpu` runs the whole sequence
-at toy sizes and writes its JSON as it goes; a budget too small for a step skips it by name; no CUDA: one line."""
+"""The GPU acceptance script rehearsed on every CI run: `benchmarks/gpu_check/run.py --smoke --device cpu` runs the
+whole sequence at toy sizes and writes its JSON as it goes; a budget too small for a step skips it by name; no CUDA:
+one line."""
 import json
 import subprocess
 import sys
@@ -10,7 +11,7 @@ import torch
 
 pytestmark = pytest.mark.slow  # runs a benchmark script
 
-SCRIPT = Path(__file__).resolve().parent.parent / "benchmarks" / "gpu_check.py"
+SCRIPT = Path(__file__).resolve().parent.parent / "benchmarks" / "gpu_check" / "run.py"
 
 
 def _run(*args):

@@ -21,14 +21,7 @@ from hcmt.domains.frames import input_graph
 from hcmt.domains.trajectory import Trajectory
 from hcmt.errors import InputError, RolloutError
 from hcmt.graph.batch import PadSizes, collate, pad_graph
-<<<<<<< HEAD
 from hcmt.models.base import compile_simulator, resolve_compile
-from hcmt.physics.adapters import Adapter, integrate
-from hcmt.physics.frames import input_graph
-from hcmt.physics.trajectory import Trajectory
-=======
-from hcmt.models.base import compile_simulator
->>>>>>> h-split
 
 
 @torch.no_grad()

@@ -1,0 +1,169 @@
+"""docs/RESULTS.md's speed sections on the CPU: the models on a paper-size graph (benchmarks/micro/bench_models.py), the
+learned rollout against the solver and the scaling with node count (benchmarks/speed/run.py), threads
+(benchmarks/speed/threads.py) and the old-against-new CPU check (benchmarks/speed/cpu_ab.sh)."""
+from __future__ import annotations
+
+from report_common import (
+    GOAL_NODES,
+    PAPER_ANSYS_MS,
+    PAPER_SPEEDUP,
+    PAPER_TRAIN_MS,
+    gpu_check_ran,
+    load,
+    on_gpu,
+    opened,
+    said,
+    sentences,
+)
+from speed.run import MEMORY_CAP_GB
+
+SCALING_HEAD = ["| model | nodes | mesh edges | train ms/step | peak RSS MB | peak kB per node |",
+                "|---|---|---|---|---|---|"]
+MODELS = ("hcmt", "mgn", "gt")
+
+
+def peak(r) -> float:
+    return r.get("peak_mb", r.get("peak_rss_mb"))
+
+
+def scaling_row(r) -> str:
+    if "train_ms" in r:
+        return (f"| {r['model'].upper()} | {r['nodes']} | {r['edges']} | {r['train_ms']:.0f} | {peak(r):.0f} | "
+                f"{peak(r) * 1024 / r['nodes']:.0f} |")
+    why = f"needs > {MEMORY_CAP_GB} GB (allocation failed)" if "allocat" in r["failed"] else r["failed"][:80]
+    return f"| {r['model'].upper()} | ~{r['target_nodes']} | | {why} | | |"
+
+
+def speed(lines):
+    models, roll, scal = load("models_cpu.json"), load("speed_rollout.json"), load("speed_scaling.json")
+    if models or roll or scal:
+        lines += ["## Speed", ""]
+    if models:
+        models_table(lines, models)
+    if roll:
+        rollout(lines, roll)
+    if scal:
+        scaling(lines, scal)
+
+
+def models_table(lines, models):
+    lines += ["### Models on a paper-size Impact Plate graph (paper Table 10 / Appendix E)", "",
+              "Command: `python benchmarks/bench_models.py --steps 5 --threads 1 --json "
+              "benchmarks/results/models_cpu.json` (one CPU thread; paper sizes: hidden 128, HCMT L_C 2 / λ 6, "
+              "MGN and GT 15 blocks; the 2,152-node `paper` preset mesh with its contact edges).", "",
+              "| device | threads | model | parameters | train ms/step | inference ms/step |",
+              "|---|---|---|---|---|---|"]
+    gpu = "" if any(on_gpu(e["device"]) for e in models) else "No GPU was available to this project's runs."
+    for entry in models:
+        for name, r in entry["models"].items():
+            lines.append(f"| {entry['device']} | {entry['threads']} | {name.upper()} | {r['parameters']:,} | "
+                         f"{r['train_ms']:.0f} | {r['inference_ms']:.0f} |")
+        h, g = entry["models"]["hcmt"], entry["models"]["mgn"]
+        paper = f"(paper, GPU: {PAPER_TRAIN_MS[0]:g} / {PAPER_TRAIN_MS[1]:g} ms per training step)"
+        lines += ["", sentences(f"HCMT ÷ MGN: train {h['train_ms'] / g['train_ms']:.2f}, inference "
+                                f"{h['inference_ms'] / g['inference_ms']:.2f} {paper}.", gpu), ""]
+
+
+def rollout(lines, roll):
+    n = len(roll["trajectories"])
+    runs = f" --run {' '.join(roll['trained_runs'])}" if roll.get("trained_runs") else ""
+    lines += ["### Learned rollout against the solver, same trajectories", "",
+              f"Command: `python benchmarks/speed.py rollout --n {n}{runs}`", "",
+              f"Solver (built-in explicit FEM, one core): **{roll['solver_ms_per_frame']:.1f} ms per recorded frame** "
+              f"(median over {n} paper-preset trajectories). Learned models: the accuracy "
+              "study's seed-0 runs (hidden 64, HCMT λ 4), one CPU thread, timed per step including graph "
+              "building and contact search."]
+    speedup = {m.upper(): roll[f"{m}_speedup_vs_solver"] for m in ("hcmt", "mgn") if f"{m}_speedup_vs_solver" in roll}
+    for m in speedup:
+        lines.append(f"- {m} rollout: {roll[f'{m.lower()}_ms_per_step']:.1f} ms per step → "
+                     f"**{speedup[m]:.2f}×** the solver's speed.")
+    fast = [m for m, v in speedup.items() if v > 1]
+    verdict = ("the learned rollout is not faster than" if not fast else "the learned rollout is faster than"
+               if len(fast) == len(speedup) else f"{said(fast)}'s learned rollout is faster than")
+    lines += ["", sentences(f"The paper reports HCMT {PAPER_SPEEDUP}× faster than ANSYS: a GPU model against ANSYS at "
+                            f"{PAPER_ANSYS_MS:,} ms per step.",
+                            f"On one CPU core {verdict} hcmt's own lean 2-D explicit solver.",
+                            "The learned model's cost does not depend on the solver's stable time step.",
+                            "Finer meshes, stiffer materials, 3-D models and a GPU are not measured on this machine."),
+              ""]
+
+
+def scaling(lines, scal):
+    lines += ["### Training-step time and peak memory against node count", "",
+              "Command: `python benchmarks/speed.py scaling --sizes 1000 2000 4000 8000 16000 32000 64000 --reps 2` "
+              "(paper-size models, one thread, one process per point, median of 2 steps after a warm-up step).", ""]
+    lines += SCALING_HEAD + [scaling_row(r) for r in scal["rows"] if not r.get("checkpoint_blocks")]
+    above = all(k > 1 for k in scal["exponent"].values())
+    lines += ["", "Fitted time ∝ N^k: " + ", ".join(f"{m.upper()} k = {k:.2f}" for m, k in scal["exponent"].items()),
+              "", sentences(f"Each measurement process is capped at {MEMORY_CAP_GB} GB of address space (speed.py "
+                            "MEMORY_CAP_GB): an oversized graph fails instead of swapping, so a failed row needs more.",
+                            "Meshes are refined at a fixed contact radius γ = 0.4 mm, so contact edges grow faster "
+                            "than the node count"
+                            + (", which likely contributes to the exponents above 1." if above else ".")),
+              ""]
+    ckpt = [r for r in scal["rows"] if r.get("checkpoint_blocks")]
+    if not ckpt:
+        return
+    lines += ["With activation checkpointing per block (`train.checkpoint_blocks: true`; command: `python "
+              "benchmarks/speed.py scaling --models hcmt --checkpoint-blocks --sizes "
+              + " ".join(str(r["target_nodes"]) for r in ckpt) + " --reps 2`, same process cap):", ""]
+    lines += SCALING_HEAD + [scaling_row(r) for r in ckpt] + [""]
+    plain = {(r["model"], r.get("target_nodes")): r for r in scal["rows"]
+             if not r.get("checkpoint_blocks") and "train_ms" in r}
+    pairs = [(plain[(r["model"], r["target_nodes"])], r) for r in ckpt
+             if "train_ms" in r and (r["model"], r["target_nodes"]) in plain]
+    if pairs:
+        each = "; ".join(f"{a['nodes']} nodes: peak {peak(b) / peak(a):.2f}×, time {b['train_ms'] / a['train_ms']:.2f}×"
+                         for a, b in pairs)
+        lines += [sentences(f"Checkpointing against the plain step at the same size: {each}.",
+                            "Peak RSS includes the process's fixed cost.",
+                            "The plain rows were measured in an earlier session, the checkpointed ones while a "
+                            "training run held the other core: the time ratios are indicative only."), ""]
+    last = max((r for r in ckpt if "train_ms" in r), key=lambda r: r["nodes"], default=None)
+    if last:
+        gb = peak(last) / last["nodes"] * GOAL_NODES / 1024
+        gpu = "" if gpu_check_ran() else "; GPU memory per node is not measured either"
+        lines += [f"At {peak(last) * 1024 / last['nodes']:.0f} kB per node ({last['nodes']} nodes), a "
+                  f"{GOAL_NODES:,}-node HCMT step would need about {gb:.0f} GB (extrapolated from the CPU, not "
+                  f"measured{gpu}).", ""]
+
+
+def threads(lines):
+    t = opened(lines, "## Threads", "threads.json")
+    if not t:
+        return
+    lines += [f"`{t['command']}`: `hcmt predict pretrained:impact_plate_small` in a fresh process "
+              f"while {t['other_job']} holds one of the {t['cores']} cores; median of 3 runs, wall time of the whole "
+              f"command (start-up included). {t['note']}.", "", "| setting | median s |", "|---|---|"]
+    for k, r in t["results"].items():
+        lines.append(f"| {k} | {r['median_s']:.2f} |")
+    lines.append("")
+
+
+def cpu_ab(lines):
+    runs = {(side, i): load(f"cpu_ab_{side}_{i}.json") for side in ("old", "new") for i in (1, 2)}
+    if not all(runs.values()):
+        return
+
+    def slower(m, key):
+        """New ÷ old above 1, in both rounds, by more than the same code varies between its two rounds (per model)."""
+        noise = max(abs(runs[(side, 1)][0]["models"][m][key] / runs[(side, 2)][0]["models"][m][key] - 1)
+                    for side in ("old", "new"))
+        return all(runs[("new", i)][0]["models"][m][key] / runs[("old", i)][0]["models"][m][key] > 1 + noise
+                   for i in (1, 2))
+
+    worse = [m for m in MODELS if slower(m, "train_ms") or slower(m, "inference_ms")]
+    lines += [f"### The CPU is {'not slower' if not worse else 'slower for ' + said([m.upper() for m in worse])}", "",
+              "Command: `git worktree add --detach ../old c18dfe3 && PYTHON=.venv/bin/python bash benchmarks/cpu_ab.sh "
+              "../old .` (c18dfe3: the last commit before the compiled/padded paths; old and new alternate, twice, "
+              "one thread each, while a training run held the other core). Paper-size graph, eager, median of 5 "
+              "steps, ms:", "",
+              "| model | train old | train new | new ÷ old | inference old | inference new | new ÷ old |",
+              "|---|---|---|---|---|---|---|"]
+    for m in MODELS:
+        for i in (1, 2):
+            a, b = runs[("old", i)][0]["models"][m], runs[("new", i)][0]["models"][m]
+            lines.append(f"| {m.upper()} (round {i}) | {a['train_ms']:.0f} | {b['train_ms']:.0f} | "
+                         f"{b['train_ms'] / a['train_ms']:.2f} | {a['inference_ms']:.0f} | {b['inference_ms']:.0f} | "
+                         f"{b['inference_ms'] / a['inference_ms']:.2f} |")
+    lines.append("")

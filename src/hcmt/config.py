@@ -150,19 +150,22 @@ class TrainConfig:
     contact_radius: Optional[float] = _field(None, required=True)  # the contact search radius (Table 8's γ)
     batch_size: int = _field(1, minimum=1)
     lr_final: Optional[float] = None  # None: constant ``lr``
-    lr_decay_steps: Optional[int] = None  # None: decay over ``steps``
-    lr_decay_rate: float = 0.1
+    lr_decay_rate: float = 0.1  # with lr_decay_steps
     noise_std: float = _field(0.0, minimum=0)
     noise_gamma: Optional[float] = None  # None: 1.0 for a velocity target, 0.1 for acceleration
     noise_nodes: str = _field("normal", "normal", "predicted")
     pushforward: float = _field(0.0, minimum=0, maximum=1, says="a probability in [0, 1]")
     pushforward_start: int = 0
     normalizer_steps: int = _field(0, minimum=0)
-    normalizer_warmup: str = _field("all", "all", "nodes")
-    mesh_edges_twice: bool = False
-    loss_denominator: str = _field("masked", "masked", "nodes")
-    adam_epsilon: Optional[float] = None  # None: 1e-8 (PyTorch's), 1e-7 with adam_epsilon_hat (Keras')
-    adam_epsilon_hat: bool = False
+    # the loop's conventions: hcmt's or the authors' code's (hcmt.training.policy); each key below, left null, is
+    # the policy's value
+    policy: str = _field("hcmt", "hcmt", "official")
+    normalizer_warmup: Optional[str] = _field(None, "all", "nodes")
+    mesh_edges_twice: Optional[bool] = None
+    loss_denominator: Optional[str] = _field(None, "masked", "nodes")
+    adam_epsilon: Optional[float] = _field(None, above=0)
+    adam_epsilon_hat: Optional[bool] = None
+    lr_decay_steps: Optional[int] = _field(None, minimum=1)  # per-step decay, no floor; null: over ``steps``
     log_every: int = _field(100, minimum=1)
     checkpoint_every: int = _field(1000, minimum=1)
     valid_every: int = _field(0, minimum=0)

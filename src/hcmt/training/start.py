@@ -1,0 +1,49 @@
+"""How a run starts: the record ``run.yaml`` keeps (model arguments, config, data, seed, processes, the model it
+started from) and the checks before anything is written: a resumed run's settings are the saved ones, a
+fine-tuned run's (``--init``) model is its source's."""
+from __future__ import annotations
+
+from pathlib import Path
+
+from hcmt.config import INIT_NORMALIZERS, Config
+from hcmt.data.runs import RunFolder
+from hcmt.errors import InputError
+from hcmt.inference.run import Run
+from hcmt.training.runtime import check_resume
+
+
+def init_source(init: str, args: dict) -> Run:
+    """The model a run starts from (a run folder's best checkpoint or ``pretrained:NAME``), refused in one line
+    listing what differs when its constructor arguments (architecture, feature widths) are not this run's."""
+    source = Run.load(init, "cpu")
+    theirs = source.info["model"]
+    differ = [f"{k} {theirs.get(k)!r} there, {args.get(k)!r} here" for k in sorted(set(theirs) | set(args))
+              if theirs.get(k) != args.get(k)]
+    if differ:
+        raise InputError(f"{init}: its model differs from this run's: {'; '.join(differ)}; fine-tuning needs the "
+                         "same model, architecture and feature widths (train with the config it was trained with)",
+                         param="init")
+    return source
+
+
+def start_record(folder: RunFolder, args: dict, cfg: Config, data, seed: int, world: int, *, resume: bool,
+                 init: str | None, init_normalizers: str) -> tuple[dict, Run | None]:
+    """``run.yaml``'s record of this run and the :class:`Run` it starts from (``init``; None when resuming: the
+    checkpoint holds the weights already), every start rule checked."""
+    if init_normalizers not in INIT_NORMALIZERS:
+        raise InputError(f"init_normalizers must be one of {', '.join(INIT_NORMALIZERS)}, got {init_normalizers!r}")
+    if resume and init is not None:
+        raise InputError("starts a run from another model's weights and resuming continues a run (whose "
+                         "run.yaml remembers where it started); give one of them", param="init")
+    run = {"model": args, "config": cfg, "data": str(Path(data).resolve()), "seed": seed, "world_size": world}
+    source, started_from = None, None
+    if resume and folder.info is not None:
+        started_from = folder.info.get("init")
+    elif init is not None:
+        source = init_source(init, args)  # refused before anything is written
+        started_from = {"from": source.source, "normalizers": init_normalizers, "step": int(source.checkpoint_step)}
+    if started_from:
+        run["init"] = started_from
+    if resume and folder.info is not None:
+        check_resume(folder.info, run, folder.path)
+    return run, source

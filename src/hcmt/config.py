@@ -131,14 +131,14 @@ class ModelConfig:
     hidden: int = _field(128, minimum=1)
     heads: int = _field(4, minimum=1)
     L_C: int = _field(2, minimum=0)  # contact-mesh transformer blocks
-    levels: int = _field(0, minimum=0)  # λ, the hierarchy's levels (HCMT)
-    L_H: Optional[int] = None  # 2λ + 1 when given
+    levels: int = _field(0, minimum=0)  # λ, the hierarchy's levels (HCMT); its L_H = 2λ + 1 blocks are derived
     clip: float = 2.0  # attention logit clip
     blocks: int = _field(15, minimum=1)  # message-passing blocks of MGN and GT
     ffn_bias: bool = True
     attention: str = _field("paper", "paper", "official")
     target: Optional[str] = _field(None, "velocity", "acceleration")  # None: the dataset's Table 9 output
     deformation: bool = False  # hcmt's edge deformation features x_ij − u_ij and stretch
+    ablation: Optional[str] = _field(None, *ABLATIONS)  # HCMT's ablations (paper Tables 3, 10-12; --ablation)
 
 
 @dataclass(frozen=True)
@@ -246,6 +246,7 @@ class Config:
             return cfg
         if not isinstance(cfg, dict):
             raise InputError(f"config {source}: expected a mapping of sections, got {type(cfg).__name__}")
+        cfg = _without_derived(cfg)
         check_schema(cfg, source)
         return cls(dataset=cfg.get("dataset"),
                    **{name: cls_(**(cfg.get(name) or {})) for name, cls_ in SECTIONS.items()})
@@ -328,6 +329,18 @@ def _head(source: str | None) -> str:
     return f"config {source}: " if source is not None else ""
 
 
+def _without_derived(cfg: dict) -> dict:
+    """``cfg`` without the ``model.L_H`` that run.yaml files written before it was derived hold (null or
+    2·levels + 1); any other value stays, for :func:`check_schema` to refuse."""
+    model = cfg.get("model")
+    if not isinstance(model, dict) or "L_H" not in model:
+        return cfg
+    levels = model.get("levels", ModelConfig.levels)
+    if model["L_H"] is None or (isinstance(levels, int) and model["L_H"] == 2 * levels + 1):
+        return dict(cfg, model={k: v for k, v in model.items() if k != "L_H"})
+    return cfg
+
+
 def check_schema(cfg: dict, source: str | None = "config") -> None:
     """Refuse unknown keys (with the closest known one), values of the wrong type, values outside a fixed set and
     values outside a key's bounds."""
@@ -347,6 +360,9 @@ def check_schema(cfg: dict, source: str | None = "config") -> None:
         if not isinstance(value, dict):
             raise InputError(f"{_head(source)}{top}: expected a section of keys, got {clip(repr(value))}")
         for key, v in value.items():
+            if top == "model" and key == "L_H":
+                raise InputError(f"{_head(source)}model.L_H: derived, L_H = 2·model.levels + 1 (paper §3.2), not a "
+                                 "setting; set model.levels")
             if key not in SCHEMA[top]:
                 raise _unknown(f"{top}.{key}", [f"{top}.{k}" for k in SCHEMA[top]]
                                + [f"{s}.{k}" for s in SCHEMA for k in SCHEMA[s] if s != top], source)

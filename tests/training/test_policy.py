@@ -55,7 +55,7 @@ def test_the_official_policys_step_against_hcmts(tmp_path, tiny_config):
 
     def trainer(name, *extra):
         cfg = tiny_config("train.steps=4", "train.normalizer_steps=0", "train.lr_final=1e-5", *extra)
-        return Trainer(cfg, data, "hcmt", tmp_path / name, ablation=None, seed=0, resume=False, device="cpu",
+        return Trainer(cfg, data, "hcmt", tmp_path / name, seed=0, resume=False, device="cpu",
                        progress=False)
 
     ours, theirs = trainer("hcmt"), trainer("official", "train.policy=official")

@@ -564,3 +564,15 @@ def test_init_with_another_architecture_is_one_line_listing_the_differences(impa
     assert rc == 2 and "give one of them" in capsys.readouterr().err
     rc = cli(["train", "--out", str(tmp_path / "src"), "--resume", "--init", str(tmp_path / "src")])
     assert rc == 2 and "the same folder as --init" in capsys.readouterr().err  # refused before it reads anything
+
+
+def test_ablation_flag_is_the_model_ablation_key_and_resume_keeps_it(impact, tmp_path, capsys):
+    out = tmp_path / "abl"
+    sets = [a for kv in TINY + EXTRA for a in ("--set", kv)]
+    assert cli(["train", "--config", "impact_plate_cpu", "--data", str(impact), "--model", "hcmt", "--out", str(out),
+                "--steps", "1", "--ablation", "only-hmt", "--no-progress", *sets]) == 0
+    info = Run.load(out, "cpu").info
+    assert info["config"].model.ablation == info["model"]["ablation"] == "only-hmt"
+    assert cli(["train", "--out", str(out), "--resume", "--steps", "2", "--no-progress"]) == 0
+    assert Run.load(out, "cpu").info["model"]["ablation"] == "only-hmt"
+    capsys.readouterr()

@@ -42,19 +42,15 @@ _M = ModelConfig  # the schema's defaults are the defaults (hcmt.config)
 
 
 def build_model(name: str, node_in: int, mesh_in: int, contact_in: int, out: int, *, ablation: str | None = None,
-                levels: int | None = None, L_C: int | None = None, L_H: int | None = _M.L_H, hidden: int = _M.hidden,
-                heads: int = _M.heads, clip: float = _M.clip, blocks: int = _M.blocks, lpe_k: int = 8,
-                attention: str = _M.attention, ffn_bias: bool = _M.ffn_bias) -> Simulator:
-    """HCMT needs ``levels`` (λ) and ``L_C``; ``L_H`` is optional and must equal ``2λ + 1``.
-    MGN and GT use ``blocks``; GT and HCMT use ``heads`` and ``clip``; ``attention`` (``paper`` | ``official``)
-    and ``ffn_bias`` are HCMT's (the authors' code: ``official``, no FFN bias)."""
+                levels: int = _M.levels, L_C: int = _M.L_C, hidden: int = _M.hidden, heads: int = _M.heads,
+                clip: float = _M.clip, blocks: int = _M.blocks, lpe_k: int = 8, attention: str = _M.attention,
+                ffn_bias: bool = _M.ffn_bias) -> Simulator:
+    """HCMT uses ``levels`` (λ; its HMT has ``L_H = 2λ + 1`` blocks) and ``L_C``; MGN and GT use ``blocks``; GT and
+    HCMT use ``heads`` and ``clip``; ``ablation``, ``attention`` (``paper`` | ``official``) and ``ffn_bias`` are
+    HCMT's (the authors' code: ``official``, no FFN bias). The defaults are :class:`hcmt.config.ModelConfig`'s."""
     check_mode(attention)
     name = name.lower()
     if name == "hcmt":
-        if levels is None or L_C is None:
-            raise InputError("HCMT needs levels (λ) and L_C (e.g. Impact Plate: levels=6, L_C=2)")
-        if L_H is not None and L_H != 2 * levels + 1:
-            raise InputError(f"L_H must be 2λ+1 = {2 * levels + 1} for λ={levels}, got L_H={L_H}")
         return HCMT(node_in, mesh_in, contact_in, out, L_C=L_C, levels=levels, hidden=hidden, heads=heads,
                     clip=clip, ablation=ablation, lpe_k=lpe_k, attention=attention, ffn_bias=ffn_bias)
     if ablation not in (None, "", "none"):
@@ -69,6 +65,7 @@ def build_model(name: str, node_in: int, mesh_in: int, contact_in: int, out: int
 def make_model(args: dict) -> Simulator:
     """A model from its saved constructor arguments (``run.yaml``'s ``model``, a checkpoint's ``model_args``)."""
     args = dict(args)
+    args.pop("L_H", None)  # runs saved before L_H was derived hold it (null or 2λ + 1, checked when they trained)
     return build_model(args.pop("name"), args.pop("node_in"), args.pop("mesh_in"), args.pop("contact_in"),
                        args.pop("out"), **args)
 

@@ -38,7 +38,7 @@ from __future__ import annotations
 import torch
 from torch import Tensor, nn
 
-from hcmt.config import ABLATIONS
+from hcmt.config import ABLATIONS, ModelConfig as _M  # the schema's defaults are the defaults
 from hcmt.errors import DatasetError, InputError
 from hcmt.graph.batch import Graph
 from hcmt.graph.hierarchy import pool as pool_nodes, unpool
@@ -114,9 +114,10 @@ class HCMT(Simulator):
     ``denormalize`` the physical one. Save with :func:`hcmt.models.checkpoint_state`, load with
     :func:`hcmt.models.from_checkpoint` (the constructor arguments travel with the weights).
     """
-    def __init__(self, node_in: int, mesh_in: int, contact_in: int, out: int, *, L_C: int = 2, levels: int = 6,
-                 hidden: int = 128, heads: int = 4, clip: float = 2.0, ablation: str | None = None, lpe_k: int = 8,
-                 attention: str = "paper", ffn_bias: bool = True):
+    def __init__(self, node_in: int, mesh_in: int, contact_in: int, out: int, *, L_C: int = _M.L_C,
+                 levels: int = _M.levels, hidden: int = _M.hidden, heads: int = _M.heads, clip: float = _M.clip,
+                 ablation: str | None = None, lpe_k: int = 8, attention: str = _M.attention,
+                 ffn_bias: bool = _M.ffn_bias):
         super().__init__(node_in, mesh_in, contact_in, out, hidden=hidden)
         if ablation in ("", "none"):
             ablation = None

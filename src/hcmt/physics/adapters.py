@@ -221,14 +221,14 @@ def exclude_trajectories(names: list[str], excluded: list[int] | None) -> np.nda
     return np.flatnonzero(keep)
 
 
-def model_args(cfg: Config, model_name: str, ablation: str | None, meta: dict) -> dict:
+def model_args(cfg: Config, model_name: str, meta: dict) -> dict:
     """Constructor arguments of the model (saved in ``run.yaml``), from the config and the dataset's dimensions
     (meta.json)."""
     adapter = config_adapter(cfg)
     widths = adapter.widths(int(meta["dimension"]), int(meta["features"]["mesh_pos"]["shape"][-1]))
     mc = cfg.model
     return {
-        "name": model_name, **widths, "ablation": ablation, "levels": mc.levels, "L_C": mc.L_C, "L_H": mc.L_H,
+        "name": model_name, **widths, "ablation": mc.ablation, "levels": mc.levels, "L_C": mc.L_C,
         "hidden": mc.hidden, "heads": mc.heads, "clip": mc.clip, "blocks": mc.blocks,
         **({"attention": mc.attention, "ffn_bias": mc.ffn_bias} if model_name == "hcmt" else {}),
     }
@@ -254,8 +254,6 @@ def build_for_dataset(name: str, dataset: str, **overrides) -> Simulator:
     """:func:`hcmt.models.build_model` with the dataset's widths (Table 9) and depths (Table 8); keywords override
     them."""
     spec = dataset_spec(dataset)
-    kwargs = dict(levels=spec["levels"], L_C=spec["L_C"], L_H=spec["L_H"]) if name.lower() == "hcmt" else {}
+    kwargs = dict(levels=spec["levels"], L_C=spec["L_C"]) if name.lower() == "hcmt" else {}
     kwargs.update(overrides)
-    if "levels" in overrides and "L_H" not in overrides:
-        kwargs.pop("L_H", None)
     return build_model(name, spec["node_in"], spec["mesh_in"], spec["contact_in"], spec["out"], **kwargs)

@@ -24,11 +24,11 @@ def train(config, data, model: str, out, *, overrides=None, resume: bool = False
     (``out``) gives the trained model.
 
     ``config`` is a :class:`hcmt.config.Config`, a config mapping, a built-in config name or a YAML path;
-    ``overrides`` a list of ``section.key=value``; ``resume=True`` continues the run in ``out`` exactly,
-    ``overwrite=True`` deletes it and starts afresh (otherwise a folder holding a run is refused). ``stop_at`` ends
-    this call after that global step (checkpointed), as an interruption would. The run folder is locked while
-    training (a second process writing the same ``out`` is refused at once), and a run that fails before its first
-    checkpoint leaves nothing behind.
+    ``overrides`` a list of ``section.key=value`` (``ablation`` is short for ``model.ablation``); ``resume=True``
+    continues the run in ``out`` exactly, ``overwrite=True`` deletes it and starts afresh (otherwise a folder holding
+    a run is refused). ``stop_at`` ends this call after that global step (checkpointed), as an interruption would.
+    The run folder is locked while training (a second process writing the same ``out`` is refused at once), and a
+    run that fails before its first checkpoint leaves nothing behind.
 
     ``init`` (a run folder or ``pretrained:NAME``) starts from that model's weights (fine-tuning; its constructor
     arguments must equal this run's, else one line lists what differs); ``init_normalizers`` ``keep`` freezes its
@@ -46,11 +46,12 @@ def train(config, data, model: str, out, *, overrides=None, resume: bool = False
         shutil.rmtree(out)
         folder = RunFolder(out, must_exist=False)
     check_start(folder, resume)
-    cfg = as_config(config, overrides).for_training()
+    cfg = as_config(config, list(overrides or []) + ([f"model.ablation={ablation}"] if ablation else [])
+                    ).for_training()
 
     def run() -> dict:
         with deterministic_scope():  # train.deterministic holds for this run only
-            return Trainer(cfg, data, model, out, ablation=ablation, seed=seed, resume=resume, device=device,
+            return Trainer(cfg, data, model, out, seed=seed, resume=resume, device=device,
                            progress=progress, init=init, init_normalizers=init_normalizers).run(stop_at)
 
     if int(os.environ.get("RANK", 0)) != 0:  # torchrun's other ranks: rank 0 owns the folder

@@ -68,7 +68,7 @@ class Trainer:
     data, optimizer, resume), :meth:`step` (one optimizer step on one batch), :meth:`validate` (validation
     rollouts, best.pt) and :meth:`save` (checkpoints); :meth:`run` loops over them."""
 
-    def __init__(self, cfg: Config, data, model_name: str, out: Path, *, ablation, seed: int, resume: bool, device,
+    def __init__(self, cfg: Config, data, model_name: str, out: Path, *, seed: int, resume: bool, device,
                  progress: bool, init: str | None = None, init_normalizers: str = "keep"):
         self.rank, self.world = distributed()
         self.device = resolve_device(device) if device else (
@@ -77,7 +77,7 @@ class Trainer:
         self.cfg, self.tc, self.out, self.seed, self.model_name = cfg, cfg.train, out, seed, model_name
         self.steps, self.policy, self.progress = cfg.train.steps, policy_of(cfg.train), progress
         self.adapter = config_adapter(cfg)
-        self.args = model_args(cfg, model_name, ablation, read_meta(data))
+        self.args = model_args(cfg, model_name, read_meta(data))
         self.folder = RunFolder(out, must_exist=False)
         self.ckpt_path = self.folder.latest
         if resume or self.ckpt_path.is_file():  # train() has cleared or refused a folder holding only run.yaml

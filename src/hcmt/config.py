@@ -45,7 +45,7 @@ def _read(name_or_path: str, within: str | None = None) -> dict:
         path = CONFIG_DIR / f"{name_or_path}.yaml"
     if not path.is_file():
         raise InputError(f"{clip(name_or_path)!r}{f' (the base of {within})' if within else ''}: neither a file nor "
-                         f"a built-in config (built-in: {', '.join(builtin_configs())})",
+                         f"a built-in config ({', '.join(builtin_configs())})",
                          param=None if within else "name_or_path")
     try:
         data = yaml.safe_load(path.read_text(encoding="utf-8")) or {}

@@ -145,3 +145,9 @@ def test_ablation_is_a_model_setting():
     assert load_config("impact_plate_cpu").model.ablation is None
     with pytest.raises(InputError, match="model.ablation: unknown value 'bogus'; expected one of late-contact"):
         load_config("impact_plate_cpu", ["model.ablation=bogus"])
+
+
+def test_the_shipped_models_recipe_is_the_named_config_impact_plate_shipped():
+    from hcmt.inference.run import Run
+    shipped = Run.load("pretrained:impact_plate_small", "cpu").config
+    assert load_config("impact_plate_shipped").to_dict() == shipped.to_dict()

@@ -41,7 +41,7 @@ def test_a_run_yaml_spelling_the_keys_out_resumes_under_the_policy_and_a_change_
     """Runs written before ``train.policy`` hold every key; they resume as the policy naming the same choices."""
     spelled = load_config("impact_plate_official", [f"train.{k}={v[1]}" for k, v in AUTHORS.items()] +
                           ["train.policy=hcmt"])
-    run = {"model": {}, "seed": 0, "world_size": 1}
+    run = {"model": {"name": "hcmt"}, "seed": 0, "world_size": 1}
     check_resume(dict(run, config=spelled), dict(run, config=load_config("impact_plate_official")), tmp_path)
     with pytest.raises(ValueError, match=r"config\.train\.loss_denominator: 'nodes' \(run\) vs 'masked' \(now\)"):
         check_resume(dict(run, config=spelled), dict(run, config=load_config("impact_plate_cpu")), tmp_path)

@@ -28,14 +28,23 @@ class ModelInfo:
     label: str  # the display label everywhere (tables, legends, titles)
     needs_hierarchy: bool  # HCMT: the mesh hierarchy (unless an ablation drops it)
     has_attention: bool  # returns attention maps (``return_attention=True``)
+    settings: tuple[str, ...]  # the ModelConfig keys it is built from (its constructor arguments besides widths)
 
 
 #: one table of the models: name (:data:`hcmt.config.MODELS`, in its order) -> :class:`ModelInfo`
 REGISTRY: dict[str, ModelInfo] = dict(zip(MODELS, (
-    ModelInfo("HCMT", True, True),
-    ModelInfo("MGN", False, False),
-    ModelInfo("GT (Graph Transformer)", False, True),  # "GT" alone reads as "ground truth" beside it
+    ModelInfo("HCMT", True, True, ("ablation", "levels", "L_C", "hidden", "heads", "clip", "attention", "ffn_bias")),
+    ModelInfo("MGN", False, False, ("hidden", "blocks")),
+    ModelInfo("GT (Graph Transformer)", False, True, ("hidden", "blocks", "heads", "clip")),  # not "ground truth"
 )))
+WIDTHS = ("node_in", "mesh_in", "contact_in", "out")
+
+
+def architecture(args: dict) -> dict:
+    """The constructor arguments (run.yaml's ``model``) the model uses: name, widths and its own settings (older
+    runs saved every model's settings, e.g. an MGN run HCMT's ``levels``)."""
+    keep = ("name", *WIDTHS, *REGISTRY[args["name"]].settings)
+    return {k: args[k] for k in keep if k in args}
 
 
 _M = ModelConfig  # the schema's defaults are the defaults (hcmt.config)
@@ -64,8 +73,7 @@ def build_model(name: str, node_in: int, mesh_in: int, contact_in: int, out: int
 
 def make_model(args: dict) -> Simulator:
     """A model from its saved constructor arguments (``run.yaml``'s ``model``, a checkpoint's ``model_args``)."""
-    args = dict(args)
-    args.pop("L_H", None)  # runs saved before L_H was derived hold it (null or 2λ + 1, checked when they trained)
+    args = architecture(args)  # older runs hold other models' settings and L_H (null or 2λ + 1)
     return build_model(args.pop("name"), args.pop("node_in"), args.pop("mesh_in"), args.pop("contact_in"),
                        args.pop("out"), **args)
 
@@ -92,5 +100,5 @@ def uses_hierarchy(args: dict) -> tuple[int, bool]:
 
 
 __all__ = ["ABLATIONS", "ATTENTION_MODES", "GT", "HCMT", "MGN", "MODELS", "REGISTRY", "ModelInfo", "Normalizer",
-           "Simulator", "build_model", "checkpoint_state", "from_checkpoint", "make_model", "resolve_device",
-           "uses_hierarchy"]
+           "Simulator", "architecture", "build_model", "checkpoint_state", "from_checkpoint", "make_model",
+           "resolve_device", "uses_hierarchy"]

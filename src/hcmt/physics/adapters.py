@@ -30,7 +30,7 @@ from hcmt.config import DATASET_NAMES, Config, load_config
 from hcmt.data.format import NODE_TYPE_SIZE, NodeType
 from hcmt.errors import InputError
 from hcmt.graph.contact import OFFICIAL_IMPACT_PLATE_TYPES
-from hcmt.models import Simulator, build_model
+from hcmt.models import REGISTRY, Simulator, build_model
 from hcmt.physics.updater import update_positions
 
 
@@ -222,16 +222,13 @@ def exclude_trajectories(names: list[str], excluded: list[int] | None) -> np.nda
 
 
 def model_args(cfg: Config, model_name: str, meta: dict) -> dict:
-    """Constructor arguments of the model (saved in ``run.yaml``), from the config and the dataset's dimensions
-    (meta.json)."""
+    """Constructor arguments of the model (saved in ``run.yaml``): its widths, from the config and the dataset's
+    dimensions (meta.json), and its own settings (:data:`hcmt.models.REGISTRY`), from ``model:``."""
     adapter = config_adapter(cfg)
     widths = adapter.widths(int(meta["dimension"]), int(meta["features"]["mesh_pos"]["shape"][-1]))
-    mc = cfg.model
-    return {
-        "name": model_name, **widths, "ablation": mc.ablation, "levels": mc.levels, "L_C": mc.L_C,
-        "hidden": mc.hidden, "heads": mc.heads, "clip": mc.clip, "blocks": mc.blocks,
-        **({"attention": mc.attention, "ffn_bias": mc.ffn_bias} if model_name == "hcmt" else {}),
-    }
+    if cfg.model.ablation and model_name != "hcmt":
+        raise InputError(f"model.ablation {cfg.model.ablation}: an ablation of HCMT; model {model_name} has none")
+    return {"name": model_name, **widths, **{k: getattr(cfg.model, k) for k in REGISTRY[model_name].settings}}
 
 
 def dataset_spec(name: str) -> dict:

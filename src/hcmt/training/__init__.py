@@ -13,10 +13,11 @@ from hcmt.errors import InputError
 from hcmt.files import check_apart
 from hcmt.models import MODELS
 from hcmt.training.runtime import deterministic_scope, lock_run
+from hcmt.training.start import inherit
 from hcmt.training.trainer import Trainer
 
 
-def train(config, data, model: str, out, *, overrides=None, resume: bool = False, overwrite: bool = False,
+def train(config, data, model: str | None, out, *, overrides=None, resume: bool = False, overwrite: bool = False,
           ablation: str | None = None, seed: int = 0, device: str | None = None, progress: bool = True,
           stop_at: int | None = None, init: str | None = None, init_normalizers: str = "keep") -> dict:
     """Train ``model`` (``hcmt``, ``mgn``, ``gt``) on the native dataset ``data`` into the run folder ``out``;
@@ -30,11 +31,17 @@ def train(config, data, model: str, out, *, overrides=None, resume: bool = False
     The run folder is locked while training (a second process writing the same ``out`` is refused at once), and a
     run that fails before its first checkpoint leaves nothing behind.
 
-    ``init`` (a run folder or ``pretrained:NAME``) starts from that model's weights (fine-tuning; its constructor
-    arguments must equal this run's, else one line lists what differs); ``init_normalizers`` ``keep`` freezes its
-    normalizer statistics, ``reaccumulate`` zeroes them and accumulates them on ``data``. run.yaml records it."""
+    ``init`` (a run folder or ``pretrained:NAME``) starts from that model's weights (fine-tuning): the run takes its
+    ``model:`` settings (and its whole config when ``config`` is None, its model when ``model`` is None); an
+    override changing its architecture is refused in one line listing what differs; ``init_normalizers`` ``keep``
+    freezes its normalizer statistics, ``reaccumulate`` zeroes them and accumulates them on ``data``. run.yaml
+    records it."""
     if resume and overwrite:
         raise InputError("hcmt.train: resume=True and overwrite=True contradict each other; choose one")
+    if init is not None and not resume:
+        config, model = inherit(init, config, model)
+    if config is None or model is None:
+        raise InputError("hcmt.train: config and model are needed (only init may leave them out)")
     model = str(model).lower()
     if model not in MODELS:
         raise InputError(f"hcmt.train: unknown model {model!r}; expected one of {', '.join(MODELS)}")

@@ -27,6 +27,7 @@ import yaml
 
 from hcmt.errors import InputError
 from hcmt.files import atomic_path, take_lock
+from hcmt.models import architecture
 from hcmt.training.policy import policy_of
 
 
@@ -35,7 +36,8 @@ def check_resume(saved: dict, run: dict, out: Path) -> None:
     learning-rate schedule then stretches to the new length)."""
     def strip(r):
         policy = asdict(policy_of(r["config"].train))  # the loop's conventions, named by the policy or key by key
-        r = yaml.safe_load(yaml.safe_dump(dict(r, config=r["config"].to_dict())))  # both read through Config
+        r = dict(r, config=r["config"].to_dict(), model=architecture(r["model"]))  # older runs saved more
+        r = yaml.safe_load(yaml.safe_dump(r))  # both read through Config
         r["config"]["train"].pop("steps", None)
         r["config"]["train"].pop("policy", None)
         r["config"]["train"].update(policy)

@@ -1,14 +1,16 @@
 """How a run starts: the record ``run.yaml`` keeps (model arguments, config, data, seed, processes, the model it
 started from) and the checks before anything is written: a resumed run's settings are the saved ones, a
-fine-tuned run's (``--init``) model is its source's."""
+fine-tuned run's (``--init``) model is its source's, inherited (:func:`inherit`)."""
 from __future__ import annotations
 
+from dataclasses import replace
 from pathlib import Path
 
-from hcmt.config import INIT_NORMALIZERS, Config
+from hcmt.config import INIT_NORMALIZERS, Config, as_config
 from hcmt.data.runs import RunFolder
 from hcmt.errors import InputError
 from hcmt.inference.run import Run
+from hcmt.models import architecture
 from hcmt.training.runtime import check_resume
 
 
@@ -16,7 +18,7 @@ def init_source(init: str, args: dict) -> Run:
     """The model a run starts from (a run folder's best checkpoint or ``pretrained:NAME``), refused in one line
     listing what differs when its constructor arguments (architecture, feature widths) are not this run's."""
     source = Run.load(init, "cpu")
-    theirs = source.info["model"]
+    theirs, args = architecture(source.info["model"]), architecture(args)
     differ = [f"{k} {theirs.get(k)!r} there, {args.get(k)!r} here" for k in sorted(set(theirs) | set(args))
               if theirs.get(k) != args.get(k)]
     if differ:
@@ -24,6 +26,16 @@ def init_source(init: str, args: dict) -> Run:
                          "same model, architecture and feature widths (train with the config it was trained with)",
                          param="init")
     return source
+
+
+def inherit(init: str, config, model: str | None) -> tuple[Config, str]:
+    """A fine-tuned run's config and model: ``config``'s (None: the source's whole config) with the source's
+    ``model:`` section (its architecture and input features, so fine-tuning the shipped model needs no ``--set``),
+    and the source's model when ``model`` is None. Overrides apply after (a changed architecture is then refused
+    by :func:`init_source`, listing what differs)."""
+    source = Run.load(init, "cpu")
+    cfg = source.config if config is None else replace(as_config(config), model=source.config.model)
+    return cfg, model or source.info["model"]["name"]
 
 
 def start_record(folder: RunFolder, args: dict, cfg: Config, data, seed: int, world: int, *, resume: bool,

@@ -165,7 +165,7 @@ class TrainConfig:
     loss_denominator: Optional[str] = _field(None, "masked", "nodes")
     adam_epsilon: Optional[float] = _field(None, above=0)
     adam_epsilon_hat: Optional[bool] = None
-    lr_decay_steps: Optional[int] = _field(None, minimum=1)  # per-step decay, no floor; null: over ``steps``
+    lr_decay_steps: Optional[int] = _field(None, minimum=1)  # lr·rate^(step/this), no floor; hcmt: lr->lr_final
     log_every: int = _field(100, minimum=1)
     checkpoint_every: int = _field(1000, minimum=1)
     valid_every: int = _field(0, minimum=0)

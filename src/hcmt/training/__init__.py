@@ -11,9 +11,8 @@ from hcmt.config import as_config
 from hcmt.data.runs import RunFolder, check_start
 from hcmt.errors import InputError
 from hcmt.files import check_apart
-from hcmt.models import MODELS
 from hcmt.training.runtime import deterministic_scope, lock_run
-from hcmt.training.start import inherit
+from hcmt.training.start import check_model, inherit
 from hcmt.training.trainer import Trainer
 
 
@@ -38,13 +37,8 @@ def train(config, data, model: str | None, out, *, overrides=None, resume: bool 
     records it."""
     if resume and overwrite:
         raise InputError("hcmt.train: resume=True and overwrite=True contradict each other; choose one")
-    if init is not None and not resume:
-        config, model = inherit(init, config, model)
-    if config is None or model is None:
-        raise InputError("hcmt.train: config and model are needed (only init may leave them out)")
-    model = str(model).lower()
-    if model not in MODELS:
-        raise InputError(f"hcmt.train: unknown model {model!r}; expected one of {', '.join(MODELS)}")
+    config, model = inherit(init, config, model) if init is not None and not resume else (config, model)
+    model = check_model(config, model)
     out = Path(out)
     check_apart({"out": out}, {"data": data, "init": None if str(init or "").startswith("pretrained:") else init},
                 owned=("out",))

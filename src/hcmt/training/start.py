@@ -6,7 +6,7 @@ from __future__ import annotations
 from dataclasses import replace
 from pathlib import Path
 
-from hcmt.config import INIT_NORMALIZERS, Config, as_config
+from hcmt.config import INIT_NORMALIZERS, MODELS, Config, as_config
 from hcmt.data.runs import RunFolder
 from hcmt.errors import InputError
 from hcmt.inference.run import Run
@@ -36,6 +36,16 @@ def inherit(init: str, config, model: str | None) -> tuple[Config, str]:
     source = Run.load(init, "cpu")
     cfg = source.config if config is None else replace(as_config(config), model=source.config.model)
     return cfg, model or source.info["model"]["name"]
+
+
+def check_model(config, model: str | None) -> str:
+    """``model``'s name, refused in one line when unknown, or when it or ``config`` is missing."""
+    if config is None or model is None:
+        raise InputError("hcmt.train: config and model are needed (only init may leave them out)")
+    model = str(model).lower()
+    if model not in MODELS:
+        raise InputError(f"hcmt.train: unknown model {model!r}; expected one of {', '.join(MODELS)}")
+    return model
 
 
 def start_record(folder: RunFolder, args: dict, cfg: Config, data, seed: int, world: int, *, resume: bool,

@@ -27,7 +27,7 @@ class ModelInfo:
 
     label: str  # the display label everywhere (tables, legends, titles)
     needs_hierarchy: bool  # HCMT: the mesh hierarchy (unless an ablation drops it)
-    has_attention: bool  # returns attention maps (``return_attention=True``)
+    has_attention: bool  # has attention maps (hcmt.models.attention.recording)
     settings: tuple[str, ...]  # the ModelConfig keys it is built from (its constructor arguments besides widths)
 
 

@@ -11,7 +11,7 @@ import pytest
 import hcmt
 from hcmt.cli import main as cli
 from hcmt.errors import InputError, MissingExtra, require, require_installed
-from hcmt.training import trainer
+from hcmt.training import runtime
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -57,14 +57,14 @@ def test_tfrecords_without_the_tfrecord_extra_are_refused_in_one_line(tmp_path, 
 
 def test_training_without_tensorboard_writes_no_scalars_and_says_so_once(tmp_path, monkeypatch, caplog):
     monkeypatch.setitem(sys.modules, "torch.utils.tensorboard", None)
-    monkeypatch.setattr(trainer, "_no_tensorboard_said", False)
-    writer = trainer.summary_writer(tmp_path / "tb", None)
+    monkeypatch.setattr(runtime, "_no_tensorboard_said", False)
+    writer = runtime.summary_writer(tmp_path / "tb", None)
     writer.add_scalar("train/loss", 1.0, 1)
     writer.close()
-    assert isinstance(writer, trainer._NoScalars) and not (tmp_path / "tb").exists()
+    assert isinstance(writer, runtime._NoScalars) and not (tmp_path / "tb").exists()
     with caplog.at_level(logging.INFO, logger="hcmt.train"):
-        trainer._say_no_tensorboard()
-        trainer._say_no_tensorboard()
+        runtime._say_no_tensorboard()
+        runtime._say_no_tensorboard()
     said = [r.getMessage() for r in caplog.records if "TensorBoard" in r.getMessage()]
     assert said == ["no TensorBoard scalars: tensorboard is not installed (pip install 'hcmt[tensorboard]'); "
                     "log.jsonl has them"]

@@ -54,7 +54,7 @@ def main() -> None:
         # λ = 4 is the accuracy study's HCMT configuration (impact_plate_cpu): reuse that run
         name = f"acc_hcmt_s{a.seed}_{a.steps}" if lam == 4 else f"lev{lam}_s{a.seed}_{a.steps}"
         lev[lam] = row(run_and_evaluate(a.work, data, name, "hcmt", a.seed,
-                                        base + [f"model.levels={lam}", f"model.L_H={2 * lam + 1}"]))
+                                        base + [f"model.levels={lam}"]))
     lev = {k: v for k, v in lev.items() if v is not None}
     if lev:
         write_json("levels.json", {"seed": a.seed, "steps": a.steps, "L_C": 2, "rows": lev})

@@ -47,7 +47,7 @@ def _read(name_or_path: str, within: str | None = None) -> dict:
         path = CONFIG_DIR / f"{name_or_path}.yaml"
     if not path.is_file():
         raise InputError(f"{clip(name_or_path)!r}{f' (the base of {within})' if within else ''}: neither a file nor "
-                         f"a built-in config (built-in: {', '.join(builtin_configs())})",
+                         f"a built-in config ({', '.join(builtin_configs())})",
                          param=None if within else "name_or_path")
     try:
         data = yaml.safe_load(path.read_text(encoding="utf-8")) or {}
@@ -133,14 +133,14 @@ class ModelConfig:
     hidden: int = _field(128, minimum=1)
     heads: int = _field(4, minimum=1)
     L_C: int = _field(2, minimum=0)  # contact-mesh transformer blocks
-    levels: int = _field(0, minimum=0)  # λ, the hierarchy's levels (HCMT)
-    L_H: Optional[int] = None  # 2λ + 1 when given
+    levels: int = _field(0, minimum=0)  # λ, the hierarchy's levels (HCMT); its L_H = 2λ + 1 blocks are derived
     clip: float = 2.0  # attention logit clip
     blocks: int = _field(15, minimum=1)  # message-passing blocks of MGN and GT
     ffn_bias: bool = True
     attention: str = _field("paper", "paper", "official")
     target: Optional[str] = _field(None, "velocity", "acceleration")  # None: the dataset's Table 9 output
     deformation: bool = False  # hcmt's edge deformation features x_ij − u_ij and stretch
+    ablation: Optional[str] = _field(None, *ABLATIONS)  # HCMT's ablations (paper Tables 3, 10-12; --ablation)
 
 
 @dataclass(frozen=True)
@@ -152,19 +152,22 @@ class TrainConfig:
     contact_radius: Optional[float] = _field(None, required=True)  # the contact search radius (Table 8's γ)
     batch_size: int = _field(1, minimum=1)
     lr_final: Optional[float] = None  # None: constant ``lr``
-    lr_decay_steps: Optional[int] = None  # None: decay over ``steps``
-    lr_decay_rate: float = 0.1
+    lr_decay_rate: float = 0.1  # with lr_decay_steps
     noise_std: float = _field(0.0, minimum=0)
     noise_gamma: Optional[float] = None  # None: 1.0 for a velocity target, 0.1 for acceleration
     noise_nodes: str = _field("normal", "normal", "predicted")
     pushforward: float = _field(0.0, minimum=0, maximum=1, says="a probability in [0, 1]")
     pushforward_start: int = 0
     normalizer_steps: int = _field(0, minimum=0)
-    normalizer_warmup: str = _field("all", "all", "nodes")
-    mesh_edges_twice: bool = False
-    loss_denominator: str = _field("masked", "masked", "nodes")
-    adam_epsilon: Optional[float] = None  # None: 1e-8 (PyTorch's), 1e-7 with adam_epsilon_hat (Keras')
-    adam_epsilon_hat: bool = False
+    # the loop's conventions: hcmt's or the authors' code's (hcmt.training.policy); each key below, left null, is
+    # the policy's value
+    policy: str = _field("hcmt", "hcmt", "official")
+    normalizer_warmup: Optional[str] = _field(None, "all", "nodes")
+    mesh_edges_twice: Optional[bool] = None
+    loss_denominator: Optional[str] = _field(None, "masked", "nodes")
+    adam_epsilon: Optional[float] = _field(None, above=0)
+    adam_epsilon_hat: Optional[bool] = None
+    lr_decay_steps: Optional[int] = _field(None, minimum=1)  # lr·rate^(step/this), no floor; hcmt: lr->lr_final
     log_every: int = _field(100, minimum=1)
     checkpoint_every: int = _field(1000, minimum=1)
     valid_every: int = _field(0, minimum=0)
@@ -245,6 +248,7 @@ class Config:
             return cfg
         if not isinstance(cfg, dict):
             raise InputError(f"config {source}: expected a mapping of sections, got {type(cfg).__name__}")
+        cfg = _without_derived(cfg)
         check_schema(cfg, source)
         return cls(dataset=cfg.get("dataset"),
                    **{name: cls_(**(cfg.get(name) or {})) for name, cls_ in SECTIONS.items()})
@@ -327,6 +331,18 @@ def _head(source: str | None) -> str:
     return f"config {source}: " if source is not None else ""
 
 
+def _without_derived(cfg: dict) -> dict:
+    """``cfg`` without the ``model.L_H`` that run.yaml files written before it was derived hold (null or
+    2·levels + 1); any other value stays, for :func:`check_schema` to refuse."""
+    model = cfg.get("model")
+    if not isinstance(model, dict) or "L_H" not in model:
+        return cfg
+    levels = model.get("levels", ModelConfig.levels)
+    if model["L_H"] is None or (isinstance(levels, int) and model["L_H"] == 2 * levels + 1):
+        return dict(cfg, model={k: v for k, v in model.items() if k != "L_H"})
+    return cfg
+
+
 def check_schema(cfg: dict, source: str | None = "config") -> None:
     """Refuse unknown keys (with the closest known one), values of the wrong type, values outside a fixed set and
     values outside a key's bounds."""
@@ -346,6 +362,9 @@ def check_schema(cfg: dict, source: str | None = "config") -> None:
         if not isinstance(value, dict):
             raise InputError(f"{_head(source)}{top}: expected a section of keys, got {clip(repr(value))}")
         for key, v in value.items():
+            if top == "model" and key == "L_H":
+                raise InputError(f"{_head(source)}model.L_H: derived, L_H = 2·model.levels + 1 (paper §3.2), not a "
+                                 "setting; set model.levels")
             if key not in SCHEMA[top]:
                 raise _unknown(f"{top}.{key}", [f"{top}.{k}" for k in SCHEMA[top]]
                                + [f"{s}.{k}" for s in SCHEMA for k in SCHEMA[s] if s != top], source)

@@ -5,9 +5,9 @@ from pathlib import Path
 import pytest
 
 from hcmt.config import load_config
-from hcmt.domains.adapters import ADAPTERS, MODEL_KEYS, Adapter, model_args, own_args
+from hcmt.domains.adapters import ADAPTERS, Adapter, model_args
 from hcmt.errors import InputError
-from hcmt.models import make_model
+from hcmt.models import REGISTRY, architecture, make_model
 from hcmt.training.runtime import check_resume
 
 META = {"dimension": 2, "features": {"mesh_pos": {"shape": [-1, 2]}}}
@@ -25,29 +25,28 @@ def test_adapters_are_built_with_keywords_only():
 @pytest.mark.parametrize("model", ["hcmt", "mgn", "gt"])
 def test_model_args_hold_only_the_chosen_models_arguments(model):
     cfg = load_config("impact_plate", TINY)
-    args = model_args(cfg, model, None, META)
-    assert set(args) == WIDTHS | set(MODEL_KEYS[model]) | ({"ablation"} if model == "hcmt" else set())
+    args = model_args(cfg, model, META)
+    assert set(args) == WIDTHS | set(REGISTRY[model].settings)
     make_model(args)  # every key is one the model's constructor takes
 
 
 def test_an_mgn_run_gets_no_hcmt_depths_and_no_ablation():
-    args = model_args(load_config("impact_plate", TINY), "mgn", None, META)
+    args = model_args(load_config("impact_plate", TINY), "mgn", META)
     assert not {"levels", "L_C", "L_H", "heads", "clip", "attention", "ffn_bias", "ablation"} & set(args)
-    with pytest.raises(InputError, match="ablations apply to HCMT only"):
-        model_args(load_config("impact_plate", TINY), "gt", "only-cmt", META)
-    with pytest.raises(InputError, match="unknown model 'pointnet'"):
-        model_args(load_config("impact_plate", TINY), "pointnet", None, META)
+    with pytest.raises(InputError, match="an ablation of HCMT"):
+        model_args(load_config("impact_plate", TINY + ["model.ablation=only-cmt"]), "gt", META)
 
 
 def test_runs_saved_with_every_models_keys_still_resume():
-    """A run.yaml written before MODEL_KEYS held an MGN's levels and an HCMT's blocks: own_args drops them, so
+    """A run.yaml written before each model saved only its own settings held an MGN's levels and an HCMT's
+    blocks: architecture drops them, so
     resuming it compares equal."""
     cfg = load_config("impact_plate", TINY)
     for model in ("hcmt", "mgn"):
-        now = model_args(cfg, model, None, META)
+        now = model_args(cfg, model, META)
         old = {**now, "ablation": None, "levels": 1, "L_C": 1, "L_H": None, "heads": 2, "clip": 2.0, "blocks": 2,
                "attention": "paper", "ffn_bias": True}
-        assert own_args(old) == now
+        assert architecture(old) == now
         run = {"model": now, "config": cfg, "seed": 0, "world_size": 1}
         check_resume({**run, "model": old}, run, Path("run"))
         with pytest.raises(InputError, match="hidden"):

@@ -284,7 +284,7 @@ def test_keras_epsilon_hat_adam_equals_the_keras_update():
 
 
 def _trainer(cfg, data, out, model="hcmt"):
-    return Trainer(cfg, data, model, out, ablation=None, seed=0, resume=False, device="cpu", progress=False)
+    return Trainer(cfg, data, model, out, seed=0, resume=False, device="cpu", progress=False)
 
 
 def test_official_loop_options_normalizers_and_loss(data, tmp_path, tiny_config):

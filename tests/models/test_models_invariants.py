@@ -7,7 +7,7 @@ import torch
 
 from hcmt.graph.batch import collate
 from hcmt.models import build_model
-from hcmt.models.attention import EdgeGatedAttention, propagate
+from hcmt.models.attention import EdgeGatedAttention, propagate, recording
 from hcmt.viz.attention import maps_from_model
 from models_grid import grid_graph, permute_graph
 
@@ -73,8 +73,8 @@ def test_lpe_equivariant_up_to_eigenvector_sign_and_basis():
 def test_attention_weights_sum_to_one_per_receiver_head_and_branch():
     g = grid_graph(9, 9, levels=2, node_in=NODE_IN, contacts=12)
     model = warm(make("hcmt", levels=2, L_C=2), g)
-    with torch.no_grad():
-        _, maps = model(g, return_attention=True)
+    with torch.no_grad(), recording(model) as maps:
+        model(g)
     names = [m.name for m in maps]
     assert names[:4] == ["cmt0.mesh", "cmt0.contact", "cmt1.mesh", "cmt1.contact"]
     assert len(maps) == 4 + model.L_H
@@ -255,3 +255,20 @@ def test_official_attention_maps_are_normalized_per_receiver_for_display():
         rows = np.asarray(m.sum(1)).ravel()
         has = np.diff(m.indptr) > 0
         np.testing.assert_allclose(rows[has], 1.0, rtol=1e-5)
+
+
+def test_attention_maps_are_recorded_by_hooks_and_forward_returns_the_output_only():
+    """hcmt.models.attention.recording: one map per block and branch, named, leveled and with its own edges, for
+    HCMT (its single-branch ablation too) and GT; outside the context no hook stays and forward is the output."""
+    g = grid_graph(9, 9, levels=2, node_in=NODE_IN, contacts=12)
+    for name, kw, names in (("gt", dict(blocks=2), ["gt0", "gt1"]),
+                            ("hcmt", dict(levels=1, L_C=1, ablation="single-branch"),
+                             ["cmt0.mesh+contact", "hmt.down0", "hmt.bottom1", "hmt.up0"])):
+        model = warm(make(name, **kw), g)
+        with torch.no_grad(), recording(model) as maps:
+            out = model(g)
+        assert isinstance(out, torch.Tensor) and [m.name for m in maps] == names
+        assert all(m.weights.shape[0] == m.edge_index.shape[1] for m in maps)
+        with torch.no_grad():
+            model(g)
+        assert len(maps) == len(names)  # the hooks are gone

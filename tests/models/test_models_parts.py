@@ -7,10 +7,10 @@ import numpy as np
 import pytest
 import torch
 
-from hcmt.config import DATASET_NAMES
+from hcmt.config import DATASET_NAMES, ModelConfig
 from hcmt.domains.adapters import build_for_dataset, dataset_spec
 from hcmt.domains.updater import update_positions
-from hcmt.models import ABLATIONS, build_model
+from hcmt.models import ABLATIONS, HCMT, build_model
 from hcmt.models.lpe import LaplacianPE, laplacian_pe
 from hcmt.models.normalizer import Normalizer
 
@@ -148,8 +148,8 @@ def test_build_for_dataset_uses_table8():
 
 
 def test_bad_settings_are_refused():
-    with pytest.raises(ValueError, match="2λ\\+1"):
-        build_model("hcmt", 4, 6, 3, 2, levels=2, L_C=2, L_H=7)
+    with pytest.raises(TypeError, match="L_H"):  # derived from levels, not an argument
+        build_model("hcmt", 4, 6, 3, 2, levels=2, L_C=2, L_H=5)
     with pytest.raises(ValueError, match="unknown ablation"):
         build_model("hcmt", 4, 6, 3, 2, levels=1, L_C=1, ablation="bogus")
     with pytest.raises(ValueError, match="divisible"):
@@ -160,8 +160,10 @@ def test_bad_settings_are_refused():
         build_model("gnn", 4, 6, 3, 2)
     with pytest.raises(ValueError, match="HCMT only"):
         build_model("mgn", 4, 6, 3, 2, ablation="lpe")
-    with pytest.raises(ValueError, match="needs levels"):
-        build_model("hcmt", 4, 6, 3, 2)
+    default = build_model("hcmt", 4, 6, 3, 2)  # one default for each setting: the config schema's
+    m = ModelConfig
+    assert (default.levels, default.L_C, default.L_H) == (m.levels, m.L_C, 2 * m.levels + 1)
+    assert (HCMT(4, 6, 3, 2).levels, HCMT(4, 6, 3, 2).L_C) == (ModelConfig.levels, ModelConfig.L_C)
     with pytest.raises(ValueError, match="unknown dataset"):
         dataset_spec("flag_simple")
     assert set(ABLATIONS) == {"late-contact", "only-cmt", "only-hmt", "lpe", "single-branch", "no-remesh"}

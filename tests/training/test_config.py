@@ -22,7 +22,7 @@ def test_paper_configs_hold_table8(name):
     m, t = c.model, c.train
     L_H = 2 * m.levels + 1  # derived, as the paper's L_H = 2λ + 1
     assert (m.L_C, L_H, m.levels, t.noise_std, t.contact_radius, t.steps) == TABLE8[name]
-    assert m.L_C + L_H == 15 and m.L_H is None  # not set: the schema's default, derived from λ
+    assert m.L_C + L_H == 15 and not hasattr(m, "L_H")  # not a setting: derived from λ
     assert (t.lr, t.lr_final, t.batch_size, m.hidden, m.heads) == (1e-4, 1e-6, 1, 128, 4)
     assert f"{name}_cpu" in builtin_configs()
 
@@ -123,3 +123,31 @@ def test_run_yaml_is_read_back_as_a_config(tmp_path):
     (tmp_path / "run.yaml").write_text("model: {name: mgn}\nconfig: {train: {lr: fast}}\n")
     with pytest.raises(ValueError, match="run.yaml: its settings do not load .*train.lr: got 'fast'"):
         RunFolder(tmp_path)
+
+
+def test_L_H_is_derived_and_cannot_be_set(tmp_path):
+    """L_H = 2λ + 1 (paper §3.2) is no setting: a config or --set naming it is refused in one line; a run.yaml of
+    an older run holding it (null, or 2·levels + 1) still reads, any other value is refused."""
+    for source in (lambda: load_config("impact_plate_cpu", ["model.L_H=9"]),
+                   lambda: Config.from_dict({"dataset": "impact_plate", "model": {"levels": 4, "L_H": 7}})):
+        with pytest.raises(InputError, match=r"model\.L_H: derived, L_H = 2·model\.levels \+ 1 .*set model\.levels"):
+            source()
+    path = tmp_path / "old.yaml"
+    path.write_text("base: impact_plate_cpu\nmodel:\n  L_H: 9\n")
+    with pytest.raises(InputError, match="not a setting"):
+        load_config(str(path))
+    for old in (None, 9):
+        assert Config.from_dict({"model": {"levels": 4, "L_H": old}}).model.levels == 4
+
+
+def test_ablation_is_a_model_setting():
+    assert load_config("impact_plate_cpu", ["model.ablation=only-hmt"]).model.ablation == "only-hmt"
+    assert load_config("impact_plate_cpu").model.ablation is None
+    with pytest.raises(InputError, match="model.ablation: unknown value 'bogus'; expected one of late-contact"):
+        load_config("impact_plate_cpu", ["model.ablation=bogus"])
+
+
+def test_the_shipped_models_recipe_is_the_named_config_impact_plate_shipped():
+    from hcmt.inference.run import Run
+    shipped = Run.load("pretrained:impact_plate_small", "cpu").config
+    assert load_config("impact_plate_shipped").to_dict() == shipped.to_dict()

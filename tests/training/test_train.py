@@ -27,7 +27,7 @@ from hcmt.graph.batch import PadSizes
 from hcmt.inference.evaluate import evaluate, run_rollouts
 from hcmt.inference.rollout import rollout
 from hcmt.inference.run import Run, load_run
-from hcmt.models import Normalizer
+from hcmt.models import Normalizer, architecture
 from hcmt.training import train
 from hcmt.training.dataset import FrameDataset, StepSampler, pad_sizes
 from hcmt.training.schedule import learning_rate
@@ -564,3 +564,43 @@ def test_init_with_another_architecture_is_one_line_listing_the_differences(impa
     assert rc == 2 and "give one of them" in capsys.readouterr().err
     rc = cli(["train", "--out", str(tmp_path / "src"), "--resume", "--init", str(tmp_path / "src")])
     assert rc == 2 and "the same folder as --init" in capsys.readouterr().err  # refused before it reads anything
+
+
+def test_ablation_flag_is_the_model_ablation_key_and_resume_keeps_it(impact, tmp_path, capsys):
+    out = tmp_path / "abl"
+    sets = [a for kv in TINY + EXTRA for a in ("--set", kv)]
+    assert cli(["train", "--config", "impact_plate_cpu", "--data", str(impact), "--model", "hcmt", "--out", str(out),
+                "--steps", "1", "--ablation", "only-hmt", "--no-progress", *sets]) == 0
+    info = Run.load(out, "cpu").info
+    assert info["config"].model.ablation == info["model"]["ablation"] == "only-hmt"
+    assert cli(["train", "--out", str(out), "--resume", "--steps", "2", "--no-progress"]) == 0
+    assert Run.load(out, "cpu").info["model"]["ablation"] == "only-hmt"
+    capsys.readouterr()
+
+
+def test_init_inherits_the_sources_model_settings_and_mgn_saves_only_its_own(impact, tmp_path, tiny_config, capsys):
+    """``--init`` takes the source's ``model:`` section (its architecture and input features) and, without
+    ``--config`` / ``--model``, its config and model: fine-tuning the shipped model needs no ``--set``."""
+    shipped = Run.load("pretrained:impact_plate_small", "cpu")
+    ft = tmp_path / "ft"
+    assert cli(["train", "--init", "pretrained:impact_plate_small", "--data", str(impact), "--out", str(ft),
+                "--steps", "1", "--no-progress", "--set", "train.valid_every=0"]) == 0
+    info = Run.load(ft, "cpu").info
+    assert architecture(info["model"]) == architecture(shipped.info["model"])
+    assert info["config"].model == shipped.config.model and info["config"].model.deformation
+    src = tmp_path / "src"
+    train(tiny_config(*EXTRA, "train.steps=1", "model.deformation=true", "model.attention=official"), impact, "hcmt",
+          src, seed=1, progress=False)
+    assert cli(["train", "--config", "impact_plate_cpu", "--data", str(impact), "--out", str(tmp_path / "b"),
+                "--steps", "1", "--init", str(src), "--no-progress", *(a for kv in EXTRA for a in ("--set", kv))]) == 0
+    model = Run.load(tmp_path / "b", "cpu").info["config"].model
+    assert (model.deformation, model.attention, model.hidden) == (True, "official", 16)  # none of them given
+    mgn = tmp_path / "mgn"
+    train(tiny_config(*EXTRA, "train.steps=1"), impact, "mgn", mgn, seed=1, progress=False)
+    assert set(Run.load(mgn, "cpu").info["model"]) == {"name", "node_in", "mesh_in", "contact_in", "out", "hidden",
+                                                       "blocks"}
+    assert cli(["train", "--data", str(impact), "--out", str(tmp_path / "mgn2"), "--steps", "1", "--init", str(mgn),
+                "--no-progress"]) == 0
+    with pytest.raises(ValueError, match="model.ablation only-hmt: an ablation of HCMT; model mgn has none"):
+        train(tiny_config(*EXTRA, "train.steps=1", "model.ablation=only-hmt"), impact, "mgn", tmp_path / "x")
+    capsys.readouterr()

@@ -306,7 +306,7 @@ def configure_train(p: argparse.ArgumentParser) -> None:
     same_as(p, name_or_path="--config")
     p.add_argument("--data", help="native dataset folder")
     p.add_argument("--model", choices=MODELS)
-    p.add_argument("--ablation", choices=ABLATIONS, help="HCMT ablation (paper Tables 3, 10-12)")
+    p.add_argument("--ablation", choices=ABLATIONS, help="HCMT ablation (paper Tables 3, 10-12): --set model.ablation")
     p.add_argument("--steps", type=count(1, MAX_STEPS), metavar="N",
                    help=f"training steps, {span(1, MAX_STEPS)} (overrides train.steps)")
     p.add_argument("--seed", type=int, help="random seed (default 0)")
@@ -317,7 +317,8 @@ def configure_train(p: argparse.ArgumentParser) -> None:
                    help="override any config key, e.g. --set train.lr=3e-4 --set model.levels=4")
     p.add_argument("--init", metavar="RUN|pretrained:NAME",
                    help="start from that model's weights (fine-tuning, e.g. a shipped model on your own solver's "
-                        "data); its architecture and feature widths must be this run's")
+                        "data); the run takes its model settings (architecture, features), and its config and "
+                        "model when --config / --model are left out")
     p.add_argument("--init-normalizers", choices=INIT_NORMALIZERS, default="keep",
                    help="with --init: keep its normalizer statistics, frozen (default), or re-accumulate them on "
                         "--data")

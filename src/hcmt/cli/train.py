@@ -8,7 +8,6 @@ import sys
 from pathlib import Path
 
 from hcmt.cli import CommandError
-from hcmt.config import load_config
 from hcmt.data.runs import RunFolder, check_start
 from hcmt.files import atomic_path, check_apart
 from hcmt.inference.evaluate import check_options, compare, evaluate, format_compare, format_metrics, run_rollouts
@@ -23,20 +22,23 @@ def main_train(args: argparse.Namespace) -> int:
     check_start(folder, args.resume, flags=True)
     if args.resume and folder.info is not None and not args.config:  # resume with the run's saved settings
         saved = folder.info
-        cfg = saved["config"].with_overrides(overrides)  # the one --set path
+        ablation = args.ablation or saved["model"].get("ablation")  # run.yaml's model arguments: older runs too
+        cfg, overrides = saved["config"], ([f"model.ablation={ablation}"] if ablation else []) + overrides
         data = args.data or saved["data"]
         model = args.model or saved["model"]["name"]
-        ablation = args.ablation if args.ablation is not None else saved["model"].get("ablation")
         seed = args.seed if args.seed is not None else saved.get("seed", 0)
     else:
-        missing = [f"--{k}" for k in ("config", "data", "model") if getattr(args, k) is None]
+        missing = [f"--{k}" for k in ("config", "data", "model") if getattr(args, k) is None
+                   and not (args.init and k != "data")]
         if missing:
             raise CommandError(f"{', '.join(missing)} required (only `--resume --out RUN` of an existing run may leave "
-                               "them out)")
-        cfg, data, model, ablation = load_config(args.config, overrides), args.data, args.model, args.ablation
+                               "them out, and --init its source's config and model)")
+        ablation = [f"model.ablation={args.ablation}"] if args.ablation else []  # --ablation: model.ablation
+        cfg, data, model = args.config, args.data, args.model
+        overrides = ablation + overrides
         seed = args.seed if args.seed is not None else 0
     check_apart({"--out": args.out}, {"--data": data, "--init": _folder(args.init)}, owned=("--out",))
-    summary = train(cfg, data, model, args.out, ablation=ablation, seed=seed,
+    summary = train(cfg, data, model, args.out, overrides=overrides, seed=seed,
                     resume=args.resume, device=args.device, progress=not args.no_progress, init=args.init,
                     init_normalizers=args.init_normalizers)
     print(json.dumps(summary, indent=2))

@@ -31,7 +31,7 @@ from hcmt.data.format import NODE_TYPE_SIZE, NodeType
 from hcmt.domains.updater import update_positions
 from hcmt.errors import InputError
 from hcmt.graph.contact import OFFICIAL_IMPACT_PLATE_TYPES
-from hcmt.models import Simulator, build_model
+from hcmt.models import REGISTRY, Simulator, build_model
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -227,36 +227,14 @@ def exclude_trajectories(names: list[str], excluded: list[int] | None) -> np.nda
     return np.flatnonzero(keep)
 
 
-#: each model's constructor arguments from ``model.*`` beyond the widths and ``hidden``
-#: (:func:`hcmt.models.build_model`): an MGN run's ``run.yaml`` holds no HCMT depth it does not use
-MODEL_KEYS = {"hcmt": ("levels", "L_C", "L_H", "heads", "clip", "attention", "ffn_bias"), "mgn": ("blocks",),
-              "gt": ("blocks", "heads", "clip")}
-
-
-def own_args(args: dict) -> dict:
-    """Saved constructor arguments (``run.yaml``'s ``model``, a checkpoint's ``model_args``) less the keys their
-    model does not take: a run saved before :data:`MODEL_KEYS` kept every model's depths (an MGN's ``levels``, an
-    HCMT's ``blocks``), which resuming or fine-tuning compares against this version's arguments."""
-    keep = {"name", "node_in", "mesh_in", "contact_in", "out", "hidden", *MODEL_KEYS.get(args.get("name"), ())}
-    if args.get("name") == "hcmt":
-        keep.add("ablation")
-    return {k: v for k, v in args.items() if k in keep}
-
-
-def model_args(cfg: Config, model_name: str, ablation: str | None, meta: dict) -> dict:
-    """Constructor arguments of the model (saved in ``run.yaml``): the widths from the config's adapter and the
-    dataset's dimensions (meta.json), ``hidden``, and only the ``model.*`` keys the chosen model takes
-    (:data:`MODEL_KEYS`); ``ablation`` is HCMT's alone."""
-    if model_name not in MODEL_KEYS:
-        raise InputError(f"unknown model {model_name!r}; expected one of {', '.join(MODEL_KEYS)}", param="model")
-    if model_name != "hcmt" and ablation not in (None, "", "none"):
-        raise InputError(f"ablations apply to HCMT only, got ablation={ablation!r} for model {model_name!r}",
-                         param="ablation")
+def model_args(cfg: Config, model_name: str, meta: dict) -> dict:
+    """Constructor arguments of the model (saved in ``run.yaml``): its widths, from the config and the dataset's
+    dimensions (meta.json), and its own settings (:data:`hcmt.models.REGISTRY`), from ``model:``."""
     adapter = config_adapter(cfg)
     widths = adapter.widths(int(meta["dimension"]), int(meta["features"]["mesh_pos"]["shape"][-1]))
-    own = {k: getattr(cfg.model, k) for k in MODEL_KEYS[model_name]}
-    return {"name": model_name, **widths, **({"ablation": ablation} if model_name == "hcmt" else {}),
-            "hidden": cfg.model.hidden, **own}
+    if cfg.model.ablation and model_name != "hcmt":
+        raise InputError(f"model.ablation {cfg.model.ablation}: an ablation of HCMT; model {model_name} has none")
+    return {"name": model_name, **widths, **{k: getattr(cfg.model, k) for k in REGISTRY[model_name].settings}}
 
 
 def dataset_spec(name: str) -> dict:
@@ -279,8 +257,6 @@ def build_for_dataset(name: str, dataset: str, **overrides) -> Simulator:
     """:func:`hcmt.models.build_model` with the dataset's widths (Table 9) and depths (Table 8); keywords override
     them."""
     spec = dataset_spec(dataset)
-    kwargs = dict(levels=spec["levels"], L_C=spec["L_C"], L_H=spec["L_H"]) if name.lower() == "hcmt" else {}
+    kwargs = dict(levels=spec["levels"], L_C=spec["L_C"]) if name.lower() == "hcmt" else {}
     kwargs.update(overrides)
-    if "levels" in overrides and "L_H" not in overrides:
-        kwargs.pop("L_H", None)
     return build_model(name, spec["node_in"], spec["mesh_in"], spec["contact_in"], spec["out"], **kwargs)

@@ -27,34 +27,39 @@ class ModelInfo:
 
     label: str  # the display label everywhere (tables, legends, titles)
     needs_hierarchy: bool  # HCMT: the mesh hierarchy (unless an ablation drops it)
-    has_attention: bool  # returns attention maps (``return_attention=True``)
+    has_attention: bool  # has attention maps (hcmt.models.attention.recording)
+    settings: tuple[str, ...]  # the ModelConfig keys it is built from (its constructor arguments besides widths)
 
 
 #: one table of the models: name (:data:`hcmt.config.MODELS`, in its order) -> :class:`ModelInfo`
 REGISTRY: dict[str, ModelInfo] = dict(zip(MODELS, (
-    ModelInfo("HCMT", True, True),
-    ModelInfo("MGN", False, False),
-    ModelInfo("GT (Graph Transformer)", False, True),  # "GT" alone reads as "ground truth" beside it
+    ModelInfo("HCMT", True, True, ("ablation", "levels", "L_C", "hidden", "heads", "clip", "attention", "ffn_bias")),
+    ModelInfo("MGN", False, False, ("hidden", "blocks")),
+    ModelInfo("GT (Graph Transformer)", False, True, ("hidden", "blocks", "heads", "clip")),  # not "ground truth"
 )))
+WIDTHS = ("node_in", "mesh_in", "contact_in", "out")
+
+
+def architecture(args: dict) -> dict:
+    """The constructor arguments (run.yaml's ``model``) the model uses: name, widths and its own settings (older
+    runs saved every model's settings, e.g. an MGN run HCMT's ``levels``)."""
+    keep = ("name", *WIDTHS, *REGISTRY[args["name"]].settings)
+    return {k: args[k] for k in keep if k in args}
 
 
 _M = ModelConfig  # the schema's defaults are the defaults (hcmt.config)
 
 
 def build_model(name: str, node_in: int, mesh_in: int, contact_in: int, out: int, *, ablation: str | None = None,
-                levels: int | None = None, L_C: int | None = None, L_H: int | None = _M.L_H, hidden: int = _M.hidden,
-                heads: int = _M.heads, clip: float = _M.clip, blocks: int = _M.blocks, lpe_k: int = 8,
-                attention: str = _M.attention, ffn_bias: bool = _M.ffn_bias) -> Simulator:
-    """HCMT needs ``levels`` (λ) and ``L_C``; ``L_H`` is optional and must equal ``2λ + 1``.
-    MGN and GT use ``blocks``; GT and HCMT use ``heads`` and ``clip``; ``attention`` (``paper`` | ``official``)
-    and ``ffn_bias`` are HCMT's (the authors' code: ``official``, no FFN bias)."""
+                levels: int = _M.levels, L_C: int = _M.L_C, hidden: int = _M.hidden, heads: int = _M.heads,
+                clip: float = _M.clip, blocks: int = _M.blocks, lpe_k: int = 8, attention: str = _M.attention,
+                ffn_bias: bool = _M.ffn_bias) -> Simulator:
+    """HCMT uses ``levels`` (λ; its HMT has ``L_H = 2λ + 1`` blocks) and ``L_C``; MGN and GT use ``blocks``; GT and
+    HCMT use ``heads`` and ``clip``; ``ablation``, ``attention`` (``paper`` | ``official``) and ``ffn_bias`` are
+    HCMT's (the authors' code: ``official``, no FFN bias). The defaults are :class:`hcmt.config.ModelConfig`'s."""
     check_mode(attention)
     name = name.lower()
     if name == "hcmt":
-        if levels is None or L_C is None:
-            raise InputError("HCMT needs levels (λ) and L_C (e.g. Impact Plate: levels=6, L_C=2)")
-        if L_H is not None and L_H != 2 * levels + 1:
-            raise InputError(f"L_H must be 2λ+1 = {2 * levels + 1} for λ={levels}, got L_H={L_H}")
         return HCMT(node_in, mesh_in, contact_in, out, L_C=L_C, levels=levels, hidden=hidden, heads=heads,
                     clip=clip, ablation=ablation, lpe_k=lpe_k, attention=attention, ffn_bias=ffn_bias)
     if ablation not in (None, "", "none"):
@@ -68,7 +73,7 @@ def build_model(name: str, node_in: int, mesh_in: int, contact_in: int, out: int
 
 def make_model(args: dict) -> Simulator:
     """A model from its saved constructor arguments (``run.yaml``'s ``model``, a checkpoint's ``model_args``)."""
-    args = dict(args)
+    args = architecture(args)  # older runs hold other models' settings and L_H (null or 2λ + 1)
     return build_model(args.pop("name"), args.pop("node_in"), args.pop("mesh_in"), args.pop("contact_in"),
                        args.pop("out"), **args)
 
@@ -95,5 +100,5 @@ def uses_hierarchy(args: dict) -> tuple[int, bool]:
 
 
 __all__ = ["ABLATIONS", "ATTENTION_MODES", "GT", "HCMT", "MGN", "MODELS", "REGISTRY", "ModelInfo", "Normalizer",
-           "Simulator", "build_model", "checkpoint_state", "from_checkpoint", "make_model", "resolve_device",
-           "uses_hierarchy"]
+           "Simulator", "architecture", "build_model", "checkpoint_state", "from_checkpoint", "make_model",
+           "resolve_device", "uses_hierarchy"]

@@ -44,7 +44,9 @@ Choices where the paper is ambiguous (documented here once for CMT, HMT and the 
 """
 from __future__ import annotations
 
+import contextlib
 import math
+import re
 from dataclasses import dataclass
 
 from torch import Tensor, nn
@@ -57,8 +59,8 @@ MODES = ("paper", "official")
 
 @dataclass
 class AttentionMap:
-    """One block's attention weights as data (PyG's ``(edge_index, alpha)`` convention): what a model returns
-    with ``return_attention=True``, what pictures draw without knowing the model.
+    """One block's attention weights as data (PyG's ``(edge_index, alpha)`` convention): what
+    :func:`recording` collects from a model's forward, what pictures draw without knowing the model.
 
     ``name``: the block and branch (``cmt0.mesh``, ``cmt0.contact``, ``hmt.down1``, ``gt3``); ``level``: the
     hierarchy level of its nodes (0: the mesh); ``edge_index`` ``[2, E]`` (row 0 sender j, row 1 receiver i) on
@@ -73,6 +75,54 @@ class AttentionMap:
     stage: str = ""  # cmt | down | bottom | up (HMT's U) | gt
     block: int = 0  # the block's number within its stage (HMT: its level)
     branch: str = "mesh"  # the edges: mesh | contact | mesh+contact
+
+
+class AttentionTap(nn.Module):
+    """Where a block's attention weights pass (the identity): a forward hook (:func:`recording`) reads them there,
+    with their edges and branch, so ``forward`` returns outputs only."""
+
+    def forward(self, weights: Tensor, edges: Tensor, branch: str, normalized: bool) -> Tensor:
+        return weights
+
+
+#: a tap's module path -> (name, stage, block, level); HMT's bottom block sits on level λ (the model's ``levels``)
+_SITES = ((r"cmt\.(\d+)\.tap", lambda n, b, lam: (f"cmt{n}.{b}", "cmt", n, 0)),
+          (r"hmt\.(down|up)\.(\d+)\.tap", lambda s, n, b, lam: (f"hmt.{s}{n}", s, n, n)),
+          (r"hmt\.bottom\.tap", lambda b, lam: (f"hmt.bottom{lam}", "bottom", lam, lam)),
+          (r"layers\.(\d+)\.tap", lambda n, b, lam: (f"gt{n}", "gt", n, 0)))
+
+
+def _site(path: str, branch: str, levels: int) -> tuple:
+    for pattern, site in _SITES:
+        m = re.fullmatch(pattern, path)
+        if m:
+            return site(*(int(g) if g.isdigit() else g for g in m.groups()), branch, levels)
+    raise InputError(f"attention tap {path!r}: not a CMT, HMT or GT block")
+
+
+@contextlib.contextmanager
+def recording(model: nn.Module):
+    """While open, every forward of ``model`` appends one :class:`AttentionMap` per block and branch, in call order,
+    to the list it yields (CMT: ``cmt{ℓ}.mesh`` / ``cmt{ℓ}.contact`` on level 0; HMT: ``hmt.down{l}`` /
+    ``hmt.bottom{λ}`` / ``hmt.up{l}`` on level ``l``; GT: ``gt{ℓ}``); forward hooks on the blocks' taps."""
+    maps, handles = [], []
+    levels = getattr(model, "levels", 0)
+
+    def hook_for(path):
+        def hook(tap, args, weights):
+            edges, branch, normalized = args[1:]
+            name, stage, block, level = _site(path, branch, levels)
+            maps.append(AttentionMap(name, level, edges, weights, normalized, stage, block, branch))
+        return hook
+
+    for path, module in model.named_modules():
+        if isinstance(module, AttentionTap):
+            handles.append(module.register_forward_hook(hook_for(path)))
+    try:
+        yield maps
+    finally:
+        for h in handles:
+            h.remove()
 
 
 def check_mode(mode: str) -> str:

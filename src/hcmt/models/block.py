@@ -21,7 +21,7 @@ from torch import Tensor, nn
 
 from hcmt.errors import InputError
 
-from .attention import EdgeGatedAttention
+from .attention import AttentionTap, EdgeGatedAttention
 from .mlp import ffn
 
 
@@ -36,14 +36,15 @@ class TransformerBlock(nn.Module):
         self.norm_node = nn.LayerNorm(hidden)
         self.norm_edges = nn.ModuleList(nn.LayerNorm(hidden) for _ in range(edge_types))
         self.attention = EdgeGatedAttention(hidden, heads, clip, attention)
+        self.tap = AttentionTap()  # the weights, for hcmt.models.attention.recording
+        self.branches = ("mesh+contact",) if merge_branches and edge_types > 1 else ("mesh", "contact")[:edge_types]
         self.O = nn.Linear(branches * hidden, hidden, bias=False)
         self.norm_ffn = nn.LayerNorm(hidden)
         self.ffn = ffn(hidden, bias=ffn_bias)
 
-    def forward(self, z: Tensor, edge_sets: list[tuple[Tensor, Tensor]], return_attention: bool = False):
-        """z: ``[N, d]``; edge_sets: one ``(latents [E_b, d], edges [2, E_b])`` per edge type.
-
-        Returns ``z^{ℓ+1}``, and with ``return_attention`` also the list of attention weights per branch."""
+    def forward(self, z: Tensor, edge_sets: list[tuple[Tensor, Tensor]]) -> Tensor:
+        """z: ``[N, d]``; edge_sets: one ``(latents [E_b, d], edges [2, E_b])`` per edge type. Returns
+        ``z^{ℓ+1}``; each branch's attention weights pass :attr:`tap` (:func:`~hcmt.models.attention.recording`)."""
         if len(edge_sets) != self.edge_types:
             raise InputError(f"block built for {self.edge_types} edge types, got {len(edge_sets)}")
         qkv = self.attention.project_nodes(self.norm_node(z))
@@ -51,6 +52,7 @@ class TransformerBlock(nn.Module):
         if self.merge_branches and len(normed) > 1:
             normed = [(torch.cat([e for e, _ in normed]), torch.cat([ed for _, ed in normed], dim=1))]
         outs, weights = zip(*(self.attention(qkv, e, edges) for e, edges in normed))
+        for w, (_, edges), branch in zip(weights, normed, self.branches):
+            self.tap(w, edges, branch, self.attention.mode == "paper")
         u = z + self.O(torch.cat(outs, dim=-1))
-        z_next = u + self.ffn(self.norm_ffn(u))
-        return (z_next, list(weights)) if return_attention else z_next
+        return u + self.ffn(self.norm_ffn(u))

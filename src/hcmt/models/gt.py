@@ -27,7 +27,7 @@ from torch_geometric.utils import scatter, softmax
 from hcmt.errors import InputError
 from hcmt.graph.batch import Graph
 
-from .attention import AttentionMap
+from .attention import AttentionTap
 from .base import Simulator
 from .mlp import ffn
 
@@ -45,24 +45,26 @@ class GTLayer(nn.Module):
         self.O_h, self.norm1_h, self.norm2_h, self.ffn_h = nn.Linear(hidden, hidden), nn.LayerNorm(hidden), \
             nn.LayerNorm(hidden), ffn(hidden)
         self.update_edges = update_edges
+        self.tap = AttentionTap()  # the weights, for hcmt.models.attention.recording
         if update_edges:  # the last layer's edge update would feed nothing: it has none (no dead parameters)
             self.O_e, self.norm1_e, self.norm2_e, self.ffn_e = nn.Linear(hidden, hidden), nn.LayerNorm(hidden), \
                 nn.LayerNorm(hidden), ffn(hidden)
 
-    def forward(self, h: Tensor, e: Tensor, edges: Tensor, return_attention: bool = False):
+    def forward(self, h: Tensor, e: Tensor, edges: Tensor) -> tuple[Tensor, Tensor]:
         n, hidden = h.shape
         j, i = edges[0], edges[1]
         q, k, v = self.qkv(h).view(n, 3, self.heads, self.d_k).unbind(1)
         w_hat = q.index_select(0, i) * k.index_select(0, j) / math.sqrt(self.d_k)
         w_hat = w_hat * self.E(e).view(-1, self.heads, self.d_k)  # [E, H, d_k]
-        weights = softmax(w_hat.sum(-1).clamp(-self.clip, self.clip), i, num_nodes=n, dim=0)  # [E, H]
+        weights = self.tap(softmax(w_hat.sum(-1).clamp(-self.clip, self.clip), i, num_nodes=n, dim=0), edges,
+                           "mesh+contact", True)  # [E, H]
         agg = scatter(weights.unsqueeze(-1) * v.index_select(0, j), i, dim=0, dim_size=n, reduce="sum")
         h = self.norm1_h(h + self.O_h(agg.reshape(n, hidden)))
         h = self.norm2_h(h + self.ffn_h(h))
         if self.update_edges:
             e = self.norm1_e(e + self.O_e(w_hat.reshape(-1, hidden)))
             e = self.norm2_e(e + self.ffn_e(e))
-        return (h, e, weights) if return_attention else (h, e)
+        return h, e
 
 
 class GT(Simulator):
@@ -89,20 +91,14 @@ class GT(Simulator):
             raise InputError(f"GT needs at least one layer, got {blocks}")
         self.layers = nn.ModuleList(GTLayer(hidden, heads, clip, update_edges=n < blocks - 1) for n in range(blocks))
 
-    def forward(self, graph: Graph, accumulate: bool | None = None, return_attention: bool = False):
-        """Normalized output ``[N, out]`` (and with ``return_attention`` one
+    def forward(self, graph: Graph, accumulate: bool | None = None) -> Tensor:
+        """Normalized output ``[N, out]`` (:func:`~hcmt.models.attention.recording` collects one
         :class:`~hcmt.models.attention.AttentionMap` per layer, over mesh and contact edges together)."""
         self.check_graph(graph)
         acc = self._accumulating(accumulate)
         h = self.encode_nodes(graph, acc)
         e = torch.cat([self.encode_mesh(*self.mesh_inputs(graph), accumulate=acc), self.encode_contact(graph, acc)])
         edges = torch.cat([graph.mesh_edges, graph.contact_edges], dim=1)
-        attention = []
-        for n, layer in enumerate(self.layers):
-            if return_attention:
-                h, e, w = layer(h, e, edges, return_attention=True)
-                attention.append(AttentionMap(f"gt{n}", 0, edges, w, True, "gt", n, "mesh+contact"))
-            else:
-                h, e = self.run_block(layer, h, e, edges)
-        out = self.decoder(h)
-        return (out, attention) if return_attention else out
+        for layer in self.layers:
+            h, e = self.run_block(layer, h, e, edges)
+        return self.decoder(h)

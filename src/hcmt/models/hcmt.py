@@ -38,12 +38,12 @@ from __future__ import annotations
 import torch
 from torch import Tensor, nn
 
-from hcmt.config import ABLATIONS
+from hcmt.config import ABLATIONS, ModelConfig as _M  # the schema's defaults are the defaults
 from hcmt.errors import DatasetError, InputError
 from hcmt.graph.batch import Graph
 from hcmt.graph.hierarchy import pool as pool_nodes, unpool
 
-from .attention import AttentionMap, check_mode
+from .attention import check_mode
 from .base import Simulator
 from .block import TransformerBlock
 from .lpe import LaplacianPE
@@ -65,28 +65,22 @@ class HMT(nn.Module):
         self.up = nn.ModuleList(make() for _ in range(levels))
 
     def forward(self, h: Tensor, latents: list[Tensor], edges: list[Tensor], pool: list[Tensor],
-                attention: list | None = None, run_block=None) -> Tensor:
-        """latents/edges: level 0..λ encoded mesh-edge features and edges; pool: λ kept-index tensors.
-        With ``attention`` (a list), appends each block's :class:`~hcmt.models.attention.AttentionMap`."""
+                run_block=None) -> Tensor:
+        """latents/edges: level 0..λ encoded mesh-edge features and edges; pool: λ kept-index tensors."""
         saved = []
         call = run_block or (lambda block, *args: block(*args))  # the model's (maybe checkpointed) block call
 
-        def run(block, h, level, stage):
-            if attention is None:
-                return call(block, h, [(latents[level], edges[level])])
-            h, w = block(h, [(latents[level], edges[level])], return_attention=True)
-            attention.append(AttentionMap(f"hmt.{stage}{level}", level, edges[level], w[0],
-                                          block.attention.mode == "paper", stage, level))
-            return h
+        def run(block, h, level):
+            return call(block, h, [(latents[level], edges[level])])
 
         for level, block in enumerate(self.down):
-            h = run(block, h, level, "down")
+            h = run(block, h, level)
             saved.append(h)
             h = pool_nodes(h, pool[level])
-        h = run(self.bottom, h, self.levels, "bottom")
+        h = run(self.bottom, h, self.levels)
         for level in reversed(range(self.levels)):
             h = unpool(h, saved[level], pool[level])
-            h = run(self.up[level], h, level, "up")
+            h = run(self.up[level], h, level)
         return h
 
 
@@ -114,9 +108,10 @@ class HCMT(Simulator):
     ``denormalize`` the physical one. Save with :func:`hcmt.models.checkpoint_state`, load with
     :func:`hcmt.models.from_checkpoint` (the constructor arguments travel with the weights).
     """
-    def __init__(self, node_in: int, mesh_in: int, contact_in: int, out: int, *, L_C: int = 2, levels: int = 6,
-                 hidden: int = 128, heads: int = 4, clip: float = 2.0, ablation: str | None = None, lpe_k: int = 8,
-                 attention: str = "paper", ffn_bias: bool = True):
+    def __init__(self, node_in: int, mesh_in: int, contact_in: int, out: int, *, L_C: int = _M.L_C,
+                 levels: int = _M.levels, hidden: int = _M.hidden, heads: int = _M.heads, clip: float = _M.clip,
+                 ablation: str | None = None, lpe_k: int = 8, attention: str = _M.attention,
+                 ffn_bias: bool = _M.ffn_bias):
         super().__init__(node_in, mesh_in, contact_in, out, hidden=hidden)
         if ablation in ("", "none"):
             ablation = None
@@ -163,10 +158,9 @@ class HCMT(Simulator):
         mask = None if graph.mesh_mask is None else torch.cat([graph.mesh_mask, *graph.level_masks[: len(level_feats)]])
         return torch.cat([graph.mesh_features, *level_feats]), mask
 
-    def forward(self, graph: Graph, accumulate: bool | None = None, return_attention: bool = False):
-        """Normalized output ``[N, out]``; with ``return_attention`` also a list of
-        :class:`~hcmt.models.attention.AttentionMap`, one per block and branch (CMT: ``cmt{ℓ}.mesh`` /
-        ``cmt{ℓ}.contact`` on level 0; HMT: ``hmt.down{l}`` / ``hmt.bottom{λ}`` / ``hmt.up{l}`` on level ``l``)."""
+    def forward(self, graph: Graph, accumulate: bool | None = None) -> Tensor:
+        """Normalized output ``[N, out]``; :func:`~hcmt.models.attention.recording` collects the attention maps
+        (:class:`~hcmt.models.attention.AttentionMap`), one per block and branch."""
         self.check_graph(graph)
         acc = self._accumulating(accumulate)
         pool, level_edges, level_feats = self._levels(graph)
@@ -178,30 +172,14 @@ class HCMT(Simulator):
         latents = list(self.encode_mesh(*self.mesh_inputs(graph), accumulate=acc).split(sizes))
         edges = [graph.mesh_edges, *level_edges]
         contact = self.encode_contact(graph, acc) if len(self.cmt) else None
-        attention = [] if return_attention else None
 
         def cmt(z):
-            for n, block in enumerate(self.cmt):
-                sets = [(latents[0], graph.mesh_edges), (contact, graph.contact_edges)]
-                if attention is None:
-                    z = self.run_block(block, z, sets)
-                else:
-                    z, w = block(z, sets, return_attention=True)
-                    normalized = self.attention_mode == "paper"
-                    if len(w) == 1:  # one branch over mesh and contact edges together
-                        both = torch.cat([graph.mesh_edges, graph.contact_edges], dim=1)
-                        attention.append(AttentionMap(f"cmt{n}.mesh+contact", 0, both, w[0], normalized, "cmt", n,
-                                                      "mesh+contact"))
-                    else:
-                        attention.extend([
-                            AttentionMap(f"cmt{n}.mesh", 0, graph.mesh_edges, w[0], normalized, "cmt", n),
-                            AttentionMap(f"cmt{n}.contact", 0, graph.contact_edges, w[1], normalized, "cmt", n,
-                                         "contact")])
+            for block in self.cmt:
+                z = self.run_block(block, z, [(latents[0], graph.mesh_edges), (contact, graph.contact_edges)])
             return z
 
         def hmt(z):
-            return z if self.hmt is None else self.hmt(z, latents, edges, pool, attention, self.run_block)
+            return z if self.hmt is None else self.hmt(z, latents, edges, pool, self.run_block)
 
         z = cmt(hmt(z)) if self.ablation == "late-contact" else hmt(cmt(z))
-        out = self.decoder(z)
-        return (out, attention) if return_attention else out
+        return self.decoder(z)

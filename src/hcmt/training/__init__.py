@@ -11,12 +11,12 @@ from hcmt.config import as_config
 from hcmt.data.runs import RunFolder, check_start
 from hcmt.errors import InputError
 from hcmt.files import check_apart
-from hcmt.models import MODELS
 from hcmt.training.runtime import deterministic_scope, lock_run
+from hcmt.training.start import check_model, inherit
 from hcmt.training.trainer import Trainer
 
 
-def train(config, data, model: str, out, *, overrides=None, resume: bool = False, overwrite: bool = False,
+def train(config, data, model: str | None, out, *, overrides=None, resume: bool = False, overwrite: bool = False,
           ablation: str | None = None, seed: int = 0, device: str | None = None, progress: bool = True,
           stop_at: int | None = None, init: str | None = None, init_normalizers: str = "keep") -> dict:
     """Train ``model`` (``hcmt``, ``mgn``, ``gt``) on the native dataset ``data`` into the run folder ``out``;
@@ -24,20 +24,21 @@ def train(config, data, model: str, out, *, overrides=None, resume: bool = False
     (``out``) gives the trained model.
 
     ``config`` is a :class:`hcmt.config.Config`, a config mapping, a built-in config name or a YAML path;
-    ``overrides`` a list of ``section.key=value``; ``resume=True`` continues the run in ``out`` exactly,
-    ``overwrite=True`` deletes it and starts afresh (otherwise a folder holding a run is refused). ``stop_at`` ends
-    this call after that global step (checkpointed), as an interruption would. The run folder is locked while
-    training (a second process writing the same ``out`` is refused at once), and a run that fails before its first
-    checkpoint leaves nothing behind.
+    ``overrides`` a list of ``section.key=value`` (``ablation`` is short for ``model.ablation``); ``resume=True``
+    continues the run in ``out`` exactly, ``overwrite=True`` deletes it and starts afresh (otherwise a folder holding
+    a run is refused). ``stop_at`` ends this call after that global step (checkpointed), as an interruption would.
+    The run folder is locked while training (a second process writing the same ``out`` is refused at once), and a
+    run that fails before its first checkpoint leaves nothing behind.
 
-    ``init`` (a run folder or ``pretrained:NAME``) starts from that model's weights (fine-tuning; its constructor
-    arguments must equal this run's, else one line lists what differs); ``init_normalizers`` ``keep`` freezes its
-    normalizer statistics, ``reaccumulate`` zeroes them and accumulates them on ``data``. run.yaml records it."""
+    ``init`` (a run folder or ``pretrained:NAME``) starts from that model's weights (fine-tuning): the run takes its
+    ``model:`` settings (and its whole config when ``config`` is None, its model when ``model`` is None); an
+    override changing its architecture is refused in one line listing what differs; ``init_normalizers`` ``keep``
+    freezes its normalizer statistics, ``reaccumulate`` zeroes them and accumulates them on ``data``. run.yaml
+    records it."""
     if resume and overwrite:
         raise InputError("hcmt.train: resume=True and overwrite=True contradict each other; choose one")
-    model = str(model).lower()
-    if model not in MODELS:
-        raise InputError(f"hcmt.train: unknown model {model!r}; expected one of {', '.join(MODELS)}")
+    config, model = inherit(init, config, model) if init is not None and not resume else (config, model)
+    model = check_model(config, model)
     out = Path(out)
     check_apart({"out": out}, {"data": data, "init": None if str(init or "").startswith("pretrained:") else init},
                 owned=("out",))
@@ -46,11 +47,12 @@ def train(config, data, model: str, out, *, overrides=None, resume: bool = False
         shutil.rmtree(out)
         folder = RunFolder(out, must_exist=False)
     check_start(folder, resume)
-    cfg = as_config(config, overrides).for_training()
+    cfg = as_config(config, list(overrides or []) + ([f"model.ablation={ablation}"] if ablation else [])
+                    ).for_training()
 
     def run() -> dict:
         with deterministic_scope():  # train.deterministic holds for this run only
-            return Trainer(cfg, data, model, out, ablation=ablation, seed=seed, resume=resume, device=device,
+            return Trainer(cfg, data, model, out, seed=seed, resume=resume, device=device,
                            progress=progress, init=init, init_normalizers=init_normalizers).run(stop_at)
 
     if int(os.environ.get("RANK", 0)) != 0:  # torchrun's other ranks: rank 0 owns the folder

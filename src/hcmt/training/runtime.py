@@ -1,33 +1,46 @@
 """The training run's plumbing: processes (torchrun / DDP), Ctrl-C, the run folder's lock and checkpoints,
-rank-zero logging, and the exact-resume check."""
+rank-zero logging, TensorBoard scalars, step times, and the exact-resume check.
+
+Several processes: under ``torchrun`` (``WORLD_SIZE`` set by it) training uses DistributedDataParallel with gloo on
+CPU and NCCL on GPU; each rank takes its share of the shared permutation. DDP broadcasts buffers from rank 0 at
+every forward, so the normalizers' statistics are rank 0's (a sample of the data, like any running statistic) and
+every rank normalizes its inputs alike; a non-finite loss on any rank stops all of them (:func:`stop_together`).
+Validation rollouts run on rank 0 while the others wait in the next all-reduce (keep them shorter than the backend's
+timeout)."""
 from __future__ import annotations
 
 import contextlib
 import io
+import json
 import logging
 import math
 import os
 import signal
 import threading
+from dataclasses import asdict
 from pathlib import Path
 
+import numpy as np
 import torch
 import torch.distributed as dist
 import yaml
 
-from hcmt.domains.adapters import own_args
 from hcmt.errors import InputError
 from hcmt.files import atomic_path, take_lock
+from hcmt.models import architecture
+from hcmt.training.policy import policy_of
 
 
 def check_resume(saved: dict, run: dict, out: Path) -> None:
     """An exact continuation needs the settings the run started with; only ``train.steps`` may grow (the
     learning-rate schedule then stretches to the new length)."""
     def strip(r):
-        # both read through Config; the model's arguments less those it does not take (runs saved before
-        # hcmt.domains.adapters.MODEL_KEYS kept every model's)
-        r = yaml.safe_load(yaml.safe_dump(dict(r, config=r["config"].to_dict(), model=own_args(r["model"]))))
+        policy = asdict(policy_of(r["config"].train))  # the loop's conventions, named by the policy or key by key
+        r = dict(r, config=r["config"].to_dict(), model=architecture(r["model"]))  # older runs saved more
+        r = yaml.safe_load(yaml.safe_dump(r))  # both read through Config
         r["config"]["train"].pop("steps", None)
+        r["config"]["train"].pop("policy", None)
+        r["config"]["train"].update(policy)
         return r
 
     a, b = strip(saved), strip(run)
@@ -69,6 +82,12 @@ class InterruptFlag:
         for sig, handler in self._old.items():
             signal.signal(sig, handler)
         self._old = {}
+
+
+def rewrite_log(path: Path, records: list[dict]) -> None:
+    """``log.jsonl`` holding ``records`` only (a resumed run drops what was logged after its checkpoint)."""
+    with atomic_path(path) as tmp:
+        tmp.write_text("".join(json.dumps(r) + "\n" for r in records))
 
 
 def save_atomic(obj, path: Path) -> None:
@@ -127,6 +146,15 @@ def stop_together(world: int, device: torch.device, loss: float, interrupted: bo
     return flag[0].item() == 0, flag[1].item() > 0
 
 
+def deterministic_kernels() -> None:
+    """``train.deterministic``: deterministic CUDA kernels and cuBLAS workspace (the cuBLAS setting is read when
+    its handle is created: in a process that used CUDA before, export ``CUBLAS_WORKSPACE_CONFIG=:4096:8`` before
+    starting it); :func:`deterministic_scope` restores the settings after the run."""
+    os.environ.setdefault("CUBLAS_WORKSPACE_CONFIG", ":4096:8")
+    torch.use_deterministic_algorithms(True)
+    torch.backends.cudnn.benchmark = False
+
+
 @contextlib.contextmanager
 def deterministic_scope():
     """Restore torch's deterministic-algorithm and cuDNN settings on exit (``train.deterministic`` is per run)."""
@@ -137,3 +165,48 @@ def deterministic_scope():
     finally:
         torch.use_deterministic_algorithms(saved[0], warn_only=saved[1])
         torch.backends.cudnn.benchmark = saved[2]
+
+
+class _NoScalars:
+    """Stands in for TensorBoard's ``SummaryWriter`` when tensorboard is not installed: writes nothing (the
+    scalars are in log.jsonl all the same)."""
+
+    def add_scalar(self, *args, **kwargs) -> None:
+        pass
+
+    def close(self) -> None:
+        pass
+
+
+_no_tensorboard_said = False  # the info line that no TensorBoard scalars are written: once per process
+
+
+def summary_writer(folder: Path, purge_step: int | None):
+    """TensorBoard's ``SummaryWriter`` on ``folder`` (``tb/``), or :class:`_NoScalars` without the ``tensorboard``
+    extra (``pip install 'hcmt[tensorboard]'``)."""
+    try:
+        from torch.utils.tensorboard import SummaryWriter
+    except ImportError:
+        return _NoScalars()
+    return SummaryWriter(str(folder), purge_step=purge_step)
+
+
+def say_no_tensorboard(writer) -> None:
+    """Log once per process that ``writer`` is :class:`_NoScalars`."""
+    if isinstance(writer, _NoScalars):
+        _say_no_tensorboard()
+
+
+def _say_no_tensorboard() -> None:
+    global _no_tensorboard_said
+    if not _no_tensorboard_said:
+        _no_tensorboard_said = True
+        logging.getLogger("hcmt.train").info("no TensorBoard scalars: tensorboard is not installed "
+                                             "(pip install 'hcmt[tensorboard]'); log.jsonl has them")
+
+
+def step_times(times: list[tuple[float, float]]) -> dict:
+    """Median wall time and CPU time (this process, all its threads: robust to other load on one thread) per step,
+    in ms, of ``(wall s, cpu s)`` pairs."""
+    wall, cpu = (1e3 * float(np.median([t[k] for t in times])) if times else None for k in (0, 1))
+    return {"ms_per_step": wall, "cpu_ms_per_step": cpu}

@@ -37,7 +37,7 @@ from hcmt.errors import InputError
 from hcmt.graph.hierarchy import hierarchy_cache_dir
 from hcmt.inference.run import Run
 from hcmt.models import REGISTRY
-from hcmt.models.attention import AttentionMap
+from hcmt.models.attention import AttentionMap, recording
 from hcmt.viz.meshplot import closest_pair, new_figure, save_figure
 from hcmt.viz.rollouts import trajectory_index
 
@@ -70,12 +70,12 @@ def attention_matrix(weights, edges, num_nodes: int) -> sp.csr_matrix:
 
 
 def maps_from_model(model, graph) -> dict:
-    """Run ``model`` on ``graph`` with ``return_attention=True``: ``{"matrices": {name: CSR}, "blocks": {name:
+    """Run ``model`` on ``graph`` recording its attention: ``{"matrices": {name: CSR}, "blocks": {name:
     AttentionMap without weights}, "normalized_for_display"}`` from the model's
     :class:`~hcmt.models.attention.AttentionMap` list (each names its level and carries its edges)."""
     device = next(model.parameters()).device
-    with torch.no_grad():
-        _, attention = model(graph.to(device), accumulate=False, return_attention=True)
+    with torch.no_grad(), recording(model) as attention:
+        model(graph.to(device), accumulate=False)
     sizes = [graph.num_nodes] + [len(p) for p in graph.pool]
     matrices, blocks, rescaled = {}, {}, False
     for m in attention:

@@ -1,0 +1,71 @@
+"""How a run starts: the record ``run.yaml`` keeps (model arguments, config, data, seed, processes, the model it
+started from) and the checks before anything is written: a resumed run's settings are the saved ones, a
+fine-tuned run's (``--init``) model is its source's, inherited (:func:`inherit`)."""
+from __future__ import annotations
+
+from dataclasses import replace
+from pathlib import Path
+
+from hcmt.config import INIT_NORMALIZERS, MODELS, Config, as_config
+from hcmt.data.runs import RunFolder
+from hcmt.errors import InputError
+from hcmt.inference.run import Run
+from hcmt.models import architecture
+from hcmt.training.runtime import check_resume
+
+
+def init_source(init: str, args: dict) -> Run:
+    """The model a run starts from (a run folder's best checkpoint or ``pretrained:NAME``), refused in one line
+    listing what differs when its constructor arguments (architecture, feature widths) are not this run's."""
+    source = Run.load(init, "cpu")
+    theirs, args = architecture(source.info["model"]), architecture(args)
+    differ = [f"{k} {theirs.get(k)!r} there, {args.get(k)!r} here" for k in sorted(set(theirs) | set(args))
+              if theirs.get(k) != args.get(k)]
+    if differ:
+        raise InputError(f"{init}: its model differs from this run's: {'; '.join(differ)}; fine-tuning needs the "
+                         "same model, architecture and feature widths (train with the config it was trained with)",
+                         param="init")
+    return source
+
+
+def inherit(init: str, config, model: str | None) -> tuple[Config, str]:
+    """A fine-tuned run's config and model: ``config``'s (None: the source's whole config) with the source's
+    ``model:`` section (its architecture and input features, so fine-tuning the shipped model needs no ``--set``),
+    and the source's model when ``model`` is None. Overrides apply after (a changed architecture is then refused
+    by :func:`init_source`, listing what differs)."""
+    source = Run.load(init, "cpu")
+    cfg = source.config if config is None else replace(as_config(config), model=source.config.model)
+    return cfg, model or source.info["model"]["name"]
+
+
+def check_model(config, model: str | None) -> str:
+    """``model``'s name, refused in one line when unknown, or when it or ``config`` is missing."""
+    if config is None or model is None:
+        raise InputError("hcmt.train: config and model are needed (only init may leave them out)")
+    model = str(model).lower()
+    if model not in MODELS:
+        raise InputError(f"hcmt.train: unknown model {model!r}; expected one of {', '.join(MODELS)}")
+    return model
+
+
+def start_record(folder: RunFolder, args: dict, cfg: Config, data, seed: int, world: int, *, resume: bool,
+                 init: str | None, init_normalizers: str) -> tuple[dict, Run | None]:
+    """``run.yaml``'s record of this run and the :class:`Run` it starts from (``init``; None when resuming: the
+    checkpoint holds the weights already), every start rule checked."""
+    if init_normalizers not in INIT_NORMALIZERS:
+        raise InputError(f"init_normalizers must be one of {', '.join(INIT_NORMALIZERS)}, got {init_normalizers!r}")
+    if resume and init is not None:
+        raise InputError("starts a run from another model's weights and resuming continues a run (whose "
+                         "run.yaml remembers where it started); give one of them", param="init")
+    run = {"model": args, "config": cfg, "data": str(Path(data).resolve()), "seed": seed, "world_size": world}
+    source, started_from = None, None
+    if resume and folder.info is not None:
+        started_from = folder.info.get("init")
+    elif init is not None:
+        source = init_source(init, args)  # refused before anything is written
+        started_from = {"from": source.source, "normalizers": init_normalizers, "step": int(source.checkpoint_step)}
+    if started_from:
+        run["init"] = started_from
+    if resume and folder.info is not None:
+        check_resume(folder.info, run, folder.path)
+    return run, source

@@ -26,7 +26,7 @@ from hcmt.config import (
     machine_cores,
 )
 from hcmt.design.basics import DEFAULT_READOUT, QUANTITIES, READOUTS, RESTARTS, parse_vary, read_table
-from hcmt.errors import clip
+from hcmt.errors import clip, require_installed
 from hcmt.sim.params import (
     CONTACT_RADIUS,
     DESIGN_UNITS,
@@ -427,6 +427,8 @@ def check_predict(args) -> None:
         design_values(items)
     check_options(args)
     check_outputs({"--json": args.json, "--csv": args.csv}, {"--out": args.out} if args.images else {})
+    if args.images:
+        require_installed("viz", "matplotlib")  # before the model runs: --images needs the pictures' extra
     rows = len(read_table(Path(args.designs))[2]) if args.designs else 0
     if len(args.design) + rows > MAX_DESIGNS:
         raise CommandError(f"{len(args.design) + rows:,} designs (--design and --designs); expected at most "

@@ -14,8 +14,6 @@ from hcmt.design.readout import chosen, readout_key
 from hcmt.files import atomic_path
 from hcmt.inference.metrics import format_physics
 from hcmt.sim.scene import DESIGN_KEYS
-from hcmt.viz.contours import plot_contours
-from hcmt.viz.rollouts import Case, Series
 
 # -- output --------------------------------------------------------------------------------------------------------
 COLUMNS = [("design", "{}", "name"), ("plate MPa", "{:.1f}", "peak_plate_stress_mpa"),
@@ -191,6 +189,8 @@ def finite(obj):
 def contour_picture(p: Prediction, truth: Prediction | None, meta: dict, out_dir: str | Path, label: str) -> Path:
     """Stress contours (impact zoom) at the predicted peak-plate-stress frame, and with ``truth`` beside the solver
     at the solver's own peak frame too (one row each, the earlier first, one row when they coincide)."""
+    from hcmt.viz.contours import plot_contours  # here: matplotlib only when a picture is asked for
+    from hcmt.viz.rollouts import Case, Series
     pred = Series(f"{label} prediction", p.world_pos, p.stress, start=2)
     if truth is not None:
         case = Case(p.name, p.mesh_pos, p.cells, p.node_type, Series("Solver", truth.world_pos, truth.stress),

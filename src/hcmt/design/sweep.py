@@ -26,7 +26,6 @@ from hcmt.design.readout import chosen
 from hcmt.design.reports import finite, to_json
 from hcmt.errors import InputError
 from hcmt.sim.scene import Design
-from hcmt.viz.meshplot import new_figure, save_figure
 
 #: steps smaller than this share of a series' range count as flat in the monotonicity test
 TREND_TOL = 0.02
@@ -200,6 +199,7 @@ def sweep_json(check: Check, analysis: dict, run_source: str, device: str) -> di
 
 def plot_sweep(check: Check, analysis: dict, out_dir: str | Path, label: str) -> Path:
     """Peak plate stress and maximum deflection against the swept parameter: model, and the solver with verify."""
+    from hcmt.viz.meshplot import new_figure, save_figure  # here: matplotlib only for the plot
     x = np.array(analysis["values"])
     fig = new_figure(10, 4)
     axes = fig.subplots(1, 2)

@@ -279,6 +279,8 @@ def check_convert(args) -> None:
 
 def configure_info(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("dataset", help="native dataset folder (meta.json + <split>.h5)")
+    parser.add_argument("--all", action="store_true", help="list every design parameter on its own line, the "
+                        "constant ones too (default: the varying ones, the constants in one line)")
 
 
 def check_info(args) -> None:

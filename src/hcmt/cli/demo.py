@@ -66,7 +66,7 @@ def design_demo(args: argparse.Namespace) -> int:
         print(f"\nno contour picture: {missing}")
     print("your own designs:  hcmt predict pretrained:impact_plate_small --design thickness=0.8 drop_height=700 "
           "--verify")
-    print("a sweep:           hcmt sweep pretrained:impact_plate_small --vary thickness=0.5:1.0:11 --design "
+    print("a sweep:           hcmt sweep pretrained:impact_plate_small --vary thickness=0.55:0.95:9 --design "
           "drop_height=600 --yield-mpa 750 --verify auto")
     print("where the model is weak: `hcmt models` (measured error by region) and docs/MODELS.md")
     print(f"took {time.perf_counter() - t0:.0f} s")

@@ -24,6 +24,7 @@ from pathlib import Path
 
 import numpy as np
 
+from hcmt.design.basics import DESIGN_BATCH
 from hcmt.design.calls import (  # noqa: F401 (re-exported: hcmt.design.check.trusted_interval, ...)
     MODEL_BAND,
     TRUST,
@@ -138,7 +139,7 @@ def run_solver(run, designs, preds: list[Prediction], settings: Settings, verify
     return truth, verified
 
 
-def check_designs(run, designs: list[tuple[str, Design]], *, batch: int = 8, verify: bool | str = False,
+def check_designs(run, designs: list[tuple[str, Design]], *, batch: int = DESIGN_BATCH, verify: bool | str = False,
                   yield_mpa: float | None = None, compile: str = "none", progress: bool = True,
                   force: bool = False, surrogate: Surrogate | str | Path | bool | None = True,
                   readout: str = DEFAULT_READOUT, trust: str = TRUST) -> Check:

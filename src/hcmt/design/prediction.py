@@ -12,7 +12,7 @@ import numpy as np
 from tqdm import tqdm
 
 from hcmt.config import MAX_BATCH, MAX_DESIGNS
-from hcmt.design.basics import check_name
+from hcmt.design.basics import DESIGN_BATCH, check_name
 from hcmt.design.inputs import settings_of
 from hcmt.design.readout import DEFAULT_READOUT, check_readout, summarize_fields
 from hcmt.errors import InputError, clip
@@ -87,7 +87,7 @@ def check_design_list(designs, batch: int = 1) -> None:
 
 
 
-def predict(run, designs: list[tuple[str, Design]], batch: int = 8, progress: bool = True,
+def predict(run, designs: list[tuple[str, Design]], batch: int = DESIGN_BATCH, progress: bool = True,
             compile: str = "none", readout: str = DEFAULT_READOUT,
             contact_end_ms: list[float | None] | None = None) -> list[Prediction]:
     """Roll the run's model out over each design's recorded window, ``batch`` designs per model call

@@ -15,6 +15,7 @@ from hcmt.config import MAX_BATCH, MAX_DESIGNS
 from hcmt.design.basics import DESIGN_BATCH, check_name
 from hcmt.design.inputs import settings_of
 from hcmt.design.readout import DEFAULT_READOUT, check_readout, summarize_fields
+from hcmt.design.summary import Summary
 from hcmt.errors import InputError, clip
 from hcmt.inference.rollout import rollout_batch
 from hcmt.physics.trajectory import prepare_trajectory
@@ -33,7 +34,7 @@ class Prediction:
     cells: np.ndarray  # [C, 3]
     node_type: np.ndarray  # [N]
     wall_s: float  # seconds spent on this design (a batch's wall time split evenly over its designs)
-    summary: dict = field(default_factory=dict)
+    summary: Summary = field(default_factory=Summary)  # the numbers read off (typed; the JSON's keys)
     modulus: np.ndarray | None = None  # [N] MPa (the bending read-out after the ball has left)
 
     def fields(self) -> dict:
@@ -120,9 +121,9 @@ def predict(run, designs: list[tuple[str, Design]], batch: int = DESIGN_BATCH, p
 
 
 def summarize(p: Prediction, frame_dt: float, readout: str = DEFAULT_READOUT,
-              contact_end_ms: float | None = None) -> dict:
+              contact_end_ms: float | None = None) -> Summary:
     """The trajectory's own quantities (peak plate and ball stress, where, when, rise time, deflection, the plate's
     stress history, ...) and a derived ``readout``'s under its own names
-    (:func:`hcmt.design.readout.summarize_fields`)."""
-    return summarize_fields(p.fields(), frame_dt, readout, p.wall_s, contact_end_ms)
+    (:func:`hcmt.design.readout.summarize_fields`), as a :class:`~hcmt.design.summary.Summary`."""
+    return Summary.of(summarize_fields(p.fields(), frame_dt, readout, p.wall_s, contact_end_ms))
 

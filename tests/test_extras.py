@@ -87,3 +87,36 @@ def test_torch_is_a_range_and_the_makefile_pins_it():
         assert name not in hard and any(d.startswith(name) for d in extras["all"]) and \
             any(d.startswith(name) for d in extras["test"])
     assert "TORCH  ?= torch==2.13.0" in (ROOT / "Makefile").read_text()
+
+
+def _block_matplotlib(monkeypatch):
+    for name in [m for m in sys.modules if m.startswith(("hcmt.viz", "hcmt.cli.viz", "hcmt.design", "hcmt.cli.design",
+                                                         "hcmt.cli.demo", "matplotlib"))]:
+        monkeypatch.delitem(sys.modules, name)
+    monkeypatch.setitem(sys.modules, "matplotlib", None)  # what an uninstalled package looks like to import
+
+
+def test_the_design_check_imports_without_matplotlib(monkeypatch):
+    """predict, sweep and demo need matplotlib only for their pictures: their modules import without it."""
+    _block_matplotlib(monkeypatch)
+    import importlib
+    for module in ("hcmt.design.check", "hcmt.design.reports", "hcmt.design.sweep", "hcmt.cli.design",
+                   "hcmt.cli.demo"):
+        importlib.import_module(module)
+    assert "hcmt.viz" not in sys.modules
+
+
+def test_predict_images_without_matplotlib_is_refused_before_the_model_runs(monkeypatch, capsys):
+    _block_matplotlib(monkeypatch)
+    assert cli(["predict", "pretrained:impact_plate_small", "--design", "thickness=0.8", "--images"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err == ["hcmt predict: error: matplotlib is not installed (the viz extra); pip install 'hcmt[viz]'"]
+
+
+@pytest.mark.slow  # rolls out the shipped model on two designs
+def test_sweep_without_matplotlib_runs_and_says_no_plot(tmp_path, monkeypatch, capsys):
+    _block_matplotlib(monkeypatch)
+    assert cli(["sweep", "pretrained:impact_plate_small", "--vary", "thickness=0.6:0.7:2", "--no-surrogate",
+                "--no-progress", "--out", str(tmp_path / "s"), "--json", str(tmp_path / "s.json")]) == 0
+    out = capsys.readouterr().out
+    assert "no plot: matplotlib is not installed (the viz extra)" in out and (tmp_path / "s.json").is_file()

@@ -61,15 +61,24 @@ def require(module: str, extra: str):
         raise _missing(module, extra) from None
 
 
-def require_installed(extra: str, *modules: str) -> None:
-    """Fail with :class:`MissingExtra` unless every one of ``modules`` can be imported; imports nothing."""
+def missing_extra(extra: str, *modules: str) -> str | None:
+    """The one-line message of :class:`MissingExtra` for the first of ``modules`` that cannot be imported, or None
+    when all can; imports nothing."""
     for module in modules:
         try:
             found = importlib.util.find_spec(module) is not None
         except (ImportError, ValueError):  # a parent package missing, or a module set to None in sys.modules
             found = False
         if not found:
-            raise _missing(module, extra)
+            return str(_missing(module, extra))
+    return None
+
+
+def require_installed(extra: str, *modules: str) -> None:
+    """Fail with :class:`MissingExtra` unless every one of ``modules`` can be imported; imports nothing."""
+    message = missing_extra(extra, *modules)
+    if message is not None:
+        raise MissingExtra(message)
 
 
 def clip(text, limit: int = 60) -> str:

@@ -147,6 +147,20 @@ def test_info_reports_counts_nodes_types_and_parameter_ranges(tmp_path, meta, ca
     assert "HANDLE 3" in out and "SYMMETRIC 3" in out and "NORMAL 21" in out
 
 
+def test_info_lists_the_varying_parameters_and_the_constants_in_one_line(tmp_path, meta, capsys):
+    write_meta(tmp_path, meta)
+    write_split(tmp_path / "train.h5", meta, [(f"traj_{i:05d}", trajectory(6, i), {"drop_height": 500.0 + 100 * i,
+                                                                                  "ball_radius": 2.5, "gap": 0.1})
+                                              for i in range(2)])
+    assert cli(["info", str(tmp_path)]) == 0
+    out = capsys.readouterr().out
+    assert "drop_height" in out and "500 .. 600" in out
+    assert "    constant (2): ball_radius=2.5, gap=0.1" in out and "2.5 .. 2.5" not in out
+    assert cli(["info", str(tmp_path), "--all"]) == 0
+    out = capsys.readouterr().out
+    assert "2.5 .. 2.5" in out and "constant (" not in out
+
+
 def test_time_axis_declared_minus_one_still_checked_and_any_per_node_field(tmp_path):
     feats = features()
     feats["world_pos"]["shape"] = [-1, -1, 2]

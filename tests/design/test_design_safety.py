@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 import hcmt.cli.design as cli_design
-import hcmt.design.reports as design_reports
+import hcmt.viz.contours as viz_contours
 from conftest import IMPACT_DATA
 from hcmt.cli import main as cli
 from hcmt.design.check import Prediction, check_designs, cost_check, weak_reasons
@@ -236,7 +236,7 @@ def test_pictures_name_r_and_stress_has_no_below_zero_arrow(setup):
 
 def test_contour_pair_shows_both_peaks(setup, monkeypatch):
     seen = {}
-    monkeypatch.setattr(design_reports, "plot_contours",
+    monkeypatch.setattr(viz_contours, "plot_contours",
                         lambda case, out, frames: seen.setdefault("f", frames) or [out])
     run = Run.load(setup / "run", "cpu")
     check = check_designs(run, [("d", parse_design(["thickness=0.7"], middle_design(run.meta)))],

@@ -99,7 +99,7 @@ def main_convert(args: argparse.Namespace) -> int:
 
 
 def main_info(args: argparse.Namespace) -> int:
-    print(summarize(args.dataset))
+    print(summarize(args.dataset, args.all))
     return 0
 
 

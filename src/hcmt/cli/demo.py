@@ -21,6 +21,7 @@ from hcmt.data.runs import RunFolder
 from hcmt.design.check import check_designs
 from hcmt.design.inputs import settings_of
 from hcmt.design.reports import contour_picture, format_table
+from hcmt.errors import missing_extra
 from hcmt.inference.evaluate import evaluate, format_metrics
 from hcmt.inference.run import Run
 from hcmt.sim.generate import generate_dataset
@@ -57,11 +58,15 @@ def design_demo(args: argparse.Namespace) -> int:
           + ("; 'surrogate' is the response surface (a Gaussian process) fitted on the model's own training "
              "designs" if check.surrogate else ""))
     print(format_table(preds, verified))
-    picture = contour_picture(preds[1], truth[1], run.meta, Path(args.out), run.label)
-    print(f"\ncontours at the peak frame, solver beside prediction: {picture}")
+    missing = missing_extra("viz", "matplotlib")
+    if missing is None:
+        picture = contour_picture(preds[1], truth[1], run.meta, Path(args.out), run.label)
+        print(f"\ncontours at the peak frame, solver beside prediction: {picture}")
+    else:
+        print(f"\nno contour picture: {missing}")
     print("your own designs:  hcmt predict pretrained:impact_plate_small --design thickness=0.8 drop_height=700 "
           "--verify")
-    print("a sweep:           hcmt sweep pretrained:impact_plate_small --vary thickness=0.5:1.0:11 --design "
+    print("a sweep:           hcmt sweep pretrained:impact_plate_small --vary thickness=0.55:0.95:9 --design "
           "drop_height=600 --yield-mpa 750 --verify auto")
     print("where the model is weak: `hcmt models` (measured error by region) and docs/MODELS.md")
     print(f"took {time.perf_counter() - t0:.0f} s")

@@ -17,6 +17,7 @@ from hcmt.design.check import check_designs
 from hcmt.design.inputs import range_warnings, read_designs_csv, settings_of
 from hcmt.design.reports import contour_picture, format_calls, format_table, to_json, write_csv
 from hcmt.design.surrogate import run_surrogate_path
+from hcmt.errors import missing_extra
 from hcmt.files import atomic_path, check_apart, undo_on_error
 from hcmt.inference.run import Run
 from hcmt.sim.params import DESIGN_KEYS, DESIGN_UNITS, FAMILIES, describe_family, middle_design, parse_design
@@ -117,7 +118,9 @@ def main_sweep(args: argparse.Namespace) -> int:
         print(format_calls(check.preds, args.yield_mpa, param, lambda p: f"{getattr(p.design, param):.6g}"))
     print(sw.format_analysis(analysis))
     with undo_on_error(args.out, args.csv, args.json):  # all outputs or none
-        print(f"plot: {sw.plot_sweep(check, analysis, args.out, run.label)}")
+        missing = missing_extra("viz", "matplotlib")
+        print(f"plot: {sw.plot_sweep(check, analysis, args.out, run.label)}" if missing is None
+              else f"no plot: {missing}")
         if args.csv:
             print(f"wrote {write_csv(check.preds, args.csv)}")
         if args.json:

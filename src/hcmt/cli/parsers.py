@@ -25,8 +25,8 @@ from hcmt.config import (
     load_config,
     machine_cores,
 )
-from hcmt.design.basics import DEFAULT_READOUT, QUANTITIES, READOUTS, RESTARTS, parse_vary, read_table
-from hcmt.errors import clip
+from hcmt.design.basics import DEFAULT_READOUT, DESIGN_BATCH, QUANTITIES, READOUTS, RESTARTS, parse_vary, read_table
+from hcmt.errors import clip, require_installed
 from hcmt.sim.params import (
     CONTACT_RADIUS,
     DESIGN_UNITS,
@@ -235,6 +235,10 @@ def configure_simulate(parser: argparse.ArgumentParser) -> None:
                         help="the panel's bonded layers from the top, MATERIAL:THICKNESS[:density=..][:modulus=..]"
                              f"[:poisson=..] separated by commas, 1-4 layers, MATERIAL one of {', '.join(MATERIALS)}"
                              " (e.g. glass:0.55,adhesive:0.05,film:0.2); sets thickness, plate_* and layer2-4_*")
+    parser.add_argument("--design", nargs="+", default=[], metavar="KEY=VALUE",
+                        help="the design, spelled as in predict and sweep, e.g. --design thickness=0.8 "
+                             "drop_height=900 (unspecified parameters from --preset / --family); each parameter is "
+                             "also its own flag below (--thickness 0.8)")
     for f in fields(Design):
         parser.add_argument("--" + f.name.replace("_", "-"), type=float, default=None,
                             help=_DESIGN_HELP.get(f.name) or f"{DESIGN_UNITS[f.name]}")
@@ -248,6 +252,12 @@ def configure_simulate(parser: argparse.ArgumentParser) -> None:
 def simulate_inputs(args) -> tuple[Design, Settings]:
     """The design and settings of ``hcmt simulate``, validated; one line naming the flag at fault."""
     given = {f.name: getattr(args, f.name) for f in fields(Design) if getattr(args, f.name) is not None}
+    listed = design_values(args.design)
+    twice = sorted(set(listed) & set(given))
+    if twice:
+        raise CommandError(f"--design {twice[0]}=... and --{twice[0].replace('_', '-')}: the same parameter twice; "
+                           "give it once")
+    given.update(listed)
     stack = parse_stack(args.stack) if args.stack is not None else {}
     both = sorted(set(stack) & set(given))
     if both:
@@ -279,6 +289,8 @@ def check_convert(args) -> None:
 
 def configure_info(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("dataset", help="native dataset folder (meta.json + <split>.h5)")
+    parser.add_argument("--all", action="store_true", help="list every design parameter on its own line, the "
+                        "constant ones too (default: the varying ones, the constants in one line)")
 
 
 def check_info(args) -> None:
@@ -336,9 +348,11 @@ def check_train(args) -> None:
 
 
 def _run_args(p: argparse.ArgumentParser) -> None:
-    p.add_argument("run", help="run folder made by `hcmt train`")
+    p.add_argument("run", help="run folder made by `hcmt train`, or pretrained:NAME (a shipped model, with --out)")
     same_as(p, path="RUN")
     p.add_argument("--data", required=True, help="native dataset folder")
+    p.add_argument("--out", metavar="DIR", help="for a shipped model (pretrained:NAME): the folder its rollouts and "
+                   "metrics are written to (a run folder's go to RUN)")
     p.add_argument("--split", default="test")
     p.add_argument("--limit", type=count(1, MAX_TRAJECTORIES), metavar="N",
                    help=f"only the first N trajectories, {span(1, MAX_TRAJECTORIES)}")
@@ -352,6 +366,15 @@ def _run_args(p: argparse.ArgumentParser) -> None:
 def _check_run_args(args) -> None:
     check_run("RUN", args.run)
     check_folder("--data", args.data, "a native dataset folder (meta.json + <split>.h5)")
+    shipped = args.run.startswith("pretrained:")
+    if shipped and args.out is None:
+        raise CommandError(f"RUN {clip(args.run)}: a shipped model has no run folder; give --out DIR for its "
+                           "rollouts and metrics")
+    if not shipped and args.out is not None:
+        raise CommandError(f"--out {clip(args.out)}: for a shipped model (pretrained:NAME); a run folder's rollouts "
+                           "and metrics go to RUN")
+    if args.out is not None:
+        check_outputs({}, {"--out": args.out})
 
 
 configure_rollout = configure_evaluate = _run_args
@@ -379,7 +402,7 @@ def configure_predict(p: argparse.ArgumentParser) -> None:
                    "(optional `name` column), one design per row; with --design too, the --design ones come first; "
                    f"{span(1, MAX_DESIGNS)} designs in all")
     p.add_argument("--device", help="cpu, cuda, cuda:N (default: cuda when available)")
-    batch_arg(p, "designs rolled out", 8, "8")
+    batch_arg(p, "designs rolled out", DESIGN_BATCH, f"{DESIGN_BATCH}, measured fastest on one CPU thread")
     compile_arg(p)
     p.add_argument("--yield-mpa", type=float, help="report the margin of the peak plate stress to this stress (MPa) "
                    "and a pass / fail / undecided call per design from the trusted interval")
@@ -428,6 +451,8 @@ def check_predict(args) -> None:
         design_values(items)
     check_options(args)
     check_outputs({"--json": args.json, "--csv": args.csv}, {"--out": args.out} if args.images else {})
+    if args.images:
+        require_installed("viz", "matplotlib")  # before the model runs: --images needs the pictures' extra
     rows = len(read_table(Path(args.designs))[2]) if args.designs else 0
     if len(args.design) + rows > MAX_DESIGNS:
         raise CommandError(f"{len(args.design) + rows:,} designs (--design and --designs); expected at most "
@@ -437,7 +462,7 @@ def check_predict(args) -> None:
 def configure_sweep(p: argparse.ArgumentParser) -> None:
     model_arg(p)
     p.add_argument("--vary", required=True, metavar="PARAM=LO:HI:N",
-                   help="the parameter swept and its range, e.g. thickness=0.5:1.0:6 (N points, 2 to 256, ends "
+                   help="the parameter swept and its range, e.g. thickness=0.55:0.95:5 (N points, 2 to 256, ends "
                         "included)")
     p.add_argument("--design", nargs="+", default=[], metavar="KEY=VALUE",
                    help="the other parameters, e.g. --design drop_height=750 (default: the middle of the training "
@@ -448,7 +473,7 @@ def configure_sweep(p: argparse.ArgumentParser) -> None:
     surrogate_args(p)
     readout_arg(p)
     p.add_argument("--device", help="cpu, cuda, cuda:N (default: cuda when available)")
-    batch_arg(p, "designs per model call", None, "the whole sweep in one batch")
+    batch_arg(p, "designs rolled out", DESIGN_BATCH, f"{DESIGN_BATCH}, measured fastest on one CPU thread")
     compile_arg(p)
     p.add_argument("--force", action="store_true", help="run even designs estimated to take over 600 s")
     p.add_argument("--out", default="sweep_out", help="folder for the plot (default sweep_out)")

@@ -58,6 +58,9 @@ def _print_warnings(args, warnings: list[str]) -> None:
 
 def _load(args) -> Run:
     check_options(batch=args.batch, compile=args.compile)  # bad options: one line before the model loads
+    if args.out is not None:  # a shipped model: its rollouts and metrics go to --out
+        check_apart({"--out": args.out}, {"--data": args.data})
+        return Run.load(args.run, args.device, args.checkpoint).writing_to(args.out)
     check_apart({"RUN": args.run}, {"--data": args.data})  # its rollouts and metrics go to RUN
     return Run.load(args.run, args.device, args.checkpoint)
 

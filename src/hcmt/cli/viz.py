@@ -58,6 +58,39 @@ def _load_runs(args) -> list[Run | RunFolder]:
     return out
 
 
+def _plot_hierarchy(args, runs, case, out: Path, notes: list[str]) -> list[Path]:
+    """The level-wise meshes of ``--levels`` or of the first run that uses a hierarchy (else a note)."""
+    levels, remesh = args.levels, True
+    if levels is None:
+        for run in runs:
+            lv, rm = uses_hierarchy(run.info["model"])
+            if lv:
+                levels, remesh = lv, rm
+                break
+    if not levels:
+        notes.append("hierarchy: no run uses a mesh hierarchy; pass --levels N to draw one")
+        return []
+    h = cached_hierarchy(case.mesh_pos, case.cells, case.node_type, levels, remesh,
+                         cache_dir=hierarchy_cache_dir(args.data))
+    return plot_hierarchy(case.mesh_pos, h, out, length_unit=case.unit("length"), node_type=case.node_type)
+
+
+def _plot_attention(args, runs, labels: list[str], out: Path, notes: list[str]) -> list[Path]:
+    """One attention map per Transformer run with a checkpoint (a note for each other one)."""
+    written = []
+    for run, label in zip(runs, labels):
+        if not isinstance(run, Run):
+            notes.append(f"attention: {label} ({run.source}) has no checkpoint; skipped")
+            continue
+        if not REGISTRY[run.info["model"]["name"]].has_attention:
+            notes.append(f"attention: {label} ({run.source}) is not a Transformer; skipped")
+            continue
+        maps = frame_attention(run, args.data, args.split, args.trajectory, args.attention_frame)
+        maps.model = label
+        written.append(plot_attention(maps, out / f"attention_{_slug(label)}.png"))
+    return written
+
+
 def main_plot(args: argparse.Namespace) -> int:
     only = pictures_of(args.only)
     frames = frames_of(args.frames)
@@ -90,31 +123,9 @@ def main_plot(args: argparse.Namespace) -> int:
         else:
             notes.append("training curves: no run has a log.jsonl")
     if "hierarchy" in only:
-        levels, remesh = args.levels, True
-        if levels is None:
-            for run in runs:
-                lv, rm = uses_hierarchy(run.info["model"])
-                if lv:
-                    levels, remesh = lv, rm
-                    break
-        if levels:
-            h = cached_hierarchy(case.mesh_pos, case.cells, case.node_type, levels, remesh,
-                                 cache_dir=hierarchy_cache_dir(args.data))
-            written += plot_hierarchy(case.mesh_pos, h, out, length_unit=case.unit("length"),
-                                      node_type=case.node_type)
-        else:
-            notes.append("hierarchy: no run uses a mesh hierarchy; pass --levels N to draw one")
+        written += _plot_hierarchy(args, runs, case, out, notes)
     if "attention" in only:
-        for run, label in zip(runs, labels):
-            if not isinstance(run, Run):
-                notes.append(f"attention: {label} ({run.source}) has no checkpoint; skipped")
-                continue
-            if not REGISTRY[run.info["model"]["name"]].has_attention:
-                notes.append(f"attention: {label} ({run.source}) is not a Transformer; skipped")
-                continue
-            maps = frame_attention(run, args.data, args.split, args.trajectory, args.attention_frame)
-            maps.model = label
-            written.append(plot_attention(maps, out / f"attention_{_slug(label)}.png"))
+        written += _plot_attention(args, runs, labels, out, notes)
     for path in written:
         print(f"wrote {path}")
     for note in notes:

@@ -9,10 +9,12 @@ from hcmt.data.format import NodeType, Split, incomplete, list_splits, read_meta
 from hcmt.errors import DatasetError
 
 
-def summarize(dataset_dir: str | Path) -> str:
-    """Splits, trajectory counts, nodes min/mean/max, steps, fields, node-type counts, design-parameter ranges and
-    the per-frame displacement per node type. Every trajectory is read and validated as training reads it
-    (:class:`hcmt.data.format.Split`): a bad one stops with a :class:`DatasetError` naming file, trajectory, field."""
+def summarize(dataset_dir: str | Path, all_params: bool = False) -> str:
+    """Splits, trajectory counts, nodes min/mean/max, steps, fields, node-type counts, design-parameter ranges
+    (the parameters that vary over a split, one line each; the constant ones in one line, or each on its own line
+    with ``all_params``: :func:`param_lines`) and the per-frame displacement per node type. Every trajectory is
+    read and validated as training reads it (:class:`hcmt.data.format.Split`): a bad one stops with a
+    :class:`DatasetError` naming file, trajectory, field."""
     meta = read_meta(dataset_dir)
     if not list_splits(dataset_dir):
         raise DatasetError(incomplete(dataset_dir), file=dataset_dir)
@@ -54,10 +56,20 @@ def summarize(dataset_dir: str | Path) -> str:
                          + ", ".join(f"{t.name} {types[t]}" for t in NodeType if types[t]))
             if families:
                 lines.append("    families: " + ", ".join(f"{k} {n}" for k, n in sorted(families.items())))
-            for k, v in params.items():
-                lines.append(f"    {k:<14} {min(v):.6g} .. {max(v):.6g}")
+            lines += param_lines(params, all_params)
             lines += displacement_lines(steps, meta.get("units", {}).get("length", ""))
     return "\n".join(lines)
+
+
+def param_lines(params: dict[str, list[float]], all_params: bool = False) -> list[str]:
+    """One line per design parameter that varies over the split (``min .. max``); those that do not, in one line
+    ``constant: k=v, ...`` (each on its own line with ``all_params``)."""
+    varying = {k: v for k, v in params.items() if min(v) != max(v)}
+    constant = {k: v[0] for k, v in params.items() if k not in varying}
+    lines = [f"    {k:<14} {min(v):.6g} .. {max(v):.6g}" for k, v in (params if all_params else varying).items()]
+    if constant and not all_params:
+        lines.append(f"    constant ({len(constant)}): " + ", ".join(f"{k}={v:.6g}" for k, v in constant.items()))
+    return lines
 
 
 def position_fields(meta: dict) -> list[str]:

@@ -19,6 +19,10 @@ RESTARTS = 3  # optimizer restarts of the marginal likelihood (the issue's compa
 #: the others add a derived read-out under their own names
 READOUTS = ("raw", "contact", "element")
 DEFAULT_READOUT = "raw"
+#: designs per model call, the same default for ``predict``, ``sweep`` and the library: on one CPU thread one design
+#: at a time was measured fastest, 1.77 s per design against 2.80 s in one batch of 64
+#: (benchmarks/results/design_speed_cpu.json); on a GPU a larger batch may pay (``--batch N``)
+DESIGN_BATCH = 1
 
 
 def check_name(name, where: str) -> str:

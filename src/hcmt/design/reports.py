@@ -3,6 +3,7 @@ become null) and the contour pictures of a checked design."""
 from __future__ import annotations
 
 import csv
+from collections.abc import Mapping
 from dataclasses import asdict
 from pathlib import Path
 
@@ -11,11 +12,10 @@ import numpy as np
 from hcmt.config import plural
 from hcmt.design.check import Check, Prediction, weak_reasons
 from hcmt.design.readout import chosen, readout_key
+from hcmt.design.summary import Summary
 from hcmt.files import atomic_path
 from hcmt.inference.metrics import format_physics
 from hcmt.sim.params import DESIGN_KEYS
-from hcmt.viz.contours import plot_contours
-from hcmt.viz.rollouts import Case, Series
 
 # -- output --------------------------------------------------------------------------------------------------------
 COLUMNS = [("design", "{}", "name"), ("plate MPa", "{:.1f}", "peak_plate_stress_mpa"),
@@ -166,7 +166,8 @@ def to_json(preds: list[Prediction], verified: dict | None, run_source: str, dev
     stress history and the notes), the verify summary, the read-out used, the surrogate's source and the solver
     runs."""
     out = {"model": run_source, "device": device, "units": {"stress": "MPa", "length": "mm", "time": "ms"},
-           "designs": [{"name": p.name, "design": asdict(p.design), **p.summary, "notes": weak_reasons(p)}
+           "designs": [{"name": p.name, "design": asdict(p.design), **summary_json(p.summary),
+                        "notes": weak_reasons(p)}
                        for p in preds],
            **({"verify": verified} if verified else {})}
     if check is not None:
@@ -177,11 +178,16 @@ def to_json(preds: list[Prediction], verified: dict | None, run_source: str, dev
     return finite(out)
 
 
+def summary_json(summary) -> dict:
+    """A design's summary as its JSON block (:meth:`hcmt.design.summary.Summary.to_json`; a plain dict as it is)."""
+    return summary.to_json() if isinstance(summary, Summary) else dict(summary)
+
+
 def finite(obj):
     """``obj`` with every NaN or infinite float as None: standard JSON (``jq``, ``JSON.parse``) has no NaN."""
     if isinstance(obj, float):
         return obj if np.isfinite(obj) else None
-    if isinstance(obj, dict):
+    if isinstance(obj, Mapping):  # a dict, or a Summary
         return {k: finite(v) for k, v in obj.items()}
     if isinstance(obj, (list, tuple)):
         return [finite(v) for v in obj]
@@ -191,6 +197,8 @@ def finite(obj):
 def contour_picture(p: Prediction, truth: Prediction | None, meta: dict, out_dir: str | Path, label: str) -> Path:
     """Stress contours (impact zoom) at the predicted peak-plate-stress frame, and with ``truth`` beside the solver
     at the solver's own peak frame too (one row each, the earlier first, one row when they coincide)."""
+    from hcmt.viz.contours import plot_contours  # here: matplotlib only when a picture is asked for
+    from hcmt.viz.rollouts import Case, Series
     pred = Series(f"{label} prediction", p.world_pos, p.stress, start=2)
     if truth is not None:
         case = Case(p.name, p.mesh_pos, p.cells, p.node_type, Series("Solver", truth.world_pos, truth.stress),

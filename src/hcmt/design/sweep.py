@@ -1,4 +1,4 @@
-"""Design sweeps: one parameter varied over a range, every point predicted in one batch (``hcmt sweep``).
+"""Design sweeps: one parameter varied over a range, every point predicted (``hcmt sweep``).
 
 An engineer's questions of a sweep are the trend and the limit: does the peak plate stress (and the maximum
 deflection) rise or fall with the parameter, steadily or not, and which value is the smallest (or largest) that
@@ -20,13 +20,12 @@ from pathlib import Path
 import numpy as np
 
 from hcmt.config import plural
-from hcmt.design.basics import parse_vary  # noqa: F401 (hcmt.design.sweep.parse_vary, as before)
+from hcmt.design.basics import DESIGN_BATCH, parse_vary  # noqa: F401 (hcmt.design.sweep.parse_vary, as before)
 from hcmt.design.check import Check, check_designs
 from hcmt.design.readout import chosen
 from hcmt.design.reports import finite, to_json
 from hcmt.errors import InputError
 from hcmt.sim.params import Design
-from hcmt.viz.meshplot import new_figure, save_figure
 
 #: steps smaller than this share of a series' range count as flat in the monotonicity test
 TREND_TOL = 0.02
@@ -141,14 +140,13 @@ def _unsafe(model: dict, solver: dict) -> bool:
     return bool(set(model["passing"]) - set(solver["passing"]))
 
 
-def sweep(run, param: str, lo: float, hi: float, n: int, base: Design, *, batch: int | None = None,
+def sweep(run, param: str, lo: float, hi: float, n: int, base: Design, *, batch: int = DESIGN_BATCH,
           **options) -> tuple[Check, dict]:
-    """Predict a one-parameter sweep in one batch (``batch`` designs per model call, default all) and analyse it;
-    ``options`` as :func:`hcmt.design.check.check_designs` (verify, yield_mpa, surrogate, ...)."""
-    if batch is not None and batch < 1:
-        raise InputError(f"must be >= 1, got {batch}", param="batch")
+    """Predict a one-parameter sweep (``batch`` designs per model call, default
+    :data:`hcmt.design.basics.DESIGN_BATCH`; None: the whole sweep in one) and analyse it; ``options`` as
+    :func:`hcmt.design.check.check_designs` (verify, yield_mpa, surrogate, ...)."""
     designs = sweep_designs(base, param, lo, hi, n)
-    check = check_designs(run, designs, batch=batch or n, **options)
+    check = check_designs(run, designs, batch=n if batch is None else batch, **options)
     analysis = analyse(check, param, options.get("yield_mpa"))
     lo_t, hi_t = run.ranges.get(param, (None, None))
     if lo_t is not None and lo_t == hi_t:
@@ -200,6 +198,7 @@ def sweep_json(check: Check, analysis: dict, run_source: str, device: str) -> di
 
 def plot_sweep(check: Check, analysis: dict, out_dir: str | Path, label: str) -> Path:
     """Peak plate stress and maximum deflection against the swept parameter: model, and the solver with verify."""
+    from hcmt.viz.meshplot import new_figure, save_figure  # here: matplotlib only for the plot
     x = np.array(analysis["values"])
     fig = new_figure(10, 4)
     axes = fig.subplots(1, 2)

@@ -13,7 +13,7 @@ trajectories), "card" (how it was made)}``; it loads with ``torch.load(weights_o
 from __future__ import annotations
 
 import json
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from functools import cached_property
 from pathlib import Path
 
@@ -143,11 +143,21 @@ class Run:
         return int(self.info["checkpoint"]["step"])
 
     def require_folder(self) -> RunFolder:
-        """The run folder (rollouts and metrics are written there); a shipped model has none."""
+        """The run folder (rollouts and metrics are written there); a shipped model has none unless given one
+        (:meth:`writing_to`)."""
         if self.folder is None:
-            raise InputError(f"{self.source}: a shipped model has no run folder to write rollouts to; use "
-                             "hcmt.predict_designs for designs, or train a run")
+            raise InputError(f"{self.source}: a shipped model has no run folder to write rollouts to; give it one "
+                             "(run.writing_to(DIR); hcmt evaluate --out DIR), or use hcmt.predict_designs for designs")
         return self.folder
+
+    def writing_to(self, path: str | Path) -> "Run":
+        """This shipped model with ``path`` as the folder its rollouts and metrics are written to
+        (``rollout_<split>.h5``, ``metrics_<split>.json``; made when missing): ``hcmt evaluate pretrained:NAME
+        --out DIR``."""
+        if self.folder is not None:
+            raise InputError(f"{self.source}: a run folder writes its rollouts and metrics to itself", param="path")
+        Path(path).mkdir(parents=True, exist_ok=True)
+        return replace(self, folder=RunFolder(path, must_exist=False))
 
     # -- packaging -------------------------------------------------------------------------------------------------
     def save_pretrained(self, path: str | Path, card: dict, half: bool = True) -> Path:

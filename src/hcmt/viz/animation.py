@@ -66,28 +66,15 @@ def closest_frame(case: Case) -> int:
     return int(np.argmin(gaps))
 
 
-def animate(case: Case, path: str | Path, *, fps: int = 10, stride: int | None = None, cmap: str = "viridis",
-            percentile: float = 99.0, dpi: int = 100) -> Path:
-    """Write the animation to ``path`` (``.gif``); returns it. One animation frame per drawn rollout frame
-    (:func:`animation_frames`). The zoom row shows one window for the whole animation (the impact window at the
-    frame of closest approach), so the view does not jump; everything but the meshes and the title is drawn once
-    (blitting), which makes a frame about ten times cheaper than redrawing the figure."""
-    path = Path(path)
-    if path.suffix.lower() != ".gif":
-        raise InputError(f"{path}: expected a .gif file name (animations are written with Pillow)")
-    if fps <= 0:
-        raise InputError(f"fps must be > 0, got {fps}")
-    path.parent.mkdir(parents=True, exist_ok=True)
-    field = field_name(case)
-    norm, extend = animation_norm(case, field, percentile)
-    frames = animation_frames(case.num_frames, stride)
-    series = case.series
+def animation_axes(case: Case, field: str, norm, extend: str, percentile: float, cmap: str):
+    """The animation's figure: one column per series, the whole view on top and (2-D, several objects) the impact
+    zoom below, one colour bar; returns (fig, axes [row][col], title, box, window)."""
     three_d = case.dim == 3
     obj = case.object_id
     zoom = not three_d and len(np.unique(obj)) > 1
     box = view_box(case, list(range(case.num_frames)))
     window = impact_window(case.truth.world_pos[closest_frame(case)], obj, case.truth.world_pos[0]) if zoom else None
-    cols, rows = len(series), 1 + zoom
+    cols, rows = len(case.series), 1 + zoom
     w, h = panel_size(box, 3.0) if not three_d else (3.0, 2.6)
     zh = panel_size(window, 3.0)[1] if zoom else 0.0
     fig = new_figure(w * cols + 1.0, h + zh + 0.7)
@@ -101,7 +88,7 @@ def animate(case: Case, path: str | Path, *, fps: int = 10, stride: int | None =
     cbar.set_label(label, fontsize=8)
     length = case.unit("length")
     for r in range(rows):
-        for c, s in enumerate(series):
+        for c, s in enumerate(case.series):
             ax = axes[r][c]
             if r == 0:
                 ax.set_title(s.label, fontsize=9)
@@ -116,16 +103,66 @@ def animate(case: Case, path: str | Path, *, fps: int = 10, stride: int | None =
                 ax.set_ylabel(("impact zoom\n" if r else "") + quantity_label("y", length), fontsize=7)
             if r == rows - 1:
                 ax.set_xlabel(quantity_label("x", length), fontsize=7)
-    title = fig.suptitle(" ", fontsize=10)
+    return fig, axes, fig.suptitle(" ", fontsize=10), box, window
+
+
+def render_frames(fig, axes, title, frames: list[int], draw, three_d: bool, dpi: int) -> list:
+    """One RGB image per animation frame: 3-D redrawn in full, 2-D by blitting (the static parts rendered once,
+    then only ``draw(f)``'s artists and the title)."""
+    canvas = fig.canvas
+    images = []
+    if three_d:  # 3-D axes redraw their whole scene anyway: draw every frame in full
+        for f in frames:
+            for row in axes:
+                for ax in row:
+                    for coll in list(ax.collections):
+                        coll.remove()
+            draw(f)
+            canvas.draw()
+            images.append(Image.fromarray(np.asarray(canvas.buffer_rgba())).convert("RGB"))
+        return images
+    title.set_animated(True)
+    fig.set_dpi(dpi)
+    canvas.draw()  # lay out and render the static parts once
+    fig.set_layout_engine("none")
+    background = canvas.copy_from_bbox(fig.bbox)
+    for f in frames:  # one rendered image per animation frame
+        canvas.restore_region(background)
+        artists = draw(f)
+        for ax, a in artists:
+            ax.draw_artist(a)
+        fig.draw_artist(title)
+        images.append(Image.fromarray(np.asarray(canvas.buffer_rgba())).convert("RGB"))
+        for _, a in artists:
+            a.remove()
+    return images
+
+
+def animate(case: Case, path: str | Path, *, fps: int = 10, stride: int | None = None, cmap: str = "viridis",
+            percentile: float = 99.0, dpi: int = 100) -> Path:
+    """Write the animation to ``path`` (``.gif``); returns it. One animation frame per drawn rollout frame
+    (:func:`animation_frames`). The zoom row shows one window for the whole animation (the impact window at the
+    frame of closest approach), so the view does not jump; everything but the meshes and the title is drawn once
+    (blitting, :func:`render_frames`), which makes a frame about ten times cheaper than redrawing the figure."""
+    path = Path(path)
+    if path.suffix.lower() != ".gif":
+        raise InputError(f"{path}: expected a .gif file name (animations are written with Pillow)")
+    if fps <= 0:
+        raise InputError(f"fps must be > 0, got {fps}")
+    path.parent.mkdir(parents=True, exist_ok=True)
+    field = field_name(case)
+    norm, extend = animation_norm(case, field, percentile)
+    three_d = case.dim == 3
+    fig, axes, title, box, window = animation_axes(case, field, norm, extend, percentile, cmap)
     limits3d = box_3d(list(case.truth.world_pos)) if three_d else None  # one box for every panel and frame
+    length = case.unit("length")
     last = case.num_frames - 1
     starts = min(s.start for s in case.predictions) if case.predictions else 0
 
     def draw(f: int) -> list:
         artists = []
-        for r in range(rows):
-            for c, s in enumerate(series):
-                ax = axes[r][c]
+        for r, row in enumerate(axes):
+            for ax, s in zip(row, case.series):
                 before = set(ax.get_children())
                 values = field_values(s, f, field)
                 if three_d:
@@ -140,32 +177,7 @@ def animate(case: Case, path: str | Path, *, fps: int = 10, stride: int | None =
         title.set_text(f"Trajectory {case.name}: {case.time_label(f, last)}{note}")
         return artists
 
-    canvas = fig.canvas
-    images = []
-    if three_d:  # 3-D axes redraw their whole scene anyway: draw every frame in full
-        for f in frames:
-            for row in axes:
-                for ax in row:
-                    for coll in list(ax.collections):
-                        coll.remove()
-            draw(f)
-            canvas.draw()
-            images.append(Image.fromarray(np.asarray(canvas.buffer_rgba())).convert("RGB"))
-    else:
-        title.set_animated(True)
-        fig.set_dpi(dpi)
-        canvas.draw()  # lay out and render the static parts once
-        fig.set_layout_engine("none")
-        background = canvas.copy_from_bbox(fig.bbox)
-        for f in frames:  # one rendered image per animation frame
-            canvas.restore_region(background)
-            artists = draw(f)
-            for ax, a in artists:
-                ax.draw_artist(a)
-            fig.draw_artist(title)
-            images.append(Image.fromarray(np.asarray(canvas.buffer_rgba())).convert("RGB"))
-            for _, a in artists:
-                a.remove()
+    images = render_frames(fig, axes, title, animation_frames(case.num_frames, stride), draw, three_d, dpi)
     with atomic_path(path) as tmp:
         images[0].save(tmp, format="GIF", save_all=True, append_images=images[1:], duration=int(round(1000 / fps)),
                        loop=0)

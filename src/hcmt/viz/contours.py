@@ -121,6 +121,36 @@ def frame_rmse(series: Series, truth: Series, frame: int, field: str) -> float:
 SCALES = ("frame", "all")
 
 
+def panel_title(case: Case, s, f: int, field: str) -> str:
+    """A series' label, and for a prediction its RMSE against the ground truth at frame ``f``."""
+    if s is case.truth:
+        return s.label
+    unit = case.unit("stress" if field == "stress" else "length")
+    what = "stress" if field == "stress" else "position"
+    return s.label + f"\n{what} RMSE {frame_rmse(s, case.truth, f, field):.3g}" + (f" {unit}" if unit else "")
+
+
+def draw_panel_2d(ax, case: Case, s, f: int, field: str, norm, cmap: str, zoom: bool, window, first: bool):
+    """One 2-D contour panel of ``contour_figure``: the field on the deformed mesh inside ``window``; in the whole
+    view the ground truth's first panel marks the zoomed window in red. Returns the mappable."""
+    mappable = draw_field_2d(ax, s.world_pos[f], case.cells, field_values(s, f, field), norm, cmap, edges=zoom)
+    x0, x1, y0, y1 = window
+    ax.set_xlim(x0, x1)
+    ax.set_ylim(y0, y1)
+    if not zoom and first and len(case.predictions):
+        zw = impact_window(case.truth.world_pos[f], case.object_id, case.truth.world_pos[0])
+        if zw is not None:
+            ax.add_patch(Rectangle((zw[0], zw[2]), zw[1] - zw[0], zw[3] - zw[2], fill=False, ec="red", lw=1.0))
+    length = case.unit("length")
+    ax.tick_params(labelsize=7)
+    ax.set_xlabel(quantity_label(axis_names(case)[0], length), fontsize=8)
+    if first:
+        ax.set_ylabel(quantity_label(axis_names(case)[1], length), fontsize=8)
+    else:
+        ax.tick_params(labelleft=False)
+    return mappable
+
+
 def contour_figure(case: Case, frames: list[int] | None = None, *, field: str | None = None, zoom: bool = False,
                    cmap: str = "viridis", scale: str = "frame", panel_width: float = 3.2):
     """The contour grid (rows: frames, columns: ground truth then predictions). ``zoom`` draws the impact window
@@ -159,28 +189,8 @@ def contour_figure(case: Case, frames: list[int] | None = None, *, field: str | 
                                          limits=limits3d, length_unit=length)
             else:
                 ax = sub.add_subplot(1, cols, c + 1)
-                mappable = draw_field_2d(ax, s.world_pos[f], case.cells, field_values(s, f, field), norm, cmap,
-                                         edges=zoom)
-                x0, x1, y0, y1 = windows[r]
-                ax.set_xlim(x0, x1)
-                ax.set_ylim(y0, y1)
-                if not zoom and c == 0 and len(case.predictions):
-                    zw = impact_window(case.truth.world_pos[f], obj, case.truth.world_pos[0])
-                    if zw is not None:
-                        ax.add_patch(Rectangle((zw[0], zw[2]), zw[1] - zw[0], zw[3] - zw[2], fill=False,
-                                               ec="red", lw=1.0))
-                ax.tick_params(labelsize=7)
-                ax.set_xlabel(quantity_label(axis_names(case)[0], length), fontsize=8)
-                if c == 0:
-                    ax.set_ylabel(quantity_label(axis_names(case)[1], length), fontsize=8)
-                else:
-                    ax.tick_params(labelleft=False)
-            title = s.label
-            if s is not case.truth:
-                unit = case.unit("stress" if field == "stress" else "length")
-                what = "stress" if field == "stress" else "position"
-                title += f"\n{what} RMSE {frame_rmse(s, case.truth, f, field):.3g}" + (f" {unit}" if unit else "")
-            ax.set_title(title, fontsize=9)
+                mappable = draw_panel_2d(ax, case, s, f, field, norm, cmap, zoom, windows[r], first=c == 0)
+            ax.set_title(panel_title(case, s, f, field), fontsize=9)
             row_axes.append(ax)
         cbar = sub.colorbar(mappable, ax=row_axes, extend=extend, aspect=15)
         cbar.set_label(field_label(case, field), fontsize=8)

@@ -1,0 +1,79 @@
+"""Design check, the limit calls: each design's ``call`` (pass / fail / undecided) for a yield stress from the
+peak plate stress interval it trusts (:func:`trusted_interval`), the yield margin, and the final call once the
+solver ran (:func:`final_calls`)."""
+from __future__ import annotations
+
+from hcmt.design.prediction import Prediction
+from hcmt.design.readout import DEFAULT_READOUT, chosen, readout_key
+from hcmt.errors import InputError
+
+#: the interval the limit calls trust (:func:`trusted_interval`), chosen by measurement (docs/MODELS.md, "Calls")
+TRUST = "union"
+
+
+TRUSTS = ("surrogate", "union", "model")
+
+
+#: without a surrogate, the mesh model's interval is its answer ± this share: the worst peak plate stress error
+#: measured on held-out designs inside the training ranges (docs/MODELS.md)
+MODEL_BAND = 0.6
+
+
+def trusted_interval(summary: dict, trust: str = TRUST) -> tuple[float, float, str]:
+    """(lo, hi, what) of the peak plate stress a call trusts: ``surrogate``, the surrogate's 95 % interval;
+    ``union``, that interval widened to hold the mesh model's answer; ``model`` (and whenever there is no
+    surrogate), the mesh model's answer ± :data:`MODEL_BAND`; the mesh model's answer as the summary's chosen
+    read-out reports it (:func:`hcmt.design.readout.chosen`)."""
+    if trust not in TRUSTS:
+        raise InputError(f"must be one of {', '.join(TRUSTS)}, got {trust!r}", param="trust")
+    m = chosen(summary, "peak_plate_stress_mpa")
+    s = (summary.get("surrogate") or {}).get("peak_plate_stress_mpa")
+    if s is None or trust == "model":
+        return m * (1 - MODEL_BAND), m * (1 + MODEL_BAND), "model"
+    if trust == "surrogate":
+        return s["lo"], s["hi"], "surrogate"
+    return min(s["lo"], m), max(s["hi"], m), "union"
+
+
+def call_of(lo: float, hi: float, yield_mpa: float) -> str:
+    """``pass`` only when the whole interval lies below the yield stress, ``fail`` only when it lies above."""
+    return "pass" if hi < yield_mpa else "fail" if lo > yield_mpa else "undecided"
+
+
+def add_calls(preds: list[Prediction], yield_mpa: float | None, trust: str = TRUST) -> None:
+    """Each design's ``call`` for ``yield_mpa`` from the trusted interval (:func:`trusted_interval`)."""
+    if yield_mpa is None:
+        return
+    for p in preds:
+        lo, hi, what = trusted_interval(p.summary, trust)
+        p.summary["call"] = call_of(lo, hi, yield_mpa)
+        p.summary["call_interval_mpa"] = {"lo": float(lo), "hi": float(hi), "from": what,
+                                          "model_readout": p.summary.get("readout", DEFAULT_READOUT)}
+
+
+def final_calls(preds: list[Prediction], truth: list[Prediction | None] | None, yield_mpa: float | None) -> None:
+    """``final_call``: the solver's (its peak below the yield stress or not) where it ran, else the call;
+    ``verified``: whether the solver ran."""
+    if yield_mpa is None:
+        return
+    for i, p in enumerate(preds):
+        t = truth[i] if truth is not None else None
+        p.summary["verified"] = t is not None
+        if t is None:
+            p.summary["final_call"] = p.summary["call"]
+        else:
+            p.summary["solver_call"] = "pass" if t.summary["peak_plate_stress_mpa"] < yield_mpa else "fail"
+            p.summary["final_call"] = p.summary["solver_call"]
+
+
+def add_margin(preds: list[Prediction], yield_mpa: float | None) -> None:
+    if yield_mpa is None:
+        return
+    if not yield_mpa > 0:
+        raise InputError(f"must be > 0, got {yield_mpa}", param="yield_mpa")
+    for p in preds:
+        key = readout_key("peak_plate_stress_mpa", p.summary.get("readout", DEFAULT_READOUT))
+        p.summary["yield_margin_mpa"] = float(yield_mpa - p.summary["peak_plate_stress_mpa"])
+        if key != "peak_plate_stress_mpa":
+            p.summary[key.replace("peak_plate_stress_mpa", "yield_margin_mpa")] = float(yield_mpa - p.summary[key])
+

@@ -11,6 +11,7 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from common import ROOT  # noqa: E402
+from peers.report import peers as peers_section  # noqa: E402
 from report_accuracy import ablations, accuracy, generalization, longer  # noqa: E402
 from report_common import load  # noqa: E402
 from report_gpu import gpu_check, gpu_path  # noqa: E402
@@ -38,6 +39,7 @@ def main() -> None:
     scaling_section(lines, load("scaling.json"))
     for section in SECTIONS:
         section(lines)
+    peers_section(lines, load("peers_cpu.json"))
     DOC.parent.mkdir(exist_ok=True)
     DOC.write_text("\n".join(lines).rstrip() + "\n")
     print(f"wrote {DOC}")

@@ -10,13 +10,15 @@ if [ "$WHICH" != physicsnemo ] && { [ ! -x "$PEERS/tf/bin/python" ] || ! "$PEERS
   "$PEERS/tf/bin/pip" install -q tensorflow-cpu "dm-sonnet==2.0.2" tf-keras
 fi
 P="$PEERS/physicsnemo/bin/pip"
-if [ "$WHICH" != tf ] && { [ ! -x "$PEERS/physicsnemo/bin/python" ] || ! "$PEERS/physicsnemo/bin/python" -c "import torch_scatter, torch_geometric, importlib.metadata as m; m.version('nvidia-physicsnemo')" 2>/dev/null; }; then
+if [ "$WHICH" != tf ] && { [ ! -x "$PEERS/physicsnemo/bin/python" ] || ! "$PEERS/physicsnemo/bin/python" -c "import torch_geometric, importlib.metadata as m; m.version('nvidia-physicsnemo')" 2>/dev/null; }; then
   "$PY" -m venv "$PEERS/physicsnemo"
   "$P" install -q torch==2.13.0              # first, or pip pulls the CUDA build
   "$P" install -q --no-deps "nvidia-physicsnemo==2.2.2"
   "$P" install -q warp-lang jaxtyping torch_geometric packaging s3fs einops numpy
   "$P" install -q --no-deps tensordict pyvers cloudpickle timm nvtx omegaconf pyyaml treelib termcolor
   "$P" install -q setuptools wheel
-  MAX_JOBS=2 "$P" install -q --no-build-isolation "torch-scatter==2.1.2"   # builds from source (minutes)
+  # builds from source (many minutes on a loaded core); SCATTER=0 skips it: the worker then stands in
+  # torch_geometric.utils.scatter for torch_scatter.scatter (see worker_physicsnemo.py)
+  if [ "${SCATTER:-1}" = 1 ]; then MAX_JOBS=2 "$P" install -q --no-build-isolation "torch-scatter==2.1.2"; fi
 fi
 echo "peers installed under $PEERS"

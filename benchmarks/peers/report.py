@@ -25,6 +25,14 @@ def _rate(row: dict, kind: str) -> str:
     return f"{row[f'{kind}_gflops_per_s']:.1f} ({100 * row[f'{kind}_peak_share']:.1f} %)"
 
 
+def _rounds(result: dict) -> str:
+    """How each model family was timed (a run per family when ``--only`` split them) and the load it met."""
+    parts = result.get("parts") or {"all": result}
+    return "; ".join(f"{'' if f == 'all' else f.upper() + ': '}{p['rounds']} interleaved rounds of "
+                     f"{p['steps_per_round']} calls each, load average {p['load_average'][0]:.1f} on the 2 cores "
+                     f"at the end" for f, p in parts.items())
+
+
 def peers(lines: list[str], result: dict | None) -> None:
     if not result:
         return
@@ -33,9 +41,8 @@ def peers(lines: list[str], result: dict | None) -> None:
         f"`{COMMAND}` (README: benchmarks/peers/README.md). One graph for all: the paper-size Impact Plate frame, "
         f"{g['nodes']:,} nodes, {g['mesh_edges']:,} mesh and {g['contact_edges']:,} contact edges, hierarchy levels "
         f"{', '.join(map(str, g['level_nodes']))} nodes. Each contestant in its own process and venv, one thread; "
-        f"{result['rounds']} interleaved rounds of {result['steps_per_round']} calls each; times are the median of "
-        f"the round medians, in brackets the range of the round medians (a loaded machine: load average "
-        f"{result['load_average'][0]:.1f} on 2 cores at the end). GFLOP/s from matmul FLOPs counted by "
+        f"{_rounds(result)}; times are the median of the round medians, in brackets the range of the round "
+        f"medians. GFLOP/s from matmul FLOPs counted by "
         f"`torch.utils.flop_counter` (the authors' TF HCMT is credited with hcmt's official-HCMT count); share of "
         f"the core's peak {peak['gflops']:.0f} GFLOP/s = {peak['derivation']}."), "",
         "| contestant | framework | train step ms | inference ms | train GFLOP/s (% peak) | "

@@ -24,6 +24,7 @@ import statistics
 import subprocess
 import sys
 import tempfile
+import threading
 import time
 from pathlib import Path
 
@@ -63,10 +64,20 @@ class Worker:
     """One contestant's process; ``ask`` sends a command and returns its answer."""
 
     def __init__(self, name: str, argv: list[str], env: dict, log: Path):
-        self.name, self.log = name, log.open("w")
+        self.name, self.log, self.info = name, log.open("w"), None
         self.proc = subprocess.Popen(argv, stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=self.log,
                                      text=True, env=env, cwd=ROOT)
-        self.info = self._read()["ready"]
+
+    def ready(self, deadline: float) -> None:
+        """Wait for the set-up to finish; one that is not done by ``deadline`` (perf_counter) is given up."""
+        timer = threading.Timer(max(deadline - time.perf_counter(), 0), self.proc.kill)
+        timer.start()
+        try:
+            self.info = self._read()["ready"]
+        except RuntimeError as e:
+            raise RuntimeError(f"{e} (set-up overran --ready-s?)" if not timer.is_alive() else str(e)) from None
+        finally:
+            timer.cancel()
 
     def _read(self) -> dict:
         for line in self.proc.stdout:
@@ -93,7 +104,8 @@ def python_of(venv: str | None, peers: Path) -> str:
     return sys.executable if venv is None else str(peers / venv / "bin" / "python")
 
 
-def start(contestants, graph: Path, peers: Path, authors: Path, logs: Path) -> tuple[dict, dict]:
+def start(contestants, graph: Path, peers: Path, authors: Path, logs: Path, ready_s: float) -> tuple[dict, dict]:
+    """Every contestant's process, set up side by side (idle ones do not disturb the timing that follows)."""
     env = dict(os.environ, OMP_NUM_THREADS="1", MKL_NUM_THREADS="1", TF_USE_LEGACY_KERAS="1",
                TF_CPP_MIN_LOG_LEVEL="2", PYTHONPATH=os.pathsep.join([str(ROOT / "src"), str(HERE)]))
     workers, failed = {}, {}
@@ -103,13 +115,16 @@ def start(contestants, graph: Path, peers: Path, authors: Path, logs: Path) -> t
             failed[name] = f"no interpreter {python}: run benchmarks/peers/install.sh"
             continue
         argv = [python, str(HERE / args[0])] + [a.format(graph=graph, authors=authors) for a in args[1:]]
-        t0 = time.perf_counter()
+        workers[name] = Worker(name, argv, env, logs / (re.sub(r"\W+", "_", name) + ".log"))
+    t0 = time.perf_counter()
+    for name in list(workers):
         try:
-            workers[name] = Worker(name, argv, env, logs / (re.sub(r"\W+", "_", name) + ".log"))
+            workers[name].ready(t0 + ready_s)
         except RuntimeError as e:
             failed[name] = str(e)
+            workers.pop(name).log.close()
             continue
-        print(f"{name}: ready in {time.perf_counter() - t0:.0f} s {workers[name].info}", flush=True)
+        print(f"{name}: ready after {time.perf_counter() - t0:.0f} s {workers[name].info}", flush=True)
     return workers, failed
 
 
@@ -152,9 +167,23 @@ def summarize(contestants, workers, times, peak) -> tuple[list, list]:
         for kind in ("train", "infer"):
             per_round = [statistics.median(a) / statistics.median(b)
                          for a, b in zip(times[name][kind], times[peer][kind])]
-            ratios.append({"hcmt": name, "peer": peer, "kind": kind, "ratio": statistics.median(per_round),
-                           "min": min(per_round), "max": max(per_round), "rounds": per_round})
+            ratios.append({"hcmt": name, "peer": peer, "model": family[name], "kind": kind,
+                           "ratio": statistics.median(per_round), "min": min(per_round), "max": max(per_round),
+                           "rounds": per_round})
     return rows, ratios
+
+
+def merged(result: dict, path: Path, families: set, names: set) -> dict:
+    """``result`` with the rows, ratios and failures of the other model families kept from ``path`` (a run with
+    ``--only mgn`` updates the MGN part; each part's rounds, graph and load are its own, under ``parts``)."""
+    old = json.loads(path.read_text()) if path.is_file() else {}
+    part = {k: result[k] for k in ("rounds", "steps_per_round", "timed_wall_s", "load_average", "command")}
+    result["parts"] = {**{f: p for f, p in old.get("parts", {}).items() if f not in families},
+                       **{f: part for f in families}}
+    result["rows"] = [r for r in old.get("rows", []) if r["model"] not in families] + result["rows"]
+    result["ratios"] = [r for r in old.get("ratios", []) if r.get("model") not in families] + result["ratios"]
+    result["failed"] = {**{k: v for k, v in old.get("failed", {}).items() if k not in names}, **result["failed"]}
+    return result
 
 
 def main(argv=None) -> int:
@@ -165,9 +194,12 @@ def main(argv=None) -> int:
     p.add_argument("--authors", type=Path, default=Path("/root/persist/peers/hcmt-tf"),
                    help="the authors' code (github.com/yuyudeep/hcmt: core_model.py, model.py, ...)")
     p.add_argument("--only", nargs="+", choices=("mgn", "hcmt"), default=("mgn", "hcmt"))
+    p.add_argument("--modes", nargs="+", choices=("eager", "compiled"), default=("eager", "compiled"),
+                   help="hcmt's paths to time (compiled: minutes of compiling when the inductor cache is cold)")
+    p.add_argument("--ready-s", type=float, default=1800, help="give up a worker not set up within this many s")
     p.add_argument("--json", type=Path, default=ROOT / "benchmarks" / "results" / "peers_cpu.json")
     a = p.parse_args(argv)
-    contestants = [c for c in CONTESTANTS if c[1] in a.only]
+    contestants = [c for c in CONTESTANTS if c[1] in a.only and (c[2] is not None or c[3][-1] in a.modes)]
     peak = core_peak()
     with tempfile.TemporaryDirectory(prefix="hcmt-peers-") as tmp:
         graph, logs = Path(tmp) / "graph.npz", Path(tmp)
@@ -175,7 +207,7 @@ def main(argv=None) -> int:
         from export_graph import export
         shape = export(str(graph))
         print(f"graph: {shape}; core peak {peak['gflops']:.0f} GFLOP/s ({peak['derivation']})", flush=True)
-        workers, failed = start(contestants, graph, a.peers, a.authors, logs)
+        workers, failed = start(contestants, graph, a.peers, a.authors, logs, a.ready_s)
         try:
             t0 = time.perf_counter()
             times = rounds(workers, a.rounds, a.steps)
@@ -196,6 +228,7 @@ def main(argv=None) -> int:
     for name, err in failed.items():
         print(f"FAILED {name}: {err}")
     a.json.parent.mkdir(parents=True, exist_ok=True)
+    result = merged(result, a.json, set(a.only), {c[0] for c in contestants})
     a.json.write_text(json.dumps(result, indent=2) + "\n")
     print(f"wrote {a.json}")
     return 0

@@ -78,6 +78,8 @@ class Worker:
             raise RuntimeError(f"{e} (set-up overran --ready-s?)" if not timer.is_alive() else str(e)) from None
         finally:
             timer.cancel()
+        if self.proc.poll() is not None:  # killed at the deadline just after it said ready
+            raise RuntimeError(f"{self.name}: set-up finished at the --ready-s deadline and was stopped")
 
     def _read(self) -> dict:
         for line in self.proc.stdout:

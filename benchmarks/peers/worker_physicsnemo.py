@@ -23,9 +23,19 @@ import numpy as np  # noqa: E402
 import torch  # noqa: E402
 from torch.utils.flop_counter import FlopCounterMode  # noqa: E402
 
+
+class _Placeholder(types.ModuleType):
+    """A module whose every name is an empty class (enough for imports and subclassing, never used here)."""
+
+    def __getattr__(self, name):
+        if name.startswith("__"):
+            raise AttributeError(name)
+        return type(name, (), {})
+
+
 # torchvision (pulled in by timm for the Swin/DiT layers only) has no CPU build for this torch: placeholders
 for _name in ("physicsnemo.nn.module.transformer_layers", "physicsnemo.nn.module.dit_layers"):
-    sys.modules[_name] = types.ModuleType(_name)
+    sys.modules[_name] = _Placeholder(_name)
 
 
 def scatter_backend() -> str:

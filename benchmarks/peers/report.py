@@ -48,13 +48,18 @@ def peers(lines: list[str], result: dict | None) -> None:
         "| contestant | framework | train step ms | inference ms | train GFLOP/s (% peak) | "
         "inference GFLOP/s (% peak) |", "|---|---|---|---|---|---|"]
     for row in result["rows"]:
-        lines.append(f"| {row['contestant']} | {row['framework']} | {_ms(row, 'train')} | {_ms(row, 'infer')} | "
+        fw = row["framework"] + ("; torch_scatter stood in by torch_geometric.utils.scatter"
+                                 if row.get("scatter", "").startswith("stand-in") else "")
+        lines.append(f"| {row['contestant']} | {fw} | {_ms(row, 'train')} | {_ms(row, 'infer')} | "
                      f"{_rate(row, 'train')} | {_rate(row, 'infer')} |")
     lines += ["", f"| hcmt | ÷ peer | what | ratio (rounds' range) | target ≤ {TARGET} |", "|---|---|---|---|---|"]
     for r in result["ratios"]:
         ok = "met" if r["ratio"] <= TARGET else "not met"
         lines.append(f"| {r['hcmt']} | {r['peer']} | {dict(KINDS)[r['kind']]} | {r['ratio']:.2f} "
                      f"({r['min']:.2f}-{r['max']:.2f}) | {ok} |")
+    for fam, what in (("mgn", "MGN against PhysicsNeMo"), ("hcmt", "HCMT (official) against the authors' TF")):
+        if not any(r["model"] == fam for r in result["rows"]):
+            lines += ["", f"Not measured yet: {what} (`run.py --only {fam}`)."]
     for name, err in result.get("failed", {}).items():
         lines += ["", f"Not measured: {name}: {err}"]
     lines.append("")

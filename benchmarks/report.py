@@ -17,6 +17,7 @@ from gpu_check.report import gpu_check, gpu_path  # noqa: E402
 from interval.report import interval  # noqa: E402
 from memory.report import memory  # noqa: E402
 from parity.report import hierarchy, parity, propagation  # noqa: E402
+from peers.report import peers as peers_section  # noqa: E402
 from recipe.report import recipe  # noqa: E402
 from report_common import load  # noqa: E402
 from scaling.report import scaling as scaling_section  # noqa: E402
@@ -39,6 +40,7 @@ def main() -> None:
     scaling_section(lines, load("scaling.json"))
     for section in SECTIONS:
         section(lines)
+    peers_section(lines, load("peers_cpu.json"))
     DOC.parent.mkdir(exist_ok=True)
     DOC.write_text("\n".join(lines).rstrip() + "\n")
     print(f"wrote {DOC}")

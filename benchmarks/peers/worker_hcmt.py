@@ -1,0 +1,82 @@
+"""hcmt's contestant: MGN or HCMT (``official`` attention, no FFN bias: the authors' variant), eager or compiled.
+
+    PYTHONPATH=src python benchmarks/peers/worker_hcmt.py GRAPH.npz {mgn|hcmt} {eager|compiled}
+
+A train step is the trainer's: forward with normalizer accumulation, MSE over real nodes on normalized targets,
+backward, Adam (lr 1e-4). Compiled: the graph padded to static sizes (:func:`hcmt.graph.batch.pad_graph`), the
+normalizers accumulated eagerly, the forward ``torch.compile``\\ d (:func:`hcmt.models.base.compile_simulator`,
+inductor's default; its cache persists in ``~/.cache/hcmt/inductor``). Inference: a no-grad forward in eval mode.
+The FLOPs of one eager train step and one inference are counted with ``torch.utils.flop_counter`` (matmuls only)."""
+from __future__ import annotations
+
+import sys
+
+from protocol import one_thread, serve, warm
+
+one_thread()
+
+import numpy as np  # noqa: E402
+import torch  # noqa: E402
+from torch.utils.flop_counter import FlopCounterMode  # noqa: E402
+
+from hcmt.graph.batch import Graph, PadSizes, pad_graph, pad_rows  # noqa: E402
+from hcmt.models.base import compile_simulator  # noqa: E402
+from hcmt.physics.adapters import build_for_dataset  # noqa: E402
+
+
+def load_graph(path: str) -> tuple[Graph, int]:
+    d = np.load(path)
+    t = {k: torch.from_numpy(v) for k, v in d.items() if k != "out_dim"}
+    levels = sum(k.startswith("pool_") for k in d)
+    g = Graph(t["node_features"], t["mesh_edges"], t["mesh_features"], t["contact_edges"], t["contact_features"],
+              [t[f"pool_{i}"] for i in range(levels)], [t[f"level_edges_{i}"] for i in range(levels)],
+              [t[f"level_features_{i}"] for i in range(levels)])
+    return g, int(d["out_dim"])
+
+
+def contestant(path: str, name: str, mode: str):
+    torch.set_num_threads(1)
+    torch.manual_seed(0)
+    graph, out = load_graph(path)
+    target = torch.randn(graph.num_nodes, out)
+    extra = dict(attention="official", ffn_bias=False) if name == "hcmt" else {}
+    model = build_for_dataset(name, "impact_plate", **extra)
+    opt = torch.optim.Adam(model.parameters(), lr=1e-4)
+    net = model
+    if mode == "compiled":
+        graph = pad_graph(graph, PadSizes.of([graph]))
+        target = pad_rows(target, graph.num_nodes)[0]
+        net = compile_simulator(model, "default")
+    mask = (graph.node_mask if graph.node_mask is not None else torch.ones(graph.num_nodes))[:, None].float()
+
+    def train():
+        model.train()
+        if mode == "compiled":
+            model.accumulate(graph, target)
+            pred, tgt = net(graph, accumulate=False), model.normalize_target(target, accumulate=False)
+        else:
+            pred, tgt = model(graph, accumulate=True), model.normalize_target(target, accumulate=True)
+        loss = ((pred - tgt).square() * mask).sum() / mask.sum()
+        opt.zero_grad(set_to_none=True)
+        loss.backward()
+        opt.step()
+
+    def infer():
+        model.eval()
+        with torch.no_grad():
+            net(graph, accumulate=False)
+
+    info = {"framework": f"hcmt (torch {torch.__version__})", "model": name, "mode": mode,
+            "parameters": sum(p.numel() for p in model.parameters()), "nodes": int(mask.sum())}
+    info["warmup_train_s"] = warm(train, 3)  # includes compiling (or loading it from the cache)
+    info["warmup_infer_s"] = warm(infer, 2)
+    if mode == "eager":
+        for kind, fn in (("train", train), ("infer", infer)):
+            with FlopCounterMode(display=False) as fc:
+                fn()
+            info[f"flops_{kind}"] = fc.get_total_flops()
+    return train, infer, info
+
+
+if __name__ == "__main__":
+    serve(*contestant(*sys.argv[1:4]))

@@ -4,7 +4,8 @@ import sys
 from hcmt.cli import main
 
 code = main()
-if code == 130:  # interrupted (Ctrl-C, SIGTERM): what it keeps is saved; an import cut short must not re-raise at exit
+if code in (130, 143):  # interrupted (Ctrl-C 130, SIGTERM 143): what it keeps is saved; an import cut short by the
+    # signal must not re-raise KeyboardInterrupt at exit (seen: exit -2 instead of 143 when SIGTERM came during imports)
     sys.stdout.flush()
     sys.stderr.flush()
     os._exit(code)

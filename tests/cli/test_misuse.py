@@ -368,6 +368,17 @@ def test_sigterm_during_predict_says_what_happened():
     assert p.returncode == 143 and "interrupted" in err and "Traceback" not in err, err  # 128 + SIGTERM
 
 
+def test_sigterm_while_starting_exits_143():
+    """SIGTERM during the imports (a busy machine: seconds): one line and 128 + 15, not a signal death at exit
+    (KeyboardInterrupt raised inside an import re-raised at interpreter exit: exit -2 before)."""
+    p = subprocess.Popen([sys.executable, "-m", "hcmt", "predict", "pretrained:impact_plate_small", "--design",
+                          "thickness=0.7", "--no-progress"], stderr=subprocess.PIPE, text=True, cwd=ROOT)
+    time.sleep(0.5)
+    p.send_signal(signal.SIGTERM)
+    _, err = p.communicate(timeout=60)
+    assert p.returncode == 143 and "interrupted (SIGTERM)" in err and "Traceback" not in err, err
+
+
 # -- 13. progress and flags -----------------------------------------------------------------------------------------
 def test_every_computing_command_takes_threads_and_no_progress(setup, capsys):
     assert cli(["info", str(setup / "data"), "--threads", "1", "--no-progress"]) == 0

@@ -15,9 +15,9 @@ import sys
 import numpy as np
 import torch
 
+from hcmt.domains.adapters import dataset_spec
 from hcmt.graph.build import frame_graph
 from hcmt.graph.hierarchy import build_hierarchy
-from hcmt.physics.adapters import dataset_spec
 from hcmt.sim.mesh import preset_mesh
 
 

@@ -10,8 +10,11 @@ The FLOPs of one eager train step and one inference are counted with ``torch.uti
 from __future__ import annotations
 
 import sys
+from pathlib import Path
 
 from protocol import one_thread, serve, warm
+
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent))  # benchmarks/: micro.bench_models
 
 one_thread()
 
@@ -19,9 +22,9 @@ import numpy as np  # noqa: E402
 import torch  # noqa: E402
 from torch.utils.flop_counter import FlopCounterMode  # noqa: E402
 
+from hcmt.domains.adapters import build_for_dataset  # noqa: E402
 from hcmt.graph.batch import Graph, PadSizes, pad_graph, pad_rows  # noqa: E402
-from hcmt.models.base import compile_simulator  # noqa: E402
-from hcmt.physics.adapters import build_for_dataset  # noqa: E402
+from micro.bench_models import _step_fn as train_and_infer  # noqa: E402
 
 
 def load_graph(path: str) -> tuple[Graph, int]:
@@ -42,29 +45,11 @@ def contestant(path: str, name: str, mode: str):
     extra = dict(attention="official", ffn_bias=False) if name == "hcmt" else {}
     model = build_for_dataset(name, "impact_plate", **extra)
     opt = torch.optim.Adam(model.parameters(), lr=1e-4)
-    net = model
     if mode == "compiled":
         graph = pad_graph(graph, PadSizes.of([graph]))
         target = pad_rows(target, graph.num_nodes)[0]
-        net = compile_simulator(model, "default")
     mask = (graph.node_mask if graph.node_mask is not None else torch.ones(graph.num_nodes))[:, None].float()
-
-    def train():
-        model.train()
-        if mode == "compiled":
-            model.accumulate(graph, target)
-            pred, tgt = net(graph, accumulate=False), model.normalize_target(target, accumulate=False)
-        else:
-            pred, tgt = model(graph, accumulate=True), model.normalize_target(target, accumulate=True)
-        loss = ((pred - tgt).square() * mask).sum() / mask.sum()
-        opt.zero_grad(set_to_none=True)
-        loss.backward()
-        opt.step()
-
-    def infer():
-        model.eval()
-        with torch.no_grad():
-            net(graph, accumulate=False)
+    train, infer = train_and_infer(model, graph, target, opt, mode == "compiled", mask)  # the trainer's step
 
     info = {"framework": f"hcmt (torch {torch.__version__})", "model": name, "mode": mode,
             "parameters": sum(p.numel() for p in model.parameters()), "nodes": int(mask.sum())}

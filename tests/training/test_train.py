@@ -453,17 +453,21 @@ def test_a_rank_reads_only_the_frames_of_its_own_keys(tmp_path, monkeypatch):
 
 
 def test_compiled_padded_training_matches_eager(impact, tmp_path, monkeypatch, tiny_config):
-    """train.compile trains on padded graphs through torch.compile; the parameters end as the eager run's.
-    torch.compile runs with the eager backend here (Dynamo traces the model, no C++/Triton build: seconds, not
-    minutes), which checks the padding, the eager normalizer accumulation and the tracing."""
+    """train.compile trains on padded graphs through torch.compile, pushforward predictions included (through
+    the compiled model on padded graphs); the parameters end as the eager run's. torch.compile runs with the eager
+    backend here (Dynamo traces the model, no C++/Triton build: seconds, not minutes), which checks the padding, the
+    eager normalizer accumulation and the tracing."""
     compile_ = torch.compile
     calls = []
     monkeypatch.setattr(torch, "compile", lambda model, **kw: calls.append(kw) or compile_(model, backend="eager",
                                                                                        dynamic=False))
+    made, predictions = trainer_module.padded_forward, []
+    monkeypatch.setattr(trainer_module, "padded_forward", lambda net, sizes: (
+        lambda graph, forward=made(net, sizes): predictions.append(graph.num_nodes) or forward(graph)))
     params = {}
     for mode in ("none", "reduce-overhead"):
-        cfg = tiny_config(*EXTRA, "train.steps=5", "train.noise_std=0.01", "train.batch_size=2",
-                          f"train.compile={mode}")
+        cfg = tiny_config(*EXTRA, "train.steps=6", "train.noise_std=0.01", "train.batch_size=2",
+                          "train.pushforward=0.5", "train.pushforward_start=0", f"train.compile={mode}")
         train(cfg, impact, "hcmt", tmp_path / mode, seed=2, progress=False, device="cpu")
         params[mode] = torch.load(tmp_path / mode / "checkpoint.pt", weights_only=True)["model"]
     assert calls == [{"mode": "reduce-overhead", "dynamic": False}]
@@ -473,6 +477,7 @@ def test_compiled_padded_training_matches_eager(impact, tmp_path, monkeypatch, t
         torch.testing.assert_close(params["reduce-overhead"][k], v, rtol=1e-5, atol=1e-6, msg=k)
         moved += k.endswith("count") and v.item() > 0
     assert moved  # the normalizers did accumulate (the comparison covers their statistics)
+    assert predictions  # pushforward predictions of the compiled run went through the padded compiled model
 
 
 def test_compile_refuses_lpe_and_deterministic_is_scoped(impact, tmp_path, tiny_config):

@@ -50,17 +50,19 @@ def training_sample(traj: Trajectory, t: int, noise: Tensor, gamma: float, radiu
 
 @torch.no_grad()
 def pushforward_sample(model, traj: Trajectory, t: int, noise: Tensor, prev_noise: Tensor, gamma: float,
-                       radius: float) -> tuple[Graph, Tensor, Tensor]:
+                       radius: float, forward=None) -> tuple[Graph, Tensor, Tensor]:
     """:func:`training_sample` of frame ``t`` (``t − 1 >= history``) whose ``x^t`` is the model's prediction from
     frame ``t − 1`` with ``prev_noise``, plus ``noise``; ``x^{t−1}`` is that noised input (as in a rollout). The
-    prediction carries no gradient; boundary-condition nodes take the data's values."""
+    prediction carries no gradient; boundary-condition nodes take the data's values. ``forward`` (``graph ->``
+    the model's normalized output, e.g. a compiled model on padded graphs) replaces ``model(graph)``."""
     a, w = traj.adapter, traj.world_pos
     x, before = w[t - 1] + prev_noise, w[t - 1 - a.history]
     graph = input_graph(traj, x, before, w[t], radius)
     device = next(model.parameters()).device
     was_training = model.training
     model.eval()
-    out = model.denormalize(model(graph.to(device), accumulate=False)).float().cpu()
+    raw = forward(graph.to(device)) if forward is not None else model(graph.to(device), accumulate=False)
+    out = model.denormalize(raw).float().cpu()
     model.train(was_training)
     pred, _ = integrate(a, out, x, before, w[t], traj.static["node_type"])
     return training_sample(traj, t, noise, gamma, radius, drift=pred - w[t], prev=x)

@@ -13,10 +13,10 @@ warm-up, loss denominator, Adam's ε, step decay) are ``train.policy``'s: :mod:`
 processes (``torchrun``): :mod:`hcmt.training.runtime`. Speed options (``train.*``): ``workers`` (DataLoader processes
 build the graphs), ``precision: bf16`` (autocast), ``checkpoint_blocks`` (activation checkpointing per block),
 ``compile`` (default ``auto``: compiled in runs of 5,000 steps or more, :func:`hcmt.models.base.resolve_compile`;
-``torch.compile`` on graphs padded to static sizes by :func:`hcmt.graph.batch.pad_graph`, contact edges to a few
-buckets, so CUDA graphs can replay the step; the normalizers accumulate eagerly before the compiled forward, which
-mutates no buffer), ``deterministic`` (:func:`~hcmt.training.runtime.deterministic_kernels`: a resumed CUDA run ends
-bit for bit like an unbroken one, at a cost in speed; CPU runs are exact without it).
+on graphs padded to static sizes, :func:`hcmt.graph.batch.pad_graph`, contact edges in buckets, so CUDA graphs can
+replay the step; the normalizers accumulate eagerly before the compiled forward, which mutates no buffer),
+``deterministic`` (:func:`~hcmt.training.runtime.deterministic_kernels`: a resumed CUDA run ends bit for bit like an
+unbroken one, at a cost in speed; CPU runs are exact without it).
 """
 from __future__ import annotations
 
@@ -41,7 +41,7 @@ from hcmt.errors import InputError
 from hcmt.inference.evaluate import validation_rmse
 from hcmt.models import Normalizer, checkpoint_state, make_model, resolve_device, uses_hierarchy
 from hcmt.models.base import compile_simulator, resolve_compile
-from hcmt.training.dataset import FrameDataset, StepSampler, pad_sizes, step_loader
+from hcmt.training.dataset import FrameDataset, StepSampler, pad_sizes, padded_forward, step_loader
 from hcmt.training.policy import policy_of
 from hcmt.training.runtime import (
     InterruptFlag,
@@ -74,8 +74,7 @@ class Trainer:
         cfg = cfg.for_training()
         self.cfg, self.tc, self.out, self.seed, self.model_name = cfg, cfg.train, out, seed, model_name
         self.steps, self.policy, self.progress = cfg.train.steps, policy_of(cfg.train), progress
-        self.adapter = config_adapter(cfg)
-        self.args = model_args(cfg, model_name, read_meta(data))
+        self.adapter, self.args = config_adapter(cfg), model_args(cfg, model_name, read_meta(data))
         self.folder = RunFolder(out, must_exist=False)
         self.ckpt_path = self.folder.latest
         if resume or self.ckpt_path.is_file():  # train() has cleared or refused a folder holding only run.yaml
@@ -187,11 +186,10 @@ class Trainer:
             norm_tgt = self.model.normalize_target(tgt, accumulate=eager)
             loss = ((pred.float() - norm_tgt.float()) ** 2 * mask).sum() / self.policy.loss_count(graph, mask)
         lr = self.learning_rate(self.step_count)
-        if warmup:
-            if self.world > 1:  # keep DDP's reducer in step: a zero-gradient backward
-                (loss * 0).backward()
-        else:
+        if not warmup:
             self._update(loss, lr)
+        elif self.world > 1:  # keep DDP's reducer in step: a zero-gradient backward
+            (loss * 0).backward()
         self.step_count += 1
         return float(loss.detach()), lr
 
@@ -225,10 +223,12 @@ class Trainer:
         self.log.flush()
 
     def _loader(self, end: int):
-        """This rank's batches of the steps up to ``end`` (pushforward items through the model itself)."""
+        """This rank's batches of the steps up to ``end`` (pushforward items through the model, compiled if it is)."""
         sampler = StepSampler(self.frames, self.tc.batch_size, self.seed, self.step_count, end, self.world, self.rank)
-        pushforward = (lambda key: self.frames.pushforward_item(key, self.model, self._pushforward_probability())
-                       ) if self.tc.pushforward > 0 else None  # inputs from the model's own predictions
+        forward = padded_forward(self.net if self.world == 1 else compile_simulator(self.model, self.compile),
+                                 self.pad) if self.pad is not None else None  # DDP's forward would sync buffers
+        pushforward = (lambda key: self.frames.pushforward_item(key, self.model, self._pushforward_probability(),
+                                                                forward)) if self.tc.pushforward > 0 else None
         return step_loader(self.frames, sampler, self.pad, self.tc.workers, pushforward)
 
     def _report(self, loss: float, lr: float, times: list, end: int, stop: bool) -> None:
@@ -236,8 +236,8 @@ class Trainer:
         tc, step = self.tc, self.step_count
         if step % tc.log_every == 0 or step == self.steps:
             self.bar.set_postfix(loss=f"{loss:.4g}", lr=f"{lr:.2e}")
-            self.writer.add_scalar("train/loss", loss, step)
-            self.writer.add_scalar("train/lr", lr, step)
+            for k, v in (("train/loss", loss), ("train/lr", lr)):
+                self.writer.add_scalar(k, v, step)
             self._record({"step": step, "loss": loss, "lr": lr, **step_times(times[-tc.log_every:])})
         if self.valid_trajs and tc.valid_every and (step % tc.valid_every == 0 or step == self.steps):
             self.validate()

@@ -63,7 +63,7 @@ def _plot_hierarchy(args, runs, case, out: Path, notes: list[str]) -> list[Path]
     levels, remesh = args.levels, True
     if levels is None:
         for run in runs:
-            lv, rm = uses_hierarchy(run.info["model"])
+            lv, rm = run.hierarchy_spec if isinstance(run, Run) else uses_hierarchy(run.info["model"])
             if lv:
                 levels, remesh = lv, rm
                 break
@@ -82,7 +82,7 @@ def _plot_attention(args, runs, labels: list[str], out: Path, notes: list[str]) 
         if not isinstance(run, Run):
             notes.append(f"attention: {label} ({run.source}) has no checkpoint; skipped")
             continue
-        if not REGISTRY[run.info["model"]["name"]].has_attention:
+        if not REGISTRY[run.info.model["name"]].has_attention:
             notes.append(f"attention: {label} ({run.source}) is not a Transformer; skipped")
             continue
         maps = frame_attention(run, args.data, args.split, args.trajectory, args.attention_frame)

@@ -45,7 +45,7 @@ def check_options(*, batch: int = 1, compile: str = "none") -> None:
 
 def rollout_key(data, split: str, run: Run) -> dict:
     """What a rollout file was made from: dataset, split and checkpoint (file and step)."""
-    return {"data": str(Path(data).resolve()), "split": split, "checkpoint": run.info["checkpoint"]["file"],
+    return {"data": str(Path(data).resolve()), "split": split, "checkpoint": run.info.checkpoint.file,
             "checkpoint_step": run.checkpoint_step}
 
 

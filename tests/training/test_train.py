@@ -13,6 +13,7 @@ import h5py
 import numpy as np
 import pytest
 import torch
+import yaml
 
 import hcmt.training.trainer as trainer_module
 from conftest import TINY
@@ -575,6 +576,23 @@ def test_ablation_flag_is_the_model_ablation_key_and_resume_keeps_it(impact, tmp
     assert info.config.model.ablation == info.model["ablation"] == "only-hmt"
     assert cli(["train", "--out", str(out), "--resume", "--steps", "2", "--no-progress"]) == 0
     assert Run.load(out, "cpu").info.model["ablation"] == "only-hmt"
+    capsys.readouterr()
+
+
+def test_ablation_no_remesh_is_an_alias_of_data_remesh_false(impact, tmp_path, capsys):
+    """``--ablation no-remesh`` (the paper's HCMT without remeshing) trains with ``data.remesh: false``: run.yaml
+    holds the graph setting, the run builds the 2-hop hierarchy, and resuming keeps it."""
+    out = tmp_path / "nr"
+    sets = [a for kv in TINY + EXTRA for a in ("--set", kv)]
+    assert cli(["train", "--config", "impact_plate_cpu", "--data", str(impact), "--model", "hcmt", "--out", str(out),
+                "--steps", "1", "--ablation", "no-remesh", "--no-progress", *sets]) == 0
+    saved = yaml.safe_load((out / "run.yaml").read_text())
+    assert saved["config"]["data"]["remesh"] is False and saved["config"]["model"]["ablation"] is None
+    assert saved["model"]["ablation"] is None
+    run = Run.load(out, "cpu")
+    assert run.hierarchy_spec[1] is False and run.hierarchy_spec[0] > 0 and run.label == "HCMT (no-remesh)"
+    assert cli(["train", "--out", str(out), "--resume", "--steps", "2", "--no-progress"]) == 0
+    assert Run.load(out, "cpu").config.data.remesh is False
     capsys.readouterr()
 
 

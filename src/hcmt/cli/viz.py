@@ -63,7 +63,11 @@ def _plot_hierarchy(args, runs, case, out: Path, notes: list[str]) -> list[Path]
     levels, remesh = args.levels, True
     if levels is None:
         for run in runs:
-            lv, rm = run.hierarchy_spec if isinstance(run, Run) else uses_hierarchy(run.info["model"])
+            if isinstance(run, Run):
+                lv, rm = run.hierarchy_spec
+            else:  # a run folder without a checkpoint yet: its run.yaml
+                cfg = run.info.get("config")
+                lv, rm = uses_hierarchy(run.info["model"], cfg is None or cfg.data.remesh)
             if lv:
                 levels, remesh = lv, rm
                 break

@@ -20,7 +20,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from hcmt.config import Config
+from hcmt.config import NO_REMESH, Config
 from hcmt.data.format import Split, read_meta
 from hcmt.data.runs import RunFolder, available_pretrained, read_checkpoint
 from hcmt.domains.adapters import config_adapter
@@ -29,12 +29,13 @@ from hcmt.files import atomic_path
 from hcmt.models import REGISTRY, from_checkpoint, resolve_device, uses_hierarchy
 
 
-def model_label(args: dict) -> str:
+def model_label(args: dict, config: Config | None = None) -> str:
     """The display label of a model from its constructor arguments (:data:`hcmt.models.REGISTRY`), with its
-    ablation."""
+    ablation, and ``no-remesh`` where its ``config`` builds the hierarchy without remeshing (``data.remesh``)."""
     info = REGISTRY.get(args.get("name"))
     label = info.label if info else str(args.get("name")).upper()
-    return label + (f" ({args['ablation']})" if args.get("ablation") else "")
+    remesh = config is None or config.data.remesh or not uses_hierarchy(args, False)[0]
+    return label + (f" ({args['ablation']})" if args.get("ablation") else "") + ("" if remesh else f" ({NO_REMESH})")
 
 
 @dataclass(frozen=True)
@@ -85,7 +86,7 @@ def load_run(run: str | Path | RunFolder, which: str = "best", device: str = "cp
     try:  # a hand-edited or damaged run.yaml: its settings must still make the run's adapter and graph
         info = RunInfo.from_record(folder.info, CheckpointInfo(path.name, int(state["step"])))
         config_adapter(info.config.for_training())  # a KeyError when run.yaml has no config
-        uses_hierarchy(info.model)
+        uses_hierarchy(info.model, info.config.data.remesh)
     except (TypeError, ValueError, KeyError, AttributeError) as exc:
         raise InputError(f"{folder.run_yaml}: its settings do not load ({exc.__class__.__name__}: "
                          f"{str(exc).splitlines()[0][:160] if str(exc) else '-'}); restore it or train the run again") \
@@ -163,11 +164,11 @@ class Run:
     @property
     def hierarchy_spec(self) -> tuple[int, bool]:
         """(levels, remesh) of the mesh hierarchy the model needs (0 levels: none)."""
-        return uses_hierarchy(self.info.model)
+        return uses_hierarchy(self.info.model, self.config.data.remesh)
 
     @property
     def label(self) -> str:
-        return model_label(self.info.model)
+        return model_label(self.info.model, self.config)
 
     @property
     def checkpoint_step(self) -> int:

@@ -7,6 +7,7 @@ machine, the goals of an issue) is a named constant here or in its section's mod
 from __future__ import annotations
 
 import json
+import re
 
 from common import RESULTS
 
@@ -37,6 +38,51 @@ SAME_SIZE = 2.0  # "of the same size": largest ÷ smallest below this factor
 ABOUT = 1.25  # "about as large as": within this factor
 TINY = 0.01  # "tiny next to the paper's": below this fraction of its budget
 PEAK_GOAL_PCT = 5.0  # the shipped model's peak plate stress goal (median error, issue "Impact physics")
+
+
+#: the scripts' paths before benchmarks/ was split into folders (issue 38; benchmarks/README.md, "Old paths"): a result
+#: file written before then names the old one in its ``command``, which the report quotes at the current path
+MOVED = {
+    "benchmarks/bench_graph.py": "benchmarks/micro/bench_graph.py",
+    "benchmarks/bench_models.py": "benchmarks/micro/bench_models.py",
+    "benchmarks/bench_solver.py": "benchmarks/micro/bench_solver.py",
+    "benchmarks/design_speed.py": "benchmarks/micro/design_speed.py",
+    "benchmarks/train_speed.py": "benchmarks/micro/train_speed.py",
+    "benchmarks/speed.py": "benchmarks/speed/run.py",
+    "benchmarks/threads.py": "benchmarks/speed/threads.py",
+    "benchmarks/cpu_ab.sh": "benchmarks/speed/cpu_ab.sh",
+    "benchmarks/accuracy.py": "benchmarks/accuracy/run.py",
+    "benchmarks/ablations.py": "benchmarks/accuracy/ablations.py",
+    "benchmarks/generalization.py": "benchmarks/accuracy/generalization.py",
+    "benchmarks/parity.py": "benchmarks/parity/run.py",
+    "benchmarks/propagation.py": "benchmarks/parity/propagation.py",
+    "benchmarks/interval.py": "benchmarks/interval/run.py",
+    "benchmarks/peak_sampling.py": "benchmarks/interval/peak_sampling.py",
+    "benchmarks/peak_convergence.py": "benchmarks/interval/peak_convergence.py",
+    "benchmarks/recipe.py": "benchmarks/recipe/run.py",
+    "benchmarks/window.py": "benchmarks/recipe/window.py",
+    "benchmarks/data_memory.py": "benchmarks/memory/run.py",
+    "benchmarks/surrogate.py": "benchmarks/surrogate/run.py",
+    "benchmarks/transfer.py": "benchmarks/transfer/run.py",
+    "benchmarks/gpu_check.py": "benchmarks/gpu_check/run.py",
+    "benchmarks/ghost_diagnosis.py": "benchmarks/ghost_diagnosis/run.py",
+    "benchmarks/ship_model.py": "benchmarks/release/ship_model.py",
+    "benchmarks/report_accuracy.py": "benchmarks/accuracy/report.py",
+    "benchmarks/report_gpu.py": "benchmarks/gpu_check/report.py",
+    "benchmarks/report_interval.py": "benchmarks/interval/report.py",
+    "benchmarks/report_memory.py": "benchmarks/memory/report.py",
+    "benchmarks/report_parity.py": "benchmarks/parity/report.py",
+    "benchmarks/report_recipe.py": "benchmarks/recipe/report.py",
+    "benchmarks/report_speed.py": "benchmarks/speed/report.py",
+    "benchmarks/report_surrogate.py": "benchmarks/surrogate/report.py",
+    "benchmarks/report_transfer.py": "benchmarks/transfer/report.py",
+}
+
+
+def command(result: dict) -> str:
+    """A result file's ``command``, each moved script named by its current path (:data:`MOVED`)."""
+    return re.sub(r"benchmarks/[\w.]+\.(?:py|sh)\b", lambda m: MOVED.get(m.group(0), m.group(0)),
+                  result["command"])
 
 
 def load(name):

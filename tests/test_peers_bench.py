@@ -56,3 +56,19 @@ def test_report_section():
     lines = []
     peers(lines, None)
     assert lines == []
+
+
+def test_warm_up_times_the_first_calls_then_counts_one_more_of_each():
+    """protocol.warm_up, every worker's start: 3 training steps and 2 inferences warm up, then one more call of
+    each is counted (a worker without a counter records none)."""
+    import torch
+    from protocol import warm_up
+    from torch.utils.flop_counter import FlopCounterMode
+
+    calls, a, b = [], torch.ones(4, 8), torch.ones(8, 2)
+    info = warm_up({"model": "x"}, lambda: calls.append("train") or a @ b, lambda: calls.append("infer"),
+                   lambda: FlopCounterMode(display=False))
+    assert calls == ["train"] * 3 + ["infer"] * 2 + ["train", "infer"]
+    assert list(info) == ["model", "warmup_train_s", "warmup_infer_s", "flops_train", "flops_infer"]
+    assert info["flops_train"] == 2 * 4 * 8 * 2 and info["flops_infer"] == 0
+    assert list(warm_up({}, lambda: None, lambda: None)) == ["warmup_train_s", "warmup_infer_s"]

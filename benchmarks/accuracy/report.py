@@ -41,7 +41,7 @@ def accuracy(lines):
     if not acc:
         return
     any_model = next(iter(acc.values()))
-    lines += [f"Command: `python benchmarks/accuracy.py --steps {any_model['steps']} --seeds "
+    lines += [f"Command: `python benchmarks/accuracy/run.py --steps {any_model['steps']} --seeds "
               f"{' '.join(map(str, any_model['seeds']))}`", "",
               f"Data: `hcmt generate impact-plate` with preset `{DATASET['preset']}` (~400-570 nodes), "
               f"{DATASET['train']} train / {DATASET['valid']} valid / {DATASET['test']} test trajectories of 52 frames "
@@ -75,7 +75,7 @@ def longer(lines):
         return
     h, g = runs["hcmt"]["hcmt"], runs["mgn"]["mgn"]
     lines += ["### A longer budget", "",
-              f"Commands: `python benchmarks/accuracy.py --steps {h['steps']} --seeds 0 --models hcmt --json "
+              f"Commands: `python benchmarks/accuracy/run.py --steps {h['steps']} --seeds 0 --models hcmt --json "
               f"accuracy_long_hcmt.json` and the same with `--models mgn` (one seed; commit d111c37, with the "
               "corrected learning-rate schedule).", "",
               "| model | steps | position RMSE-1 | position RMSE-all | stress RMSE-1 | stress RMSE-all "
@@ -160,7 +160,7 @@ def ablations(lines):
     abl, lev = load("ablations.json"), load("levels.json")
     if abl:
         lines += ["## Ablations (paper Tables 3, 10-12)", "", SETTINGS, "",
-                  f"Command: `python benchmarks/ablations.py --steps {abl['steps']} --part ablations` "
+                  f"Command: `python benchmarks/accuracy/ablations.py --steps {abl['steps']} --part ablations` "
                   f"(seed {abl['seed']}, same data and budget as the accuracy study). RMSE-all ×10³.", ""]
         rows = abl["rows"]
         table(lines, "variant", rows)
@@ -174,8 +174,8 @@ def ablations(lines):
             lines.append("")
     if lev:
         lines += ["## Sensitivity to the number of levels λ (paper Fig. 8)", "",
-                  f"Command: `python benchmarks/ablations.py --steps {lev['steps']} --part levels` (L_C 2, L_H 2λ+1). "
-                  "RMSE-all ×10³.", ""]
+                  f"Command: `python benchmarks/accuracy/ablations.py --steps {lev['steps']} --part levels` "
+                  "(L_C 2, L_H 2λ+1). RMSE-all ×10³.", ""]
         table(lines, "λ", lev["rows"])
         lines.append("")
 
@@ -207,7 +207,7 @@ def generalization(lines):
     if not gen:
         return
     lines += [SETTINGS, "",
-              f"Command: `python benchmarks/generalization.py --steps {gen['steps']} --seeds "
+              f"Command: `python benchmarks/accuracy/generalization.py --steps {gen['steps']} --seeds "
               f"{' '.join(map(str, gen['seeds']))}` (the accuracy runs, trained on thickness 0.5-1.0 mm and drop "
               "height 500-1000 mm, evaluated on 20 trajectories of each out-of-range split). RMSE-all ×10³, "
               "mean ± std over seeds.",

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import json
 
-from report_common import GOAL_NODES, GOALS, MACHINE, gpu_check_ran, load, on_gpu, reached, sentences
+from report_common import GOAL_NODES, GOALS, MACHINE, command, gpu_check_ran, load, on_gpu, reached, sentences
 
 NO_GPU = ("GPU rows: **not measured**: no GPU was lent to the sessions that ran these commands (the code paths are "
           "the same; on CUDA `bench_models.py --compile` uses `reduce-overhead`, i.e. CUDA graphs, and fused Adam). "
@@ -46,7 +46,7 @@ def compiled_steps(lines, entry, models):
         cost = f" {'but' if faster else 'and'} costs minutes of compilation per shape" if minutes else ""
         compiled = f"The compiled step is {'faster' if faster else 'not faster'} for HCMT on this CPU{cost}."
     batches = " ".join(sorted({str(r["batch"]) for r in entry["rows"]}, key=int))
-    command = (f"Command: `python benchmarks/bench_models.py --device cpu --threads {entry['threads']} --steps "
+    command = (f"Command: `python benchmarks/micro/bench_models.py --device cpu --threads {entry['threads']} --steps "
                f"{entry['steps']} --compile --batches {batches} --json benchmarks/results/models_modes_cpu.json` "
                f"({entry['device']}, {entry['threads']} thread, paper-size graph of {entry['nodes']} nodes; batch B "
                "= B copies of it; the trainer's step: eager, or padded + eager normalizer accumulation + "
@@ -75,7 +75,7 @@ def compiled_steps(lines, entry, models):
 
 
 def sweep(lines, designs):
-    lines += [f"Command: `{designs['command']}` ({designs['device']}, {designs['threads']} thread): "
+    lines += [f"Command: `{command(designs)}` ({designs['device']}, {designs['threads']} thread): "
               f"{designs['designs']} designs drawn from the model's training ranges; the built-in solver simulates "
               f"each one (median {designs['solver_s_median']:.2f} s per design), the shipped model predicts them "
               "from their parameters (wall time per design = batch wall time ÷ designs, compilation included).", "",
@@ -88,9 +88,9 @@ def sweep(lines, designs):
     if one and many:
         slower = many["per_design_s"] > one["per_design_s"]
         why = ("On one CPU thread a batch brings no parallelism." if slower and designs["threads"] == 1 else "")
-        lines += ["", sentences("The 64-design sweep (the first half of it while `benchmarks/ship_model.py` used the "
-                                f"other core) is {'slower' if slower else 'not slower'} per design in one batch of 64 "
-                                "than one by one.", why)]
+        lines += ["", sentences("The 64-design sweep (the first half of it while `benchmarks/release/ship_model.py` "
+                                f"used the other core) is {'slower' if slower else 'not slower'} per design in one "
+                                "batch of 64 than one by one.", why)]
 
 
 def goals(lines, modes, designs, models, roll):
@@ -123,10 +123,10 @@ def gpu_check(lines):
     lines += ["## GPU check", ""]
     if not d or d.get("smoke"):
         every = ", ".join(g for g, _, _ in GOALS) + f", a {GOAL_NODES:,}-node step"
-        lines += [sentences("`PYTHONPATH=src python benchmarks/gpu_check.py --out OUT` has not run on a GPU yet "
+        lines += [sentences("`PYTHONPATH=src python benchmarks/gpu_check/run.py --out OUT` has not run on a GPU yet "
                             "(no GPU lent).", f"Every GPU goal ({every}) is **not measured**."), ""]
         return
-    lines += [f"`benchmarks/gpu_check.py` on {d['device']} (torch {d['torch']}, budget {d['budget_s']:.0f} s).", "",
+    lines += [f"`benchmarks/gpu_check/run.py` on {d['device']} (torch {d['torch']}, budget {d['budget_s']:.0f} s).", "",
               "| model | mode | batch | train ms | samples/s | inference ms |", "|---|---|---|---|---|---|"]
     for r in d["steps"].get("train step", {}).get("rows", []):
         inf = f"{r['inference_ms']:.2f}" if "inference_ms" in r else ""

@@ -3,7 +3,7 @@ with the design check per interval (--speed) and what a coarse interval loses of
 (benchmarks/interval/peak_sampling.py)."""
 from __future__ import annotations
 
-from report_common import ABOUT, PEAK_GOAL_PCT, SHIPPED_STEPS, load, opened, pm, said, sentences, worse
+from report_common import ABOUT, PEAK_GOAL_PCT, SHIPPED_STEPS, command, load, opened, pm, said, sentences, worse
 
 FORMS, MODELS, QS = ("today", "recipe"), ("hcmt", "mgn", "mgn-deep"), ("position_rmse_all", "stress_rmse_all")
 LARGE_DRIFT_PCT = 100.0  # a max-deflection error above this: the rollout's drift exceeds the deflection itself
@@ -22,8 +22,8 @@ def interval(lines):
     frames = {dt: t["data"][dt]["frames"] for dt in dts}
     d0 = t["data"][dts[0]]
     span = (d0["frames"] - 1) * d0["frame_dt"]
-    lines += [f"`python benchmarks/interval.py --work /work/interval --steps {t['steps']}` (two processes share the "
-              "work; then `--speed` and `--table-only`). The same "
+    lines += [f"`python benchmarks/interval/run.py --work /work/interval --steps {t['steps']}` (two processes share "
+              "the work; then `--speed` and `--table-only`). The same "
               f"{d0['train']} / {d0['valid']} / {d0['test']} designs (seed {d0['seed']}) recorded over the same "
               f"{span:.3f} ms at " + ", ".join(f"{dt} ms ({frames[dt]} frames)" for dt in dts) + " (`hcmt generate "
               "--frame-dt`). Per interval and formulation, three models at equal steps "
@@ -55,8 +55,8 @@ def growth(prop, a, b, key):
 
 def reach_table(lines, t, dts, frames):
     prop = t["propagation"]
-    lines += ["How far the impact travels per frame (plate mesh hops; benchmarks/propagation.py's measures on the "
-              "test designs) against each model's reach per step (MGN: one hop per block; HCMT: L_C plus its "
+    lines += ["How far the impact travels per frame (plate mesh hops; benchmarks/parity/propagation.py's measures on "
+              "the test designs) against each model's reach per step (MGN: one hop per block; HCMT: L_C plus its "
               "hierarchy's spans):", "",
               "| interval ms | frames | stress front hops/frame | P-wave hops/frame | frames until the front "
               "reaches the clamp | front ÷ MGN's 11 | front ÷ deep MGN's 22 | front ÷ HCMT's reach |",
@@ -191,7 +191,7 @@ def speed_table(lines, t, dts):
         return
     table = t["table"]
     n = next(v for k, v in sp.items() if k != "device")["designs"]
-    lines += [f"The design check at each interval (`python benchmarks/interval.py --speed`): `predict --verify` "
+    lines += [f"The design check at each interval (`python benchmarks/interval/run.py --speed`): `predict --verify` "
               f"of the {n} test designs with each interval's HCMT (recipe, seed 0), {sp['device']}; median seconds per "
               "design, learned one design at a time and all in one batch, the solver one design at a time:", "",
               "| interval ms | frames | learned s/design | learned s/design, batched | solver s/design | speedup "
@@ -215,7 +215,7 @@ def peak_sampling(lines):
     ps = load("peak_sampling.json")
     if not ps:
         return
-    lines += [f"What a coarse interval loses of the peak (`{ps['command']}`): the solver re-run on the "
+    lines += [f"What a coarse interval loses of the peak (`{command(ps)}`): the solver re-run on the "
               f"{len(ps['rows'])} test designs recording every substep ("
               f"{ps['summary']['substeps_per_frame']['median']:.0f} per 0.002 ms frame, median); the recorded "
               "peak (the largest stress over the recorded frames) against the true one (over every substep), "

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import math
 
-from report_common import load
+from report_common import command, load
 
 #: the paper's training splits (trajectories, frames, nodes) the per-trajectory costs are scaled to
 PAPER_SPLITS = {"impact": ("Impact Plate", 2000, 52, 2208), "deforming": ("Deforming Plate", 1200, 400, 1271)}
@@ -67,7 +67,7 @@ def memory(lines: list[str]) -> None:
     if not d:
         return
     lines += ["## Memory and data feeding", "",
-              f"Command: `{d['command'].strip()}` (one loaded CPU core, torch 1 thread; a few minutes) writes "
+              f"Command: `{command(d).strip()}` (one loaded CPU core, torch 1 thread; a few minutes) writes "
               "`benchmarks/results/data_memory.json`. The datasets are synthetic, written with "
               "`hcmt.data.format.write_split`: one `paper`-preset Impact Plate mesh copied with small perturbations "
               "(each copy its own hierarchy), and a tetrahedral plate and obstacle of 400 frames for Deforming Plate. "

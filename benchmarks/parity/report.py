@@ -29,11 +29,11 @@ WIDTH = 64  # the study's hidden size (config impact_plate_paper_cpu)
 HCMTS, QS = ("hcmt-official", "hcmt"), ("position", "stress")
 SUM = ("A sum keeps how many senders contribute (the number of contact edges grows during the impact), which a "
        "softmax normalizes away.")
-HOPS = ("Command: `python benchmarks/propagation.py --data small=DATA_SMALL --data paper=DATA_PAPER` (the test splits "
-        "of the shipped model's data and of the parity study; medians over 4 trajectories). Hops are counted on the "
-        "plate's mesh edges from the node under the impact; the stress front is the farthest plate node above 0.5 % of "
-        "the trajectory's peak von Mises stress; HCMT's reach per step is L_C plus the median level-0 span of each HMT "
-        "block's edges (down, bottom, up).")
+HOPS = ("Command: `python benchmarks/parity/propagation.py --data small=DATA_SMALL --data paper=DATA_PAPER` (the "
+        "test splits of the shipped model's data and of the parity study; medians over 4 trajectories). Hops are "
+        "counted on the plate's mesh edges from the node under the impact; the stress front is the farthest plate "
+        "node above 0.5 % of the trajectory's peak von Mises stress; HCMT's reach per step is L_C plus the median "
+        "level-0 span of each HMT block's edges (down, bottom, up).")
 LEVELS = ("Command: `hcmt generate impact-plate benchmarks/work/impact_plate_paper_5 --preset paper --train 5 "
           "--valid 0 --test 0 --seed 7` then `hcmt hierarchy benchmarks/work/impact_plate_paper_5 --levels 6 --json "
           "benchmarks/results/hierarchy_paper.json` (means over the 5 trajectories).")
@@ -48,7 +48,7 @@ def parity(lines):
         return
     par, sweep = got
     d, steps = par["dataset"], par["steps"]
-    lines += [f"Command: `python benchmarks/parity.py --work benchmarks/work --steps {steps}` (resumable; several "
+    lines += [f"Command: `python benchmarks/parity/run.py --work benchmarks/work --steps {steps}` (resumable; several "
               f"processes may share the work). Data: `hcmt generate impact-plate --preset paper` (~"
               f"{round(PAPER_LEVELS[0], -2):,} nodes, the paper's mesh size), {d['train']} train / "
               f"{d['valid']} valid / {d['test']} test trajectories (seed {d['seed']}). Config `{par['config']}`: "

@@ -46,3 +46,17 @@ def warm(fn, n: int) -> float:
     for _ in range(n):
         fn()
     return time.perf_counter() - t0
+
+
+def warm_up(info: dict, train, infer, flop_counter=None) -> dict:
+    """Every worker's start, recorded in ``info`` (returned): ``warmup_train_s`` and ``warmup_infer_s``, the seconds
+    of the first 3 training steps and 2 inferences (tracing / compiling included); with ``flop_counter`` (a callable
+    giving a context manager with ``get_total_flops()``, e.g. ``lambda: FlopCounterMode(display=False)``), the
+    FLOPs of one more call of each, ``flops_train`` and ``flops_infer``."""
+    info["warmup_train_s"] = warm(train, 3)
+    info["warmup_infer_s"] = warm(infer, 2)
+    for kind, fn in (("train", train), ("infer", infer)) if flop_counter is not None else ():
+        with flop_counter() as fc:
+            fn()
+        info[f"flops_{kind}"] = fc.get_total_flops()
+    return info

@@ -12,7 +12,7 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
-from protocol import one_thread, serve, warm
+from protocol import one_thread, serve, warm_up
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))  # benchmarks/: micro.bench_models
 
@@ -53,13 +53,8 @@ def contestant(path: str, name: str, mode: str):
 
     info = {"framework": f"hcmt (torch {torch.__version__})", "model": name, "mode": mode,
             "parameters": sum(p.numel() for p in model.parameters()), "nodes": int(mask.sum())}
-    info["warmup_train_s"] = warm(train, 3)  # includes compiling (or loading it from the cache)
-    info["warmup_infer_s"] = warm(infer, 2)
-    if mode == "eager":
-        for kind, fn in (("train", train), ("infer", infer)):
-            with FlopCounterMode(display=False) as fc:
-                fn()
-            info[f"flops_{kind}"] = fc.get_total_flops()
+    # the warm-up includes compiling (or loading it from the cache); FLOPs counted eagerly only
+    warm_up(info, train, infer, (lambda: FlopCounterMode(display=False)) if mode == "eager" else None)
     return train, infer, info
 
 

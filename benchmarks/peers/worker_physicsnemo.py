@@ -15,7 +15,7 @@ import tempfile
 import types
 from pathlib import Path
 
-from protocol import one_thread, serve, warm
+from protocol import one_thread, serve, warm_up
 
 one_thread()
 
@@ -89,12 +89,7 @@ def contestant(path: str):
     info = {"framework": f"PhysicsNeMo {physicsnemo.__version__} (torch {torch.__version__})", "model": "mgn",
             "mode": "eager", "scatter": scatter, "parameters": sum(p.numel() for p in model.parameters()),
             "nodes": len(nfeat)}
-    info["warmup_train_s"] = warm(train, 3)
-    info["warmup_infer_s"] = warm(infer, 2)
-    for kind, fn in (("train", train), ("infer", infer)):
-        with FlopCounterMode(display=False) as fc:
-            fn()
-        info[f"flops_{kind}"] = fc.get_total_flops()
+    warm_up(info, train, infer, lambda: FlopCounterMode(display=False))
     return train, infer, info
 
 

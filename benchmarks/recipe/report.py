@@ -2,7 +2,7 @@
 training recipe study (benchmarks/recipe/run.py)."""
 from __future__ import annotations
 
-from report_common import opened, pm, said, sentences, separated, worse
+from report_common import command, opened, pm, said, sentences, separated, worse
 
 OLD_FRAMES = 52  # the window of the first datasets
 RECORDED_FRAMES = 90  # the window of the recipe study's and the shipped model's data
@@ -29,7 +29,7 @@ def window(lines):
     turn = max(r["rebound_frame"] for r in d if r["rebound_frame"] is not None)
     fits = all(r["peak_frame"] < RECORDED_FRAMES and (r["rebound_frame"] or 0) < RECORDED_FRAMES for r in d)
     ms = (RECORDED_FRAMES - 1) * win["frame_dt_ms"]
-    lines += [sentences(f"`{win['command']}`: the solver on the corners of the `small` ranges over {win['frames']} "
+    lines += [sentences(f"`{command(win)}`: the solver on the corners of the `small` ranges over {win['frames']} "
                         f"frames of {win['frame_dt_ms']} ms.",
                         f"The plate's peak falls at frames {min(r['peak_frame'] for r in d)}-"
                         f"{max(r['peak_frame'] for r in d)}.",
@@ -56,7 +56,7 @@ def recipe(lines):
         return
     chosen = min(t["rank_sums"], key=t["rank_sums"].get) if t["rank_sums"] else t["chosen"]
     ranks = ", ".join(f"{k} {v:g}" for k, v in sorted(t["rank_sums"].items(), key=lambda kv: kv[1]))
-    lines += [f"`python benchmarks/recipe.py --work /work/study --steps {t['steps']}` (then `--table-only`): HCMT "
+    lines += [f"`python benchmarks/recipe/run.py --work /work/study --steps {t['steps']}` (then `--table-only`): HCMT "
               f"(`{t['config']}`, {' '.join('--set ' + b for b in t['base'])}) on {t['dataset']['train']} / "
               f"{t['dataset']['valid']} / {t['dataset']['test']} designs (seed {t['dataset']['seed']}), "
               f"{t['steps']} steps per run, the validation checkpoint with the lowest position RMSE. Mean ± std over "

@@ -17,6 +17,7 @@ import argparse
 import json
 import platform
 import sys
+from dataclasses import asdict
 from pathlib import Path
 
 import numpy as np
@@ -56,7 +57,7 @@ def main() -> None:
     log = [json.loads(l) for l in (a.run / "log.jsonl").read_text().splitlines()]
     logged = [r for r in log if "ms_per_step" in r]
     wall = sum(r["ms_per_step"] / 1e3 * (r["step"] - p["step"]) for p, r in zip([{"step": 0}] + logged, logged))
-    args = run.info["model"]
+    args = run.info.model
     card = {
         "summary": f"HCMT (hidden {args['hidden']}, λ {args['levels']}, L_C {args['L_C']}) trained "
                    f"{stats['steps']} steps on {run.meta['generator']['counts']['train']} generated "
@@ -68,7 +69,7 @@ def main() -> None:
         "frame_dt_ms": run.meta.get("dt"),
         "steps": int(stats["steps"]), "device": stats.get("device"), "train_ms_per_step": stats["train_ms_per_step"],
         "train_wall_s_from_log": wall, "data_command": a.data_command, "train_command": a.command,
-        "checkpoint": run.info["checkpoint"], "seed": run.info.get("seed"), "machine": platform.processor() or
+        "checkpoint": asdict(run.info.checkpoint), "seed": run.info.seed, "machine": platform.processor() or
         platform.machine(), "torch": str(torch.__version__),
     }
     metrics = evaluate(run, a.data, "test", progress=False)
@@ -85,10 +86,10 @@ def main() -> None:
               "high": "high drops (top fifth of drop height)", "thin+high": "thin plates dropped from high"}
     card["confidence"] = [
         {"region": k, "label": labels.get(k, k), "designs": len(rows),
-         "peak_plate_stress_error_pct_median": float(np.median([abs(r["peak_plate_stress_error_pct"]) for r in rows])),
-         "peak_plate_stress_error_pct_worst": float(max((r["peak_plate_stress_error_pct"] for r in rows), key=abs)),
-         "max_deflection_error_pct_median": float(np.median([abs(r["max_deflection_error_pct"]) for r in rows])),
-         "rebound_agreement": float(np.mean([r["rebound_agrees"] for r in rows]))}
+         "peak_plate_stress_error_pct_median": float(np.median([abs(r.peak_plate_stress_error_pct) for r in rows])),
+         "peak_plate_stress_error_pct_worst": float(max((r.peak_plate_stress_error_pct for r in rows), key=abs)),
+         "max_deflection_error_pct_median": float(np.median([abs(r.max_deflection_error_pct) for r in rows])),
+         "rebound_agreement": float(np.mean([r.rebound_agrees for r in rows]))}
         for k, rows in sorted(regions.items())]
     card["verify_designs"] = {"seed": a.design_seed, "count": a.designs}
     path = run.save_pretrained(PRETRAINED_DIR / f"{a.name}.pt", card)
@@ -115,7 +116,7 @@ def main() -> None:
     out = {"name": a.name, "file_mb": path.stat().st_size / 1e6, "card": card,
            "test_metrics": {k: metrics[k] for k in ("split", "trajectories", "position", "stress",
                                                     "inference_ms_per_step", "physics")},
-           "verify": check.verified, "per_design": [{"name": q.name, **q.summary} for q in check.preds],
+           "verify": check.verified, "per_design": [{"name": q.name, **q.summary.to_json()} for q in check.preds],
            "sweeps": sweeps, "predict_wall_s_total": check.wall_s, "batch": a.batch, "threads": a.threads,
            "single_design_wall_s": single.wall_s,
            "solver_wall_s_median": float(np.median([t.wall_s for t in check.truth])),

@@ -8,6 +8,7 @@ from report_common import (
     PAPER_ANSYS_MS,
     PAPER_SPEEDUP,
     PAPER_TRAIN_MS,
+    command,
     gpu_check_ran,
     load,
     on_gpu,
@@ -48,7 +49,7 @@ def speed(lines):
 
 def models_table(lines, models):
     lines += ["### Models on a paper-size Impact Plate graph (paper Table 10 / Appendix E)", "",
-              "Command: `python benchmarks/bench_models.py --steps 5 --threads 1 --json "
+              "Command: `python benchmarks/micro/bench_models.py --steps 5 --threads 1 --json "
               "benchmarks/results/models_cpu.json` (one CPU thread; paper sizes: hidden 128, HCMT L_C 2 / λ 6, "
               "MGN and GT 15 blocks; the 2,152-node `paper` preset mesh with its contact edges).", "",
               "| device | threads | model | parameters | train ms/step | inference ms/step |",
@@ -68,7 +69,7 @@ def rollout(lines, roll):
     n = len(roll["trajectories"])
     runs = f" --run {' '.join(roll['trained_runs'])}" if roll.get("trained_runs") else ""
     lines += ["### Learned rollout against the solver, same trajectories", "",
-              f"Command: `python benchmarks/speed.py rollout --n {n}{runs}`", "",
+              f"Command: `python benchmarks/speed/run.py rollout --n {n}{runs}`", "",
               f"Solver (built-in explicit FEM, one core): **{roll['solver_ms_per_frame']:.1f} ms per recorded frame** "
               f"(median over {n} paper-preset trajectories). Learned models: the accuracy "
               "study's seed-0 runs (hidden 64, HCMT λ 4), one CPU thread, timed per step including graph "
@@ -90,8 +91,9 @@ def rollout(lines, roll):
 
 def scaling(lines, scal):
     lines += ["### Training-step time and peak memory against node count", "",
-              "Command: `python benchmarks/speed.py scaling --sizes 1000 2000 4000 8000 16000 32000 64000 --reps 2` "
-              "(paper-size models, one thread, one process per point, median of 2 steps after a warm-up step).", ""]
+              "Command: `python benchmarks/speed/run.py scaling --sizes 1000 2000 4000 8000 16000 32000 64000 "
+              "--reps 2` (paper-size models, one thread, one process per point, median of 2 steps after a warm-up "
+              "step).", ""]
     lines += SCALING_HEAD + [scaling_row(r) for r in scal["rows"] if not r.get("checkpoint_blocks")]
     above = all(k > 1 for k in scal["exponent"].values())
     lines += ["", "Fitted time ∝ N^k: " + ", ".join(f"{m.upper()} k = {k:.2f}" for m, k in scal["exponent"].items()),
@@ -105,7 +107,7 @@ def scaling(lines, scal):
     if not ckpt:
         return
     lines += ["With activation checkpointing per block (`train.checkpoint_blocks: true`; command: `python "
-              "benchmarks/speed.py scaling --models hcmt --checkpoint-blocks --sizes "
+              "benchmarks/speed/run.py scaling --models hcmt --checkpoint-blocks --sizes "
               + " ".join(str(r["target_nodes"]) for r in ckpt) + " --reps 2`, same process cap):", ""]
     lines += SCALING_HEAD + [scaling_row(r) for r in ckpt] + [""]
     plain = {(r["model"], r.get("target_nodes")): r for r in scal["rows"]
@@ -132,7 +134,7 @@ def threads(lines):
     t = opened(lines, "## Threads", "threads.json")
     if not t:
         return
-    lines += [f"`{t['command']}`: `hcmt predict pretrained:impact_plate_small` in a fresh process "
+    lines += [f"`{command(t)}`: `hcmt predict pretrained:impact_plate_small` in a fresh process "
               f"while {t['other_job']} holds one of the {t['cores']} cores; median of 3 runs, wall time of the whole "
               f"command (start-up included). {t['note']}.", "", "| setting | median s |", "|---|---|"]
     for k, r in t["results"].items():
@@ -154,10 +156,10 @@ def cpu_ab(lines):
 
     worse = [m for m in MODELS if slower(m, "train_ms") or slower(m, "inference_ms")]
     lines += [f"### The CPU is {'not slower' if not worse else 'slower for ' + said([m.upper() for m in worse])}", "",
-              "Command: `git worktree add --detach ../old c18dfe3 && PYTHON=.venv/bin/python bash benchmarks/cpu_ab.sh "
-              "../old .` (c18dfe3: the last commit before the compiled/padded paths; old and new alternate, twice, "
-              "one thread each, while a training run held the other core). Paper-size graph, eager, median of 5 "
-              "steps, ms:", "",
+              "Command: `git worktree add --detach ../old c18dfe3 && PYTHON=.venv/bin/python bash "
+              "benchmarks/speed/cpu_ab.sh ../old .` (c18dfe3: the last commit before the compiled/padded paths; old "
+              "and new alternate, twice, one thread each, while a training run held the other core). Paper-size "
+              "graph, eager, median of 5 steps, ms:", "",
               "| model | train old | train new | new ÷ old | inference old | inference new | new ÷ old |",
               "|---|---|---|---|---|---|---|"]
     for m in MODELS:

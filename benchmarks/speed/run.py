@@ -53,8 +53,8 @@ def _rollout(args) -> None:
     if args.run:
         for run in args.run:
             m, info = load_run(run)
-            levels = int(info["model"].get("levels", 0)) if info["model"]["name"] == "hcmt" else 0
-            models[info["model"]["name"]] = (m, levels)
+            levels = int(info.model.get("levels", 0)) if info.model["name"] == "hcmt" else 0
+            models[info.model["name"]] = (m, levels)
     else:
         torch.manual_seed(0)
         models = {"hcmt": (build_for_dataset("hcmt", "impact_plate"), 6),

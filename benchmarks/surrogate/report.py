@@ -6,7 +6,7 @@ from hcmt.design.check import TRUST
 from hcmt.sim.params import Design
 from report_common import load, said, sentences
 
-COMMAND = ("python benchmarks/surrogate.py --data DATA --work WORK --threads 1   # DATA: the shipped model's "
+COMMAND = ("python benchmarks/surrogate/run.py --data DATA --work WORK --threads 1   # DATA: the shipped model's "
            "training data (docs/MODELS.md)")
 SETS = {"in_range": "30 in range", "thicker": "6 thicker (1.03-1.2 mm)", "higher": "6 higher (1030-1200 mm)",
         "both": "4 thicker and higher"}

@@ -152,7 +152,7 @@ def record(p, t, frame_dt: float, end) -> dict:
     out["solver_ball_leaves"] = truth["contact_end_ms"] < len(truth["plate_stress_history_mpa"]) * frame_dt - 1e-9
     # how far the solver's peak lies before the GP's lower bound of when its ball leaves (frames)
     out["solver_peak_before_lower_end_frames"] = int(np.floor(end.lo / frame_dt)) - truth["peak_plate_frame"]
-    out["critical_node_history_correlation"] = p.summary["verify"]["critical_node_history_correlation"]
+    out["critical_node_history_correlation"] = p.summary["verify"].critical_node_history_correlation
     out["model_wall_s"] = p.wall_s
     return out
 

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from report_common import SHIPPED_STEPS, said, sentences
+from report_common import SHIPPED_STEPS, command, said, sentences
 
 DATA = ("hcmt generate impact-plate /work/data/fam_train --preset small --family mono,stack2,ring --train 60 "
         "--valid 6 --test 12 --seed 7 --frames 90\n"
@@ -80,9 +80,9 @@ def _mean(rows: dict, model: str, tail: str, what: str) -> float | None:
     return float(np.mean([g[what]["median_abs"] for g in got])) if got and got[0].get("designs") else None
 
 
-def _flag(command: str, name: str) -> str:
+def _flag(cmd: str, name: str) -> str:
     """The value of ``--name`` in the benchmark's command."""
-    return command.split(f"--{name} ")[1].split()[0]
+    return cmd.split(f"--{name} ")[1].split()[0]
 
 
 def _peak(rows: dict, key: str, n) -> float | None:
@@ -132,13 +132,13 @@ def verdicts(r: dict, key: str, shots: list[int]) -> list[str]:
 def transfer(lines: list[str], r: dict | None) -> None:
     lines += ["## Panel families: transfer", ""]
     if r is None:
-        lines += ["Not run yet: `python benchmarks/transfer.py` (its docstring has the data commands).", ""]
+        lines += ["Not run yet: `python benchmarks/transfer/run.py` (its docstring has the data commands).", ""]
         return
     shots = sorted({int(k.rsplit("_", 1)[1]) for k in r["rows"] if k.startswith("gp_") and
                     k.rsplit("_", 1)[1].isdigit()})
     base = r["rows"].get("gp_base", {}).get("fitted_on", "?")
     lines += ["The data (docs/solver.md, \"Panel families\"):", "", "```bash", DATA, "```", "", "```bash",
-              r["command"], "```", "",
+              command(r), "```", "",
               f"Trained on the families {', '.join(r['train_families'])} ({base} runs, the ball); judged on designs "
               f"of those families and of {', '.join(r['new_families'])}, never trained on. Device: {r['device']}. "
               "Critical location: the distance at rest between the nodes of the model's and the solver's peak "

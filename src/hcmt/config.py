@@ -27,7 +27,13 @@ COMPILE_MODES = ("none", "auto", "default", "reduce-overhead", "max-autotune")
 TORCH_COMPILE_MODES = COMPILE_MODES[2:]
 #: the models (:data:`hcmt.models.REGISTRY`, in this order) and HCMT's ablations (paper Tables 3, 10-12)
 MODELS = ("hcmt", "mgn", "gt")
-ABLATIONS = ("late-contact", "only-cmt", "only-hmt", "lpe", "single-branch", "no-remesh")
+ABLATIONS = ("late-contact", "only-cmt", "only-hmt", "lpe", "single-branch")
+#: the paper's remeshing ablation ("HCMT without remeshing", appendix "Additional Ablation Study") changes the graph,
+#: not the model: it is ``data.remesh: false``. Its old spelling, ``model.ablation: no-remesh`` (configs, ``--set``,
+#: ``hcmt train --ablation no-remesh``, the ``model`` of run.yaml files and checkpoints written before), still reads,
+#: as an alias: :class:`Config` and :func:`current_model_args` translate it where a config or model arguments are read
+NO_REMESH = "no-remesh"
+ABLATION_ALIASES = (NO_REMESH,)
 #: ``init_normalizers``: a fine-tuned run keeps its source's normalizer statistics, frozen (the few runs of a new
 #: family make poor statistics), or zeroes them and accumulates them afresh on its own data
 INIT_NORMALIZERS = ("keep", "reaccumulate")
@@ -142,7 +148,8 @@ class ModelConfig:
     attention: str = _field("paper", "paper", "official")
     target: Optional[str] = _field(None, "velocity", "acceleration")  # None: the dataset's Table 9 output
     deformation: bool = False  # hcmt's edge deformation features x_ij − u_ij and stretch
-    ablation: Optional[str] = _field(None, *ABLATIONS)  # HCMT's ablations (paper Tables 3, 10-12; --ablation)
+    # HCMT's ablations (paper Tables 3, 10-12; --ablation); no-remesh is read as data.remesh=false (NO_REMESH)
+    ablation: Optional[str] = _field(None, *ABLATIONS, *ABLATION_ALIASES)
 
 
 @dataclass(frozen=True)
@@ -191,6 +198,10 @@ class DataConfig:
     # hold the training split in memory instead of reading each item's frames from the file: a step of the shipped
     # recipe took 145 against 160 ms of CPU on the `small` preset; memory grows with the split (docs/RESULTS.md)
     in_memory: bool = False
+    # the coarse levels' edges of HCMT's hierarchy: Delaunay remeshing of the pooled nodes (the paper), or, false,
+    # the kept nodes two hops apart on the finer level (BSMS; the paper's "HCMT without remeshing" ablation, appendix
+    # "Additional Ablation Study"); hcmt.graph.hierarchy.build_hierarchy. Old spelling: model.ablation=no-remesh
+    remesh: bool = True
 
 
 SECTIONS = {"model": ModelConfig, "train": TrainConfig, "data": DataConfig}
@@ -260,6 +271,8 @@ class Config:
         checked against the schema and cast to its declared type."""
         plain = self.to_dict()
         check_schema(plain, "Config")
+        if plain["model"]["ablation"] == NO_REMESH:  # the old spelling of data.remesh=false (NO_REMESH): read once
+            plain["model"]["ablation"], plain["data"]["remesh"] = None, False
         for name, cls_ in SECTIONS.items():
             object.__setattr__(self, name, cls_(**{
                 k: v if v is None or SCHEMA[name][k].kind not in _CAST else _CAST[SCHEMA[name][k].kind](v)
@@ -287,6 +300,13 @@ class Config:
                     raise InputError(f"config: {name}.{key} is missing (see configs/impact_plate.yaml for a "
                                      "complete config)")
         return self
+
+
+def current_model_args(args: dict) -> dict:
+    """A model's constructor arguments (run.yaml's ``model``, a checkpoint's ``model_args``) as hcmt reads them now:
+    the old ``no-remesh`` ablation, which never changed the model, dropped (the run's config, read through
+    :class:`Config`, holds it as ``data.remesh: false``)."""
+    return dict(args, ablation=None) if args.get("ablation") == NO_REMESH else args
 
 
 def as_config(config, overrides: list[str] | None = None) -> Config:

@@ -14,6 +14,7 @@ from hcmt.design.check import Prediction, add_calls, verify_designs
 from hcmt.design.reports import csv_rows, format_table, to_json
 from hcmt.design.surrogate import dataset_facts
 from hcmt.design.sweep import analyse, format_analysis, trends_agree
+from hcmt.design.verification import VerifyRow
 from hcmt.errors import InputError
 from hcmt.inference.run import Run
 from hcmt.sim.params import Design
@@ -93,9 +94,26 @@ def test_verify_prints_each_quantity_once():
     for name in ("peak plate stress error", "time of the plate's peak", "rise time", "max deflection error"):
         assert text.count(name) == 1, (name, text)
     row = preds[0].summary["verify"]
-    assert row["peak_plate_stress_error_pct"] == pytest.approx(100 * (1 / 1.2 - 1))
+    assert row.peak_plate_stress_error_pct == pytest.approx(100 * (1 / 1.2 - 1))
     assert verified["peak_plate_stress_error_pct"]["median"] == verified["physics"]["peak_plate_stress_error_pct"][
         "median_abs"]
+
+
+def test_the_verify_block_is_typed_and_its_json_keys_are_the_ones_the_dict_wrote():
+    """The verify row (a VerifyRow) writes the keys and order the plain dict did (recorded before the change), a
+    derived read-out's error last."""
+    preds, truth = [_pred("a", readout="contact")], [_pred("a", 1.2)]
+    verify_designs(preds, truth)
+    row = preds[0].summary["verify"]
+    assert isinstance(row, VerifyRow) and row.speedup == 1.0
+    block = to_json(preds, None, "x", "cpu")["designs"][0]["verify"]
+    assert list(block) == [
+        "solver_peak_plate_stress_mpa", "solver_max_deflection_mm", "peak_plate_stress_error_pct",
+        "max_deflection_error_pct", "model_rebounds", "solver_rebounds", "rebound_agrees", "peak_plate_frame_error",
+        "peak_ball_stress_error_pct", "far_deflection_error_um", "peak_plate_location_error_mm", "position_rmse_mm",
+        "solver_peak_plate_t95_ms", "peak_plate_t95_frame_error", "critical_node_history_correlation",
+        "solver_wall_s", "speedup", "solver_warnings", "contact_peak_plate_stress_error_pct"]
+    assert block == row.to_json() and json.loads(json.dumps(block)) == block
 
 
 @pytest.mark.parametrize("model, solver, agree", [(-1.0, -24.0, False), (-20.0, -24.0, True), (-13.0, -24.0, True),

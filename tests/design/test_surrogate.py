@@ -313,7 +313,7 @@ def test_verify_auto_runs_the_solver_on_the_undecided_designs_only(family, tmp_p
     auto = check_designs(run, designs, verify="auto", yield_mpa=y, progress=False)
     a = auto.preds[0].summary
     assert a["call"] == "undecided" and a["verified"] is True and auto.truth[0] is not None
-    assert a["final_call"] == ("pass" if a["verify"]["solver_peak_plate_stress_mpa"] < y else "fail")
+    assert a["final_call"] == ("pass" if a["verify"].solver_peak_plate_stress_mpa < y else "fail")
     assert auto.solver_runs == sum(p.summary["call"] == "undecided" for p in auto.preds)
     assert "solver_plate_stress_history_mpa" in a
     # refused without a yield stress, in one line

@@ -1,12 +1,20 @@
+import argparse
 import dataclasses
 
 import pytest
+import torch
 import yaml
 
+from graph_meshes import plate_and_ball
+from hcmt.cli.parsers import configure_train
 from hcmt.config import Config, builtin_configs, load_config
-from hcmt.data.runs import RunFolder
+from hcmt.data.runs import PRETRAINED_DIR, RunFolder
 from hcmt.domains.adapters import dataset_spec
 from hcmt.errors import InputError
+from hcmt.graph.hierarchy import build_hierarchy
+from hcmt.graph.remesh import two_hop_edges
+from hcmt.inference.run import Run
+from hcmt.models import uses_hierarchy
 
 TABLE8 = {  # dataset: (L_C, L_H, lambda, noise std, gamma, steps)
     "impact_plate": (2, 13, 6, 0.003, 0.4, 2_000_000),
@@ -151,3 +159,33 @@ def test_the_shipped_models_recipe_is_the_named_config_impact_plate_shipped():
     from hcmt.inference.run import Run
     shipped = Run.load("pretrained:impact_plate_small", "cpu").config
     assert load_config("impact_plate_shipped").to_dict() == shipped.to_dict()
+
+
+def test_no_remesh_is_the_graph_setting_data_remesh_and_the_old_spelling_still_reads(tmp_path):
+    """The paper's "HCMT without remeshing" is ``data.remesh: false``: the hierarchy's coarse edges join the kept
+    nodes two hops apart (BSMS). Its old spelling, ``model.ablation: no-remesh`` (``--set``, ``--ablation``, an
+    older run.yaml and checkpoint), reads as it, and an older run still builds the 2-hop hierarchy."""
+    new = load_config("impact_plate_cpu", ["data.remesh=false"])
+    assert (new.model.ablation, new.data.remesh) == (None, False) and load_config("impact_plate_cpu").data.remesh
+    assert load_config("impact_plate_cpu", ["model.ablation=no-remesh"]) == new
+    assert dataclasses.replace(new, model=dataclasses.replace(new.model, ablation="no-remesh")) == new
+    assert "no-remesh" not in yaml.safe_dump(new.to_dict())
+    # an older run: run.yaml and checkpoint with the ablation in the model arguments and the config
+    pack = torch.load(PRETRAINED_DIR / "impact_plate_small.pt", weights_only=True)
+    args = dict(pack["model_args"], ablation="no-remesh")
+    config = dict(pack["config"], model=dict(pack["config"]["model"], ablation="no-remesh"))
+    (tmp_path / "run.yaml").write_text(yaml.safe_dump({"model": args, "config": config, "data": None, "seed": 0}))
+    torch.save({"model_args": args, "model": pack["model"], "step": 7}, tmp_path / "best.pt")
+    run = Run.load(tmp_path, "cpu")
+    assert run.info.model["ablation"] is None and run.config.data.remesh is False and run.config.model.ablation is None
+    assert run.hierarchy_spec == (4, False) and run.label == "HCMT (no-remesh)" and run.info.checkpoint.step == 7
+    assert uses_hierarchy(run.info.model, new.data.remesh) == uses_hierarchy(run.info.model, False) == (4, False)
+    m = plate_and_ball(h=0.25)
+    h = build_hierarchy(m["mesh_pos"], m["cells"], m["node_type"], 2, *run.hierarchy_spec[1:])
+    assert not h.remesh
+    for level in (1, 2):  # every coarse level's edges: the finer level's kept nodes two hops apart
+        two_hop = two_hop_edges(h.edges[level - 1], h.num_nodes(level - 1), h.pool[level - 1])
+        assert set(map(tuple, h.edges[level].T.tolist())) == set(map(tuple, two_hop.T.tolist()))
+    parser = argparse.ArgumentParser()
+    configure_train(parser)
+    assert parser.parse_args(["--out", "x", "--ablation", "no-remesh"]).ablation == "no-remesh"  # an alias still

@@ -13,6 +13,7 @@ import h5py
 import numpy as np
 import pytest
 import torch
+import yaml
 
 import hcmt.training.trainer as trainer_module
 from conftest import TINY
@@ -546,7 +547,7 @@ def test_init_starts_from_the_source_weights_and_keeps_or_reaccumulates_normaliz
     tuned = load_run(frozen, "checkpoint")[0]
     for (k, a), b in zip(source.state_dict().items(), tuned.state_dict().values()):
         torch.testing.assert_close(a, b, rtol=0, atol=0, msg=k)  # no step and frozen statistics: nothing moved
-    assert load_run(frozen, "checkpoint")[1]["init"] == {"from": str(src), "normalizers": "keep", "step": 3}
+    assert load_run(frozen, "checkpoint")[1].init == {"from": str(src), "normalizers": "keep", "step": 3}
     fresh = tmp_path / "fresh"
     train(tiny_config(*EXTRA, "train.steps=3"), impact, "hcmt", fresh, seed=2, progress=False, init=str(src),
           init_normalizers="reaccumulate")
@@ -577,9 +578,26 @@ def test_ablation_flag_is_the_model_ablation_key_and_resume_keeps_it(impact, tmp
     assert cli(["train", "--config", "impact_plate_cpu", "--data", str(impact), "--model", "hcmt", "--out", str(out),
                 "--steps", "1", "--ablation", "only-hmt", "--no-progress", *sets]) == 0
     info = Run.load(out, "cpu").info
-    assert info["config"].model.ablation == info["model"]["ablation"] == "only-hmt"
+    assert info.config.model.ablation == info.model["ablation"] == "only-hmt"
     assert cli(["train", "--out", str(out), "--resume", "--steps", "2", "--no-progress"]) == 0
-    assert Run.load(out, "cpu").info["model"]["ablation"] == "only-hmt"
+    assert Run.load(out, "cpu").info.model["ablation"] == "only-hmt"
+    capsys.readouterr()
+
+
+def test_ablation_no_remesh_is_an_alias_of_data_remesh_false(impact, tmp_path, capsys):
+    """``--ablation no-remesh`` (the paper's HCMT without remeshing) trains with ``data.remesh: false``: run.yaml
+    holds the graph setting, the run builds the 2-hop hierarchy, and resuming keeps it."""
+    out = tmp_path / "nr"
+    sets = [a for kv in TINY + EXTRA for a in ("--set", kv)]
+    assert cli(["train", "--config", "impact_plate_cpu", "--data", str(impact), "--model", "hcmt", "--out", str(out),
+                "--steps", "1", "--ablation", "no-remesh", "--no-progress", *sets]) == 0
+    saved = yaml.safe_load((out / "run.yaml").read_text())
+    assert saved["config"]["data"]["remesh"] is False and saved["config"]["model"]["ablation"] is None
+    assert saved["model"]["ablation"] is None
+    run = Run.load(out, "cpu")
+    assert run.hierarchy_spec[1] is False and run.hierarchy_spec[0] > 0 and run.label == "HCMT (no-remesh)"
+    assert cli(["train", "--out", str(out), "--resume", "--steps", "2", "--no-progress"]) == 0
+    assert Run.load(out, "cpu").config.data.remesh is False
     capsys.readouterr()
 
 
@@ -591,18 +609,18 @@ def test_init_inherits_the_sources_model_settings_and_mgn_saves_only_its_own(imp
     assert cli(["train", "--init", "pretrained:impact_plate_small", "--data", str(impact), "--out", str(ft),
                 "--steps", "1", "--no-progress", "--set", "train.valid_every=0"]) == 0
     info = Run.load(ft, "cpu").info
-    assert architecture(info["model"]) == architecture(shipped.info["model"])
-    assert info["config"].model == shipped.config.model and info["config"].model.deformation
+    assert architecture(info.model) == architecture(shipped.info.model)
+    assert info.config.model == shipped.config.model and info.config.model.deformation
     src = tmp_path / "src"
     train(tiny_config(*EXTRA, "train.steps=1", "model.deformation=true", "model.attention=official"), impact, "hcmt",
           src, seed=1, progress=False)
     assert cli(["train", "--config", "impact_plate_cpu", "--data", str(impact), "--out", str(tmp_path / "b"),
                 "--steps", "1", "--init", str(src), "--no-progress", *(a for kv in EXTRA for a in ("--set", kv))]) == 0
-    model = Run.load(tmp_path / "b", "cpu").info["config"].model
+    model = Run.load(tmp_path / "b", "cpu").info.config.model
     assert (model.deformation, model.attention, model.hidden) == (True, "official", 16)  # none of them given
     mgn = tmp_path / "mgn"
     train(tiny_config(*EXTRA, "train.steps=1"), impact, "mgn", mgn, seed=1, progress=False)
-    assert set(Run.load(mgn, "cpu").info["model"]) == {"name", "node_in", "mesh_in", "contact_in", "out", "hidden",
+    assert set(Run.load(mgn, "cpu").info.model) == {"name", "node_in", "mesh_in", "contact_in", "out", "hidden",
                                                        "blocks"}
     assert cli(["train", "--data", str(impact), "--out", str(tmp_path / "mgn2"), "--steps", "1", "--init", str(mgn),
                 "--no-progress"]) == 0

@@ -90,7 +90,7 @@ def _design_run(args):
         raise CommandError(f"{args.model}: predict is for Impact Plate models; this one was trained on "
                            f"{run.config.dataset!r}")
     if run.meta is None and run.folder is not None:
-        raise CommandError(f"{args.model}: its training data ({run.info.get('data')}) is gone and the run holds no "
+        raise CommandError(f"{args.model}: its training data ({run.info.data}) is gone and the run holds no "
                            f"{run.folder.data_facts_path.name} (by `hcmt train`) with the generator's settings, design "
                            "ranges and keys that predict needs; restore the dataset, or retrain")
     return run

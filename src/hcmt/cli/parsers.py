@@ -14,6 +14,7 @@ from pathlib import Path
 
 from hcmt.cli import CommandError, check_outputs
 from hcmt.config import (
+    ABLATION_ALIASES,
     ABLATIONS,
     COMPILE_MODES,
     INIT_NORMALIZERS,
@@ -318,7 +319,9 @@ def configure_train(p: argparse.ArgumentParser) -> None:
     same_as(p, name_or_path="--config")
     p.add_argument("--data", help="native dataset folder")
     p.add_argument("--model", choices=MODELS)
-    p.add_argument("--ablation", choices=ABLATIONS, help="HCMT ablation (paper Tables 3, 10-12): --set model.ablation")
+    p.add_argument("--ablation", choices=ABLATIONS + ABLATION_ALIASES,
+                   help="HCMT ablation (paper Tables 3, 10-12): --set model.ablation; the paper's HCMT without "
+                        "remeshing, no-remesh, is a graph setting: --set data.remesh=false")
     p.add_argument("--steps", type=count(1, MAX_STEPS), metavar="N",
                    help=f"training steps, {span(1, MAX_STEPS)} (overrides train.steps)")
     p.add_argument("--seed", type=int, help="random seed (default 0)")

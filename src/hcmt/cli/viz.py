@@ -63,7 +63,11 @@ def _plot_hierarchy(args, runs, case, out: Path, notes: list[str]) -> list[Path]
     levels, remesh = args.levels, True
     if levels is None:
         for run in runs:
-            lv, rm = uses_hierarchy(run.info["model"])
+            if isinstance(run, Run):
+                lv, rm = run.hierarchy_spec
+            else:  # a run folder without a checkpoint yet: its run.yaml
+                cfg = run.info.get("config")
+                lv, rm = uses_hierarchy(run.info["model"], cfg is None or cfg.data.remesh)
             if lv:
                 levels, remesh = lv, rm
                 break
@@ -82,7 +86,7 @@ def _plot_attention(args, runs, labels: list[str], out: Path, notes: list[str]) 
         if not isinstance(run, Run):
             notes.append(f"attention: {label} ({run.source}) has no checkpoint; skipped")
             continue
-        if not REGISTRY[run.info["model"]["name"]].has_attention:
+        if not REGISTRY[run.info.model["name"]].has_attention:
             notes.append(f"attention: {label} ({run.source}) is not a Transformer; skipped")
             continue
         maps = frame_attention(run, args.data, args.split, args.trajectory, args.attention_frame)

@@ -14,7 +14,12 @@ import numpy as np
 import torch
 import yaml
 
-from hcmt.config import PRETRAINED_DIR, Config, available_pretrained  # noqa: F401 (PRETRAINED_DIR: re-exported)
+from hcmt.config import (  # noqa: F401 (PRETRAINED_DIR: re-exported)
+    PRETRAINED_DIR,
+    Config,
+    available_pretrained,
+    current_model_args,
+)
 from hcmt.data.format import Split, read_meta
 from hcmt.errors import InputError
 from hcmt.files import atomic_path, read_json
@@ -191,6 +196,7 @@ def read_run_yaml(path: Path) -> dict:
         what = "empty" if not info else "no model section (the model's constructor arguments)" \
             if not isinstance(info, dict) or not isinstance(info.get("model"), dict) else "a config that is no mapping"
         raise InputError(f"{path}: {what}; run.yaml is written by `hcmt train` (restore it, or train the run again)")
+    info["model"] = current_model_args(info["model"])  # an old no-remesh run: its config says data.remesh false
     if "config" in info:
         try:
             info["config"] = Config.from_dict(info["config"], str(path))
@@ -213,6 +219,8 @@ def read_checkpoint(path: Path, device="cpu", earlier: Path | None = None) -> di
     except Exception as exc:  # torch raises RuntimeError, EOFError, UnpicklingError, ...: all mean "damaged"
         raise InputError(f"{path}: not a readable checkpoint (truncated or corrupt: {exc.__class__.__name__})"
                          f"{_other_checkpoint(path, earlier)}") from None
+    if isinstance(state.get("model_args"), dict):  # an old no-remesh checkpoint: the model is HCMT's own
+        state["model_args"] = current_model_args(state["model_args"])
     return state
 
 

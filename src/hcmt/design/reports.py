@@ -38,6 +38,13 @@ def _interval(block: dict | None, fmt: str = "{:.0f}") -> str:
     return f"{fmt.format(block['mean'])} [{fmt.format(block['lo'])}, {fmt.format(block['hi'])}]"
 
 
+def verify_block(summary) -> dict:
+    """A design's verify row as its JSON block (:meth:`hcmt.design.verification.VerifyRow.to_json`; ``{}`` when
+    the solver did not run on it)."""
+    row = summary.get("verify")
+    return row.to_json() if hasattr(row, "to_json") else dict(row or {})
+
+
 def table_rows(preds: list[Prediction]) -> tuple[list[str], list[list[str]]]:
     cols = [c for c in COLUMNS if c[2] != "yield_margin_mpa" or "yield_margin_mpa" in preds[0].summary]
     derived = readout_key("peak_plate_stress_mpa", preds[0].summary.get("readout", "raw"))
@@ -49,7 +56,7 @@ def table_rows(preds: list[Prediction]) -> tuple[list[str], list[list[str]]]:
         [c[0] for c in cols[2:] + vcols]
     rows = []
     for p in preds:
-        s = {**p.summary, "name": p.name, **p.summary.get("verify", {})}
+        s = {**p.summary, "name": p.name, **verify_block(p.summary)}
         cells = []
         for _, fmt, key in cols + vcols:
             v = s.get(key)
@@ -77,7 +84,7 @@ def format_table(preds: list[Prediction], verified: dict | None = None) -> str:
         lines += [f"  {k.split('_peak')[0]} read-out's peak plate stress error median {e['median']:.1f} % (worst "
                   f"{e['max']:.1f} %)" for k, e in v.items() if k.endswith("_peak_plate_stress_error_pct")]
         lines += [line[2:] for line in format_physics(v["physics"])]
-    lines += [f"solver warning: {p.name}: {w}" for p in preds for w in p.summary.get("verify", {}).get(
+    lines += [f"solver warning: {p.name}: {w}" for p in preds for w in verify_block(p.summary).get(
         "solver_warnings", [])]
     lines += [f"note: {w}" for p in preds for w in weak_reasons(p)]
     return "\n".join(lines)
@@ -93,7 +100,7 @@ def format_calls(preds: list[Prediction], yield_mpa: float, label: str = "design
     rows = []
     for p in preds:
         s, iv = p.summary, p.summary["call_interval_mpa"]
-        solver = (s.get("verify") or {}).get("solver_peak_plate_stress_mpa")
+        solver = verify_block(s).get("solver_peak_plate_stress_mpa")
         rows.append([str(value(p)), f"{chosen(s, 'peak_plate_stress_mpa'):.0f}",
                      _interval((s.get("surrogate") or {}).get("peak_plate_stress_mpa")),
                      f"{iv['from']} [{iv['lo']:.0f}, {iv['hi']:.0f}]", s["call"],
@@ -128,7 +135,7 @@ def csv_rows(preds: list[Prediction]) -> tuple[list[str], list[list]]:
         skeys += [q for q in (p.summary.get("surrogate") or {}) if q not in skeys]
     vkeys = []
     for p in preds:
-        vkeys += [k for k in p.summary.get("verify", {}) if k not in vkeys and k != "solver_warnings"]
+        vkeys += [k for k in verify_block(p.summary) if k not in vkeys and k != "solver_warnings"]
     for k in keys:
         head += [k.replace("where_mm", "r_mm"), k.replace("where_mm", "y_mm")] if k.endswith("where_mm") else [k]
     head += [f"surrogate_{q}_{b}" for q in skeys for b in ("mean", "lo", "hi")]
@@ -141,8 +148,9 @@ def csv_rows(preds: list[Prediction]) -> tuple[list[str], list[list]]:
             row += (list(v) if v else ["", ""]) if k.endswith("where_mm") else [v]
         block = p.summary.get("surrogate") or {}
         row += [block.get(q, {}).get(b) for q in skeys for b in ("mean", "lo", "hi")]
-        row += [p.summary.get("verify", {}).get(k) for k in vkeys]
-        warnings = (p.summary.get("warnings", []) + p.summary.get("verify", {}).get("solver_warnings", [])
+        verify = verify_block(p.summary)
+        row += [verify.get(k) for k in vkeys]
+        warnings = (p.summary.get("warnings", []) + verify.get("solver_warnings", [])
                     + weak_reasons(p))
         row += [p.summary.get("model", ""), p.summary.get("readout", "raw"), "; ".join(warnings)]
         rows.append([repr(v) if isinstance(v, float) else "" if v is None else v for v in row])  # repr: every digit
@@ -179,8 +187,9 @@ def to_json(preds: list[Prediction], verified: dict | None, run_source: str, dev
 
 
 def summary_json(summary) -> dict:
-    """A design's summary as its JSON block (:meth:`hcmt.design.summary.Summary.to_json`; a plain dict as it is)."""
-    return summary.to_json() if isinstance(summary, Summary) else dict(summary)
+    """A design's summary as its JSON block (:meth:`hcmt.design.summary.Summary.to_json`; a plain dict read as one,
+    its keys in their order)."""
+    return (summary if isinstance(summary, Summary) else Summary.of(summary)).to_json()
 
 
 def finite(obj):

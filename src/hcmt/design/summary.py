@@ -12,6 +12,10 @@ from __future__ import annotations
 
 from collections.abc import Iterator, Mapping, MutableMapping
 from dataclasses import dataclass, field, fields
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from hcmt.design.verification import VerifyRow
 
 
 @dataclass(eq=False)
@@ -51,7 +55,7 @@ class Summary(MutableMapping):
     yield_margin_mpa: float | None = None  # yield - peak plate stress
     call: str | None = None  # pass, fail or undecided (hcmt.design.calls)
     call_interval_mpa: dict | None = None  # {lo, hi, from, model_readout}
-    verify: dict | None = None  # model against solver (hcmt.design.verification.verify_row)
+    verify: VerifyRow | None = None  # model against solver (hcmt.design.verification.verify_row)
     solver_plate_stress_history_mpa: list[float] | None = None
     solver_warnings: list[str] | None = None
     verified: bool | None = None
@@ -107,8 +111,9 @@ class Summary(MutableMapping):
         return f"Summary({', '.join(f'{k}={self[k]!r}' for k in self)})"
 
     def to_json(self) -> dict:
-        """The keys set, in the order they were set: each design's block of the design check's JSON."""
-        return {k: self[k] for k in self}
+        """The keys set, in the order they were set: each design's block of the design check's JSON (``verify``:
+        :meth:`hcmt.design.verification.VerifyRow.to_json`)."""
+        return {k: self[k].to_json() if k == "verify" and hasattr(self[k], "to_json") else self[k] for k in self}
 
 
 #: the typed keys of a summary (every field but ``extra``)

@@ -1,6 +1,8 @@
 """Design check, the verification: the built-in solver on the same designs (:func:`solve`) and the model against
-it, per design (:func:`verify_row`) and summarized over designs (:func:`verify_designs`, :func:`stats`)."""
+it, per design (:func:`verify_row`, a :class:`VerifyRow`) and summarized over designs (:func:`verify_designs`)."""
 from __future__ import annotations
+
+from dataclasses import dataclass, field, fields
 
 import numpy as np
 from tqdm import tqdm
@@ -32,34 +34,73 @@ def solve(designs: list[tuple[str, Design]], settings: Settings, stress_field: s
     return out
 
 
-def verify_row(p: Prediction, t: Prediction) -> tuple[dict, dict]:
-    """(the verify row, :func:`hcmt.inference.metrics.impact_metrics`) of one design, model against solver; the
-    peak, deflection and rebound errors are the physics block's (one definition each,
+@dataclass(frozen=True)
+class VerifyRow:
+    """One design, model against solver: ``Prediction.summary.verify``. Stresses MPa, lengths mm (``_um``: µm),
+    times ms; errors signed (model - solver), in % of the solver's value where named ``_pct``, in frames where
+    ``_frame_error``. :meth:`to_json` is the design's ``verify`` block of the design check's JSON."""
+
+    solver_peak_plate_stress_mpa: float
+    solver_max_deflection_mm: float
+    # the physics block's (hcmt.inference.metrics.impact_metrics)
+    peak_plate_stress_error_pct: float
+    max_deflection_error_pct: float
+    model_rebounds: bool
+    solver_rebounds: bool
+    rebound_agrees: bool
+    peak_plate_frame_error: int
+    peak_ball_stress_error_pct: float
+    far_deflection_error_um: float
+    # read off the two summaries
+    peak_plate_location_error_mm: float
+    position_rmse_mm: float  # over the window: all nodes, the predicted frames
+    solver_peak_plate_t95_ms: float
+    peak_plate_t95_frame_error: int  # the rise time (first frame at 95 % of the plate's peak)
+    critical_node_history_correlation: float  # the model's stress history at the solver's peak node against it
+    solver_wall_s: float
+    speedup: float  # solver wall time / prediction wall time
+    solver_warnings: list[str] = field(default_factory=list)  # the design outside the solver's validated ranges
+    readout_errors: dict[str, float] = field(default_factory=dict)  # a derived read-out's peak error, by its name
+
+    def to_json(self) -> dict:
+        """The ``verify`` block: every field in order, a derived read-out's error under its own name
+        (``contact_peak_plate_stress_error_pct``) last."""
+        out = {f.name: getattr(self, f.name) for f in fields(self) if f.name != "readout_errors"}
+        return {**out, **self.readout_errors}
+
+
+#: the physics block's keys a verify row holds
+_PHYSICS = ("peak_plate_stress_error_pct", "max_deflection_error_pct", "model_rebounds", "solver_rebounds",
+            "rebound_agrees", "peak_plate_frame_error", "peak_ball_stress_error_pct", "far_deflection_error_um")
+
+
+def verify_row(p: Prediction, t: Prediction) -> tuple[VerifyRow, dict]:
+    """(the :class:`VerifyRow`, :func:`hcmt.inference.metrics.impact_metrics`) of one design, model against solver;
+    the peak, deflection and rebound errors are the physics block's (one definition each,
     :mod:`hcmt.inference.quantities`), the rest read off the two summaries."""
     a, b = p.summary, t.summary
     phys = impact_metrics(p.world_pos, p.stress, t.world_pos, t.stress, plate_mask(t.cells, t.node_type), 2)
-    row = {
-        "solver_peak_plate_stress_mpa": b["peak_plate_stress_mpa"],
-        "solver_max_deflection_mm": b["max_deflection_mm"],
-        **{k: phys[k] for k in ("peak_plate_stress_error_pct", "max_deflection_error_pct", "model_rebounds",
-                                "solver_rebounds", "rebound_agrees", "peak_plate_frame_error",
-                                "peak_ball_stress_error_pct", "far_deflection_error_um")},
-        "peak_plate_location_error_mm": float(np.linalg.norm(np.subtract(a["peak_plate_where_mm"],
-                                                                         b["peak_plate_where_mm"]))),
-        "position_rmse_mm": rollout_rmse(p.world_pos, t.world_pos, 2)["rmse_all"] / 1e3,
-        "solver_peak_plate_t95_ms": b["peak_plate_t95_ms"],
-        "peak_plate_t95_frame_error": int(a["peak_plate_t95_frame"] - b["peak_plate_t95_frame"]),
-        # the solver's critical node (its peak's node): does the model's stress there rise and fall with it?
-        "critical_node_history_correlation": history_correlation(p.stress[..., 0], t.stress[..., 0],
-                                                                 b["peak_plate_node"]),
-        "solver_wall_s": t.wall_s,
-        "speedup": t.wall_s / p.wall_s,
-        "solver_warnings": list(b.get("solver_warnings", [])),
-    }
+    derived = {}
     key = readout_key("peak_plate_stress_mpa", a.get("readout", DEFAULT_READOUT))
     if key in a and key != "peak_plate_stress_mpa":  # a derived read-out: its own error, under its own name
-        row[key.replace("stress_mpa", "stress_error_pct")] = float(
+        derived[key.replace("stress_mpa", "stress_error_pct")] = float(
             100.0 * (a[key] - b["peak_plate_stress_mpa"]) / b["peak_plate_stress_mpa"])
+    row = VerifyRow(
+        solver_peak_plate_stress_mpa=b["peak_plate_stress_mpa"],
+        solver_max_deflection_mm=b["max_deflection_mm"],
+        **{k: phys[k] for k in _PHYSICS},
+        peak_plate_location_error_mm=float(np.linalg.norm(np.subtract(a["peak_plate_where_mm"],
+                                                                      b["peak_plate_where_mm"]))),
+        position_rmse_mm=rollout_rmse(p.world_pos, t.world_pos, 2)["rmse_all"] / 1e3,
+        solver_peak_plate_t95_ms=b["peak_plate_t95_ms"],
+        peak_plate_t95_frame_error=int(a["peak_plate_t95_frame"] - b["peak_plate_t95_frame"]),
+        critical_node_history_correlation=history_correlation(p.stress[..., 0], t.stress[..., 0],
+                                                              b["peak_plate_node"]),
+        solver_wall_s=t.wall_s,
+        speedup=t.wall_s / p.wall_s,
+        solver_warnings=list(b.get("solver_warnings", [])),
+        readout_errors=derived,
+    )
     return row, phys
 
 
@@ -74,7 +115,7 @@ def verify_designs(preds: list[Prediction], truth: list[Prediction]) -> dict:
         physics.append(phys)
         p.summary["verify"] = row
         p.summary["solver_plate_stress_history_mpa"] = t.summary["plate_stress_history_mpa"]
-        rows.append(row)
+        rows.append(row.to_json())
 
     def stats(key):
         v = np.array([r[key] for r in rows], np.float64)

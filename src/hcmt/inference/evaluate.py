@@ -45,7 +45,7 @@ def check_options(*, batch: int = 1, compile: str = "none") -> None:
 
 def rollout_key(data, split: str, run: Run) -> dict:
     """What a rollout file was made from: dataset, split and checkpoint (file and step)."""
-    return {"data": str(Path(data).resolve()), "split": split, "checkpoint": run.info["checkpoint"]["file"],
+    return {"data": str(Path(data).resolve()), "split": split, "checkpoint": run.info.checkpoint.file,
             "checkpoint_step": run.checkpoint_step}
 
 
@@ -247,7 +247,7 @@ def compare(runs: list[str | Path | RunFolder | Run], split: str = "test") -> di
         if not mpath.is_file():
             raise FileNotFoundError(f"{mpath}: run `hcmt evaluate {folder.path} --data ... --split {split}` first")
         m = read_json(mpath, f"`hcmt evaluate {folder.path} --split {split}`")
-        groups[(model_label(folder.info["model"]), m.get("data", "?"))].append(m)
+        groups[(model_label(folder.info["model"], folder.info.get("config")), m.get("data", "?"))].append(m)
     datasets = {d for _, d in groups}
     return {(label if len(datasets) == 1 else f"{label} [{Path(d).name}]"): summarize_runs(ms)
             for (label, d), ms in groups.items()}

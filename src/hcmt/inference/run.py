@@ -20,7 +20,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from hcmt.config import Config
+from hcmt.config import NO_REMESH, Config
 from hcmt.data.format import Split, read_meta
 from hcmt.data.runs import RunFolder, available_pretrained, read_checkpoint
 from hcmt.domains.adapters import config_adapter
@@ -29,17 +29,50 @@ from hcmt.files import atomic_path
 from hcmt.models import REGISTRY, from_checkpoint, resolve_device, uses_hierarchy
 
 
-def model_label(args: dict) -> str:
+def model_label(args: dict, config: Config | None = None) -> str:
     """The display label of a model from its constructor arguments (:data:`hcmt.models.REGISTRY`), with its
-    ablation."""
+    ablation, and ``no-remesh`` where its ``config`` builds the hierarchy without remeshing (``data.remesh``)."""
     info = REGISTRY.get(args.get("name"))
     label = info.label if info else str(args.get("name")).upper()
-    return label + (f" ({args['ablation']})" if args.get("ablation") else "")
+    remesh = config is None or config.data.remesh or not uses_hierarchy(args, False)[0]
+    return label + (f" ({args['ablation']})" if args.get("ablation") else "") + ("" if remesh else f" ({NO_REMESH})")
 
 
-def load_run(run: str | Path | RunFolder, which: str = "best", device: str = "cpu"):
-    """(model, run dict) of a run folder; ``which`` is ``best`` or ``checkpoint``. The run dict is ``run.yaml``
-    (its config a :class:`hcmt.config.Config`) plus ``checkpoint: {file, step}``."""
+@dataclass(frozen=True)
+class CheckpointInfo:
+    """The checkpoint a :class:`Run` was loaded from: its file name and training step."""
+
+    file: str
+    step: int
+
+
+@dataclass(frozen=True)
+class RunInfo:
+    """What a trained model is: ``run.yaml``'s record (a shipped model's pack) and the checkpoint loaded.
+
+    ``model`` is the model's constructor arguments (:func:`hcmt.models.make_model`), ``config`` the run's
+    :class:`hcmt.config.Config`, ``data`` the resolved training-data path (None for a shipped model), ``seed``,
+    ``world_size`` (processes) and ``init`` (``{from, normalizers, step}`` of a fine-tuned run) as ``run.yaml``
+    holds them (None when it does not)."""
+
+    model: dict
+    config: Config
+    data: str | None
+    checkpoint: CheckpointInfo
+    seed: int | None = None
+    world_size: int | None = None
+    init: dict | None = None
+
+    @classmethod
+    def from_record(cls, record: dict, checkpoint: CheckpointInfo) -> "RunInfo":
+        """From ``run.yaml``'s record (:attr:`hcmt.data.runs.RunFolder.info`); a KeyError when it has no model or
+        config."""
+        return cls(model=record["model"], config=record["config"], data=record.get("data"), checkpoint=checkpoint,
+                   seed=record.get("seed"), world_size=record.get("world_size"), init=record.get("init"))
+
+
+def load_run(run: str | Path | RunFolder, which: str = "best", device: str = "cpu") -> tuple[torch.nn.Module, RunInfo]:
+    """(model, :class:`RunInfo`) of a run folder; ``which`` is ``best`` or ``checkpoint``."""
     folder = run if isinstance(run, RunFolder) else RunFolder(run)
     path = folder.checkpoint(which)
     if not path.is_file():
@@ -51,10 +84,9 @@ def load_run(run: str | Path | RunFolder, which: str = "best", device: str = "cp
         raise InputError(f"{path}: the checkpoint does not hold the model run.yaml describes ({exc.__class__.__name__}:"
                          f" {str(exc).splitlines()[0][:200]})") from None
     try:  # a hand-edited or damaged run.yaml: its settings must still make the run's adapter and graph
-        info = dict(folder.info)
-        config_adapter(info["config"].for_training())  # a KeyError when run.yaml has no config
-        uses_hierarchy(info["model"])
-        info["checkpoint"] = {"file": path.name, "step": int(state["step"])}
+        info = RunInfo.from_record(folder.info, CheckpointInfo(path.name, int(state["step"])))
+        config_adapter(info.config.for_training())  # a KeyError when run.yaml has no config
+        uses_hierarchy(info.model, info.config.data.remesh)
     except (TypeError, ValueError, KeyError, AttributeError) as exc:
         raise InputError(f"{folder.run_yaml}: its settings do not load ({exc.__class__.__name__}: "
                          f"{str(exc).splitlines()[0][:160] if str(exc) else '-'}); restore it or train the run again") \
@@ -68,7 +100,7 @@ class Run:
     the design check take. Make one with :meth:`load`."""
 
     model: torch.nn.Module
-    info: dict  # run.yaml: model (constructor arguments), config (a Config), data, seed; plus "checkpoint"
+    info: RunInfo  # run.yaml's record (model arguments, config, data, seed) and the checkpoint loaded
     source: str  # the run folder or ``pretrained:NAME``
     meta: dict | None = None  # the training data's meta.json (None when the dataset is gone)
     ranges: dict[str, tuple[float, float]] = field(default_factory=dict)  # design parameters of the training data
@@ -107,15 +139,15 @@ class Run:
         except (KeyError, TypeError, RuntimeError, ValueError) as exc:
             raise InputError(f"{shipped[name]}: a damaged shipped model ({exc.__class__.__name__}); reinstall hcmt") \
                 from None
-        info = {"model": pack["model_args"], "config": Config.from_dict(pack["config"], str(shipped[name])),
-                "data": None, "checkpoint": {"file": shipped[name].name, "step": int(pack["card"].get("steps", 0))}}
+        info = RunInfo(model=pack["model_args"], config=Config.from_dict(pack["config"], str(shipped[name])),
+                       data=None, checkpoint=CheckpointInfo(shipped[name].name, int(pack["card"].get("steps", 0))))
         ranges = {k: (float(v[0]), float(v[1])) for k, v in pack["ranges"].items()}
         return cls(model.to(device), info, f"pretrained:{name}", pack["meta"], ranges, pack["card"])
 
     # -- what the run is -------------------------------------------------------------------------------------------
     @property
     def config(self) -> Config:
-        return self.info["config"]
+        return self.info.config
 
     @property
     def device(self) -> torch.device:
@@ -132,15 +164,15 @@ class Run:
     @property
     def hierarchy_spec(self) -> tuple[int, bool]:
         """(levels, remesh) of the mesh hierarchy the model needs (0 levels: none)."""
-        return uses_hierarchy(self.info["model"])
+        return uses_hierarchy(self.info.model, self.config.data.remesh)
 
     @property
     def label(self) -> str:
-        return model_label(self.info["model"])
+        return model_label(self.info.model, self.config)
 
     @property
     def checkpoint_step(self) -> int:
-        return int(self.info["checkpoint"]["step"])
+        return self.info.checkpoint.step
 
     def require_folder(self) -> RunFolder:
         """The run folder (rollouts and metrics are written there); a shipped model has none unless given one
@@ -163,11 +195,11 @@ class Run:
     def save_pretrained(self, path: str | Path, card: dict, half: bool = True) -> Path:
         """Write this run as one shipped-model file (fp16 weights with ``half``), atomically."""
         if self.meta is None or not self.ranges:
-            raise InputError(f"{self.source}: its training dataset ({self.info.get('data')}) is needed to record "
+            raise InputError(f"{self.source}: its training dataset ({self.info.data}) is needed to record "
                              "the design ranges; keep it next to the run")
         state = {k: (v.half() if half and v.dtype == torch.float32 else v).cpu()
                  for k, v in self.model.state_dict().items()}
-        pack = {"model_args": self.info["model"], "model": state, "config": self.config.to_dict(), "meta": self.meta,
+        pack = {"model_args": self.info.model, "model": state, "config": self.config.to_dict(), "meta": self.meta,
                 "ranges": {k: [float(a), float(b)] for k, (a, b) in self.ranges.items()},
                 "card": json.loads(json.dumps(card, default=str))}  # plain types: loads with weights_only=True
         path = Path(path)
@@ -207,5 +239,5 @@ def check_dataset(train_meta: dict | None, data, train_data=None, split: str | N
 def dataset_warnings(run: Run, data, split: str) -> list[str]:
     """:func:`check_dataset` of ``data`` against the run's training data (nothing to compare when it is gone):
     raises for another ``dt``, returns the warning lines."""
-    own = run.info.get("data")
+    own = run.info.data
     return check_dataset(run.meta, data, own if own and Path(own).is_dir() else None, split)

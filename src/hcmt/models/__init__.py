@@ -92,11 +92,12 @@ def checkpoint_state(model: Simulator, args: dict, **extra) -> dict:
     return {"model_args": args, "model": model.state_dict(), **extra}
 
 
-def uses_hierarchy(args: dict) -> tuple[int, bool]:
-    """(levels, remesh) of the hierarchy a model needs; MGN and GT need none, only-cmt none either."""
+def uses_hierarchy(args: dict, remesh: bool = True) -> tuple[int, bool]:
+    """(levels, remesh) of the hierarchy a model of constructor arguments ``args`` needs, built with the run's
+    ``data.remesh`` (``remesh``: Delaunay remeshing, or 2-hop edges); MGN and GT need none, only-cmt none either."""
     if not REGISTRY[args["name"]].needs_hierarchy or args.get("ablation") == "only-cmt":
         return 0, True
-    return int(args["levels"]), args.get("ablation") != "no-remesh"
+    return int(args["levels"]), bool(remesh)
 
 
 __all__ = ["ABLATIONS", "ATTENTION_MODES", "GT", "HCMT", "MGN", "MODELS", "REGISTRY", "ModelInfo", "Normalizer",

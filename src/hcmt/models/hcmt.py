@@ -24,10 +24,9 @@ r"""Hierarchical Contact Mesh Transformer (paper §3.2): encoder → CMT → HMT
 * **Ablations** (``ablation=``): ``late-contact`` (HMT, then CMT), ``only-cmt`` (:math:`L_C + L_H` CMT blocks, so the
   depth :math:`L = 15` of the paper is kept; no hierarchy), ``only-hmt`` (HMT alone, :math:`L_H` blocks, contact
   edges unused), ``lpe`` (+ Laplacian eigenvector PE, :mod:`hcmt.models.lpe`), ``single-branch`` (CMT blocks put
-  mesh and contact edges in one softmax), ``no-remesh`` (the model is unchanged: the graph builder makes the coarse
-  edges without Delaunay: :func:`hcmt.models.uses_hierarchy` decides the hierarchy from the run's model
-  arguments). The clip range ``c`` is the
-  ``clip`` setting.
+  mesh and contact edges in one softmax). The paper's remeshing ablation leaves the model unchanged: it is a graph
+  setting, ``data.remesh: false`` (the coarse edges without Delaunay; :func:`hcmt.models.uses_hierarchy`). The clip
+  range ``c`` is the ``clip`` setting.
 
 * **The authors' variant** (``attention="official"``, ``ffn_bias=False``): their unnormalized attention sum and
   bias-free FFNs (:mod:`hcmt.models.attention`), in every CMT and HMT block and every ablation; config
@@ -38,7 +37,7 @@ from __future__ import annotations
 import torch
 from torch import Tensor, nn
 
-from hcmt.config import ABLATIONS, ModelConfig as _M  # the schema's defaults are the defaults
+from hcmt.config import ABLATIONS, NO_REMESH, ModelConfig as _M  # the schema's defaults are the defaults
 from hcmt.errors import DatasetError, InputError
 from hcmt.graph.batch import Graph
 from hcmt.graph.hierarchy import pool as pool_nodes, unpool
@@ -116,7 +115,9 @@ class HCMT(Simulator):
         if ablation in ("", "none"):
             ablation = None
         if ablation is not None and ablation not in ABLATIONS:
-            raise InputError(f"unknown ablation {ablation!r}; expected one of {', '.join(ABLATIONS)} or None")
+            raise InputError(f"unknown ablation {ablation!r}; expected one of {', '.join(ABLATIONS)} or None"
+                             + ("; no remeshing is a graph setting: data.remesh=false (hcmt.models.uses_hierarchy)"
+                                if ablation == NO_REMESH else ""))
         if L_C < 0 or levels < 0:
             raise InputError(f"L_C and λ must be >= 0, got L_C={L_C}, levels={levels}")
         self.ablation, self.L_C, self.levels, self.clip = ablation, L_C, levels, float(clip)

@@ -24,9 +24,10 @@ def train(config, data, model: str | None, out, *, overrides=None, resume: bool 
     (``out``) gives the trained model.
 
     ``config`` is a :class:`hcmt.config.Config`, a config mapping, a built-in config name or a YAML path;
-    ``overrides`` a list of ``section.key=value`` (``ablation`` is short for ``model.ablation``); ``resume=True``
-    continues the run in ``out`` exactly, ``overwrite=True`` deletes it and starts afresh (otherwise a folder holding
-    a run is refused). ``stop_at`` ends this call after that global step (checkpointed), as an interruption would.
+    ``overrides`` a list of ``section.key=value`` (``ablation`` is short for ``model.ablation``; ``no-remesh``, an
+    alias, sets ``data.remesh=false``); ``resume=True`` continues the run in ``out`` exactly, ``overwrite=True``
+    deletes it and starts afresh (otherwise a folder holding a run is refused). ``stop_at`` ends this call after
+    that global step (checkpointed), as an interruption would.
     The run folder is locked while training (a second process writing the same ``out`` is refused at once), and a
     run that fails before its first checkpoint leaves nothing behind.
 

@@ -18,7 +18,7 @@ def init_source(init: str, args: dict) -> Run:
     """The model a run starts from (a run folder's best checkpoint or ``pretrained:NAME``), refused in one line
     listing what differs when its constructor arguments (architecture, feature widths) are not this run's."""
     source = Run.load(init, "cpu")
-    theirs, args = architecture(source.info["model"]), architecture(args)
+    theirs, args = architecture(source.info.model), architecture(args)
     differ = [f"{k} {theirs.get(k)!r} there, {args.get(k)!r} here" for k in sorted(set(theirs) | set(args))
               if theirs.get(k) != args.get(k)]
     if differ:
@@ -35,7 +35,7 @@ def inherit(init: str, config, model: str | None) -> tuple[Config, str]:
     by :func:`init_source`, listing what differs)."""
     source = Run.load(init, "cpu")
     cfg = source.config if config is None else replace(as_config(config), model=source.config.model)
-    return cfg, model or source.info["model"]["name"]
+    return cfg, model or source.info.model["name"]
 
 
 def check_model(config, model: str | None) -> str:

@@ -130,7 +130,7 @@ class Trainer:
     def _build_data(self, data) -> None:
         """The training frames and the validation trajectories."""
         tc, cfg = self.tc, self.cfg
-        levels, remesh = uses_hierarchy(self.args)
+        levels, remesh = uses_hierarchy(self.args, cfg.data.remesh)
         self.radius = tc.contact_radius
         self.frames = FrameDataset(data, "train", self.adapter, levels, remesh, self.radius,
                                    tc.noise_std, noise_gamma(cfg, self.adapter), self.seed,

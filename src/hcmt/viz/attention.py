@@ -102,7 +102,7 @@ def default_frame(world_pos: np.ndarray, object_id: np.ndarray, history: int) ->
 def frame_attention(run: Run, data: str | Path, split: str = "test", trajectory: int | str = 0,
                     frame: int | None = None) -> AttentionMaps:
     """Attention maps of a run's model on one ground-truth frame (default: the impact, :func:`default_frame`)."""
-    if not REGISTRY[run.info["model"]["name"]].has_attention:
+    if not REGISTRY[run.info.model["name"]].has_attention:
         raise InputError(f"{run.label} has no attention to show (MeshGraphNets is not a Transformer); use an HCMT "
                          "or GT run")
     adapter = run.adapter

@@ -87,7 +87,8 @@ def quantity_label(name: str, unit: str | None) -> str:
 
 def unique_labels(runs: list[Run | RunFolder]) -> list[str]:
     """Run labels, with the run folder's name added where two runs would otherwise share one."""
-    labels = [r.label if isinstance(r, Run) else model_label(r.info["model"]) for r in runs]
+    labels = [r.label if isinstance(r, Run) else model_label(r.info["model"], r.info.get("config"))
+              for r in runs]
     return [f"{lab} ({Path(r.source).name})" if labels.count(lab) > 1 else lab for lab, r in zip(labels, runs)]
 
 

@@ -9,7 +9,7 @@ from graph_meshes import plate_and_ball
 from hcmt.cli.parsers import configure_train
 from hcmt.config import Config, builtin_configs, load_config
 from hcmt.data.runs import PRETRAINED_DIR, RunFolder
-from hcmt.domains.adapters import dataset_spec
+from hcmt.domains.adapters import dataset_spec, model_args
 from hcmt.errors import InputError
 from hcmt.graph.hierarchy import build_hierarchy
 from hcmt.graph.remesh import two_hop_edges
@@ -170,6 +170,10 @@ def test_no_remesh_is_the_graph_setting_data_remesh_and_the_old_spelling_still_r
     assert load_config("impact_plate_cpu", ["model.ablation=no-remesh"]) == new
     assert dataclasses.replace(new, model=dataclasses.replace(new.model, ablation="no-remesh")) == new
     assert "no-remesh" not in yaml.safe_dump(new.to_dict())
+    meta = {"dimension": 3, "features": {"mesh_pos": {"shape": [1, 3]}}}
+    assert model_args(new, "hcmt", meta)["levels"] == 4  # HCMT takes it; a model without a hierarchy refuses it
+    with pytest.raises(InputError, match="data.remesh false: .* model mgn has no hierarchy"):
+        model_args(new, "mgn", meta)
     # an older run: run.yaml and checkpoint with the ablation in the model arguments and the config
     pack = torch.load(PRETRAINED_DIR / "impact_plate_small.pt", weights_only=True)
     args = dict(pack["model_args"], ablation="no-remesh")

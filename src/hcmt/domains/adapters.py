@@ -234,6 +234,9 @@ def model_args(cfg: Config, model_name: str, meta: dict) -> dict:
     widths = adapter.widths(int(meta["dimension"]), int(meta["features"]["mesh_pos"]["shape"][-1]))
     if cfg.model.ablation and model_name != "hcmt":
         raise InputError(f"model.ablation {cfg.model.ablation}: an ablation of HCMT; model {model_name} has none")
+    if not cfg.data.remesh and not REGISTRY[model_name].needs_hierarchy:
+        raise InputError(f"data.remesh false: it changes the coarse levels of HCMT's hierarchy; model {model_name} "
+                         "has no hierarchy (leave data.remesh at true)")
     return {"name": model_name, **widths, **{k: getattr(cfg.model, k) for k in REGISTRY[model_name].settings}}
 
 

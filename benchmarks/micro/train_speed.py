@@ -50,7 +50,7 @@ def one_run(tree: Path, data: Path, recipe: str, threads: int, steps: int, work:
            "--steps", str(steps), "--threads", str(threads), "--no-progress", *sets]
     t0 = time.perf_counter()
     subprocess.run(cmd, env=env, check=True, capture_output=True, text=True)
-    wall = time.perf_counter() - t0
+    wall, load = time.perf_counter() - t0, os.getloadavg()[0]  # other processes' share of the cores, as it ended
     stats = json.loads((out / "train_stats.json").read_text())
     run = (out / "run.yaml").read_text()
     batch = 1 if "batch_size" not in run else int(run.split("batch_size:")[1].split()[0])
@@ -58,7 +58,7 @@ def one_run(tree: Path, data: Path, recipe: str, threads: int, steps: int, work:
     cpu = stats.get("train_cpu_ms_per_step")  # absent at commits before it was recorded
     shutil.rmtree(out, ignore_errors=True)
     return {"ms_per_step": ms, "cpu_ms_per_step": cpu, "samples_per_s": 1e3 * batch / ms, "wall_s": wall,
-            "batch": batch}
+            "batch": batch, "load_1min": load}
 
 
 def main() -> None:

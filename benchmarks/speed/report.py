@@ -1,6 +1,7 @@
 """docs/RESULTS.md's speed sections on the CPU: the models on a paper-size graph (benchmarks/micro/bench_models.py), the
 learned rollout against the solver and the scaling with node count (benchmarks/speed/run.py), threads
-(benchmarks/speed/threads.py) and the old-against-new CPU check (benchmarks/speed/cpu_ab.sh)."""
+(benchmarks/speed/threads.py), the old-against-new CPU check (benchmarks/speed/cpu_ab.sh) and training throughput
+against the old commit (benchmarks/micro/train_speed.py)."""
 from __future__ import annotations
 
 from report_common import (
@@ -168,4 +169,27 @@ def cpu_ab(lines):
             lines.append(f"| {m.upper()} (round {i}) | {a['train_ms']:.0f} | {b['train_ms']:.0f} | "
                          f"{b['train_ms'] / a['train_ms']:.2f} | {a['inference_ms']:.0f} | {b['inference_ms']:.0f} | "
                          f"{b['inference_ms'] / a['inference_ms']:.2f} |")
+    lines.append("")
+
+
+RECIPE_NAMES = {"cpu": "`impact_plate_cpu` defaults", "ship": "the shipped model's recipe"}
+
+
+def train_speed(lines):
+    """Issue 37, item 1: training samples per second of the old commit and the new one, interleaved."""
+    d = opened(lines, "### Training throughput against the old commit", "train_speed_cpu.json")
+    if d is None:
+        return
+    loads = [r["load_1min"] for r in d["rows"] if "load_1min" in r]
+    lines += [f"Command: `{d['command']}`. Old {d['commits']['old']} against new {d['commits']['new']} "
+              f"({', '.join(d['new_set']) or 'defaults'} on the new side: what `train.compile: auto` picks for a run "
+              f"of 5,000 steps or more), `small` preset, {d['rounds']} rounds with old and new alternating, "
+              f"{d['steps']} steps a run, the trainer's median step (loading the batch, forward, loss, backward, "
+              f"Adam), {d['cpu']}"
+              + (f", 1-minute load {min(loads):.1f}-{max(loads):.1f} as the runs ended" if loads else "")
+              + ". Samples per second (median over rounds):", "",
+              "| threads | recipe | old | new | new ÷ old |", "|---|---|---|---|---|"]
+    for r in d["summary"]:
+        lines.append(f"| {r['threads']} | {RECIPE_NAMES[r['recipe']]} | {r['old_samples_per_s']:.2f} | "
+                     f"{r['new_samples_per_s']:.2f} | {r['ratio']:.2f}× |")
     lines.append("")

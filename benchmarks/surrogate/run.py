@@ -32,7 +32,15 @@ from sklearn.preprocessing import PolynomialFeatures
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))  # benchmarks/: common
 from common import write_json  # noqa: E402
 from hcmt.data.runs import PRETRAINED_DIR  # noqa: E402
-from hcmt.design.check import TRUSTS, Prediction, call_of, check_designs, summarize, trusted_interval, verify_designs  # noqa: E402
+from hcmt.design.check import (  # noqa: E402
+    TRUSTS,
+    Prediction,
+    call_of,
+    check_designs,
+    summarize,
+    trusted_interval,
+    verify_designs,
+)
 from hcmt.design.inputs import region_of, settings_of  # noqa: E402
 from hcmt.design.readout import (
     CONTACT_END_BOUND,

@@ -60,3 +60,12 @@ def test_readme_is_a_front_door():
         page = ROOT / "docs" / name
         links = re.findall(r"\]\(([^)#]+)(?:#[^)]*)?\)", page.read_text())
         assert [link for link in links if "://" not in link and not (page.parent / link).exists()] == [], name
+
+
+def test_no_python_line_over_120_characters():
+    """ruff's E501 does not count a trailing ``# noqa`` pragma, so a long import with one would pass it: this counts
+    every character of every line of the Python files under src, tests, benchmarks and scripts."""
+    long = [f"{p.relative_to(ROOT)}:{i}" for folder in ("src", "tests", "benchmarks", "scripts")
+            for p in sorted((ROOT / folder).rglob("*.py"))
+            for i, line in enumerate(p.read_text(encoding="utf-8").splitlines(), 1) if len(line) > 120]
+    assert not long, f"lines over 120 characters: {', '.join(long)}"

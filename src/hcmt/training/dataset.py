@@ -167,8 +167,9 @@ def collate_padded(items: list[tuple[Graph, Tensor, Tensor]], sizes: PadSizes) -
 def padded_forward(net, sizes: PadSizes):
     """``graph -> output`` of ``net`` (a model compiled for padded graphs) on ``graph`` padded to ``sizes`` and cut
     back to its real nodes: a pushforward's prediction in Inductor's inference graphs instead of eager (the shipped
-    recipe on one CPU thread: 87 against 30 ms per prediction); it agrees with the model on the plain graph within
-    float32 rounding (tests/training/test_train.py)."""
+    recipe on one loaded CPU thread: 87 ms per eager prediction with its graph (cProfile), 22-29 ms per compiled
+    inference call (torch.profiler)); it agrees with the model on the plain graph within float32 rounding
+    (tests/training/test_train.py)."""
     return lambda graph: net(pad_graph(graph, sizes), accumulate=False)[: graph.num_nodes]
 
 

@@ -4,9 +4,12 @@ rollout rows): one design at a time and a batched sweep.
     python benchmarks/micro/design_speed.py [--model pretrained:impact_plate_small] [--designs 64] [--batches 1 64]
                                       [--device cpu|cuda] [--threads 1] [--json design_speed_cpu.json]
 
-Designs are drawn from the model's training preset (seeded); the solver simulates each one (its wall time per
-design); the model predicts them with each batch size (wall time per design = batch wall time / designs). Reports
-medians and the ratio solver ÷ prediction, and names the device.
+Designs are drawn from the model's training preset (seeded); for each batch size (and compile mode) the design
+check (:func:`hcmt.design.check.check_designs` with ``verify=True``) predicts them ``batch`` at a time (wall time
+per design = batch wall time / designs) and the solver simulates each chunk's designs right after it, so the model
+and the solver alternate per chunk under the same load (one chunk: the batch, then the solver; each row's
+``speedup_measured`` says which); the solver thus runs once per design and configuration. Reports medians and the
+ratio solver ÷ prediction, and names the device.
 """
 from __future__ import annotations
 
@@ -21,8 +24,7 @@ import torch
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))  # benchmarks/: common
 from common import write_json  # noqa: E402
-from hcmt.design.check import predict, solve  # noqa: E402
-from hcmt.design.inputs import settings_of  # noqa: E402
+from hcmt.design.check import check_designs  # noqa: E402
 from hcmt.inference.run import Run  # noqa: E402
 from hcmt.sim.params import sample_design  # noqa: E402
 
@@ -44,28 +46,28 @@ def main() -> None:
     preset = run.meta["generator"]["preset"]
     rng = np.random.default_rng(a.seed)
     designs = [(f"d{i}", sample_design(rng, preset)) for i in range(a.designs)]
-    settings = settings_of(run.meta)
     t0 = time.perf_counter()
-    truth = solve(designs, settings)
-    solver = np.array([t.wall_s for t in truth])
-    rows = {}
+    rows, solver = {}, []
     for batch, mode in ((b, m) for m in a.compile for b in a.batches):
-        t1 = time.perf_counter()
-        preds = predict(run, designs, batch=batch, progress=False, compile=mode)
-        wall = time.perf_counter() - t1
-        per = wall / len(designs)
+        check = check_designs(run, designs, batch=batch, verify=True, compile=mode, progress=False, surrogate=False)
+        mine = np.array([t.wall_s for t in check.truth])
+        solver += list(mine)
+        per = check.wall_s / len(designs)
         key = str(batch) if mode == "none" else f"{batch} compile={mode}"
-        rows[key] = {"wall_s": wall, "per_design_s": per, "speedup_median_solver": float(np.median(solver) / per),
-                            "peak_stress_error_pct_median": float(np.median(np.abs(
-                                [100 * (q.summary["peak_plate_stress_mpa"] - t.summary["peak_plate_stress_mpa"])
-                                 / t.summary["peak_plate_stress_mpa"] for q, t in zip(preds, truth)])))}
-        print(f"batch {key}: {per:.3f} s per design ({wall:.1f} s for {len(designs)}, compilation included); solver "
-              f"median {np.median(solver):.3f} s: speedup {rows[key]['speedup_median_solver']:.2f}x", flush=True)
+        rows[key] = {"wall_s": check.wall_s, "per_design_s": per, "speedup_median_solver": float(np.median(mine) / per),
+                     "peak_stress_error_pct_median": check.verified["peak_plate_stress_error_pct"]["median"],
+                     "solver_s_median": float(np.median(mine)),
+                     "speedup_measured": check.verified["speedup_measured"]}
+        print(f"batch {key}: {per:.3f} s per design ({check.wall_s:.1f} s for {len(designs)}, compilation included); "
+              f"solver median {np.median(mine):.3f} s: speedup {rows[key]['speedup_median_solver']:.2f}x "
+              f"({check.verified['speedup_measured']['how']})", flush=True)
+    solver = np.array(solver)
     dev = str(run.device)
     name = torch.cuda.get_device_name(run.device) if run.device.type == "cuda" else (platform.processor() or
                                                                                         platform.machine())
     out = {"model": a.model, "device": f"{dev}: {name}", "threads": a.threads, "designs": a.designs,
-           "solver_s_median": float(np.median(solver)), "solver_s_total": float(solver.sum()), "batches": rows,
+           "solver_s_median": float(np.median(solver)), "solver_s_total": float(solver.sum()),
+           "solver_runs": len(solver), "batches": rows,
            "wall_total_s": time.perf_counter() - t0,
            "command": f"python benchmarks/micro/design_speed.py --model {a.model} --designs {a.designs} --batches "
                       + " ".join(map(str, a.batches)) + f" --threads {a.threads} --compile " + " ".join(a.compile)}

@@ -2,6 +2,7 @@
 refused designs, shipped models."""
 import json
 import shutil
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -11,8 +12,10 @@ import hcmt
 from conftest import IMPACT_DATA
 from hcmt.cli import main as cli
 from hcmt.data.runs import available_pretrained
-from hcmt.design.check import Prediction, design_trajectory, predict, summarize
+from hcmt.design import prediction, verification
+from hcmt.design.check import Prediction, check_designs, design_trajectory, predict, summarize
 from hcmt.design.inputs import settings_of
+from hcmt.design.reports import format_table, to_json
 from hcmt.design.start import initial_frames, start_frames
 from hcmt.inference.metrics import plate_mask
 from hcmt.inference.rollout import rollout
@@ -133,6 +136,48 @@ def test_verify_compares_with_the_solver(tiny_run, tmp_path, capsys):
     assert v["speedup"] > 0 and res["verify"]["designs"] == 1
     assert (tmp_path / "img" / "design_1" / "stress_contours_zoom.png").is_file()
     assert "against the solver" in capsys.readouterr().out
+
+
+@pytest.mark.parametrize("verify", [True, "auto"])
+def test_model_and_solver_alternate_per_chunk_and_the_note_says_so(tiny_run, monkeypatch, verify):
+    """The speedup's two wall times are measured under the same load: each chunk of `batch` designs is predicted,
+    then solved (all of it, or its undecided designs for "auto") before the next chunk; the note and the JSON say
+    how (issue 37)."""
+    run = Run.load(tiny_run, "cpu")
+    designs = [(f"d{i}", replace(middle_design(run.meta), thickness=t)) for i, t in enumerate((0.6, 0.7, 0.8, 0.9))]
+    order = []
+    real_rollout, real_simulate = prediction.rollout_batch, verification.simulate
+
+    def rollout_batch(model, adapter, trajectories, *args, **kwargs):
+        order.append(("model", [tr.name for tr in trajectories]))
+        return real_rollout(model, adapter, trajectories, *args, **kwargs)
+
+    def simulate_(design, settings):
+        order.append(("solver", [n for n, d in designs if d == design]))
+        return real_simulate(design, settings)
+
+    monkeypatch.setattr(prediction, "rollout_batch", rollout_batch)
+    monkeypatch.setattr(verification, "simulate", simulate_)
+    # "auto" solves the undecided designs only: a yield stress at the model's own answer leaves them all undecided
+    yield_mpa = float(np.median([p.summary["peak_plate_stress_mpa"] for p in predict(run, designs, progress=False)]))
+    order.clear()
+    check = check_designs(run, designs, batch=2, verify=verify, yield_mpa=yield_mpa, progress=False, surrogate=False)
+    assert [p.summary["call"] for p in check.preds] == ["undecided"] * 4
+    assert order == [("model", ["d0", "d1"]), ("solver", ["d0"]), ("solver", ["d1"]),
+                     ("model", ["d2", "d3"]), ("solver", ["d2"]), ("solver", ["d3"])]
+    measured = check.verified["speedup_measured"]
+    assert measured["interleaved"] and measured["batch"] == 2 and measured["chunks"] == 2
+    assert measured["threads"] == torch.get_num_threads() and measured["device"] == "cpu"
+    assert ("model and solver alternating per chunk of 2 designs (2 chunks" in check.verified["note"]
+            and measured["how"] in check.verified["note"])
+    assert f"{torch.get_num_threads()} torch thread" in measured["how"]
+    assert to_json(check.preds, check.verified, run.source, "cpu", check)["verify"]["speedup_measured"] == measured
+    assert "speedup = solver ÷ model wall time per design, model and solver alternating" in format_table(
+        check.preds, check.verified)
+    # one chunk holding every design cannot alternate, and says so
+    one = check_designs(run, designs[:2], batch=2, verify=True, progress=False, surrogate=False)
+    assert not one.verified["speedup_measured"]["interleaved"]
+    assert "not alternating: the model's one batch of 2 designs, then the solver" in one.verified["note"]
 
 
 @pytest.mark.parametrize("name", sorted(available_pretrained()) or ["<none shipped>"])

@@ -18,11 +18,12 @@ notes), their public names importable from here as before.
 """
 from __future__ import annotations
 
-import time
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
+import torch
+from tqdm import tqdm
 
 from hcmt.design.basics import DESIGN_BATCH
 from hcmt.design.calls import (  # noqa: F401 (re-exported: hcmt.design.check.trusted_interval, ...)
@@ -42,11 +43,18 @@ from hcmt.design.prediction import (  # noqa: F401 (re-exported)
     check_design_list,
     design_trajectory,
     predict,
+    predict_bar,
+    predict_chunks,
     summarize,
 )
 from hcmt.design.readout import CONTACT_END_BOUND, DEFAULT_READOUT, check_readout
 from hcmt.design.surrogate import Surrogate, for_run, side_by_side
-from hcmt.design.verification import solve, verify_designs, verify_row  # noqa: F401 (re-exported)
+from hcmt.design.verification import (  # noqa: F401 (re-exported)
+    solve,
+    speedup_measured,
+    verify_designs,
+    verify_row,
+)
 from hcmt.errors import InputError
 from hcmt.sim.cost import check_cost, check_size
 from hcmt.sim.params import Design, Settings
@@ -63,7 +71,7 @@ class Check:
     truth: list[Prediction | None] | None
     verified: dict | None
     settings: Settings
-    wall_s: float
+    wall_s: float  # the model's wall time over all designs (its chunks' rollouts, the solver's runs not counted)
     surrogate: str | None = None  # where the surrogate came from (None: no surrogate)
     notes: list[str] = field(default_factory=list)  # one line each: no surrogate, ...
     readout: str = DEFAULT_READOUT  # the derived read-out reported beside the model's own answer (raw: none)
@@ -120,24 +128,28 @@ def check_options(designs, verify, yield_mpa: float | None, batch: int, readout:
     check_design_list(designs, batch)
 
 
-def run_solver(run, designs, preds: list[Prediction], settings: Settings, verify: bool | str,
-               yield_mpa: float | None, progress: bool) -> tuple[list[Prediction | None] | None, dict | None]:
-    """(truth, verified) of :class:`Check`: the solver on every design (``verify=True``) or on the undecided ones
-    (``"auto"``), its comparison with the model (:func:`hcmt.design.verification.verify_designs`) and the final
-    calls (:func:`hcmt.design.calls.final_calls`)."""
+def annotate(p: Prediction, run, surrogate: Surrogate | None, interval: dict | None, cannot: list[str]) -> None:
+    """A prediction's summary as the check reports it: the model's name, range warnings, confidence, the
+    surrogate's answer beside the model's (:func:`beside_model`) and whether its confidence is low."""
+    p.summary["model"] = run.source
+    p.summary["warnings"] = range_warnings(p.design, run.ranges)
+    p.summary["confidence"] = confidence(p.design, run)
+    beside_model(p, run, surrogate, interval, cannot)
+    p.summary["low_confidence"] = bool(weak_reasons(p))
+
+
+def solve_chunk(chunk: list[Prediction], verify: bool | str, settings: Settings, field_: str,
+                bar: tqdm) -> list[Prediction | None]:
+    """The solver's runs of one predicted chunk, as :attr:`Check.truth` holds them: every design
+    (``verify=True``), the undecided ones (``"auto"``: their calls made) or none (None where not run)."""
     if not verify:
-        final_calls(preds, None, yield_mpa)
-        return None, None
-    field_ = run.adapter.stress_field  # stress_max: the solver records it as the model learned it
-    solver_settings = replace(settings, peak_stress=True) if field_ == "stress_max" else settings
-    chosen = [i for i, p in enumerate(preds) if verify is True or p.summary.get("call") == "undecided"]
-    ran = solve([designs[i] for i in chosen], solver_settings, field_, progress=progress)
-    truth: list[Prediction | None] = [None] * len(preds)
-    for i, t in zip(chosen, ran):
-        truth[i] = t
-    verified = verify_designs([preds[i] for i in chosen], ran) if ran else None
-    final_calls(preds, truth, yield_mpa)
-    return truth, verified
+        return [None] * len(chunk)
+    chosen = [i for i, p in enumerate(chunk) if verify is True or p.summary.get("call") == "undecided"]
+    if verify == "auto":  # the bar learns its total chunk by chunk, as the calls are made
+        bar.total += len(chosen)
+        bar.refresh()
+    ran = dict(zip(chosen, solve([(chunk[i].name, chunk[i].design) for i in chosen], settings, field_, bar=bar)))
+    return [ran.get(i) for i in range(len(chunk))]
 
 
 def check_designs(run, designs: list[tuple[str, Design]], *, batch: int = DESIGN_BATCH, verify: bool | str = False,
@@ -150,7 +162,8 @@ def check_designs(run, designs: list[tuple[str, Design]], *, batch: int = DESIGN
     :class:`~hcmt.design.surrogate.Surrogate`; False / None: none; :func:`hcmt.design.surrogate.for_run`), the
     yield margin and the limit calls
     (:func:`add_calls`, ``trust``: which interval they trust), and the solver: on every design with
-    ``verify=True``, on the undecided ones only with ``verify="auto"`` (which needs ``yield_mpa``). The model's
+    ``verify=True``, on the undecided ones only with ``verify="auto"`` (which needs ``yield_mpa``), each chunk of
+    ``batch`` designs solved right after the model predicted it. The model's
     answer is its own outputs whatever the surrogate; ``readout`` (:data:`hcmt.design.readout.READOUTS`) adds a
     derived read-out under its own names, which the calls then use (recorded as ``readout``); only ``contact``
     reads the surrogate (its bound on when the ball leaves)."""
@@ -166,21 +179,32 @@ def check_designs(run, designs: list[tuple[str, Design]], *, batch: int = DESIGN
         intervals = [None if c else iv for iv, c in zip(intervals, cannot)]
     ends = [getattr(iv["contact_end_ms"], CONTACT_END_BOUND) if iv and "contact_end_ms" in iv else None
             for iv in intervals] if intervals and ends_window and readout == "contact" else None
-    t0 = time.perf_counter()
-    preds = predict(run, designs, batch=batch, progress=progress, compile=compile, readout=readout,
-                    contact_end_ms=ends)
-    wall = time.perf_counter() - t0
-    for i, p in enumerate(preds):
-        p.summary["model"] = run.source
-        p.summary["warnings"] = range_warnings(p.design, run.ranges)
-        p.summary["confidence"] = confidence(p.design, run)
-        beside_model(p, run, surrogate, intervals[i] if intervals is not None else None, cannot[i])
-        p.summary["low_confidence"] = bool(weak_reasons(p))
-    add_margin(preds, yield_mpa)
-    add_calls(preds, yield_mpa, trust)
-    truth, verified = run_solver(run, designs, preds, settings, verify, yield_mpa, progress)
-    return Check(preds, truth, verified, settings, wall, surrogate.source if surrogate is not None else None, notes,
-                 readout)
+    field_ = run.adapter.stress_field  # stress_max: the solver records it as the model learned it
+    solver_settings = replace(settings, peak_stress=True) if field_ == "stress_max" else settings
+    # The speedup compares the solver's wall time with the model's, so both are measured under the same load: the
+    # model and the solver alternate per chunk of ``batch`` designs (issue 37). Everything after the rollout is per
+    # design (warnings, the surrogate beside the model, margin, call), so each chunk's calls are made as soon as it
+    # is predicted, and verify="auto" solves the chunk's undecided designs right after it as verify=True solves all
+    # of them: one order for both, the model timed once. Only the final calls and the comparison wait for the end.
+    preds: list[Prediction] = []
+    truth: list[Prediction | None] = []
+    with predict_bar(run, designs, progress) as bar, tqdm(
+            total=len(designs) if verify is True else 0, desc="solver", unit="design",
+            disable=not progress or not verify, dynamic_ncols=True) as solver_bar:
+        for chunk in predict_chunks(run, designs, batch, bar, compile, readout, ends):
+            for p in chunk:
+                i = len(preds)
+                annotate(p, run, surrogate, intervals[i] if intervals is not None else None, cannot[i])
+                preds.append(p)
+            add_margin(chunk, yield_mpa)
+            add_calls(chunk, yield_mpa, trust)
+            truth += solve_chunk(chunk, verify, solver_settings, field_, solver_bar)
+    chosen = [i for i, t in enumerate(truth) if t is not None]
+    measured = speedup_measured(batch, len(designs), verify, str(run.device), torch.get_num_threads())
+    verified = verify_designs([preds[i] for i in chosen], [truth[i] for i in chosen], measured) if chosen else None
+    final_calls(preds, truth if verify else None, yield_mpa)
+    return Check(preds, truth if verify else None, verified, settings, sum(p.wall_s for p in preds),
+                 surrogate.source if surrogate is not None else None, notes, readout)
 
 
 def predict_designs(run, designs: list[tuple[str, Design]], *, surrogate: Surrogate | str | bool | None = True,

@@ -6,6 +6,7 @@ data's recorded window, ``batch`` designs as one batched graph per step
 from __future__ import annotations
 
 import time
+from collections.abc import Iterator
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -89,6 +90,38 @@ def check_design_list(designs, batch: int = 1) -> None:
 
 
 
+def predict_bar(run, designs: list, progress: bool) -> tqdm:
+    """The "predict" progress bar over the designs' rollout steps (silent unless ``progress``)."""
+    h = run.adapter.history
+    return tqdm(total=len(designs) * (settings_of(run.meta).frames - 1 - h), desc="predict", unit="step",
+                disable=not progress, dynamic_ncols=True)
+
+
+def predict_chunks(run, designs: list[tuple[str, Design]], batch: int, bar: tqdm, compile: str = "none",
+                   readout: str = DEFAULT_READOUT,
+                   contact_end_ms: list[float | None] | None = None) -> Iterator[list[Prediction]]:
+    """:func:`predict` one chunk of ``batch`` designs at a time (its options unchecked: the caller checked them),
+    each chunk's predictions yielded as soon as they are made: each ``wall_s`` is its own chunk's wall time split
+    over its designs, whatever the caller does between chunks (:func:`hcmt.design.check.check_designs` runs the
+    solver there)."""
+    settings = settings_of(run.meta)
+    for first in range(0, len(designs), batch):
+        chunk = designs[first:first + batch]
+        t0 = time.perf_counter()
+        built = [design_trajectory(run, name, d, settings) for name, d in chunk]
+        results = rollout_batch(run.model, run.adapter, [tr for tr, _ in built], run.radius, compile=compile,
+                                progress=lambda n, k=len(chunk): bar.update(n * k))
+        wall = (time.perf_counter() - t0) / len(chunk)
+        out = []
+        for k, ((name, design), (_, f), r) in enumerate(zip(chunk, built, results)):
+            p = Prediction(name, design, r["world_pos"].numpy(), r["stress"].numpy(), f["mesh_pos"], f["cells"],
+                           f["node_type"].reshape(-1), wall, modulus=f["modulus"].reshape(-1))
+            end = contact_end_ms[first + k] if contact_end_ms is not None else None
+            p.summary = summarize(p, settings.frame_dt, readout, end)
+            out.append(p)
+        yield out
+
+
 def predict(run, designs: list[tuple[str, Design]], batch: int = DESIGN_BATCH, progress: bool = True,
             compile: str = "none", readout: str = DEFAULT_READOUT,
             contact_end_ms: list[float | None] | None = None) -> list[Prediction]:
@@ -98,26 +131,9 @@ def predict(run, designs: list[tuple[str, Design]], batch: int = DESIGN_BATCH, p
     ``contact_end_ms``: per design, the ``contact`` read-out's bound on when the ball leaves, or None."""
     check_readout(readout)
     check_design_list(designs, batch)
-    settings = settings_of(run.meta)
-    h = run.adapter.history
-    bar = tqdm(total=len(designs) * (settings.frames - 1 - h), desc="predict", unit="step",
-               disable=not progress, dynamic_ncols=True)
-    out = []
-    for first in range(0, len(designs), batch):
-        chunk = designs[first:first + batch]
-        t0 = time.perf_counter()
-        built = [design_trajectory(run, name, d, settings) for name, d in chunk]
-        results = rollout_batch(run.model, run.adapter, [tr for tr, _ in built], run.radius, compile=compile,
-                                progress=lambda n, k=len(chunk): bar.update(n * k))
-        wall = (time.perf_counter() - t0) / len(chunk)
-        for k, ((name, design), (_, f), r) in enumerate(zip(chunk, built, results)):
-            p = Prediction(name, design, r["world_pos"].numpy(), r["stress"].numpy(), f["mesh_pos"], f["cells"],
-                           f["node_type"].reshape(-1), wall, modulus=f["modulus"].reshape(-1))
-            end = contact_end_ms[first + k] if contact_end_ms is not None else None
-            p.summary = summarize(p, settings.frame_dt, readout, end)
-            out.append(p)
-    bar.close()
-    return out
+    with predict_bar(run, designs, progress) as bar:
+        return [p for chunk in predict_chunks(run, designs, batch, bar, compile, readout, contact_end_ms)
+                for p in chunk]
 
 
 

@@ -81,6 +81,8 @@ def format_table(preds: list[Prediction], verified: dict | None = None) -> str:
                      f"{v['peak_plate_t95_frame_error']['median']:.1f} frames off; the critical node's stress history, "
                      f"model against solver: correlation median {v['critical_node_history_correlation']['median']:.2f} "
                      f"(lowest {v['critical_node_history_correlation']['min']:.2f})")
+        if "speedup_measured" in v:
+            lines.append(f"  speedup = solver ÷ model wall time per design, {v['speedup_measured']['how']}")
         lines += [f"  {k.split('_peak')[0]} read-out's peak plate stress error median {e['median']:.1f} % (worst "
                   f"{e['max']:.1f} %)" for k, e in v.items() if k.endswith("_peak_plate_stress_error_pct")]
         lines += [line[2:] for line in format_physics(v["physics"])]

@@ -7,6 +7,7 @@ from dataclasses import dataclass, field, fields
 import numpy as np
 from tqdm import tqdm
 
+from hcmt.config import plural
 from hcmt.design.prediction import Prediction, summarize
 from hcmt.design.readout import DEFAULT_READOUT, history_correlation, readout_key
 from hcmt.inference.metrics import impact_metrics, rollout_rmse, summarize_impact
@@ -17,13 +18,17 @@ from hcmt.sim.params import Design, Settings
 
 
 def solve(designs: list[tuple[str, Design]], settings: Settings, stress_field: str = "stress",
-          progress: bool = False) -> list[Prediction]:
+          progress: bool = False, bar: tqdm | None = None) -> list[Prediction]:
     """The built-in FEM solver on the same designs (the reference for :func:`verify`); ``stress_field``: the field
     the model learned (``stress_max``: the largest stress between frames). Each summary carries the solver's own
-    warnings (``solver_warnings``: a design outside its validated ranges)."""
+    warnings (``solver_warnings``: a design outside its validated ranges). ``bar``: a "solver" progress bar the
+    caller keeps open over several calls (:func:`hcmt.design.check.check_designs`); else one of its own."""
+    own = bar is None
+    if own:
+        bar = tqdm(total=len(designs), desc="solver", unit="design", disable=not progress or not designs,
+                   dynamic_ncols=True)
     out = []
-    for name, design in tqdm(designs, desc="solver", unit="design", disable=not progress or not designs,
-                             dynamic_ncols=True):
+    for name, design in designs:
         r = simulate(design, settings)
         f = r["fields"]
         p = Prediction(name, design, f["world_pos"], f[stress_field], f["mesh_pos"], f["cells"],
@@ -31,6 +36,9 @@ def solve(designs: list[tuple[str, Design]], settings: Settings, stress_field: s
         p.summary = summarize(p, settings.frame_dt)  # the solver's own quantities: the truth
         p.summary["solver_warnings"] = validated_warnings(design)
         out.append(p)
+        bar.update(1)
+    if own:
+        bar.close()
     return out
 
 
@@ -104,11 +112,13 @@ def verify_row(p: Prediction, t: Prediction) -> tuple[VerifyRow, dict]:
     return row, phys
 
 
-def verify_designs(preds: list[Prediction], truth: list[Prediction]) -> dict:
+def verify_designs(preds: list[Prediction], truth: list[Prediction], measured: dict | None = None) -> dict:
     """Per design (added to each prediction's summary under ``verify``, :func:`verify_row`) and summarized over
     designs: the model-vs-solver error of peak plate stress (%), of its location (mm), of maximum deflection (%),
     position RMSE over the window (mm, all nodes and predicted frames), the rise time and the speedup (solver ÷
-    prediction wall time); ``physics``: :func:`hcmt.inference.metrics.summarize_impact` of the same rows."""
+    prediction wall time); ``physics``: :func:`hcmt.inference.metrics.summarize_impact` of the same rows.
+    ``measured``: how the wall times were measured (:func:`speedup_measured`), recorded as ``speedup_measured``
+    and said in the ``note``."""
     rows, physics = [], []
     for p, t in zip(preds, truth):
         row, phys = verify_row(p, t)
@@ -126,7 +136,24 @@ def verify_designs(preds: list[Prediction], truth: list[Prediction]) -> dict:
     keys = ("peak_plate_stress_error_pct", "peak_plate_location_error_mm", "max_deflection_error_pct",
             "position_rmse_mm", "peak_plate_t95_frame_error", "critical_node_history_correlation", "speedup")
     keys += tuple(k for k in rows[0] if k.endswith("_peak_plate_stress_error_pct"))
+    how = measured["how"] if measured else "on this machine"
     return {"designs": len(rows), **{k: stats(k) for k in keys}, "physics": summarize_impact(physics),
             "note": "errors summarized as absolute values (median, max, mean); speedup = solver wall time / "
-                    "prediction wall time per design on this machine"}
+                    f"prediction wall time per design, {how}", **({"speedup_measured": measured} if measured else {})}
 
+
+def speedup_measured(batch: int, designs: int, verify: bool | str, device: str, threads: int) -> dict:
+    """How :func:`hcmt.design.check.check_designs` measured the speedup: ``how`` in words, and its parts. The model
+    predicts ``batch`` designs per call and the solver then runs that chunk's designs (all, or the undecided ones
+    for ``verify="auto"``) before the next chunk, in the same process: both see the same load, to within a chunk.
+    With one chunk of several designs (``batch`` >= ``designs`` > 1) nothing alternates: the model's batch, then
+    the solver on each design (``interleaved`` False)."""
+    size = min(batch, designs)
+    chunks = -(-designs // size)
+    interleaved = chunks > 1 or size == 1
+    solved = "undecided designs" if verify == "auto" else "designs"
+    order = (f"model and solver alternating per chunk of {plural(size, 'design')} ({plural(chunks, 'chunk')}, the "
+             f"solver on the chunk's {solved} right after the model's chunk)" if interleaved else
+             f"not alternating: the model's one batch of {designs} designs, then the solver on its {solved}")
+    return {"how": f"{order}, in one process, the model on {device} with {plural(threads, 'torch thread')}",
+            "interleaved": interleaved, "batch": batch, "chunks": chunks, "device": device, "threads": threads}

@@ -12,6 +12,7 @@ from hcmt.domains.adapters import build_for_dataset, dataset_spec
 from hcmt.domains.updater import update_positions
 from hcmt.models import ABLATIONS, HCMT, build_model
 from hcmt.models.lpe import LaplacianPE, laplacian_pe
+from hcmt.models.mgn import MGNBlock
 from hcmt.models.normalizer import Normalizer
 
 
@@ -169,3 +170,21 @@ def test_bad_settings_are_refused():
     assert set(ABLATIONS) == {"late-contact", "only-cmt", "only-hmt", "lpe", "single-branch"}
     with pytest.raises(ValueError, match="no remeshing is a graph setting: data.remesh=false"):
         build_model("hcmt", 4, 6, 3, 2, ablation="no-remesh")  # the paper's remeshing ablation is the graph's
+
+
+def test_mgn_edge_update_equals_the_mlp_of_the_concatenation():
+    """MGN's edge MLP takes its first layer split by input blocks (W_e e + (W_s z)_j + (W_r z)_i + b, node terms
+    once per node): the outputs and every gradient equal f([e_ij, z_j, z_i]) of the plain concatenation."""
+    torch.manual_seed(0)
+    block = MGNBlock(hidden=8).double()
+    z = torch.randn(7, 8, dtype=torch.float64, requires_grad=True)
+    e = torch.randn(12, 8, dtype=torch.float64, requires_grad=True)
+    edges = torch.randint(0, 7, (2, 12))
+    split = MGNBlock._edge_update(block.mesh_edge, e, z, edges)
+    plain = block.mesh_edge(torch.cat([e, z[edges[0]], z[edges[1]]], dim=-1))
+    torch.testing.assert_close(split, plain, rtol=1e-12, atol=1e-12)
+    weights = torch.randn_like(plain)
+    grads = [torch.autograd.grad((out * weights).sum(), [z, e, *block.mesh_edge.parameters()])
+             for out in (split, plain)]
+    for a, b in zip(*grads):
+        torch.testing.assert_close(a, b, rtol=1e-12, atol=1e-12)

@@ -32,8 +32,18 @@ class MGNBlock(nn.Module):
         self.node = mlp(3 * hidden, hidden, hidden)
 
     @staticmethod
-    def _edge_update(f: nn.Module, e: Tensor, z: Tensor, edges: Tensor) -> Tensor:
-        return f(torch.cat([e, z.index_select(0, edges[0]), z.index_select(0, edges[1])], dim=-1))
+    def _edge_update(f: nn.Sequential, e: Tensor, z: Tensor, edges: Tensor) -> Tensor:
+        """``f([e_ij, z_j, z_i])`` with f's first layer split by its input blocks,
+        :math:`W[e, z_j, z_i] + b = W_e e + (W_s z)_j + (W_r z)_i + b`: the node terms once per node, then gathered
+        per edge, instead of a ``[E, 3d]`` concatenation through ``[3d, d]`` (PhysicsNeMo's "concat trick"; the
+        same parameters, equal up to float rounding: tests/models/test_models_parts.py)."""
+        first, *rest = f
+        w_e, w_s, w_r = first.weight.split(e.shape[-1], dim=1)
+        h = (nn.functional.linear(e, w_e, first.bias) + nn.functional.linear(z, w_s).index_select(0, edges[0])
+             + nn.functional.linear(z, w_r).index_select(0, edges[1]))
+        for layer in rest:
+            h = layer(h)
+        return h
 
     def forward(self, z: Tensor, e: Tensor, mesh_edges: Tensor, s: Tensor, contact_edges: Tensor):
         n = z.shape[0]

@@ -206,7 +206,7 @@ def test_the_check_ends_the_window_at_the_surrogates_chosen_bound(monkeypatch):
         seen.update(kw)
         raise Stop
 
-    monkeypatch.setattr(check_module, "predict", spy)
+    monkeypatch.setattr(check_module, "predict_chunks", spy)
     with pytest.raises(Stop):
         check_designs(run, designs, progress=False)
     assert seen["contact_end_ms"] is None and seen["readout"] == "raw"

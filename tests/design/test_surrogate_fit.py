@@ -130,7 +130,7 @@ def test_a_window_that_never_saw_the_ball_leave_is_not_used(run, tmp_path, monke
         seen.append(kw["contact_end_ms"])
         raise Stop
 
-    monkeypatch.setattr(check_module, "predict", spy)
+    monkeypatch.setattr(check_module, "predict_chunks", spy)
     doc = fitting(run)
     for name, censored in (("fits.json", 69), ("never.json", 120)):
         doc["dataset"]["censored"] = censored

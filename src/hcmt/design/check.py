@@ -191,7 +191,8 @@ def check_designs(run, designs: list[tuple[str, Design]], *, batch: int = DESIGN
     with predict_bar(run, designs, progress) as bar, tqdm(
             total=len(designs) if verify is True else 0, desc="solver", unit="design",
             disable=not progress or not verify, dynamic_ncols=True) as solver_bar:
-        for chunk in predict_chunks(run, designs, batch, bar, compile, readout, ends):
+        for chunk in predict_chunks(run, designs, batch=batch, bar=bar, compile=compile, readout=readout,
+                                    contact_end_ms=ends):
             for p in chunk:
                 i = len(preds)
                 annotate(p, run, surrogate, intervals[i] if intervals is not None else None, cannot[i])

@@ -84,6 +84,9 @@ def sweep(lines, designs):
     for key, r in designs["batches"].items():
         lines.append(f"| {key} | {r['per_design_s']:.3f} | {r['speedup_median_solver']:.2f}× | "
                      f"{r['peak_stress_error_pct_median']:.1f} |")
+    hows = dict.fromkeys(r["speedup_measured"]["how"] for r in designs["batches"].values() if "speedup_measured" in r)
+    if hows:
+        lines += ["", sentences(*(f"Speedup: {how}." for how in hows))]
     one, many = designs["batches"].get("1"), designs["batches"].get("64")
     if one and many:
         slower = many["per_design_s"] > one["per_design_s"]

@@ -21,7 +21,7 @@ from hcmt.inference.metrics import plate_mask
 from hcmt.inference.rollout import rollout
 from hcmt.inference.run import Run
 from hcmt.sim.driver import simulate
-from hcmt.sim.params import Design, Settings, middle_design, parse_design
+from hcmt.sim.params import Design, Settings, middle_design, parse_design, sample_design
 from hcmt.training import train
 
 pytestmark = pytest.mark.slow  # trained runs and solver verification
@@ -220,3 +220,32 @@ def test_start_frames_solve_the_first_frame_only_when_the_ball_reaches_the_plate
     assert fine["info"]["solver_frames"] == 0
     np.testing.assert_array_equal(fine["fields"]["world_pos"],
                                   initial_frames(design, Settings(frames=3, frame_dt=0.002))["fields"]["world_pos"])
+
+
+def test_auto_compile_counts_every_design_of_the_check(tiny_run, monkeypatch):
+    """``compile="auto"`` (the design check's default) is resolved once, for all the designs' model steps together
+    (:data:`hcmt.models.base.AUTO_COMPILE_ROLLOUT_STEPS`), and every chunk gets that mode: a check of many designs
+    compiles even though each chunk alone is short."""
+    from hcmt.models import base
+
+    class Stop(Exception):
+        pass
+
+    seen = []
+
+    def spy(*args, compile, **kw):
+        seen.append(compile)
+        raise Stop
+
+    monkeypatch.setattr(base.shutil, "which", lambda name: f"/usr/bin/{name}")
+    monkeypatch.setattr(prediction, "rollout_batch", spy)
+    run = Run.load(tiny_run, "cpu")
+    per_design = settings_of(run.meta).frames - 1 - run.adapter.history
+    enough = -(-base.AUTO_COMPILE_ROLLOUT_STEPS // per_design)
+    rng = np.random.default_rng(0)
+    pick = run.meta["generator"]["preset"]
+    designs = [(f"d{i}", sample_design(rng, pick)) for i in range(enough)]
+    for count, mode in ((enough, "default"), (enough - 1, "none")):
+        with pytest.raises(Stop):
+            predict(run, designs[:count], batch=1, progress=False)
+        assert seen[-1] == mode, count

@@ -7,7 +7,7 @@ import torch
 
 from hcmt.graph.batch import PadSizes, bucket, collate, pad_graph
 from hcmt.models import build_model
-from hcmt.models.base import AUTO_COMPILE_STEPS, compile_simulator, resolve_compile
+from hcmt.models.base import AUTO_COMPILE_ROLLOUT_STEPS, AUTO_COMPILE_STEPS, compile_simulator, resolve_compile
 from models_grid import grid_graph
 
 NODE_IN, MESH_IN, CONTACT_IN, OUT = 5, 6, 3, 3
@@ -128,6 +128,7 @@ def test_compile_helper_holds_the_buckets_and_refuses_unknown_modes(monkeypatch)
     model = make("mgn", blocks=1)
     with torch._dynamo.config.patch(recompile_limit=8):  # restored afterwards
         assert compile_simulator(model, "default") is model and seen == [{"mode": None, "dynamic": False}]
+        assert compile_simulator(model, "default", dynamic=True) is model and seen[1] == {"mode": None, "dynamic": True}
         assert torch._dynamo.config.recompile_limit >= 64  # Dynamo would fall back to eager after 8 shapes
     with pytest.raises(ValueError, match="compile mode 'fast'"):
         compile_simulator(model, "fast")
@@ -154,6 +155,29 @@ def test_auto_compile_compiles_only_long_runs_where_a_compiler_exists(monkeypatc
     assert resolve_compile("auto", steps=10**6, device=cpu, lpe=True) == "none"
     assert resolve_compile("none", steps=10**6, device=cpu) == "none"
     assert resolve_compile("max-autotune", steps=1, device=cpu) == "max-autotune"
+    rollouts = dict(device=cpu, threshold=AUTO_COMPILE_ROLLOUT_STEPS)  # a design check's, an evaluation's
+    assert AUTO_COMPILE_ROLLOUT_STEPS < AUTO_COMPILE_STEPS
+    assert resolve_compile("auto", steps=AUTO_COMPILE_ROLLOUT_STEPS, **rollouts) == "default"
+    assert resolve_compile("auto", steps=AUTO_COMPILE_ROLLOUT_STEPS - 1, **rollouts) == "none"
     monkeypatch.setattr(base.shutil, "which", lambda name: None)
     monkeypatch.delenv("CXX", raising=False)
     assert resolve_compile("auto", steps=10**6, device=cpu) == "none"
+
+
+@pytest.mark.skipif(resolve_compile("auto", steps=10**9, device=torch.device("cpu")) == "none",
+                    reason="Inductor has no C++ compiler here")
+def test_dynamic_compile_serves_every_mesh_and_agrees_with_eager():
+    """Rollouts compile with symbolic sizes (``dynamic=True``, real Inductor): meshes of other sizes and contact
+    counts (none included) reuse the compiled code, and every output agrees with the eager forward to 1e-5."""
+    import torch._dynamo
+
+    torch._dynamo.reset()
+    model = make("hcmt", levels=1, L_C=1, attention="official", ffn_bias=False).eval()
+    net = compile_simulator(model, "default", dynamic=True)
+    graphs = [grid_graph(n, n + 1, levels=1, node_in=NODE_IN, contacts=c, seed=n) for n, c in ((7, 6), (9, 9), (8, 0))]
+    torch._dynamo.utils.counters.clear()
+    with torch.no_grad():
+        for g in graphs:
+            torch.testing.assert_close(net(g, accumulate=False), model(g, accumulate=False), rtol=1e-5, atol=1e-5)
+    # one graph for every size, a second at most for a graph without contact edges (Dynamo specializes 0 and 1)
+    assert 1 <= torch._dynamo.utils.counters["stats"]["unique_graphs"] <= 2

@@ -297,22 +297,26 @@ def test_batched_rollout_equals_one_by_one(impact, tmp_path, tiny_config):
             np.testing.assert_allclose(batched[k], f[k]["world_pos"][()], rtol=0, atol=1e-5)
 
 
-def test_compiled_padded_rollout_equals_plain(impact, tmp_path, monkeypatch, tiny_config):
-    """--compile rolls out on padded graphs through torch.compile (eager backend here: Dynamo traces, nothing is
-    built); the trajectories equal the plain rollout's."""
+def test_compiled_rollouts_equal_plain(impact, tmp_path, monkeypatch, tiny_config):
+    """--compile default rolls out through torch.compile with symbolic sizes on the graphs as they are, max-autotune
+    (static shapes, like CUDA graphs) on padded graphs (eager backend here: Dynamo traces, nothing is built); the
+    trajectories equal the plain rollout's, and ``auto`` stays eager for a rollout this short."""
     cfg = tiny_config(*EXTRA, "train.steps=2")
     train(cfg, impact, "gt", tmp_path / "run", progress=False, device="cpu")
-    compile_ = torch.compile
-    monkeypatch.setattr(torch, "compile", lambda model, **kw: compile_(model, backend="eager", dynamic=False))
+    compile_, calls = torch.compile, []
+    monkeypatch.setattr(torch, "compile", lambda model, **kw: calls.append(kw) or compile_(model, backend="eager",
+                                                                                           dynamic=kw["dynamic"]))
     out = {}
-    for mode in ("none", "default"):
+    for mode in ("none", "default", "max-autotune", "auto"):
         assert cli(["rollout", str(tmp_path / "run"), "--data", str(impact), "--split", "train", "--batch", "2",
                     "--device", "cpu", "--compile", mode]) == 0
         with h5py.File(tmp_path / "run" / "rollout_train.h5") as f:
             out[mode] = {k: f[k]["world_pos"][()] for k in f}
+    assert [c["dynamic"] for c in calls] == [True, False]  # default: symbolic sizes; max-autotune: padded
     assert out["none"].keys() == out["default"].keys() and len(out["none"]) == 2
-    for k in out["none"]:
-        np.testing.assert_allclose(out["default"][k], out["none"][k], rtol=0, atol=1e-5)
+    for mode in ("default", "max-autotune", "auto"):
+        for k in out["none"]:
+            np.testing.assert_allclose(out[mode][k], out["none"][k], rtol=0, atol=1e-5)
 
 
 def test_unknown_or_unavailable_device_is_one_line(impact, tmp_path, capsys, tiny_config):

@@ -153,7 +153,7 @@ def solve_chunk(chunk: list[Prediction], verify: bool | str, settings: Settings,
 
 
 def check_designs(run, designs: list[tuple[str, Design]], *, batch: int = DESIGN_BATCH, verify: bool | str = False,
-                  yield_mpa: float | None = None, compile: str = "none", progress: bool = True,
+                  yield_mpa: float | None = None, compile: str = "auto", progress: bool = True,
                   force: bool = False, surrogate: Surrogate | str | Path | bool | None = True,
                   readout: str = DEFAULT_READOUT, trust: str = TRUST) -> Check:
     """The design check, the one sequence behind ``hcmt predict``, ``hcmt sweep``, ``hcmt demo`` and

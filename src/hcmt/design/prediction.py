@@ -20,7 +20,7 @@ from hcmt.design.start import start_frames
 from hcmt.design.summary import Summary
 from hcmt.domains.trajectory import prepare_trajectory
 from hcmt.errors import InputError, clip
-from hcmt.inference.rollout import rollout_batch
+from hcmt.inference.rollout import rollout_batch, rollout_compile
 from hcmt.sim.params import Design, Settings
 
 
@@ -97,7 +97,7 @@ def predict_bar(run, designs: list, progress: bool) -> tqdm:
                 disable=not progress, dynamic_ncols=True)
 
 
-def predict_chunks(run, designs: list[tuple[str, Design]], batch: int, bar: tqdm, compile: str = "none",
+def predict_chunks(run, designs: list[tuple[str, Design]], batch: int, bar: tqdm, compile: str = "auto",
                    readout: str = DEFAULT_READOUT,
                    contact_end_ms: list[float | None] | None = None) -> Iterator[list[Prediction]]:
     """:func:`predict` one chunk of ``batch`` designs at a time (its options unchecked: the caller checked them),
@@ -105,6 +105,7 @@ def predict_chunks(run, designs: list[tuple[str, Design]], batch: int, bar: tqdm
     over its designs, whatever the caller does between chunks (:func:`hcmt.design.check.check_designs` runs the
     solver there)."""
     settings = settings_of(run.meta)
+    compile = rollout_compile(compile, run.model, len(designs) * (settings.frames - 1 - run.adapter.history))
     for first in range(0, len(designs), batch):
         chunk = designs[first:first + batch]
         t0 = time.perf_counter()
@@ -123,10 +124,11 @@ def predict_chunks(run, designs: list[tuple[str, Design]], batch: int, bar: tqdm
 
 
 def predict(run, designs: list[tuple[str, Design]], batch: int = DESIGN_BATCH, progress: bool = True,
-            compile: str = "none", readout: str = DEFAULT_READOUT,
+            compile: str = "auto", readout: str = DEFAULT_READOUT,
             contact_end_ms: list[float | None] | None = None) -> list[Prediction]:
     """Roll the run's model out over each design's recorded window, ``batch`` designs per model call
-    (``compile``: as :func:`hcmt.inference.rollout.rollout_batch`); ``readout``: a derived read-out reported
+    (``compile``: as :func:`hcmt.inference.rollout.rollout_batch`, ``auto`` for all the designs' steps together:
+    :func:`hcmt.inference.rollout.rollout_compile`); ``readout``: a derived read-out reported
     beside the model's own answer under its own names (:data:`hcmt.design.readout.READOUTS`; default none);
     ``contact_end_ms``: per design, the ``contact`` read-out's bound on when the ball leaves, or None."""
     check_readout(readout)

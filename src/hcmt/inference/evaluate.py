@@ -31,7 +31,7 @@ from hcmt.inference.metrics import (
     summarize_runs,
 )
 from hcmt.inference.quantities import impact_groups, plate_mask
-from hcmt.inference.rollout import rollout, rollout_batch
+from hcmt.inference.rollout import rollout, rollout_batch, rollout_compile
 from hcmt.inference.run import Run, check_dataset, dataset_warnings, model_label
 
 
@@ -49,7 +49,7 @@ def rollout_key(data, split: str, run: Run) -> dict:
             "checkpoint_step": run.checkpoint_step}
 
 
-def run_rollouts(run: Run, data, split: str, *, limit: int | None = None, batch: int = 1, compile: str = "none",
+def run_rollouts(run: Run, data, split: str, *, limit: int | None = None, batch: int = 1, compile: str = "auto",
                  progress: bool = True) -> Path:
     """Roll the run's model out over a split; predictions go to ``RUN/rollout_<split>.h5`` (``rollout_<split>@<data
     name>.h5`` for a dataset other than the run's own), atomically. ``batch`` trajectories of equal length step
@@ -61,8 +61,9 @@ def run_rollouts(run: Run, data, split: str, *, limit: int | None = None, batch:
     trajs = load_split(data, split, run.adapter, levels, remesh, limit=limit)
     path = folder.rollout_path(split, data)
     h = run.adapter.history
-    bar = tqdm(total=sum(max(tr.num_steps - 1 - h, 0) for tr in trajs), desc=f"rollout {split}", unit="step",
-               dynamic_ncols=True, disable=not progress)
+    total = sum(max(tr.num_steps - 1 - h, 0) for tr in trajs)
+    compile = rollout_compile(compile, run.model, total)  # auto: once, for the whole split
+    bar = tqdm(total=total, desc=f"rollout {split}", unit="step", dynamic_ncols=True, disable=not progress)
     with atomic_path(path) as tmp, h5py.File(tmp, "w") as f:
         for key, value in rollout_key(data, split, run).items():
             f.attrs[key] = value
@@ -86,7 +87,7 @@ def run_rollouts(run: Run, data, split: str, *, limit: int | None = None, batch:
     return path
 
 
-def rollout_for(run: Run, data, split: str, *, need: int | None = None, batch: int = 1, compile: str = "none",
+def rollout_for(run: Run, data, split: str, *, need: int | None = None, batch: int = 1, compile: str = "auto",
                 progress: bool = True) -> Path:
     """The one rollout-cache rule, used by evaluation and every picture: ``RUN/rollout_<split>.h5`` is reused when
     it was made from this dataset, split and checkpoint (same step) and holds the first ``need`` trajectories of
@@ -131,7 +132,7 @@ def rollout_file(run: Run | RunFolder, data, split: str, *, need: int | None = N
 
 
 def evaluate(run: Run, data, split: str = "test", *, limit: int | None = None, batch: int = 1,
-             compile: str = "none", progress: bool = True) -> dict:
+             compile: str = "auto", progress: bool = True) -> dict:
     """Paper metrics (and for Impact Plate the physics metrics) of a run on a split, written to
     ``RUN/metrics_<split>.json`` (``metrics_<split>@<data name>.json`` for a dataset other than the run's own);
     rolls out first if the rollout file is missing or stale. A dataset of another frame interval is refused;

@@ -6,9 +6,12 @@ disconnected graph and the model runs once, so a batch costs about one model cal
 node-local (a node's output depends on its own graph only; the normalizers do not accumulate in rollout), so a batch
 gives what one-by-one rollouts give, up to float summation order (tests/training/test_train.py).
 
-``compile`` (``--compile`` of ``hcmt rollout / evaluate / predict``) runs the model through ``torch.compile`` on
-padded graphs (:func:`hcmt.graph.batch.pad_graph`): the mesh and hierarchy of a batch never change along a rollout
-and contact edges are padded to bucket sizes, so after the first steps every step replays a compiled graph.
+``compile`` (``--compile`` of ``hcmt rollout / evaluate / predict``) runs the model through ``torch.compile``.
+``default`` compiles with symbolic sizes (:func:`hcmt.models.base.compile_simulator` with ``dynamic=True``): one
+compiled graph serves every design and contact count, so a design check compiles once per machine (the persistent
+cache) instead of once per mesh. ``reduce-overhead`` (CUDA graphs) and ``max-autotune`` need static shapes: the
+graph is padded (:func:`hcmt.graph.batch.pad_graph`; the mesh and hierarchy of a batch never change along a rollout,
+contact edges go to bucket sizes), so after the first steps every step replays a compiled graph.
 """
 from __future__ import annotations
 
@@ -21,7 +24,25 @@ from hcmt.domains.frames import input_graph
 from hcmt.domains.trajectory import Trajectory
 from hcmt.errors import InputError, RolloutError
 from hcmt.graph.batch import PadSizes, collate, pad_graph
-from hcmt.models.base import compile_simulator, resolve_compile
+from hcmt.models.base import AUTO_COMPILE_ROLLOUT_STEPS, compile_simulator, resolve_compile
+
+
+def rollout_compile(mode: str, model, steps: int) -> str:
+    """The compile mode of rollouts that take ``steps`` model steps in all (``auto``:
+    :func:`hcmt.models.base.resolve_compile` against :data:`hcmt.models.base.AUTO_COMPILE_ROLLOUT_STEPS`); a caller
+    that rolls out in chunks resolves once, with its total, and hands the result to every chunk."""
+    device = next(model.parameters()).device
+    lpe = getattr(model, "lpe", None) is not None  # its eigenvectors are computed per graph, outside the compiler
+    return resolve_compile(mode, steps=steps, device=device, lpe=lpe, threshold=AUTO_COMPILE_ROLLOUT_STEPS)
+
+
+def compiled(model, mode: str, dynamic: bool):
+    """``model`` compiled (:func:`hcmt.models.base.compile_simulator`), once per model, mode and shape policy: the
+    wrapper is kept on the model, so the chunks of a design check reuse its compiled graphs."""
+    cache = model.__dict__.setdefault("_compiled_rollout", {})
+    if (mode, dynamic) not in cache:
+        cache[mode, dynamic] = compile_simulator(model, mode, dynamic=dynamic)
+    return cache[mode, dynamic]
 
 
 @torch.no_grad()
@@ -46,9 +67,11 @@ def rollout_batch(model, adapter: Adapter, trajs: list[Trajectory], radius: floa
     model.eval()
     net, pad = model, None
     device = next(model.parameters()).device  # graphs go where the model is; results come back to the CPU
-    compile = resolve_compile(compile, steps=len(trajs[0].world_pos) if trajs else 0, device=device)
+    compile = rollout_compile(compile, model, len(trajs) * (len(trajs[0].world_pos) - 1 - adapter.history)
+                              if trajs else 0)
+    padded = compile not in ("none", "default")  # CUDA graphs and autotuning want static shapes
     if compile != "none":
-        net = compile_simulator(model, compile)
+        net = compiled(model, compile, dynamic=not padded)
     lengths = {int(tr.world_pos.shape[0]) for tr in trajs}
     if len(lengths) != 1:
         raise InputError(f"trajectories of different lengths {sorted(lengths)} cannot roll out in one batch")
@@ -68,7 +91,7 @@ def rollout_batch(model, adapter: Adapter, trajs: list[Trajectory], radius: floa
             inputs.append((x, prev))
         graph = collate(graphs)
         real = graph.num_nodes
-        if net is not model:  # static sizes: the batch's mesh and hierarchy, contact edges in buckets
+        if padded:  # static sizes: the batch's mesh and hierarchy, contact edges in buckets
             pad = pad or PadSizes.of([graph])
             graph = pad_graph(graph, pad)
         out = model.denormalize(net(graph.to(device), accumulate=False)[:real]).cpu()

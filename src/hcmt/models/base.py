@@ -46,10 +46,12 @@ def resolve_device(device: str | None = None) -> torch.device:
     return dev
 
 
-def compile_simulator(model: nn.Module, mode: str) -> nn.Module:
-    """``torch.compile`` of a model that will see padded graphs (:func:`hcmt.graph.batch.pad_graph`): static
-    shapes (``dynamic=False``), one compiled graph per bucketed shape; Dynamo's recompile limit (8 by default, after
-    which it silently runs eager) is raised to hold the few dozen buckets a run meets."""
+def compile_simulator(model: nn.Module, mode: str, dynamic: bool = False) -> nn.Module:
+    """``torch.compile`` of a model. ``dynamic=False``: for padded graphs (:func:`hcmt.graph.batch.pad_graph`),
+    static shapes, one compiled graph per bucketed shape (training; CUDA graphs); Dynamo's recompile limit (8 by
+    default, after which it silently runs eager) is raised to hold the few dozen buckets a run meets.
+    ``dynamic=True``: symbolic sizes, one compiled graph for every mesh (rollouts of other designs reuse it: no
+    padding, no recompilation; on one CPU thread as fast as the static padded graph, docs/RESULTS.md)."""
     if mode not in TORCH_COMPILE_MODES:
         raise InputError(f"compile mode {mode!r}: expected one of {', '.join(TORCH_COMPILE_MODES)}")
     import torch._dynamo
@@ -57,22 +59,29 @@ def compile_simulator(model: nn.Module, mode: str) -> nn.Module:
     os.environ.setdefault("TORCHINDUCTOR_CACHE_DIR", str(compile_cache_dir()))
 
     torch._dynamo.config.recompile_limit = max(torch._dynamo.config.recompile_limit, 64)
-    return torch.compile(model, mode=None if mode == "default" else mode, dynamic=False)
+    return torch.compile(model, mode=None if mode == "default" else mode, dynamic=dynamic)
 
 
 #: ``auto`` compiles a training run of at least this many steps: the first compilation of a shape costs about 5
 #: minutes of one CPU core (later runs read the persistent cache), and a compiled step saves 40-70 ms of CPU
 #: (69.5 against 112-151 ms, the shipped recipe at 1 thread), so it pays back after about 5,000 steps
 AUTO_COMPILE_STEPS = 5000
+#: ``auto`` compiles rollouts (a design check, an evaluation) of at least this many model steps in all: one
+#: compilation with symbolic sizes serves every design; it costs 25 s of one CPU core with a warm persistent cache
+#: (about 65 s the first time on a machine), and a compiled step of the shipped model saves about 20 ms (one thread:
+#: 1.7 s per design against 3.5 s eager, 88 steps), so it pays back after about 1,300-3,300 steps
+AUTO_COMPILE_ROLLOUT_STEPS = 2000
 
 
-def resolve_compile(mode: str, *, steps: int, device: torch.device, lpe: bool = False) -> str:
-    """The ``torch.compile`` mode a run uses: ``auto`` is ``default`` for a run of at least
-    :data:`AUTO_COMPILE_STEPS` steps where Inductor has its compiler (a C++ compiler on the CPU, Triton on CUDA)
-    and the model is compilable (not the ``lpe`` ablation), else ``none``; any other mode is itself."""
+def resolve_compile(mode: str, *, steps: int, device: torch.device, lpe: bool = False,
+                    threshold: int = AUTO_COMPILE_STEPS) -> str:
+    """The ``torch.compile`` mode a run uses: ``auto`` is ``default`` for at least ``threshold`` steps
+    (:data:`AUTO_COMPILE_STEPS` for training, :data:`AUTO_COMPILE_ROLLOUT_STEPS` for rollouts) where Inductor has
+    its compiler (a C++ compiler on the CPU, Triton on CUDA) and the model is compilable (not the ``lpe``
+    ablation), else ``none``; any other mode is itself."""
     if mode != "auto":
         return mode
-    if lpe or steps < AUTO_COMPILE_STEPS:
+    if lpe or steps < threshold:
         return "none"
     if device.type == "cuda":
         return "default" if importlib.util.find_spec("triton") is not None else "none"

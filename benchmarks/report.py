@@ -21,7 +21,7 @@ from peers.report import peers as peers_section  # noqa: E402
 from recipe.report import recipe  # noqa: E402
 from report_common import load  # noqa: E402
 from scaling.report import scaling as scaling_section  # noqa: E402
-from speed.report import cpu_ab, speed, threads, train_speed  # noqa: E402
+from speed.report import cpu_ab, design_ab, speed, threads, train_speed  # noqa: E402
 from surrogate.report import surrogate as surrogate_section  # noqa: E402
 from transfer.report import transfer as transfer_section  # noqa: E402
 
@@ -30,7 +30,7 @@ INTRO = ("Every number below was produced by the command quoted with it, on this
          "(2 CPU cores, no GPU) unless stated. This file is written by `python benchmarks/report.py` from "
          "`benchmarks/results/*.json`; the paper's numbers are quoted for comparison only.")
 SECTIONS = (recipe, interval, threads, parity, propagation, accuracy, longer, ablations, generalization, memory,
-            speed, gpu_path, cpu_ab, train_speed, gpu_check, hierarchy)
+            speed, gpu_path, cpu_ab, train_speed, design_ab, gpu_check, hierarchy)
 
 
 def main() -> None:

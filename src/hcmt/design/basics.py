@@ -19,10 +19,10 @@ RESTARTS = 3  # optimizer restarts of the marginal likelihood (the issue's compa
 #: the others add a derived read-out under their own names
 READOUTS = ("raw", "contact", "element")
 DEFAULT_READOUT = "raw"
-#: designs per model call, the same default for ``predict``, ``sweep`` and the library: on one CPU thread one design
-#: at a time was measured fastest, 1.77 s per design against 2.80 s in one batch of 64
-#: (benchmarks/results/design_speed_cpu.json); on a GPU a larger batch may pay (``--batch N``)
-DESIGN_BATCH = 1
+#: designs per model call, the same default for ``predict``, ``sweep`` and the library: on one quiet CPU thread a
+#: batch of 8 was measured fastest (compiled: 1.45 s per design, against 1.49 s in batches of 4 and 1.7 s one by
+#: one; benchmarks/results/design_speed_cpu.json, design_ab_cpu.json); on a GPU a larger batch may pay
+DESIGN_BATCH = 8
 
 
 def check_name(name, where: str) -> str:

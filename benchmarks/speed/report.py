@@ -226,4 +226,36 @@ def design_ab(lines):
               f"{s['steady_new_over_solver']:.2f}× |", "",
               f"The goals of issue 37 (≥ 2× the old code, ≥ 2× the solver per design): 2× the old code "
               f"{'reached' if s['new_over_old'] >= 2 else 'not reached'} for the whole call, 2× the solver "
-              f"{'reached' if s['new_over_solver'] >= 2 else 'not reached'}.", ""]
+              f"{'reached' if s['new_over_solver'] >= 2 else 'not reached'}."]
+    fm = load("forward_modes_cpu.json")
+    if fm and "compiled-dynamic" in fm["modes"]:
+        dyn, flops = fm["modes"]["compiled-dynamic"], fm["gflop_per_forward"]
+        lines.append(f"Why not further: a forward of the shipped model is {flops:.2f} GFLOP of matmuls; compiled with "
+                     f"symbolic sizes it runs at {dyn['gflop_per_s']:.0f} GFLOP/s ({dyn['ms']:.1f} ms, the section "
+                     "below), so the 88 steps of a design cost about "
+                     f"{88 * dyn['ms'] / 1e3:.2f} s of forward passes alone, and each process pays the compilation "
+                     "(the whole-call row). 2× the solver in the whole call needs fewer FLOPs (a narrower model) or "
+                     "bf16 matmuls (not exact: see the relative differences below), or the compilation kept across "
+                     "processes (an ahead-of-time compiled model).")
+    lines.append("")
+
+
+FORWARD_MODES = {"eager": "eager", "compiled-static": "compiled, static shapes (padded graph)",
+                 "compiled-dynamic": "compiled, symbolic sizes (rollouts)", "frozen": "compiled, frozen weights",
+                 "frozen-bf16": "compiled, frozen, bf16 autocast", "bf16": "eager, bf16 autocast"}
+
+
+def forward_modes(lines):
+    """Issue 37, item 2: one rollout step of the shipped model in each inference mode."""
+    d = opened(lines, "### One rollout step in each inference mode", "forward_modes_cpu.json")
+    if d is None:
+        return
+    lines += [f"Command: `{d['command']}` ({d['device']}, {d['threads']} thread): the shipped model's forward on "
+              f"one design's graph ({d['nodes']} nodes, {d['mesh_edges']} mesh edges, {d['contact_edges']} contact "
+              f"edges; {d['padded_nodes']} nodes padded), {d['gflop_per_forward']:.2f} GFLOP of matmuls a forward. "
+              "Relative difference: ‖y − y_eager‖ / ‖y_eager‖ of the normalized output.", "",
+              "| mode | ms | GFLOP/s | first call s | relative difference |", "|---|---|---|---|---|"]
+    for mode, r in d["modes"].items():
+        lines.append(f"| {FORWARD_MODES.get(mode, mode)} | {r['ms']:.1f} | {r['gflop_per_s']:.1f} | "
+                     f"{r['first_call_s']:.1f} | {r['rel_diff']:.1e} |")
+    lines.append("")

@@ -134,26 +134,6 @@ def test_compile_helper_holds_the_buckets_and_refuses_unknown_modes(monkeypatch)
         compile_simulator(model, "fast")
 
 
-def test_compile_on_several_cpu_threads_keeps_inductor_kernels_on_one(monkeypatch):
-    """Measured faster on 2 threads (the small preset's training step, docs/RESULTS.md): Inductor's fused kernels on
-    one thread, matmuls on all; one torch thread leaves Inductor's own choice."""
-    import torch._inductor.config as inductor
-
-    monkeypatch.setattr(torch, "compile", lambda m, **kw: m)
-    model = make("mgn", blocks=1)
-    threads = torch.get_num_threads()
-    try:
-        with inductor.patch({"cpp.threads": -1}):
-            torch.set_num_threads(1)
-            compile_simulator(model, "default")
-            assert inductor.cpp.threads == -1
-            torch.set_num_threads(2)
-            compile_simulator(model, "default")
-            assert inductor.cpp.threads == 1
-    finally:
-        torch.set_num_threads(threads)
-
-
 def test_pad_sizes_are_bucket_sizes():
     """Every padded size is a bucket size, so meshes of similar size (other designs) mostly share shapes."""
     a, b = (grid_graph(10, c, levels=2, node_in=NODE_IN, contacts=3) for c in (10, 11))

@@ -51,8 +51,7 @@ def compile_simulator(model: nn.Module, mode: str, dynamic: bool = False) -> nn.
     static shapes, one compiled graph per bucketed shape (training; CUDA graphs); Dynamo's recompile limit (8 by
     default, after which it silently runs eager) is raised to hold the few dozen buckets a run meets.
     ``dynamic=True``: symbolic sizes, one compiled graph for every mesh (rollouts of other designs reuse it: no
-    padding, no recompilation; on one CPU thread as fast as the static padded graph, docs/RESULTS.md). On a CPU with
-    several torch threads, Inductor's own kernels run on one (``torch._inductor.config.cpp.threads``)."""
+    padding, no recompilation; on one CPU thread as fast as the static padded graph, docs/RESULTS.md)."""
     if mode not in TORCH_COMPILE_MODES:
         raise InputError(f"compile mode {mode!r}: expected one of {', '.join(TORCH_COMPILE_MODES)}")
     import torch._dynamo
@@ -60,13 +59,6 @@ def compile_simulator(model: nn.Module, mode: str, dynamic: bool = False) -> nn.
     os.environ.setdefault("TORCHINDUCTOR_CACHE_DIR", str(compile_cache_dir()))
 
     torch._dynamo.config.recompile_limit = max(torch._dynamo.config.recompile_limit, 64)
-    on_cpu = all(p.device.type == "cpu" for p in model.parameters())
-    if on_cpu and torch.get_num_threads() > 1:
-        import torch._inductor.config
-
-        # Inductor's fused kernels on one thread, the matmuls on all of them: OpenMP's fork and join per small kernel
-        # cost more than they split (the small preset's compiled training step on 2 threads: 75.6 ms against 89-98)
-        torch._inductor.config.cpp.threads = 1
     return torch.compile(model, mode=None if mode == "default" else mode, dynamic=dynamic)
 
 

@@ -50,11 +50,21 @@ def test_report_says_not_run_yet_and_words_points():
             "checkpoint_step": b, "errors": {k: (3.0 if m == "mgn" else 2.0) * b ** -0.3 for k in
                                              ("position_rmse_all", "stress_rmse_all", "peak_error_pct",
                                               "deflection_error_pct", "ghost_difference")}}
-           for m in ("hcmt", "mgn") for b in (1000, 30000)]
-    r = {"command": "c", "data": "d", "train_designs_in_data": 480, "device": "cpu", "planned": 16, "done": 4,
+           for m in ("hcmt", "mgn") for b in (1000, 3000, 30000)]
+    r = {"command": "c", "data": "d", "train_designs_in_data": 480, "device": "cpu", "planned": 16, "done": 6,
          "points": pts, "designs": [60, 120, 480], "designs_budget": 10000}
+    lines = []
+    scaling(lines, {**r, "points": [p for p in pts if p["budget"] != 3000], "done": 4})
+    text = "\n".join(lines)  # two budgets: no fit, no extrapolation
+    assert "Partial: 4 of 16 planned points" in text and "2 budget(s) run so far" in text
+    assert "**an extrapolation**" not in text and "| 1.00 |" not in text
     lines = []
     scaling(lines, r)
     text = "\n".join(lines)
-    assert "Partial: 4 of 16 planned points" in text and "**an extrapolation**" in text
+    assert "Partial: 6 of 16 planned points" in text and "**an extrapolation**" in text
+    assert "differ by up to" not in text  # one seed per point
+    lines = []
+    scaling(lines, {**r, "points": pts + [{**pts[0], "seed": 1, "errors": {k: 4 * v for k, v in
+                                                                          pts[0]["errors"].items()}}]})
+    assert "peak plate stress error % 4.0× (HCMT, 1,000 steps)" in "\n".join(lines)
     assert "| 0.300 | 1.00 |" in text and "the margin stays about the same" in text

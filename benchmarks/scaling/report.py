@@ -22,6 +22,7 @@ COMMAND = "python benchmarks/scaling/run.py --data /work/data/ip480 --work WORK"
 MARGIN_FLAT = 0.05  # |exponent of HCMT ÷ MGN against the axis| below this: the margin is "about constant"
 FALLS = 0.0  # a fitted exponent above this: the error falls along the axis
 LOOSE = 0.8  # a fit's R² below this: marked "loose fit" next to its extrapolation
+MIN_FIT = 3  # axis values a power law is fitted to: through two points any line fits (R² 1 by construction)
 
 
 def _cell(values: list[float], fmt: str) -> str:
@@ -95,6 +96,26 @@ def _margins(points: list[dict], axis: str, fixed: dict, unit: str) -> list[str]
     return out + ([""] if out else [])
 
 
+def _seed_spread(points: list[dict]) -> list[str]:
+    """The largest ratio between the seeds of one point, per metric: how much of a difference along an axis the
+    seed alone can make."""
+    out = []
+    for key, label in METRICS:
+        worst = None
+        for p in points:
+            same = [q["errors"][key] for q in points if q["seed"] != p["seed"] and q["model"] == p["model"]
+                    and q["budget"] == p["budget"] and q["designs"] == p["designs"]]
+            for v in same:
+                lo, hi = sorted((p["errors"][key], v))
+                if lo > 0 and (worst is None or hi / lo > worst[0]):
+                    worst = (hi / lo, p)
+        if worst:
+            f, p = worst
+            out.append(f"{label} {f:.1f}× ({dict(MODELS).get(p['model'], p['model'])}, {p['budget']:,} steps)")
+    return [sentences("Seed to seed, one point's errors differ by up to: " + "; ".join(out) + ". A difference "
+                      "between budgets smaller than this is within what the seed alone moves."), ""] if out else []
+
+
 def scaling(lines: list[str], r: dict | None) -> None:
     lines += [HEADING, ""]
     if not r or not r.get("points"):
@@ -121,7 +142,12 @@ def scaling(lines: list[str], r: dict | None) -> None:
     full = max(r["designs"])
     lines += [f"**Against the training budget** ({full} training designs)", ""]
     lines += _table(pts, "budget", {"designs": full}, "steps")
-    if len({p["budget"] for p in pts if p["designs"] == full}) >= 2:
+    lines += _seed_spread(pts)
+    budgets = len({p["budget"] for p in pts if p["designs"] == full})
+    if budgets < MIN_FIT:
+        lines += [sentences(f"{budgets} budget(s) run so far: no power law is fitted and nothing is extrapolated "
+                            f"until {MIN_FIT} are (through two points any line fits, R² 1 by construction)."), ""]
+    else:
         lines += _fits(pts, "budget", {"designs": full}, PAPER_STEPS, "steps", "steps")
         lines += [sentences(f"The last column is **an extrapolation**: the fitted law carried to the paper's "
                             f"{PAPER_STEPS:,} steps, far beyond anything run here; it holds only if the trend does."),
@@ -131,7 +157,11 @@ def scaling(lines: list[str], r: dict | None) -> None:
     if axis:
         lines += [f"**Against the number of training designs** ({r['designs_budget']:,} steps)", ""]
         lines += _table(pts, "designs", {"budget": r["designs_budget"]}, "designs")
-        if len({p["designs"] for p in axis}) >= 2:
+        counts = len({p["designs"] for p in axis})
+        if counts < MIN_FIT:
+            lines += [sentences(f"{counts} design count(s) run so far: no power law is fitted until {MIN_FIT} are."),
+                      ""]
+        else:
             lines += _fits(pts, "designs", {"budget": r["designs_budget"]}, PAPER_TRAJECTORIES, "designs",
                            "designs")
             lines += _margins(pts, "designs", {"budget": r["designs_budget"]}, "designs")

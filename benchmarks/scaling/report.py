@@ -99,19 +99,19 @@ def _margins(points: list[dict], axis: str, fixed: dict, unit: str) -> list[str]
 def _seed_spread(points: list[dict]) -> list[str]:
     """The largest ratio between the seeds of one point, per metric: how much of a difference along an axis the
     seed alone can make."""
+    groups: dict = {}  # (model, budget, designs) -> its points, one per seed
+    for p in points:
+        groups.setdefault((p["model"], p["budget"], p["designs"]), []).append(p)
     out = []
     for key, label in METRICS:
         worst = None
-        for p in points:
-            same = [q["errors"][key] for q in points if q["seed"] != p["seed"] and q["model"] == p["model"]
-                    and q["budget"] == p["budget"] and q["designs"] == p["designs"]]
-            for v in same:
-                lo, hi = sorted((p["errors"][key], v))
-                if lo > 0 and (worst is None or hi / lo > worst[0]):
-                    worst = (hi / lo, p)
+        for (model, budget, _), got in groups.items():
+            values = [p["errors"][key] for p in got if p["errors"][key] > 0]  # a ratio needs positive errors
+            if len(values) > 1 and (worst is None or max(values) / min(values) > worst[0]):
+                worst = (max(values) / min(values), model, budget)
         if worst:
-            f, p = worst
-            out.append(f"{label} {f:.1f}× ({dict(MODELS).get(p['model'], p['model'])}, {p['budget']:,} steps)")
+            f, model, budget = worst
+            out.append(f"{label} {f:.1f}× ({dict(MODELS).get(model, model)}, {budget:,} steps)")
     return [sentences("Seed to seed, one point's errors differ by up to: " + "; ".join(out) + ". A difference "
                       "between budgets smaller than this is within what the seed alone moves."), ""] if out else []
 

@@ -9,8 +9,8 @@ thread): the old checkout's design check, the new one's, and the solver (the new
 :func:`hcmt.sim.driver.simulate`) on the same ``--designs`` designs (drawn once from the shipped model's preset,
 seeded), in an order that alternates between rounds, so the three see the same load. A design check is
 ``check_designs(run, designs)`` with the checkout's defaults (what a user of ``hcmt predict --designs`` gets: the
-old batch of 8 and eager model, the new batch of 1 and ``compile="auto"``); its time per design is the call's wall
-time over the designs, compilation included, and ``steady_s`` the median per design after the first chunk
+old batch of 8 and eager model; the new one's ``DESIGN_BATCH`` and ``compile="auto"``); its time per design is the
+call's wall time over the designs, compilation included, and ``steady_s`` the median per design after the first chunk
 (compilation excluded). The solver's time per design is each simulation's wall time.
 """
 from __future__ import annotations

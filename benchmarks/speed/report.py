@@ -215,8 +215,9 @@ def design_ab(lines):
               f"built-in solver, {d['designs']} designs of the shipped model's preset, {d['threads']} thread, "
               f"{d['rounds']} rounds of three fresh processes in alternating order (1-minute load "
               f"{min(loads):.1f}-{max(loads):.1f} as they ended), {d['device']}. Each design check is "
-              "`check_designs` with its checkout's defaults (old: batches of 8, eager; new: batch 1, `compile=auto`, "
-              "which compiles once with symbolic sizes for this many designs); seconds per design, medians over "
+              "`check_designs` with its checkout's defaults (old: batches of 8, eager; new: batches of 8, "
+              "`compile=auto`, which compiles once with symbolic sizes for this many designs); seconds per design, "
+              "medians over "
               "rounds:", "",
               "| | old | new | solver | new ÷ old | new ÷ solver |", "|---|---|---|---|---|---|",
               f"| whole call (compilation included) | {s['old_s_per_design']:.2f} | {s['new_s_per_design']:.2f} | "

@@ -57,6 +57,7 @@ def summary(stress: np.ndarray, world_pos: np.ndarray, rest: np.ndarray, plate: 
     history = q.body_history(stress, plate)
     peak = float(history.max())
     return {"peak_mpa": peak, "ghost_ratio": q.ghost_ratio(history, peak),
+            "max_deflection_mm": q.max_deflection(world_pos, rest, plate),
             "contact_end_frame": int(q.contact_end_frame(q.contact_gap(world_pos, rest, plate)))}
 
 
@@ -103,6 +104,9 @@ def medians(rows: list[dict]) -> dict:
 
     ghost = {k: [abs(r[k]["ghost_ratio"] - r["solver"]["ghost_ratio"]) for r in rows]
              for k in ("rollout", "teacher_forced", "perturbed")}
+
+    def error(key):  # |rollout / solver - 1| of a summary's value
+        return med([abs(r["rollout"][key] / r["solver"][key] - 1) for r in rows])
     return {"ghost_difference_median": {k: med(v) for k, v in ghost.items()},
             "solver_ghost_ratio_median": med([r["solver"]["ghost_ratio"] for r in rows]),
             "rollout_ghost_ratio_median": med([r["rollout"]["ghost_ratio"] for r in rows]),
@@ -110,6 +114,7 @@ def medians(rows: list[dict]) -> dict:
             "perturbed_ghost_shift_median": med([abs(r["perturbed"]["ghost_ratio"] - r["rollout"]["ghost_ratio"])
                                                  for r in rows]),
             "amplification_median": med([r["amplification"] for r in rows]),
+            "peak_error_median": error("peak_mpa"), "deflection_error_median": error("max_deflection_mm"),
             "contact_end_frames_late_median": med([r["rollout"]["contact_end_frame"] - r["solver"]["contact_end_frame"]
                                                    for r in rows])}
 

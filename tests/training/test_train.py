@@ -31,6 +31,7 @@ from hcmt.inference.run import Run, load_run
 from hcmt.models import Normalizer, architecture
 from hcmt.training import train
 from hcmt.training.dataset import FrameDataset, StepSampler, pad_sizes
+from hcmt.training.policy import TrainingPolicy
 from hcmt.training.schedule import learning_rate
 from hcmt.viz.curves import rollout_errors
 from layouts import deforming_plate_tfrecord, ggns_pickles, sphere_simple_tfrecord, write_impact_like
@@ -389,6 +390,22 @@ def test_frame_dataset_pickles_without_its_trajectories(impact):
     eager = FrameDataset(impact, "train", get_adapter("impact_plate"), 1, True, 0.3, noise_std=0.01, seed=1,
                          in_memory=True)
     assert pickle.loads(pickle.dumps(eager)).source._trajs is None
+
+
+def test_contact_free_weight_scales_the_loss_of_frames_without_contact(impact):
+    """train.contact_free_weight w: an item whose graph has no contact edges gets its loss mask times w, an item in
+    contact keeps it; the loss divides by the mask's entries, not its weights, so such a frame's loss is w times.
+    Contact radii of 1e-9 and 1e3 give frames of both kinds."""
+    adapter, policy, free = get_adapter("impact_plate"), TrainingPolicy(), []
+    for radius in (1e-9, 1e3):
+        plain, heavy = (FrameDataset(impact, "train", adapter, 1, True, radius, noise_std=0.01, seed=1,
+                                     contact_free_weight=w) for w in (1.0, 3.0))
+        for i in range(len(plain)):
+            (graph, target, mask), (_, target3, mask3) = plain[i], heavy[i]
+            free.append(graph.contact_edges.shape[1] == 0)
+            assert torch.equal(target, target3) and torch.equal(mask3, mask * 3.0 if free[-1] else mask)
+            assert policy.loss_count(graph, mask3) == policy.loss_count(graph, mask) == mask.sum()
+    assert any(free) and not all(free)
 
 
 def test_lazily_read_run_ends_with_the_eager_in_memory_runs_parameters(impact, tmp_path, monkeypatch, tiny_config):

@@ -68,7 +68,8 @@ class FrameDataset(Dataset):
 
     ``data`` a native dataset folder; ``adapter`` the dataset's (:func:`hcmt.domains.adapters.config_adapter`);
     ``levels``/``remesh`` the hierarchy the model needs; ``radius`` the contact radius γ; ``noise_std`` σ on the
-    ``noise_nodes`` (``normal`` or ``predicted``) and ``gamma`` the target correction; ``seed`` for the noise.
+    ``noise_nodes`` (``normal`` or ``predicted``) and ``gamma`` the target correction; ``seed`` for the noise;
+    ``contact_free_weight`` scales the loss mask of an item whose graph has no contact edges (``train.``).
     Works with ``DataLoader(num_workers=N)``. :meth:`pushforward_item` builds an item with the model's help (in
     the training process).
 
@@ -80,11 +81,12 @@ class FrameDataset(Dataset):
 
     def __init__(self, data: str | Path, split: str, adapter: Adapter, levels: int, remesh: bool, radius: float,
                  noise_std: float = 0.0, gamma: float = 1.0, seed: int = 0, exclude: list[int] | None = None,
-                 noise_nodes: str = "normal", in_memory: bool = False, keep: int = 4):
+                 noise_nodes: str = "normal", in_memory: bool = False, keep: int = 4,
+                 contact_free_weight: float = 1.0):
         self.data, self.split, self.adapter = Path(data), split, adapter
         self.levels, self.remesh, self.radius = levels, remesh, float(radius)
         self.noise_std, self.gamma, self.seed, self.exclude = float(noise_std), float(gamma), int(seed), exclude
-        self.noise_nodes = noise_nodes
+        self.noise_nodes, self.contact_free_weight = noise_nodes, float(contact_free_weight)
         self.source = (InMemorySplit(data, split, adapter, levels, remesh, exclude) if in_memory
                        else SplitReader(data, split, adapter, levels, remesh, exclude, keep))
         self.frames = np.asarray([(i, t) for i, steps in enumerate(self.source.steps)
@@ -104,7 +106,7 @@ class FrameDataset(Dataset):
         """``i`` (frame ``i``, noise seeded by ``(seed, i)``) or ``(i, step, rank, previous)`` (the trainer's key:
         noise drawn from the step's generator after the draws of the step's ``previous`` frames' node counts)."""
         tr, t, noise, _ = self._draw(key, self.adapter.history)
-        return training_sample(tr, t, noise, self.gamma, self.radius)
+        return self._weigh(training_sample(tr, t, noise, self.gamma, self.radius))
 
     def pushforward_item(self, key, model, probability: float, forward=None) -> tuple[Graph, Tensor, Tensor]:
         """Item ``key`` as :meth:`__getitem__` (the same noise), except that with ``probability`` (drawn from the
@@ -113,8 +115,17 @@ class FrameDataset(Dataset):
         tr, t, noise, gen = self._draw(key, self.adapter.history + 1)
         u = float(torch.rand((), generator=gen))
         if u < probability and t - 1 >= self.adapter.history:
-            return pushforward_sample(model, tr, t, noise, self._noise(tr, gen), self.gamma, self.radius, forward)
-        return training_sample(tr, t, noise, self.gamma, self.radius)
+            return self._weigh(pushforward_sample(model, tr, t, noise, self._noise(tr, gen), self.gamma, self.radius,
+                                                  forward))
+        return self._weigh(training_sample(tr, t, noise, self.gamma, self.radius))
+
+    def _weigh(self, item: tuple[Graph, Tensor, Tensor]) -> tuple[Graph, Tensor, Tensor]:
+        """The item with its loss mask times ``contact_free_weight`` when its graph has no contact edges (the
+        trainer's loss divides by the mask's nonzero entries, so the weight is the frame's share of the loss)."""
+        graph, tgt, mask = item
+        if self.contact_free_weight != 1.0 and graph.contact_edges.shape[1] == 0:
+            mask = mask * self.contact_free_weight
+        return graph, tgt, mask
 
     def _noise(self, tr: Trajectory, gen: torch.Generator) -> Tensor:
         d = tr.world_pos.shape[-1]

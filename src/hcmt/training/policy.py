@@ -57,7 +57,7 @@ class TrainingPolicy:
         if self.loss_denominator == "nodes":
             n = graph.node_mask.sum() if graph.node_mask is not None else torch.tensor(float(graph.num_nodes))
             return n.to(mask.device, torch.float32).clamp_min(1.0)
-        return mask.sum().clamp_min(1.0)
+        return (mask != 0).sum().to(torch.float32).clamp_min(1.0)  # entries, not weights (contact_free_weight)
 
     def epsilon(self, t: int, beta2: float) -> float:
         """PyTorch Adam's ε at optimizer step ``t`` (1-based): ``adam_epsilon``, or with ``adam_epsilon_hat`` the ε

@@ -134,7 +134,8 @@ class Trainer:
         self.radius = tc.contact_radius
         self.frames = FrameDataset(data, "train", self.adapter, levels, remesh, self.radius,
                                    tc.noise_std, noise_gamma(cfg, self.adapter), self.seed,
-                                   cfg.data.exclude_trajectories, tc.noise_nodes, in_memory=cfg.data.in_memory)
+                                   cfg.data.exclude_trajectories, tc.noise_nodes, in_memory=cfg.data.in_memory,
+                                   contact_free_weight=tc.contact_free_weight)
         self.valid_trajs = (load_split(data, "valid", self.adapter, levels, remesh, limit=tc.valid_trajectories)
                             if (Path(data) / "valid.h5").is_file() else [])
 

@@ -13,7 +13,7 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from accuracy.report import ablations, accuracy, generalization, longer  # noqa: E402
 from common import ROOT  # noqa: E402
-from ghost_diagnosis.report import ghost_diagnosis  # noqa: E402
+from ghost_diagnosis.report import ghost_ablations, ghost_diagnosis  # noqa: E402
 from gpu_check.report import gpu_check, gpu_path  # noqa: E402
 from interval.report import interval  # noqa: E402
 from memory.report import memory  # noqa: E402
@@ -23,21 +23,25 @@ from recipe.report import recipe  # noqa: E402
 from report_common import load  # noqa: E402
 from scaling.report import scaling as scaling_section  # noqa: E402
 from speed.report import cpu_ab, design_ab, forward_modes, speed, threads, train_speed  # noqa: E402
-from surrogate.report import surrogate as surrogate_section  # noqa: E402
+from surrogate.report import (
+    judge as judge_section,  # noqa: E402
+    surrogate as surrogate_section,  # noqa: E402
+)
 from transfer.report import transfer as transfer_section  # noqa: E402
 
 DOC = ROOT.parent / "docs" / "RESULTS.md"
 INTRO = ("Every number below was produced by the command quoted with it, on this project's development machine "
          "(2 CPU cores, no GPU) unless stated. This file is written by `python benchmarks/report.py` from "
          "`benchmarks/results/*.json`; the paper's numbers are quoted for comparison only.")
-SECTIONS = (recipe, interval, threads, parity, propagation, accuracy, longer, ghost_diagnosis, ablations,
-            generalization, memory, speed, gpu_path, cpu_ab, train_speed, design_ab, forward_modes, gpu_check,
-            hierarchy)
+SECTIONS = (recipe, interval, threads, parity, propagation, accuracy, longer, ghost_diagnosis, ghost_ablations,
+            ablations, generalization, memory, speed, gpu_path, cpu_ab, train_speed, design_ab, forward_modes,
+            gpu_check, hierarchy)
 
 
 def main() -> None:
     lines = ["# Results", "", INTRO, ""]
     surrogate_section(lines, load("surrogate.json"))
+    judge_section(lines, load("model_judge.json"))
     transfer_section(lines, load("transfer.json"))
     scaling_section(lines, load("scaling.json"))
     for section in SECTIONS:

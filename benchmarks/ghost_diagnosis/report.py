@@ -2,7 +2,7 @@
 (benchmarks/ghost_diagnosis/run.py)."""
 from __future__ import annotations
 
-from report_common import opened
+from report_common import load, opened
 
 
 def ghost_diagnosis(lines):
@@ -33,3 +33,51 @@ def ghost_diagnosis(lines):
                      "stability in training (noise, pushforward, budget), which the long run and the scaling study "
                      "measure.")
     lines.append("")
+
+
+#: what each arm of benchmarks/ghost_diagnosis/ablate.py changes, in words
+ARM_WORDS = {"start": "none: the run itself, before the arms' steps", "control": "nothing (the run's recipe)",
+             "control-seed1": "nothing, another seed", "no-pushforward": "train.pushforward=0",
+             "noise-x10": "train.noise_std=0.003 (10x)", "contact-free-x4": "train.contact_free_weight=4"}
+
+
+def ghost_ablations(lines):
+    d = opened(lines, "### The stress that stays: measured ablations (validation split)", "ghost_ablations.json")
+    if d is None:
+        return
+    arms = d["arms"]
+    lines += [f"Command: `{d['command']}`. Every arm continues the run `{d['init']}` for {d['steps']:,} steps "
+              f"({', '.join(d['common'])}; normalizers frozen) with one option changed, then "
+              "`benchmarks/ghost_diagnosis/run.py`'s reading of the validation split (medians over its "
+              f"{len(next(iter(arms.values()))['rows'])} "
+              "trajectories).", "",
+              "| arm | change | ghost difference, rollout | ghost difference, teacher-forced | peak plate stress error "
+              "| max deflection error | a 1e-6 mm perturbation grows |", "|---|---|---|---|---|---|---|"]
+
+    def pct(v):
+        return "—" if v is None else f"{100 * v:.1f} %"
+
+    for name, a in arms.items():
+        g = a["ghost_difference_median"]
+        lines.append(f"| {name} | {ARM_WORDS.get(name, ', '.join(a['sets']))} | {g['rollout']:.3f} | "
+                     f"{g['teacher_forced']:.3f} | {pct(a.get('peak_error_median'))} | "
+                     f"{pct(a.get('deflection_error_median'))} | {a['amplification_median']:.1e}x |")
+    shipped = load("ghost_diagnosis.json")
+    if shipped:
+        g = shipped["ghost_difference_median"]
+        lines.append(f"| shipped model ({shipped['run']}) | another run: 36,000 steps on 120 designs | "
+                     f"{g['rollout']:.3f} | {g['teacher_forced']:.3f} | {pct(shipped.get('peak_error_median'))} | "
+                     f"{pct(shipped.get('deflection_error_median'))} | {shipped['amplification_median']:.1e}x |")
+    lines.append("")
+    if "control" in arms and "control-seed1" in arms:
+        ghost = {k: a["ghost_difference_median"]["rollout"] for k, a in arms.items()}
+        spread = abs(ghost["control"] - ghost["control-seed1"])
+        said = [f"The protocol's own spread (control against control-seed1) is {spread:.3f} in the ghost difference."]
+        for name in arms:
+            if name in ("start", "control", "control-seed1"):
+                continue
+            delta = ghost[name] - ghost["control"]
+            said.append(f"{name}: {delta:+.3f} against control ("
+                        + ("within that spread" if abs(delta) <= spread else
+                           "lower, beyond that spread" if delta < 0 else "higher, beyond that spread") + ").")
+        lines += [" ".join(said), ""]

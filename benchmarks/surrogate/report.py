@@ -264,3 +264,27 @@ def note(lines: list[str], n: dict) -> None:
     lines += ["", sentences(f"- hcmt uses the rule with the fewest false alarms among those that flag at least "
                             f"{NOTE_GOAL:.0%} of the large errors: **{best}** (`NOTE_DISAGREEMENT`).",
                             "Without a surrogate: the card's regions.") if best else "- No rule reached the goal.", ""]
+
+
+def judge(lines, d) -> None:
+    """Issue 35 item 5: a model judged on designs of fresh seeds against the goals, the response surface fitted on the
+    same runs beside it (``python benchmarks/surrogate/run.py ... --json model_judge.json``)."""
+    if not d or "goals" not in d:
+        return
+    lines += ["### The mesh model judged against the issue's goals", "",
+              f"Command: `{d['command']}` (model {d['model']}; designs of seeds {d['seeds']['in_range']} in range and "
+              f"{d['seeds']['outside']} outside; the Gaussian process fitted on the model's {d['training_designs']} "
+              "training designs; the model's default read-out, its own outputs).", "",
+              "| goal | target | HCMT | met | response surface |", "|---|---|---|---|---|"]
+    for g in d["goals"]:
+        def num(v):
+            return "-" if v is None else f"{v:.3g}"
+        lines.append(f"| {g['goal']} | {'≥' if g['at_least'] else '≤'} {num(g['target'])} | {num(g['hcmt'])} | "
+                     f"{'yes' if g['hcmt_met'] else 'no'} | {num(g['gp'])} |")
+    lines += ["", "Trends (change from a sweep's first point to its last):", "",
+              "| sweep | quantity | solver | HCMT | response surface |", "|---|---|---|---|---|"]
+    for name, g in d["trends"].items():
+        for q, t in g.items():
+            gp = "-" if t["gp"] is None else f"{100 * t['gp']:+.1f} %"
+            lines.append(f"| {name} | {QUANTITY[q]} | {100 * t['solver']:+.1f} % | {100 * t['hcmt']:+.1f} % | {gp} |")
+    lines.append("")

@@ -4,6 +4,7 @@ designs, the limit calls of each trusted interval on decision sweeps, ghost stre
 low-confidence note.
 
     python benchmarks/surrogate/run.py --data DATA --work WORK [--model pretrained:impact_plate_small] [--threads 1]
+                                       [--seed-in 90210 --seed-out 31337] [--json surrogate.json]
 
 ``DATA`` is the shipped model's training dataset (docs/MODELS.md: ``hcmt generate impact-plate DATA --preset small
 --train 120 --valid 6 --test 12 --seed 2027 --frames 90 --edge-fraction 0.35``). Every group of designs (solver and
@@ -13,7 +14,13 @@ benchmarks/results/surrogate.json (docs/RESULTS.md and docs/MODELS.md quote it).
 Designs: 30 uniform inside the training ranges (seed 90210, the model card's), 16 outside as the paper's Table 13
 (6 thicker 1.03-1.2 mm, 6 dropped from 1030-1200 mm, 4 both; seed 31337); the dataset's own 18 valid + test
 designs tune the note's threshold (judged on the 46 others). Sweeps: thickness 0.5 → 1.0 mm in 11 points at the
-issue's four (drop height, yield) pairs and two more whose yield is the median of the solver's peaks.
+issue's four (drop height, yield) pairs and two more whose yield is the median of the solver's peaks; a drop-height
+sweep (520 → 990 mm in 6 points at thickness 0.75 mm) for the trends.
+
+Judging a model (issue 35, item 5): ``--seed-in`` / ``--seed-out`` draw the in-range and outside designs from seeds no
+study used (and a WORK of their own: the cache is per group name); ``goals`` in the JSON sets the model's and the
+response surface's numbers (fitted on DATA, the same runs) beside the issue's goals, and ``trends`` the sign and size of
+each sweep's change from its first point to its last, model and response surface against the solver.
 """
 from __future__ import annotations
 
@@ -105,11 +112,11 @@ class Quadratic:
         return out
 
 
-def design_sets(run) -> dict[str, list[tuple[str, Design]]]:
+def design_sets(run, seed_in: int = 90210, seed_out: int = 31337) -> dict[str, list[tuple[str, Design]]]:
     preset = run.meta["generator"]["preset"]
-    rng = np.random.default_rng(90210)
+    rng = np.random.default_rng(seed_in)
     sets = {"in_range": [(f"fresh_{i:02d}", sample_design(rng, preset)) for i in range(30)]}
-    rng = np.random.default_rng(31337)
+    rng = np.random.default_rng(seed_out)
     for name, count, t, h in (("thicker", 6, (1.03, 1.2), None), ("higher", 6, None, (1030.0, 1200.0)),
                               ("both", 4, (1.03, 1.2), (1030.0, 1200.0))):
         rows = []
@@ -125,6 +132,8 @@ def design_sets(run) -> dict[str, list[tuple[str, Design]]]:
     for h, _ in SWEEPS:
         sets[f"sweep_{h:g}"] = [(f"t={t:.2f}", replace(base, drop_height=h, thickness=float(t)))
                                 for t in np.round(np.linspace(0.5, 1.0, 11), 6)]
+    sets["sweep_height"] = [(f"h={h:.0f}", replace(base, thickness=0.75, drop_height=float(h)))
+                            for h in np.linspace(520.0, 990.0, 6)]
     return sets
 
 
@@ -162,6 +171,7 @@ def record(p, t, frame_dt: float, end) -> dict:
     out["solver_peak_before_lower_end_frames"] = int(np.floor(end.lo / frame_dt)) - truth["peak_plate_frame"]
     out["critical_node_history_correlation"] = p.summary["verify"].critical_node_history_correlation
     out["model_wall_s"] = p.wall_s
+    out["rebound_agrees"] = bool(p.summary["verify"].rebound_agrees)
     return out
 
 
@@ -306,6 +316,57 @@ def rates(flags, big) -> dict:
             "false_alarm_rate": float((flags & ~big).sum() / (~big).sum()) if (~big).any() else None}
 
 
+#: a trend agrees when its sign is the solver's and its size is within this share of the solver's (issue 35 item 5)
+TREND_SIZE = 0.30
+TREND_QUANTITIES = ("peak_plate_stress_mpa", "max_deflection_mm")
+
+
+def trend(rows, gp) -> dict:
+    """Per quantity: the relative change from a sweep's first point to its last, solver, model (default read-out)
+    and the GP's mean, and whether the model's and the GP's agree with the solver's (sign, size within
+    :data:`TREND_SIZE`)."""
+    ends = [Design(**rows[0]["design"]), Design(**rows[-1]["design"])]
+    g0, g1 = gp.predict(ends)
+    out = {}
+    for q in TREND_QUANTITIES:
+        solver = rows[-1]["solver"][q] / rows[0]["solver"][q] - 1
+        got = {"hcmt": rows[-1]["model"][MODEL][q] / rows[0]["model"][MODEL][q] - 1,
+               "gp": g1[q].mean / g0[q].mean - 1 if q in g0 else None}
+        out[q] = {"solver": solver, **got, **{
+            f"{k}_agrees": None if v is None else bool(np.sign(v) == np.sign(solver)
+                                                       and abs(v / solver - 1) <= TREND_SIZE)
+            for k, v in got.items()}}
+    return out
+
+
+def goals(result: dict, groups: dict, gp) -> list[dict]:
+    """Issue 35 item 5's goals with the model's number and, where it answers that quantity, the response surface's."""
+    acc, out_rows = result["accuracy"]["in_range"], groups["thicker"] + groups["higher"] + groups["both"]
+    outside = compare(out_rows, {"gp": gp})
+
+    def pair(block, q, key):
+        return block[q]["hcmt"][key], block[q]["gp"][key] if "gp" in block[q] else None
+
+    trends = [(name, q, t) for name, g in result["trends"].items() for q, t in g.items()]
+    unsafe_model = sum(s["model_alone"]["unsafe"] for s in result["sweeps"].values())
+    rows = [("peak plate stress error, median %", 3.0, *pair(acc, "peak_plate_stress_mpa", "median_abs_pct")),
+            ("peak plate stress error, worst %", 12.0, *pair(acc, "peak_plate_stress_mpa", "worst_abs_pct")),
+            ("max deflection error, median %", 4.0, *pair(acc, "max_deflection_mm", "median_abs_pct")),
+            ("ghost difference, median", 0.05, result["ghost"][MODEL]["median_abs_diff_in_range"], None),
+            ("rebound agreement (designs, at least)", -29, -sum(r["rebound_agrees"] for r in groups["in_range"]),
+             None),
+            ("outside: peak plate stress error, median %", 6.0, *pair(outside, "peak_plate_stress_mpa",
+                                                                      "median_abs_pct")),
+            ("outside: max deflection error, median %", 8.0, *pair(outside, "max_deflection_mm", "median_abs_pct")),
+            ("trends with the solver's sign and size (within 30 %), of all", -len(trends),
+             -sum(t["hcmt_agrees"] for _, _, t in trends), -sum(bool(t["gp_agrees"]) for _, _, t in trends)),
+            ("unsafe passes of the model alone on the thickness sweeps", 0, unsafe_model, None)]
+    # "at least" goals are stored negated so that every goal reads value <= goal
+    return [{"goal": name, "target": abs(target), "at_least": target < 0,
+             "hcmt": abs(h) if target < 0 else h, "gp": None if g is None else (abs(g) if target < 0 else g),
+             "hcmt_met": bool(h <= target)} for name, target, h, g in rows]
+
+
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--data", type=Path, required=True)
@@ -314,6 +375,9 @@ def main() -> None:
     p.add_argument("--threads", type=int, default=1)
     p.add_argument("--batch", type=int, default=8)
     p.add_argument("--large", type=float, default=20.0, help="a peak error above this (%%) is a large one")
+    p.add_argument("--seed-in", type=int, default=90210, help="seed of the 30 in-range designs")
+    p.add_argument("--seed-out", type=int, default=31337, help="seed of the 16 designs outside the ranges")
+    p.add_argument("--json", default="surrogate.json", help="result file under benchmarks/results/")
     a = p.parse_args()
     torch.set_num_threads(a.threads)
     a.work.mkdir(parents=True, exist_ok=True)
@@ -325,8 +389,8 @@ def main() -> None:
     gp = Surrogate.fit(designs, answers, source=str(a.data))
     gp_fit_s = time.perf_counter() - t0
     print("solver and model on the held-out designs (cached per group)", flush=True)
-    groups = {name: run_group(run, name, designs_, a.work, a.batch, frame_dt, gp)
-              for name, designs_ in design_sets(run).items()}
+    sets = design_sets(run, a.seed_in, a.seed_out)
+    groups = {name: run_group(run, name, designs_, a.work, a.batch, frame_dt, gp) for name, designs_ in sets.items()}
     # the tuning set: the dataset's own valid + test designs
     tune = []
     for split in ("valid", "test"):
@@ -341,7 +405,9 @@ def main() -> None:
     quad_fit_s = time.perf_counter() - t0
     fits = {"gp": gp, "quadratic": quad if quad.ok else None}
 
-    result = {"device": "cpu", "machine": platform.processor() or platform.machine(), "threads": a.threads,
+    result = {"command": "python benchmarks/surrogate/run.py " + " ".join(sys.argv[1:]),
+              "seeds": {"in_range": a.seed_in, "outside": a.seed_out},
+              "device": "cpu", "machine": platform.processor() or platform.machine(), "threads": a.threads,
               "model": a.model, "data": str(a.data), "training_designs": len(designs),
               "parameters": gp.parameters, "fit_s": {"gp": gp_fit_s, "quadratic": quad_fit_s},
               "quadratic_terms": quad.terms}
@@ -367,6 +433,7 @@ def main() -> None:
         y = y if y is not None else float(np.median([r["solver"]["peak_plate_stress_mpa"] for r in rows]))
         sweeps[f"{h:g} mm, Y {y:.0f} MPa"] = calls(rows, gp, y)
     result["sweeps"] = sweeps
+    result["trends"] = {name: trend(groups[name], gp) for name in groups if name.startswith("sweep_")}
     held = groups["in_range"]
     result["coverage_in_range"] = {t: coverage(held, gp, t) for t in TRUSTS}
     result["coverage_outside"] = {t: coverage(groups["thicker"] + groups["higher"] + groups["both"], gp, t)
@@ -381,7 +448,7 @@ def main() -> None:
                            "peaks_outside_solver_contact": int(sum(not x["model"][r]["peak_in_solver_contact"]
                                                                    for x in allheld)),
                            "peaks_where_solver_unloaded": [n for n, x in zip(
-                               [d[0] for g in ("in_range", "thicker", "higher", "both") for d in design_sets(run)[g]],
+                               [d[0] for g in ("in_range", "thicker", "higher", "both") for d in sets[g]],
                                allheld) if x["model"][r]["peak_where_solver_unloaded"]],
                            "peak_error": errors([x["model"][r]["peak_plate_stress_mpa"] for x in allheld],
                                                 [x["solver"]["peak_plate_stress_mpa"] for x in allheld])}
@@ -440,7 +507,8 @@ def main() -> None:
     result["seconds_per_design"] = {"hcmt": float(np.median([r["model_wall_s"] for r in held])),
                                     "solver": float(np.median([r["solver_wall_s"] for r in held])),
                                     "gp": gp_s, "quadratic": quad_s}
-    path = write_json("surrogate.json", result)
+    result["goals"] = goals(result, groups, gp)
+    path = write_json(a.json, result)
     print(json.dumps({k: result[k] for k in ("accuracy", "coverage_in_range", "ghost", "time_of_peak",
                                              "seconds_per_design")}, indent=1)[:6000])
     for name, s in sweeps.items():

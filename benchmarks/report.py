@@ -43,7 +43,7 @@ def main() -> None:
     surrogate_section(lines, load("surrogate.json"))
     judge_section(lines, load("model_judge.json"))
     transfer_section(lines, load("transfer.json"))
-    scaling_section(lines, load("scaling.json"))
+    scaling_section(lines, load("scaling.json"), load("scaling_long_run.json"))
     for section in SECTIONS:
         section(lines)
     peers_section(lines, load("peers_cpu.json"))

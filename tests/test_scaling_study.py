@@ -68,3 +68,26 @@ def test_report_says_not_run_yet_and_words_points():
                                                                           pts[0]["errors"].items()}}]})
     assert "peak plate stress error % 4.0× (HCMT, 1,000 steps)" in "\n".join(lines)
     assert "| 0.300 | 1.00 |" in text and "the margin stays about the same" in text
+
+
+def test_report_puts_the_long_runs_checkpoints_beside_the_fit():
+    """The long run's rows (benchmarks/scaling/long_run.py) print their own errors and, once the study's HCMT budget
+    axis has three budgets, the fitted law's value at the same step."""
+    keys = ("position_rmse_all", "stress_rmse_all", "peak_error_pct", "deflection_error_pct", "ghost_difference")
+    pts = [{"model": m, "budget": b, "designs": 480, "seed": 0, "trajectories": 24, "train_ms_per_step": 90.0,
+            "checkpoint_step": b, "errors": {k: 2.0 * b ** -0.3 for k in keys}}
+           for m in ("hcmt", "mgn") for b in (1000, 3000, 30000)]
+    r = {"command": "c", "data": "d", "train_designs_in_data": 480, "device": "cpu", "planned": 6, "done": 6,
+         "points": pts, "designs": [480], "designs_budget": 10000}
+    long = {"command": "python benchmarks/scaling/long_run.py SNAPSHOT --data d", "checkpoints": [
+        {"checkpoint_step": 100000, "designs": 480, "trajectories": 24, "lr": 1e-3, "lr_final": 1e-5,
+         "schedule_steps": 400000, "rebound_agreement": 1.0, "errors": {k: 0.5 for k in keys}}]}
+    lines = []
+    scaling(lines, r, long)
+    text = "\n".join(lines)
+    fit_at = f"{2.0 * 100000 ** -0.3:.1f}"  # the peak error's format
+    assert "**The long run's checkpoints**" in text and "| 100,000 | 0.5 (fit: " in text
+    assert f"0.5 (fit: {fit_at})" in text and "| 1.00 |" in text
+    lines = []
+    scaling(lines, {**r, "points": [p for p in pts if p["budget"] != 3000]}, long)
+    assert "(fit: " not in "\n".join(lines)  # two budgets: no fit to compare with

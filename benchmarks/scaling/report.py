@@ -116,7 +116,35 @@ def _seed_spread(points: list[dict]) -> list[str]:
                       "between budgets smaller than this is within what the seed alone moves."), ""] if out else []
 
 
-def scaling(lines: list[str], r: dict | None) -> None:
+def _long_run(long: dict, pts: list[dict], full: int) -> list[str]:
+    """The long run's checkpoints (benchmarks/scaling/long_run.py) beside the study's budget axis, with what the
+    study's HCMT fit (from :data:`MIN_FIT` budgets) gives at the same step."""
+    rows = long["checkpoints"]
+    first = rows[0]
+    out = [f"**The long run's checkpoints** (`{long['command']}`: HCMT, the study's recipe, {first['designs']} "
+           f"training designs, judged on the same {first['trajectories']} test designs; its learning rate decays from "
+           f"{first['lr']:g} to {first['lr_final']:g} over {first['schedule_steps']:,} steps, so a checkpoint at step "
+           "n is not the study's n-step run, whose rate has fully decayed by n: these rows stand beside the fit, not "
+           "in it)", "",
+           "| checkpoint step | " + " | ".join(n for _, n in METRICS) + " | rebound agreement |",
+           "|---" * (len(METRICS) + 2) + "|"]
+    fits = {}
+    if len({p["budget"] for p in pts if p["designs"] == full and p["model"] == "hcmt"}) >= MIN_FIT:
+        for key, _ in METRICS:
+            means = means_by(pts, "hcmt", "budget", key, {"designs": full})
+            fits[key] = fit_power_law(list(means), list(means.values()))
+    for r in rows:
+        cells = []
+        for key, _ in METRICS:
+            fit = fits.get(key)
+            at = (f" (fit: {FORMATS[key].format(extrapolate(fit, r['checkpoint_step']))})"
+                  if fit and fit["k"] > FALLS else "")
+            cells.append(FORMATS[key].format(r["errors"][key]) + at)
+        out.append(f"| {r['checkpoint_step']:,} | " + " | ".join(cells) + f" | {r['rebound_agreement']:.2f} |")
+    return out + [""]
+
+
+def scaling(lines: list[str], r: dict | None, long: dict | None = None) -> None:
     lines += [HEADING, ""]
     if not r or not r.get("points"):
         lines += [sentences(
@@ -153,6 +181,8 @@ def scaling(lines: list[str], r: dict | None) -> None:
                             f"{PAPER_STEPS:,} steps, far beyond anything run here; it holds only if the trend does."),
                   ""]
         lines += _margins(pts, "budget", {"designs": full}, "steps")
+    if long and long.get("checkpoints"):
+        lines += _long_run(long, pts, full)
     axis = [p for p in pts if p["budget"] == r["designs_budget"]]
     if axis:
         lines += [f"**Against the number of training designs** ({r['designs_budget']:,} steps)", ""]

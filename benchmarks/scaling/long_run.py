@@ -1,0 +1,49 @@
+"""The long run's checkpoints as points beyond the scaling study's budgets (issue 35, items 2 and 4).
+
+    python benchmarks/scaling/long_run.py SNAPSHOT --data DATA [--out benchmarks/results/scaling_long_run.json]
+
+``SNAPSHOT``: a copy of the long run's folder (run.yaml, best.pt) taken while it trains (copy it: the run rewrites
+best.pt). Its best.pt is judged on DATA's test split exactly as every point of :mod:`scaling.run`
+(:func:`scaling.run.test_errors`) and kept in ``--out`` under its checkpoint step, so each later snapshot adds a
+row. The long run is HCMT with the study's recipe on all 480 designs, but its learning rate decays over its own
+400,000 steps: a checkpoint at step N is not the study's N-step run (whose rate has fully decayed by N), so its rows
+stand beside the study's fit, not in it (docs/RESULTS.md, section "Scaling with budget and designs").
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+import torch
+
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent))  # benchmarks/: common
+from common import RESULTS, write_json  # noqa: E402
+from hcmt.inference.run import Run  # noqa: E402
+from scaling.run import test_errors  # noqa: E402
+
+
+def main(argv=None) -> None:
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("snapshot", type=Path, help="a copy of the long run's folder (run.yaml, best.pt)")
+    p.add_argument("--data", type=Path, required=True)
+    p.add_argument("--threads", type=int, default=1)
+    p.add_argument("--out", type=Path, default=RESULTS / "scaling_long_run.json")
+    a = p.parse_args(argv)
+    torch.set_num_threads(a.threads)
+    loaded = Run.load(a.snapshot, "cpu")
+    cfg = loaded.config
+    row = {**test_errors(loaded, a.data.resolve(), None), "designs": loaded.meta["generator"]["counts"]["train"],
+           "schedule_steps": cfg.train.steps, "lr": cfg.train.lr, "lr_final": cfg.train.lr_final,
+           "snapshot": str(a.snapshot)}
+    old = json.loads(a.out.read_text()) if a.out.is_file() else {"checkpoints": []}
+    kept = [r for r in old["checkpoints"] if r["checkpoint_step"] != row["checkpoint_step"]]
+    out = {"command": "python benchmarks/scaling/long_run.py SNAPSHOT --data " + str(a.data),
+           "model": "hcmt", "checkpoints": sorted(kept + [row], key=lambda r: r["checkpoint_step"])}
+    print(json.dumps(row["errors"], indent=1))
+    print(f"wrote {write_json(a.out, out)}")
+
+
+if __name__ == "__main__":
+    main()

@@ -34,3 +34,21 @@ def test_trend_agrees_on_sign_and_size_within_30_percent():
     assert peak["solver"] == pytest.approx(-0.2) and peak["hcmt"] == pytest.approx(76 / 90 - 1)
     assert peak["hcmt_agrees"] and not peak["gp_agrees"]  # -15.6 % against -20 %: in; -5 % against -20 %: out
     assert not defl["hcmt_agrees"] and defl["gp_agrees"]  # the model's deflection grows where the solver's falls
+
+
+def test_judge_section_counts_goals_met_and_where_the_response_surface_does_better():
+    from surrogate.report import judge
+
+    d = {"command": "c", "model": "m", "seeds": {"in_range": 1, "outside": 2}, "training_designs": 480,
+         "goals": [{"goal": "peak", "target": 3.0, "at_least": False, "hcmt": 2.0, "gp": 1.0, "hcmt_met": True},
+                   {"goal": "rebound", "target": 29, "at_least": True, "hcmt": 28, "gp": None, "hcmt_met": False},
+                   {"goal": "trends", "target": 10, "at_least": True, "hcmt": 9, "gp": 8, "hcmt_met": False}],
+         "trends": {"sweep_600": {"peak_plate_stress_mpa": {"solver": -0.2, "hcmt": -0.25, "gp": None}}}}
+    lines = []
+    judge(lines, d)
+    text = "\n".join(lines)
+    assert "The model meets 1 of 3 goals" in text and "(2 goals), it does better in 1." in text
+    assert "| thickness 0.5 → 1.0 mm at 600 mm | peak plate stress | -20.0 % | -25.0 % | - |" in text
+    lines = []
+    judge(lines, {})
+    assert lines == []  # no judge file: no section

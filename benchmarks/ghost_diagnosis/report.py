@@ -2,7 +2,7 @@
 (benchmarks/ghost_diagnosis/run.py)."""
 from __future__ import annotations
 
-from report_common import load, opened
+from report_common import load, opened, sentences
 
 
 def ghost_diagnosis(lines):
@@ -68,7 +68,11 @@ def ghost_ablations(lines):
         lines.append(f"| shipped model ({shipped['run']}) | another run: 36,000 steps on 120 designs | "
                      f"{g['rollout']:.3f} | {g['teacher_forced']:.3f} | {pct(shipped.get('peak_error_median'))} | "
                      f"{pct(shipped.get('deflection_error_median'))} | {shipped['amplification_median']:.1e}x |")
-    lines.append("")
+    lines += ["", sentences(
+        "Compare the arms with `control`, not with `start`: `start` is the run's best.pt, the checkpoint whose "
+        "validation position RMSE-all was the lowest on these same validation trajectories (a choice that favours "
+        "it on them), and every arm starts Adam afresh (`--init` takes the weights, not the optimizer's moments) and "
+        "is read at its last step."), ""]
     if "control" in arms and "control-seed1" in arms:
         ghost = {k: a["ghost_difference_median"]["rollout"] for k, a in arms.items()}
         spread = abs(ghost["control"] - ghost["control-seed1"])

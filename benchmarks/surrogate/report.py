@@ -272,8 +272,10 @@ def judge(lines, d) -> None:
     if not d or "goals" not in d:
         return
     lines += ["### The mesh model judged against the issue's goals", "",
-              f"Command: `{d['command']}` (model {d['model']}; designs of seeds {d['seeds']['in_range']} in range and "
-              f"{d['seeds']['outside']} outside; the Gaussian process fitted on the model's {d['training_designs']} "
+              f"Command: `{d['command']}` (model {d['model']}"
+              + (f" at step {d['checkpoint_step']:,}" if d.get("checkpoint_step") else "")
+              + f"; designs of seeds {d['seeds']['in_range']} in range and {d['seeds']['outside']} outside; "
+              f"the Gaussian process fitted on the model's {d['training_designs']} "
               "training designs; the model's default read-out, its own outputs).", "",
               "| goal | target | HCMT | met | response surface |", "|---|---|---|---|---|"]
     for g in d["goals"]:
@@ -281,10 +283,18 @@ def judge(lines, d) -> None:
             return "-" if v is None else f"{v:.3g}"
         lines.append(f"| {g['goal']} | {'≥' if g['at_least'] else '≤'} {num(g['target'])} | {num(g['hcmt'])} | "
                      f"{'yes' if g['hcmt_met'] else 'no'} | {num(g['gp'])} |")
+    met = sum(g["hcmt_met"] for g in d["goals"])
+    both = [g for g in d["goals"] if g["gp"] is not None]
+    gp_better = sum((g["gp"] > g["hcmt"]) if g["at_least"] else (g["gp"] < g["hcmt"]) for g in both)
+    lines += ["", sentences(f"The model meets {met} of {len(d['goals'])} goals.",
+                            f"Where the response surface answers the same number ({len(both)} goals), it does "
+                            f"better in {gp_better}.")]
     lines += ["", "Trends (change from a sweep's first point to its last):", "",
               "| sweep | quantity | solver | HCMT | response surface |", "|---|---|---|---|---|"]
     for name, g in d["trends"].items():
+        sweep = ("drop height 520 → 990 mm at 0.75 mm" if name == "sweep_height" else
+                 f"thickness 0.5 → 1.0 mm at {name.split('_', 1)[1]} mm")
         for q, t in g.items():
             gp = "-" if t["gp"] is None else f"{100 * t['gp']:+.1f} %"
-            lines.append(f"| {name} | {QUANTITY[q]} | {100 * t['solver']:+.1f} % | {100 * t['hcmt']:+.1f} % | {gp} |")
+            lines.append(f"| {sweep} | {QUANTITY[q]} | {100 * t['solver']:+.1f} % | {100 * t['hcmt']:+.1f} % | {gp} |")
     lines.append("")

@@ -406,7 +406,7 @@ def main() -> None:
     fits = {"gp": gp, "quadratic": quad if quad.ok else None}
 
     result = {"command": "python benchmarks/surrogate/run.py " + " ".join(sys.argv[1:]),
-              "seeds": {"in_range": a.seed_in, "outside": a.seed_out},
+              "seeds": {"in_range": a.seed_in, "outside": a.seed_out}, "checkpoint_step": run.checkpoint_step,
               "device": "cpu", "machine": platform.processor() or platform.machine(), "threads": a.threads,
               "model": a.model, "data": str(a.data), "training_designs": len(designs),
               "parameters": gp.parameters, "fit_s": {"gp": gp_fit_s, "quadratic": quad_fit_s},

@@ -167,8 +167,9 @@ class TrainConfig:
     noise_nodes: str = _field("normal", "normal", "predicted")
     pushforward: float = _field(0.0, minimum=0, maximum=1, says="a probability in [0, 1]")
     pushforward_start: int = 0
-    # the loss weight of a frame whose graph has no contact edges (the impactor before it touches and after it has
-    # left, where stress that stays lives); 1: the plain mean over frames. Measured: docs/RESULTS.md, "stress head"
+    # the loss weight of a frame where nothing touches (no contact pair within the read-outs' 0.05 mm: the impactor
+    # after it has left, where stress that stays lives); 1: the plain mean over frames. Measured: docs/RESULTS.md,
+    # "The stress that stays: measured ablations"
     contact_free_weight: float = _field(1.0, minimum=0)
     normalizer_steps: int = _field(0, minimum=0)
     # the loop's conventions: hcmt's or the authors' code's (hcmt.training.policy); each key below, left null, is

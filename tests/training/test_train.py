@@ -26,6 +26,7 @@ from hcmt.domains.trajectory import build_graph, load_split
 from hcmt.errors import DatasetError, RolloutError
 from hcmt.graph.batch import PadSizes
 from hcmt.inference.evaluate import evaluate, run_rollouts
+from hcmt.inference.quantities import CONTACT_TOL
 from hcmt.inference.rollout import rollout
 from hcmt.inference.run import Run, load_run
 from hcmt.models import Normalizer, architecture
@@ -392,17 +393,18 @@ def test_frame_dataset_pickles_without_its_trajectories(impact):
     assert pickle.loads(pickle.dumps(eager)).source._trajs is None
 
 
-def test_contact_free_weight_scales_the_loss_of_frames_without_contact(impact):
-    """train.contact_free_weight w: an item whose graph has no contact edges gets its loss mask times w, an item in
-    contact keeps it; the loss divides by the mask's entries, not its weights, so such a frame's loss is w times.
-    Contact radii of 1e-9 and 1e3 give frames of both kinds."""
+def test_contact_free_weight_scales_the_loss_of_frames_where_nothing_touches(impact):
+    """train.contact_free_weight w: an item whose input frame has no contact pair within CONTACT_TOL (the read-outs'
+    touch tolerance) gets its loss mask times w, an item where something touches keeps it; the loss divides by the
+    mask's entries, not its weights, so such a frame's loss is w times. Contact radii of 1e-9 (no pairs) and 1e3
+    (every pair, the touching ones among them) give frames of both kinds."""
     adapter, policy, free = get_adapter("impact_plate"), TrainingPolicy(), []
     for radius in (1e-9, 1e3):
         plain, heavy = (FrameDataset(impact, "train", adapter, 1, True, radius, noise_std=0.01, seed=1,
                                      contact_free_weight=w) for w in (1.0, 3.0))
         for i in range(len(plain)):
             (graph, target, mask), (_, target3, mask3) = plain[i], heavy[i]
-            free.append(graph.contact_edges.shape[1] == 0)
+            free.append(not bool((graph.contact_features[:, -1] <= CONTACT_TOL).any()))
             assert torch.equal(target, target3) and torch.equal(mask3, mask * 3.0 if free[-1] else mask)
             assert policy.loss_count(graph, mask3) == policy.loss_count(graph, mask) == mask.sum()
     assert any(free) and not all(free)

@@ -24,6 +24,7 @@ from hcmt.domains.adapters import Adapter, noise_mask
 from hcmt.domains.frames import pushforward_sample, step_seed, training_sample
 from hcmt.domains.trajectory import SplitReader, Trajectory, load_split
 from hcmt.graph.batch import Graph, PadSizes, collate, pad_graph, pad_rows
+from hcmt.inference.quantities import CONTACT_TOL
 
 
 class InMemorySplit:
@@ -69,7 +70,7 @@ class FrameDataset(Dataset):
     ``data`` a native dataset folder; ``adapter`` the dataset's (:func:`hcmt.domains.adapters.config_adapter`);
     ``levels``/``remesh`` the hierarchy the model needs; ``radius`` the contact radius γ; ``noise_std`` σ on the
     ``noise_nodes`` (``normal`` or ``predicted``) and ``gamma`` the target correction; ``seed`` for the noise;
-    ``contact_free_weight`` scales the loss mask of an item whose graph has no contact edges (``train.``).
+    ``contact_free_weight`` scales the loss mask of an item where nothing touches (``train.``, :meth:`_weigh`).
     Works with ``DataLoader(num_workers=N)``. :meth:`pushforward_item` builds an item with the model's help (in
     the training process).
 
@@ -120,10 +121,12 @@ class FrameDataset(Dataset):
         return self._weigh(training_sample(tr, t, noise, self.gamma, self.radius))
 
     def _weigh(self, item: tuple[Graph, Tensor, Tensor]) -> tuple[Graph, Tensor, Tensor]:
-        """The item with its loss mask times ``contact_free_weight`` when its graph has no contact edges (the
-        trainer's loss divides by the mask's nonzero entries, so the weight is the frame's share of the loss)."""
+        """The item with its loss mask times ``contact_free_weight`` when nothing touches in its input frame: no
+        contact pair closer than :data:`hcmt.inference.quantities.CONTACT_TOL` (the read-outs' touch tolerance; a
+        pair within the contact radius γ but farther apart is near, not touching). The trainer's loss divides by the
+        mask's nonzero entries, so the weight is the frame's share of the loss."""
         graph, tgt, mask = item
-        if self.contact_free_weight != 1.0 and graph.contact_edges.shape[1] == 0:
+        if self.contact_free_weight != 1.0 and not bool((graph.contact_features[:, -1] <= CONTACT_TOL).any()):
             mask = mask * self.contact_free_weight
         return graph, tgt, mask
 

@@ -43,8 +43,12 @@ ARM_WORDS = {"start": "none: the run itself, before the arms' steps", "control":
 
 def ghost_ablations(lines):
     d = opened(lines, "### The stress that stays: measured ablations (validation split)", "ghost_ablations.json")
-    if d is None:
-        return
+    if d is not None:
+        ablation_text(lines, d, load("ghost_diagnosis.json"))
+
+
+def ablation_text(lines: list[str], d: dict, shipped: dict | None) -> None:
+    """The section's body from ghost_ablations.json (``d``) and the shipped model's diagnosis (``shipped``)."""
     arms = d["arms"]
     lines += [f"Command: `{d['command']}`. Every arm continues the run `{d['init']}` for {d['steps']:,} steps "
               f"({', '.join(d['common'])}; normalizers frozen) with one option changed, then "
@@ -62,7 +66,6 @@ def ghost_ablations(lines):
         lines.append(f"| {name} | {ARM_WORDS.get(name, ', '.join(a['sets']))} | {g['rollout']:.3f} | "
                      f"{g['teacher_forced']:.3f} | {pct(a.get('peak_error_median'))} | "
                      f"{pct(a.get('deflection_error_median'))} | {a['amplification_median']:.1e}x |")
-    shipped = load("ghost_diagnosis.json")
     if shipped:
         g = shipped["ghost_difference_median"]
         lines.append(f"| shipped model ({shipped['run']}) | another run: 36,000 steps on 120 designs | "
@@ -77,11 +80,31 @@ def ghost_ablations(lines):
         ghost = {k: a["ghost_difference_median"]["rollout"] for k, a in arms.items()}
         spread = abs(ghost["control"] - ghost["control-seed1"])
         said = [f"The protocol's own spread (control against control-seed1) is {spread:.3f} in the ghost difference."]
+        c = arms["control"]
         for name in arms:
             if name in ("start", "control", "control-seed1"):
                 continue
-            delta = ghost[name] - ghost["control"]
-            said.append(f"{name}: {delta:+.3f} against control ("
+            a, delta = arms[name], ghost[name] - ghost["control"]
+            said.append(f"{name}: ghost difference {delta:+.3f} against control ("
                         + ("within that spread" if abs(delta) <= spread else
-                           "lower, beyond that spread" if delta < 0 else "higher, beyond that spread") + ").")
+                           "lower, beyond that spread" if delta < 0 else "higher, beyond that spread")
+                        + f"); peak plate stress error {100 * a['peak_error_median']:.1f} % against "
+                        f"{100 * c['peak_error_median']:.1f} %, max deflection error "
+                        f"{100 * a['deflection_error_median']:.1f} % against {100 * c['deflection_error_median']:.1f} %"
+                        f"; a 1e-6 mm perturbation grows {a['amplification_median']:.0f}× against "
+                        f"{c['amplification_median']:.0f}×; teacher-forced ghost difference "
+                        f"{a['ghost_difference_median']['teacher_forced']:.3f} against "
+                        f"{c['ghost_difference_median']['teacher_forced']:.3f}.")
         lines += [" ".join(said), ""]
+        options = [n for n in arms if n not in ("start", "control", "control-seed1")]
+        beyond = [n for n in options if abs(ghost[n] - ghost["control"]) > spread]
+        verdict = (f"Beyond the protocol's spread: {', '.join(beyond)}." if beyond else
+                   "No training option tried moves the ghost difference beyond the protocol's spread at this budget.")
+        if shipped and "start" in arms:
+            verdict += (f" The budget does: the shipped model's ghost difference on the same trajectories is "
+                        f"{shipped['ghost_difference_median']['rollout']:.3f}, the long run's {ghost['start']:.3f} at "
+                        f"its checkpoint ({min(ghost['control'], ghost['control-seed1']):.3f}-"
+                        f"{max(ghost['control'], ghost['control-seed1']):.3f} in the two controls, read without "
+                        "that choice), and a 1e-6 mm perturbation grows "
+                        f"{shipped['amplification_median']:.0f}× against {arms['start']['amplification_median']:.0f}×.")
+        lines += [verdict, ""]

@@ -28,6 +28,7 @@ import torch
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))  # benchmarks/: common
 from common import RESULTS, write_json  # noqa: E402
 from ghost_diagnosis.run import diagnose, medians  # noqa: E402
+from hcmt.data.runs import RunFolder  # noqa: E402
 from hcmt.inference.run import Run  # noqa: E402
 
 #: arm -> (its --set overrides, its seed): one option changed against ``control``
@@ -47,10 +48,10 @@ COMMON = ["train.lr=1e-4", "train.lr_final=1e-5", "train.valid_every=0", "train.
 def train_arm(name: str, init: str, data: Path, work: Path, steps: int, threads: int) -> Path:
     out = work / name
     sets, seed = ARMS[name]
-    if (out / "checkpoint.pt").is_file():
-        done = int(torch.load(out / "checkpoint.pt", weights_only=False, map_location="cpu")["step"])
-        if done >= steps:
-            return out
+    folder = RunFolder(out, must_exist=False)
+    if folder.stats_path.is_file():  # finished (as scaling.run.trained reads it)
+        return out
+    if folder.latest.is_file():
         cmd = ["--resume", "--out", str(out), "--steps", str(steps)]
     else:
         cmd = ["--init", init, "--data", str(data), "--out", str(out), "--steps", str(steps), "--seed", str(seed),

@@ -81,9 +81,8 @@ def ablation_text(lines: list[str], d: dict, shipped: dict | None) -> None:
         spread = abs(ghost["control"] - ghost["control-seed1"])
         said = [f"The protocol's own spread (control against control-seed1) is {spread:.3f} in the ghost difference."]
         c = arms["control"]
-        for name in arms:
-            if name in ("start", "control", "control-seed1"):
-                continue
+        options = [n for n in arms if n not in ("start", "control", "control-seed1")]
+        for name in options:
             a, delta = arms[name], ghost[name] - ghost["control"]
             said.append(f"{name}: ghost difference {delta:+.3f} against control ("
                         + ("within that spread" if abs(delta) <= spread else
@@ -96,7 +95,6 @@ def ablation_text(lines: list[str], d: dict, shipped: dict | None) -> None:
                         f"{a['ghost_difference_median']['teacher_forced']:.3f} against "
                         f"{c['ghost_difference_median']['teacher_forced']:.3f}.")
         lines += [" ".join(said), ""]
-        options = [n for n in arms if n not in ("start", "control", "control-seed1")]
         beyond = [n for n in options if abs(ghost[n] - ghost["control"]) > spread]
         verdict = (f"Beyond the protocol's spread: {', '.join(beyond)}." if beyond else
                    "No training option tried moves the ghost difference beyond the protocol's spread at this budget.")

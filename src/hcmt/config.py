@@ -167,7 +167,7 @@ class TrainConfig:
     noise_nodes: str = _field("normal", "normal", "predicted")
     pushforward: float = _field(0.0, minimum=0, maximum=1, says="a probability in [0, 1]")
     pushforward_start: int = 0
-    # the loss weight of a frame where nothing touches (no contact pair within the read-outs' 0.05 mm: the impactor
+    # the loss weight of a frame where nothing touches (no contact pair within quantities.CONTACT_TOL: the impactor
     # after it has left, where stress that stays lives); 1: the plain mean over frames. Measured: docs/RESULTS.md,
     # "The stress that stays: measured ablations"
     contact_free_weight: float = _field(1.0, minimum=0)

@@ -13,8 +13,9 @@ warm-up, loss denominator, Adam's ε, step decay) are ``train.policy``'s: :mod:`
 processes (``torchrun``): :mod:`hcmt.training.runtime`. Speed options (``train.*``): ``workers`` (DataLoader processes
 build the graphs), ``precision: bf16`` (autocast), ``checkpoint_blocks`` (activation checkpointing per block),
 ``compile`` (default ``auto``: compiled in runs of 5,000 steps or more, :func:`hcmt.models.base.resolve_compile`;
-on graphs padded to static sizes, :func:`hcmt.graph.batch.pad_graph`, contact edges in buckets, so CUDA graphs can
-replay the step; the normalizers accumulate eagerly before the compiled forward, which mutates no buffer),
+on the CPU in mode ``default`` with symbolic sizes on the graphs as they are, otherwise on graphs padded to static
+sizes, :func:`hcmt.graph.batch.pad_graph`, contact edges in buckets, so CUDA graphs can replay the step; the
+normalizers accumulate eagerly before the compiled forward, which mutates no buffer),
 ``deterministic`` (:func:`~hcmt.training.runtime.deterministic_kernels`: a resumed CUDA run ends bit for bit like an
 unbroken one, at a cost in speed; CPU runs are exact without it).
 """
@@ -140,15 +141,18 @@ class Trainer:
                             if (Path(data) / "valid.h5").is_file() else [])
 
     def _wrap_model(self) -> None:
-        """``self.net``: the model the step calls, under DDP with several processes, compiled on padded batches."""
+        """``self.net``: the model the step calls, under DDP with several processes, compiled: on the CPU in mode
+        ``default`` with symbolic sizes on the graphs as they are (no padding; one compiled graph for every mesh and
+        contact count, as rollouts), else on padded batches of static shapes (CUDA graphs need them)."""
         self.net = self.model
         if self.world > 1:
             self.net = torch.nn.parallel.DistributedDataParallel(
                 self.model, device_ids=[self.device.index] if self.device.type == "cuda" else None)
-        self.pad = None  # compiled: static shapes, padded batches, contact edges bucketed
+        self.pad = None  # padded compiles: static shapes, padded batches, contact edges bucketed
+        self.dynamic = self.compile == "default" and self.device.type == "cpu"
         if self.compile != "none":
-            self.pad = pad_sizes(self.frames, self.tc.batch_size)
-            self.net = compile_simulator(self.net, self.compile)
+            self.pad = None if self.dynamic else pad_sizes(self.frames, self.tc.batch_size)
+            self.net = compile_simulator(self.net, self.compile, dynamic=self.dynamic)
 
     def _resume(self) -> None:
         state = read_checkpoint(self.ckpt_path, self.device, earlier=self.folder.best)
@@ -180,9 +184,10 @@ class Trainer:
         warmup = self.step_count < self.normalizer_steps
         with torch.autocast(self.device.type, dtype=torch.bfloat16, enabled=self.bf16):
             accumulate = self.policy.accumulate(self.model, graph, warmup, self.frozen_normalizers)
-            if self.pad is not None and accumulate:  # compiled: the statistics eagerly, a forward mutating no buffer
+            compiled = self.compile != "none"
+            if compiled and accumulate:  # compiled: the statistics eagerly, a forward mutating no buffer
                 self.model.accumulate(graph, tgt)
-            eager = accumulate and self.pad is None
+            eager = accumulate and not compiled
             pred = self.net(graph, accumulate=eager)
             norm_tgt = self.model.normalize_target(tgt, accumulate=eager)
             loss = ((pred.float() - norm_tgt.float()) ** 2 * mask).sum() / self.policy.loss_count(graph, mask)
@@ -226,8 +231,10 @@ class Trainer:
     def _loader(self, end: int):
         """This rank's batches of the steps up to ``end`` (pushforward items through the model, compiled if it is)."""
         sampler = StepSampler(self.frames, self.tc.batch_size, self.seed, self.step_count, end, self.world, self.rank)
-        forward = padded_forward(self.net if self.world == 1 else compile_simulator(self.model, self.compile),
-                                 self.pad) if self.pad is not None else None  # DDP's forward would sync buffers
+        net = (self.net if self.world == 1  # DDP's forward would sync buffers
+               else compile_simulator(self.model, self.compile, dynamic=self.dynamic))
+        forward = (None if self.compile == "none" else padded_forward(net, self.pad) if self.pad is not None
+                   else (lambda graph: net(graph, accumulate=False)))
         pushforward = (lambda key: self.frames.pushforward_item(key, self.model, self._pushforward_probability(),
                                                                 forward)) if self.tc.pushforward > 0 else None
         return step_loader(self.frames, sampler, self.pad, self.tc.workers, pushforward)

@@ -1,6 +1,6 @@
 """Training throughput of two checkouts side by side (issue 37, item 1): samples per second on the ``small`` preset.
 
-    python benchmarks/micro/train_speed.py --old OLD_TREE --new NEW_TREE --data DATA [--threads 1 2]
+    python benchmarks/micro/train_speed.py --old OLD_TREE --new NEW_TREE [--also NAME=TREE] --data DATA [--threads 1 2]
         [--recipes cpu ship] [--steps 150] [--rounds 2] [--json benchmarks/results/train_speed.json]
 
 For every round, thread count and recipe, ``hcmt train`` runs ``--steps`` steps in each checkout (its own
@@ -66,6 +66,9 @@ def main() -> None:
     p.add_argument("--old", type=Path, required=True, help="checkout of the old commit (a git worktree)")
     p.add_argument("--new", type=Path, required=True, help="checkout of the new commit")
     p.add_argument("--data", type=Path, required=True, help="a `small` preset dataset with a train split")
+    p.add_argument("--also", action="append", default=[], metavar="NAME=TREE",
+                   help="a further checkout timed in the same rounds with --new-set (e.g. the main branch before the "
+                        "change: new against it says what the change itself buys)")
     p.add_argument("--threads", type=int, nargs="+", default=[1, 2])
     p.add_argument("--recipes", nargs="+", default=list(RECIPES), choices=list(RECIPES))
     p.add_argument("--steps", type=int, default=150)
@@ -76,7 +79,8 @@ def main() -> None:
     results = Path(__file__).resolve().parent.parent / "results"
     p.add_argument("--json", type=Path, default=results / "train_speed.json")
     a = p.parse_args()
-    trees = {"old": a.old.resolve(), "new": a.new.resolve()}
+    trees = {"old": a.old.resolve(), "new": a.new.resolve(),
+             **{n: Path(t).resolve() for n, t in (x.split("=", 1) for x in a.also)}}
     commits = {k: subprocess.run(["git", "-C", str(t), "rev-parse", "--short", "HEAD"], capture_output=True,
                                  text=True).stdout.strip() for k, t in trees.items()}
     rows = []
@@ -84,9 +88,10 @@ def main() -> None:
         for rnd in range(a.rounds):
             for threads in a.threads:
                 for recipe in a.recipes:
-                    for side in ("old", "new") if rnd % 2 == 0 else ("new", "old"):  # alternate who goes first
+                    order = list(trees) if rnd % 2 == 0 else list(trees)[::-1]  # alternate who goes first
+                    for side in order:
                         r = one_run(trees[side], a.data, recipe, threads, a.steps, Path(tmp),
-                                    a.new_set if side == "new" else ())
+                                    a.new_set if side != "old" else ())
                         rows.append({"round": rnd, "threads": threads, "recipe": recipe, "side": side, **r})
                         print(json.dumps(rows[-1]), flush=True)
     summary = []
@@ -95,9 +100,13 @@ def main() -> None:
             med = {side: statistics.median(r["samples_per_s"] for r in rows if r["threads"] == threads
                                            and r["recipe"] == recipe and r["side"] == side) for side in trees}
             summary.append({"threads": threads, "recipe": recipe, "old_samples_per_s": med["old"],
-                            "new_samples_per_s": med["new"], "ratio": med["new"] / med["old"]})
+                            "new_samples_per_s": med["new"], "ratio": med["new"] / med["old"],
+                            **{f"{n}_samples_per_s": med[n] for n in trees if n not in ("old", "new")},
+                            **{f"new_over_{n}": med["new"] / med[n] for n in trees if n not in ("old", "new")}})
+            also = "".join(f", {n} {med[n]:.2f} (new ÷ {n} {med['new'] / med[n]:.2f}x)" for n in trees
+                           if n not in ("old", "new"))
             print(f"{recipe:5s} {threads} thread(s): old {med['old']:.2f} samples/s, new {med['new']:.2f}, "
-                  f"ratio {med['new'] / med['old']:.2f}x")
+                  f"ratio {med['new'] / med['old']:.2f}x{also}")
     a.json.parent.mkdir(parents=True, exist_ok=True)
     a.json.write_text(json.dumps({"commits": commits, "device": platform.processor() or platform.machine(),
                                   "cpu": _cpu_name(), "steps": a.steps, "rounds": a.rounds,

@@ -188,11 +188,19 @@ def train_speed(lines):
               f"{d['steps']} steps a run, the trainer's median step (loading the batch, forward, loss, backward, "
               f"Adam), {d['cpu']}"
               + (f", 1-minute load {min(loads):.1f}-{max(loads):.1f} as the runs ended" if loads else "")
-              + ". Samples per second (median over rounds):", "",
-              "| threads | recipe | old | new | new ÷ old |", "|---|---|---|---|---|"]
+              + ". Samples per second (median over rounds):", ""]
+    also = [k for k in d["commits"] if k not in ("old", "new")]  # further checkouts timed in the same rounds
+    if also:
+        lines[-2] = lines[-2][:-len(" (median over rounds):")] + (
+            f" (median over rounds); also timed, with the new side's settings: "
+            + ", ".join(f"{k} {d['commits'][k]}" for k in also) + ":")
+    lines += ["| threads | recipe | old | " + "".join(f"{k} | " for k in also) + "new | new ÷ old |"
+              + "".join(f" new ÷ {k} |" for k in also), "|---|---|---|---|---|" + "---|" * 2 * len(also)]
     for r in d["summary"]:
         lines.append(f"| {r['threads']} | {RECIPE_NAMES[r['recipe']]} | {r['old_samples_per_s']:.2f} | "
-                     f"{r['new_samples_per_s']:.2f} | {r['ratio']:.2f}× |")
+                     + "".join(f"{r[f'{k}_samples_per_s']:.2f} | " for k in also)
+                     + f"{r['new_samples_per_s']:.2f} | {r['ratio']:.2f}× |"
+                     + "".join(f" {r[f'new_over_{k}']:.2f}× |" for k in also))
     reached = [r for r in d["summary"] if r["ratio"] >= 2]
     lines += ["", f"The goal of 2× (issue 37) is reached in {len(reached)} of {len(d['summary'])} rows."]
     by = {(r["recipe"], r["threads"]): r for r in d["summary"]}

@@ -51,7 +51,8 @@ def compile_simulator(model: nn.Module, mode: str, dynamic: bool = False) -> nn.
     static shapes, one compiled graph per bucketed shape (training; CUDA graphs); Dynamo's recompile limit (8 by
     default, after which it silently runs eager) is raised to hold the few dozen buckets a run meets.
     ``dynamic=True``: symbolic sizes, one compiled graph for every mesh (rollouts of other designs reuse it: no
-    padding, no recompilation; on one CPU thread as fast as the static padded graph, docs/RESULTS.md)."""
+    padding, no recompilation; on one CPU thread as fast as the static padded graph, docs/RESULTS.md). On several
+    CPU threads, mode ``default`` keeps Inductor's fused kernels on one (no atomic adds) and the matmuls on all."""
     if mode not in TORCH_COMPILE_MODES:
         raise InputError(f"compile mode {mode!r}: expected one of {', '.join(TORCH_COMPILE_MODES)}")
     import torch._dynamo
@@ -59,7 +60,13 @@ def compile_simulator(model: nn.Module, mode: str, dynamic: bool = False) -> nn.
     os.environ.setdefault("TORCHINDUCTOR_CACHE_DIR", str(compile_cache_dir()))
 
     torch._dynamo.config.recompile_limit = max(torch._dynamo.config.recompile_limit, 64)
-    return torch.compile(model, mode=None if mode == "default" else mode, dynamic=dynamic)
+    options = None
+    if mode == "default" and torch.get_num_threads() > 1 and all(p.device.type == "cpu" for p in model.parameters()):
+        # Inductor's own kernels on one thread, the matmuls on all: on several it writes every scatter-add (the
+        # backward of each gather) with atomic adds, and the small preset's compiled training step on 2 threads took
+        # 78.9 ms (backward 49.2) against 58.1 (27.0) this way, 69 on one thread (docs/RESULTS.md)
+        options = {"cpp.threads": 1}
+    return torch.compile(model, mode=None if mode == "default" else mode, dynamic=dynamic, options=options)
 
 
 #: ``auto`` compiles a training run of at least this many steps: the first compilation of a shape costs about 5

@@ -5,6 +5,8 @@ against the old commit (benchmarks/micro/train_speed.py) and the design check ag
 (benchmarks/micro/design_ab.py)."""
 from __future__ import annotations
 
+import statistics
+
 from report_common import (
     GOAL_NODES,
     PAPER_ANSYS_MS,
@@ -192,7 +194,7 @@ def train_speed(lines):
     also = [k for k in d["commits"] if k not in ("old", "new")]  # further checkouts timed in the same rounds
     if also:
         lines[-2] = lines[-2][:-len(" (median over rounds):")] + (
-            f" (median over rounds); also timed, with the new side's settings: "
+            " (median over rounds); also timed, with the new side's settings: "
             + ", ".join(f"{k} {d['commits'][k]}" for k in also) + ":")
     lines += ["| threads | recipe | old | " + "".join(f"{k} | " for k in also) + "new | new ÷ old |"
               + "".join(f" new ÷ {k} |" for k in also), "|---|---|---|---|---|" + "---|" * 2 * len(also)]
@@ -201,6 +203,11 @@ def train_speed(lines):
                      + "".join(f"{r[f'{k}_samples_per_s']:.2f} | " for k in also)
                      + f"{r['new_samples_per_s']:.2f} | {r['ratio']:.2f}× |"
                      + "".join(f" {r[f'new_over_{k}']:.2f}× |" for k in also))
+    warm = {side: statistics.median(r["wall_s"] - d["steps"] * r["ms_per_step"] / 1e3 for r in d["rows"]
+                                    if r["side"] == side) for side in d["commits"]}
+    lines += ["", "Warm-up of a run (its wall time less the steps at the median step: start-up, data, and compilation "
+              "from a warm persistent cache where compiled), median over runs: "
+              + ", ".join(f"{side} {s:.0f} s" for side, s in warm.items()) + "."]
     reached = [r for r in d["summary"] if r["ratio"] >= 2]
     lines += ["", f"The goal of 2× (issue 37) is reached in {len(reached)} of {len(d['summary'])} rows."]
     by = {(r["recipe"], r["threads"]): r for r in d["summary"]}

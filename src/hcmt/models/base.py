@@ -63,8 +63,8 @@ def compile_simulator(model: nn.Module, mode: str, dynamic: bool = False) -> nn.
     options = None
     if mode == "default" and torch.get_num_threads() > 1 and all(p.device.type == "cpu" for p in model.parameters()):
         # Inductor's own kernels on one thread, the matmuls on all: on several it writes every scatter-add (the
-        # backward of each gather) with atomic adds, and the small preset's compiled training step on 2 threads took
-        # 78.9 ms (backward 49.2) against 58.1 (27.0) this way, 69 on one thread (docs/RESULTS.md)
+        # backward of each gather) with atomic adds, and compiled training ran no faster on 2 threads than on one
+        # (impact_plate_cpu: 11.95 against 11.67 samples/s; 16.01 on 2 threads this way, docs/RESULTS.md)
         options = {"cpp.threads": 1}
     return torch.compile(model, mode=None if mode == "default" else mode, dynamic=dynamic, options=options)
 

@@ -231,10 +231,12 @@ class Trainer:
     def _loader(self, end: int):
         """This rank's batches of the steps up to ``end`` (pushforward items through the model, compiled if it is)."""
         sampler = StepSampler(self.frames, self.tc.batch_size, self.seed, self.step_count, end, self.world, self.rank)
-        net = (self.net if self.world == 1  # DDP's forward would sync buffers
-               else compile_simulator(self.model, self.compile, dynamic=self.dynamic))
-        forward = (None if self.compile == "none" else padded_forward(net, self.pad) if self.pad is not None
-                   else (lambda graph: net(graph, accumulate=False)))
+        forward = None  # eager: the model itself
+        if self.compile != "none":
+            net = (self.net if self.world == 1  # DDP's forward would sync buffers
+                   else compile_simulator(self.model, self.compile, dynamic=self.dynamic))
+            forward = (padded_forward(net, self.pad) if self.pad is not None
+                       else (lambda graph: net(graph, accumulate=False)))
         pushforward = (lambda key: self.frames.pushforward_item(key, self.model, self._pushforward_probability(),
                                                                 forward)) if self.tc.pushforward > 0 else None
         return step_loader(self.frames, sampler, self.pad, self.tc.workers, pushforward)

@@ -7,9 +7,11 @@ design check's time goes and what each option buys.
 The graph is a design of the model's preset (seeded) at its first rollout step; every mode's median forward time
 (ms), its output's relative difference from the eager fp32 forward (``‖y − y_eager‖ / ‖y_eager‖``), the matmul
 FLOPs of one forward (torch.utils.flop_counter) and the achieved GFLOP/s. Modes: ``eager``; ``compiled-static``
-(Inductor on the padded graph, static shapes: what training uses); ``compiled-dynamic`` (symbolic sizes: what
+(Inductor on the padded graph, static shapes: what training on CUDA uses); ``compiled-dynamic`` (symbolic sizes: what
 rollouts use); ``frozen`` (Inductor's ``freezing``: weights as constants, prepacked); ``frozen-bf16`` and ``bf16``
-(autocast to bfloat16: matmuls on AMX where the CPU has it; not exact). Compilation times are reported separately.
+(autocast to bfloat16: matmuls on AMX where the CPU has it; not exact); ``aot`` (torch.export with symbolic
+sizes and AOTInductor, :mod:`hcmt.models.export`: built once per machine, then loaded). Compilation times are reported
+separately.
 """
 from __future__ import annotations
 
@@ -32,9 +34,10 @@ from hcmt.domains.frames import input_graph  # noqa: E402
 from hcmt.graph.batch import PadSizes, collate, pad_graph  # noqa: E402
 from hcmt.inference.run import Run  # noqa: E402
 from hcmt.models.base import compile_simulator  # noqa: E402
+from hcmt.models.export import exported_forward  # noqa: E402
 from hcmt.sim.params import sample_design  # noqa: E402
 
-MODES = ("eager", "compiled-static", "compiled-dynamic", "frozen", "frozen-bf16", "bf16")
+MODES = ("eager", "compiled-static", "compiled-dynamic", "frozen", "frozen-bf16", "bf16", "aot")
 
 
 def timed(fn, graph, repeats: int) -> float:
@@ -49,9 +52,12 @@ def timed(fn, graph, repeats: int) -> float:
     return 1e3 * statistics.median(ts)
 
 
-def forward_of(model, mode: str):
+def forward_of(model, mode: str, graph):
     """(callable on a graph, whether it takes the padded graph)."""
     import torch._inductor.config as inductor
+
+    if mode == "aot":  # built from (or loaded from the cache for) this graph's kind: sizes symbolic
+        return exported_forward(model, graph), False
 
     inductor.freezing = mode.startswith("frozen")
     if mode in ("eager", "bf16"):
@@ -88,7 +94,7 @@ def main() -> None:
     flops = fc.get_total_flops()
     rows = {}
     for mode in a.modes:
-        fn, pads = forward_of(model, mode)
+        fn, pads = forward_of(model, mode, graph)
         x = padded if pads else graph
         t0 = time.perf_counter()
         with torch.no_grad():

@@ -1,0 +1,53 @@
+"""The ahead-of-time compiled forward (:mod:`hcmt.models.export`): the dummy node and contact edges change no real
+node's output, for every model; the AOTInductor package agrees with eager on meshes of other sizes and contact counts
+(none included), and a second process-like call loads it from the cache instead of exporting again."""
+from __future__ import annotations
+
+import pytest
+import torch
+
+from hcmt.graph.batch import collate
+from hcmt.models import build_model, export as export_module
+from hcmt.models.base import resolve_compile
+from hcmt.models.export import exported_forward, with_dummies
+from models_grid import grid_graph
+
+NODE_IN, MESH_IN, CONTACT_IN, OUT = 5, 6, 3, 3
+CONFIGS = [("hcmt", dict(levels=2, L_C=1)), ("hcmt", dict(levels=2, L_C=1, attention="official", ffn_bias=False)),
+           ("mgn", dict(blocks=2)), ("gt", dict(blocks=2))]
+
+
+def make(name, **kw):
+    torch.manual_seed(0)
+    return build_model(name, NODE_IN, MESH_IN, CONTACT_IN, OUT, hidden=32, heads=4, **kw).eval()
+
+
+@pytest.mark.parametrize("name,kw", CONFIGS, ids=["hcmt", "hcmt-official", "mgn", "gt"])
+@pytest.mark.parametrize("contacts", [0, 5])
+def test_dummy_node_and_contact_edges_change_no_real_output(name, kw, contacts):
+    model = make(name, **kw)
+    levels = kw.get("levels", 0)
+    graph = collate([grid_graph(6, 7, levels=levels, node_in=NODE_IN, contacts=contacts, seed=s) for s in (1, 2)])
+    padded = with_dummies(graph)
+    assert padded.num_nodes == graph.num_nodes + 1 and padded.contact_edges.shape[1] == graph.contact_edges.shape[1] + 2
+    with torch.no_grad():
+        torch.testing.assert_close(model(padded, accumulate=False)[: graph.num_nodes], model(graph, accumulate=False),
+                                   rtol=1e-6, atol=1e-6)
+
+
+@pytest.mark.slow
+@pytest.mark.skipif(resolve_compile("auto", steps=10**9, device=torch.device("cpu")) == "none",
+                    reason="Inductor has no C++ compiler here")
+def test_exported_forward_agrees_with_eager_and_is_built_once(tmp_path, monkeypatch):
+    monkeypatch.setenv("TORCHINDUCTOR_CACHE_DIR", str(tmp_path))
+    model = make("mgn", blocks=1)  # the mechanism, at the least compile time (the shipped HCMT: forward_modes.py)
+    graphs = [collate([grid_graph(n, n + 1, levels=0, node_in=NODE_IN, contacts=c, seed=n)])
+              for n, c in ((7, 6), (9, 9), (8, 0), (6, 1))]
+    forward = exported_forward(model, graphs[0])
+    assert len(list((tmp_path / "aoti").glob("*.pt2"))) == 1
+    with torch.no_grad():
+        for g in graphs:
+            torch.testing.assert_close(forward(g), model(g, accumulate=False), rtol=1e-5, atol=1e-5)
+    monkeypatch.setattr(export_module.torch.export, "export", lambda *a, **k: pytest.fail("exported again"))
+    again = exported_forward(model, graphs[1])  # another process would find the package: no export, no compile
+    torch.testing.assert_close(again(graphs[2]), forward(graphs[2]))

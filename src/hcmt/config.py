@@ -25,6 +25,9 @@ DATASET_NAMES = ("impact_plate", "deforming_plate", "sphere_simple", "deformable
 #: a compiler exists (:func:`hcmt.models.base.resolve_compile`); the rest are ``torch.compile``'s own modes
 COMPILE_MODES = ("none", "auto", "default", "reduce-overhead", "max-autotune")
 TORCH_COMPILE_MODES = COMPILE_MODES[2:]
+#: inference's modes (``--compile`` of ``hcmt rollout / evaluate / predict / sweep``) add ``aot``: the forward exported
+#: ahead of time with symbolic sizes and compiled once per machine (:mod:`hcmt.models.export`), loaded in milliseconds
+INFERENCE_COMPILE_MODES = (*COMPILE_MODES, "aot")
 #: the models (:data:`hcmt.models.REGISTRY`, in this order) and HCMT's ablations (paper Tables 3, 10-12)
 MODELS = ("hcmt", "mgn", "gt")
 ABLATIONS = ("late-contact", "only-cmt", "only-hmt", "lpe", "single-branch")

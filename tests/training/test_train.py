@@ -301,22 +301,31 @@ def test_batched_rollout_equals_one_by_one(impact, tmp_path, tiny_config):
 
 def test_compiled_rollouts_equal_plain(impact, tmp_path, monkeypatch, tiny_config):
     """--compile default rolls out through torch.compile with symbolic sizes on the graphs as they are, max-autotune
-    (static shapes, like CUDA graphs) on padded graphs (eager backend here: Dynamo traces, nothing is built); the
-    trajectories equal the plain rollout's, and ``auto`` stays eager for a rollout this short."""
+    (static shapes, like CUDA graphs) on padded graphs (eager backend here: Dynamo traces, nothing is built), aot
+    through the exported forward built once from the first graph (stood in here; the package itself:
+    tests/models/test_export.py); the trajectories equal the plain rollout's, and ``auto`` stays eager for a rollout
+    this short."""
     cfg = tiny_config(*EXTRA, "train.steps=2")
     train(cfg, impact, "gt", tmp_path / "run", progress=False, device="cpu")
     compile_, calls = torch.compile, []
     monkeypatch.setattr(torch, "compile", lambda model, **kw: calls.append(kw) or compile_(model, backend="eager",
                                                                                            dynamic=kw["dynamic"]))
+    import hcmt.inference.rollout as rollout_module
+    from hcmt.models.export import with_dummies
+
+    exports = []  # aot: the package's forward stood in by the model on the same dummy-extended graph (no compiler)
+    monkeypatch.setattr(rollout_module, "exported_forward", lambda model, example: exports.append(example) or (
+        lambda g: model(with_dummies(g), accumulate=False)[: g.num_nodes]))
     out = {}
-    for mode in ("none", "default", "max-autotune", "auto"):
+    for mode in ("none", "default", "max-autotune", "auto", "aot"):
         assert cli(["rollout", str(tmp_path / "run"), "--data", str(impact), "--split", "train", "--batch", "2",
                     "--device", "cpu", "--compile", mode]) == 0
         with h5py.File(tmp_path / "run" / "rollout_train.h5") as f:
             out[mode] = {k: f[k]["world_pos"][()] for k in f}
     assert [c["dynamic"] for c in calls] == [True, False]  # default: symbolic sizes; max-autotune: padded
+    assert len(exports) == 1  # aot: built once, from the first step's graph
     assert out["none"].keys() == out["default"].keys() and len(out["none"]) == 2
-    for mode in ("default", "max-autotune", "auto"):
+    for mode in ("default", "max-autotune", "auto", "aot"):
         for k in out["none"]:
             np.testing.assert_allclose(out[mode][k], out["none"][k], rtol=0, atol=1e-5)
 

@@ -16,7 +16,7 @@ from hcmt.cli import CommandError, check_outputs
 from hcmt.config import (
     ABLATION_ALIASES,
     ABLATIONS,
-    COMPILE_MODES,
+    INFERENCE_COMPILE_MODES,
     INIT_NORMALIZERS,
     MAX_BATCH,
     MAX_DESIGNS,
@@ -79,11 +79,12 @@ def span(lo: int, hi: int) -> str:
 
 # -- shared options ------------------------------------------------------------------------------------------------
 def compile_arg(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--compile", default="auto", choices=COMPILE_MODES,
+    p.add_argument("--compile", default="auto", choices=INFERENCE_COMPILE_MODES,
                    help="torch.compile the model: default compiles once for every mesh (symbolic sizes; about 25 s, "
                         "65 s the first time on a machine), reduce-overhead (CUDA graphs) and max-autotune on padded "
-                        "graphs; auto (default): default for at least 2,000 model steps in all (about 23 designs of "
-                        "the small preset) where a compiler exists, else none")
+                        "graphs; aot exports the forward once per machine and model (about 90 s) and loads it after "
+                        "in milliseconds; auto (default): default for at least 2,000 model steps in all (about 23 "
+                        "designs of the small preset) where a compiler exists, else none")
 
 
 def batch_arg(p: argparse.ArgumentParser, what: str, default: int | None, default_text: str) -> None:

@@ -14,7 +14,7 @@ import h5py
 import numpy as np
 from tqdm import tqdm
 
-from hcmt.config import COMPILE_MODES, MAX_BATCH, plural
+from hcmt.config import INFERENCE_COMPILE_MODES, MAX_BATCH, plural
 from hcmt.data.format import Split, read_meta
 from hcmt.data.runs import RunFolder
 from hcmt.domains.trajectory import load_split
@@ -39,8 +39,8 @@ def check_options(*, batch: int = 1, compile: str = "none") -> None:
     """Refuse bad rollout options in one line before any cache is consulted or work done."""
     if isinstance(batch, bool) or not isinstance(batch, int) or not 1 <= batch <= MAX_BATCH:
         raise InputError(f"must be a whole number from 1 to {MAX_BATCH:,}, got {clip(batch)}", param="batch")
-    if compile not in COMPILE_MODES:
-        raise InputError(f"must be one of {', '.join(COMPILE_MODES)}, got {compile!r}", param="compile")
+    if compile not in INFERENCE_COMPILE_MODES:
+        raise InputError(f"must be one of {', '.join(INFERENCE_COMPILE_MODES)}, got {compile!r}", param="compile")
 
 
 def rollout_key(data, split: str, run: Run) -> dict:

@@ -11,7 +11,9 @@ gives what one-by-one rollouts give, up to float summation order (tests/training
 compiled graph serves every design and contact count, so a design check compiles once per machine (the persistent
 cache) instead of once per mesh. ``reduce-overhead`` (CUDA graphs) and ``max-autotune`` need static shapes: the
 graph is padded (:func:`hcmt.graph.batch.pad_graph`; the mesh and hierarchy of a batch never change along a rollout,
-contact edges go to bucket sizes), so after the first steps every step replays a compiled graph.
+contact edges go to bucket sizes), so after the first steps every step replays a compiled graph. ``aot`` runs the
+forward exported ahead of time (:mod:`hcmt.models.export`): built once per machine and model, then loaded in
+milliseconds by every process.
 """
 from __future__ import annotations
 
@@ -25,6 +27,7 @@ from hcmt.domains.trajectory import Trajectory
 from hcmt.errors import InputError, RolloutError
 from hcmt.graph.batch import PadSizes, collate, pad_graph
 from hcmt.models.base import AUTO_COMPILE_ROLLOUT_STEPS, compile_simulator, resolve_compile
+from hcmt.models.export import exported_forward
 
 
 def rollout_compile(mode: str, model, steps: int) -> str:
@@ -43,6 +46,16 @@ def compiled(model, mode: str, dynamic: bool):
     if (mode, dynamic) not in cache:
         cache[mode, dynamic] = compile_simulator(model, mode, dynamic=dynamic)
     return cache[mode, dynamic]
+
+
+def exported(model, graph):
+    """``model``'s forward ahead-of-time compiled (:func:`hcmt.models.export.exported_forward`, built from ``graph``
+    once per machine, then loaded), kept on the model as :func:`compiled` keeps its wrapper."""
+    cache = model.__dict__.setdefault("_compiled_rollout", {})
+    if "aot" not in cache:
+        forward = exported_forward(model, graph)
+        cache["aot"] = lambda g, accumulate=False: forward(g)
+    return cache["aot"]
 
 
 @torch.no_grad()
@@ -69,8 +82,8 @@ def rollout_batch(model, adapter: Adapter, trajs: list[Trajectory], radius: floa
     device = next(model.parameters()).device  # graphs go where the model is; results come back to the CPU
     compile = rollout_compile(compile, model, len(trajs) * (len(trajs[0].world_pos) - 1 - adapter.history)
                               if trajs else 0)
-    padded = compile not in ("none", "default")  # CUDA graphs and autotuning want static shapes
-    if compile != "none":
+    padded = compile not in ("none", "default", "aot")  # CUDA graphs and autotuning want static shapes
+    if compile not in ("none", "aot"):  # aot: built from the first step's graph
         net = compiled(model, compile, dynamic=not padded)
     lengths = {int(tr.world_pos.shape[0]) for tr in trajs}
     if len(lengths) != 1:
@@ -94,6 +107,8 @@ def rollout_batch(model, adapter: Adapter, trajs: list[Trajectory], radius: floa
         if padded:  # static sizes: the batch's mesh and hierarchy, contact edges in buckets
             pad = pad or PadSizes.of([graph])
             graph = pad_graph(graph, pad)
+        elif compile == "aot":
+            net = exported(model, graph)
         out = model.denormalize(net(graph.to(device), accumulate=False)[:real]).cpu()
         for b, (tr, o) in enumerate(zip(trajs, out.split(sizes))):
             x, prev = inputs[b]

@@ -30,6 +30,8 @@ import tempfile
 import time
 from pathlib import Path
 
+from hcmt.models.export import cpu_name
+
 RECIPES = {
     "cpu": [],
     "ship": ["model.attention=official", "train.noise_std=0.0003", "model.target=acceleration",
@@ -109,20 +111,10 @@ def main() -> None:
                   f"ratio {med['new'] / med['old']:.2f}x{also}")
     a.json.parent.mkdir(parents=True, exist_ok=True)
     a.json.write_text(json.dumps({"commits": commits, "device": platform.processor() or platform.machine(),
-                                  "cpu": _cpu_name(), "steps": a.steps, "rounds": a.rounds,
+                                  "cpu": cpu_name(), "steps": a.steps, "rounds": a.rounds,
                                   "new_set": a.new_set, "command": "python " + " ".join(sys.argv), "data": str(a.data),
                                   "summary": summary, "rows": rows}, indent=1) + "\n")
     print(f"wrote {a.json}")
-
-
-def _cpu_name() -> str:
-    try:
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            if line.startswith("model name"):
-                return line.split(":", 1)[1].strip()
-    except OSError:
-        pass
-    return platform.processor()
 
 
 if __name__ == "__main__":

@@ -65,7 +65,7 @@ def package_key(model: nn.Module) -> str:
     """What the compiled package depends on: the model's class and weights (buffers included: the normalizers),
     the torch version, the CPU and the thread count (Inductor writes its OpenMP loops for it)."""
     h = hashlib.sha256()
-    h.update(f"{type(model).__qualname__} {torch.__version__} {platform.machine()} {_cpu_name()} "
+    h.update(f"{type(model).__qualname__} {torch.__version__} {platform.machine()} {cpu_name()} "
              f"{torch.get_num_threads()}".encode())
     for name, t in model.state_dict().items():
         h.update(name.encode())
@@ -73,7 +73,8 @@ def package_key(model: nn.Module) -> str:
     return h.hexdigest()[:32]
 
 
-def _cpu_name() -> str:
+def cpu_name() -> str:
+    """The CPU's model name (/proc/cpuinfo), else what :mod:`platform` says."""
     try:
         for line in Path("/proc/cpuinfo").read_text().splitlines():
             if line.startswith("model name"):

@@ -1,6 +1,7 @@
 """The scaling study's arithmetic and report (benchmarks/scaling): the power-law fit recovers a known law, the
 plan has the points the issue asks for, and docs/RESULTS.md's section says "not run yet" without points and
 words only the numbers it prints with them."""
+import json
 import sys
 from pathlib import Path
 
@@ -9,7 +10,7 @@ import pytest
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "benchmarks"))
 from scaling.analysis import extrapolate, fit_power_law, margin_trend, means_by  # noqa: E402
 from scaling.report import scaling  # noqa: E402
-from scaling.run import name, overrides, plan  # noqa: E402
+from scaling.run import EVAL_FILE, name, overrides, plan, restore  # noqa: E402
 
 
 def test_fit_recovers_a_known_power_law():
@@ -91,3 +92,21 @@ def test_report_puts_the_long_runs_checkpoints_beside_the_fit():
     lines = []
     scaling(lines, {**r, "points": [p for p in pts if p["budget"] != 3000]}, long)
     assert "(fit: " not in "\n".join(lines)  # two budgets: no fit to compare with
+
+
+def test_restore_takes_an_earlier_results_files_planned_points_and_refuses_another_study(tmp_path):
+    header = {"recipe": ["a=1"], "config": "impact_plate_cpu", "extra_overrides": [], "compile": "none"}
+    planned = plan([1000, 3000], [480], 1000, [0], 1, ["hcmt"])
+    rows = [{**q, "errors": {"peak_error_pct": 5.0 + i}} for i, q in enumerate(planned)]
+    earlier = tmp_path / "scaling.json"
+    earlier.write_text(json.dumps({**header, "points": rows + [{**planned[0], "budget": 77, "errors": {}}]}))
+    kept = tmp_path / "work" / "runs" / name(planned[1]) / EVAL_FILE
+    kept.parent.mkdir(parents=True)
+    kept.write_text(json.dumps({**planned[1], "errors": {"peak_error_pct": 1.0}}))  # judged here: kept as it is
+    assert restore(tmp_path / "work", earlier, header, planned) == 1
+    got = json.loads((tmp_path / "work" / "runs" / name(planned[0]) / EVAL_FILE).read_text())
+    assert got["errors"] == {"peak_error_pct": 5.0} and got["restored_from"] == str(earlier)
+    assert json.loads(kept.read_text())["errors"] == {"peak_error_pct": 1.0}
+    assert not (tmp_path / "work" / "runs" / "hcmt_b77_d480_s0").exists()  # not planned
+    with pytest.raises(SystemExit, match="another study .*compile 'none'"):
+        restore(tmp_path / "work", earlier, {**header, "compile": "default"}, planned)

@@ -186,6 +186,9 @@ class TrainConfig:
     lr_decay_steps: Optional[int] = _field(None, minimum=1)  # lr·rate^(step/this), no floor; hcmt: lr->lr_final
     log_every: int = _field(100, minimum=1)
     checkpoint_every: int = _field(1000, minimum=1)
+    # also keep the checkpoint of every keep_every-th step as step_<N>.pt (0: none), so that a long run's checkpoint
+    # can be chosen afterwards on more than best.pt's position RMSE (peak, deflection, ghost)
+    keep_every: int = _field(0, minimum=0)
     valid_every: int = _field(0, minimum=0)
     valid_trajectories: int = _field(2, minimum=0)
     contact_pairs: str = _field("all", "all", "official")

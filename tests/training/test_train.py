@@ -97,7 +97,7 @@ def test_non_finite_guard_names_trajectory_and_step(impact, tmp_path, tiny_confi
 
 def test_resume_ends_with_the_same_parameters(impact, tmp_path, tiny_config):
     """Bit for bit on the CPU (CUDA: test_resume_on_cuda)."""
-    cfg = tiny_config(*EXTRA, "train.steps=6", "train.noise_std=0.01")
+    cfg = tiny_config(*EXTRA, "train.steps=6", "train.noise_std=0.01", "train.keep_every=4")
     train(cfg, impact, "hcmt", tmp_path / "straight", seed=3, progress=False, device="cpu")
     train(cfg, impact, "hcmt", tmp_path / "resumed", seed=3, progress=False, stop_at=3, device="cpu")
     train(cfg, impact, "hcmt", tmp_path / "resumed", seed=3, progress=False, resume=True, device="cpu")
@@ -106,6 +106,14 @@ def test_resume_ends_with_the_same_parameters(impact, tmp_path, tiny_config):
     assert a["step"] == b["step"] == 6
     for k in a["model"]:
         assert torch.equal(a["model"][k], b["model"][k]), k
+    # train.keep_every: step 4's checkpoint is kept beside the latest (step 6), the same in both runs
+    for run in ("straight", "resumed"):
+        assert sorted(p.name for p in (tmp_path / run).glob("step_*.pt")) == ["step_4.pt"], run
+    kept = [torch.load(tmp_path / run / "step_4.pt", weights_only=False) for run in ("straight", "resumed")]
+    assert kept[0]["step"] == kept[1]["step"] == 4
+    assert all(torch.equal(kept[0]["model"][k], kept[1]["model"][k]) for k in a["model"])
+    assert not all(torch.equal(kept[0]["model"][k], a["model"][k]) for k in a["model"])
+    assert Run.load(tmp_path / "resumed", "cpu", "step_4").model is not None
     with pytest.raises(ValueError, match="already holds a run; pass resume=True"):
         train(cfg, impact, "hcmt", tmp_path / "straight", seed=3, progress=False)
     with pytest.raises(ValueError, match=r"config\.train\.noise_std: 0\.01 \(run\) vs"):

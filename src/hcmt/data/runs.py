@@ -29,7 +29,8 @@ class RunFolder:
     """A run folder made by ``hcmt train``: the one owner of its file names, ``run.yaml`` parsed once.
 
     ``run.yaml`` holds the model's constructor arguments (``model``), the config (``config``), the training data
-    (``data``), ``seed`` and ``world_size``; the checkpoints are ``checkpoint.pt`` (latest) and ``best.pt``;
+    (``data``), ``seed`` and ``world_size``; the checkpoints are ``checkpoint.pt`` (latest), ``best.pt`` and
+    ``step_<N>.pt`` (kept every ``train.keep_every`` steps);
     rollouts and metrics of a split are ``rollout_<split>[@<data>].h5`` and ``metrics_<split>[@<data>].json``."""
 
     def __init__(self, path: str | Path, *, must_exist: bool = True):
@@ -61,9 +62,10 @@ class RunFolder:
         return self.path / "run.yaml"
 
     def checkpoint(self, which: str = "best") -> Path:
-        """``best.pt`` or ``checkpoint.pt``; the latest checkpoint when ``which`` is missing."""
+        """``best.pt``, ``checkpoint.pt`` or a kept ``step_<N>.pt``; the latest checkpoint when ``best`` is missing
+        (a kept step is never replaced by another)."""
         path = self.path / f"{which}.pt"
-        return path if path.is_file() else self.latest
+        return path if path.is_file() or which.startswith("step_") else self.latest
 
     @property
     def log(self) -> Path:
@@ -76,6 +78,10 @@ class RunFolder:
     @property
     def latest(self) -> Path:
         return self.path / "checkpoint.pt"
+
+    def kept(self, step: int) -> Path:
+        """The checkpoint kept at ``step`` (``train.keep_every``): ``step_<step>.pt``."""
+        return self.path / f"step_{step}.pt"
 
     @property
     def tensorboard(self) -> Path:

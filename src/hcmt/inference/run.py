@@ -72,11 +72,13 @@ class RunInfo:
 
 
 def load_run(run: str | Path | RunFolder, which: str = "best", device: str = "cpu") -> tuple[torch.nn.Module, RunInfo]:
-    """(model, :class:`RunInfo`) of a run folder; ``which`` is ``best`` or ``checkpoint``."""
+    """(model, :class:`RunInfo`) of a run folder; ``which`` is ``best``, ``checkpoint`` or ``step_<N>`` (a checkpoint
+    kept by ``train.keep_every``)."""
     folder = run if isinstance(run, RunFolder) else RunFolder(run)
     path = folder.checkpoint(which)
     if not path.is_file():
-        raise InputError(f"{folder.path}: no checkpoint yet (best.pt / checkpoint.pt)")
+        raise InputError(f"{path}: no such checkpoint" if which.startswith("step_")
+                         else f"{folder.path}: no checkpoint yet (best.pt / checkpoint.pt)")
     state = read_checkpoint(path, device, earlier=folder.latest if path == folder.best else folder.best)
     try:
         model = from_checkpoint(state)
@@ -111,8 +113,8 @@ class Run:
     @classmethod
     def load(cls, path: str | Path, device: str | None = None, which: str = "best") -> "Run":
         """A run folder, or ``pretrained:NAME`` (see :func:`available_pretrained`). ``device`` as
-        :func:`hcmt.models.resolve_device` (default: CUDA when available); ``which``: ``best`` or ``checkpoint``
-        (the latest)."""
+        :func:`hcmt.models.resolve_device` (default: CUDA when available); ``which``: ``best``, ``checkpoint``
+        (the latest) or ``step_<N>`` (kept by ``train.keep_every``)."""
         if isinstance(path, Run):
             return path
         dev = resolve_device(device)

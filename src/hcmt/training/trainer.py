@@ -2,23 +2,22 @@
 acceleration) and stress, Gaussian noise on NORMAL nodes' positions with the target corrected (GNS/MGN), Adam,
 exponential learning-rate decay from ``lr`` to ``lr_final`` over the run, batch size 1 by default.
 
-A run folder holds ``run.yaml`` (everything needed to rebuild the model), ``checkpoint.pt`` (latest) and ``best.pt``
-(best validation rollout), ``log.jsonl``, TensorBoard scalars under ``tb/`` (with the ``tensorboard`` extra) and
-``train_stats.json``. Checkpoints are written atomically. ``resume=True`` continues exactly: model, optimizer,
-normalizers and step are restored; the learning rate (:func:`learning_rate`), the data order and every random draw
-(noise, LPE sign flips) are pure functions of (seed, step, rank), so a run stopped and resumed ends with the same
-parameters as one that never stopped. Normalizer statistics accumulate through training (MeshGraphNets); the first
-``normalizer_steps`` steps only accumulate them, without parameter updates. The loop's conventions (normalizer
-warm-up, loss denominator, Adam's ε, step decay) are ``train.policy``'s: :mod:`hcmt.training.policy`. Several
-processes (``torchrun``): :mod:`hcmt.training.runtime`. Speed options (``train.*``): ``workers`` (DataLoader processes
-build the graphs), ``precision: bf16`` (autocast), ``checkpoint_blocks`` (activation checkpointing per block),
-``compile`` (default ``auto``: compiled in runs of 5,000 steps or more, :func:`hcmt.models.base.resolve_compile`;
-on the CPU in mode ``default`` with symbolic sizes on the graphs as they are, otherwise on graphs padded to static
-sizes, :func:`hcmt.graph.batch.pad_graph`, contact edges in buckets, so CUDA graphs can replay the step; the
-normalizers accumulate eagerly before the compiled forward, which mutates no buffer),
-``deterministic`` (:func:`~hcmt.training.runtime.deterministic_kernels`: a resumed CUDA run ends bit for bit like an
-unbroken one, at a cost in speed; CPU runs are exact without it).
-"""
+A run folder holds ``run.yaml`` (everything needed to rebuild the model), ``checkpoint.pt`` (latest), ``best.pt``
+(best validation rollout), ``step_<N>.pt`` (every ``train.keep_every`` steps, when set), ``log.jsonl``, TensorBoard
+scalars under ``tb/`` (with the ``tensorboard`` extra) and ``train_stats.json``. Checkpoints are written atomically.
+``resume=True`` continues exactly: model, optimizer, normalizers and step are restored; the learning rate
+(:func:`learning_rate`), the data order and every random draw (noise, LPE sign flips) are pure functions of (seed,
+step, rank), so a run stopped and resumed ends with the same parameters as one that never stopped. Normalizer
+statistics accumulate through training (MeshGraphNets); the first ``normalizer_steps`` steps only accumulate them,
+without parameter updates. The loop's conventions (normalizer warm-up, loss denominator, Adam's ε, step decay) are
+``train.policy``'s: :mod:`hcmt.training.policy`. Several processes (``torchrun``): :mod:`hcmt.training.runtime`.
+Speed options (``train.*``): ``workers`` (DataLoader processes build the graphs), ``precision: bf16`` (autocast),
+``checkpoint_blocks`` (activation checkpointing per block), ``compile`` (default ``auto``: compiled in runs of 5,000
+steps or more, :func:`hcmt.models.base.resolve_compile`; on the CPU in mode ``default`` with symbolic sizes on the
+graphs as they are, otherwise on graphs padded to static sizes, :func:`hcmt.graph.batch.pad_graph`, contact edges in
+buckets, so CUDA graphs can replay the step; the normalizers accumulate eagerly before the compiled forward, which
+mutates no buffer), ``deterministic`` (:func:`~hcmt.training.runtime.deterministic_kernels`: a resumed CUDA run ends
+bit for bit like an unbroken one, at a cost in speed; CPU runs are exact without it)."""
 from __future__ import annotations
 
 import json
@@ -253,6 +252,8 @@ class Trainer:
             self.validate()
         if step % tc.checkpoint_every == 0 or step == end or stop:
             self.save(self.ckpt_path)
+        if tc.keep_every and step % tc.keep_every == 0:
+            self.save(self.folder.kept(step))
 
     def run(self, stop_at: int | None = None) -> dict:
         """Train to ``train.steps`` (or to ``stop_at``, checkpointed, as an interruption would); the summary."""

@@ -51,3 +51,45 @@ def test_exported_forward_agrees_with_eager_and_is_built_once(tmp_path, monkeypa
     monkeypatch.setattr(export_module.torch.export, "export", lambda *a, **k: pytest.fail("exported again"))
     again = exported_forward(model, graphs[1])  # another process would find the package: no export, no compile
     torch.testing.assert_close(again(graphs[2]), forward(graphs[2]))
+
+
+def test_auto_on_the_cpu_is_aot_where_the_package_is_built_or_the_rollouts_are_long(tmp_path, monkeypatch):
+    """``--compile auto`` of rollouts on the CPU: ``aot`` once this model's package is on the machine (any length:
+    it loads in milliseconds) or for rollouts long enough to compile; short rollouts without a package, the lpe
+    ablation and explicit modes are :func:`resolve_compile`'s."""
+    from hcmt.inference.rollout import rollout_compile
+    from hcmt.models import base
+    from hcmt.models.base import AUTO_COMPILE_ROLLOUT_STEPS
+
+    monkeypatch.setenv("TORCHINDUCTOR_CACHE_DIR", str(tmp_path))
+    monkeypatch.setattr(base.shutil, "which", lambda name: f"/usr/bin/{name}")
+    model = make("mgn", blocks=1)
+    assert rollout_compile("auto", model, AUTO_COMPILE_ROLLOUT_STEPS) == "aot"
+    assert rollout_compile("auto", model, AUTO_COMPILE_ROLLOUT_STEPS - 1) == "none"
+    assert rollout_compile("default", model, 1) == "default" and rollout_compile("none", model, 10**6) == "none"
+    path = export_module.package_path(model)
+    path.parent.mkdir(parents=True)
+    path.write_bytes(b"")  # this model's package, built earlier on this machine
+    assert rollout_compile("auto", model, 1) == "aot"
+    assert rollout_compile("none", model, 1) == "none"
+    other = make("mgn", blocks=2)  # another model's key: not built
+    assert export_module.package_path(other) != path and rollout_compile("auto", other, 1) == "none"
+
+
+def test_aot_falls_back_to_torch_compile_with_a_warning_where_the_export_fails(monkeypatch, caplog):
+    import hcmt.inference.rollout as rollout_module
+
+    compiled = []
+    monkeypatch.setattr(rollout_module, "exported_forward",
+                        lambda model, example: (_ for _ in ()).throw(RuntimeError("unsupported op\nmore")))
+    monkeypatch.setattr(rollout_module, "compile_simulator",
+                        lambda model, mode, dynamic: compiled.append((mode, dynamic)) or model)
+    model = make("mgn", blocks=1)
+    graph = collate([grid_graph(5, 6, levels=0, node_in=NODE_IN, contacts=2, seed=3)])
+    with caplog.at_level("WARNING", logger="hcmt.inference.rollout"):
+        forward = rollout_module.exported(model, graph)
+    assert compiled == [("default", True)]
+    assert "ahead-of-time export failed (RuntimeError: unsupported op)" in caplog.text
+    assert rollout_module.exported(model, graph) is forward  # kept on the model: not tried again
+    with torch.no_grad():
+        torch.testing.assert_close(forward(graph, accumulate=False), model(graph, accumulate=False))

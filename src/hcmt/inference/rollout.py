@@ -13,10 +13,14 @@ cache) instead of once per mesh. ``reduce-overhead`` (CUDA graphs) and ``max-aut
 graph is padded (:func:`hcmt.graph.batch.pad_graph`; the mesh and hierarchy of a batch never change along a rollout,
 contact edges go to bucket sizes), so after the first steps every step replays a compiled graph. ``aot`` runs the
 forward exported ahead of time (:mod:`hcmt.models.export`): built once per machine and model, then loaded in
-milliseconds by every process.
+milliseconds by every process; where the export or its compilation fails, ``aot`` falls back to ``default`` with a
+warning. ``auto`` on the CPU is ``aot`` where the model's package is already built on this machine (any length) or
+the rollouts are long enough to compile (:data:`hcmt.models.base.AUTO_COMPILE_ROLLOUT_STEPS`); elsewhere it is
+:func:`hcmt.models.base.resolve_compile`'s choice.
 """
 from __future__ import annotations
 
+import logging
 import time
 
 import torch
@@ -27,7 +31,9 @@ from hcmt.domains.trajectory import Trajectory
 from hcmt.errors import InputError, RolloutError
 from hcmt.graph.batch import PadSizes, collate, pad_graph
 from hcmt.models.base import AUTO_COMPILE_ROLLOUT_STEPS, compile_simulator, resolve_compile
-from hcmt.models.export import exported_forward
+from hcmt.models.export import exported_forward, package_path
+
+logger = logging.getLogger(__name__)
 
 
 def rollout_compile(mode: str, model, steps: int) -> str:
@@ -36,7 +42,10 @@ def rollout_compile(mode: str, model, steps: int) -> str:
     that rolls out in chunks resolves once, with its total, and hands the result to every chunk."""
     device = next(model.parameters()).device
     lpe = getattr(model, "lpe", None) is not None  # its eigenvectors are computed per graph, outside the compiler
-    return resolve_compile(mode, steps=steps, device=device, lpe=lpe, threshold=AUTO_COMPILE_ROLLOUT_STEPS)
+    resolved = resolve_compile(mode, steps=steps, device=device, lpe=lpe, threshold=AUTO_COMPILE_ROLLOUT_STEPS)
+    if mode == "auto" and device.type == "cpu" and not lpe and (resolved == "default" or package_path(model).is_file()):
+        return "aot"  # built: loads in milliseconds; long: built once (about 90 s), then every process loads it
+    return resolved
 
 
 def compiled(model, mode: str, dynamic: bool):
@@ -53,8 +62,13 @@ def exported(model, graph):
     once per machine, then loaded), kept on the model as :func:`compiled` keeps its wrapper."""
     cache = model.__dict__.setdefault("_compiled_rollout", {})
     if "aot" not in cache:
-        forward = exported_forward(model, graph)
-        cache["aot"] = lambda g, accumulate=False: forward(g)
+        try:
+            forward = exported_forward(model, graph)
+            cache["aot"] = lambda g, accumulate=False: forward(g)
+        except Exception as exc:  # noqa: BLE001 -- export and AOTInductor raise many types; every one falls back
+            logger.warning("--compile aot: the ahead-of-time export failed (%s: %s); torch.compile (default) instead",
+                           type(exc).__name__, str(exc).splitlines()[0][:200] if str(exc) else "")
+            cache["aot"] = compiled(model, "default", dynamic=True)
     return cache["aot"]
 
 

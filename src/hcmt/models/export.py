@@ -73,6 +73,11 @@ def package_key(model: nn.Module) -> str:
     return h.hexdigest()[:32]
 
 
+def package_path(model: nn.Module) -> Path:
+    """Where ``model``'s package is (or will be) on this machine: ``compile_cache_dir() / "aoti" / KEY.pt2``."""
+    return compile_cache_dir() / "aoti" / f"{package_key(model)}.pt2"
+
+
 def cpu_name() -> str:
     """The CPU's model name (/proc/cpuinfo), else what :mod:`platform` says."""
     try:
@@ -90,7 +95,7 @@ def exported_forward(model: nn.Module, example: Graph):
     this machine and loaded from the cache after."""
     import torch._inductor
 
-    path = compile_cache_dir() / "aoti" / f"{package_key(model)}.pt2"
+    path = package_path(model)
     if not path.is_file():
         model.eval()
         args = _inputs(with_dummies(example))

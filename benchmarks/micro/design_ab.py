@@ -47,10 +47,26 @@ if job["side"] == "solver":
         t0 = time.perf_counter(); simulate(d, settings); per.append(time.perf_counter() - t0)
     wall = sum(per)
 else:
+    try:  # the checkout's defaults, as a user gets them
+        from hcmt.design.basics import DESIGN_BATCH as batch
+    except Exception:  # older checkouts: batches of 8
+        batch = 8
+    try:
+        from hcmt.design.inputs import settings_of
+        from hcmt.inference.rollout import rollout_compile
+        steps = len(designs) * (settings_of(run.meta).frames - 1 - run.adapter.history)
+        mode = rollout_compile("auto", run.model, steps)  # what compile="auto" resolves to
+    except Exception:  # older checkouts: eager
+        mode = "none"
+    if mode == "aot":  # its package built on this machine before the run, or built inside the timed call
+        from hcmt.models.export import package_path
+        mode = "aot" if package_path(run.model).is_file() else "aot, built in the call"
     t0 = time.perf_counter()
     check = check_designs(run, designs, progress=False)
     wall = time.perf_counter() - t0
     per = [p.wall_s for p in check.preds]
+    print(json.dumps({"wall_s": wall, "per_design": per, "batch": batch, "compile": mode}))
+    sys.exit()
 print(json.dumps({"wall_s": wall, "per_design": per}))
 """
 
@@ -63,7 +79,8 @@ def one_side(tree: Path, side: str, model: str, designs: list[dict], threads: in
     per = r["per_design"]
     chunk = next((i for i, x in enumerate(per) if x != per[0]), len(per))  # the first chunk's designs
     steady = per[chunk:] if side != "solver" else per
-    return {"side": side, "per_design_s": r["wall_s"] / len(per), "median_s": statistics.median(per),
+    return {"side": side, **{k: r[k] for k in ("batch", "compile") if k in r},
+            "per_design_s": r["wall_s"] / len(per), "median_s": statistics.median(per),
             "steady_s": statistics.median(steady) if steady else None, "wall_s": r["wall_s"],
             "load_1min": os.getloadavg()[0]}
 

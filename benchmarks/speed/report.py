@@ -220,6 +220,20 @@ def train_speed(lines):
     lines.append("")
 
 
+def defaults(d: dict) -> str:
+    """What each checkout's ``check_designs`` defaults were in a design_ab run (recorded since the aot default)."""
+    if not any("batch" in r for r in d["rows"]):
+        return ("old: batches of 8, eager; new: batches of 8, `compile=auto`, which compiles once with symbolic sizes "
+                "for this many designs")
+    def side(name):
+        r = next(r for r in d["rows"] if r["side"] == name)
+        mode = {"aot": "the ahead-of-time compiled forward, its package built on this machine before the run",
+                "aot, built in the call": "the ahead-of-time compiled forward, its package built inside the call",
+                "none": "eager", "default": "compiled once with symbolic sizes"}.get(r.get("compile"), r.get("compile"))
+        return f"{name}: batches of {r.get('batch', 8)}, `compile=auto` = {mode}"
+    return "; ".join(side(n) for n in ("old", "new"))
+
+
 def design_ab(lines):
     """Issue 37, item 2: the design check per design, old commit against new against the solver, interleaved."""
     d = opened(lines, "### The design check against the old commit and the solver", "design_ab_cpu.json")
@@ -230,9 +244,7 @@ def design_ab(lines):
               f"built-in solver, {d['designs']} designs of the shipped model's preset, {d['threads']} thread, "
               f"{d['rounds']} rounds of three fresh processes in alternating order (1-minute load "
               f"{min(loads):.1f}-{max(loads):.1f} as they ended), {d['device']}. Each design check is "
-              "`check_designs` with its checkout's defaults (old: batches of 8, eager; new: batches of 8, "
-              "`compile=auto`, which compiles once with symbolic sizes for this many designs); seconds per design, "
-              "medians over "
+              f"`check_designs` with its checkout's defaults ({defaults(d)}); seconds per design, medians over "
               "rounds:", "",
               "| | old | new | solver | new ÷ old | new ÷ solver |", "|---|---|---|---|---|---|",
               f"| whole call (compilation included) | {s['old_s_per_design']:.2f} | {s['new_s_per_design']:.2f} | "

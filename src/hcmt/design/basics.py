@@ -19,10 +19,12 @@ RESTARTS = 3  # optimizer restarts of the marginal likelihood (the issue's compa
 #: the others add a derived read-out under their own names
 READOUTS = ("raw", "contact", "element")
 DEFAULT_READOUT = "raw"
-#: designs per model call, the same default for ``predict``, ``sweep`` and the library: on one quiet CPU thread a
-#: batch of 8 was measured fastest (compiled: 1.45 s per design, against 1.49 s in batches of 4 and 1.7 s one by
-#: one; benchmarks/results/design_speed_cpu.json, design_ab_cpu.json); on a GPU a larger batch may pay
-DESIGN_BATCH = 8
+#: designs per model call, the same default for ``predict``, ``sweep`` and the library: on one quiet CPU thread with
+#: the ahead-of-time compiled forward, one design at a time was measured fastest against the solver interleaved
+#: (2.22x and 2.46x the solver, against 2.09x / 2.30x in pairs, 1.72x / 1.97x in fours, 1.66x / 2.05x in eights, two
+#: runs in opposite orders: benchmarks/results/design_speed_cpu.json, design_speed_cpu_reversed.json); on a GPU a
+#: larger batch may pay
+DESIGN_BATCH = 1
 
 
 def check_name(name, where: str) -> str:

@@ -168,6 +168,13 @@ def rollout_vs_solver(c: Check) -> dict:
     if many.truth:
         out["solver_median_s"] = float(np.median([t.wall_s for t in many.truth]))
         out["speedup_batch"] = out["solver_median_s"] / many.preds[0].wall_s
+    if not c.smoke and c.left() > 240:  # the forward compiled ahead of time (--compile aot): built once, then loaded
+        t0 = time.perf_counter()
+        check_designs(run, designs[:1], batch=1, compile="aot", progress=False)
+        out["aot_first_call_s"] = time.perf_counter() - t0  # the package built (or loaded) and one design
+        aot = check_designs(run, designs[:1], batch=1, compile="aot", progress=False)
+        out["one_design_aot_s"] = aot.preds[0].wall_s
+        out["speedup_one_aot"] = solver / aot.preds[0].wall_s
     return out
 
 

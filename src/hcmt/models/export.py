@@ -63,10 +63,13 @@ def _inputs(graph: Graph) -> tuple:
 
 def package_key(model: nn.Module) -> str:
     """What the compiled package depends on: the model's class and weights (buffers included: the normalizers),
-    the torch version, the CPU and the thread count (Inductor writes its OpenMP loops for it)."""
+    the torch version, the CPU and the thread count (Inductor writes its OpenMP loops for it), and the device the
+    model is on (a CUDA package holds kernels for that GPU)."""
+    device = next(model.parameters()).device
+    gpu = torch.cuda.get_device_name(device) if device.type == "cuda" else ""
     h = hashlib.sha256()
     h.update(f"{type(model).__qualname__} {torch.__version__} {platform.machine()} {cpu_name()} "
-             f"{torch.get_num_threads()}".encode())
+             f"{torch.get_num_threads()} {device.type} {gpu}".encode())
     for name, t in model.state_dict().items():
         h.update(name.encode())
         h.update(t.detach().cpu().contiguous().numpy().tobytes())

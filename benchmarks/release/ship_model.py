@@ -1,6 +1,7 @@
 """Package a trained run as a shipped model and write its model card's numbers.
 
     python benchmarks/release/ship_model.py RUN --data DATASET --name impact_plate_small [--designs 24] [--batch 8]
+                                    [--checkpoint best|checkpoint|step_N]
                                     [--command "how the run was trained"] [--data-command "how the data was made"]
 
 1. writes ``src/hcmt/pretrained/NAME.pt`` (fp16 weights, config, training-data meta and design ranges, card);
@@ -46,11 +47,13 @@ def main() -> None:
     p.add_argument("--yield-mpa", type=float, default=703.0, help="limit of the sweeps' minimum-thickness call")
     p.add_argument("--batch", type=int, default=8)
     p.add_argument("--threads", type=int, default=1)
+    p.add_argument("--checkpoint", default="best", help="best, checkpoint (the latest) or step_N (kept by "
+                   "train.keep_every; benchmarks/release/choose_checkpoint.py chooses one on the validation split)")
     p.add_argument("--command", default="", help="the training command (recorded in the card)")
     p.add_argument("--data-command", default="", help="the data generation command (recorded in the card)")
     a = p.parse_args()
     torch.set_num_threads(a.threads)
-    run = Run.load(a.run, "cpu")
+    run = Run.load(a.run, "cpu", a.checkpoint)
     stats = json.loads((a.run / "train_stats.json").read_text())
     # training time from the log (median step time of every logged interval x its steps): a resumed run's
     # files do not tell when it started
@@ -60,7 +63,8 @@ def main() -> None:
     args = run.info.model
     card = {
         "summary": f"HCMT (hidden {args['hidden']}, λ {args['levels']}, L_C {args['L_C']}) trained "
-                   f"{stats['steps']} steps on {run.meta['generator']['counts']['train']} generated "
+                   f"{stats['steps']} steps (shipped: {a.checkpoint}, the checkpoint of step {run.checkpoint_step}) on "
+                   f"{run.meta['generator']['counts']['train']} generated "
                    f"`{run.meta['generator']['preset']}` Impact Plate trajectories of "
                    f"{run.meta['generator']['settings']['frames']} frames",
         "recipe": {k: getattr(run.config.model if k in ("target", "deformation", "attention") else run.config.train, k)
@@ -76,7 +80,7 @@ def main() -> None:
     # held-out designs of a fresh seed (uniform inside the training ranges; no study or training used the seed)
     rng = np.random.default_rng(a.design_seed)
     designs = [(f"fresh_{i:02d}", sample_design(rng, run.meta["generator"]["preset"])) for i in range(a.designs)]
-    preliminary = Run.load(a.run, "cpu")
+    preliminary = Run.load(a.run, "cpu", a.checkpoint)
     check = check_designs(preliminary, designs, batch=a.batch, verify=True, progress=False)
     print(format_table(check.preds, check.verified))
     regions = {}

@@ -1,6 +1,7 @@
 """The long run's checkpoints as points beyond the scaling study's budgets (issue 35, items 2 and 4).
 
-    python benchmarks/scaling/long_run.py SNAPSHOT --data DATA [--out benchmarks/results/scaling_long_run.json]
+    python benchmarks/scaling/long_run.py SNAPSHOT --data DATA [--checkpoint best|step_N]
+        [--out benchmarks/results/scaling_long_run.json]
 
 ``SNAPSHOT``: a copy of the long run's folder (run.yaml, best.pt) taken while it trains (copy it: the run rewrites
 best.pt). Its best.pt is judged on DATA's test split exactly as every point of :mod:`scaling.run`
@@ -28,15 +29,17 @@ def main(argv=None) -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("snapshot", type=Path, help="a copy of the long run's folder (run.yaml, best.pt)")
     p.add_argument("--data", type=Path, required=True)
+    p.add_argument("--checkpoint", default="best", help="best (the default: a snapshot's) or step_N, a checkpoint "
+                   "train.keep_every kept (immutable: the live run folder may be judged)")
     p.add_argument("--threads", type=int, default=1)
     p.add_argument("--out", type=Path, default=RESULTS / "scaling_long_run.json")
     a = p.parse_args(argv)
     torch.set_num_threads(a.threads)
-    loaded = Run.load(a.snapshot, "cpu")
+    loaded = Run.load(a.snapshot, "cpu", a.checkpoint)
     cfg = loaded.config
     row = {**test_errors(loaded, a.data.resolve(), None), "designs": loaded.meta["generator"]["counts"]["train"],
            "schedule_steps": cfg.train.steps, "lr": cfg.train.lr, "lr_final": cfg.train.lr_final,
-           "snapshot": str(a.snapshot)}
+           "snapshot": str(a.snapshot), "checkpoint": a.checkpoint}
     old = json.loads(a.out.read_text()) if a.out.is_file() else {"checkpoints": []}
     kept = [r for r in old["checkpoints"] if r["checkpoint_step"] != row["checkpoint_step"]]
     out = {"command": "python benchmarks/scaling/long_run.py SNAPSHOT --data " + str(a.data),

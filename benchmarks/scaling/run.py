@@ -107,15 +107,15 @@ def judged(run: Path, data: Path, limit: int | None) -> dict:
             "train_ms_per_step": stats["train_ms_per_step"]}
 
 
-def test_errors(loaded: Run, data: Path, limit: int | None) -> dict:
-    """A loaded run's errors on the first ``limit`` test designs (all: None): the paper's RMSE-all and, from the
-    same rollouts, the medians over trajectories of the engineering errors; its rollout file is not kept."""
-    m = evaluate(loaded, data, "test", limit=limit, progress=False)
+def test_errors(loaded: Run, data: Path, limit: int | None, split: str = "test") -> dict:
+    """A loaded run's errors on the first ``limit`` designs of ``split`` (all: None): the paper's RMSE-all and, from
+    the same rollouts, the medians over trajectories of the engineering errors; its rollout file is not kept."""
+    m = evaluate(loaded, data, split, limit=limit, progress=False)
     rows = [r["physics"] for r in m["per_trajectory"]]
     peak = np.abs([r["peak_plate_stress_error_pct"] for r in rows])
     defl = np.abs([r["max_deflection_error_pct"] for r in rows])
     ghost = np.abs([r["model_ghost_ratio"] - r["solver_ghost_ratio"] for r in rows])
-    loaded.folder.rollout_path("test", data).unlink(missing_ok=True)
+    loaded.folder.rollout_path(split, data).unlink(missing_ok=True)
     return {"trajectories": m["trajectories"], "checkpoint_step": loaded.checkpoint_step,
             "errors": {"position_rmse_all": m["position"]["rmse_all"], "stress_rmse_all": m["stress"]["rmse_all"],
                        "peak_error_pct": float(np.median(peak)), "deflection_error_pct": float(np.median(defl)),

@@ -2,7 +2,12 @@
 response surface an engineer would fit on the new family's runs.
 
     python benchmarks/transfer/run.py --work WORK --train-data DATA --new stack3=DATA3 --new pen=DATAP \
-        [--models hcmt mgn] [--seeds 0 1] [--steps 8000] [--ft-steps 1500] [--shots 5 20] [--eval 8]
+        [--models hcmt mgn] [--seeds 0 1] [--steps 8000] [--ft-steps 1500] [--ft-lr LR] [--shots 5 20] [--eval 8] \
+        [--base NAME=RUN] [--json transfer.json]
+
+``--base NAME=RUN`` (a run folder or ``pretrained:NAME``, e.g. the shipped model) is the base model instead of
+training one per model and seed (``--models`` and ``--steps`` are then unused; ``--seeds`` seed the fine-tunings);
+``--ft-lr`` is the fine-tuning's learning rate (decaying to a tenth of it; default: the config's 1e-3 to 1e-5).
 
 The data (docs/RESULTS.md, "Panel families" has the commands): ``--train-data`` mixes the training families
 (``hcmt generate impact-plate --family mono,stack2,ring``); each ``--new NAME=DATA`` is one family never trained
@@ -78,12 +83,14 @@ def subset(data: Path, n: int, out: Path) -> Path:
     return out
 
 
-def trained(work: Path, name: str, data: Path, model: str, seed: int, steps: int, init: Path | None = None) -> Path:
-    """Train (or resume, or reuse) one run folder."""
+def trained(work: Path, name: str, data: Path, model: str, seed: int, steps: int, init: Path | str | None = None,
+            lr: float | None = None) -> Path:
+    """Train (or resume, or reuse) one run folder; ``lr``: a fine-tuning's learning rate (to a tenth of it)."""
     run = work / "runs" / name
     if (run / "train_stats.json").is_file():
         return run
     overrides = RECIPE + (FINE_TUNE if init else []) + [f"train.steps={steps}"]
+    overrides += [f"train.lr={lr}", f"train.lr_final={lr / 10}"] if lr is not None else []
     resume = RunFolder(run, must_exist=False).latest.is_file()
     t0 = time.perf_counter()
     train(load_config("impact_plate_cpu", overrides), data, model, run, seed=seed, resume=resume, progress=False,
@@ -106,9 +113,12 @@ def critical_distance(rollout: Path, data: Path, split: str, limit: int) -> dict
     return out
 
 
-def judged(run: Path, data: Path, limit: int) -> dict:
-    """One mesh-model row: evaluate's physics per trajectory plus the critical location."""
+def judged(run: Path | str, data: Path, limit: int, out: Path | None = None) -> dict:
+    """One mesh-model row: evaluate's physics per trajectory plus the critical location (a shipped model's
+    rollouts go to ``out``)."""
     loaded = Run.load(run, "cpu")
+    if str(run).startswith("pretrained:"):
+        loaded = loaded.writing_to(out)
     m = evaluate(loaded, data, "test", limit=limit, progress=False)
     crit = critical_distance(loaded.folder.rollout_path("test", data), data, "test", limit)
     meta = read_meta(data)
@@ -207,7 +217,7 @@ def summarize(row: dict) -> dict:
     return out
 
 
-def main() -> None:
+def main(argv=None) -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--work", type=Path, required=True)
     p.add_argument("--train-data", type=Path, required=True)
@@ -219,9 +229,13 @@ def main() -> None:
     p.add_argument("--shots", nargs="+", type=int, default=[5, 20])
     p.add_argument("--eval", type=int, default=8, help="test designs judged per new family (all of the training "
                                                        "families' test split)")
+    p.add_argument("--ft-lr", type=float, default=None, help="the fine-tuning's learning rate (to a tenth of it)")
+    p.add_argument("--base", metavar="NAME=RUN", help="this model is the base (a run folder or pretrained:NAME) "
+                   "instead of one trained per model and seed")
     p.add_argument("--threads", type=int, default=1)
+    p.add_argument("--json", default="transfer.json", help="the summary (a name in benchmarks/results or a path)")
     p.add_argument("--report", action="store_true", help="only summarize the rows that exist")
-    a = p.parse_args()
+    a = p.parse_args(argv)
     torch.set_num_threads(a.threads)
     work, base_data = a.work, a.train_data.resolve()
     new = {k: Path(v).resolve() for k, v in (item.split("=", 1) for item in a.new)}
@@ -238,33 +252,44 @@ def main() -> None:
             for n in a.shots:
                 rows[f"gp_{fam}_{n}"] = row_file(work, f"gp_{fam}_{n}", lambda d=data, n=n: surrogate_row(
                     d, n, d, a.eval))
+        given = a.base.split("=", 1) if a.base else None
         for seed in a.seeds:
-            for model in a.models:
-                base = f"{model}_s{seed}"
-                if not claim(work / "runs" / base) and not (work / "runs" / base / "train_stats.json").is_file():
-                    print(f"  {base}: another process trains it", flush=True)
-                    continue
-                try:
-                    run = trained(work, base, base_data, model, seed, a.steps)
-                finally:
-                    (work / "runs" / f"{base}.lock").unlink(missing_ok=True)
-                rows[f"{base}_base"] = row_file(work, f"{base}_base", lambda r=run: judged(r, base_data, held_out))
+            for model in ([None] if given else a.models):
+                if given:  # the given model: its rows once, its fine-tunings per seed
+                    base, run = f"{given[0]}_s{seed}", given[1]
+                    model = Run.load(run, "cpu").info.model["name"]
+                    out = work / "pretrained" / given[0]
+                    rows[f"{given[0]}_base"] = row_file(work, f"{given[0]}_base",
+                                                        lambda: judged(run, base_data, held_out, out))
+                else:
+                    base, out = f"{model}_s{seed}", None
+                    if not claim(work / "runs" / base) and not (work / "runs" / base / "train_stats.json").is_file():
+                        print(f"  {base}: another process trains it", flush=True)
+                        continue
+                    try:
+                        run = trained(work, base, base_data, model, seed, a.steps)
+                    finally:
+                        (work / "runs" / f"{base}.lock").unlink(missing_ok=True)
+                    rows[f"{base}_base"] = row_file(work, f"{base}_base", lambda r=run: judged(r, base_data, held_out))
+                zero = given[0] if given else base
                 for fam, data in new.items():
-                    rows[f"{base}_{fam}_zero"] = row_file(work, f"{base}_{fam}_zero",
-                                                          lambda r=run, d=data: judged(r, d, a.eval))
+                    rows[f"{zero}_{fam}_zero"] = row_file(work, f"{zero}_{fam}_zero",
+                                                          lambda r=run, d=data, o=out: judged(r, d, a.eval, o))
                     for n in a.shots:
                         name = f"{base}_{fam}{n}"
                         data_n = subset(data, n, work / "subsets" / f"{fam}_{n}")
-                        ft = trained(work, name, data_n, model, seed, a.ft_steps, init=run)
+                        ft = trained(work, name, data_n, model, seed, a.ft_steps, init=run, lr=a.ft_lr)
                         rows[f"{base}_{fam}_{n}"] = row_file(work, f"{base}_{fam}_{n}",
                                                              lambda r=ft, d=data: judged(r, d, a.eval))
     found = {f.stem: json.loads(f.read_text()) for f in sorted((work / "rows").glob("*.json"))}
     summary = {k: (v if k.startswith("solver") else summarize(v)) for k, v in found.items()}
-    write_json("transfer.json", {
+    write_json(a.json, {
         "command": "python benchmarks/transfer/run.py " + " ".join(
             [f"--work {work}", f"--train-data {a.train_data}", *(f"--new {x}" for x in a.new),
-             f"--models {' '.join(a.models)}", f"--steps {a.steps}", f"--ft-steps {a.ft_steps}",
+             *([f"--base {a.base}"] if a.base else [f"--models {' '.join(a.models)}", f"--steps {a.steps}"]),
+             f"--ft-steps {a.ft_steps}", *([f"--ft-lr {a.ft_lr}"] if a.ft_lr is not None else []),
              f"--shots {' '.join(map(str, a.shots))}", f"--eval {a.eval}"]),
+        "base": a.base, "ft_lr": a.ft_lr,
         "device": f"cpu ({platform.processor() or platform.machine()}), {a.threads} thread per process, two "
                   "processes (one per seed) side by side on the 2-core machine",
         "train_families": sorted(set((read_meta(base_data).get("families") or {}).get("train") or ["mono"])),

@@ -52,11 +52,13 @@ def _sync(device):
         torch.cuda.synchronize(device)
 
 
-def _step_fn(model, graph, target, opt, compiled, mask):
-    """The trainer's step: eager (accumulating forward) or compiled (eager accumulation, compiled forward)."""
+def _step_fn(model, graph, target, opt, compiled, mask, dynamic: bool = False):
+    """The trainer's step: eager (accumulating forward) or compiled (eager accumulation, compiled forward; with
+    ``dynamic`` symbolic sizes on the graph as it is, the trainer's CPU path, else static shapes)."""
     net = model
     if compiled:
-        net = compile_simulator(model, "reduce-overhead" if graph.node_features.is_cuda else "default")
+        net = compile_simulator(model, "reduce-overhead" if graph.node_features.is_cuda else "default",
+                                dynamic=dynamic)
 
     def step():
         model.train()

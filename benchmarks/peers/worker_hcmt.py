@@ -3,9 +3,10 @@
     PYTHONPATH=src python benchmarks/peers/worker_hcmt.py GRAPH.npz {mgn|hcmt} {eager|compiled}
 
 A train step is the trainer's: forward with normalizer accumulation, MSE over real nodes on normalized targets,
-backward, Adam (lr 1e-4). Compiled: the graph padded to static sizes (:func:`hcmt.graph.batch.pad_graph`), the
-normalizers accumulated eagerly, the forward ``torch.compile``\\ d (:func:`hcmt.models.base.compile_simulator`,
-inductor's default; its cache persists in ``~/.cache/hcmt/inductor``). Inference: a no-grad forward in eval mode.
+backward, Adam (lr 1e-4). Compiled: as the trainer compiles on the CPU, the graph as it is (no padding) with
+symbolic sizes, the normalizers accumulated eagerly, the forward ``torch.compile``\\ d
+(:func:`hcmt.models.base.compile_simulator` with ``dynamic=True``, inductor's default; its cache persists in
+``~/.cache/hcmt/inductor``). Inference: a no-grad forward in eval mode.
 The FLOPs of one eager train step and one inference are counted with ``torch.utils.flop_counter`` (matmuls only)."""
 from __future__ import annotations
 
@@ -23,7 +24,7 @@ import torch  # noqa: E402
 from torch.utils.flop_counter import FlopCounterMode  # noqa: E402
 
 from hcmt.domains.adapters import build_for_dataset  # noqa: E402
-from hcmt.graph.batch import Graph, PadSizes, pad_graph, pad_rows  # noqa: E402
+from hcmt.graph.batch import Graph  # noqa: E402
 from micro.bench_models import _step_fn as train_and_infer  # noqa: E402
 
 
@@ -45,11 +46,8 @@ def contestant(path: str, name: str, mode: str):
     extra = dict(attention="official", ffn_bias=False) if name == "hcmt" else {}
     model = build_for_dataset(name, "impact_plate", **extra)
     opt = torch.optim.Adam(model.parameters(), lr=1e-4)
-    if mode == "compiled":
-        graph = pad_graph(graph, PadSizes.of([graph]))
-        target = pad_rows(target, graph.num_nodes)[0]
-    mask = (graph.node_mask if graph.node_mask is not None else torch.ones(graph.num_nodes))[:, None].float()
-    train, infer = train_and_infer(model, graph, target, opt, mode == "compiled", mask)  # the trainer's step
+    mask = torch.ones(graph.num_nodes, 1)
+    train, infer = train_and_infer(model, graph, target, opt, mode == "compiled", mask, dynamic=True)  # the trainer's
 
     info = {"framework": f"hcmt (torch {torch.__version__})", "model": name, "mode": mode,
             "parameters": sum(p.numel() for p in model.parameters()), "nodes": int(mask.sum())}

@@ -9,7 +9,7 @@ import pytest
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "benchmarks"))
 from scaling.analysis import extrapolate, fit_power_law, margin_trend, means_by  # noqa: E402
-from scaling.report import scaling  # noqa: E402
+from scaling.report import _restored, scaling  # noqa: E402
 from scaling.run import EVAL_FILE, name, overrides, plan, restore  # noqa: E402
 
 
@@ -110,3 +110,14 @@ def test_restore_takes_an_earlier_results_files_planned_points_and_refuses_anoth
     assert not (tmp_path / "work" / "runs" / "hcmt_b77_d480_s0").exists()  # not planned
     with pytest.raises(SystemExit, match="another study .*compile 'none'"):
         restore(tmp_path / "work", earlier, {**header, "compile": "default"}, planned)
+
+
+def test_report_says_which_points_were_restored_and_checks_their_test_designs():
+    fresh = {"model": "mgn", "budget": 30000, "designs": 480, "seed": 0, "solver_ghost_ratio": 0.0606}
+    old = [{**fresh, "model": "hcmt", "restored_from": "scaling.json"}, {**fresh, "budget": 10000,
+                                                                         "restored_from": "scaling.json"}]
+    assert _restored([fresh]) == []
+    text = _restored(old + [fresh])[0]
+    assert text.startswith("2 of these points") and "`--restore scaling.json`" in text
+    assert "ratio is 0.0606 for every point" in text
+    assert "could not be checked" in _restored(old + [{**fresh, "solver_ghost_ratio": 0.07}])[0]

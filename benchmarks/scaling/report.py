@@ -116,6 +116,23 @@ def _seed_spread(points: list[dict]) -> list[str]:
                       "between budgets smaller than this is within what the seed alone moves."), ""] if out else []
 
 
+def _restored(pts: list[dict]) -> list[str]:
+    """A sentence on the points taken from an earlier results file (``run.py --restore``), and whether the test
+    designs they were judged on are the same data: the same median solver ghost ratio of the test split."""
+    old = [p for p in pts if p.get("restored_from")]
+    if not old:
+        return []
+    new = [p for p in pts if not p.get("restored_from")]
+    ratios = {p.get("solver_ghost_ratio") for p in old}, {p.get("solver_ghost_ratio") for p in new}
+    same = len(ratios[0] | ratios[1]) == 1 and None not in ratios[0]
+    check = (f"the test split's median solver ghost ratio is {next(iter(ratios[0])):.10g} for every point, restored "
+             "or not" if same and new else
+             "the test designs could not be checked to be the same (their solver ghost ratios differ or are missing)")
+    return [f"{len(old)} of these points were judged in an earlier run of the study, whose work folder was lost, and "
+            f"taken from its results file (`--restore {old[0]['restored_from']}`); the data were generated again by "
+            f"the same command: {check}.", ""]
+
+
 def _long_run(long: dict, pts: list[dict], full: int) -> list[str]:
     """The long run's checkpoints (benchmarks/scaling/long_run.py) beside the study's budget axis, with what the
     study's HCMT fit (from :data:`MIN_FIT` budgets) gives at the same step."""
@@ -167,6 +184,7 @@ def scaling(lines: list[str], r: dict | None, long: dict | None = None) -> None:
                         "difference |model ghost ratio − solver ghost ratio|."), ""]
     lines += ["Points run: " + ", ".join(f"{p['model']} {p['budget']:,} steps / {p['designs']} designs / seed "
                                          f"{p['seed']}" for p in pts) + ".", ""]
+    lines += _restored(pts)
     full = max(r["designs"])
     lines += [f"**Against the training budget** ({full} training designs)", ""]
     lines += _table(pts, "budget", {"designs": full}, "steps")

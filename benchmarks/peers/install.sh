@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
-# Creates the peers' venvs under ${PEERS:-/root/persist/peers} (skipped when present). See README.md.
+# Creates the peers' venvs under ${PEERS:-/work/persist/peers} (skipped when present). See README.md.
 set -euo pipefail
-PEERS=${PEERS:-/root/persist/peers}
+PEERS=${PEERS:-/work/persist/peers}
 PY=${PYTHON:-python3}
 WHICH=${1:-all}   # tf | physicsnemo | all
 mkdir -p "$PEERS"

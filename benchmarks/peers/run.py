@@ -1,9 +1,9 @@
 """Issue 37 item 3: hcmt's MGN and HCMT (``official``) against PhysicsNeMo's MeshGraphNet and the authors'
 TensorFlow HCMT, on the same graph, one CPU thread each, interleaved.
 
-    benchmarks/peers/install.sh            # the peers' venvs under /root/persist/peers (skipped when present)
-    PYTHONPATH=src python benchmarks/peers/run.py [--rounds 5] [--steps 2] [--peers /root/persist/peers]
-        [--authors /root/persist/peers/hcmt-tf] [--json benchmarks/results/peers_cpu.json]
+    benchmarks/peers/install.sh            # the peers' venvs under /work/persist/peers (skipped when present)
+    PYTHONPATH=src python benchmarks/peers/run.py [--rounds 5] [--steps 2] [--peers /work/persist/peers]
+        [--authors /work/persist/peers/hcmt-tf] [--json benchmarks/results/peers_cpu.json]
 
 One graph (:mod:`export_graph`, an .npz every process reads); each contestant is its own process (its own venv)
 that builds its model, warms up (compiling, for hcmt's compiled path) and then idles until told to time ``--steps``
@@ -192,8 +192,8 @@ def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--rounds", type=int, default=5)
     p.add_argument("--steps", type=int, default=2, help="timed calls per contestant, kind and round")
-    p.add_argument("--peers", type=Path, default=Path("/root/persist/peers"), help="where install.sh put the venvs")
-    p.add_argument("--authors", type=Path, default=Path("/root/persist/peers/hcmt-tf"),
+    p.add_argument("--peers", type=Path, default=Path("/work/persist/peers"), help="where install.sh put the venvs")
+    p.add_argument("--authors", type=Path, default=Path("/work/persist/peers/hcmt-tf"),
                    help="the authors' code (github.com/yuyudeep/hcmt: core_model.py, model.py, ...)")
     p.add_argument("--only", nargs="+", choices=("mgn", "hcmt"), default=("mgn", "hcmt"))
     p.add_argument("--modes", nargs="+", choices=("eager", "compiled"), default=("eager", "compiled"),

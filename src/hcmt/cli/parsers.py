@@ -82,8 +82,8 @@ def compile_arg(p: argparse.ArgumentParser) -> None:
     p.add_argument("--compile", default="auto", choices=INFERENCE_COMPILE_MODES,
                    help="torch.compile the model: default compiles once for every mesh (symbolic sizes; about 25 s, "
                         "65 s the first time on a machine), reduce-overhead (CUDA graphs) and max-autotune on padded "
-                        "graphs; aot exports the forward once per machine and model (about 90 s), and later calls load "
-                        "it instead of compiling (default where the export fails); auto (default): on the CPU aot "
+                        "graphs; aot exports the forward once per machine and model (about a minute), and later calls "
+                        "load it instead of compiling (default where the export fails); auto (default): on the CPU aot "
                         "where this model's package is already built, or for at least 2,000 model steps in all (about "
                         "23 designs of the small preset); elsewhere default for at least 2,000 steps where a compiler "
                         "exists; else none")

@@ -44,7 +44,7 @@ def rollout_compile(mode: str, model, steps: int) -> str:
     lpe = getattr(model, "lpe", None) is not None  # its eigenvectors are computed per graph, outside the compiler
     resolved = resolve_compile(mode, steps=steps, device=device, lpe=lpe, threshold=AUTO_COMPILE_ROLLOUT_STEPS)
     if mode == "auto" and device.type == "cpu" and not lpe and (resolved == "default" or package_path(model).is_file()):
-        return "aot"  # built: loads in milliseconds; long: built once (about 90 s), then every process loads it
+        return "aot"  # built: loads in milliseconds; long: built once (about a minute), then every process loads it
     return resolved
 
 

@@ -82,13 +82,20 @@ def test_report_puts_the_long_runs_checkpoints_beside_the_fit():
          "points": pts, "designs": [480], "designs_budget": 10000}
     long = {"command": "python benchmarks/scaling/long_run.py SNAPSHOT --data d", "checkpoints": [
         {"checkpoint_step": 100000, "designs": 480, "trajectories": 24, "lr": 1e-3, "lr_final": 1e-5,
-         "schedule_steps": 400000, "rebound_agreement": 1.0, "errors": {k: 0.5 for k in keys}}]}
+         "schedule_steps": 400000, "rebound_agreement": 1.0, "errors": {k: 0.5 for k in keys},
+         "snapshot": "/root/persist/runs/ship480_100k"}]}
     lines = []
     scaling(lines, r, long)
     text = "\n".join(lines)
     fit_at = f"{2.0 * 100000 ** -0.3:.1f}"  # the peak error's format
     assert "**The long run's checkpoints**" in text and "| 100,000 | 0.5 (fit: " in text
     assert f"0.5 (fit: {fit_at})" in text and "| 1.00 |" in text
+    assert "| ship480_100k | 100,000 |" in text  # a row written before labels: its snapshot folder names its run
+    long["checkpoints"].append({**long["checkpoints"][0], "run": "second run", "errors": {k: 0.25 for k in keys}})
+    lines = []
+    scaling(lines, r, long)
+    text = "\n".join(lines)
+    assert "| ship480_100k | 100,000 | 0.5 (fit: " in text and "| second run | 100,000 | 0.25 (fit: " in text
     lines = []
     scaling(lines, {**r, "points": [p for p in pts if p["budget"] != 3000]}, long)
     assert "(fit: " not in "\n".join(lines)  # two budgets: no fit to compare with

@@ -3,6 +3,7 @@ them): a power law fitted in log-log, its extrapolation, and HCMT's margin over 
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
 import numpy as np
 
@@ -54,3 +55,9 @@ def margin_trend(hcmt: dict, mgn: dict) -> dict | None:
         return None
     fit = fit_power_law(list(ratios), list(ratios.values()))
     return {"ratios": ratios, "fit": fit}
+
+
+def run_of(row: dict) -> str:
+    """The long run a checkpoint's row belongs to (benchmarks/scaling/long_run.py): its ``--label``, else (rows
+    written before labels) its snapshot folder's name."""
+    return row.get("run") or Path(row.get("snapshot", "")).name

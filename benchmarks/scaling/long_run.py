@@ -1,6 +1,6 @@
 """The long run's checkpoints as points beyond the scaling study's budgets (issue 35, items 2 and 4).
 
-    python benchmarks/scaling/long_run.py SNAPSHOT --data DATA [--checkpoint best|step_N]
+    python benchmarks/scaling/long_run.py SNAPSHOT --data DATA [--checkpoint best|step_N] [--label NAME]
         [--out benchmarks/results/scaling_long_run.json]
 
 ``SNAPSHOT``: a copy of the long run's folder (run.yaml, best.pt) taken while it trains (copy it: the run rewrites
@@ -9,6 +9,8 @@ best.pt). Its best.pt is judged on DATA's test split exactly as every point of :
 row. The long run is HCMT with the study's recipe on all 480 designs, but its learning rate decays over its own
 400,000 steps: a checkpoint at step N is not the study's N-step run (whose rate has fully decayed by N), so its rows
 stand beside the study's fit, not in it (docs/RESULTS.md, section "Scaling with budget and designs").
+``--label`` names the run a row belongs to (a row is kept per label and step): the first long run was lost at step
+~212,000 with its disk, and the second, trained again from step 0 with the same command, adds its own rows.
 """
 from __future__ import annotations
 
@@ -22,6 +24,7 @@ import torch
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))  # benchmarks/: common
 from common import RESULTS, write_json  # noqa: E402
 from hcmt.inference.run import Run  # noqa: E402
+from scaling.analysis import run_of  # noqa: E402
 from scaling.run import test_errors  # noqa: E402
 
 
@@ -31,6 +34,7 @@ def main(argv=None) -> None:
     p.add_argument("--data", type=Path, required=True)
     p.add_argument("--checkpoint", default="best", help="best (the default: a snapshot's) or step_N, a checkpoint "
                    "train.keep_every kept (immutable: the live run folder may be judged)")
+    p.add_argument("--label", default=None, help="the run's name in the table (default: the snapshot folder)")
     p.add_argument("--threads", type=int, default=1)
     p.add_argument("--out", type=Path, default=RESULTS / "scaling_long_run.json")
     a = p.parse_args(argv)
@@ -39,11 +43,11 @@ def main(argv=None) -> None:
     cfg = loaded.config
     row = {**test_errors(loaded, a.data.resolve(), None), "designs": loaded.meta["generator"]["counts"]["train"],
            "schedule_steps": cfg.train.steps, "lr": cfg.train.lr, "lr_final": cfg.train.lr_final,
-           "snapshot": str(a.snapshot), "checkpoint": a.checkpoint}
+           "snapshot": str(a.snapshot), "checkpoint": a.checkpoint, "run": a.label or a.snapshot.name}
     old = json.loads(a.out.read_text()) if a.out.is_file() else {"checkpoints": []}
-    kept = [r for r in old["checkpoints"] if r["checkpoint_step"] != row["checkpoint_step"]]
+    kept = [r for r in old["checkpoints"] if (run_of(r), r["checkpoint_step"]) != (row["run"], row["checkpoint_step"])]
     out = {"command": "python benchmarks/scaling/long_run.py SNAPSHOT --data " + str(a.data),
-           "model": "hcmt", "checkpoints": sorted(kept + [row], key=lambda r: r["checkpoint_step"])}
+           "model": "hcmt", "checkpoints": sorted(kept + [row], key=lambda r: (r["checkpoint_step"], run_of(r)))}
     print(json.dumps(row["errors"], indent=1))
     print(f"wrote {write_json(a.out, out)}")
 

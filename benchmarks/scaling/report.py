@@ -11,7 +11,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))  # benchmarks/
 from report_common import PAPER_STEPS, PAPER_TRAJECTORIES, sentences  # noqa: E402
-from scaling.analysis import METRICS, extrapolate, fit_power_law, margin_trend, means_by  # noqa: E402
+from scaling.analysis import METRICS, extrapolate, fit_power_law, margin_trend, means_by, run_of  # noqa: E402
 
 HEADING = "## Scaling with budget and designs"
 MODELS = (("hcmt", "HCMT"), ("mgn", "MGN"))
@@ -143,8 +143,8 @@ def _long_run(long: dict, pts: list[dict], full: int) -> list[str]:
            f"{first['lr']:g} to {first['lr_final']:g} over {first['schedule_steps']:,} steps, so a checkpoint at step "
            "n is not the study's n-step run, whose rate has fully decayed by n: these rows stand beside the fit, not "
            "in it)", "",
-           "| checkpoint step | " + " | ".join(n for _, n in METRICS) + " | rebound agreement |",
-           "|---" * (len(METRICS) + 2) + "|"]
+           "| run | checkpoint step | " + " | ".join(n for _, n in METRICS) + " | rebound agreement |",
+           "|---" * (len(METRICS) + 3) + "|"]
     fits = {}
     if len({p["budget"] for p in pts if p["designs"] == full and p["model"] == "hcmt"}) >= MIN_FIT:
         for key, _ in METRICS:
@@ -157,7 +157,8 @@ def _long_run(long: dict, pts: list[dict], full: int) -> list[str]:
             at = (f" (fit: {FORMATS[key].format(extrapolate(fit, r['checkpoint_step']))})"
                   if fit and fit["k"] > FALLS else "")
             cells.append(FORMATS[key].format(r["errors"][key]) + at)
-        out.append(f"| {r['checkpoint_step']:,} | " + " | ".join(cells) + f" | {r['rebound_agreement']:.2f} |")
+        out.append(f"| {run_of(r)} | {r['checkpoint_step']:,} | " + " | ".join(cells)
+                   + f" | {r['rebound_agreement']:.2f} |")
     return out + [""]
 
 

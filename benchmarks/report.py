@@ -27,7 +27,7 @@ from surrogate.report import (
     judge as judge_section,  # noqa: E402
     surrogate as surrogate_section,  # noqa: E402
 )
-from transfer.report import transfer as transfer_section  # noqa: E402
+from transfer.report import transfer as transfer_section, transfer_given  # noqa: E402
 
 DOC = ROOT.parent / "docs" / "RESULTS.md"
 INTRO = ("Every number below was produced by the command quoted with it, on this project's development machine "
@@ -43,6 +43,7 @@ def main() -> None:
     surrogate_section(lines, load("surrogate.json"))
     judge_section(lines, load("model_judge.json"))
     transfer_section(lines, load("transfer.json"))
+    transfer_given(lines, load("transfer_shipped.json"))
     scaling_section(lines, load("scaling.json"), load("scaling_long_run.json"))
     for section in SECTIONS:
         section(lines)

@@ -46,8 +46,10 @@ def main(argv=None) -> None:
            "snapshot": str(a.snapshot), "checkpoint": a.checkpoint, "run": a.label or a.snapshot.name}
     old = json.loads(a.out.read_text()) if a.out.is_file() else {"checkpoints": []}
     kept = [r for r in old["checkpoints"] if (run_of(r), r["checkpoint_step"]) != (row["run"], row["checkpoint_step"])]
-    out = {"command": "python benchmarks/scaling/long_run.py SNAPSHOT --data " + str(a.data),
-           "model": "hcmt", "checkpoints": sorted(kept + [row], key=lambda r: (r["checkpoint_step"], run_of(r)))}
+    runs = list(dict.fromkeys(run_of(r) for r in kept + [row]))  # each run's rows together, in order of its first
+    out = {"command": f"python benchmarks/scaling/long_run.py SNAPSHOT --data {a.data} --checkpoint step_N --label RUN",
+           "model": "hcmt", "checkpoints": sorted(kept + [row], key=lambda r: (runs.index(run_of(r)),
+                                                                                 r["checkpoint_step"]))}
     print(json.dumps(row["errors"], indent=1))
     print(f"wrote {write_json(a.out, out)}")
 

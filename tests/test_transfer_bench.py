@@ -37,6 +37,7 @@ def test_a_given_base_is_judged_zero_shot_and_fine_tuned_at_the_given_rate(impac
     assert rows["given_fam_zero"]["designs"] == 1 and rows["given_s0_fam_5"]["designs"] == 1
     assert summary["base"] == f"given={base}" and summary["ft_lr"] == 1e-4
     assert "--ft-lr 0.0001" in summary["command"] and "--models" not in summary["command"]
+    assert "--seeds 0 " in summary["command"]  # the seeds of the fine-tunings are part of the command
     ft = yaml.safe_load((tmp_path / "work" / "runs" / "given_s0_fam5" / "run.yaml").read_text())
     assert ft["config"]["train"]["lr"] == 1e-4 and ft["config"]["train"]["lr_final"] == pytest.approx(1e-5)
     assert ft["init"]["from"] == base and ft["init"]["normalizers"] == "keep"

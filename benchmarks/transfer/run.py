@@ -287,7 +287,8 @@ def main(argv=None) -> None:
         "command": "python benchmarks/transfer/run.py " + " ".join(
             [f"--work {work}", f"--train-data {a.train_data}", *(f"--new {x}" for x in a.new),
              *([f"--base {a.base}"] if a.base else [f"--models {' '.join(a.models)}", f"--steps {a.steps}"]),
-             f"--ft-steps {a.ft_steps}", *([f"--ft-lr {a.ft_lr}"] if a.ft_lr is not None else []),
+             f"--seeds {' '.join(map(str, a.seeds))}", f"--ft-steps {a.ft_steps}",
+             *([f"--ft-lr {a.ft_lr}"] if a.ft_lr is not None else []),
              f"--shots {' '.join(map(str, a.shots))}", f"--eval {a.eval}"]),
         "base": a.base, "ft_lr": a.ft_lr,
         "device": f"cpu ({platform.processor() or platform.machine()}), {a.threads} thread per process, two "

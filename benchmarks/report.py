@@ -22,7 +22,7 @@ from peers.report import peers as peers_section  # noqa: E402
 from recipe.report import recipe  # noqa: E402
 from report_common import load  # noqa: E402
 from scaling.report import scaling as scaling_section  # noqa: E402
-from speed.report import cpu_ab, design_ab, forward_modes, speed, threads, train_speed  # noqa: E402
+from speed.report import cpu_ab, design_ab, forward_modes, speed, threads, train_parts, train_speed  # noqa: E402
 from surrogate.report import (
     judge as judge_section,  # noqa: E402
     surrogate as surrogate_section,  # noqa: E402
@@ -34,8 +34,8 @@ INTRO = ("Every number below was produced by the command quoted with it, on this
          "(2 CPU cores, no GPU) unless stated. This file is written by `python benchmarks/report.py` from "
          "`benchmarks/results/*.json`; the paper's numbers are quoted for comparison only.")
 SECTIONS = (recipe, interval, threads, parity, propagation, accuracy, longer, ghost_diagnosis, ghost_ablations,
-            ablations, generalization, memory, speed, gpu_path, cpu_ab, train_speed, design_ab, forward_modes,
-            gpu_check, hierarchy)
+            ablations, generalization, memory, speed, gpu_path, cpu_ab, train_speed, train_parts, design_ab,
+            forward_modes, gpu_check, hierarchy)
 
 
 def main() -> None:

@@ -220,6 +220,39 @@ def train_speed(lines):
     lines.append("")
 
 
+def train_parts(lines):
+    """Issue 37, item 1: where the compiled training step's time goes, and how much of it runs at the core's peak."""
+    d = opened(lines, "### Where a training step's time goes", "train_parts_cpu.json")
+    if d is None:
+        return
+    lines += [f"Command: `{d['command']}` ({d['cpu']}; the trainer's compiled CPU step, `train.compile=default`, "
+              "after its warm-up; a fresh process per row). The parts are wall-clock means per step (the shipped "
+              "recipe's steps are of two kinds, with and without a pushforward item); the matrix products and "
+              "Inductor's fused kernels are their self time under `torch.profiler` (means per step; the profiled "
+              "step is slower than the plain one by the profiler's own cost); the rest is the plain step less "
+              "those two: what runs outside both (Python, the compiled wrapper, autograd, Adam, the batch):", "",
+              "| recipe | threads | step ms | batch | forward + loss | backward | Adam | profiled step ms | matrix "
+              "products ms (calls) | their GFLOP/s | Inductor kernels ms (calls) | rest ms |",
+              "|---|---|---|---|---|---|---|---|---|---|---|---|"]
+    for r in d["rows"]:
+        rest = r["step"] - r["matmul_ms"] - r["inductor_kernels_ms"]
+        lines.append(f"| {RECIPE_NAMES[r['recipe']]} | {r['threads']} | {r['step']:.1f} | {r['batch']:.1f} | "
+                     f"{r['forward_loss']:.1f} | {r['backward']:.1f} | {r['adam']:.1f} | {r['profiled_step_ms']:.1f} | "
+                     f"{r['matmul_ms']:.1f} ({r['matmul_calls']:.0f}) | {r['matmul_gflops']:.0f} | "
+                     f"{r['inductor_kernels_ms']:.1f} ({r['inductor_kernel_calls']:.0f}) | {rest:.1f} |")
+    one = [r for r in d["rows"] if r["threads"] == 1]
+    if one:
+        share = statistics.median(r["matmul_ms"] / r["step"] for r in one)
+        fused = statistics.median(r["inductor_kernels_ms"] / r["step"] for r in one)
+        rate = statistics.median(r["matmul_gflops"] for r in one)
+        lines += ["", f"On one thread the matrix products take {100 * share:.0f} % of the step at {rate:.0f} GFLOP/s, "
+                  f"Inductor's fused kernels (gathers, scatters, layer norms, the attention's exponentials) "
+                  f"{100 * fused:.0f} %, and the rest {100 * (1 - share - fused):.0f} % (medians over the recipes). "
+                  f"Against this core's fp32 peak of about 100 GFLOP/s (AVX-512; issue 37's estimate) the matrix "
+                  f"products are at {rate:.0f} %: an exact speed-up has to come from the other two."]
+    lines.append("")
+
+
 def defaults(d: dict) -> str:
     """What each checkout's ``check_designs`` defaults were in a design_ab run (recorded since the aot default)."""
     if not any("batch" in r for r in d["rows"]):

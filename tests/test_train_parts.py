@@ -1,0 +1,59 @@
+"""benchmarks/micro/train_parts.py (issue 37 item 1: where a training step's time goes): its timing marks leave the
+trainer's step unchanged and split it into parts that add up; its report section computes the rest from the rows."""
+import json
+import sys
+from pathlib import Path
+
+import pytest
+import torch
+
+from hcmt.training.trainer import Trainer
+
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "benchmarks"))
+import report_common  # noqa: E402
+from micro.train_parts import timed_steps  # noqa: E402
+from speed.report import train_parts  # noqa: E402
+
+
+@pytest.mark.slow  # two tiny trainers, a few eager steps each
+def test_timed_steps_change_nothing_and_their_parts_add_up(impact_data, tmp_path, tiny_config):
+    cfg = tiny_config("train.steps=6", "train.compile=none")
+    runs = [Trainer(cfg, impact_data, "hcmt", tmp_path / name, seed=0, resume=False, device="cpu", progress=False)
+            for name in ("plain", "timed")]
+    loaders = [tr._loader(6) for tr in runs]
+    for tr, loader in zip(runs, loaders):
+        tr.model.train()
+        for _ in range(2):  # the normalizer warm-up and a first update, unmarked
+            tr.step(*next(loader))
+    for _ in range(4):
+        runs[0].step(*next(loaders[0]))
+    parts = timed_steps(runs[1], loaders[1], 4)
+    assert runs[1].step_count == runs[0].step_count == 6
+    for a, b in zip(runs[0].model.parameters(), runs[1].model.parameters()):
+        assert torch.equal(a, b)  # the marks change no result
+    assert "_update" not in vars(runs[1]) and "step" not in vars(runs[1].opt)  # the class's methods again
+    assert all(parts[k] > 0 for k in ("batch", "forward_loss", "backward", "adam", "step"))
+    inner = parts["batch"] + parts["forward_loss"] + parts["backward"] + parts["adam"]
+    assert inner <= 1.5 * parts["step"] and inner >= 0.5 * parts["step"]  # medians of parts: about the step
+
+
+def test_report_gives_each_rows_rest_and_the_matmul_share(monkeypatch):
+    rows = [{"recipe": "cpu", "threads": 1, "step": 50.0, "batch": 5.0, "forward_loss": 20.0, "backward": 22.0,
+             "adam": 3.0, "profiled_step_ms": 60.0, "matmul_ms": 21.0, "matmul_calls": 237, "matmul_gflops": 101.0,
+             "inductor_kernels_ms": 15.0, "inductor_kernel_calls": 205},
+            {"recipe": "ship", "threads": 1, "step": 60.0, "batch": 9.0, "forward_loss": 20.0, "backward": 24.0,
+             "adam": 3.0, "profiled_step_ms": 80.0, "matmul_ms": 36.0, "matmul_calls": 300, "matmul_gflops": 99.0,
+             "inductor_kernels_ms": 20.0, "inductor_kernel_calls": 250}]
+    d = {"command": "python benchmarks/micro/train_parts.py --data d", "cpu": "Xeon", "rows": rows}
+    monkeypatch.setattr(report_common, "load", lambda name: json.loads(json.dumps(d)))
+    lines = []
+    train_parts(lines)
+    text = "\n".join(lines)
+    assert "| 21.0 (237) | 101 | 15.0 (205) | 14.0 |" in text  # rest = the step 50 - 21 - 15
+    assert "| 36.0 (300) | 99 | 20.0 (250) | 4.0 |" in text
+    assert "take 51 % of the step at 100 GFLOP/s" in text  # medians of 42 % and 60 %, of 101 and 99
+    assert "fused kernels (gathers, scatters, layer norms, the attention's exponentials) 32 %" in text  # 30 %, 33 %
+    monkeypatch.setattr(report_common, "load", lambda name: None)
+    lines = []
+    train_parts(lines)
+    assert lines == []  # no result file: no section

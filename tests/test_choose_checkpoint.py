@@ -15,6 +15,7 @@ from hcmt.training import train
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "benchmarks"))
 from hcmt.data.runs import RunFolder  # noqa: E402
+from release.average_checkpoints import average  # noqa: E402
 from release.choose_checkpoint import GOALS, choose, kept, score  # noqa: E402
 
 pytestmark = pytest.mark.slow  # trains a tiny run and rolls out its checkpoints
@@ -49,3 +50,29 @@ def test_every_kept_checkpoint_is_judged_on_the_validation_split_and_the_lowest_
     with pytest.raises(InputError, match="step_9.pt: no such checkpoint"):
         Run.load(tmp_path / "run", "cpu", "step_9")
     json.dumps(out)  # the --json file's content
+
+
+def test_an_average_of_kept_steps_is_their_mean_with_the_last_ones_statistics_and_a_candidate(
+        impact_data, tmp_path, tiny_config):
+    cfg = tiny_config("train.steps=3", "train.keep_every=1", "train.checkpoint_every=1")
+    train(cfg, impact_data, "hcmt", tmp_path / "run", progress=False, device="cpu")
+    out = average(tmp_path / "run", [3, 1])
+    assert out.name == "avg_1_3.pt"
+    one, three = (torch.load(tmp_path / "run" / f"step_{n}.pt", weights_only=True) for n in (1, 3))
+    got = torch.load(out, weights_only=True)
+    model = Run.load(tmp_path / "run", "cpu", "avg_1_3").model
+    buffers = {name for name, _ in model.named_buffers()}
+    assert buffers and any(k.endswith("sum") for k in buffers)  # the normalizers' statistics are buffers
+    for k, v in got["model"].items():
+        want = three["model"][k] if k in buffers else (one["model"][k] + three["model"][k]) / 2
+        assert torch.allclose(v, want, rtol=0, atol=1e-7), k
+    assert not all(torch.equal(one["model"][k], three["model"][k]) for k in got["model"] if k not in buffers)
+    assert got["step"] == 3 and got["averaged_steps"] == [1, 3] and "optimizer" not in got
+    assert Run.load(tmp_path / "run", "cpu", "avg_1_3").checkpoint_step == 3
+    assert kept(RunFolder(tmp_path / "run"))[-1] == "avg_1_3"
+    with pytest.raises(InputError, match="avg_1_2.pt: no such checkpoint"):
+        Run.load(tmp_path / "run", "cpu", "avg_1_2")  # never silently the latest
+    with pytest.raises(InputError, match="step_7.pt: no such checkpoint"):
+        average(tmp_path / "run", [1, 7])
+    with pytest.raises(InputError, match="at least two"):
+        average(tmp_path / "run", [2, 2])

@@ -4,7 +4,8 @@
 
 ``best.pt`` follows only the validation position RMSE-all (the trainer's rule), and on the first long run a
 checkpoint with the best position error had twice another's deflection error. So every checkpoint the run kept
-(``best`` and each ``step_<N>.pt`` of ``train.keep_every``) is rolled out on ``--split`` (the validation split: the
+(``best``, each ``step_<N>.pt`` of ``train.keep_every`` and each average of them, ``avg_<N>_<M>....pt`` of
+average_checkpoints.py) is rolled out on ``--split`` (the validation split: the
 test split stays for the model card) and judged as the scaling study judges a point
 (:func:`scaling.run.test_errors`: medians over trajectories of |peak plate stress error| %, |max deflection error| %
 and the ghost difference). The choice is the checkpoint whose worst ratio to issue 35's goals (peak 3 %, deflection
@@ -30,10 +31,12 @@ GOALS = {"peak_error_pct": 3.0, "deflection_error_pct": 4.0, "ghost_difference":
 
 
 def kept(folder: RunFolder) -> list[str]:
-    """The run's checkpoints worth choosing among: ``best`` and every kept ``step_<N>``, by step."""
-    steps = sorted((int(m.group(1)) for p in folder.path.glob("step_*.pt")
-                    if (m := re.fullmatch(r"step_(\d+)\.pt", p.name))))
-    return (["best"] if folder.best.is_file() else []) + [f"step_{n}" for n in steps]
+    """The run's checkpoints worth choosing among: ``best``, every kept ``step_<N>`` by step, then every average of
+    kept steps (``avg_<N>_<M>...``, average_checkpoints.py) by its last step."""
+    def named(prefix):
+        found = [p.stem for p in folder.path.glob(f"{prefix}_*.pt") if re.fullmatch(rf"{prefix}(_\d+)+", p.stem)]
+        return sorted(found, key=lambda n: [int(x) for x in n.split("_")[1:]][::-1])
+    return (["best"] if folder.best.is_file() else []) + named("step") + named("avg")
 
 
 def score(errors: dict) -> float:

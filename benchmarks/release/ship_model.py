@@ -1,7 +1,7 @@
 """Package a trained run as a shipped model and write its model card's numbers.
 
     python benchmarks/release/ship_model.py RUN --data DATASET --name impact_plate_small [--designs 24] [--batch 8]
-                                    [--checkpoint best|checkpoint|step_N]
+                                    [--checkpoint best|checkpoint|step_N|avg_N_M]
                                     [--command "how the run was trained"] [--data-command "how the data was made"]
 
 1. writes ``src/hcmt/pretrained/NAME.pt`` (fp16 weights, config, training-data meta and design ranges, card);
@@ -47,8 +47,9 @@ def main() -> None:
     p.add_argument("--yield-mpa", type=float, default=703.0, help="limit of the sweeps' minimum-thickness call")
     p.add_argument("--batch", type=int, default=8)
     p.add_argument("--threads", type=int, default=1)
-    p.add_argument("--checkpoint", default="best", help="best, checkpoint (the latest) or step_N (kept by "
-                   "train.keep_every; benchmarks/release/choose_checkpoint.py chooses one on the validation split)")
+    p.add_argument("--checkpoint", default="best", help="best, checkpoint (the latest), step_N (kept by "
+                   "train.keep_every) or avg_N_M... (average_checkpoints.py); choose_checkpoint.py chooses on the "
+                   "validation split")
     p.add_argument("--command", default="", help="the training command (recorded in the card)")
     p.add_argument("--data-command", default="", help="the data generation command (recorded in the card)")
     a = p.parse_args()

@@ -24,6 +24,9 @@ from hcmt.data.format import Split, read_meta
 from hcmt.errors import InputError
 from hcmt.files import atomic_path, read_json
 
+#: checkpoint names that mean one file: missing, they are an error, never the run's latest
+NAMED_CHECKPOINTS = ("step_", "avg_")
+
 
 class RunFolder:
     """A run folder made by ``hcmt train``: the one owner of its file names, ``run.yaml`` parsed once.
@@ -62,10 +65,11 @@ class RunFolder:
         return self.path / "run.yaml"
 
     def checkpoint(self, which: str = "best") -> Path:
-        """``best.pt``, ``checkpoint.pt`` or a kept ``step_<N>.pt``; the latest checkpoint when ``best`` is missing
-        (a kept step is never replaced by another)."""
+        """``best.pt``, ``checkpoint.pt``, a kept ``step_<N>.pt`` or an average of kept steps ``avg_<N>_<M>....pt``
+        (benchmarks/release/average_checkpoints.py); the latest checkpoint when ``best`` is missing (a kept step or
+        an average is never replaced by another)."""
         path = self.path / f"{which}.pt"
-        return path if path.is_file() or which.startswith("step_") else self.latest
+        return path if path.is_file() or which.startswith(NAMED_CHECKPOINTS) else self.latest
 
     @property
     def log(self) -> Path:

@@ -22,7 +22,7 @@ import torch
 
 from hcmt.config import NO_REMESH, Config
 from hcmt.data.format import Split, read_meta
-from hcmt.data.runs import RunFolder, available_pretrained, read_checkpoint
+from hcmt.data.runs import NAMED_CHECKPOINTS, RunFolder, available_pretrained, read_checkpoint
 from hcmt.domains.adapters import config_adapter
 from hcmt.errors import InputError, clip
 from hcmt.files import atomic_path
@@ -72,12 +72,12 @@ class RunInfo:
 
 
 def load_run(run: str | Path | RunFolder, which: str = "best", device: str = "cpu") -> tuple[torch.nn.Module, RunInfo]:
-    """(model, :class:`RunInfo`) of a run folder; ``which`` is ``best``, ``checkpoint`` or ``step_<N>`` (a checkpoint
-    kept by ``train.keep_every``)."""
+    """(model, :class:`RunInfo`) of a run folder; ``which`` is ``best``, ``checkpoint``, ``step_<N>`` (a checkpoint
+    kept by ``train.keep_every``) or ``avg_<N>_<M>...`` (their average, benchmarks/release/average_checkpoints.py)."""
     folder = run if isinstance(run, RunFolder) else RunFolder(run)
     path = folder.checkpoint(which)
     if not path.is_file():
-        raise InputError(f"{path}: no such checkpoint" if which.startswith("step_")
+        raise InputError(f"{path}: no such checkpoint" if which.startswith(NAMED_CHECKPOINTS)
                          else f"{folder.path}: no checkpoint yet (best.pt / checkpoint.pt)")
     state = read_checkpoint(path, device, earlier=folder.latest if path == folder.best else folder.best)
     try:

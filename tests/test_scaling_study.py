@@ -8,7 +8,7 @@ from pathlib import Path
 import pytest
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "benchmarks"))
-from scaling.analysis import extrapolate, fit_power_law, margin_trend, means_by  # noqa: E402
+from scaling.analysis import extrapolate, fit_power_law, margin_trend, means_by, reaches  # noqa: E402
 from scaling.report import _restored, scaling  # noqa: E402
 from scaling.run import EVAL_FILE, name, overrides, plan, restore  # noqa: E402
 
@@ -71,15 +71,23 @@ def test_report_says_not_run_yet_and_words_points():
     assert "| 0.300 | 1.00 |" in text and "the margin stays about the same" in text
 
 
+KEYS = ("position_rmse_all", "stress_rmse_all", "peak_error_pct", "deflection_error_pct", "ghost_difference")
+
+
+def _budget_study(error_at) -> dict:
+    """A finished study of HCMT and MGN at three budgets on 480 designs, every error ``error_at(budget)``."""
+    pts = [{"model": m, "budget": b, "designs": 480, "seed": 0, "trajectories": 24, "train_ms_per_step": 90.0,
+            "checkpoint_step": b, "errors": {k: error_at(b) for k in KEYS}}
+           for m in ("hcmt", "mgn") for b in (1000, 3000, 30000)]
+    return {"command": "c", "data": "d", "train_designs_in_data": 480, "device": "cpu", "planned": 6, "done": 6,
+            "points": pts, "designs": [480], "designs_budget": 10000}
+
+
 def test_report_puts_the_long_runs_checkpoints_beside_the_fit():
     """The long run's rows (benchmarks/scaling/long_run.py) print their own errors and, once the study's HCMT budget
     axis has three budgets, the fitted law's value at the same step."""
-    keys = ("position_rmse_all", "stress_rmse_all", "peak_error_pct", "deflection_error_pct", "ghost_difference")
-    pts = [{"model": m, "budget": b, "designs": 480, "seed": 0, "trajectories": 24, "train_ms_per_step": 90.0,
-            "checkpoint_step": b, "errors": {k: 2.0 * b ** -0.3 for k in keys}}
-           for m in ("hcmt", "mgn") for b in (1000, 3000, 30000)]
-    r = {"command": "c", "data": "d", "train_designs_in_data": 480, "device": "cpu", "planned": 6, "done": 6,
-         "points": pts, "designs": [480], "designs_budget": 10000}
+    keys, r = KEYS, _budget_study(lambda b: 2.0 * b ** -0.3)
+    pts = r["points"]
     long = {"command": "python benchmarks/scaling/long_run.py SNAPSHOT --data d", "checkpoints": [
         {"checkpoint_step": 100000, "designs": 480, "trajectories": 24, "lr": 1e-3, "lr_final": 1e-5,
          "schedule_steps": 400000, "rebound_agreement": 1.0, "errors": {k: 0.5 for k in keys},
@@ -99,6 +107,38 @@ def test_report_puts_the_long_runs_checkpoints_beside_the_fit():
     lines = []
     scaling(lines, {**r, "points": [p for p in pts if p["budget"] != 3000]}, long)
     assert "(fit: " not in "\n".join(lines)  # two budgets: no fit to compare with
+
+
+def test_the_budget_a_goal_needs_solves_the_fitted_law():
+    fit = fit_power_law([1000, 3000, 30000], [40.0 * b ** -0.25 for b in (1000, 3000, 30000)])
+    at = reaches(fit, 3.0)
+    assert at == pytest.approx((40.0 / 3.0) ** 4) and extrapolate(fit, at) == pytest.approx(3.0)
+    assert reaches({**fit, "k": -0.1}, 3.0) is None and reaches(None, 3.0) is None  # an error that does not fall
+
+
+def test_report_says_what_budget_would_reach_the_goals_beside_the_long_run():
+    """Issue 35 item 5: each goal's budget from the study's HCMT fit, and which of the latest long run's kept
+    checkpoints meet it, with how far below the fit its best lies."""
+    keys, r = KEYS, _budget_study(lambda b: 40.0 * b ** -0.25)
+    row = {"designs": 480, "trajectories": 24, "lr": 1e-3, "lr_final": 1e-5, "schedule_steps": 400000,
+           "rebound_agreement": 1.0}
+    long = {"command": "c", "checkpoints": [
+        {**row, "run": "first run", "checkpoint_step": 100000, "errors": {k: 0.01 for k in keys}},
+        {**row, "run": "second run", "checkpoint_step": 100000, "errors": {k: 3.5 for k in keys}},
+        {**row, "run": "second run", "checkpoint_step": 120000, "errors": {k: 2.0 for k in keys}}]}
+    lines = []
+    scaling(lines, r, long)
+    text = "\n".join(lines)
+    assert "**What budget would reach the goals**" in text
+    peak = next(line for line in text.splitlines() if line.startswith("| peak plate stress error % | ≤ 3 |"))
+    assert f"{(40.0 / 3.0) ** 4:,.3g} steps" in peak
+    assert "1 of 2 (120,000) | 2.0 (120,000) | " in peak  # the latest run's rows only, not the first run's 0.01
+    assert f"{40.0 * 120000 ** -0.25 / 2.0:.1f}×" in peak
+    ghost = next(line for line in text.splitlines() if line.startswith("| ghost difference | ≤ 0.05 |"))
+    assert "0 of 2 |" in ghost  # 2.0 and 3.5 are above 0.05
+    lines = []
+    scaling(lines, r)
+    assert "**What budget would reach the goals**" in "\n".join(lines) and "long run (" not in "\n".join(lines)
 
 
 def test_restore_takes_an_earlier_results_files_planned_points_and_refuses_another_study(tmp_path):

@@ -24,10 +24,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parent.parent))  # benchmarks/: 
 from common import write_json  # noqa: E402
 from hcmt.data.runs import RunFolder  # noqa: E402
 from hcmt.inference.run import Run  # noqa: E402
+from report_common import MODEL_GOALS as GOALS  # noqa: E402
 from scaling.run import test_errors  # noqa: E402
-
-#: issue 35 item 5's goals for the medians: the ratio of each error to its goal, the worst of them is the score
-GOALS = {"peak_error_pct": 3.0, "deflection_error_pct": 4.0, "ghost_difference": 0.05}
 
 
 def kept(folder: RunFolder) -> list[str]:

@@ -34,6 +34,14 @@ def extrapolate(fit: dict | None, x: float) -> float | None:
     return None if fit is None else float(fit["c"] * float(x) ** -fit["k"])
 
 
+def reaches(fit: dict | None, goal: float) -> float | None:
+    """Where the fitted law ``c x^-k`` comes down to ``goal``: ``(c / goal)^(1/k)`` (None when the error does not
+    fall, ``k <= 0``)."""
+    if fit is None or fit["k"] <= 0:
+        return None
+    return float((fit["c"] / goal) ** (1.0 / fit["k"]))
+
+
 def means_by(points: list[dict], model: str, axis: str, metric: str, fixed: dict) -> dict:
     """{axis value: mean over seeds of ``metric``} of ``model``'s points whose other coordinates equal ``fixed``."""
     got: dict = {}

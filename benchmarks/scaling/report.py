@@ -10,8 +10,16 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))  # benchmarks/
-from report_common import PAPER_STEPS, PAPER_TRAJECTORIES, sentences  # noqa: E402
-from scaling.analysis import METRICS, extrapolate, fit_power_law, margin_trend, means_by, run_of  # noqa: E402
+from report_common import MODEL_GOALS, PAPER_STEPS, PAPER_TRAJECTORIES, sentences  # noqa: E402
+from scaling.analysis import (  # noqa: E402
+    METRICS,
+    extrapolate,
+    fit_power_law,
+    margin_trend,
+    means_by,
+    reaches,
+    run_of,
+)
 
 HEADING = "## Scaling with budget and designs"
 MODELS = (("hcmt", "HCMT"), ("mgn", "MGN"))
@@ -162,6 +170,52 @@ def _long_run(long: dict, pts: list[dict], full: int) -> list[str]:
     return out + [""]
 
 
+def _goal_budgets(long: dict | None, pts: list[dict], full: int) -> list[str]:
+    """Issue 35 item 5: the budget at which the study's HCMT fit against the budget reaches each goal, and beside it
+    what the long run's latest run reached at its kept checkpoints (where it did better than the fit, by how much)."""
+    means = {key: means_by(pts, "hcmt", "budget", key, {"designs": full}) for key in MODEL_GOALS}
+    fits = {key: fit_power_law(list(m), list(m.values())) for key, m in means.items()}
+    rows = [r for r in (long or {}).get("checkpoints", []) if run_of(r) == run_of(long["checkpoints"][-1])]
+    name = run_of(rows[-1]) if rows else None
+    out = ["**What budget would reach the goals** (issue 35 item 5: the median errors on held-out designs; the study's "
+           "HCMT fit against the budget above, solved for the goal"
+           + (f"; beside it the long run's {name} at its kept checkpoints" if rows else "") + ")", "",
+           "| goal | target | the study's fit reaches it at | × the paper's steps | R² |"
+           + (f" long run ({name}): kept checkpoints that meet it | its best (step) | fit ÷ long run at that step |"
+              if rows else ""),
+           "|---|---|---|---|---|" + ("---|---|---|" if rows else "")]
+    label = dict(METRICS)
+    below = []
+    for key, goal in MODEL_GOALS.items():
+        fit = fits[key]
+        at = reaches(fit, goal)
+        cells = ([f"{at:,.3g} steps", f"{at / PAPER_STEPS:,.3g}", f"{fit['r2']:.2f}"] if at is not None else
+                 ["does not fall with steps", "-", f"{fit['r2']:.2f}" if fit else "-"])
+        line = f"| {label[key]} | ≤ {goal:g} | " + " | ".join(cells) + " |"
+        if rows:
+            met = [r for r in rows if r["errors"][key] <= goal]
+            best = min(rows, key=lambda r: r["errors"][key])
+            ratio = (extrapolate(fit, best["checkpoint_step"]) / best["errors"][key]
+                     if fit and fit["k"] > FALLS and best["errors"][key] > 0 else None)
+            if ratio is not None:
+                below.append(ratio)
+            steps = ", ".join(f"{r['checkpoint_step']:,}" for r in met)
+            line += (f" {len(met)} of {len(rows)}" + (f" ({steps})" if met else "")
+                     + f" | {FORMATS[key].format(best['errors'][key])} ({best['checkpoint_step']:,}) | "
+                     + (f"{ratio:.1f}×" if ratio is not None else "-") + " |")
+        out.append(line)
+    out.append("")
+    said = ["The fit's budgets come from runs of at most "
+            f"{max(p['budget'] for p in pts if p['designs'] == full):,} steps, each with its learning rate decayed "
+            "to the end within its budget; a budget far beyond them is an extrapolation of a loose fit."]
+    if below:
+        said.append(f"The long run's best checkpoints lie {min(below):.1f}-{max(below):.1f}× below what the fit gives "
+                    "at the same step: the short runs' law is pessimistic for a long run, so its budgets are an upper "
+                    "bound on what the goals need, not a forecast; the long run's own kept checkpoints are the "
+                    "measured answer.")
+    return out + [sentences(*said), ""]
+
+
 def scaling(lines: list[str], r: dict | None, long: dict | None = None) -> None:
     lines += [HEADING, ""]
     if not r or not r.get("points"):
@@ -202,6 +256,8 @@ def scaling(lines: list[str], r: dict | None, long: dict | None = None) -> None:
         lines += _margins(pts, "budget", {"designs": full}, "steps")
     if long and long.get("checkpoints"):
         lines += _long_run(long, pts, full)
+    if budgets >= MIN_FIT:
+        lines += _goal_budgets(long, pts, full)
     axis = [p for p in pts if p["budget"] == r["designs_budget"]]
     if axis:
         lines += [f"**Against the number of training designs** ({r['designs_budget']:,} steps)", ""]

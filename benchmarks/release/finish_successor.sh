@@ -1,0 +1,55 @@
+#!/usr/bin/env bash
+# Issue 35's measured steps once the successor's training has finished (successor/README.md, "Shipping it"), in order,
+# unattended: average the last kept steps, choose on the validation split, the long run's test rows, ship the
+# chosen checkpoint as pretrained:impact_plate_small, judge it on seeds no study used (item 5), the transfer again
+# (item 6), the report. Each step leaves a mark in WORK when it finishes and is skipped on a rerun, so an interrupted
+# finish resumes (the judge and the transfer also cache their own groups). The docs' rewriting stays a person's job.
+#
+#     bash benchmarks/release/finish_successor.sh        # from the repository root's checkout that is to ship it
+#
+# RUN, DATA (train_successor.sh's), STACK3 and PEN (the panel families of benchmarks/transfer/report.py's commands)
+# and WORK live outside the work tree; PY is the Python with this checkout's hcmt (e.g. PYTHONPATH=src PY=.venv/bin/python).
+set -euo pipefail
+cd "$(dirname "$0")/../.."  # the checkout: ship_model.py writes src/hcmt/pretrained/ and benchmarks/results/ here
+PY=${PY:-python}
+RUN=${RUN:-/work/persist/runs/ship480}
+DATA=${DATA:-/work/persist/data/ip480}
+STACK3=${STACK3:-/work/persist/data/fam_stack3}
+PEN=${PEN:-/work/persist/data/fam_pen}
+WORK=${WORK:-/work/persist/finish}
+LAST=${LAST:-"360000 380000 400000"}  # the kept steps averaged (the schedule's last three)
+export OMP_NUM_THREADS=1
+
+die() { echo "finish_successor: $*" >&2; exit 2; }
+[ -f "$RUN/train_stats.json" ] || die "$RUN/train_stats.json: missing: the run has not finished its steps (train_successor.sh)"
+for d in "$DATA" "$STACK3" "$PEN"; do
+    [ -f "$d/meta.json" ] || die "$d/meta.json: missing: generate it first (train_successor.sh; benchmarks/transfer/report.py's commands)"
+done
+mkdir -p "$WORK"
+step() {  # step NAME COMMAND...: run COMMAND unless NAME is marked done
+    local name=$1; shift
+    if [ -f "$WORK/$name.done" ]; then echo "== $name: done before, skipped"; return; fi
+    echo "== $name: $*"
+    "$@" 2>&1 | tee "$WORK/$name.log"
+    touch "$WORK/$name.done"
+}
+
+step average "$PY" benchmarks/release/average_checkpoints.py "$RUN" --steps $LAST
+step choose "$PY" benchmarks/release/choose_checkpoint.py "$RUN" --data "$DATA" --json successor_choice.json
+CHOSEN=$("$PY" -c "import json; print(json.load(open('benchmarks/results/successor_choice.json'))['chosen'])")
+echo "== chosen on the validation split: $CHOSEN"
+for s in $LAST; do
+    step "long_run_$s" "$PY" benchmarks/scaling/long_run.py "$RUN" --data "$DATA" --checkpoint "step_$s" --label "second run"
+done
+GENERATE=$(sed -n '/generate impact-plate/{N;p}' benchmarks/release/train_successor.sh | tr '\\\n' '  ' | tr -s ' ' \
+    | sed -e 's/^.*generate impact-plate/hcmt generate impact-plate/' -e "s|\"\$DATA\"|$DATA|" -e 's/ *$//')
+step ship "$PY" benchmarks/release/ship_model.py "$RUN" --data "$DATA" --name impact_plate_small --checkpoint "$CHOSEN" \
+    --command "bash benchmarks/release/train_successor.sh" --data-command "$GENERATE"
+step judge "$PY" benchmarks/surrogate/run.py --data "$DATA" --work "$WORK/judge" --model pretrained:impact_plate_small \
+    --seed-in 8101 --seed-out 8102 --json model_judge.json
+step transfer "$PY" benchmarks/transfer/run.py --work "$WORK/transfer" --train-data "$DATA" --new "stack3=$STACK3" \
+    --new "pen=$PEN" --base new=pretrained:impact_plate_small --ft-lr 1e-4 --seeds 0 1 --shots 5 20 --eval 8 \
+    --json transfer_shipped.json
+step report "$PY" benchmarks/report.py
+echo "finish_successor: every measured step done (marks in $WORK); now rewrite docs/MODELS.md's card, the low-confidence"
+echo "note, the region table and the README's division of labour from these results, and delete benchmarks/release/successor/"

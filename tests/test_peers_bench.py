@@ -7,8 +7,9 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "benchmarks"))
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "benchmarks" / "peers"))
+from machine import core_peak  # noqa: E402
 from peers.report import peers  # noqa: E402
-from peers.run import CONTESTANTS, core_peak, summarize  # noqa: E402
+from peers.run import CONTESTANTS, summarize  # noqa: E402
 
 
 class _W:

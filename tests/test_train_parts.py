@@ -11,7 +11,7 @@ from hcmt.training.trainer import Trainer
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "benchmarks"))
 import report_common  # noqa: E402
-from micro.train_parts import timed_steps  # noqa: E402
+from micro.train_parts import median_row, timed_steps  # noqa: E402
 from speed.report import train_parts  # noqa: E402
 
 
@@ -53,7 +53,21 @@ def test_report_gives_each_rows_rest_and_the_matmul_share(monkeypatch):
     assert "| 36.0 (300) | 99 | 20.0 (250) | 4.0 |" in text
     assert "take 51 % of the step at 100 GFLOP/s" in text  # medians of 42 % and 60 %, of 101 and 99
     assert "fused kernels (gathers, scatters, layer norms, the attention's exponentials) 32 %" in text  # 30 %, 33 %
+    assert "did not record the core's peak" in text
+    d["core_peak"] = {"gflops": 150.0, "derivation": "2 FMA units x 16 fp32 lanes"}
+    lines = []
+    train_parts(lines)
+    assert "fp32 peak of 150 GFLOP/s (2 FMA units x 16 fp32 lanes) the matrix products run at 67 %" in "\n".join(lines)
     monkeypatch.setattr(report_common, "load", lambda name: None)
     lines = []
     train_parts(lines)
     assert lines == []  # no result file: no section
+
+
+def test_a_rows_rounds_give_each_numbers_median():
+    rounds = [{"recipe": "cpu", "threads": 1, "step": s, "batch": b, "matmul_calls": 237.0}
+              for s, b in ((50.0, 5.0), (70.0, 4.0), (52.0, 9.0))]
+    row = median_row(rounds)
+    assert row["step"] == 52.0 and row["batch"] == 5.0 and row["matmul_calls"] == 237.0  # each field on its own
+    assert row["recipe"] == "cpu" and row["threads"] == 1 and row["rounds"] == 3
+    assert row["step_by_round"] == [50.0, 70.0, 52.0]

@@ -57,9 +57,9 @@ def _feeding(lines: list[str], throughput: dict) -> None:
         cells = [f"{t[k]['median_ms']:.1f} ms: {math.ceil(t[k]['median_ms'] / 10)}"
                  for k in ("read_per_item_lru_misses", "read_per_item_lru_hits", "in_memory_spread")]
         lines.append(f"| {label} ({t['nodes']:,} nodes, {t['levels']} levels) | " + " | ".join(cells) + " |")
-    lines += ["", "These were measured when each hierarchy was cached as a 23-member `.npz` (`HIERARCHY_VERSION` 1), "
-              "most of an LRU miss's cost; version 2 caches it as one flat `.npy`: rerun the command to measure the "
-              "current path. `data.in_memory: true` holds the split in memory (the in-memory column) where it fits."]
+    lines += ["", "An LRU miss reads the trajectory's static fields and its cached hierarchy (one flat `.npy` per "
+              "trajectory, `HIERARCHY_VERSION` 2) besides the frame. `data.in_memory: true` holds the split in memory "
+              "(the in-memory column) where it fits."]
 
 
 def memory(lines: list[str]) -> None:

@@ -1,7 +1,7 @@
 """Where a training step's time goes (issue 37, item 1): the trainer's compiled CPU step taken apart.
 
     python benchmarks/micro/train_parts.py --data DATA [--threads 1 2] [--recipes cpu ship] [--steps 60] [--warm 40]
-        [--json train_parts_cpu.json]
+        [--rounds 1] [--json train_parts_cpu.json]
 
 For each thread count and recipe (those of benchmarks/micro/train_speed.py), a fresh process builds the trainer as
 ``hcmt train`` does (config ``impact_plate_cpu``, ``train.compile=default``: what a run of 5,000 steps or more
@@ -10,8 +10,10 @@ into the batch (``next`` of the trainer's loader: reading, graph building, and i
 item's forward), the forward with the loss, the backward and Adam; once under ``torch.profiler`` (with the FLOPs of
 the matrix products and Inductor's kernels recorded), which sums the self time of the matrix products
 (``aten::mm``/``addmm``/``bmm``, with their GFLOP/s) and of Inductor's fused kernels, means per step. The matrix
-products' GFLOP/s against the core's fp32 peak say how much of the step is already at the hardware's limit; the plain
-step less the two is what runs outside both (Python, the compiled wrapper, autograd, Adam, the batch).
+products' GFLOP/s against the core's fp32 peak (:func:`machine.core_peak`, recorded as the peers' benchmark records
+it) say how much of the step is already at the hardware's limit; the plain step less the two is what runs outside
+both (Python, the compiled wrapper, autograd, Adam, the batch). With ``--rounds R`` every row runs R times, each in
+a fresh process, the rows interleaved, and each number is the median over its rounds.
 """
 from __future__ import annotations
 
@@ -113,6 +115,13 @@ def one(data: Path, recipe: str, threads: int, steps: int, warm: int) -> dict:
     return {"recipe": recipe, "threads": threads, "steps": steps, "warm": warm, **row}
 
 
+def median_row(rounds: list[dict]) -> dict:
+    """One row from its rounds: each number the median over the rounds (the rounds' steps: ``rounds``)."""
+    first = rounds[0]
+    row = {k: statistics.median(r[k] for r in rounds) if isinstance(v, float) else v for k, v in first.items()}
+    return {**row, "rounds": len(rounds), "step_by_round": [r["step"] for r in rounds]}
+
+
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--data", type=Path, required=True, help="a `small` preset dataset with a train split")
@@ -120,6 +129,7 @@ def main() -> None:
     p.add_argument("--recipes", nargs="+", default=list(RECIPES), choices=list(RECIPES))
     p.add_argument("--steps", type=int, default=60)
     p.add_argument("--warm", type=int, default=40)
+    p.add_argument("--rounds", type=int, default=1, help="fresh processes per row, interleaved; each field's median")
     p.add_argument("--json", default="train_parts_cpu.json", help="a name in benchmarks/results or a path")
     p.add_argument("--one", nargs=2, metavar=("RECIPE", "THREADS"), help=argparse.SUPPRESS)  # the child process
     a = p.parse_args()
@@ -128,17 +138,22 @@ def main() -> None:
         return
     from common import write_json  # benchmarks/common.py (the parent folder)
     from hcmt.models.export import cpu_name
-    rows = []
-    for threads in a.threads:
-        for recipe in a.recipes:
-            env = dict(os.environ, OMP_NUM_THREADS=str(threads))
-            out = subprocess.run([sys.executable, __file__, "--data", str(a.data), "--steps", str(a.steps),
-                                  "--warm", str(a.warm), "--one", recipe, str(threads)], env=env, check=True,
-                                 capture_output=True, text=True).stdout
-            rows.append({**json.loads(out.strip().splitlines()[-1]), "load_1min": os.getloadavg()[0]})
-            print(json.dumps(rows[-1]), flush=True)
+    from machine import core_peak
+    runs: dict = {}
+    for _ in range(a.rounds):  # rounds interleaved: a load change on the shared machine falls on every row alike
+        for threads in a.threads:
+            for recipe in a.recipes:
+                env = dict(os.environ, OMP_NUM_THREADS=str(threads))
+                out = subprocess.run([sys.executable, __file__, "--data", str(a.data), "--steps", str(a.steps),
+                                      "--warm", str(a.warm), "--one", recipe, str(threads)], env=env, check=True,
+                                     capture_output=True, text=True).stdout
+                got = {**json.loads(out.strip().splitlines()[-1]), "load_1min": os.getloadavg()[0]}
+                runs.setdefault((threads, recipe), []).append(got)
+                print(json.dumps(got), flush=True)
+    rows = [median_row(r) for r in runs.values()]
     path = write_json(a.json, {"command": "python benchmarks/micro/train_parts.py " + " ".join(sys.argv[1:]),
                                "cpu": cpu_name(), "device": platform.processor() or platform.machine(),
+                               "core_peak": core_peak(),
                                "data": str(a.data), "rows": rows})
     print(f"wrote {path}")
 

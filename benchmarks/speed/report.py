@@ -225,8 +225,11 @@ def train_parts(lines):
     d = opened(lines, "### Where a training step's time goes", "train_parts_cpu.json")
     if d is None:
         return
+    rounds = d["rows"][0].get("rounds", 1)
     lines += [f"Command: `{d['command']}` ({d['cpu']}; the trainer's compiled CPU step, `train.compile=default`, "
-              "after its warm-up; a fresh process per row). The parts are wall-clock means per step (the shipped "
+              "after its warm-up; a fresh process per row"
+              + (f", {rounds} rounds interleaved, each number the median over them" if rounds > 1 else "")
+              + "). The parts are wall-clock means per step (the shipped "
               "recipe's steps are of two kinds, with and without a pushforward item); the matrix products and "
               "Inductor's fused kernels are their self time under `torch.profiler` (means per step; the profiled "
               "step is slower than the plain one by the profiler's own cost); the rest is the plain step less "
@@ -248,8 +251,10 @@ def train_parts(lines):
         lines += ["", f"On one thread the matrix products take {100 * share:.0f} % of the step at {rate:.0f} GFLOP/s, "
                   f"Inductor's fused kernels (gathers, scatters, layer norms, the attention's exponentials) "
                   f"{100 * fused:.0f} %, and the rest {100 * (1 - share - fused):.0f} % (medians over the recipes). "
-                  f"Against this core's fp32 peak of about 100 GFLOP/s (AVX-512; issue 37's estimate) the matrix "
-                  f"products are at {rate:.0f} %: an exact speed-up has to come from the other two."]
+                  + (f"Against this core's fp32 peak of {d['core_peak']['gflops']:.0f} GFLOP/s "
+                     f"({d['core_peak']['derivation']}) the matrix products run at "
+                     f"{100 * rate / d['core_peak']['gflops']:.0f} %." if "core_peak" in d else
+                     "The run did not record the core's peak (train_parts.py records it since 2026-12-04).")]
     lines.append("")
 
 

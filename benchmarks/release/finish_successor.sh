@@ -1,8 +1,8 @@
 #!/usr/bin/env bash
 # Issue 35's measured steps once the successor's training has finished (successor/README.md, "Shipping it"), in order,
 # unattended: average the last kept steps, choose on the validation split, the long run's test rows, ship the
-# chosen checkpoint as pretrained:impact_plate_small, judge it on seeds no study used (item 5), the transfer again
-# (item 6), the report. Each step leaves a mark in WORK when it finishes and is skipped on a rerun, so an interrupted
+# chosen checkpoint as pretrained:impact_plate_small, judge it on seeds no study used (item 5), the design check
+# beside its response surface on the card's designs, the transfer again (item 6), the report. Each step leaves a mark in WORK when it finishes and is skipped on a rerun, so an interrupted
 # finish resumes (the judge and the transfer also cache their own groups). The docs' rewriting stays a person's job.
 #
 #     bash benchmarks/release/finish_successor.sh        # from the repository root's checkout that is to ship it
@@ -47,6 +47,8 @@ step ship "$PY" benchmarks/release/ship_model.py "$RUN" --data "$DATA" --name im
     --command "bash benchmarks/release/train_successor.sh" --data-command "$GENERATE"
 step judge "$PY" benchmarks/surrogate/run.py --data "$DATA" --work "$WORK/judge" --model pretrained:impact_plate_small \
     --seed-in 8101 --seed-out 8102 --json model_judge.json
+# the design check beside its response surface on the card's designs (seeds 90210/31337, docs/MODELS.md's table)
+step surrogate "$PY" benchmarks/surrogate/run.py --data "$DATA" --work "$WORK/surrogate" --model pretrained:impact_plate_small
 step transfer "$PY" benchmarks/transfer/run.py --work "$WORK/transfer" --train-data "$DATA" --new "stack3=$STACK3" \
     --new "pen=$PEN" --base new=pretrained:impact_plate_small --ft-lr 1e-4 --seeds 0 1 --shots 5 20 --eval 8 \
     --json transfer_shipped.json

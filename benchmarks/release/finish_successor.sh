@@ -26,12 +26,16 @@ for d in "$DATA" "$STACK3" "$PEN"; do
     [ -f "$d/meta.json" ] || die "$d/meta.json: missing: generate it first (train_successor.sh; benchmarks/transfer/report.py's commands)"
 done
 mkdir -p "$WORK"
-step() {  # step NAME COMMAND...: run COMMAND unless NAME is marked done
+step() {  # step NAME COMMAND...: run COMMAND unless NAME is marked done; marked only when it succeeded
     local name=$1; shift
-    if [ -f "$WORK/$name.done" ]; then echo "== $name: done before, skipped"; return; fi
+    if [ -f "$WORK/$name.done" ]; then echo "== $name: done before, skipped"; return 0; fi
     echo "== $name: $*"
-    "$@" 2>&1 | tee "$WORK/$name.log"
-    touch "$WORK/$name.done"
+    if "$@" 2>&1 | tee "$WORK/$name.log"; then
+        touch "$WORK/$name.done"
+    else
+        echo "finish_successor: step $name failed (its log: $WORK/$name.log); rerun to resume" >&2
+        return 1
+    fi
 }
 
 step average "$PY" benchmarks/release/average_checkpoints.py "$RUN" --steps $LAST
@@ -45,13 +49,16 @@ GENERATE=$(sed -n '/generate impact-plate/{N;p}' benchmarks/release/train_succes
     | sed -e 's/^.*generate impact-plate/hcmt generate impact-plate/' -e "s|\"\$DATA\"|$DATA|" -e 's/ *$//')
 step ship "$PY" benchmarks/release/ship_model.py "$RUN" --data "$DATA" --name impact_plate_small --checkpoint "$CHOSEN" \
     --command "bash benchmarks/release/train_successor.sh" --data-command "$GENERATE"
-step judge "$PY" benchmarks/surrogate/run.py --data "$DATA" --work "$WORK/judge" --model pretrained:impact_plate_small \
-    --seed-in 8101 --seed-out 8102 --json model_judge.json
-# the design check beside its response surface on the card's designs (seeds 90210/31337, docs/MODELS.md's table)
-step surrogate "$PY" benchmarks/surrogate/run.py --data "$DATA" --work "$WORK/surrogate" --model pretrained:impact_plate_small
+# the judge and the design check on one core, the transfer on the other (independent; each one thread)
+(step judge "$PY" benchmarks/surrogate/run.py --data "$DATA" --work "$WORK/judge" --model pretrained:impact_plate_small \
+    --seed-in 8101 --seed-out 8102 --json model_judge.json \
+    && step surrogate "$PY" benchmarks/surrogate/run.py --data "$DATA" --work "$WORK/surrogate" \
+        --model pretrained:impact_plate_small) > "$WORK/judge_and_surrogate.log" 2>&1 &
+side=$!  # surrogate: the design check beside its response surface on the card's designs (docs/MODELS.md's table)
 step transfer "$PY" benchmarks/transfer/run.py --work "$WORK/transfer" --train-data "$DATA" --new "stack3=$STACK3" \
     --new "pen=$PEN" --base new=pretrained:impact_plate_small --ft-lr 1e-4 --seeds 0 1 --shots 5 20 --eval 8 \
     --json transfer_shipped.json
+wait "$side" || die "the judge or the design check failed: $WORK/judge_and_surrogate.log; rerun to resume"
 step report "$PY" benchmarks/report.py
 echo "finish_successor: every measured step done (marks in $WORK); now rewrite docs/MODELS.md's card, the low-confidence"
 echo "note, the region table and the README's division of labour from these results, and delete benchmarks/release/successor/"

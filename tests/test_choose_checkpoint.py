@@ -52,6 +52,28 @@ def test_every_kept_checkpoint_is_judged_on_the_validation_split_and_the_lowest_
     json.dumps(out)  # the --json file's content
 
 
+def test_a_cache_judges_kept_checkpoints_once_and_best_every_time(impact_data, tmp_path, tiny_config, monkeypatch):
+    import release.choose_checkpoint as cc
+    cfg = tiny_config("train.steps=2", "train.keep_every=1", "train.checkpoint_every=1", "train.valid_every=1",
+                      "train.valid_trajectories=1")
+    train(cfg, impact_data, "hcmt", tmp_path / "run", progress=False, device="cpu")
+    judged = []
+    real = cc.test_errors
+
+    def counting(loaded, *args):
+        judged.append(loaded.checkpoint_step)
+        return real(loaded, *args)
+
+    monkeypatch.setattr(cc, "test_errors", counting)
+    first = choose(tmp_path / "run", impact_data, "valid", cache=tmp_path / "cache")
+    assert sorted(judged) == [1, 2, 2]  # best (step 2), step_1, step_2
+    judged.clear()
+    again = choose(tmp_path / "run", impact_data, "valid", cache=tmp_path / "cache")
+    assert judged == [2]  # only best.pt, which moves while a run trains
+    assert again["rows"] == first["rows"] and again["chosen"] == first["chosen"]
+    assert sorted(p.name for p in (tmp_path / "cache").iterdir()) == ["step_1.valid.all.json", "step_2.valid.all.json"]
+
+
 def test_an_average_of_kept_steps_is_their_mean_with_the_last_ones_statistics_and_a_candidate(
         impact_data, tmp_path, tiny_config):
     cfg = tiny_config("train.steps=3", "train.keep_every=1", "train.checkpoint_every=1")

@@ -71,6 +71,7 @@ def test_every_step_runs_once_in_order_with_the_chosen_checkpoint(checkout):
                          "long_run.py", "ship_model.py"]
     assert sorted(names[6:9]) == ["run.py", "run.py", "run.py"] and names[9] == "report.py"  # judge, check, transfer
     ship = got[5]
+    assert f"--cache {env['WORK']}/choose_cache" in got[1]  # kept steps judged while the run trained are read
     assert "--checkpoint avg_360000_380000_400000" in ship  # the validation split's choice is shipped
     assert f"--data-command hcmt generate impact-plate {env['DATA']} --preset small --train 480" in ship
     judge = next(c for c in got if "--seed-in 8101" in c)

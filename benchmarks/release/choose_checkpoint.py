@@ -1,6 +1,7 @@
 """Choose the checkpoint of a long run to ship on the validation split's engineering errors (issue 35, item 4).
 
     python benchmarks/release/choose_checkpoint.py RUN --data DATA [--split valid] [--limit N] [--json OUT]
+        [--cache DIR]
 
 ``best.pt`` follows only the validation position RMSE-all (the trainer's rule), and on the first long run a
 checkpoint with the best position error had twice another's deflection error. So every checkpoint the run kept
@@ -14,6 +15,7 @@ and the ghost difference). The choice is the checkpoint whose worst ratio to iss
 from __future__ import annotations
 
 import argparse
+import json
 import re
 import sys
 from pathlib import Path
@@ -23,6 +25,7 @@ import torch
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))  # benchmarks/: common, scaling
 from common import write_json  # noqa: E402
 from hcmt.data.runs import RunFolder  # noqa: E402
+from hcmt.files import atomic_path  # noqa: E402
 from hcmt.inference.run import Run  # noqa: E402
 from report_common import MODEL_GOALS as GOALS  # noqa: E402
 from scaling.run import test_errors  # noqa: E402
@@ -42,12 +45,25 @@ def score(errors: dict) -> float:
     return max(errors[k] / goal for k, goal in GOALS.items())
 
 
-def choose(run: Path, data: Path, split: str = "valid", limit: int | None = None) -> dict:
+def judged(run: Path, which: str, data: Path, split: str, limit: int | None, cache: Path | None) -> dict:
+    """One checkpoint's row; kept steps and averages never change, so with ``cache`` their rows are kept there
+    (``best.pt`` moves while the run trains: always judged afresh)."""
+    path = None if cache is None or which == "best" else cache / f"{which}.{split}.{limit or 'all'}.json"
+    if path is not None and path.is_file():
+        return json.loads(path.read_text())
+    row = {"checkpoint": which, **test_errors(Run.load(run, "cpu", which), data, limit, split)}
+    if path is not None:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        with atomic_path(path) as tmp:
+            tmp.write_text(json.dumps(row, indent=1))
+    return row
+
+
+def choose(run: Path, data: Path, split: str = "valid", limit: int | None = None, cache: Path | None = None) -> dict:
     folder = RunFolder(run)
     rows = []
     for which in kept(folder):
-        loaded = Run.load(run, "cpu", which)
-        row = {"checkpoint": which, **test_errors(loaded, data, limit, split)}
+        row = judged(run, which, data, split, limit, cache)
         row["score"] = score(row["errors"])
         rows.append(row)
         e = row["errors"]
@@ -69,9 +85,11 @@ def main(argv=None) -> None:
     p.add_argument("--limit", type=int, default=None, help="only the first N trajectories of the split")
     p.add_argument("--threads", type=int, default=1)
     p.add_argument("--json", type=Path, default=None)
+    p.add_argument("--cache", type=Path, default=None, help="a folder keeping each kept step's and average's row "
+                   "(immutable checkpoints: a later choice judges only the new ones)")
     a = p.parse_args(argv)
     torch.set_num_threads(a.threads)
-    out = choose(a.run, a.data.resolve(), a.split, a.limit)
+    out = choose(a.run, a.data.resolve(), a.split, a.limit, a.cache)
     out["command"] = "python benchmarks/release/choose_checkpoint.py " + " ".join(
         argv if argv is not None else sys.argv[1:])
     print(f"chosen: {out['chosen']} (step {out['chosen_step']})")

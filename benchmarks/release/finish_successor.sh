@@ -39,7 +39,8 @@ step() {  # step NAME COMMAND...: run COMMAND unless NAME is marked done; marked
 }
 
 step average "$PY" benchmarks/release/average_checkpoints.py "$RUN" --steps $LAST
-step choose "$PY" benchmarks/release/choose_checkpoint.py "$RUN" --data "$DATA" --json successor_choice.json
+step choose "$PY" benchmarks/release/choose_checkpoint.py "$RUN" --data "$DATA" --json successor_choice.json \
+    --cache "$WORK/choose_cache"  # kept steps judged before (e.g. while the run trained) are read, not rolled out
 CHOSEN=$("$PY" -c "import json; print(json.load(open('benchmarks/results/successor_choice.json'))['chosen'])")
 echo "== chosen on the validation split: $CHOSEN"
 for s in $LAST; do

@@ -1,4 +1,5 @@
-"""Write docs/RESULTS.md from the JSON files under benchmarks/results/ (only what a benchmark command produced).
+"""Write docs/RESULTS.md, and the measured blocks of docs/MODELS.md's cards (release/card.py), from the JSON files
+under benchmarks/results/ (only what a benchmark command produced).
 
     python benchmarks/report.py
 
@@ -20,6 +21,7 @@ from memory.report import memory  # noqa: E402
 from parity.report import hierarchy, parity, propagation  # noqa: E402
 from peers.report import peers as peers_section  # noqa: E402
 from recipe.report import recipe  # noqa: E402
+from release.card import write_cards  # noqa: E402
 from report_common import load  # noqa: E402
 from scaling.report import scaling as scaling_section  # noqa: E402
 from speed.report import cpu_ab, design_ab, forward_modes, speed, threads, train_parts, train_speed  # noqa: E402
@@ -51,6 +53,8 @@ def main() -> None:
     DOC.parent.mkdir(exist_ok=True)
     DOC.write_text("\n".join(lines).rstrip() + "\n")
     print(f"wrote {DOC}")
+    for name in write_cards():
+        print(f"wrote the measured block of {name}'s card in docs/MODELS.md")
 
 
 if __name__ == "__main__":

@@ -71,7 +71,7 @@ def main() -> None:
         "recipe": {k: getattr(run.config.model if k in ("target", "deformation", "attention") else run.config.train, k)
                    for k in ("target", "deformation", "attention", "noise_std", "noise_nodes", "pushforward",
                              "pushforward_start")},
-        "frame_dt_ms": run.meta.get("dt"),
+        "frame_dt_ms": run.meta.get("dt"), "training_designs": run.meta["generator"]["counts"]["train"],
         "steps": int(stats["steps"]), "device": stats.get("device"), "train_ms_per_step": stats["train_ms_per_step"],
         "train_wall_s_from_log": wall, "data_command": a.data_command, "train_command": a.command,
         "checkpoint": asdict(run.info.checkpoint), "seed": run.info.seed, "machine": platform.processor() or

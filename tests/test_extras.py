@@ -33,8 +33,7 @@ def test_a_missing_module_names_its_extra():
 
 
 def test_pictures_without_matplotlib_are_refused_in_one_line(tmp_path, monkeypatch, capsys):
-    for name in [m for m in sys.modules if m == "hcmt.viz" or m.startswith(("hcmt.viz.", "hcmt.cli.viz"))]:
-        monkeypatch.delitem(sys.modules, name)
+    _forget([m for m in sys.modules if m == "hcmt.viz" or m.startswith(("hcmt.viz.", "hcmt.cli.viz"))], monkeypatch)
     monkeypatch.setitem(sys.modules, "matplotlib", None)  # what an uninstalled package looks like to import
     (tmp_path / "run").mkdir()
     (tmp_path / "data").mkdir()
@@ -89,10 +88,19 @@ def test_torch_is_a_range_and_the_makefile_pins_it():
     assert "TORCH  ?= torch==2.13.0" in (ROOT / "Makefile").read_text()
 
 
-def _block_matplotlib(monkeypatch):
-    for name in [m for m in sys.modules if m.startswith(("hcmt.viz", "hcmt.cli.viz", "hcmt.design", "hcmt.cli.design",
-                                                         "hcmt.cli.demo", "matplotlib"))]:
+def _forget(names: list[str], monkeypatch) -> None:
+    """Modules imported afresh by the test, all put back after it: the sys.modules entries and the parent packages'
+    attributes, which a fresh import rebinds (else a later test patching ``hcmt.cli.design`` patches a copy)."""
+    for name in names:
+        parent, _, child = name.rpartition(".")
+        if parent in sys.modules and hasattr(sys.modules[parent], child):
+            monkeypatch.setattr(sys.modules[parent], child, getattr(sys.modules[parent], child))
         monkeypatch.delitem(sys.modules, name)
+
+
+def _block_matplotlib(monkeypatch):
+    _forget([m for m in sys.modules if m.startswith(("hcmt.viz", "hcmt.cli.viz", "hcmt.design", "hcmt.cli.design",
+                                                     "hcmt.cli.demo", "matplotlib"))], monkeypatch)
     monkeypatch.setitem(sys.modules, "matplotlib", None)  # what an uninstalled package looks like to import
 
 

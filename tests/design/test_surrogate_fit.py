@@ -33,6 +33,13 @@ def fitting(run) -> dict:
     return doc
 
 
+def format1(doc: dict) -> dict:
+    """A version 1 file of the same response surface: no ``dataset`` block (the shipped file of 2026-11 was one)."""
+    old = {k: v for k, v in doc.items() if k != "dataset"}
+    old["version"] = 1
+    return old
+
+
 def _drop_parameter(doc: dict, name: str = "mesh_size") -> None:
     j = doc["parameters"].index(name)
     doc["parameters"].pop(j)
@@ -70,11 +77,14 @@ def write(tmp_path, doc: dict, name: str = "s.json"):
 
 
 def test_a_fitting_surrogate_ends_the_window_and_old_files_still_load(run, tmp_path):
-    s, note, ends = for_run(run, write(tmp_path, fitting(run)))
-    assert note is None and ends and s.dataset["frames"] == 90 and s.censored == 69  # 69 thick plates: still on
-    assert Surrogate.load(SHIPPED).dataset is None  # format 1: no dataset block, loads
-    s1, note1, ends1 = for_run(run, SHIPPED)  # format 1 given as a file: its window is not known
-    assert not ends1 and "records no training window" in note1 and len(s1) == 120
+    doc = fitting(run)
+    s, note, ends = for_run(run, write(tmp_path, doc))
+    assert note is None and ends and s.dataset["frames"] == 90
+    assert 0 < s.censored == doc["dataset"]["censored"] < len(s)  # some thick plates still on at the window's end
+    old = write(tmp_path, format1(doc), "v1.json")
+    assert Surrogate.load(old).dataset is None  # format 1: no dataset block, loads
+    s1, note1, ends1 = for_run(run, old)  # format 1 given as a file: its window is not known
+    assert not ends1 and "records no training window" in note1 and len(s1) == len(doc["designs"])
     assert for_run(run, True)[2]  # the model's own file is its window's
 
 
@@ -132,12 +142,13 @@ def test_a_window_that_never_saw_the_ball_leave_is_not_used(run, tmp_path, monke
 
     monkeypatch.setattr(check_module, "predict_chunks", spy)
     doc = fitting(run)
-    for name, censored in (("fits.json", 69), ("never.json", 120)):
+    for name, censored in (("fits.json", doc["dataset"]["censored"]), ("never.json", len(doc["designs"]))):
         doc["dataset"]["censored"] = censored
         with pytest.raises(Stop):
             check_designs(run, designs, progress=False, surrogate=write(tmp_path, doc, name), readout="contact")
-    with pytest.raises(Stop):
-        check_designs(run, designs, progress=False, surrogate=SHIPPED, readout="contact")  # format 1 as a file
+    with pytest.raises(Stop):  # format 1 as a file
+        check_designs(run, designs, progress=False, surrogate=write(tmp_path, format1(doc), "v1.json"),
+                      readout="contact")
     lo = [iv["contact_end_ms"].lo for iv in Surrogate.load(SHIPPED).predict([d for _, d in designs])]
     assert seen[0] == pytest.approx(lo) and seen[1] is None and seen[2] is None
     assert "did the ball leave" in for_run(run, tmp_path / "never.json")[1]
@@ -148,7 +159,7 @@ def test_predict_refuses_a_short_window_surrogate_before_any_answer(run, tmp_pat
     """The issue's case: a surrogate fitted on 10 frames beside a 90-frame model: one line naming --surrogate and
     the window, exit 2, no JSON written (before: the model's peak fell from 748 to 320 MPa and the call passed)."""
     doc = fitting(run)
-    doc["dataset"].update(frames=10, censored=120)
+    doc["dataset"].update(frames=10, censored=len(doc["designs"]))
     path, out = write(tmp_path, doc), tmp_path / "p.json"
     rc = cli(["predict", "pretrained:impact_plate_small", "--design", "thickness=0.7", "--surrogate", str(path),
               "--yield-mpa", "500", "--json", str(out), "--no-progress"])

@@ -76,3 +76,30 @@ def test_write_cards_replaces_only_the_blocks_it_has_results_for(model, tmp_path
         "\n\nafter\n\n<!-- card none -->\nkept\n<!-- /card none -->\n")
     assert "old numbers" not in text and "it meets 1 of 2." in text
     assert write_cards(doc) == ["small"] and doc.read_text() == text  # the same results: the same text
+
+
+def test_the_committed_cards_and_the_readme_quote_the_result_files_as_they_are():
+    """docs/MODELS.md's blocks are what report.py writes from today's result files, and the README's headline rows on
+    the shipped model quote the same files: a new model's results cannot land with an old card or front door."""
+    doc = ROOT / "docs" / "MODELS.md"
+    text = doc.read_text()
+    for line in text.splitlines():
+        if line.startswith("<!-- card "):
+            name = line.split()[2].rstrip(":")
+            m = card_module.load(f"model_{name}.json")
+            block = "\n".join(card(name, m, card_module.load("model_judge.json"), card_module.load("surrogate.json")))
+            assert block in text, f"docs/MODELS.md's card {name} is stale: run python benchmarks/report.py"
+    m, surrogate = card_module.load("model_impact_plate_small.json"), card_module.load("surrogate.json")
+    p, n = m["verify"]["physics"], m["verify"]["designs"]
+    readme = (ROOT / "README.md").read_text()
+    pct = "{median_abs:.1f} % / {worst:.1f} %"
+    assert f"| shipped model on {n} held-out designs: rebound agreement | {round(p['rebound_agreement'] * n)} / {n} |" \
+        in readme
+    for label, key in (("peak plate stress", "peak_plate_stress_error_pct"),
+                       ("max deflection", "max_deflection_error_pct")):
+        e = p[key]
+        assert f"| shipped model: {label} error, median / worst | " + pct.format(
+            median_abs=e["median_abs"], worst=abs(e["worst"])) + " |" in readme
+    gp = surrogate["accuracy"]["in_range"]["peak_plate_stress_mpa"]["gp"]
+    assert (f"| response surface on the same {surrogate['training_designs']} solver runs: peak plate stress, median / "
+            f"worst | {gp['median_abs_pct']:.1f} % / {gp['worst_abs_pct']:.1f} % |") in readme

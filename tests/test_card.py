@@ -37,8 +37,9 @@ def judge_of(model_name: str, step: int, designs: int) -> dict:
 def test_a_result_measured_this_model_only_with_its_name_designs_and_step(model):
     assert training_designs(model["card"]) == 480
     old = copy.deepcopy(model)
-    del old["card"]["training_designs"]
-    assert training_designs(old["card"]) == 120  # a file written before the field: from its summary
+    del old["card"]["training_designs"]  # a file written before the field: from its summary
+    old["card"]["summary"] = "HCMT (hidden 64, λ 4, L_C 2) trained 36000 steps on 120 generated `small` Impact Plate"
+    assert training_designs(old["card"]) == 120
     assert measured_this(judge_of("pretrained:small", 400000, 480), "small", model)
     assert not measured_this(judge_of("pretrained:small", 120000, 480), "small", model)  # another checkpoint
     assert not measured_this(judge_of("pretrained:small", 400000, 120), "small", model)  # the old model's designs
@@ -53,7 +54,7 @@ def test_the_block_quotes_the_result_files(model):
     assert lines[0] == begin("small") and lines[-1] == end("small")
     v = model["verify"]["physics"]
     assert f"| peak plate stress error, median / worst | {v['peak_plate_stress_error_pct']['median_abs']:.1f} %" in text
-    assert "trained 36000 steps" in text and "the weights of step 400,000" in text
+    assert f"trained {model['card']['steps']} steps" in text and "the weights of step 400,000" in text
     for r in model["card"]["confidence"]:
         assert f"| {r['label']} | {r['designs']} | {r['peak_plate_stress_error_pct_median']:.1f} % / " in text
     weak = max(model["card"]["confidence"], key=lambda r: r["peak_plate_stress_error_pct_median"])

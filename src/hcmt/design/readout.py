@@ -18,7 +18,7 @@ under its own name, prefixed by the read-out's (:func:`readout_key`), never unde
   ``contact_window_end_ms`` and ``contact_window_end_from`` say where it ended), and
   ``contact_plate_stress_history_mpa``: the stress head inside the window, after it the plate's free-vibration
   bending stress from its predicted deflection, ``σ ≈ k E t w_max / R²`` (Kirchhoff plate; ``k`` =
-  :data:`BENDING_K`, fitted to the shipped model's 120 training runs' post-separation frames). This read-out
+  :data:`BENDING_K`, fitted to 120 solver runs' post-separation frames). This read-out
   depends on the response surface and on a fitted constant: it hides what the model predicts after contact;
 * ``element``: ``element_peak_plate_*`` and ``element_plate_stress_history_mpa`` from the solver's own element
   law (CST, St Venant-Kirchhoff) on the predicted positions. Measured: its peak is off by a median +459 % on 8
@@ -37,8 +37,8 @@ from hcmt.inference.quantities import contact_gap, contact_window, ghost_ratio, 
 from hcmt.sim.solver import build_model, nodal_von_mises
 
 #: the post-separation bending coefficient of the ``contact`` read-out: σ = k E t w_max / R² (median of
-#: σ_plate / (E t w_max / R²) over the post-separation frames of the shipped model's 120 training runs, which
-#: ranged 3.8-8.1)
+#: σ_plate / (E t w_max / R²) over the solver's post-separation frames of the 120 training runs of the model shipped
+#: until 2026-12-04, which ranged 3.8-8.1: a property of the solver's plates, not of a model)
 BENDING_K = 5.0
 #: which bound of the response surface's 95 % interval of ``contact_end_ms`` ends the ``contact`` read-out's window:
 #: ``lo``, the frames where the solver's ball has surely not left yet (docs/RESULTS.md "Ghost stress")

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Issue 35's measured steps once the successor's training has finished (successor/README.md, "Shipping it"), in order,
+# Issue 35's measured steps once the successor's training (train_successor.sh) has finished, in order,
 # unattended: average the last kept steps, choose on the validation split, the long run's test rows, ship the
 # chosen checkpoint as pretrained:impact_plate_small, judge it on seeds no study used (item 5), the design check
 # beside its response surface on the card's designs, the transfer again (item 6), the report. Each step leaves a mark in WORK when it finishes and is skipped on a rerun, so an interrupted
@@ -62,4 +62,4 @@ step transfer "$PY" benchmarks/transfer/run.py --work "$WORK/transfer" --train-d
 wait "$side" || die "the judge or the design check failed: $WORK/judge_and_surrogate.log; rerun to resume"
 step report "$PY" benchmarks/report.py
 echo "finish_successor: every measured step done (marks in $WORK); now rewrite docs/MODELS.md's card, the low-confidence"
-echo "note, the region table and the README's division of labour from these results, and delete benchmarks/release/successor/"
+echo "note, the region table and the README's division of labour from these results"

@@ -104,3 +104,18 @@ def test_the_committed_cards_and_the_readme_quote_the_result_files_as_they_are()
     gp = surrogate["accuracy"]["in_range"]["peak_plate_stress_mpa"]["gp"]
     assert (f"| response surface on the same {surrogate['training_designs']} solver runs: peak plate stress, median / "
             f"worst | {gp['median_abs_pct']:.1f} % / {gp['worst_abs_pct']:.1f} % |") in readme
+
+
+def test_a_shipped_model_reports_the_step_of_its_weights():
+    """The judge records ``Run.checkpoint_step`` and the card matches it to the step of the weights shipped (a kept
+    checkpoint before the schedule's end), not the schedule's length."""
+    import torch
+
+    from hcmt.data.runs import available_pretrained
+    from hcmt.inference.run import Run
+
+    pack = torch.load(available_pretrained()["impact_plate_small"], weights_only=True)
+    run = Run.load("pretrained:impact_plate_small", "cpu")
+    assert run.checkpoint_step == pack["card"]["checkpoint"]["step"]
+    shipped = json.loads((RESULTS / "model_impact_plate_small.json").read_text())
+    assert run.checkpoint_step == shipped["card"]["checkpoint"]["step"]

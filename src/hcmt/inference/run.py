@@ -141,8 +141,10 @@ class Run:
         except (KeyError, TypeError, RuntimeError, ValueError) as exc:
             raise InputError(f"{shipped[name]}: a damaged shipped model ({exc.__class__.__name__}); reinstall hcmt") \
                 from None
+        card = pack["card"]  # the step of the weights shipped (a kept checkpoint), else the schedule's (older packs)
+        step = int(card.get("checkpoint", {}).get("step", card.get("steps", 0)))
         info = RunInfo(model=pack["model_args"], config=Config.from_dict(pack["config"], str(shipped[name])),
-                       data=None, checkpoint=CheckpointInfo(shipped[name].name, int(pack["card"].get("steps", 0))))
+                       data=None, checkpoint=CheckpointInfo(shipped[name].name, step))
         ranges = {k: (float(v[0]), float(v[1])) for k, v in pack["ranges"].items()}
         return cls(model.to(device), info, f"pretrained:{name}", pack["meta"], ranges, pack["card"])
 

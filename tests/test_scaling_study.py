@@ -168,3 +168,27 @@ def test_report_says_which_points_were_restored_and_checks_their_test_designs():
     assert text.startswith("2 of these points") and "`--restore scaling.json`" in text
     assert "ratio is 0.0606 for every point" in text
     assert "could not be checked" in _restored(old + [{**fresh, "solver_ghost_ratio": 0.07}])[0]
+
+
+def test_report_keeps_the_outside_rows_out_of_the_test_tables_and_judges_them_on_their_goals():
+    """long_run.py --split rows (designs outside the training ranges) get their own table against issue 35's outside
+    goals; the test-split table and the goal budgets read only the rows without a split."""
+    keys, r = KEYS, _budget_study(lambda b: 40.0 * b ** -0.25)
+    row = {"designs": 480, "trajectories": 24, "lr": 1e-3, "lr_final": 1e-5, "schedule_steps": 400000,
+           "rebound_agreement": 1.0, "run": "second run"}
+    split = "test_thicker + test_higher + test_thicker_higher"
+    long = {"command": "c", "checkpoints": [
+        {**row, "checkpoint_step": 200000, "errors": {k: 1.0 for k in keys}},
+        {**row, "checkpoint_step": 200000, "split": split, "errors": {**{k: 7.0 for k in keys}, "deflection_error_pct": 5.0}},
+        {**row, "checkpoint_step": 400000, "split": split, "errors": {**{k: 5.5 for k in keys}, "deflection_error_pct": 9.0}}]}
+    lines = []
+    scaling(lines, r, long)
+    text = "\n".join(lines)
+    test_table = text[text.index("**The long run's checkpoints**"):text.index("**The long run's checkpoints outside")]
+    assert "| second run | 200,000 | 1 (fit" in test_table and "7.0" not in test_table and "5.5" not in test_table
+    outside = text[text.index("**The long run's checkpoints outside"):text.index("**What budget would reach")]
+    assert f"| second run | 400,000 | {split} | " in outside and "--split test_thicker test_higher" in outside
+    assert "peak plate stress error % ≤ 6: met at 1 of 2 checkpoints; the lowest, 5.5, at step 400,000" in outside
+    assert "≤ 8: met at 1 of 2 checkpoints; the lowest, 5.0, at step 200,000" in outside
+    goals = text[text.index("**What budget would reach"):]
+    assert "1 of 1" in goals  # the goal budgets count the test rows only

@@ -1,7 +1,7 @@
 """The long run's checkpoints as points beyond the scaling study's budgets (issue 35, items 2 and 4).
 
     python benchmarks/scaling/long_run.py SNAPSHOT --data DATA [--checkpoint best|step_N] [--label NAME]
-        [--out benchmarks/results/scaling_long_run.json]
+        [--split SPLIT [SPLIT ...]] [--out benchmarks/results/scaling_long_run.json]
 
 ``SNAPSHOT``: a copy of the long run's folder (run.yaml, best.pt) taken while it trains (copy it: the run rewrites
 best.pt). Its best.pt is judged on DATA's test split exactly as every point of :mod:`scaling.run`
@@ -11,6 +11,9 @@ row. The long run is HCMT with the study's recipe on all 480 designs, but its le
 stand beside the study's fit, not in it (docs/RESULTS.md, section "Scaling with budget and designs").
 ``--label`` names the run a row belongs to (a row is kept per label and step): the first long run was lost at step
 ~212,000 with its disk, and the second, trained again from step 0 with the same command, adds its own rows.
+``--split`` judges other splits of DATA instead, their designs pooled (``test_thicker test_higher
+test_thicker_higher``: the designs outside the training ranges that ``hcmt generate --variants`` writes), kept per
+split (rows without one are the test split's).
 """
 from __future__ import annotations
 
@@ -35,21 +38,35 @@ def main(argv=None) -> None:
     p.add_argument("--checkpoint", default="best", help="best (the default: a snapshot's) or step_N, a checkpoint "
                    "train.keep_every kept (immutable: the live run folder may be judged)")
     p.add_argument("--label", default=None, help="the run's name in the table (default: the snapshot folder)")
+    p.add_argument("--split", nargs="+", default=["test"], help="the splits of DATA judged, pooled (default test; "
+                   "the outside-range splits of `hcmt generate --variants`: test_thicker test_higher "
+                   "test_thicker_higher)")
     p.add_argument("--threads", type=int, default=1)
     p.add_argument("--out", type=Path, default=RESULTS / "scaling_long_run.json")
     a = p.parse_args(argv)
     torch.set_num_threads(a.threads)
     loaded = Run.load(a.snapshot, "cpu", a.checkpoint)
     cfg = loaded.config
-    row = {**test_errors(loaded, a.data.resolve(), None), "designs": loaded.meta["generator"]["counts"]["train"],
+    for split in a.split:
+        if not (a.data / f"{split}.h5").is_file():
+            sys.exit(f"long_run.py: --split {split}: {a.data / (split + '.h5')} does not exist")
+    row = {**test_errors(loaded, a.data.resolve(), None, tuple(a.split)),
+           "designs": loaded.meta["generator"]["counts"]["train"],
            "schedule_steps": cfg.train.steps, "lr": cfg.train.lr, "lr_final": cfg.train.lr_final,
            "snapshot": str(a.snapshot), "checkpoint": a.checkpoint, "run": a.label or a.snapshot.name}
+    if a.split != ["test"]:
+        row["split"] = " + ".join(a.split)
     old = json.loads(a.out.read_text()) if a.out.is_file() else {"checkpoints": []}
-    kept = [r for r in old["checkpoints"] if (run_of(r), r["checkpoint_step"]) != (row["run"], row["checkpoint_step"])]
+
+    def key(r):
+        return run_of(r), r["checkpoint_step"], r.get("split", "test")
+
+    kept = [r for r in old["checkpoints"] if key(r) != key(row)]
     runs = list(dict.fromkeys(run_of(r) for r in kept + [row]))  # each run's rows together, in order of its first
     out = {"command": f"python benchmarks/scaling/long_run.py SNAPSHOT --data {a.data} --checkpoint step_N --label RUN",
            "model": "hcmt", "checkpoints": sorted(kept + [row], key=lambda r: (runs.index(run_of(r)),
-                                                                                 r["checkpoint_step"]))}
+                                                                                 r["checkpoint_step"],
+                                                                                 r.get("split", "test")))}
     print(json.dumps(row["errors"], indent=1))
     print(f"wrote {write_json(a.out, out)}")
 

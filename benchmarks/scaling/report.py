@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))  # benchmarks/
-from report_common import MODEL_GOALS, PAPER_STEPS, PAPER_TRAJECTORIES, sentences  # noqa: E402
+from report_common import MODEL_GOALS, OUTSIDE_GOALS, PAPER_STEPS, PAPER_TRAJECTORIES, sentences  # noqa: E402
 from scaling.analysis import (  # noqa: E402
     METRICS,
     extrapolate,
@@ -170,6 +170,30 @@ def _long_run(long: dict, pts: list[dict], full: int) -> list[str]:
     return out + [""]
 
 
+def _long_run_outside(long: dict | None, rows: list[dict]) -> list[str]:
+    """The long run's checkpoints on designs outside the training ranges (long_run.py --split), against issue 35's
+    outside-range goals (the judge's: peak plate stress ≤ 6 %, deflection ≤ 8 %, medians)."""
+    goals = OUTSIDE_GOALS
+    label = dict(METRICS)
+    out = [f"**The long run's checkpoints outside the training ranges** (`python benchmarks/scaling/long_run.py "
+           f"SNAPSHOT --data DATA --checkpoint step_N --label RUN --split {rows[0]['split'].replace(' + ', ' ')}`: "
+           f"the {rows[0]['trajectories']} designs of those splits pooled, medians over them; issue 35's goals "
+           "there: " + ", ".join(f"{label[k]} ≤ {g:g}" for k, g in goals.items()) + ")", "",
+           "| run | checkpoint step | splits | " + " | ".join(n for _, n in METRICS) + " | rebound agreement |",
+           "|---" * (len(METRICS) + 4) + "|"]
+    for r in rows:
+        out.append(f"| {run_of(r)} | {r['checkpoint_step']:,} | {r['split']} | "
+                   + " | ".join(FORMATS[k].format(r["errors"][k]) for k, _ in METRICS)
+                   + f" | {r['rebound_agreement']:.2f} |")
+    said = []
+    for key, goal in goals.items():
+        met = [r for r in rows if r["errors"][key] <= goal]
+        best = min(rows, key=lambda r: r["errors"][key])
+        said.append(f"{label[key]} ≤ {goal:g}: met at {len(met)} of {len(rows)} checkpoints; the lowest, "
+                    f"{FORMATS[key].format(best['errors'][key])}, at step {best['checkpoint_step']:,}.")
+    return out + ["", sentences(*said), ""]
+
+
 def _goal_budgets(long: dict | None, pts: list[dict], full: int) -> list[str]:
     """Issue 35 item 5: the budget at which the study's HCMT fit against the budget reaches each goal, and beside it
     what the long run's latest run reached at its kept checkpoints (where it did better than the fit, by how much)."""
@@ -254,8 +278,13 @@ def scaling(lines: list[str], r: dict | None, long: dict | None = None) -> None:
                             f"{PAPER_STEPS:,} steps, far beyond anything run here; it holds only if the trend does."),
                   ""]
         lines += _margins(pts, "budget", {"designs": full}, "steps")
+    outside = [r for r in (long or {}).get("checkpoints", []) if "split" in r]
+    if long:  # the test split's rows (the study's designs); rows of other splits have a table of their own
+        long = {**long, "checkpoints": [r for r in long.get("checkpoints", []) if "split" not in r]}
     if long and long.get("checkpoints"):
         lines += _long_run(long, pts, full)
+    if outside:
+        lines += _long_run_outside(long, outside)
     if budgets >= MIN_FIT:
         lines += _goal_budgets(long, pts, full)
     axis = [p for p in pts if p["budget"] == r["designs_budget"]]

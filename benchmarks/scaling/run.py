@@ -107,23 +107,32 @@ def judged(run: Path, data: Path, limit: int | None) -> dict:
             "train_ms_per_step": stats["train_ms_per_step"]}
 
 
-def test_errors(loaded: Run, data: Path, limit: int | None, split: str = "test") -> dict:
-    """A loaded run's errors on the first ``limit`` designs of ``split`` (all: None): the paper's RMSE-all and, from
-    the same rollouts, the medians over trajectories of the engineering errors; its rollout file is not kept."""
-    m = evaluate(loaded, data, split, limit=limit, progress=False)
-    rows = [r["physics"] for r in m["per_trajectory"]]
+def test_errors(loaded: Run, data: Path, limit: int | None, split: str | tuple[str, ...] = "test") -> dict:
+    """A loaded run's errors on the first ``limit`` designs of ``split`` (all: None; several splits: their designs
+    pooled): the paper's RMSE-all and, from the same rollouts, the medians over trajectories of the engineering
+    errors; its rollout files are not kept."""
+    splits = (split,) if isinstance(split, str) else tuple(split)
+    ms = [evaluate(loaded, data, s, limit=limit, progress=False) for s in splits]
+    rows = [r["physics"] for m in ms for r in m["per_trajectory"]]
+    counts = [m["trajectories"] for m in ms]
     peak = np.abs([r["peak_plate_stress_error_pct"] for r in rows])
     defl = np.abs([r["max_deflection_error_pct"] for r in rows])
     ghost = np.abs([r["model_ghost_ratio"] - r["solver_ghost_ratio"] for r in rows])
-    loaded.folder.rollout_path(split, data).unlink(missing_ok=True)
-    return {"trajectories": m["trajectories"], "checkpoint_step": loaded.checkpoint_step,
-            "errors": {"position_rmse_all": m["position"]["rmse_all"], "stress_rmse_all": m["stress"]["rmse_all"],
+    for s in splits:
+        loaded.folder.rollout_path(s, data).unlink(missing_ok=True)
+
+    def pooled(values):  # each split's mean over its trajectories, pooled by their counts
+        return float(np.average(values, weights=counts))
+
+    return {"trajectories": sum(counts), "checkpoint_step": loaded.checkpoint_step,
+            "errors": {"position_rmse_all": pooled([m["position"]["rmse_all"] for m in ms]),
+                       "stress_rmse_all": pooled([m["stress"]["rmse_all"] for m in ms]),
                        "peak_error_pct": float(np.median(peak)), "deflection_error_pct": float(np.median(defl)),
                        "ghost_difference": float(np.median(ghost))},
             "worst": {"peak_error_pct": float(peak.max()), "deflection_error_pct": float(defl.max()),
                       "ghost_difference": float(ghost.max())},
             "solver_ghost_ratio": float(np.median([r["solver_ghost_ratio"] for r in rows])),
-            "rebound_agreement": m["physics"]["rebound_agreement"]}
+            "rebound_agreement": pooled([m["physics"]["rebound_agreement"] for m in ms])}
 
 
 def point(work: Path, data: Path, p: dict, cfg_name: str, ovr: list[str], limit: int | None) -> dict | None:

@@ -52,3 +52,29 @@ def test_judge_section_counts_goals_met_and_where_the_response_surface_does_bett
     lines = []
     judge(lines, {})
     assert lines == []  # no judge file: no section
+
+
+def test_the_note_report_names_the_best_rule_and_judges_hcmts_own_threshold_apart():
+    """The rule the benchmark finds best and the threshold hcmt's note ships with (NOTE_DISAGREEMENT) are reported
+    side by side; the shipped one is never called the tuned one."""
+    from surrogate.report import note
+
+    def rate(hits, large, false, small):
+        return {"hits": hits, "large_errors": large, "hit_rate": hits / large if large else None,
+                "false_alarms": false, "small_errors": small, "false_alarm_rate": false / small}
+
+    n = {"large_error_pct": 10.0, "threshold_pct": 5.0, "tuned_on": 36, "judged_on": 46,
+         "region (the card)": rate(5, 6, 11, 40), "model-GP disagreement > 5.0 %": rate(6, 6, 10, 40),
+         "shipped_threshold_pct": 10.0, "model-GP disagreement > 10.0 % (hcmt's NOTE_DISAGREEMENT)": rate(6, 6, 1, 40)}
+    lines = []
+    note(lines, n)
+    text = "\n".join(lines)
+    assert "| model-GP disagreement > 10.0 % (hcmt's NOTE_DISAGREEMENT) | 6 / 6 | 1 / 40 |" in text
+    assert "fewest false alarms among those that flag at least 80% of the large errors: **model-GP disagreement > " \
+           "10.0 % (hcmt's NOTE_DISAGREEMENT)**" in text
+    assert "hcmt's note uses a model-GP disagreement above 10.0 % (`NOTE_DISAGREEMENT`): on these designs it flagged " \
+           "6 of 6 large errors with 1 false alarms in 40" in text
+    del n["model-GP disagreement > 10.0 % (hcmt's NOTE_DISAGREEMENT)"], n["shipped_threshold_pct"]
+    lines = []
+    note(lines, n)  # an older result file: the tuned rule, as it was reported then
+    assert "**model-GP disagreement > 5.0 %** (`NOTE_DISAGREEMENT`)" in "\n".join(lines)

@@ -179,8 +179,10 @@ def test_report_keeps_the_outside_rows_out_of_the_test_tables_and_judges_them_on
     split = "test_thicker + test_higher + test_thicker_higher"
     long = {"command": "c", "checkpoints": [
         {**row, "checkpoint_step": 200000, "errors": {k: 1.0 for k in keys}},
-        {**row, "checkpoint_step": 200000, "split": split, "errors": {**{k: 7.0 for k in keys}, "deflection_error_pct": 5.0}},
-        {**row, "checkpoint_step": 400000, "split": split, "errors": {**{k: 5.5 for k in keys}, "deflection_error_pct": 9.0}}]}
+        {**row, "checkpoint_step": 200000, "split": split,
+         "errors": {**{k: 7.0 for k in keys}, "deflection_error_pct": 5.0}},
+        {**row, "checkpoint_step": 400000, "split": split,
+         "errors": {**{k: 5.5 for k in keys}, "deflection_error_pct": 9.0}}]}
     lines = []
     scaling(lines, r, long)
     text = "\n".join(lines)

@@ -49,6 +49,7 @@ from hcmt.design.check import (  # noqa: E402
     verify_designs,
 )
 from hcmt.design.inputs import region_of, settings_of  # noqa: E402
+from hcmt.design.notes import NOTE_DISAGREEMENT  # noqa: E402
 from hcmt.design.readout import (
     CONTACT_END_BOUND,
     DEFAULT_READOUT,
@@ -501,6 +502,10 @@ def main() -> None:
         f"disagreement > {tau:.1f} % or region": rates([r["disagreement_pct"] > tau or r["region"]
                                                         for r in judged], big),
         "designs": judged}
+    shipped = 100 * NOTE_DISAGREEMENT  # the threshold hcmt's note uses, judged on the same designs
+    result["note"]["shipped_threshold_pct"] = shipped
+    result["note"][f"model-GP disagreement > {shipped:.1f} % (hcmt's NOTE_DISAGREEMENT)"] = rates(
+        [r["disagreement_pct"] > shipped for r in judged], big)
 
     # seconds per design, side by side
     probe = [Design(**r["design"]) for r in held]

@@ -6,16 +6,16 @@ from hcmt.design.prediction import Prediction
 from hcmt.design.readout import DEFAULT_READOUT, chosen
 
 #: the low-confidence note also fires where the mesh model and the surrogate differ by more than this share of
-#: the surrogate's estimate (tuned on the shipped model's 18 valid + test designs, judged on 46 held-out ones:
-#: docs/MODELS.md, "When the note fires")
+#: the surrogate's estimate (tuned for the model shipped before 2026-12-04 on its 18 valid + test designs; judged
+#: again for the shipped model on 46 held-out designs: docs/RESULTS.md, "The low-confidence note")
 NOTE_DISAGREEMENT = 0.10
 
 
 def weak_reasons(p: Prediction) -> list[str]:
     """The low-confidence note: with a surrogate, where it and the mesh model disagree by more than
-    :data:`NOTE_DISAGREEMENT` (measured: it flagged 5 of 5 held-out designs with a peak error above 20 %, and 14
-    of 41 others; the card's regions flagged 5 of 5 and 19 of 41: docs/MODELS.md); without one, where the model
-    card measured large errors. A design outside the training ranges says so either way."""
+    :data:`NOTE_DISAGREEMENT` (measured with the shipped model: it flagged all 6 of 46 held-out designs with a
+    peak error above 10 %, and 1 of the 40 others; the card's regions flagged 5 of 6 and 11 of 40: docs/RESULTS.md);
+    without one, where the model card measured large errors. A design outside the training ranges says so either way."""
     out = []
     c = p.summary.get("confidence")
     if c and c["region"] == "outside":

@@ -46,7 +46,8 @@ def main() -> None:
     judge_section(lines, load("model_judge.json"))
     transfer_section(lines, load("transfer.json"))
     transfer_given(lines, load("transfer_shipped.json"))
-    scaling_section(lines, load("scaling.json"), load("scaling_long_run.json"))
+    scaling_section(lines, load("scaling.json"), load("scaling_long_run.json"),
+                    load("scaling_long_run_sweeps.json"))
     for section in SECTIONS:
         section(lines)
     peers_section(lines, load("peers_cpu.json"))

@@ -194,3 +194,43 @@ def test_report_keeps_the_outside_rows_out_of_the_test_tables_and_judges_them_on
     assert "≤ 8: met at 1 of 2 checkpoints; the lowest, 5.0, at step 200,000" in outside
     goals = text[text.index("**What budget would reach"):]
     assert "1 of 1" in goals  # the goal budgets count the test rows only
+
+
+def test_sweeps_are_counted_as_the_judge_counts_them():
+    """long_run_sweeps.judged: a pass of the model alone is unsafe where its peak is below the sweep's yield stress and
+    the solver's is not (equal counts as a fail); a trend agrees on sign and size within 30 %."""
+    from scaling.long_run_sweeps import judged
+    from surrogate.run import SWEEPS
+
+    sweeps = {f"{h:g} mm, Y {y or 700:.0f} MPa": {"yield_mpa": 700.0, "solver_peaks": [720.0, 700.0, 650.0]}
+              for h, y in SWEEPS}
+    trend = {"peak_plate_stress_mpa": {"solver": -0.2}, "max_deflection_mm": {"solver": -0.6}}
+    judge = {"sweeps": sweeps, "trends": {f"sweep_{h:g}": trend for h, _ in dict.fromkeys(SWEEPS)}
+             | {"sweep_height": {"peak_plate_stress_mpa": {"solver": 0.127}, "max_deflection_mm": {"solver": 0.38}}}}
+    model = {f"sweep_{h:g}": {"peak_plate_stress_mpa": [710.0, 699.0, 640.0], "max_deflection_mm": [1.0, 0.7, 0.4]}
+             for h, _ in SWEEPS}  # 699 < 700 = the solver's: unsafe; 710 > 700: a safe fail
+    model["sweep_height"] = {"peak_plate_stress_mpa": [700.0, 707.6], "max_deflection_mm": [0.14, 0.19]}
+    r = judged(model, judge)
+    assert r["unsafe"] == len(SWEEPS) and set(r["unsafe_by_sweep"].values()) == {1} and r["points"] == 3 * len(SWEEPS)
+    # thickness sweeps: peak 640/710 - 1 = -9.9 % against -20 %: too small; deflection -60 % agrees; the height
+    # sweep's peak +1.1 % against +12.7 %: too small; its deflection +35.7 % against +38 % agrees
+    assert r["trends_of"] == 10 and r["trends_agree"] == 5
+    assert not r["trends"]["sweep_height"]["peak_plate_stress_mpa"]["agrees"]
+    assert r["trends"]["sweep_height"]["max_deflection_mm"]["agrees"]
+
+
+def test_report_tables_the_sweeps_against_the_budget():
+    r = _budget_study(lambda b: 40.0 * b ** -0.25)
+    trends = {"sweep_height": {"peak_plate_stress_mpa": {"solver": 0.127, "hcmt": 0.076}}}
+    row = {"points": 66, "trends_of": 10, "trends": trends}
+    sweeps = {"command": "python benchmarks/scaling/long_run_sweeps.py RUN", "judge": {"command": "judge cmd"},
+              "rows": [{**row, "checkpoint_step": 120000, "unsafe": 4, "trends_agree": 8},
+                       {**row, "checkpoint_step": 360000, "unsafe": 0, "trends_agree": 10,
+                        "judge_peak_max_rel_diff": 0.0013}]}
+    lines = []
+    scaling(lines, r, None, sweeps)
+    text = "\n".join(lines)
+    assert "| checkpoint step | model alone: unsafe passes of 66 points | trends that agree, of 10 | drop-height " \
+           "trend of the peak (the solver: +12.7 %) |" in text
+    assert "| 120,000 | 4 | 8 | +7.6 % |" in text and "| 360,000 | 0 | 10 | +7.6 % |" in text
+    assert "met at 1 of 2 kept checkpoints: 360,000." in text and "within 0.13 % of the judge's" in text

@@ -194,6 +194,32 @@ def _long_run_outside(long: dict | None, rows: list[dict]) -> list[str]:
     return out + ["", sentences(*said), ""]
 
 
+def _long_run_sweeps(sw: dict) -> list[str]:
+    """The long run's kept checkpoints on the judge's sweeps (long_run_sweeps.py): the two goals of issue 35 item 5
+    that a median error does not measure, the model alone's limit calls and the trends' size, against the budget."""
+    rows = sw["rows"]
+    height = rows[0]["trends"]["sweep_height"]["peak_plate_stress_mpa"]["solver"]
+    out = [f"**The long run's checkpoints on the judge's sweeps** (`{sw['command']}`: the sweeps of "
+           f"`{sw['judge']['command']}`, whose solver runs they are judged against; the model alone passes a point the "
+           "solver fails where its peak is below the sweep's yield stress and the solver's is not; a trend agrees "
+           "where its sign is the solver's and its size within 30 %)", "",
+           f"| checkpoint step | model alone: unsafe passes of {rows[0]['points']} points | trends that agree, of "
+           f"{rows[0]['trends_of']} | drop-height trend of the peak (the solver: {100 * height:+.1f} %) |",
+           "|---|---|---|---|"]
+    for r in rows:
+        t = r["trends"]["sweep_height"]["peak_plate_stress_mpa"]["hcmt"]
+        out.append(f"| {r['checkpoint_step']:,} | {r['unsafe']} | {r['trends_agree']} | {100 * t:+.1f} % |")
+    both = [r for r in rows if r["unsafe"] == 0 and r["trends_agree"] == r["trends_of"]]
+    said = [f"Both goals (no unsafe pass, every trend) are met at {len(both)} of {len(rows)} kept checkpoints"
+            + (": " + ", ".join(f"{r['checkpoint_step']:,}" for r in both) if both else "") + "."]
+    mine = [r for r in rows if "judge_peak_max_rel_diff" in r]
+    if mine:
+        said.append(f"At the judge's own step ({mine[0]['checkpoint_step']:,}) the peaks are within "
+                    f"{100 * mine[0]['judge_peak_max_rel_diff']:.2f} % of the judge's (fp32 checkpoint against the "
+                    "shipped fp16 file).")
+    return out + ["", sentences(*said), ""]
+
+
 def _goal_budgets(long: dict | None, pts: list[dict], full: int) -> list[str]:
     """Issue 35 item 5: the budget at which the study's HCMT fit against the budget reaches each goal, and beside it
     what the long run's latest run reached at its kept checkpoints (where it did better than the fit, by how much)."""
@@ -240,7 +266,7 @@ def _goal_budgets(long: dict | None, pts: list[dict], full: int) -> list[str]:
     return out + [sentences(*said), ""]
 
 
-def scaling(lines: list[str], r: dict | None, long: dict | None = None) -> None:
+def scaling(lines: list[str], r: dict | None, long: dict | None = None, sweeps: dict | None = None) -> None:
     lines += [HEADING, ""]
     if not r or not r.get("points"):
         lines += [sentences(
@@ -285,6 +311,8 @@ def scaling(lines: list[str], r: dict | None, long: dict | None = None) -> None:
         lines += _long_run(long, pts, full)
     if outside:
         lines += _long_run_outside(long, outside)
+    if sweeps and sweeps.get("rows"):
+        lines += _long_run_sweeps(sweeps)
     if budgets >= MIN_FIT:
         lines += _goal_budgets(long, pts, full)
     axis = [p for p in pts if p["budget"] == r["designs_budget"]]

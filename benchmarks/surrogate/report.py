@@ -209,8 +209,7 @@ def ghost(lines: list[str], r: dict) -> None:
     lines += ["", "- " + sentences(f"The default read-out {'meets' if ok else 'misses'} the goal of {GHOST_GOAL:.2f} "
                                    f"({default['median_abs_diff']:.3f}).",
                                    f"Where the solver's ball leaves within the window ({lag['designs']} designs), the "
-                                   f"learned one leaves a median {abs(lag['median']):.0f} frames "
-                                   f"{'later' if late else 'earlier'} ({lag['min']} to {lag['max']}).",
+                                   f"learned one leaves {when(lag['median'], late)} ({lag['min']} to {lag['max']}).",
                                    "The ghost's cause is kinematic: a window read from the model's own contact keeps "
                                    f"its stress ({own['median_abs_diff']:.3f})." if kinematic else "",
                                    READOUT.format(bound=BOUND_WORDS[bound])),
@@ -249,6 +248,13 @@ def element(g: dict) -> list[str]:
         out.append(f"A micrometre of position error across a {edge:.1f} mm element is a strain of {strain:.1g}, "
                    f"{strain * Design().plate_modulus:.0f} MPa in glass.")
     return ["- " + sentences(*out)]
+
+
+def when(median: float, late: bool) -> str:
+    """How the learned ball's leaving compares with the solver's, in words (a median lag of 0: the same frame)."""
+    if round(abs(median)) == 0:
+        return "at the solver's frame in the median"
+    return f"a median {abs(median):.0f} frames {'later' if late else 'earlier'}"
 
 
 def note(lines: list[str], n: dict) -> None:

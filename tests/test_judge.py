@@ -83,5 +83,6 @@ def test_the_note_report_names_the_best_rule_and_judges_hcmts_own_threshold_apar
 def test_the_ghost_bullet_says_when_the_learned_ball_leaves_in_words():
     from surrogate.report import when
 
-    assert when(0.0, False) == "at the solver's frame in the median" and when(0.4, True) == "at the solver's frame in the median"
+    same = "at the solver's frame in the median"
+    assert when(0.0, False) == same and when(0.4, True) == same
     assert when(14.0, True) == "a median 14 frames later" and when(-3.0, False) == "a median 3 frames earlier"

@@ -57,20 +57,18 @@ class Check:
         name = torch.cuda.get_device_name(self.device) if self.device.type == "cuda" else "cpu"
         self.data = {"device": name, "torch": torch.__version__, "smoke": smoke, "budget_s": budget, "steps": {},
                      "skipped": []}
-        self.done: set[str] = set()
         if resume and (out / "gpu_check.json").is_file():  # a call cut short (the device's time): keep what finished
             old = json.loads((out / "gpu_check.json").read_text())
             self.data["steps"] = {k: v for k, v in old["steps"].items() if "error" not in v}
             self.data["earlier_calls"] = old.get("earlier_calls", []) + [
                 {k: old[k] for k in ("device", "torch", "budget_s") if k in old}]
-            self.done = set(self.data["steps"])
         out.mkdir(parents=True, exist_ok=True)
 
     def left(self) -> float:
         return self.budget - (time.perf_counter() - self.start)
 
     def run(self, name: str, fn, minimum_s: float) -> None:
-        if name in self.done:
+        if name in self.data["steps"]:  # finished by an earlier call (--resume); each step runs once
             return
         if self.left() < minimum_s:
             self.data["skipped"].append(f"{name} (needs {minimum_s:.0f} s, {self.left():.0f} s left)")

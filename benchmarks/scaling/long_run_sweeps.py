@@ -8,8 +8,8 @@ The sweeps' designs are the judge's (``surrogate.run.design_sets``: the data's m
 at four drop heights, drop height 520-990 mm at 0.75 mm). The solver's peaks, each sweep's yield stress and the
 solver's trends are read from the judge's result file, which solved them, so only the model rolls out here (fp32
 weights of RUN's kept checkpoints; the judge's shipped file is fp16). Per checkpoint: the passes of the model alone
-that the solver fails, and the trends that agree with the solver's (sign, size within ``surrogate.run.TREND_SIZE``),
-as the judge counts them. A checkpoint already in ``--out`` is kept, not rolled out again.
+that the solver fails, and the trends that agree with the solver's, counted by the judge's own functions
+(``surrogate.run.unsafe_passes``, ``trend_agrees``). A checkpoint already in ``--out`` is kept, not rolled out again.
 """
 from __future__ import annotations
 
@@ -18,14 +18,13 @@ import json
 import sys
 from pathlib import Path
 
-import numpy as np
 import torch
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))  # benchmarks/: common, surrogate
 from common import RESULTS, write_json  # noqa: E402
 from hcmt.design.check import check_designs  # noqa: E402
 from hcmt.inference.run import Run  # noqa: E402
-from surrogate.run import SWEEPS, TREND_QUANTITIES, TREND_SIZE, design_sets  # noqa: E402
+from surrogate.run import SWEEPS, TREND_QUANTITIES, design_sets, trend_agrees, unsafe_passes  # noqa: E402
 
 
 def judged(model: dict[str, dict[str, list[float]]], judge: dict) -> dict:
@@ -33,15 +32,13 @@ def judged(model: dict[str, dict[str, list[float]]], judge: dict) -> dict:
     (groups ``sweep_<h>`` and ``sweep_height``, quantities :data:`TREND_QUANTITIES`); ``judge``: model_judge.json."""
     unsafe = {}
     for (h, _), (key, s) in zip(SWEEPS, judge["sweeps"].items()):
-        peaks, y = model[f"sweep_{h:g}"]["peak_plate_stress_mpa"], s["yield_mpa"]
-        unsafe[key] = sum(m < y <= t for m, t in zip(peaks, s["solver_peaks"]))
+        unsafe[key] = unsafe_passes(model[f"sweep_{h:g}"]["peak_plate_stress_mpa"], s["solver_peaks"], s["yield_mpa"])
     trends = {}
     for name, per_q in judge["trends"].items():
         trends[name] = {}
         for q in TREND_QUANTITIES:
             v, solver = model[name][q][-1] / model[name][q][0] - 1, per_q[q]["solver"]
-            agrees = bool(np.sign(v) == np.sign(solver) and abs(v / solver - 1) <= TREND_SIZE)
-            trends[name][q] = {"hcmt": v, "solver": solver, "agrees": agrees}
+            trends[name][q] = {"hcmt": v, "solver": solver, "agrees": trend_agrees(v, solver)}
     return {"unsafe": sum(unsafe.values()), "unsafe_by_sweep": unsafe,
             "points": sum(len(s["solver_peaks"]) for s in judge["sweeps"].values()),
             "trends_agree": sum(t["agrees"] for per_q in trends.values() for t in per_q.values()),

@@ -264,9 +264,14 @@ def calls(rows, gp, yield_mpa: float) -> dict:
                       "solver_runs": int(sum(c == "undecided" for c in made)),
                       "minimum": _minimum(thick, [f == "pass" for f in final])}
     model_pass = [r["model"][MODEL]["peak_plate_stress_mpa"] < yield_mpa for r in rows]
-    out["model_alone"] = {"unsafe": int(sum(m and not ok for m, ok in zip(model_pass, solver_pass))),
+    out["model_alone"] = {"unsafe": unsafe_passes(out["model_peaks"], out["solver_peaks"], yield_mpa),
                           "minimum": _minimum(thick, model_pass)}
     return out
+
+
+def unsafe_passes(model_peaks, solver_peaks, yield_mpa: float) -> int:
+    """The points the model alone passes (its peak below the yield stress) and the solver fails (its peak not)."""
+    return int(sum(m < yield_mpa <= t for m, t in zip(model_peaks, solver_peaks)))
 
 
 def _summary(r: dict, g: dict) -> dict:
@@ -334,11 +339,14 @@ def trend(rows, gp) -> dict:
         solver = rows[-1]["solver"][q] / rows[0]["solver"][q] - 1
         got = {"hcmt": rows[-1]["model"][MODEL][q] / rows[0]["model"][MODEL][q] - 1,
                "gp": g1[q].mean / g0[q].mean - 1 if q in g0 else None}
-        out[q] = {"solver": solver, **got, **{
-            f"{k}_agrees": None if v is None else bool(np.sign(v) == np.sign(solver)
-                                                       and abs(v / solver - 1) <= TREND_SIZE)
-            for k, v in got.items()}}
+        out[q] = {"solver": solver, **got,
+                  **{f"{k}_agrees": None if v is None else trend_agrees(v, solver) for k, v in got.items()}}
     return out
+
+
+def trend_agrees(change: float, solver: float) -> bool:
+    """A sweep's relative change agrees with the solver's: the same sign, its size within :data:`TREND_SIZE`."""
+    return bool(np.sign(change) == np.sign(solver) and abs(change / solver - 1) <= TREND_SIZE)
 
 
 def goals(result: dict, groups: dict, gp) -> list[dict]:

@@ -151,9 +151,11 @@ def main() -> None:
                 runs.setdefault((threads, recipe), []).append(got)
                 print(json.dumps(got), flush=True)
     rows = [median_row(r) for r in runs.values()]
+    commit = subprocess.run(["git", "-C", str(Path(__file__).parent), "rev-parse", "--short", "HEAD"],
+                            capture_output=True, text=True).stdout.strip()
     path = write_json(a.json, {"command": "python benchmarks/micro/train_parts.py " + " ".join(sys.argv[1:]),
-                               "cpu": cpu_name(), "device": platform.processor() or platform.machine(),
-                               "core_peak": core_peak(),
+                               "commit": commit, "cpu": cpu_name(),
+                               "device": platform.processor() or platform.machine(), "core_peak": core_peak(),
                                "data": str(a.data), "rows": rows})
     print(f"wrote {path}")
 

@@ -255,7 +255,39 @@ def train_parts(lines):
                      f"({d['core_peak']['derivation']}) the matrix products run at "
                      f"{100 * rate / d['core_peak']['gflops']:.0f} %." if "core_peak" in d else
                      "The run did not record the core's peak (train_parts.py records it since 2026-12-04).")]
+    speed = load("train_speed_cpu.json")
+    if speed:
+        two_x_floor(lines, d, speed)
     lines.append("")
+
+
+def two_x_floor(lines, parts: dict, speed: dict) -> None:
+    """What issue 37's 2× would leave for everything but the kernels: half the old commit's step
+    (train_speed_cpu.json) against the new step's kernel time (train_parts_cpu.json: the matrix products and
+    Inductor's kernels, profiled self time, and Adam)."""
+    old = {(r["recipe"], r["threads"]): statistics.median(x["ms_per_step"] for x in speed["rows"]
+                                                          if x["side"] == "old" and x["recipe"] == r["recipe"]
+                                                          and x["threads"] == r["threads"])
+           for r in speed["summary"]}
+    rows = [(r, old[(r["recipe"], r["threads"])] / 2, r["matmul_ms"] + r["inductor_kernels_ms"] + r["adam"])
+            for r in parts["rows"] if (r["recipe"], r["threads"]) in old]
+    if not rows:
+        return
+    lines += ["", "**What 2× would need.** Half the old commit's step (the table above it, medians of its runs) is the "
+              "step the goal allows; the new step's kernel time (matrix products and Inductor's kernels, their "
+              "profiled self time, and Adam) is what it spends in arithmetic at the kernels' present speed. What is "
+              "left between them is all the goal allows for the rest (the batch, Python, the compiled wrapper, "
+              "autograd), which the new step spends now:", "",
+              "| recipe | threads | old step ms | 2× allows ms | new step ms | its kernel time ms | left for the rest "
+              "ms | the rest now ms |", "|---|---|---|---|---|---|---|---|"]
+    for r, allowed, kernels in rows:
+        lines.append(f"| {RECIPE_NAMES[r['recipe']]} | {r['threads']} | {2 * allowed:.1f} | {allowed:.1f} | "
+                     f"{r['step']:.1f} | {kernels:.1f} | {allowed - kernels:.1f} | {r['step'] - kernels:.1f} |")
+    tight = [r for r, allowed, kernels in rows if allowed - kernels < 0.25 * (r["step"] - kernels)]
+    lines += ["", f"In {len(tight)} of {len(rows)} rows the goal leaves the rest less than a quarter of what it takes "
+              "now: there 2× needs the kernels themselves faster, not less overhead around them. The two timings are "
+              f"separate runs on the same data (train_speed at {speed['commits']['new']}, train_parts at "
+              f"{parts.get('commit', 'an unrecorded commit')}), one after the other."]
 
 
 def defaults(d: dict) -> str:

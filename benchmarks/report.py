@@ -13,7 +13,7 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from accuracy.report import ablations, accuracy, generalization, longer  # noqa: E402
-from common import ROOT  # noqa: E402
+from common import RESULTS, ROOT  # noqa: E402
 from ghost_diagnosis.report import ghost_ablations, ghost_diagnosis  # noqa: E402
 from gpu_check.report import gpu_check, gpu_path  # noqa: E402
 from interval.report import interval  # noqa: E402
@@ -46,8 +46,9 @@ def main() -> None:
     judge_section(lines, load("model_judge.json"))
     transfer_section(lines, load("transfer.json"))
     transfer_given(lines, load("transfer_shipped.json"))
+    judges = [load(p.name) for p in sorted(RESULTS.glob("scaling_judge_step*.json"))]
     scaling_section(lines, load("scaling.json"), load("scaling_long_run.json"),
-                    load("scaling_long_run_sweeps.json"))
+                    load("scaling_long_run_sweeps.json"), [j for j in [load("model_judge.json"), *judges] if j])
     for section in SECTIONS:
         section(lines)
     peers_section(lines, load("peers_cpu.json"))

@@ -86,3 +86,48 @@ def test_the_ghost_bullet_says_when_the_learned_ball_leaves_in_words():
     same = "at the solver's frame in the median"
     assert when(0.0, False) == same and when(0.4, True) == same
     assert when(14.0, True) == "a median 14 frames later" and when(-3.0, False) == "a median 3 frames earlier"
+
+
+def test_another_checkpoint_reuses_the_judges_solver_runs_and_rolls_out_only_the_model(tmp_path, monkeypatch):
+    """``--solver-from``: a group's solver trajectories come from the first judge's cache (verify off: the solver
+    does not run again), the model's from this model; a cache of other designs is refused."""
+    import numpy as np
+
+    import surrogate.run as judge_run
+    from surrogate.run import CACHED, cache_group
+
+    def traj(seed):
+        rng = np.random.default_rng(seed)
+        return SimpleNamespace(world_pos=rng.random((3, 4, 2)), stress=rng.random((3, 4)), mesh_pos=rng.random((4, 2)),
+                               cells=np.arange(6).reshape(2, 3), node_type=np.zeros(4), modulus=np.ones(4),
+                               wall_s=float(seed))
+    calls = []
+
+    def fake_check(run, designs, *, batch, verify, surrogate, progress):
+        calls.append(verify)
+        preds = [traj(10 + i) for i in range(len(designs))]
+        for p, i in zip(preds, range(len(designs))):
+            p.mesh_pos = traj(i).mesh_pos  # the designs' meshes, as the first judge's
+        return SimpleNamespace(preds=preds, truth=[traj(i) for i in range(len(designs))] if verify else None)
+
+    monkeypatch.setattr(judge_run, "check_designs", fake_check)
+    designs = [("a", None), ("b", None)]
+    first = tmp_path / "first"
+    first.mkdir()
+    cache_group(None, "in_range", designs, first, 8)  # the first judge: model and solver
+    assert calls == [True]
+    with np.load(first / "in_range.npz") as z:
+        assert sorted(z.files) == sorted(f"{i}_{k}" for i in range(2) for k in CACHED)
+        solver = {k: z[k] for k in z.files if "solver" in k}
+    second = tmp_path / "second"
+    second.mkdir()
+    path = cache_group(None, "in_range", designs, second, 8, solver_from=first)
+    assert calls == [True, False]  # the solver did not run again
+    with np.load(path) as z:
+        for k, v in solver.items():
+            np.testing.assert_array_equal(z[k], v)
+        np.testing.assert_array_equal(z["1_model_stress"], traj(11).stress)
+        assert z["1_wall"].tolist() == [11.0, 1.0]  # this model's time, the first judge's solver time
+    assert cache_group(None, "in_range", designs, second, 8, solver_from=first) == path and len(calls) == 2  # cached
+    with pytest.raises(SystemExit, match="the group has 3"):
+        cache_group(None, "in_range", designs + [("c", None)], tmp_path, 8, solver_from=first)

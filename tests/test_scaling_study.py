@@ -234,3 +234,31 @@ def test_report_tables_the_sweeps_against_the_budget():
            "trend of the peak (the solver: +12.7 %) |" in text
     assert "| 120,000 | 4 | 8 | +7.6 % |" in text and "| 360,000 | 0 | 10 | +7.6 % |" in text
     assert "met at 1 of 2 kept checkpoints: 360,000." in text and "within 0.13 % of the judge's" in text
+
+
+def _judge(step: int, model: str, values: list) -> dict:
+    """A judge's result file (benchmarks/surrogate/run.py) with the given model values of three goals."""
+    goals = [{"goal": "peak plate stress error, median %", "target": 3.0, "at_least": False},
+             {"goal": "trends with the solver's sign and size (within 30 %), of all", "target": 10, "at_least": True},
+             {"goal": "outside: peak plate stress error, median %", "target": 6.0, "at_least": False}]
+    for g, v in zip(goals, values):
+        g.update(hcmt=v, hcmt_met=v >= g["target"] if g["at_least"] else v <= g["target"])
+    return {"checkpoint_step": step, "model": model, "seeds": {"in_range": 8101, "outside": 8102},
+            "command": f"python benchmarks/surrogate/run.py --checkpoint step_{step}", "goals": goals}
+
+
+def test_report_tables_the_judges_goals_at_other_checkpoints():
+    judges = [_judge(360000, "pretrained:impact_plate_small", [2.75, 9, 7.2]),
+              _judge(240000, "RUN", [2.66, 10, 8.95]), _judge(320000, "RUN", [3.23, 10, 8.96])]
+    lines = []
+    scaling(lines, _budget_study(lambda b: 40.0 * b ** -0.25), None, None, judges)
+    text = "\n".join(lines)
+    assert "| goal | target | step 240,000 | step 320,000 | step 360,000 (shipped, fp16) |" in text  # by step
+    assert "| peak plate stress error, median % | ≤ 3 | 2.66 | **3.23** | 2.75 |" in text  # missed: bold
+    assert "| trends with the solver's sign and size (within 30 %), of all | ≥ 10 | 10 | 10 | **9** |" in text
+    assert "The most goals met at one checkpoint: 2 of 3, at step 240,000." in text
+    assert "Met at none of these checkpoints: outside: peak plate stress error, median %." in text
+    assert "`python benchmarks/surrogate/run.py --checkpoint step_240000`" in text  # the others' commands
+    lines = []
+    scaling(lines, _budget_study(lambda b: 40.0 * b ** -0.25), None, None, judges[:1])
+    assert "other checkpoints" not in "\n".join(lines)  # the shipped one alone: no table

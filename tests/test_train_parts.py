@@ -71,3 +71,33 @@ def test_a_rows_rounds_give_each_numbers_median():
     assert row["step"] == 52.0 and row["batch"] == 5.0 and row["matmul_calls"] == 237.0  # each field on its own
     assert row["recipe"] == "cpu" and row["threads"] == 1 and row["rounds"] == 3
     assert row["step_by_round"] == [50.0, 70.0, 52.0]
+
+
+def test_what_2x_would_need_is_half_the_old_step_less_the_kernels():
+    from speed.report import two_x_floor
+    parts = {"commit": "abc1234", "rows": [
+        {"recipe": "cpu", "threads": 2, "step": 45.0, "batch": 4.4, "adam": 2.5, "matmul_ms": 13.5,
+         "inductor_kernels_ms": 16.0},
+        {"recipe": "ship", "threads": 2, "step": 45.0, "batch": 11.0, "adam": 2.5, "matmul_ms": 14.5,
+         "inductor_kernels_ms": 12.8}]}
+    runs = [("cpu", 72.0), ("cpu", 74.0), ("ship", 67.6), ("new", 40.0)]
+    speed = {"commits": {"old": "c18f6a3", "new": "def5678"},
+             "summary": [{"recipe": "cpu", "threads": 2}, {"recipe": "ship", "threads": 2}],
+             "rows": [{"side": "new" if r == "new" else "old", "recipe": "cpu" if r == "new" else r, "threads": 2,
+                       "ms_per_step": ms} for r, ms in runs]}
+    lines = []
+    two_x_floor(lines, parts, speed)
+    text = "\n".join(lines)
+    # cpu: old median 73.0 -> 36.5 allowed; kernels 13.5 + 16.0 + 2.5 = 32.0; left 4.5 of a rest of 13.0 (35 %)
+    assert "| `impact_plate_cpu` defaults | 2 | 73.0 | 36.5 | 45.0 | 32.0 | 4.5 | 13.0 | 35 % |" in text
+    assert "| the shipped model's recipe | 2 | 67.6 | 33.8 | 45.0 | 29.8 | 4.0 | 15.2 | 26 % |" in text
+    # the batch is all graph building only without pushforward: 4.50 ms left is above its 4.40 ms, so no sentence
+    assert "less than building the batch alone" not in text
+    parts["rows"][0]["batch"] = 4.6
+    lines = []
+    two_x_floor(lines, parts, speed)
+    text = "\n".join(lines)
+    assert "on 2 threads the goal leaves 4.50 ms for everything outside the kernels, less than building the batch " \
+           "alone takes (4.60 ms)" in text
+    assert text.count("less than building") == 1  # not the shipped recipe: its batch includes a forward
+    assert "(train_speed at def5678, train_parts at abc1234)" in text

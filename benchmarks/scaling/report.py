@@ -219,6 +219,38 @@ def _long_run_sweeps(sw: dict) -> list[str]:
     return out + ["", sentences(*said), ""]
 
 
+def _long_run_judges(judges: list[dict]) -> list[str]:
+    """Issue 35 item 5's goals, all of them, at several checkpoints of the long run on the judge's designs (its seeds):
+    the shipped one's model_judge.json and scaling_judge_step*.json (``surrogate/run.py --checkpoint step_N
+    --solver-from``), a column each."""
+    judges = sorted(judges, key=lambda j: j["checkpoint_step"])
+    cols = [f"step {j['checkpoint_step']:,}" + (" (shipped, fp16)" if j["model"].startswith("pretrained:") else "")
+            for j in judges]
+    seeds = {(j["seeds"]["in_range"], j["seeds"]["outside"]) for j in judges}
+    out = ["**The judge's goals at other checkpoints of the long run** (the judge's designs, seeds "
+           + "; ".join(f"{a} and {b}" for a, b in sorted(seeds)) + "; the other checkpoints' commands: "
+           + "; ".join(f"`{j['command']}`" for j in judges if not j["model"].startswith("pretrained:"))
+           + "; a missed goal in bold)", "", "| goal | target | " + " | ".join(cols) + " |",
+           "|---|---|" + "---|" * len(cols)]
+    for k, g in enumerate(judges[0]["goals"]):
+        cells = []
+        for j in judges:
+            row = j["goals"][k]
+            v = f"{row['hcmt']:.3g}" if isinstance(row["hcmt"], float) else f"{row['hcmt']}"
+            cells.append(v if row["hcmt_met"] else f"**{v}**")
+        out.append(f"| {g['goal']} | {'≥' if g['at_least'] else '≤'} {g['target']:g} | " + " | ".join(cells) + " |")
+    met = [sum(r["hcmt_met"] for r in j["goals"]) for j in judges]
+    best = max(range(len(judges)), key=lambda i: met[i])
+    never = [g["goal"] for k, g in enumerate(judges[0]["goals"]) if not any(j["goals"][k]["hcmt_met"] for j in judges)]
+    said = [f"The most goals met at one checkpoint: {met[best]} of {len(judges[0]['goals'])}, at step "
+            f"{judges[best]['checkpoint_step']:,}.",
+            ("Met at none of these checkpoints: " + "; ".join(never) + "." if never else
+             "Every goal is met at one checkpoint or another."),
+            "These designs judged the shipped checkpoint, chosen on the validation split before they were drawn; a "
+            "checkpoint chosen by them would be judged again on designs of seeds not yet used."]
+    return out + ["", sentences(*said), ""]
+
+
 def _goal_budgets(long: dict | None, pts: list[dict], full: int) -> list[str]:
     """Issue 35 item 5: the budget at which the study's HCMT fit against the budget reaches each goal, and beside it
     what the long run's latest run reached at its kept checkpoints (where it did better than the fit, by how much)."""
@@ -265,7 +297,8 @@ def _goal_budgets(long: dict | None, pts: list[dict], full: int) -> list[str]:
     return out + [sentences(*said), ""]
 
 
-def scaling(lines: list[str], r: dict | None, long: dict | None = None, sweeps: dict | None = None) -> None:
+def scaling(lines: list[str], r: dict | None, long: dict | None = None, sweeps: dict | None = None,
+            judges: list[dict] | None = None) -> None:
     lines += [HEADING, ""]
     if not r or not r.get("points"):
         lines += [sentences(
@@ -312,6 +345,8 @@ def scaling(lines: list[str], r: dict | None, long: dict | None = None, sweeps: 
         lines += _long_run_outside(outside)
     if sweeps and sweeps.get("rows"):
         lines += _long_run_sweeps(sweeps)
+    if judges and len(judges) > 1:
+        lines += _long_run_judges(judges)
     if budgets >= MIN_FIT:
         lines += _goal_budgets(long, pts, full)
     axis = [p for p in pts if p["budget"] == r["designs_budget"]]

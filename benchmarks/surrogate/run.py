@@ -20,7 +20,9 @@ sweep (520 → 990 mm in 6 points at thickness 0.75 mm) for the trends.
 Judging a model (issue 35, item 5): ``--seed-in`` / ``--seed-out`` draw the in-range and outside designs from seeds no
 study used (and a WORK of their own: the cache is per group name); ``goals`` in the JSON sets the model's and the
 response surface's numbers (fitted on DATA, the same runs) beside the issue's goals, and ``trends`` the sign and size of
-each sweep's change from its first point to its last, model and response surface against the solver.
+each sweep's change from its first point to its last, model and response surface against the solver. Another
+checkpoint of a run on the same seeds (``--model RUN --checkpoint step_N``, benchmarks/scaling/README.md) needs only
+its own rollouts: ``--solver-from`` names the first judge's WORK, whose solver trajectories it reuses.
 """
 from __future__ import annotations
 
@@ -181,22 +183,51 @@ def _scalars(s: dict) -> dict:
     return {k: s[k] for k in (*SCALARS, "peak_plate_t95_ms", "peak_plate_frame", "peak_plate_t95_frame")}
 
 
-def run_group(run, name: str, designs, work: Path, batch: int, frame_dt: float, gp) -> list[dict]:
-    """Model and solver on a group of designs; their trajectories are cached (``WORK/NAME.npz``), so a rerun
-    (or a change of read-out) reads them instead of solving again."""
+#: a cached design's arrays (``{i}_{key}``)
+CACHED = ("model_pos", "model_stress", "solver_pos", "solver_stress", "mesh_pos", "cells", "node_type", "modulus",
+          "wall")
+
+
+def cache_group(run, name: str, designs, work: Path, batch: int, solver_from: Path | None = None) -> Path:
+    """``WORK/NAME.npz``: the model's and the solver's trajectories of a group of designs, made once (a rerun, or a
+    change of read-out, reads them instead of solving again). ``solver_from``: another judge's WORK on the same
+    designs, whose solver trajectories are taken instead of solving again (only the model rolls out)."""
     path = work / f"{name}.npz"
-    if not path.is_file():
-        t0 = time.perf_counter()
-        check = check_designs(run, designs, batch=batch, verify=True, surrogate=False, progress=False)
-        arrays = {}
-        for i, (p, t) in enumerate(zip(check.preds, check.truth)):
-            arrays.update({f"{i}_model_pos": p.world_pos, f"{i}_model_stress": p.stress, f"{i}_solver_pos": t.world_pos,
-                           f"{i}_solver_stress": t.stress, f"{i}_mesh_pos": p.mesh_pos, f"{i}_cells": p.cells,
-                           f"{i}_node_type": p.node_type, f"{i}_modulus": p.modulus,
-                           f"{i}_wall": np.array([p.wall_s, t.wall_s])})
-        with atomic_path(path) as tmp, open(tmp, "wb") as f:
-            np.savez_compressed(f, **arrays)
-        print(f"  {name}: {len(designs)} designs, model and solver, {time.perf_counter() - t0:.0f} s", flush=True)
+    if path.is_file():
+        return path
+    t0 = time.perf_counter()
+    solved = solver_from / f"{name}.npz" if solver_from is not None else None
+    reuse = solved is not None and solved.is_file()
+    check = check_designs(run, designs, batch=batch, verify=not reuse, surrogate=False, progress=False)
+    arrays = {}
+    if reuse:
+        with np.load(solved) as z:
+            arrays = {k: z[k] for k in z.files}
+        if len(arrays) != len(CACHED) * len(designs):
+            raise SystemExit(f"{solved}: {len(arrays) // len(CACHED)} designs cached, the group has {len(designs)}")
+    for i, p in enumerate(check.preds):
+        if reuse:
+            if not np.array_equal(arrays[f"{i}_mesh_pos"], p.mesh_pos):
+                raise SystemExit(f"{solved}: design {i} is not the group's (another mesh)")
+            arrays.update({f"{i}_model_pos": p.world_pos, f"{i}_model_stress": p.stress,
+                           f"{i}_wall": np.array([p.wall_s, arrays[f"{i}_wall"][1]])})
+            continue
+        t = check.truth[i]
+        arrays.update({f"{i}_model_pos": p.world_pos, f"{i}_model_stress": p.stress, f"{i}_solver_pos": t.world_pos,
+                       f"{i}_solver_stress": t.stress, f"{i}_mesh_pos": p.mesh_pos, f"{i}_cells": p.cells,
+                       f"{i}_node_type": p.node_type, f"{i}_modulus": p.modulus,
+                       f"{i}_wall": np.array([p.wall_s, t.wall_s])})
+    with atomic_path(path) as tmp, open(tmp, "wb") as f:
+        np.savez_compressed(f, **arrays)
+    print(f"  {name}: {len(designs)} designs, model" + (f" (solver from {solved})" if reuse else " and solver")
+          + f", {time.perf_counter() - t0:.0f} s", flush=True)
+    return path
+
+
+def run_group(run, name: str, designs, work: Path, batch: int, frame_dt: float, gp,
+              solver_from: Path | None = None) -> list[dict]:
+    """Model and solver on a group of designs (cached: :func:`cache_group`), each design's record."""
+    path = cache_group(run, name, designs, work, batch, solver_from)
     rows = []
     ends = [iv["contact_end_ms"] for iv in gp.predict([d for _, d in designs])]  # the GP's intervals
     with np.load(path) as z:
@@ -387,6 +418,10 @@ def main() -> None:
     p.add_argument("--data", type=Path, required=True)
     p.add_argument("--work", type=Path, required=True)
     p.add_argument("--model", default="pretrained:impact_plate_small")
+    p.add_argument("--checkpoint", default="best", help="with a run folder as --model: best, checkpoint or step_N "
+                   "(a kept checkpoint, train.keep_every)")
+    p.add_argument("--solver-from", type=Path, help="another judge's --work on the same seeds: its solver "
+                   "trajectories are reused (only the model rolls out)")
     p.add_argument("--threads", type=int, default=1)
     p.add_argument("--batch", type=int, default=8)
     p.add_argument("--large", type=float, default=20.0, help="a peak error above this (%%) is a large one")
@@ -396,7 +431,9 @@ def main() -> None:
     a = p.parse_args()
     torch.set_num_threads(a.threads)
     a.work.mkdir(parents=True, exist_ok=True)
-    run = Run.load(a.model, "cpu")
+    if a.checkpoint != "best" and a.model.startswith("pretrained:"):
+        p.error("--checkpoint: a shipped model has one; pass a run folder as --model")
+    run = Run.load(a.model, "cpu", which=a.checkpoint)
     frame_dt = settings_of(run.meta).frame_dt
     print("fitting the response surfaces", flush=True)
     designs, answers = dataset_answers(a.data, "train")
@@ -405,13 +442,14 @@ def main() -> None:
     gp_fit_s = time.perf_counter() - t0
     print("solver and model on the held-out designs (cached per group)", flush=True)
     sets = design_sets(run, a.seed_in, a.seed_out)
-    groups = {name: run_group(run, name, designs_, a.work, a.batch, frame_dt, gp) for name, designs_ in sets.items()}
+    groups = {name: run_group(run, name, designs_, a.work, a.batch, frame_dt, gp, a.solver_from)
+              for name, designs_ in sets.items()}
     # the tuning set: the dataset's own valid + test designs
     tune = []
     for split in ("valid", "test"):
         held, _ = dataset_answers(a.data, split)
         tune += run_group(run, f"tune_{split}", [(f"{split}_{i}", d) for i, d in enumerate(held)], a.work, a.batch,
-                          frame_dt, gp)
+                          frame_dt, gp, a.solver_from)
     shipped = (Surrogate.load(PRETRAINED_DIR / f"{a.model.split(':', 1)[-1]}.surrogate.json")
                if a.model.startswith("pretrained:") else None)
     X = gp.matrix(designs)

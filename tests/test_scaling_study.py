@@ -262,3 +262,21 @@ def test_report_tables_the_judges_goals_at_other_checkpoints():
     lines = []
     scaling(lines, _budget_study(lambda b: 40.0 * b ** -0.25), None, None, judges[:1])
     assert "other checkpoints" not in "\n".join(lines)  # the shipped one alone: no table
+
+
+def test_report_fits_a_missed_error_goal_against_the_judged_steps():
+    """With three judged checkpoints or more, an error goal the shipped one misses gets its law against the step and
+    the step where that law reaches the goal: error = 60 step^-0.2 reaches 6 at 10^5 steps."""
+    judges = [_judge(s, "pretrained:x" if s == 40000 else "RUN", [2.0, 10, 60.0 * s ** -0.2])
+              for s in (10000, 20000, 40000)]
+    lines = []
+    scaling(lines, _budget_study(lambda b: 40.0 * b ** -0.25), None, None, judges)
+    text = "\n".join(lines)
+    assert "Fitted to the step, \"outside: peak plate stress error, median %\" (3 checkpoints, 7.21-9.51) ∝ " \
+           "step^-0.20, R² 1.00; it would reach 6 at about 1e+05 steps (2.5× the run's last judged step)" in text
+    assert "Fitted to the step, \"peak plate stress" not in text  # met by the shipped one: no fit
+    judges = [_judge(s, "pretrained:x" if s == 40000 else "RUN", [2.0, 10, 6.5 + s / 1e5]) for s in (10000, 20000,
+                                                                                                     40000)]
+    lines = []
+    scaling(lines, _budget_study(lambda b: 40.0 * b ** -0.25), None, None, judges)
+    assert "it does not fall with the step: no budget along this run reaches it." in "\n".join(lines)

@@ -248,7 +248,30 @@ def _long_run_judges(judges: list[dict]) -> list[str]:
              "Every goal is met at one checkpoint or another."),
             "These designs judged the shipped checkpoint, chosen on the validation split before they were drawn; a "
             "checkpoint chosen by them would be judged again on designs of seeds not yet used."]
+    said += _judged_budget(judges)
     return out + ["", sentences(*said), ""]
+
+
+def _judged_budget(judges: list[dict]) -> list[str]:
+    """For each error goal (a median or worst %) that the shipped checkpoint misses: the power law of the error against
+    the checkpoint's step over the judged checkpoints, and the step where it would reach the goal."""
+    shipped = next((j for j in judges if j["model"].startswith("pretrained:")), None)
+    if shipped is None or len(judges) < MIN_FIT:
+        return []
+    said = []
+    last = max(j["checkpoint_step"] for j in judges)
+    for k, g in enumerate(shipped["goals"]):
+        if g["hcmt_met"] or g["at_least"] or "%" not in g["goal"]:
+            continue
+        steps, values = [j["checkpoint_step"] for j in judges], [j["goals"][k]["hcmt"] for j in judges]
+        fit = fit_power_law(steps, values)
+        at = reaches(fit, g["target"])
+        law = (f"Fitted to the step, \"{g['goal']}\" ({len(judges)} checkpoints, {min(values):.2f}-{max(values):.2f}) "
+               f"∝ step^{-fit['k']:.2f}, R² {fit['r2']:.2f}" + (", a loose fit" if fit["r2"] < LOOSE else ""))
+        said.append(law + (f"; it would reach {g['target']:g} at about {at:.2g} steps ({at / last:.1f}× the run's "
+                           f"last judged step) if that law holds, an extrapolation." if at is not None else
+                           "; it does not fall with the step: no budget along this run reaches it."))
+    return said
 
 
 def _goal_budgets(long: dict | None, pts: list[dict], full: int) -> list[str]:

@@ -253,17 +253,25 @@ def _long_run_judges(judges: list[dict]) -> list[str]:
 
 
 def _judged_budget(judges: list[dict]) -> list[str]:
-    """For each error goal (a median or worst %) that the shipped checkpoint misses: the power law of the error against
-    the checkpoint's step over the judged checkpoints, and the step where it would reach the goal."""
+    """For each goal the shipped checkpoint misses: an error (a median or worst %), the power law of the error against
+    the checkpoint's step over the judged checkpoints and the step where it would reach the goal; a count (trends,
+    unsafe passes), the judged steps where it is met, or its value at each."""
     shipped = next((j for j in judges if j["model"].startswith("pretrained:")), None)
     if shipped is None or len(judges) < MIN_FIT:
         return []
     said = []
     last = max(j["checkpoint_step"] for j in judges)
     for k, g in enumerate(shipped["goals"]):
-        if g["hcmt_met"] or g["at_least"] or "%" not in g["goal"]:
+        if g["hcmt_met"]:
             continue
         steps, values = [j["checkpoint_step"] for j in judges], [j["goals"][k]["hcmt"] for j in judges]
+        if g["at_least"] or "%" not in g["goal"]:  # a count: where it is met, or how it went
+            met = [f"{j['checkpoint_step']:,}" for j in judges if j["goals"][k]["hcmt_met"]]
+            said.append(f"\"{g['goal']}\" is met at step{'s' * (len(met) > 1)} {', '.join(met)} of these, not at "
+                        f"the shipped {shipped['checkpoint_step']:,}." if met else
+                        f"\"{g['goal']}\" is met at none of these: " + ", ".join(
+                            f"{v:g} at {s:,}" for s, v in zip(steps, values)) + ".")
+            continue
         fit = fit_power_law(steps, values)
         at = reaches(fit, g["target"])
         law = (f"Fitted to the step, \"{g['goal']}\" ({len(judges)} checkpoints, {min(values):.2f}-{max(values):.2f}) "

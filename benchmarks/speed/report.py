@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import statistics
 
+import report_common
 from micro.train_speed import RECIPES
 from report_common import (
     GOAL_NODES,
@@ -256,7 +257,7 @@ def train_parts(lines):
                      f"({d['core_peak']['derivation']}) the matrix products run at "
                      f"{100 * rate / d['core_peak']['gflops']:.0f} %." if "core_peak" in d else
                      "The run did not record the core's peak (train_parts.py records it since 2026-12-04).")]
-    speed = load("train_speed_cpu.json")
+    speed = report_common.load("train_speed_cpu.json")  # looked up as opened() does (tests stand in for it)
     if speed:
         two_x_floor(lines, d, speed)
     lines.append("")

@@ -43,12 +43,13 @@ SECTIONS = (recipe, interval, threads, parity, propagation, accuracy, longer, gh
 def main() -> None:
     lines = ["# Results", "", INTRO, ""]
     surrogate_section(lines, load("surrogate.json"))
-    judge_section(lines, load("model_judge.json"))
+    judge = load("model_judge.json")
+    judge_section(lines, judge)
     transfer_section(lines, load("transfer.json"))
     transfer_given(lines, load("transfer_shipped.json"))
     judges = [load(p.name) for p in sorted(RESULTS.glob("scaling_judge_step*.json"))]
     scaling_section(lines, load("scaling.json"), load("scaling_long_run.json"),
-                    load("scaling_long_run_sweeps.json"), [j for j in [load("model_judge.json"), *judges] if j])
+                    load("scaling_long_run_sweeps.json"), [j for j in [judge, *judges] if j])
     for section in SECTIONS:
         section(lines)
     peers_section(lines, load("peers_cpu.json"))

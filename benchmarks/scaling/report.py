@@ -219,17 +219,22 @@ def _long_run_sweeps(sw: dict) -> list[str]:
     return out + ["", sentences(*said), ""]
 
 
+def _shipped(judge: dict) -> bool:
+    """A judge's result file of the shipped model (``--model pretrained:NAME``), not of a run's checkpoint."""
+    return judge["model"].startswith("pretrained:")
+
+
 def _long_run_judges(judges: list[dict]) -> list[str]:
     """Issue 35 item 5's goals, all of them, at several checkpoints of the long run on the judge's designs (its seeds):
     the shipped one's model_judge.json and scaling_judge_step*.json (``surrogate/run.py --checkpoint step_N
     --solver-from``), a column each."""
     judges = sorted(judges, key=lambda j: j["checkpoint_step"])
-    cols = [f"step {j['checkpoint_step']:,}" + (" (shipped, fp16)" if j["model"].startswith("pretrained:") else "")
+    cols = [f"step {j['checkpoint_step']:,}" + (" (shipped, fp16)" if _shipped(j) else "")
             for j in judges]
     seeds = {(j["seeds"]["in_range"], j["seeds"]["outside"]) for j in judges}
     out = ["**The judge's goals at other checkpoints of the long run** (the judge's designs, seeds "
            + "; ".join(f"{a} and {b}" for a, b in sorted(seeds)) + "; the other checkpoints' commands: "
-           + "; ".join(f"`{j['command']}`" for j in judges if not j["model"].startswith("pretrained:"))
+           + "; ".join(f"`{j['command']}`" for j in judges if not _shipped(j))
            + "; a missed goal in bold)", "", "| goal | target | " + " | ".join(cols) + " |",
            "|---|---|" + "---|" * len(cols)]
     for k, g in enumerate(judges[0]["goals"]):
@@ -256,7 +261,7 @@ def _judged_budget(judges: list[dict]) -> list[str]:
     """For each goal the shipped checkpoint misses: an error (a median or worst %), the power law of the error against
     the checkpoint's step over the judged checkpoints and the step where it would reach the goal; a count (trends,
     unsafe passes), the judged steps where it is met, or its value at each."""
-    shipped = next((j for j in judges if j["model"].startswith("pretrained:")), None)
+    shipped = next((j for j in judges if _shipped(j)), None)
     if shipped is None or len(judges) < MIN_FIT:
         return []
     said = []

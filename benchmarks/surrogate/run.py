@@ -209,14 +209,14 @@ def cache_group(run, name: str, designs, work: Path, batch: int, solver_from: Pa
         if reuse:
             if not np.array_equal(arrays[f"{i}_mesh_pos"], p.mesh_pos):
                 raise SystemExit(f"{solved}: design {i} is not the group's (another mesh)")
-            arrays.update({f"{i}_model_pos": p.world_pos, f"{i}_model_stress": p.stress,
-                           f"{i}_wall": np.array([p.wall_s, arrays[f"{i}_wall"][1]])})
-            continue
-        t = check.truth[i]
-        arrays.update({f"{i}_model_pos": p.world_pos, f"{i}_model_stress": p.stress, f"{i}_solver_pos": t.world_pos,
-                       f"{i}_solver_stress": t.stress, f"{i}_mesh_pos": p.mesh_pos, f"{i}_cells": p.cells,
-                       f"{i}_node_type": p.node_type, f"{i}_modulus": p.modulus,
-                       f"{i}_wall": np.array([p.wall_s, t.wall_s])})
+            solver_wall = arrays[f"{i}_wall"][1]
+        else:
+            t = check.truth[i]
+            arrays.update({f"{i}_solver_pos": t.world_pos, f"{i}_solver_stress": t.stress, f"{i}_mesh_pos": p.mesh_pos,
+                           f"{i}_cells": p.cells, f"{i}_node_type": p.node_type, f"{i}_modulus": p.modulus})
+            solver_wall = t.wall_s
+        arrays.update({f"{i}_model_pos": p.world_pos, f"{i}_model_stress": p.stress,
+                       f"{i}_wall": np.array([p.wall_s, solver_wall])})
     with atomic_path(path) as tmp, open(tmp, "wb") as f:
         np.savez_compressed(f, **arrays)
     print(f"  {name}: {len(designs)} designs, model" + (f" (solver from {solved})" if reuse else " and solver")

@@ -32,8 +32,9 @@ def test_readme_api_example_runs_twice_in_a_row(tmp_path, monkeypatch):
 def test_train_api_refuses_a_held_folder_in_python_words(tmp_path):
     (tmp_path / "run").mkdir()
     (tmp_path / "run" / "run.yaml").write_text("x: 1\n")
+    data = impact_dataset(tmp_path / "data", n_test=1)  # the arguments are checked first, then the folder
     with pytest.raises(ValueError, match=r"resume=True.*overwrite=True") as exc:
-        hcmt.train("impact_plate_cpu", tmp_path / "nodata", "hcmt", tmp_path / "run")
+        hcmt.train("impact_plate_cpu", data, "hcmt", tmp_path / "run")
     assert "--" not in str(exc.value)
 
 

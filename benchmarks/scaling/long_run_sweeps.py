@@ -9,7 +9,8 @@ at four drop heights, drop height 520-990 mm at 0.75 mm). The solver's peaks, ea
 solver's trends are read from the judge's result file, which solved them, so only the model rolls out here (fp32
 weights of RUN's kept checkpoints; the judge's shipped file is fp16). Per checkpoint: the passes of the model alone
 that the solver fails, and the trends that agree with the solver's, counted by the judge's own functions
-(``surrogate.run.unsafe_passes``, ``trend_agrees``). A checkpoint already in ``--out`` is kept, not rolled out again.
+(``surrogate.run.unsafe_passes``, ``hcmt.design.sweep.trends_agree``). A checkpoint already in ``--out`` is kept,
+not rolled out again.
 """
 from __future__ import annotations
 
@@ -23,8 +24,9 @@ import torch
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))  # benchmarks/: common, surrogate
 from common import RESULTS, write_json  # noqa: E402
 from hcmt.design.check import check_designs  # noqa: E402
+from hcmt.design.sweep import trends_agree  # noqa: E402
 from hcmt.inference.run import Run  # noqa: E402
-from surrogate.run import SWEEPS, TREND_QUANTITIES, design_sets, trend_agrees, unsafe_passes  # noqa: E402
+from surrogate.run import SWEEPS, TREND_QUANTITIES, design_sets, unsafe_passes  # noqa: E402
 
 
 def judged(model: dict[str, dict[str, list[float]]], judge: dict) -> dict:
@@ -38,7 +40,7 @@ def judged(model: dict[str, dict[str, list[float]]], judge: dict) -> dict:
         trends[name] = {}
         for q in TREND_QUANTITIES:
             v, solver = model[name][q][-1] / model[name][q][0] - 1, per_q[q]["solver"]
-            trends[name][q] = {"hcmt": v, "solver": solver, "agrees": trend_agrees(v, solver)}
+            trends[name][q] = {"hcmt": v, "solver": solver, "agrees": trends_agree(v, solver)}
     return {"unsafe": sum(unsafe.values()), "unsafe_by_sweep": unsafe,
             "points": sum(len(s["solver_peaks"]) for s in judge["sweeps"].values()),
             "trends_agree": sum(t["agrees"] for per_q in trends.values() for t in per_q.values()),

@@ -61,6 +61,7 @@ from hcmt.design.readout import (
     summarize_fields,
 )
 from hcmt.design.surrogate import QUANTITIES, Z95, Surrogate, dataset_answers  # noqa: E402
+from hcmt.design.sweep import trends_agree  # noqa: E402
 from hcmt.files import atomic_path  # noqa: E402
 from hcmt.inference.quantities import contact_gap, contact_window, ghost_ratio, plate_mask  # noqa: E402
 from hcmt.inference.run import Run  # noqa: E402
@@ -354,15 +355,13 @@ def rates(flags, big) -> dict:
             "false_alarm_rate": float((flags & ~big).sum() / (~big).sum()) if (~big).any() else None}
 
 
-#: a trend agrees when its sign is the solver's and its size is within this share of the solver's (issue 35 item 5)
-TREND_SIZE = 0.30
 TREND_QUANTITIES = ("peak_plate_stress_mpa", "max_deflection_mm")
 
 
 def trend(rows, gp) -> dict:
     """Per quantity: the relative change from a sweep's first point to its last, solver, model (default read-out)
-    and the GP's mean, and whether the model's and the GP's agree with the solver's (sign, size within
-    :data:`TREND_SIZE`)."""
+    and the GP's mean, and whether the model's and the GP's agree with the solver's
+    (:func:`hcmt.design.sweep.trends_agree`: sign, size within 30 %)."""
     ends = [Design(**rows[0]["design"]), Design(**rows[-1]["design"])]
     g0, g1 = gp.predict(ends)
     out = {}
@@ -371,13 +370,8 @@ def trend(rows, gp) -> dict:
         got = {"hcmt": rows[-1]["model"][MODEL][q] / rows[0]["model"][MODEL][q] - 1,
                "gp": g1[q].mean / g0[q].mean - 1 if q in g0 else None}
         out[q] = {"solver": solver, **got,
-                  **{f"{k}_agrees": None if v is None else trend_agrees(v, solver) for k, v in got.items()}}
+                  **{f"{k}_agrees": None if v is None else trends_agree(v, solver) for k, v in got.items()}}
     return out
-
-
-def trend_agrees(change: float, solver: float) -> bool:
-    """A sweep's relative change agrees with the solver's: the same sign, its size within :data:`TREND_SIZE`."""
-    return bool(np.sign(change) == np.sign(solver) and abs(change / solver - 1) <= TREND_SIZE)
 
 
 def goals(result: dict, groups: dict, gp) -> list[dict]:

@@ -69,8 +69,14 @@ _LAZY = {
 
 
 def load_pretrained(name: str, device: str | None = None) -> Run:
-    """The shipped model ``name`` (e.g. ``impact_plate_small``) as a :class:`hcmt.Run`; ``hcmt models`` lists
-    them. Loaded from the package, never downloaded."""
+    """The shipped model ``name`` (e.g. ``impact_plate_small``; ``pretrained:impact_plate_small`` too) as a
+    :class:`hcmt.Run`; ``hcmt models`` lists them. Loaded from the package, never downloaded."""
+    if not isinstance(name, str) or not name.strip():
+        from hcmt.errors import InputError, clip
+        from hcmt.sim.params import a_type
+        raise InputError(f"expected a shipped model's name as text, e.g. 'impact_plate_small' (`hcmt models` lists "
+                         f"them), got {clip(repr(name))} ({a_type(name)})", param="name")
+    name = name.strip().removeprefix("pretrained:")
     return __getattr__("Run").load(f"pretrained:{name}", device)
 
 

@@ -1,11 +1,15 @@
 """YAML configs: built-in ones by name (``src/hcmt/configs/NAME.yaml``, also reachable as ``configs/``), or a
-file path. A config may name a ``base`` config whose values it overrides. Any key can be overridden from the
-command line as ``section.key=value`` (the value is parsed as YAML: ``train.lr=3e-4``, ``model.levels=4``)."""
+file path. A config may name a ``base`` config whose values it overrides: a built-in config's name, or a path read
+from the folder of the file naming it; a chain that returns to a file is refused. Files are read as YAML 1.1 with
+YAML 1.2's floats (``lr: 1e-3`` is a number) and without duplicate keys (refused, both lines named). Any key can be
+overridden from the command line as ``section.key=value`` (the value is parsed as YAML: ``train.lr=3e-4``,
+``model.levels=4``)."""
 from __future__ import annotations
 
 import copy
 import difflib
 import os
+import re
 from dataclasses import asdict, dataclass, field, fields
 from pathlib import Path
 from typing import Optional, get_args, get_origin, get_type_hints
@@ -49,19 +53,88 @@ def builtin_configs() -> list[str]:
     return sorted(p.stem for p in CONFIG_DIR.glob("*.yaml"))
 
 
-def _read(name_or_path: str, within: str | None = None) -> dict:
-    """A config file's keys, its ``base`` chain merged (``within``: the file naming ``name_or_path`` as its base)."""
-    path = Path(name_or_path)
-    if not path.is_file():
-        path = CONFIG_DIR / f"{name_or_path}.yaml"
-    if not path.is_file():
-        raise InputError(f"{clip(name_or_path)!r}{f' (the base of {within})' if within else ''}: neither a file nor "
-                         f"a built-in config ({', '.join(builtin_configs())})",
-                         param=None if within else "name_or_path")
+class _Loader(yaml.SafeLoader):
+    """PyYAML's safe loader (YAML 1.1) with YAML 1.2's floats, ``1e-3``, ``1E-3`` and ``-.5`` (1.1 reads the first
+    two as strings), and duplicate keys refused (1.1 keeps the last silently): :func:`load_yaml`."""
+
+
+_Loader.add_implicit_resolver(
+    "tag:yaml.org,2002:float",
+    re.compile(r"^[-+]?(?:[0-9][0-9_]*(?:\.[0-9_]*)?[eE][-+]?[0-9]+|\.[0-9][0-9_]*(?:[eE][-+]?[0-9]+)?)$"),
+    list("-+0123456789."))
+
+
+def load_yaml(text: str, where: str):
+    """``text`` read as YAML (:class:`_Loader`); a key given twice in one mapping is refused in one line naming
+    ``where`` (``config FILE``), the key (``train.steps``) and both lines."""
+    loader = _Loader(text)
     try:
-        data = yaml.safe_load(path.read_text(encoding="utf-8")) or {}
+        node = loader.get_single_node()
+        if node is None:
+            return None
+        _no_twice(node, (), where, set())
+        return loader.construct_document(node)
+    finally:
+        loader.dispose()
+
+
+def _no_twice(node, path: tuple, where: str, seen: set) -> None:
+    if id(node) in seen:  # an alias: checked where its anchor stands
+        return
+    seen.add(id(node))
+    if isinstance(node, yaml.SequenceNode):
+        for i, item in enumerate(node.value):
+            _no_twice(item, (*path, f"[{i}]"), where, seen)
+    if not isinstance(node, yaml.MappingNode):
+        return
+    lines: dict = {}
+    for key, value in node.value:
+        name = key.value if isinstance(key, yaml.ScalarNode) else None
+        if name is not None and key.tag != "tag:yaml.org,2002:merge":
+            if (key.tag, name) in lines:
+                dotted = ".".join((*path, str(name))).replace(".[", "[")
+                raise InputError(f"{where}: key {clip(dotted)} given twice, lines {lines[key.tag, name]} and "
+                                 f"{key.start_mark.line + 1}; keep one")
+            lines[key.tag, name] = key.start_mark.line + 1
+        _no_twice(value, (*path, str(name)), where, seen)
+
+
+def _locate(name_or_path, within: Path | None) -> Path:
+    """The file a config name or path means: a path (a ``base``'s from the folder of the config naming it,
+    ``within``), else a built-in config's name."""
+    if not isinstance(name_or_path, (str, os.PathLike)) or not str(name_or_path).strip():
+        if within is not None:
+            raise InputError(f"config {within}: base: got {clip(repr(name_or_path))}; expected a built-in config's "
+                             "name or a YAML path (from this file's folder)")
+        raise InputError(f"expected a built-in config's name or a YAML path, got {clip(repr(name_or_path))}",
+                         param="name_or_path")
+    path = Path(name_or_path)
+    if within is not None and not path.is_absolute():
+        path = within.parent / path
+    if path.is_file():
+        return path
+    if str(name_or_path) in builtin_configs():
+        return CONFIG_DIR / f"{name_or_path}.yaml"
+    where = f" (the base of {within}, looked for in {within.parent})" if within else ""
+    raise InputError(f"{clip(str(name_or_path))!r}{where}: neither a file nor a built-in config "
+                     f"({', '.join(builtin_configs())})", param=None if within else "name_or_path")
+
+
+def _read(name_or_path, within: Path | None = None, chain: tuple = ()) -> dict:
+    """A config file's keys, its ``base`` chain merged (``within``: the file naming ``name_or_path`` as its base;
+    ``chain``: the files read so far on the way, (resolved, as shown), whose return is a loop, refused)."""
+    path = _locate(name_or_path, within)
+    key = path.resolve()
+    if any(key == k for k, _ in chain):
+        raise InputError(_loop([*chain, (key, path)]))
+    chain = (*chain, (key, path))
+    try:
+        data = load_yaml(path.read_text(encoding="utf-8"), f"config {path}") or {}
     except UnicodeDecodeError:
         raise InputError(f"config {path}: not a text file (not UTF-8)") from None
+    except RecursionError:  # YAML's reader recurses per level
+        raise InputError(f"config {path}: nested too deeply for a config (its sections hold keys, one level)") \
+            from None
     except yaml.YAMLError as exc:
         mark = getattr(exc, "problem_mark", None)
         where = f" line {mark.line + 1}, column {mark.column + 1}" if mark else ""
@@ -70,7 +143,35 @@ def _read(name_or_path: str, within: str | None = None) -> dict:
         raise InputError(f"config {path}: expected a mapping at top level")
     base = data.pop("base", None)
     check_schema(data, str(path))
-    return merge(_read(base, str(path)), data) if base else data
+    return merge(_read(base, path, chain), data) if base is not None else data
+
+
+def _loop(chain: list) -> str:
+    """The message of a ``base`` chain that returns to a file read before: the files of the loop, each after the
+    first named from the first's folder where it lies there."""
+    start = next(i for i, (k, _) in enumerate(chain) if k == chain[-1][0])
+    loop = [p for _, p in chain[start:]]
+    home = loop[0].resolve().parent
+
+    def short(p: Path) -> str:
+        return str(p.resolve().relative_to(home)) if p.resolve().is_relative_to(home) else str(p)
+
+    names = " -> ".join([str(loop[0]), *(short(p) for p in loop[1:])])
+    return (f"config {loop[0]}: its base chain is a loop, {names}; each file names the next as its `base`: remove "
+            "or change one of them")
+
+
+def set_in(name_or_path, key: str) -> str | None:
+    """The config of ``name_or_path``'s ``base`` chain whose file sets the top-level ``key`` (a built-in one by its
+    name), or None: for messages, on a chain :func:`load_config` has read already."""
+    path = _locate(name_or_path, None)
+    while True:
+        data = load_yaml(path.read_text(encoding="utf-8"), f"config {path}") or {}
+        if key in data:
+            return path.stem if path.parent == CONFIG_DIR else str(path)
+        if data.get("base") is None:
+            return None
+        path = _locate(data["base"], path)
 
 
 def merge(base: dict, over: dict) -> dict:
@@ -88,25 +189,26 @@ def parse_value(raw: str):
         except ValueError:
             pass
     try:
-        return yaml.safe_load(raw)
+        return load_yaml(raw, f"the value {clip(raw)!r}")
     except yaml.YAMLError as exc:
         raise InputError(f"the value {clip(raw)!r} is not a YAML value ({getattr(exc, 'problem', None) or exc})") \
             from None
 
 
-def load_config(name_or_path: str, overrides: list[str] | None = None) -> "Config":
+def load_config(name_or_path: str | os.PathLike, overrides: list[str] | str | None = None) -> "Config":
     """A config by name or path, its ``base`` chain merged, then ``section.key=value`` overrides
     (:func:`apply_overrides`), as a complete :class:`Config`; every key and value checked against the schema (one
     line naming the file or the override, the key, what was expected; a bad override is an :class:`InputError`
-    of the parameter ``overrides``, which ``hcmt train`` words as its ``--set``)."""
-    return Config.from_dict(apply_overrides(_read(name_or_path), overrides), name_or_path)
+    of the parameter ``overrides``, which ``hcmt train`` words as its ``--set``). A ``base`` path is read from the
+    folder of the file naming it; one string of overrides is one item (``"train.steps=20"``)."""
+    return Config.from_dict(apply_overrides(_read(name_or_path), overrides), str(name_or_path))
 
 
 def apply_overrides(cfg: dict, overrides: list[str] | None) -> dict:
     """``cfg`` (a copy) with ``section.key=value`` items applied, each checked against the schema first (the one
     path of every override, ``hcmt train --set`` for a new run and for ``--resume``)."""
     cfg = copy.deepcopy(cfg)
-    for item in overrides or []:
+    for item in override_list(overrides):
         try:
             key, sep, raw = str(item).partition("=")
             if not sep or not key:
@@ -121,6 +223,19 @@ def apply_overrides(cfg: dict, overrides: list[str] | None) -> dict:
             node = node.setdefault(p, {})
         node[leaf] = value
     return cfg
+
+
+def override_list(overrides) -> list:
+    """``overrides`` as a list: None is none, and one string is one item (``"train.steps=20"``; never its
+    characters); a list or tuple as it is; anything else refused in one line."""
+    if overrides is None:
+        return []
+    if isinstance(overrides, str):
+        return [overrides]
+    if isinstance(overrides, (list, tuple)):
+        return list(overrides)
+    raise InputError(f"expected a list of section.key=value strings, got {type(overrides).__name__} "
+                     f"{clip(repr(overrides))}", param="overrides")
 
 
 def _nest(keys: list[str], value):
@@ -326,7 +441,26 @@ def as_config(config, overrides: list[str] | None = None) -> Config:
         return config.with_overrides(overrides)
     if isinstance(config, dict):
         return Config.from_dict(apply_overrides(config, overrides))
-    return load_config(str(config), overrides)
+    if not isinstance(config, (str, os.PathLike)):
+        raise InputError(f"expected a Config, a config mapping, a built-in config's name or a YAML path, got "
+                         f"{clip(repr(config))}", param="config")
+    return load_config(config, overrides)
+
+
+def check_same_dataset(dataset: str | None, meta: dict, data, source: str, origin: str | None = None) -> None:
+    """Refuse ``data`` of another dataset than ``dataset`` (a config's or a trained run's): meta.json's own
+    ``dataset`` (``hcmt generate`` writes it; a dataset that names none, converted, is not checked), in one line
+    naming ``source`` (``config FILE``, ``run RUN``; ``origin``: what set it, ``its base NAME`` (:func:`set_in`), ``an
+    override``), both datasets and the configs of the data's one."""
+    theirs = meta.get("dataset") if isinstance(meta, dict) else None
+    if dataset is None or theirs is None or theirs == dataset:
+        return
+    fits = [n for n in builtin_configs() if n.startswith(str(theirs))]
+    hint = f" (built-in: {', '.join(fits[:3])})" if source.startswith("config") and fits else ""
+    where = f" (set by {origin})" if origin else ""
+    raise InputError(f"{source}: dataset {dataset}{where}, but {Path(data) / 'meta.json'} holds dataset "
+                     f"{clip(str(theirs))}; expected data of dataset {dataset}"
+                     + (f", or a config of dataset {theirs}{hint}" if source.startswith("config") else ""))
 
 
 def _ok(kind: str, value) -> bool:
@@ -421,6 +555,69 @@ def plural(n: int, word: str, many: str | None = None) -> str:
 def machine_cores() -> int:
     """The CPU cores this process may run on: the bound of ``--threads`` and ``--workers``."""
     return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
+
+
+#: the torch thread counts hcmt set in this process: ``chosen``, a command's ``--threads`` (:func:`set_threads`);
+#: ``auto``, the Python API's default (:func:`default_threads`)
+_THREADS: dict[str, int] = {}
+
+
+def auto_threads() -> int:
+    """The CPU cores not already busy: cores minus the 1-minute load average (at least 1). On a machine whose other
+    cores run another job this is 1 thread, never the oversubscribed default that made a design take 10x longer
+    (docs/RESULTS.md, "Threads")."""
+    cores = machine_cores()
+    try:
+        busy = os.getloadavg()[0]
+    except OSError:  # no load average on this platform
+        busy = 0.0
+    return max(1, min(cores, int(cores - busy + 0.5)))
+
+
+def set_threads(threads: int | str) -> int:
+    """Apply ``--threads`` (1 to the machine's cores, or ``auto``: refused above by its parser) to torch's intra-op
+    pool; returns the number set. The API keeps it (:func:`default_threads`)."""
+    import torch  # heavy: loaded only by what computes (this module stays light: `hcmt --help` stays fast)
+
+    n = auto_threads() if threads == "auto" else int(threads)
+    torch.set_num_threads(n)
+    _THREADS["chosen"] = n
+    return n
+
+
+def default_threads() -> int:
+    """The Python API's torch threads (``hcmt.train``, ``hcmt.evaluate``, ``hcmt.predict_designs``): the command's
+    default, :func:`auto_threads`, applied to torch unless the caller chose a count: ``OMP_NUM_THREADS`` or
+    ``MKL_NUM_THREADS`` set, a command's ``--threads`` (:func:`set_threads`), or ``torch.set_num_threads`` called
+    with a count other than torch's own start value (:func:`_torch_start_counts`). Chosen once per process, as a
+    command chooses at its start (two calls of one script compute alike). Returns the count in use."""
+    import torch  # loaded already by the API that calls this
+
+    now = torch.get_num_threads()
+    if now in (_THREADS.get("chosen"), _THREADS.get("auto")) or any(
+            os.environ.get(v) for v in ("OMP_NUM_THREADS", "MKL_NUM_THREADS")):
+        return now  # a command's --threads, this default chosen before, or the environment's
+    if now not in _torch_start_counts():
+        return now  # the caller's torch.set_num_threads
+    n = auto_threads()
+    if n != now:
+        torch.set_num_threads(n)
+    _THREADS["auto"] = n
+    return n
+
+
+def _torch_start_counts() -> set[int]:
+    """The thread counts torch may start with here: OpenMP's, the CPUs this process may run on; MKL's and torch's
+    own pool's, their physical cores (read on Linux; elsewhere the CPUs only: a count not recognized is kept)."""
+    cpus = os.sched_getaffinity(0) if hasattr(os, "sched_getaffinity") else range(os.cpu_count() or 1)
+    cores = set()
+    for cpu in cpus:
+        top = Path(f"/sys/devices/system/cpu/cpu{cpu}/topology")
+        try:
+            cores.add(((top / "physical_package_id").read_text().strip(), (top / "core_id").read_text().strip()))
+        except OSError:
+            cores.add(("", str(cpu)))  # no topology: counted as a core of its own
+    return {len(cpus), len(cores), os.cpu_count() or 1}
 
 
 def available_pretrained() -> dict[str, Path]:

@@ -1,15 +1,18 @@
 """Files written safely, the ground floor every layer may use: :func:`atomic_path` (write to a temporary file, then
 rename: nothing half-written), :func:`check_apart` (no output on an input, or in a folder a command reads),
 :func:`undo_on_error` (a failed command leaves none of its new files), :func:`take_lock` (one writer per run folder
-or study row), :func:`ensure_space` (refuse a write the disk cannot hold, before HDF5 tries) and :func:`read_json`
-(a damaged file is one line)."""
+or study row), :func:`folder_lock` and :func:`lock_holder` (one ``hcmt generate`` per dataset folder, and whether
+one is writing it), :func:`ensure_space` (refuse a write the disk cannot hold, before HDF5 tries) and
+:func:`read_json` (a damaged file is one line)."""
 from __future__ import annotations
 
 import errno
+import fcntl
 import json
 import os
 import shutil
 import tempfile
+import time
 from contextlib import contextmanager
 from pathlib import Path
 from typing import Iterator
@@ -139,3 +142,57 @@ def ensure_space(path: str | os.PathLike, nbytes: int, margin: int = 1 << 20) ->
     if free < nbytes + margin:
         raise OSError(errno.ENOSPC, f"No space left on device ({free / 1e6:.1f} MB free, about "
                                     f"{(nbytes + margin) / 1e6:.1f} MB needed)", str(path))
+
+
+def lock_holder(lock: str | os.PathLike) -> int | None:
+    """The pid held in ``lock`` while a process holds it (:func:`folder_lock`), else None (no lock file, or one left
+    by a process that has ended: ``flock`` is released with its process). Never creates the file."""
+    try:
+        fd = os.open(lock, os.O_RDONLY)
+    except OSError:
+        return None
+    try:
+        try:
+            fcntl.flock(fd, fcntl.LOCK_SH | fcntl.LOCK_NB)
+        except BlockingIOError:
+            text = os.pread(fd, 32, 0).decode(errors="replace").strip()
+            return int(text) if text.isdigit() else 0
+        fcntl.flock(fd, fcntl.LOCK_UN)
+        return None
+    finally:
+        os.close(fd)
+
+
+@contextmanager
+def folder_lock(lock: str | os.PathLike, busy) -> Iterator[None]:
+    """Hold ``lock`` (``fcntl.flock``, exclusive, this process's pid written in it) for the block, then remove it.
+    A lock held by a live process raises ``busy(pid)``; one left by a killed process blocks nothing (the kernel
+    released it). The file is removed while still held, and a lock taken on a file that was meanwhile removed is
+    taken again on the new one, so two processes never both hold it."""
+    lock = Path(lock)
+    while True:
+        fd = os.open(lock, os.O_RDWR | os.O_CREAT, 0o644)
+        for attempt in range(5):  # a reader's brief look (lock_holder) is waited out
+            try:
+                fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+                break
+            except BlockingIOError:
+                if attempt == 4:
+                    text = os.pread(fd, 32, 0).decode(errors="replace").strip()
+                    os.close(fd)
+                    raise busy(int(text) if text.isdigit() else 0) from None
+                time.sleep(0.02)
+        try:
+            same = os.path.samestat(os.fstat(fd), os.stat(lock))
+        except FileNotFoundError:
+            same = False
+        if same:
+            break
+        os.close(fd)  # removed by the holder that just ended: take the new file's lock
+    try:
+        os.ftruncate(fd, 0)
+        os.pwrite(fd, str(os.getpid()).encode(), 0)
+        yield
+    finally:
+        lock.unlink(missing_ok=True)
+        os.close(fd)

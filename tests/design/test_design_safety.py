@@ -52,7 +52,7 @@ def _one_line_error(capsys, rc):
 @pytest.mark.parametrize("text,message", [
     ("name,thickness,drop_height\na,0.8,900\nb,0.8,\n", "line 3, column 3 (drop_height): missing value"),
     ("name,thickness,drop_height\na,0.8,900,5\n", "line 2: 4 values for 3 columns"),
-    ("name,thickness\na,0.8\nb,-0.8\n", "line 3: thickness must be > 0"),
+    ("name,thickness\na,0.8\nb,-0.8\n", "line 3, column 2 (thickness) must be > 0"),
     ("name,thick\na,0.8\n", "line 1, column 2: unknown column 'thick'"),
     ("name,thickness\na,inf\n", "line 2, column 2 (thickness) must be a finite number"),
     ("name,thickness\na,thin\n", "line 2, column 2 (thickness) must be a number, got 'thin'"),

@@ -116,10 +116,13 @@ def test_the_verify_block_is_typed_and_its_json_keys_are_the_ones_the_dict_wrote
     assert block == row.to_json() and json.loads(json.dumps(block)) == block
 
 
-@pytest.mark.parametrize("model, solver, agree", [(-1.0, -24.0, False), (-20.0, -24.0, True), (-13.0, -24.0, True),
-                                                  (-10.0, -24.0, False), (5.0, -5.0, False), (1.0, -0.5, True),
-                                                  (3.0, 1.2, True), (None, 3.0, None)])
+@pytest.mark.parametrize("model, solver, agree", [(-1.0, -24.0, False), (-20.0, -24.0, True), (-13.0, -24.0, False),
+                                                  (-10.0, -24.0, False), (5.0, -5.0, False), (1.0, -0.5, False),
+                                                  (3.0, 1.2, False), (7.3, 12.2, False), (9.0, 12.2, True),
+                                                  (15.8, 12.2, True), (16.0, 12.2, False), (0.0, 0.0, True),
+                                                  (0.1, 0.0, False), (None, 3.0, None)])
 def test_trends_agree_by_size_not_only_sign(model, solver, agree):
+    """The one rule (hcmt.design.sweep.trends_agree): the same sign and the size within 30 % of the solver's."""
     assert trends_agree(model, solver) is agree
 
 

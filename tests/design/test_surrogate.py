@@ -302,7 +302,8 @@ def test_fit_command_writes_the_runs_surrogate_and_predict_reports_both(family, 
 
 def test_verify_auto_runs_the_solver_on_the_undecided_designs_only(family, tmp_path, capsys):
     run = Run.load(family / "run", "cpu")
-    designs = [(f"d{i}", design_for(run, thickness=t)) for i, t in enumerate((0.6, 0.9))]
+    lo_t, hi_t = run.ranges["thickness"]  # inside the training ranges: a design outside them gets no decided call
+    designs = [(f"d{i}", design_for(run, thickness=lo_t + u * (hi_t - lo_t))) for i, u in enumerate((0.2, 0.8))]
     probe = check_designs(run, designs, progress=False)
     lo, hi = (min(trusted_interval(p.summary)[k] for p in probe.preds) for k in (0, 1))
     never = check_designs(run, designs, verify="auto", yield_mpa=hi * 2, progress=False)

@@ -22,7 +22,8 @@ import signal
 import sys
 from pathlib import Path
 
-from hcmt.config import VERSION, machine_cores
+# auto_threads and set_threads (``--threads``) live in hcmt.config, shared with the Python API; here for the commands
+from hcmt.config import VERSION, auto_threads, machine_cores, set_threads  # noqa: F401
 from hcmt.errors import InputError, RolloutError
 
 COMMANDS: dict[str, tuple[str, str]] = {
@@ -39,8 +40,8 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "compare": ("hcmt.cli.train", "aggregate several runs into the paper's Table 2 layout (mean +- std)"),
     "predict": ("hcmt.cli.design", "peak stress and deflection of new Impact Plate designs from a trained model, "
                 "no solver run (--verify compares with the solver)"),
-    "sweep": ("hcmt.cli.design", "one design parameter varied over a range, predicted in one batch: trend, limit "
-              "for a yield stress, and with --verify the solver's"),
+    "sweep": ("hcmt.cli.design", "one design parameter varied over a range, predicted in batches of --batch points: "
+              "trend, limit for a yield stress, and with --verify the solver's"),
     "models": ("hcmt.cli.design", "list the trained models shipped with hcmt (pretrained:NAME)"),
     "surrogate": ("hcmt.cli.surrogate", "fit a Gaussian-process response surface on a dataset's solver runs "
                   "(the scalar answers an engineer would fit instead of a mesh model)"),
@@ -58,36 +59,15 @@ THREADED = ("generate", "simulate", "convert", "info", "hierarchy", "train", "ro
 LINE, GUARD = 300, 600
 
 
-def auto_threads() -> int:
-    """The CPU cores not already busy: cores minus the 1-minute load average (at least 1). On a machine whose other
-    cores run another job this is 1 thread, never the oversubscribed default that made a design take 10x longer
-    (docs/RESULTS.md, "Threads")."""
-    cores = machine_cores()
-    try:
-        busy = os.getloadavg()[0]
-    except OSError:  # no load average on this platform
-        busy = 0.0
-    return max(1, min(cores, int(cores - busy + 0.5)))
-
-
-def set_threads(threads: int | str) -> int:
-    """Apply ``--threads`` (1 to the machine's cores, or ``auto``: refused above by its parser) to torch's intra-op
-    pool; returns the number set."""
-    import torch  # heavy: loaded only by commands that compute, so `hcmt --help` stays fast
-
-    n = auto_threads() if threads == "auto" else int(threads)
-    torch.set_num_threads(n)
-    return n
-
-
 class CommandError(Exception):
     """An error the user can fix in the command line; printed as one line, exit status 2."""
 
 
 def check_outputs(files: dict[str, str | None], folders: dict[str, str | None] | None = None) -> None:
     """Check every output of a command before the first is written (``files``: option -> file path, ``folders``:
-    option -> folder; None: not asked for): a file path that is empty, an existing folder, or under a file; a
-    folder that is an existing file; a place this user cannot write; two outputs on one path. One line each."""
+    option -> folder; None: not asked for): a file path that is empty, an existing folder, a symlink, a file of a
+    dataset (its meta.json or a split file beside it), or under a file; a folder that is an existing file; a place
+    this user cannot write; two outputs on one path. One line each."""
     seen: dict[Path, str] = {}
     for kind, items in (("file", files), ("folder", folders or {})):
         for option, value in items.items():
@@ -98,6 +78,14 @@ def check_outputs(files: dict[str, str | None], folders: dict[str, str | None] |
             path = Path(value)
             if kind == "file" and path.is_dir():
                 raise CommandError(f"{option} {value}: is a folder; name a file")
+            if kind == "file" and path.is_symlink():  # the output would replace the link, not what it points to
+                raise CommandError(f"{option} {value}: is a symlink (to {os.readlink(path)}); name the file itself "
+                                   "or a new path")
+            if kind == "file" and path.is_file() and (
+                    (path.suffix == ".h5" and (path.parent / "meta.json").is_file())
+                    or (path.name == "meta.json" and any(path.parent.glob("*.h5")))):  # part of a dataset
+                raise CommandError(f"{option} {value}: a file of the dataset {path.parent} (meta.json and its split "
+                                   "files); write the output elsewhere")
             if kind == "folder" and path.exists() and not path.is_dir():
                 raise CommandError(f"{option} {value}: is a file; name a folder")
             parent = path.parent if kind == "file" else path
@@ -195,7 +183,9 @@ def main(argv: list[str] | None = None) -> int:
     try:
         parser = build_parser()
         try:
-            args = parser.parse_args(sys.argv[1:])
+            args, extra = parser.parse_known_args(sys.argv[1:])
+            if extra:  # the command's parser says so, pointing to its own --help (`hcmt predict --help`)
+                _parser_of(parser, args).error(f"unrecognized arguments: {' '.join(extra)}")
         except SystemExit as stop:  # --help, --version: 0; a mistake: Parser.error's one line was printed, 2
             if stop.code == 2:
                 return 2
@@ -235,6 +225,16 @@ def main(argv: list[str] | None = None) -> int:
     finally:
         signal.signal(signal.SIGTERM, previous)
         signal.signal(signal.SIGINT, previous_int)
+
+
+def _parser_of(parser: argparse.ArgumentParser, args: argparse.Namespace) -> argparse.ArgumentParser:
+    """The parser of the command line's deepest command (``hcmt surrogate fit``'s, ``hcmt predict``'s, else
+    ``hcmt``'s): the one whose --help an unknown option points to."""
+    p = getattr(parser, "command_parser", parser)
+    for action in p._actions:
+        if isinstance(action, argparse._SubParsersAction) and getattr(args, action.dest, None) in action.choices:
+            return action.choices[getattr(args, action.dest)]
+    return p
 
 
 def _error(command: str, text: str) -> int:

@@ -12,15 +12,17 @@ from pathlib import Path
 
 from tqdm import tqdm
 
+from hcmt.cli import CommandError, check_outputs
 from hcmt.cli.parsers import parse_families, settings_of_args, simulate_inputs
 from hcmt.config import plural
 from hcmt.data.convert import convert
-from hcmt.data.format import write_meta, write_split
+from hcmt.data.format import read_meta, write_meta, write_split
 from hcmt.data.info import summarize
-from hcmt.files import atomic_path, check_apart
+from hcmt.errors import clip
+from hcmt.files import atomic_path, check_apart, undo_on_error
 from hcmt.graph.report import dataset_quality, format_table
 from hcmt.inference import quantities
-from hcmt.sim.cost import check_cost, plan, validated_warnings
+from hcmt.sim.cost import check_cost, plan, validated_warnings, window_warnings
 from hcmt.sim.driver import simulate
 from hcmt.sim.generate import dataset_meta, generate_dataset, generation_cost, trajectory_name
 from hcmt.sim.params import VARIANTS
@@ -60,8 +62,48 @@ def peak_line(f: dict, frame_dt: float) -> str:
     return "; ".join(parts) + f"; max plate deflection {deflection:.4f} mm"
 
 
+def simulate_target(out: str | None, preset: str, settings) -> dict | None:
+    """Where ``hcmt simulate --out FILE.h5`` writes, checked before the solver runs: the dataset meta of the file,
+    with ``write`` True when meta.json is to be written beside it. The file is a one-split dataset (FILE.h5 and
+    meta.json in its folder: what ``hcmt info`` and ``load_dataset`` read), so its folder must be new, empty, or a
+    dataset whose meta.json agrees with this trajectory (that meta.json is kept); a meta.json of other data (other
+    frames, frame interval, fields) or a folder of other files (the working directory) is refused in one line."""
+    if out is None:
+        return None
+    check_outputs({"--out": out})
+    path = Path(out)
+    meta = dataset_meta(preset, 0, {path.stem: 1}, settings)
+    folder = path.parent
+    if (folder / "meta.json").is_file():
+        differs = _meta_differences(read_meta(folder), meta)
+        if differs:
+            raise CommandError(f"--out {out}: {folder / 'meta.json'} describes other data ({differs}); write the "
+                               "trajectory into a new folder, or one whose meta.json matches it")
+        return dict(meta=meta, write=False)
+    if folder.is_dir() and any(not p.name.startswith(".") for p in folder.iterdir()):
+        raise CommandError(f"--out {out}: {folder} holds other files and no meta.json; the trajectory is written as "
+                           f"a one-split dataset (FILE.h5 + meta.json): name a file in a new or empty folder, e.g. "
+                           f"--out {path.stem}/{path.name}")
+    return dict(meta=meta, write=True)
+
+
+def _meta_differences(old: dict, new: dict) -> str:
+    """``trajectory_length 52 there, 10 here``: what makes a trajectory of ``new`` unreadable beside ``old``'s."""
+    keys = ("trajectory_length", "dimension", "dt")
+    out = [f"{k} {old.get(k)} there, {new.get(k)} here" for k in keys if old.get(k) != new.get(k)]
+    fields = sorted(set(old.get("features") or {}) ^ set(new["features"])) or [
+        k for k in new["features"] if old["features"][k] != new["features"][k]]
+    if not out and fields:
+        out.append(f"fields {', '.join(fields)} differ")
+    old_settings = (old.get("generator") or {}).get("settings")
+    if not out and old_settings is not None and old_settings != new["generator"]["settings"]:
+        out.append("the solver settings differ")
+    return clip("; ".join(out), 160)
+
+
 def main_simulate(args) -> int:
     design, settings = simulate_inputs(args)
+    target = simulate_target(args.out, args.preset, settings)
     for w in validated_warnings(design):
         print(f"hcmt simulate: warning: {w}", file=sys.stderr)
     cost = plan(design, settings)
@@ -78,13 +120,17 @@ def main_simulate(args) -> int:
           f"(dt {info['dt']:.3e} ms): wall-clock {info['wall_time']:.2f} s "
           f"({1e3 * info['wall_time'] / (settings.frames - 1):.1f} ms per frame)")
     print(peak_line(f, settings.frame_dt))
-    if args.out:
+    plate = quantities.plate_mask(f["cells"], f["node_type"])  # the ball never came, or the window cut the peak
+    for w in window_warnings(design, settings, quantities.body_history(f["stress"], plate),
+                             quantities.contact_gap(f["world_pos"], f["mesh_pos"], plate)):
+        print(f"hcmt simulate: warning: {w}", file=sys.stderr)
+    if target is not None:
         path = Path(args.out)
-        meta = dataset_meta(args.preset, 0, {path.stem: 1}, settings)
-        write_split(path, meta, [(trajectory_name(0), f, result["attrs"])])
-        if not (path.parent / "meta.json").exists():
-            write_meta(path.parent, meta)
-        print(f"wrote {path}")
+        with undo_on_error(path.parent if target["write"] else None):
+            write_split(path, target["meta"], [(trajectory_name(0), f, result["attrs"])])
+            if target["write"]:
+                write_meta(path.parent, target["meta"])
+        print(f"wrote {path}" + (f" and {path.parent / 'meta.json'}" if target["write"] else ""))
     sys.stdout.flush()
     return 0
 
@@ -105,6 +151,7 @@ def main_info(args: argparse.Namespace) -> int:
 
 def main_hierarchy(args: argparse.Namespace) -> int:
     check_apart({"--json": args.json}, {"DATASET": args.dataset})
+    check_outputs({"--json": args.json})
     count, rows = dataset_quality(args.dataset, args.split, args.levels, trajectories=args.trajectories,
                                   cache=not args.no_cache)
     print(f"{args.dataset} [{args.split}]: {plural(count, 'trajectory', 'trajectories')}, {args.levels} levels")

@@ -20,6 +20,7 @@ from hcmt.design.surrogate import run_surrogate_path
 from hcmt.errors import missing_extra
 from hcmt.files import atomic_path, check_apart, undo_on_error
 from hcmt.inference.run import Run
+from hcmt.sim.cost import duration, solver_seconds
 from hcmt.sim.params import DESIGN_KEYS, DESIGN_UNITS, FAMILIES, describe_family, middle_design, parse_design
 
 
@@ -47,6 +48,13 @@ def main_predict(args: argparse.Namespace) -> int:
     for name, d in designs:
         for w in range_warnings(d, run.ranges):
             print(f"hcmt predict: warning: {name}: {w}", file=sys.stderr)
+    seconds = solver_seconds([d for _, d in designs], settings_of(run.meta)) if options["verify"] else None
+    if seconds is not None:  # the solver's total before it starts: 10,000 designs are hours
+        n, every = len(designs), options["verify"] is True
+        print(f"--verify: the solver runs on {'each' if every else 'the undecided ones'} of the {n:,} "
+              f"design{'s' if n != 1 else ''} after the model: {'' if every else 'up to '}{duration(seconds)} on one "
+              f"core by its estimate (about {seconds / n:.1f} s a design, on the high side for small meshes)",
+              flush=True)
     check = check_designs(run, designs, batch=args.batch, compile=args.compile, progress=not args.no_progress,
                              force=args.force, **options)
     print_notes("predict", check)

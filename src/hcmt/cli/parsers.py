@@ -26,7 +26,17 @@ from hcmt.config import (
     load_config,
     machine_cores,
 )
-from hcmt.design.basics import DEFAULT_READOUT, DESIGN_BATCH, QUANTITIES, READOUTS, RESTARTS, parse_vary, read_table
+from hcmt.design.basics import (
+    DEFAULT_READOUT,
+    DESIGN_BATCH,
+    QUANTITIES,
+    READOUTS,
+    RESTARTS,
+    check_values,
+    check_yield,
+    parse_vary,
+    read_table,
+)
 from hcmt.errors import clip, require_installed
 from hcmt.sim.params import (
     CONTACT_RADIUS,
@@ -78,6 +88,23 @@ def span(lo: int, hi: int) -> str:
 
 
 # -- shared options ------------------------------------------------------------------------------------------------
+class Once(argparse.Action):
+    """An option given at most once: a second one is refused in one line (``why``: what to do) where argparse
+    would keep the last silently."""
+
+    def __init__(self, *args, why: str = "give it once", **kwargs):
+        super().__init__(*args, **kwargs)
+        self.why = why
+
+    def __call__(self, parser, namespace, values, option_string=None):
+        given = f"_{self.dest}_given"
+        if getattr(namespace, given, False):
+            parser.error(f"{option_string}: given twice ({clip(getattr(namespace, self.dest), 40)}, "
+                         f"{clip(values, 40)}); {self.why}")
+        setattr(namespace, given, True)
+        setattr(namespace, self.dest, values)
+
+
 def compile_arg(p: argparse.ArgumentParser) -> None:
     p.add_argument("--compile", default="auto", choices=INFERENCE_COMPILE_MODES,
                    help="torch.compile the model: default compiles once for every mesh (symbolic sizes; about 25 s, "
@@ -150,6 +177,18 @@ def check_folder(name: str, text: str, what: str) -> None:
         raise CommandError(f"{name} {text}: no such folder; expected {what}")
 
 
+def check_split(data: str, split: str) -> None:
+    """A dataset folder's ``meta.json`` and ``<split>.h5`` exist (a cheap look before torch loads; the reader checks
+    the contents)."""
+    folder = Path(data)
+    if not (folder / "meta.json").is_file():
+        raise CommandError(f"--data {clip(data)}: no meta.json; expected a native dataset folder (meta.json + "
+                           "<split>.h5)")
+    if not (folder / f"{split}.h5").is_file():
+        have = ", ".join(sorted(f.stem for f in folder.glob("*.h5"))) or "none"
+        raise CommandError(f"--split {clip(split)}: {clip(data)} has no {clip(split)}.h5; splits there: {have}")
+
+
 # -- generate, simulate ---------------------------------------------------------------------------------------------
 def parse_families(text: str) -> tuple[str, ...]:
     """``mono,stack2,ring`` -> the families, each checked against :data:`FAMILIES`."""
@@ -166,7 +205,9 @@ def _settings_arguments(parser: argparse.ArgumentParser) -> None:
     g = parser.add_argument_group("solver")
     g.add_argument("--formulation", choices=["axisymmetric", "plane_strain"], default=d.formulation,
                    help="axisymmetric (sphere on a disk, default) or plane strain")
-    g.add_argument("--frames", type=int, default=d.frames, help=f"recorded frames, >= 2 (default {d.frames})")
+    g.add_argument("--frames", type=int, default=d.frames,
+                   help=f"recorded frames, >= 2 (default {d.frames}; a model's window may be longer: `hcmt models` "
+                        "shows it; a window too short cuts a thin plate's peak)")
     g.add_argument("--frame-dt", type=float, default=d.frame_dt, help=f"ms between frames (default {d.frame_dt})")
     g.add_argument("--bulk-viscosity", type=float, default=d.bulk_viscosity,
                    help=f"linear bulk viscosity b1, 0 = off (default {d.bulk_viscosity})")
@@ -232,8 +273,10 @@ _DESIGN_HELP = {"layer2_thickness": "mm, a bonded layer under the top one (0: no
 
 def configure_simulate(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--preset", choices=sorted(RANGES), default="small",
-                        help="defaults for unspecified parameters: the middle of the preset's ranges (default small, "
-                             "as `hcmt generate`)")
+                        help="defaults for unspecified parameters: the middle of the preset's sampling ranges "
+                             "(default small, as `hcmt generate`). `hcmt predict` and `sweep` take the middle of "
+                             "their model's training designs instead (`hcmt models` lists them; for the shipped "
+                             "model, trained on small, within 0.1 %% of these) and its recorded window (--frames)")
     parser.add_argument("--family", default="mono",
                         help=f"defaults from this family's ranges instead: one of {', '.join(FAMILIES)} (default mono)")
     parser.add_argument("--stack", default=None, metavar="SPEC",
@@ -380,6 +423,7 @@ def _check_run_args(args) -> None:
     if not shipped and args.out is not None:
         raise CommandError(f"--out {clip(args.out)}: for a shipped model (pretrained:NAME); a run folder's rollouts "
                            "and metrics go to RUN")
+    check_split(args.data, args.split)
     if args.out is not None:
         check_outputs({}, {"--out": args.out})
 
@@ -411,8 +455,8 @@ def configure_predict(p: argparse.ArgumentParser) -> None:
     p.add_argument("--device", help="cpu, cuda, cuda:N (default: cuda when available)")
     batch_arg(p, "designs rolled out", DESIGN_BATCH, f"{DESIGN_BATCH}, measured fastest on one CPU thread")
     compile_arg(p)
-    p.add_argument("--yield-mpa", type=float, help="report the margin of the peak plate stress to this stress (MPa) "
-                   "and a pass / fail / undecided call per design from the trusted interval")
+    p.add_argument("--yield-mpa", type=float, help="report the margin of the peak plate stress to this stress "
+                   "(MPa, 1 to 100,000) and a pass / fail / undecided call per design from the trusted interval")
     verify_arg(p, "report the errors and the speedup")
     surrogate_args(p)
     readout_arg(p)
@@ -442,11 +486,12 @@ def take_model(args, design_lists: list[list[str]]) -> None:
 
 
 def check_options(args) -> dict:
-    """The design-check options shared by predict and sweep."""
+    """The design-check options shared by predict and sweep: ``--yield-mpa`` a plausible yield stress in MPa (a
+    unit slip, Pa for MPa, refused here: :func:`hcmt.design.basics.check_yield`)."""
     verify = {"all": True, "auto": "auto", None: False}[args.verify]
     if verify == "auto" and args.yield_mpa is None:
         raise CommandError("--verify auto runs the solver on the designs whose call is undecided: give --yield-mpa Y")
-    return {"verify": verify, "yield_mpa": args.yield_mpa, "readout": args.readout,
+    return {"verify": verify, "yield_mpa": check_yield(args.yield_mpa), "readout": args.readout,
             "surrogate": False if args.no_surrogate else (args.surrogate or True)}
 
 
@@ -460,6 +505,7 @@ def check_predict(args) -> None:
     check_outputs({"--json": args.json, "--csv": args.csv}, {"--out": args.out} if args.images else {})
     if args.images:
         require_installed("viz", "matplotlib")  # before the model runs: --images needs the pictures' extra
+    check_values(args.design, args.designs)  # every value and the file's rows, one line before torch loads
     rows = len(read_table(Path(args.designs))[2]) if args.designs else 0
     if len(args.design) + rows > MAX_DESIGNS:
         raise CommandError(f"{len(args.design) + rows:,} designs (--design and --designs); expected at most "
@@ -468,7 +514,7 @@ def check_predict(args) -> None:
 
 def configure_sweep(p: argparse.ArgumentParser) -> None:
     model_arg(p)
-    p.add_argument("--vary", required=True, metavar="PARAM=LO:HI:N",
+    p.add_argument("--vary", required=True, metavar="PARAM=LO:HI:N", action=Once, why="a sweep varies one parameter",
                    help="the parameter swept and its range, e.g. thickness=0.55:0.95:5 (N points, 2 to 256, ends "
                         "included)")
     p.add_argument("--design", nargs="+", default=[], metavar="KEY=VALUE",
@@ -476,11 +522,13 @@ def configure_sweep(p: argparse.ArgumentParser) -> None:
                         "ranges)")
     verify_arg(p, "compare the trends")
     p.add_argument("--yield-mpa", type=float, help="report the smallest / largest parameter value that keeps the "
-                   "peak plate stress below this stress (MPa) from the final calls, for model and solver")
+                   "peak plate stress below this stress (MPa, 1 to 100,000) from the final calls, for model and solver")
     surrogate_args(p)
     readout_arg(p)
     p.add_argument("--device", help="cpu, cuda, cuda:N (default: cuda when available)")
-    batch_arg(p, "designs rolled out", DESIGN_BATCH, f"{DESIGN_BATCH}, measured fastest on one CPU thread")
+    batch_arg(p, "sweep points rolled out", DESIGN_BATCH,
+              f"{DESIGN_BATCH}: one point at a time, measured fastest on one CPU thread; N of --vary: the whole sweep "
+              "in one batch")
     compile_arg(p)
     p.add_argument("--force", action="store_true", help="run even designs estimated to take over 600 s")
     p.add_argument("--out", default="sweep_out", help="folder for the plot (default sweep_out)")
@@ -500,6 +548,7 @@ def check_sweep(args) -> None:
     if fixed:
         raise CommandError(f"--vary {clip(args.vary)} and --design {clip(fixed[0])}: {param} is the swept "
                            "parameter; drop it from --design")
+    check_values([args.design], vary=args.vary)  # every value, both ends of the range, before torch loads
 
 
 def configure_models(p: argparse.ArgumentParser) -> None:

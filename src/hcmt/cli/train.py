@@ -7,10 +7,19 @@ import json
 import sys
 from pathlib import Path
 
-from hcmt.cli import CommandError
+from hcmt.cli import CommandError, check_outputs
+from hcmt.data.format import Split
 from hcmt.data.runs import RunFolder, check_start
-from hcmt.files import atomic_path, check_apart
-from hcmt.inference.evaluate import check_options, compare, evaluate, format_compare, format_metrics, run_rollouts
+from hcmt.files import atomic_path, check_apart, undo_on_error
+from hcmt.inference.evaluate import (
+    check_options,
+    check_results_folder,
+    compare,
+    evaluate,
+    format_compare,
+    format_metrics,
+    run_rollouts,
+)
 from hcmt.inference.run import Run, dataset_warnings
 from hcmt.training import train
 
@@ -57,28 +66,34 @@ def _print_warnings(args, warnings: list[str]) -> None:
 
 
 def _load(args) -> Run:
+    """The run of ``rollout`` / ``evaluate``, after every check that needs no model: the options, the dataset split
+    (one line, before the model loads and before --out is made) and where the results go."""
     check_options(batch=args.batch, compile=args.compile)  # bad options: one line before the model loads
+    Split(args.data, args.split).close()  # no meta.json, no such split: refused before anything is made
     if args.out is not None:  # a shipped model: its rollouts and metrics go to --out
         check_apart({"--out": args.out}, {"--data": args.data})
+        check_results_folder(args.out, args.run)  # never over another model's results
         return Run.load(args.run, args.device, args.checkpoint).writing_to(args.out)
     check_apart({"RUN": args.run}, {"--data": args.data})  # its rollouts and metrics go to RUN
     return Run.load(args.run, args.device, args.checkpoint)
 
 
 def main_rollout(args: argparse.Namespace) -> int:
-    run = _load(args)
-    _print_warnings(args, dataset_warnings(run, args.data, args.split))
-    path = run_rollouts(run, args.data, args.split, limit=args.limit, batch=args.batch, compile=args.compile,
-                        progress=not args.no_progress)
+    with undo_on_error(args.out):  # a refusal after --out was made leaves no empty folder
+        run = _load(args)
+        _print_warnings(args, dataset_warnings(run, args.data, args.split))
+        path = run_rollouts(run, args.data, args.split, limit=args.limit, batch=args.batch, compile=args.compile,
+                            progress=not args.no_progress)
     print(f"wrote {path}")
     return 0
 
 
 # -- evaluate ------------------------------------------------------------------------------------------------------
 def main_evaluate(args: argparse.Namespace) -> int:
-    run = _load(args)
-    m = evaluate(run, args.data, args.split, limit=args.limit, batch=args.batch, compile=args.compile,
-                 progress=not args.no_progress)
+    with undo_on_error(args.out):  # a refusal after --out was made leaves no empty folder
+        run = _load(args)
+        m = evaluate(run, args.data, args.split, limit=args.limit, batch=args.batch, compile=args.compile,
+                     progress=not args.no_progress)
     _print_warnings(args, m["warnings"])
     print(format_metrics(m))
     print(f"wrote {run.folder.metrics_path(args.split, args.data)}")
@@ -88,6 +103,7 @@ def main_evaluate(args: argparse.Namespace) -> int:
 # -- compare -------------------------------------------------------------------------------------------------------
 def main_compare(args: argparse.Namespace) -> int:
     check_apart({"--json": args.json}, [("RUN", r) for r in args.runs])
+    check_outputs({"--json": args.json})
     table = compare(args.runs, args.split)
     print(f"split {args.split}; runs grouped by model and dataset")
     print(format_compare(table))

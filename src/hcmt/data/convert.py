@@ -1,10 +1,11 @@
 """``hcmt convert SRC OUT``: published datasets into the native format.
 
 SRC is either a MeshGraphNets / HCMT TFRecord folder (``meta.json`` + ``<split>.tfrecord``) or a Deformable Plate
-(GGNS) folder of pickles (``<split>.pkl``) or a single pickle. Every split found is converted; each output file is
-written atomically and the output's ``meta.json`` last, so an interrupted or refused conversion leaves no dataset
-that looks complete. ``static_varlen`` fields (the official Impact Plate data's precomputed hierarchy) are not
-copied: hcmt builds its own hierarchy (``hcmt hierarchy``).
+(GGNS) folder of pickles (``<split>.pkl``) or a single pickle, read by a restricted unpickler (numpy arrays and plain
+containers only: :func:`hcmt.data.ggns.load_ggns_pickle`; no code a pickle names runs). Every split found is
+converted; each output file is written atomically and the output's ``meta.json`` last, so an interrupted or refused
+conversion leaves no dataset that looks complete. ``static_varlen`` fields (the official Impact Plate data's
+precomputed hierarchy) are not copied: hcmt builds its own hierarchy (``hcmt hierarchy``).
 """
 from __future__ import annotations
 

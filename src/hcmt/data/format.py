@@ -31,7 +31,7 @@ import h5py
 import numpy as np
 
 from hcmt.errors import DatasetError
-from hcmt.files import atomic_path, ensure_space
+from hcmt.files import atomic_path, ensure_space, lock_holder
 
 FORMAT_NAME = "hcmt-dataset"
 FORMAT_VERSION = 1
@@ -132,8 +132,22 @@ def read_meta(dataset_dir: str | os.PathLike) -> dict:
     return meta
 
 
+#: the lock ``hcmt generate`` holds in the dataset folder it writes (:func:`hcmt.files.folder_lock`)
+GENERATE_LOCK = ".generate.lock"
+
+
+def generating(dataset_dir: str | os.PathLike) -> int | None:
+    """The pid of the ``hcmt generate`` writing ``dataset_dir`` now, or None when none is."""
+    return lock_holder(Path(dataset_dir) / GENERATE_LOCK)
+
+
 def incomplete(dataset_dir: str | os.PathLike) -> str:
-    """What a dataset folder with meta.json but no split file is, and what to do."""
+    """What a dataset folder with meta.json but no split file is, and what to do: wait for the ``hcmt generate``
+    writing it, or rerun the one that was interrupted."""
+    pid = generating(dataset_dir)
+    if pid is not None:
+        return (f"a `hcmt generate` is writing it (pid {pid}): meta.json but no split files yet; wait for it to "
+                "finish, or stop it")
     parts = " (an interrupted `hcmt generate` left .parts/)" if (Path(dataset_dir) / ".parts").is_dir() else ""
     return (f"incomplete dataset: meta.json but no split files{parts}; "
             "rerun the same `hcmt generate` command to finish it")
@@ -280,7 +294,9 @@ class Split:
             available = list_splits(self.dataset_dir)
             if not available:
                 raise DatasetError(incomplete(self.dataset_dir), file=self.dataset_dir)
-            raise DatasetError(f"split {split!r} not found; available: {available}", file=self.path)
+            pid = generating(self.dataset_dir)
+            busy = "" if pid is None else f"; a `hcmt generate` is writing this dataset (pid {pid}): wait for it"
+            raise DatasetError(f"split {split!r} not found; available: {available}{busy}", file=self.path)
         try:
             self._file = h5py.File(self.path, "r")
             self.names = sorted(self._file.keys())

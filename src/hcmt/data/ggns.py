@@ -25,12 +25,42 @@ from hcmt.errors import DatasetError
 REQUIRED = ("nodes_grid", "triangles_grid", "nodes_collider", "triangles_collider", "poisson_ratio")
 
 
+#: the only globals a GGNS pickle may name: numpy's array, scalar and dtype reconstruction (numpy 1 and 2 spell its
+#: core module differently), ``_codecs.encode`` (how protocol 2 stores bytes) and plain builtin containers. Any
+#: other global (``os.system``, a class of some library) is refused before it is called: no code from a data file
+#: runs.
+SAFE_GLOBALS = {
+    **{(m, n): None for m in ("numpy.core.multiarray", "numpy._core.multiarray") for n in ("_reconstruct", "scalar")},
+    **{(m, "_frombuffer"): None for m in ("numpy.core.numeric", "numpy._core.numeric")},
+    ("numpy", "ndarray"): None, ("numpy", "dtype"): None, ("_codecs", "encode"): None,
+    **{("builtins", n): None for n in ("list", "dict", "tuple", "set", "frozenset", "bytearray", "complex", "slice")},
+}
+
+
+class _SafeUnpickler(pickle.Unpickler):
+    """An unpickler that builds numpy arrays, numbers, strings and containers only (:data:`SAFE_GLOBALS`)."""
+
+    def __init__(self, file, path: Path):
+        super().__init__(file)
+        self.path = path
+
+    def find_class(self, module: str, name: str):
+        if (module, name) in SAFE_GLOBALS or (module == "numpy.dtypes" and name.endswith("DType")):
+            return super().find_class(module, name)
+        raise DatasetError(f"refused: the pickle names the global {module[:60]}.{name[:60]}, not a numpy array or a "
+                           "plain container; hcmt runs no code from a data file (a GGNS pickle holds only arrays, "
+                           "numbers, strings, lists and dicts)", file=self.path)
+
+
 def load_ggns_pickle(path: str | os.PathLike) -> list[dict]:
+    """The trajectories of a GGNS pickle, read with :class:`_SafeUnpickler`: no code the file names is run."""
     path = Path(path)
     try:
         with open(path, "rb") as f:
-            data = pickle.load(f)
-    except (pickle.UnpicklingError, EOFError, AttributeError, ValueError) as exc:
+            data = _SafeUnpickler(f, path).load()
+    except (pickle.UnpicklingError, EOFError, AttributeError, ValueError, TypeError, IndexError) as exc:
+        if isinstance(exc, DatasetError):
+            raise
         raise DatasetError(f"cannot be unpickled (truncated or not a GGNS pickle): {exc}", file=path) from None
     if isinstance(data, dict):
         data = [data]

@@ -9,7 +9,17 @@ from pathlib import Path
 
 from hcmt.config import MAX_DESIGNS
 from hcmt.errors import InputError, clip
-from hcmt.sim.params import DESIGN_KEYS
+from hcmt.sim.params import (
+    CONTACT_RADIUS,
+    DESIGN_KEYS,
+    MAX_LAYER_POISSON,
+    a_type,
+    design_key,
+    design_values,
+    is_number,
+    parse_number,
+    unit_slip,
+)
 
 #: the scalar answers a surrogate predicts (keys of a design's summary)
 QUANTITIES = ("peak_plate_stress_mpa", "peak_ball_stress_mpa", "max_deflection_mm", "peak_plate_t95_ms",
@@ -25,6 +35,27 @@ DEFAULT_READOUT = "raw"
 #: runs in opposite orders: benchmarks/results/design_speed_cpu.json, design_speed_cpu_reversed.json); on a GPU a
 #: larger batch may pay
 DESIGN_BATCH = 1
+#: the yield (or design) stresses a limit call takes, MPa: a soft polymer's yield is a few MPa, and no solid holds
+#: more than its ideal strength, about E/10, at most ~100 GPa (diamond); beyond, the value is a unit slip (Pa, GPa)
+YIELD_SPAN_MPA = (1.0, 1e5)
+
+
+def check_yield(yield_mpa, param: str = "yield_mpa") -> float | None:
+    """A yield stress in MPa inside :data:`YIELD_SPAN_MPA` as a float (None stays None), else one line naming
+    ``param`` (the command prints ``--yield-mpa``), the unit, the span and, for a unit slip, the likely value
+    (``7.5e+08 ... it looks like Pa: 750 MPa?``). A numpy number is a number; a bool or text is not."""
+    if yield_mpa is None:
+        return None
+    lo, hi = YIELD_SPAN_MPA
+    expected = f"a yield stress in MPa from {lo:g} to {hi:,.0f}"
+    if not is_number(yield_mpa):
+        raise InputError(f"must be {expected} (a number), got {clip(repr(yield_mpa))} ({a_type(yield_mpa)})",
+                         param=param)
+    y = float(yield_mpa)
+    if not (math.isfinite(y) and lo <= y <= hi):
+        slip = unit_slip(y, "MPa", lo, hi, factor=1.0) if y > 0 else None
+        raise InputError(f"must be {expected}; " + (slip or f"got {y:g}"), param=param)
+    return y
 
 
 def check_name(name, where: str) -> str:
@@ -111,3 +142,92 @@ def parse_vary(text: str) -> tuple[str, float, float, int]:
     if not 2 <= n <= 256:
         raise InputError(f"{shown!r}: N must be between 2 and 256, got {n}", param="vary")
     return key, lo, hi, n
+
+
+# -- values checked as they are read, before any model loads -------------------------------------------------------
+def _rules(values: dict[str, float]) -> list[tuple[str, object, str]]:
+    """(parameter, test, what was expected) of :meth:`hcmt.sim.params.Design.validate`'s rules that hold whatever
+    the parameters ``values`` leave unset: a layer's, the backing's or the pen's material only where ``values``
+    itself sets that layer's, the backing's or the pen's size."""
+    positive, zero_or_more = lambda v: v > 0, lambda v: v >= 0
+    rules = [(k, positive, "> 0 (mm)") for k in ("thickness", "drop_height", "ball_radius", "mesh_size",
+                                                  "plate_half_length", "gap")]
+    rules += [(k, zero_or_more, ">= 0 mm (0: none)") for k in ("layer2_thickness", "layer3_thickness",
+                                                               "layer4_thickness", "support_radius",
+                                                               "backing_thickness", "pen_tip_radius")]
+    rules.append(("gap", lambda v: v < CONTACT_RADIUS, f"smaller than the contact radius {CONTACT_RADIUS} mm"))
+    materials = ["plate", "ball"] + [f"layer{k}" for k in (2, 3, 4) if values.get(f"layer{k}_thickness", 0) > 0]
+    for m in materials:
+        rules += [(f"{m}_density", positive, "> 0 g/mm^3"), (f"{m}_modulus", positive, "> 0 MPa (Young's modulus)"),
+                  (f"{m}_poisson", lambda v: -1 < v < 0.5, "in (-1, 0.5) (Poisson ratio)") if m in ("plate", "ball")
+                  else (f"{m}_poisson", lambda v: 0 <= v <= MAX_LAYER_POISSON, f"in [0, {MAX_LAYER_POISSON}] (near "
+                        "0.5 the linear triangles lock volumetrically)")]
+    if values.get("backing_thickness", 0) > 0:
+        rules.append(("backing_modulus", positive, "> 0 MPa (Young's modulus)"))
+    if values.get("pen_tip_radius", 0) > 0:
+        rules.append(("pen_mass", positive, "> 0 g"))
+    return rules
+
+
+def value_problem(values: dict[str, float]) -> tuple[str, str] | None:
+    """The first (parameter, "must be ...") of ``values`` (finite numbers) that :meth:`Design.validate` would
+    refuse whatever the defaults that fill the rest (a model's, known only once it loads), or None. The rules that
+    need the whole design (mesh_size against the thickness, the ball, the support) wait for it."""
+    for key, ok, expected in _rules(values):
+        if key in values and not ok(values[key]):
+            return key, f"must be {expected}, got {values[key]:g}"
+    return None
+
+
+def check_designs_file(path: str | Path | None) -> int:
+    """A ``--designs`` CSV checked value by value as :func:`hcmt.design.inputs.read_designs_csv` reads it (its
+    header and names by :func:`read_table`, at least one row, one value per column, no empty cell, finite numbers,
+    :func:`value_problem`, each name once), before any model loads: one line naming the file, line and column.
+    Returns the number of designs (0 for no file)."""
+    if path is None:
+        return 0
+    path = Path(path)
+    _, header, body = read_table(path)
+    if not body:
+        raise InputError(f"{path}: a header but no designs (one row per design after the header)")
+    names: dict[str, int] = {}
+    for n, row in body:
+        if len(row) != len(header):
+            raise InputError(f"{path} line {n}: {len(row)} values for {len(header)} columns ({', '.join(header)})")
+        values, columns = {}, {}
+        for col, (h, v) in enumerate(zip(header, row), start=1):
+            if h == "name":
+                if v.strip() in names:
+                    raise InputError(f"{path} line {n}, column {col} (name): {clip(v.strip())!r} already names line "
+                                     f"{names[v.strip()]}; every design needs its own name")
+                names[v.strip()] = n
+                continue
+            where = f"{path} line {n}, column {col} ({h})"
+            if not v.strip():
+                raise InputError(f"{where}: missing value")
+            values[h], columns[h] = parse_number(v, where), col
+        problem = value_problem(values)
+        if problem:
+            raise InputError(f"{path} line {n}, column {columns[problem[0]]} ({problem[0]}) {problem[1]}")
+    return len(body)
+
+
+def check_values(design_lists: list[list[str]], designs: str | Path | None = None, vary: str | None = None) -> int:
+    """Every value the design check was given, before any model loads (one line naming the flag, or the file, line
+    and column): ``--design KEY=VALUE ...`` lists (predict: one per design; sweep: its fixed parameters), the
+    ``--designs`` file (:func:`check_designs_file`) and the sweep's ``--vary`` range at both ends, each against
+    :func:`value_problem`. Returns the file's number of designs (0 for none)."""
+    for items in design_lists:
+        values = design_values(items)
+        problem = value_problem(values)
+        if problem:
+            shown = next(i for i in items if design_key(i) == problem[0])
+            raise InputError(f"--design {clip(shown)!r}: {problem[0]} {problem[1]}")
+        if vary is not None:
+            key, lo, hi, _ = parse_vary(vary)
+            for v in (lo, hi):  # every rule is an interval: the ends hold, the points between them hold
+                problem = value_problem({**values, key: v})
+                if problem:
+                    raise InputError(f"{clip(vary)!r}: the point {key}={v:.6g} is impossible: {problem[0]} "
+                                     f"{problem[1]}", param="vary")
+    return check_designs_file(designs)

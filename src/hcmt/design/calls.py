@@ -3,6 +3,7 @@ peak plate stress interval it trusts (:func:`trusted_interval`), the yield margi
 solver ran (:func:`final_calls`)."""
 from __future__ import annotations
 
+from hcmt.design.inputs import outside
 from hcmt.design.prediction import Prediction
 from hcmt.design.readout import DEFAULT_READOUT, chosen, readout_key
 from hcmt.errors import InputError
@@ -40,15 +41,36 @@ def call_of(lo: float, hi: float, yield_mpa: float) -> str:
     return "pass" if hi < yield_mpa else "fail" if lo > yield_mpa else "undecided"
 
 
-def add_calls(preds: list[Prediction], yield_mpa: float | None, trust: str = TRUST) -> None:
-    """Each design's ``call`` for ``yield_mpa`` from the trusted interval (:func:`trusted_interval`)."""
+def outside_reason(p: Prediction, ranges: dict[str, tuple[float, float]] | None) -> str | None:
+    """Why ``p`` gets no decided call, or None: a design outside the model's training ranges (``ranges``, the
+    run's; without them, the region its summary's ``confidence`` records: :func:`hcmt.design.inputs.region_of`)."""
+    if ranges is not None:
+        keys = outside(p.design, ranges)
+        if not keys:
+            return None
+        where = f" ({', '.join(keys)})"
+    elif (p.summary.get("confidence") or {}).get("region") == "outside":
+        where = ""
+    else:
+        return None
+    return (f"outside the model's training ranges{where}: no interval was measured there, so neither the model "
+            "nor the response surface decides pass or fail; the solver does (--verify)")
+
+
+def add_calls(preds: list[Prediction], yield_mpa: float | None, trust: str = TRUST,
+              ranges: dict[str, tuple[float, float]] | None = None) -> None:
+    """Each design's ``call`` for ``yield_mpa`` from the trusted interval (:func:`trusted_interval`): ``undecided``
+    for a design outside the model's training ranges whatever the interval (:func:`outside_reason`; the interval
+    is recorded, with ``trusted`` False and the ``reason``), so ``verify="auto"`` runs the solver on it."""
     if yield_mpa is None:
         return
     for p in preds:
         lo, hi, what = trusted_interval(p.summary, trust)
-        p.summary["call"] = call_of(lo, hi, yield_mpa)
+        reason = outside_reason(p, ranges)
+        p.summary["call"] = "undecided" if reason else call_of(lo, hi, yield_mpa)
         p.summary["call_interval_mpa"] = {"lo": float(lo), "hi": float(hi), "from": what,
-                                          "model_readout": p.summary.get("readout", DEFAULT_READOUT)}
+                                          "model_readout": p.summary.get("readout", DEFAULT_READOUT),
+                                          **({"trusted": False, "reason": reason} if reason else {})}
 
 
 def final_calls(preds: list[Prediction], truth: list[Prediction | None] | None, yield_mpa: float | None) -> None:

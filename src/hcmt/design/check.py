@@ -21,11 +21,10 @@ from __future__ import annotations
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
-import numpy as np
 import torch
 from tqdm import tqdm
 
-from hcmt.design.basics import DESIGN_BATCH
+from hcmt.design.basics import DESIGN_BATCH, check_yield
 from hcmt.design.calls import (  # noqa: F401 (re-exported: hcmt.design.check.trusted_interval, ...)
     MODEL_BAND,
     TRUST,
@@ -36,7 +35,7 @@ from hcmt.design.calls import (  # noqa: F401 (re-exported: hcmt.design.check.tr
     final_calls,
     trusted_interval,
 )
-from hcmt.design.inputs import confidence, outside, range_warnings, settings_of
+from hcmt.design.inputs import check_run, confidence, outside, range_warnings, settings_of
 from hcmt.design.notes import NOTE_DISAGREEMENT, verify_hint, weak_reasons  # noqa: F401 (re-exported)
 from hcmt.design.prediction import (  # noqa: F401 (re-exported)
     Prediction,
@@ -114,18 +113,19 @@ def beside_model(p: Prediction, run, surrogate: Surrogate | None, interval: dict
             "the response surface's training designs")
 
 
-def check_options(designs, verify, yield_mpa: float | None, batch: int, readout: str) -> None:
+def check_options(designs, verify, yield_mpa: float | None, batch: int, readout: str) -> float | None:
     """:func:`check_designs`'s designs (:func:`check_design_list`) and options, each refused naming its
-    parameter."""
+    parameter; returns the yield stress as a float (:func:`hcmt.design.basics.check_yield`: a plausible one in MPa,
+    a unit slip refused)."""
     check_readout(readout)
-    if verify not in (True, False, "auto"):
+    if not (verify is True or verify is False or (isinstance(verify, str) and verify == "auto")):
         raise InputError(f"must be True, False or 'auto', got {verify!r}", param="verify")
-    if yield_mpa is not None and not (np.isfinite(yield_mpa) and yield_mpa > 0):
-        raise InputError(f"must be a number > 0, got {yield_mpa}", param="yield_mpa")
+    yield_mpa = check_yield(yield_mpa)
     if verify == "auto" and yield_mpa is None:
         raise InputError("auto runs the solver on the designs whose call is undecided: it needs a yield stress "
                          "(yield_mpa; --yield-mpa Y in hcmt predict and sweep)", param="verify")
     check_design_list(designs, batch)
+    return yield_mpa
 
 
 def annotate(p: Prediction, run, surrogate: Surrogate | None, interval: dict | None, cannot: list[str]) -> None:
@@ -166,8 +166,10 @@ def check_designs(run, designs: list[tuple[str, Design]], *, batch: int = DESIGN
     ``batch`` designs solved right after the model predicted it. The model's
     answer is its own outputs whatever the surrogate; ``readout`` (:data:`hcmt.design.readout.READOUTS`) adds a
     derived read-out under its own names, which the calls then use (recorded as ``readout``); only ``contact``
-    reads the surrogate (its bound on when the ball leaves)."""
-    check_options(designs, verify, yield_mpa, batch, readout)
+    reads the surrogate (its bound on when the ball leaves). A design outside the model's training ranges gets no
+    decided call (:func:`hcmt.design.calls.add_calls`): ``verify="auto"`` runs the solver on it."""
+    check_run(run)
+    yield_mpa, batch = check_options(designs, verify, yield_mpa, batch, readout), int(batch)
     settings = settings_of(run.meta)
     surrogate, note, ends_window = for_run(run, surrogate)
     notes = [note] if note else []
@@ -198,14 +200,14 @@ def check_designs(run, designs: list[tuple[str, Design]], *, batch: int = DESIGN
                 annotate(p, run, surrogate, intervals[i] if intervals is not None else None, cannot[i])
                 preds.append(p)
             add_margin(chunk, yield_mpa)
-            add_calls(chunk, yield_mpa, trust)
+            add_calls(chunk, yield_mpa, trust, run.ranges)
             truth += solve_chunk(chunk, verify, solver_settings, field_, solver_bar)
     chosen = [i for i, t in enumerate(truth) if t is not None]
     measured = speedup_measured(batch, len(designs), verify, str(run.device), torch.get_num_threads())
     verified = verify_designs([preds[i] for i in chosen], [truth[i] for i in chosen], measured) if chosen else None
     final_calls(preds, truth if verify else None, yield_mpa)
     return Check(preds, truth if verify else None, verified, settings, sum(p.wall_s for p in preds),
-                 surrogate.source if surrogate is not None else None, notes, readout)
+                 surrogate.label if surrogate is not None else None, notes, readout)
 
 
 def predict_designs(run, designs: list[tuple[str, Design]], *, surrogate: Surrogate | str | bool | None = True,

@@ -10,13 +10,17 @@ from hcmt.design.basics import read_table
 from hcmt.errors import InputError, clip
 from hcmt.sim.params import (
     DESIGN_KEYS,
+    DESIGN_UNITS,
     EDGES,
     FIRST_SCENE_KEYS,
     Design,
     Settings,
+    a_type,
+    is_number,
     middle_design,
     parse_design,
     parse_number,
+    unit_slip,
 )
 
 
@@ -79,13 +83,17 @@ def outside(design: Design, ranges: dict[str, tuple[float, float]]) -> list[str]
 
 def range_warnings(design: Design, ranges: dict[str, tuple[float, float]],
                    what: str = "the model's training data") -> list[str]:
-    """One line per parameter outside the training data's range (:func:`outside`)."""
+    """One line per parameter outside the training data's range (:func:`outside`), naming its unit; a value more
+    than ten times beyond it says so and the unit it looks typed in (:func:`hcmt.sim.params.unit_slip`: ``drop_height
+    = 0.7 ... it looks like m: 700 mm?``). Such a design gets no decided call (:func:`hcmt.design.calls.add_calls`)."""
     out = []
     ranges = with_family_defaults(ranges)
     for key in outside(design, ranges):
         lo, hi = ranges[key]
-        span = f"{lo:.6g}" if lo == hi else f"{lo:.6g} .. {hi:.6g}"
-        out.append(f"{key} = {getattr(design, key):.6g} is outside {what} ({span}); expect larger errors")
+        v, unit = getattr(design, key), DESIGN_UNITS.get(key, "-")
+        span = (f"{lo:.6g}" if lo == hi else f"{lo:.6g} .. {hi:.6g}") + ("" if unit == "-" else f" {unit}")
+        slip = unit_slip(v, unit, lo, hi) if unit != "-" else None
+        out.append(f"{key} = {v:.6g} is outside {what} ({span}){'; ' + slip if slip else ''}; expect larger errors")
     return out
 
 
@@ -126,7 +134,22 @@ def settings_of(meta: dict | None) -> Settings:
     return Settings(**{k: v for k, v in saved.items() if k in {f.name for f in fields(Settings)}})
 
 
+def check_run(run, param: str = "run"):
+    """``run`` if it is a loaded model (a :class:`hcmt.Run`: its ``meta`` and ``ranges``), else one line naming
+    ``param`` and how to load one (a path or ``pretrained:NAME`` given as text is not loaded here)."""
+    if isinstance(run, (str, bytes, Path)) or not (hasattr(run, "meta") and hasattr(run, "ranges")):
+        raise InputError(f"expected a loaded model, hcmt.load_pretrained(NAME) or hcmt.Run.load(PATH_OR_"
+                         f"'pretrained:NAME'), got {clip(repr(run))} ({a_type(run)})", param=param)
+    return run
+
+
 def design_for(run, **params) -> Design:
-    """An Impact Plate :class:`~hcmt.sim.params.Design` for a model: ``params`` (``thickness=0.7, ...``) over the
-    middle of the model's training ranges (:func:`hcmt.sim.params.middle_design`), validated (``hcmt.design_for``)."""
-    return parse_design([f"{k}={v}" for k, v in params.items()], middle_design(run.meta, run.ranges), where="design")
+    """An Impact Plate :class:`~hcmt.sim.params.Design` for a model: ``params`` (``thickness=0.7, ...``: numbers,
+    a numpy one too) over the middle of the model's training ranges (:func:`hcmt.sim.params.middle_design`),
+    validated (``hcmt.design_for``)."""
+    check_run(run)
+    for k, v in params.items():
+        if not is_number(v):
+            raise InputError(f"must be a number, got {clip(repr(v))} ({a_type(v)})", param=k)
+    return parse_design([f"{k}={v}" for k, v in params.items()], middle_design(run.meta, run.ranges),
+                        where="design")

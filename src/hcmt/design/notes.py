@@ -15,11 +15,13 @@ def weak_reasons(p: Prediction) -> list[str]:
     """The low-confidence note: with a surrogate, where it and the mesh model disagree by more than
     :data:`NOTE_DISAGREEMENT` (measured with the shipped model: it flagged all 6 of 46 held-out designs with a
     peak error above 10 %, and 1 of the 40 others; the card's regions flagged 5 of 6 and 11 of 40: docs/RESULTS.md);
-    without one, where the model card measured large errors. A design outside the training ranges says so either way."""
+    without one, where the model card measured large errors. A design outside the training ranges says so either way
+    (its call is undecided: :func:`hcmt.design.calls.add_calls`)."""
     out = []
     c = p.summary.get("confidence")
     if c and c["region"] == "outside":
-        out.append(f"{p.name}: outside the training ranges: the model card has no measured error there"
+        out.append(f"{p.name}: outside the training ranges: no pass / fail call is decided there (the model card "
+                   "measured the error only on designs just beyond the thickness and drop height ranges)"
                    + verify_hint(p))
     g = (p.summary.get("surrogate") or {}).get("peak_plate_stress_mpa")
     if g:

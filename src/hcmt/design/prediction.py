@@ -21,7 +21,7 @@ from hcmt.design.summary import Summary
 from hcmt.domains.trajectory import prepare_trajectory
 from hcmt.errors import InputError, clip
 from hcmt.inference.rollout import rollout_batch, rollout_compile
-from hcmt.sim.params import Design, Settings
+from hcmt.sim.params import Design, Settings, is_number
 
 
 @dataclass
@@ -65,8 +65,8 @@ def check_design_list(designs, batch: int = 1) -> None:
     :class:`~hcmt.sim.scene.Design`) with safe, distinct names (:func:`hcmt.design.basics.check_name`): the checks
     a ``--designs`` CSV gets, for the Python API; and a ``batch`` that is no whole number from 1 to
     :data:`hcmt.config.MAX_BATCH`."""
-    if isinstance(batch, bool) or not isinstance(batch, int) or not 1 <= batch <= MAX_BATCH:
-        raise InputError(f"must be a whole number from 1 to {MAX_BATCH:,}, got {clip(batch)}", param="batch")
+    if not is_number(batch, whole=True) or not 1 <= batch <= MAX_BATCH:  # a numpy integer is one; a bool is not
+        raise InputError(f"must be a whole number from 1 to {MAX_BATCH:,}, got {clip(repr(batch))}", param="batch")
     if not isinstance(designs, (list, tuple)) or not 1 <= len(designs) <= MAX_DESIGNS:
         got = f"{len(designs):,} items" if isinstance(designs, (list, tuple)) else type(designs).__name__
         raise InputError(f"expected a list of 1 to {MAX_DESIGNS:,} (name, Design) pairs, got {got}", param="designs")

@@ -121,6 +121,21 @@ def contact_readout(fields: dict, frame_dt: float, contact_end_ms: float | None 
             "contact_bending_k": float(k)}
 
 
+def contact_note(summaries: list[dict]) -> str | None:
+    """A one-line note when ``--readout contact`` changed nothing on these designs: on every one the model's own
+    peak lies inside the contact window (:func:`contact_readout` reads the same frames' stress up to the ball's
+    leaving and only replaces the stress after it), so the contact peak, and the calls made from it, are the raw
+    ones. It can differ only where a model's peak comes after the ball has left ("ghost stress"); None otherwise,
+    or for another read-out."""
+    if not summaries or any(s.get("readout") != "contact" for s in summaries):
+        return None
+    if any(s["contact_peak_plate_frame"] != s["peak_plate_frame"] for s in summaries):
+        return None
+    return ("--readout contact changes nothing here: on every design the model's own peak comes before the ball "
+            "leaves the plate, so contact_* repeats its peak and the calls are the raw ones (the read-out differs "
+            "only where a model's peak comes after the ball has left: docs/MODELS.md, \"The contact read-out\")")
+
+
 def element_readout(fields: dict, frame_dt: float) -> dict:
     """The ``element`` read-out's fields (module docstring), every key prefixed ``element_``."""
     x = np.asarray(fields["world_pos"])

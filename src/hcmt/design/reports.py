@@ -11,7 +11,7 @@ import numpy as np
 
 from hcmt.config import plural
 from hcmt.design.check import Check, Prediction, weak_reasons
-from hcmt.design.readout import chosen, readout_key
+from hcmt.design.readout import chosen, contact_note, readout_key
 from hcmt.design.summary import Summary
 from hcmt.files import atomic_path
 from hcmt.inference.metrics import format_physics
@@ -45,13 +45,22 @@ def verify_block(summary) -> dict:
     return row.to_json() if hasattr(row, "to_json") else dict(row or {})
 
 
+def verify_columns(readout: str) -> list[tuple[str, str, str]]:
+    """:data:`VERIFY_COLUMNS` for a read-out: ``err %`` is the error of the peak the table shows as the model's
+    answer for that read-out (``<readout>_peak_plate_stress_error_pct`` for a derived one, headed so)."""
+    if readout_key("peak_plate_stress_mpa", readout) == "peak_plate_stress_mpa":
+        return VERIFY_COLUMNS
+    return [(f"{readout} err %", fmt, f"{readout}_{key}") if key == "peak_plate_stress_error_pct" else (h, fmt, key)
+            for h, fmt, key in VERIFY_COLUMNS]
+
+
 def table_rows(preds: list[Prediction]) -> tuple[list[str], list[list[str]]]:
     cols = [c for c in COLUMNS if c[2] != "yield_margin_mpa" or "yield_margin_mpa" in preds[0].summary]
     derived = readout_key("peak_plate_stress_mpa", preds[0].summary.get("readout", "raw"))
     if derived != "peak_plate_stress_mpa":  # the chosen derived read-out's peak beside the model's own
         cols.insert(2, (f"{preds[0].summary['readout']} MPa", "{:.1f}", derived))
     with_surrogate = any("surrogate" in p.summary for p in preds)
-    vcols = VERIFY_COLUMNS if any("verify" in p.summary for p in preds) else []
+    vcols = verify_columns(preds[0].summary.get("readout", "raw")) if any("verify" in p.summary for p in preds) else []
     head = [c[0] for c in cols[:2]] + (["surrogate MPa [95 %]"] if with_surrogate else []) + \
         [c[0] for c in cols[2:] + vcols]
     rows = []
@@ -89,7 +98,8 @@ def format_table(preds: list[Prediction], verified: dict | None = None) -> str:
     lines += [f"solver warning: {p.name}: {w}" for p in preds for w in verify_block(p.summary).get(
         "solver_warnings", [])]
     lines += [f"note: {w}" for p in preds for w in weak_reasons(p)]
-    return "\n".join(lines)
+    unchanged = contact_note([p.summary for p in preds])
+    return "\n".join(lines + ([f"note: {unchanged}"] if unchanged else []))
 
 
 def format_calls(preds: list[Prediction], yield_mpa: float, label: str = "design", value=None) -> str:
@@ -109,7 +119,7 @@ def format_calls(preds: list[Prediction], yield_mpa: float, label: str = "design
                      "-" if solver is None else f"{solver:.0f}", s.get("final_call", s["call"])])
     width = [max(len(h), *(len(r[i]) for r in rows)) for i, h in enumerate(head)]
     lines = [f"limit calls for a yield stress of {yield_mpa:g} MPa (pass: the trusted interval lies below it, fail: "
-             "above it, undecided: it straddles it)"]
+             "above it, undecided: it straddles it, or the design lies outside the training ranges)"]
     lines += ["  " + "  ".join(h.rjust(w) for h, w in zip(head, width))]
     lines += ["  " + "  ".join(c.rjust(w) for c, w in zip(r, width)) for r in rows]
     undecided = sum(p.summary["call"] == "undecided" for p in preds)

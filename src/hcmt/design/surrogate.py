@@ -36,6 +36,7 @@ from sklearn.exceptions import ConvergenceWarning
 from sklearn.gaussian_process import GaussianProcessRegressor
 from sklearn.gaussian_process.kernels import RBF, ConstantKernel, WhiteKernel
 
+from hcmt.config import plural
 from hcmt.data.format import Split, read_meta
 from hcmt.data.runs import PRETRAINED_DIR
 from hcmt.design.basics import QUANTITIES, RESTARTS
@@ -87,6 +88,7 @@ class Surrogate:
                  kernels: dict | None = None, *, source: str = "", restarts: int = RESTARTS, seed: int = 0,
                  linear: list[str] | None = None, strict: bool = True, dataset: dict | None = None):
         self.parameters, self.fixed, self.source = list(parameters), dict(fixed), source
+        self.name = ""  # what the header calls it (:attr:`label`): set by :func:`for_run`, never a path
         self.dataset = dict(dataset) if dataset is not None else None
         if not self.parameters:
             raise InputError("no design parameter varies over the training designs: nothing to fit")
@@ -204,6 +206,14 @@ class Surrogate:
 
     def __len__(self) -> int:
         return len(self.X)
+
+    @property
+    def label(self) -> str:
+        """What a report's header calls this surface: its name (the model's own, or its file's name) and the count of
+        runs it was fitted on, never a machine's path (:attr:`source`, the file's record, may hold the command and the
+        folders that made it)."""
+        runs = f"fitted on {plural(len(self), 'solver run')}"
+        return f"{self.name}, {runs}" if self.name else f"a Gaussian process {runs}"
 
     def __repr__(self) -> str:
         return (f"Surrogate({len(self)} designs, parameters {self.parameters}, answers {list(self.Y)}"
@@ -463,6 +473,12 @@ def run_surrogate_path(run) -> Path | None:
     return folder.path / "surrogate.json" if folder is not None else None
 
 
+def run_name(run) -> str:
+    """A model's name without a machine's path: ``pretrained:NAME``, or its run folder's name."""
+    source = str(run.source)
+    return source if source.startswith("pretrained:") else Path(source).name
+
+
 def for_run(run, choice: "Surrogate | str | Path | bool | None" = True
             ) -> tuple["Surrogate | None", str | None, bool]:
     """(surrogate, note, ends_window) for a run: ``True``, the run's own (:func:`run_surrogate_path`; note when it
@@ -483,8 +499,10 @@ def for_run(run, choice: "Surrogate | str | Path | bool | None" = True
             return None, (f"{run.source} has no response surface ({path or 'no run folder'}); fit one with "
                           "`hcmt surrogate fit DATA --out FILE` and pass --surrogate FILE"), False
         s, where = Surrogate.load(path), str(path)
+        s.name = f"{run_name(run)}'s own"
     else:
         s, where = Surrogate.load(choice), str(choice)
+        s.name = Path(choice).name
     stress_field = getattr(getattr(run, "adapter", None), "stress_field", "stress")
     if getattr(run, "ranges", None):
         s.check_model(run.ranges, getattr(run, "meta", None), stress_field, where, None if own else "surrogate")

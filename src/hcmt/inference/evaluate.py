@@ -16,7 +16,7 @@ from tqdm import tqdm
 
 from hcmt.config import INFERENCE_COMPILE_MODES, MAX_BATCH, plural
 from hcmt.data.format import Split, read_meta
-from hcmt.data.runs import RunFolder
+from hcmt.data.runs import RunFolder, available_pretrained
 from hcmt.domains.trajectory import load_split
 from hcmt.errors import InputError, RolloutError, clip
 from hcmt.files import atomic_path, ensure_space, read_json
@@ -25,6 +25,7 @@ from hcmt.inference.metrics import (
     aggregate,
     format_physics,
     impact_metrics,
+    rmse_units,
     rollout_rmse,
     step_rmse,
     summarize_impact,
@@ -43,6 +44,39 @@ def check_options(*, batch: int = 1, compile: str = "none") -> None:
         raise InputError(f"must be one of {', '.join(INFERENCE_COMPILE_MODES)}, got {compile!r}", param="compile")
 
 
+def check_results_folder(path, source: str) -> None:
+    """Refuse (one line, ``param="out"``) a folder that a shipped model (``source`` ``pretrained:NAME``) is to write
+    its rollouts and metrics to when it holds another model's: a run folder (``run.yaml`` or a checkpoint: its own
+    ``metrics_<split>.json`` would be replaced by the shipped model's, and ``hcmt compare`` would show them as the
+    run's), or rollouts made by another checkpoint. A run folder writing to itself is not checked."""
+    if not str(source).startswith("pretrained:") or path is None or not Path(path).is_dir():
+        return
+    folder = RunFolder(path, must_exist=False)
+    if folder.holds_run() or folder.damaged:
+        held = folder.run_yaml.name if folder.run_yaml.is_file() else folder.latest.name
+        raise InputError(f"{path}: a run folder of another model ({held}); {clip(source)}'s rollouts and metrics "
+                         "would replace its own: choose another folder", param="out")
+    shipped = available_pretrained().get(str(source).split(":", 1)[1])
+    for p in sorted(folder.path.glob("rollout_*.h5")):
+        try:
+            with h5py.File(p, "r") as f:
+                made_by = f.attrs.get("checkpoint")
+        except OSError:
+            continue  # a damaged rollout file is rolled out again (rollout_for)
+        made_by = made_by.decode() if isinstance(made_by, bytes) else made_by
+        if made_by is not None and shipped is not None and str(made_by) != Path(shipped).name:
+            raise InputError(f"{path}: holds {p.name} of another model ({clip(str(made_by))}); {clip(source)}'s "
+                             "rollouts and metrics would replace it: choose another folder", param="out")
+
+
+def results_folder(run: Run) -> RunFolder:
+    """The folder a run's rollouts and metrics go to (:meth:`Run.require_folder`), checked by
+    :func:`check_results_folder`."""
+    folder = run.require_folder()
+    check_results_folder(folder.path, run.source)
+    return folder
+
+
 def rollout_key(data, split: str, run: Run) -> dict:
     """What a rollout file was made from: dataset, split and checkpoint (file and step)."""
     return {"data": str(Path(data).resolve()), "split": split, "checkpoint": run.info.checkpoint.file,
@@ -55,7 +89,7 @@ def run_rollouts(run: Run, data, split: str, *, limit: int | None = None, batch:
     name>.h5`` for a dataset other than the run's own), atomically. ``batch`` trajectories of equal length step
     together as one batched graph. The progress bar counts model steps over the whole split (with an ETA)."""
     check_options(batch=batch, compile=compile)
-    folder = run.require_folder()
+    folder = results_folder(run)
     check_dataset(run.meta, data)
     levels, remesh = run.hierarchy_spec
     trajs = load_split(data, split, run.adapter, levels, remesh, limit=limit)
@@ -95,7 +129,7 @@ def rollout_for(run: Run, data, split: str, *, need: int | None = None, batch: i
     file had. Options are checked first, whatever the cache holds; the file of a dataset other than the run's own
     is ``rollout_<split>@<data name>.h5``."""
     check_options(batch=batch, compile=compile)
-    path = run.require_folder().rollout_path(split, data)
+    path = results_folder(run).rollout_path(split, data)
     with Split(data, split) as s:
         names = s.names
     want = len(names) if need is None else min(int(need), len(names))
@@ -138,7 +172,7 @@ def evaluate(run: Run, data, split: str = "test", *, limit: int | None = None, b
     rolls out first if the rollout file is missing or stale. A dataset of another frame interval is refused;
     other mismatches with the training data are recorded under ``warnings``."""
     check_options(batch=batch, compile=compile)
-    folder = run.require_folder()
+    folder = results_folder(run)
     warnings = dataset_warnings(run, data, split)
     meta = read_meta(data)
     path = rollout_for(run, data, split, need=limit, batch=batch, compile=compile, progress=progress)
@@ -166,6 +200,7 @@ def evaluate(run: Run, data, split: str = "test", *, limit: int | None = None, b
     means = aggregate([{k: v for k, v in r.items() if k != "trajectory"} for r in per_traj])
     units = meta.get("units") or {}
     metrics = {"split": split, "data": str(Path(data).resolve()), "trajectories": len(per_traj), "scale": SCALE,
+               "rmse_units": rmse_units(units),  # every RMSE below (and error_by_step) is ×scale: in these units
                "units": {k: units[k] for k in ("length", "stress") if k in units}, "warnings": warnings}
     for q in ("position", "stress"):
         if f"{q}_rmse_all" in means:
@@ -215,21 +250,17 @@ def impact_physics(pos, stress, truth: dict, start: int) -> tuple[dict, dict]:
     return impact_metrics(pos, stress, truth["world_pos"], truth["stress"], plate, start), steps
 
 
-def metric_unit(m: dict, quantity: str) -> str:
-    """The unit of a quantity's RMSE as the dataset records it (``units.length`` / ``units.stress``)."""
-    return (m.get("units") or {}).get("length" if quantity == "position" else quantity) or "data units"
-
-
 def format_metrics(m: dict) -> str:
-    """The RMSE table in the data's units (metrics.json keeps the paper's ×10³ values)."""
+    """The RMSE table at the scale metrics_<split>.json stores it (the paper's ×10³, in :func:`rmse_units`)."""
+    units = rmse_units(m.get("units") or {})
     lines = [f"split {m['split']}: {plural(m['trajectories'], 'trajectory', 'trajectories')}, "
-             "RMSE over the rollout's steps 1, 1-50 and all",
-             f"  {'':<18}{'rmse_1':>12}{'rmse_50':>12}{'rmse_all':>12}"]
+             f"RMSE ×{SCALE:g} over the rollout's steps 1, 1-50 and all (as metrics_{m['split']}.json stores it)",
+             f"  {'':<20}{'rmse_1':>12}{'rmse_50':>12}{'rmse_all':>12}"]
     for q in ("position", "stress"):
         if q in m:
-            name = f"{q} [{metric_unit(m, q)}]"
-            lines.append(f"  {name:<18}"
-                         + "".join(f"{m[q][k] / SCALE:>12.4g}" for k in ("rmse_1", "rmse_50", "rmse_all")))
+            name = f"{q} [{units[q]}]"
+            lines.append(f"  {name:<20}"
+                         + "".join(f"{m[q][k]:>12.4g}" for k in ("rmse_1", "rmse_50", "rmse_all")))
     lines.append(f"  inference {m['inference_ms_per_step']:.2f} ms/step"
                  + (f", training {m['train_ms_per_step']:.2f} ms/step" if m.get("train_ms_per_step") else ""))
     if "physics" in m:

@@ -29,6 +29,14 @@ SCALE = 1e3
 HORIZONS = {"rmse_1": 1, "rmse_50": 50, "rmse_all": None}
 
 
+def rmse_units(units: dict) -> dict[str, str]:
+    """The unit of every RMSE a metrics file stores (×:data:`SCALE` of the data's units, as the paper reports them):
+    ``{"position": "0.001 mm", "stress": "0.001 MPa"}`` for the data's ``units`` ``{"length": "mm", "stress":
+    "MPa"}`` ("data units" where the data names none)."""
+    return {q: f"{1 / SCALE:g} {units.get(key) or 'data units'}"
+            for q, key in (("position", "length"), ("stress", "stress"))}
+
+
 def step_rmse(pred: np.ndarray, true: np.ndarray) -> np.ndarray:
     """[T, N, D] × 2 → [T]: RMSE over nodes of the per-node error vector at each step."""
     pred, true = np.asarray(pred, np.float64), np.asarray(true, np.float64)
@@ -133,6 +141,16 @@ def summarize_impact(rows: list[dict]) -> dict:
     return out
 
 
+def rebound_words(p: dict) -> str:
+    """Whether the ball rebounds, model against solver, over :func:`summarize_impact`'s trajectories, in plain words
+    when neither rebounds (an agreement of n/n then says nothing about rebounds)."""
+    n = p["trajectories"]
+    if p["model_rebounds"] == 0 and p["solver_rebounds"] == 0:
+        return f"rebound: neither the model nor the solver rebounds in {n}/{n}"
+    return (f"rebound agreement {p['rebound_agreement'] * n:.0f}/{n} (the ball rebounds in "
+            f"{plural(p['model_rebounds'], 'prediction')}, {plural(p['solver_rebounds'], 'solver run')})")
+
+
 def format_physics(p: dict) -> list[str]:
     """The lines of :func:`summarize_impact` for a terminal."""
     def err(key, unit=" %"):
@@ -140,9 +158,7 @@ def format_physics(p: dict) -> list[str]:
         return (f"median {e['median_abs']:.1f}{unit} (signed {e['median']:+.1f}{unit}, p90 {e['p90_abs']:.1f}{unit}, "
                 f"worst {e['worst']:+.1f}{unit})")
     n = p["trajectories"]
-    return [f"  physics over {plural(n, 'trajectory', 'trajectories')}: rebound agreement "
-            f"{p['rebound_agreement'] * n:.0f}/{n} (the ball rebounds in {plural(p['model_rebounds'], 'prediction')}, "
-            f"{plural(p['solver_rebounds'], 'solver run')})",
+    return [f"  physics over {plural(n, 'trajectory', 'trajectories')}: {rebound_words(p)}",
             f"    peak plate stress error {err('peak_plate_stress_error_pct')}",
             f"    time of the plate's peak, frames off: {err('peak_plate_frame_error', '')}",
             f"    max deflection error {err('max_deflection_error_pct')}",

@@ -20,7 +20,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from hcmt.config import NO_REMESH, Config
+from hcmt.config import NO_REMESH, Config, check_same_dataset, default_threads
 from hcmt.data.format import Split, read_meta
 from hcmt.data.runs import NAMED_CHECKPOINTS, RunFolder, available_pretrained, read_checkpoint
 from hcmt.domains.adapters import config_adapter
@@ -117,6 +117,7 @@ class Run:
         (the latest) or ``step_<N>`` (kept by ``train.keep_every``)."""
         if isinstance(path, Run):
             return path
+        default_threads()  # the Python API's threads as the command's --threads auto (kept if the caller chose)
         dev = resolve_device(device)
         if not isinstance(path, RunFolder) and str(path).startswith("pretrained:"):
             return cls._pretrained(str(path).split(":", 1)[1], dev)
@@ -243,5 +244,6 @@ def check_dataset(train_meta: dict | None, data, train_data=None, split: str | N
 def dataset_warnings(run: Run, data, split: str) -> list[str]:
     """:func:`check_dataset` of ``data`` against the run's training data (nothing to compare when it is gone):
     raises for another ``dt``, returns the warning lines."""
+    check_same_dataset(run.config.dataset, read_meta(data), data, f"run {clip(str(run.source))}")
     own = run.info.data
     return check_dataset(run.meta, data, own if own and Path(own).is_dir() else None, split)

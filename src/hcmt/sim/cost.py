@@ -109,3 +109,72 @@ def plan(design: Design, settings: Settings = Settings()) -> dict:
     return {"num_nodes": n, "num_cells": len(mesh["cells"]), "substeps": substeps,
             "dt": settings.frame_dt / per_frame,
             "estimated_s": substeps * (SECONDS_PER_SUBSTEP + SECONDS_PER_NODE_SUBSTEP * n)}
+
+
+# -- the recorded window: did it hold the impact? --------------------------------------------------------------------
+#: a peak plate stress in the window's last CUT_FRAMES frames, or a last frame still holding CUT_SHARE of it, may be
+#: cut by the window's end: thin plates peak late (a 0.5 mm plate dropped from 1,000 mm: 946 MPa at frame 49 of 52,
+#: 1,032 MPa at frame 55 of 90; a 0.75 mm plate from 750 mm peaks at frame 39, its last frame 90 % of it)
+CUT_FRAMES, CUT_SHARE = 3, 0.95
+
+
+def fall(design: Design, settings: Settings = Settings()) -> dict:
+    """The impactor's free fall in the recorded window (it starts ``gap`` above the plate at ``impact_speed``,
+    gravity on): ``window_ms``, ``fallen_mm`` (how far it falls in it), ``touch_frame`` (the frame it reaches the
+    plate, counted from 0) and ``touch_height_mm`` (the least drop height that reaches it within the window)."""
+    g, v0, gap = settings.gravity, design.impact_speed, design.gap
+    window = (settings.frames - 1) * settings.frame_dt
+    touch = (np.sqrt(v0 * v0 + 2 * g * gap) - v0) / g if g > 0 else gap / max(v0, 1e-300)
+    least = max(0.0, (gap - 0.5 * g * window * window) / window)  # the impact speed that closes the gap in time
+    return {"window_ms": window, "fallen_mm": v0 * window + 0.5 * g * window * window,
+            "touch_frame": int(np.ceil(touch / settings.frame_dt - 1e-9)),
+            "touch_height_mm": least * least / (2 * g) if g > 0 else float("inf")}
+
+
+def window_warnings(design: Design, settings: Settings, plate_history: np.ndarray, gap: np.ndarray) -> list[str]:
+    """What a solve's recorded window missed, one line each: the impactor never reached the plate (``gap``, [T]
+    mm from its lowest point to the plate's top on the axis, stayed above 0), or the peak plate stress
+    (``plate_history``, [T] MPa: the plate's largest stress per frame) lies in the window's last frames, where the
+    window's end may cut it (:data:`CUT_FRAMES`, :data:`CUT_SHARE`); each says what to change."""
+    frames, dt = settings.frames, settings.frame_dt
+    window = f"{frames} frames x {dt:g} ms = {(frames - 1) * dt:.3g} ms"
+    if float(np.min(gap)) > 0:
+        f = fall(design, settings)
+        unit = f" (mm: {design.drop_height:g} m is {design.drop_height * 1e3:g})" if design.drop_height < 10 else ""
+        return [f"the {design.impactor} did not touch the plate in the simulated window ({window}): from drop_height "
+                f"{design.drop_height:g} mm it falls {f['fallen_mm']:.2g} of its {design.gap:g} mm gap; raise "
+                f"drop_height{unit} above {f['touch_height_mm']:.3g} mm, or record more frames (--frames; it reaches "
+                f"the plate at frame {f['touch_frame']})"]
+    history = np.asarray(plate_history, float).reshape(-1)
+    peak, at = float(history.max()), int(history.argmax())
+    if peak > 0 and (at >= frames - CUT_FRAMES or history[-1] >= CUT_SHARE * peak):
+        more = max(90, 3 * frames // 2)  # 90: at least the shipped model's window (`hcmt models`)
+        return [f"the peak plate stress ({peak:.1f} MPa) is at frame {at} ({at * dt:.3g} ms) of a window ending at "
+                f"frame {frames - 1} ({(frames - 1) * dt:.3g} ms), which still holds {100 * history[-1] / peak:.0f} % "
+                f"of it: the window may cut the peak; record more frames, e.g. --frames {more}"]
+    return []
+
+
+# -- many designs: the solver's total, said before it starts ---------------------------------------------------------
+def solver_seconds(designs: list[Design], settings: Settings = Settings(), sample: int = 8) -> float | None:
+    """The solver's estimated seconds for ``designs`` one after another on one core: :func:`plan`'s estimate (from
+    the built mesh, as ``hcmt simulate`` prints it) of up to ``sample`` designs spread over the list, scaled to all
+    of them by :func:`estimate`'s (from their numbers alone: 0.1 ms a design, where a mesh takes 10 ms). None when
+    a design is too large to plan (the cost check refuses it, naming it)."""
+    if not designs:
+        return 0.0
+    rough = [estimate(d, settings)["estimated_s"] for d in designs]
+    if not np.all(np.isfinite(rough)):
+        return None
+    picks = sorted({int(i) for i in np.linspace(0, len(designs) - 1, min(sample, len(designs))).round()})
+    try:
+        planned = sum(plan(designs[i], settings)["estimated_s"] for i in picks)
+    except InputError:
+        return None
+    return planned / max(sum(rough[i] for i in picks), 1e-300) * sum(rough)
+
+
+def duration(seconds: float) -> str:
+    """``42 s``, ``12.5 min``, ``7.5 h``."""
+    return f"{seconds:.0f} s" if seconds < 120 else f"{seconds / 60:.1f} min" if seconds < 7200 else \
+        f"{seconds / 3600:.1f} h"

@@ -6,23 +6,29 @@ Dataset writing is parallel and resumable:
   identical whatever the worker count or order;
 * each finished trajectory is written atomically to ``OUT/.parts/<split>/<i>.h5``; a rerun skips existing parts;
 * when a split is complete its parts are assembled atomically into ``OUT/<split>.h5`` and then removed; an
-  interruption at any point leaves either complete files or nothing (never a half-written file).
+  interruption at any point leaves either complete files or nothing (never a half-written file);
+* one generate at a time writes a folder: it holds ``OUT/.generate.lock`` (``flock``, released when it ends or is
+  killed); a second one is refused naming the first one's pid, and a reader of the unfinished dataset is told that a
+  generate is writing it (else, that an interrupted one can be rerun).
 """
 from __future__ import annotations
 
 import multiprocessing as mp
 import shutil
 import signal
+from contextlib import contextmanager
 from dataclasses import asdict
 from pathlib import Path
+from typing import Iterator
 
 import h5py
 import numpy as np
 from tqdm import tqdm
 
 from hcmt.config import MAX_TRAJECTORIES, machine_cores
-from hcmt.data.format import make_meta, read_meta, write_meta, write_split
+from hcmt.data.format import GENERATE_LOCK, make_meta, read_meta, write_meta, write_split
 from hcmt.errors import DatasetError, InputError
+from hcmt.files import folder_lock
 from hcmt.sim.cost import check_cost, plan
 from hcmt.sim.driver import simulate
 from hcmt.sim.params import (
@@ -160,19 +166,44 @@ def generate_dataset(out, *, preset: str = "small", counts: dict[str, int], seed
     out = Path(out)
     meta = dataset_meta(preset, seed, counts, settings, edge_fraction, families)
     meta["families"] = {split: [trajectory_family(meta, i) for i in range(n)] for split, n in counts.items()}
+    if out.exists() and not out.is_dir():
+        raise InputError(f"{out}: is a file; name a folder for the dataset", param="out")
     if (out / "meta.json").is_file():
         _check_growth(out, read_meta(out), meta, counts)
-    out.mkdir(parents=True, exist_ok=True)
-    write_meta(out, meta)
-    todo, done_splits, skipped = _tasks(out, meta, preset, seed, counts, settings)
-    _run_all(todo, workers, progress, f"impact-plate {preset}")
-    for split, n in counts.items():
-        if split not in done_splits:
-            done_splits[split] = _assemble(out, meta, split, n)
-    parts = out / ".parts"
-    if parts.is_dir() and not any(parts.iterdir()):
-        parts.rmdir()
+    with _locked(out):
+        if (out / "meta.json").is_file():  # again under the lock: a generate that just ended may have grown it
+            _check_growth(out, read_meta(out), meta, counts)
+        write_meta(out, meta)
+        todo, done_splits, skipped = _tasks(out, meta, preset, seed, counts, settings)
+        _run_all(todo, workers, progress, f"impact-plate {preset}")
+        for split, n in counts.items():
+            if split not in done_splits:
+                done_splits[split] = _assemble(out, meta, split, n)
+        parts = out / ".parts"
+        if parts.is_dir() and not any(parts.iterdir()):
+            parts.rmdir()
     return dict(simulated=len(todo), skipped=skipped, splits=done_splits)
+
+
+@contextmanager
+def _locked(out: Path) -> Iterator[None]:
+    """Hold the dataset folder's generate lock (:data:`hcmt.data.format.GENERATE_LOCK`, made with the folder when
+    missing): a second generate on it is refused in one line naming the first one's pid. When the block fails
+    before meta.json is written (a refusal), the folders this call made are removed again: nothing is left."""
+    made = [p for p in (out, *out.parents) if not p.exists()]
+    out.mkdir(parents=True, exist_ok=True)
+
+    def busy(pid: int) -> InputError:
+        return InputError(f"{out}: a generate is writing it (pid {pid}); wait for it or stop it")
+
+    try:
+        with folder_lock(out / GENERATE_LOCK, busy):
+            yield
+    except BaseException:
+        for p in made:  # innermost first; each only when empty (an interrupted generate keeps its .parts)
+            if p.is_dir() and not any(p.iterdir()):
+                p.rmdir()
+        raise
 
 
 def _checked_arguments(preset: str, counts: dict[str, int], workers: int, edge_fraction: float,
@@ -198,6 +229,8 @@ def _checked_arguments(preset: str, counts: dict[str, int], workers: int, edge_f
             raise InputError(f"{split}: expected 0 to {MAX_TRAJECTORIES:,} trajectories, got {n}", param="counts")
     if not 1 <= int(workers) <= machine_cores():
         raise InputError(f"must be 1 to this machine's {machine_cores()} cores, got {workers}", param="workers")
+    if not isinstance(settings, Settings):
+        raise InputError(f"must be an hcmt.Settings(...), got a {type(settings).__name__}", param="settings")
     settings.validate()
     counts = {k: int(v) for k, v in counts.items() if int(v) > 0}
     if not counts:

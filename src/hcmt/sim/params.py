@@ -6,6 +6,7 @@ scipy. :mod:`hcmt.sim.scene` assembles a design's scene (its docstring has the c
 from __future__ import annotations
 
 import difflib
+import numbers
 from dataclasses import asdict, dataclass, fields
 
 import numpy as np
@@ -168,6 +169,26 @@ class Settings:
     gravity: float = GRAVITY
     peak_stress: bool = False  # also record stress_max: each node's largest von Mises since the previous frame
 
+    def __post_init__(self) -> None:
+        """Each field of its type, else one line naming it (``Settings(frames="8")``); a numpy number is taken as
+        the Python one (a ``bool`` is no number, a float no whole number)."""
+        for f in fields(self):
+            v = getattr(self, f.name)
+            if f.name == "formulation":
+                ok, expected = isinstance(v, str), "text"
+            elif f.name == "peak_stress":
+                ok, expected = isinstance(v, (bool, np.bool_)), "True or False"
+                v = bool(v) if ok else v
+            elif f.name == "frames":
+                ok, expected = is_number(v, whole=True), "a whole number"
+                v = int(v) if ok else v
+            else:
+                ok, expected = is_number(v), "a number"
+                v = float(v) if ok else v
+            if not ok:
+                raise InputError(f"must be {expected}, got {clip(repr(v))} ({a_type(v)})", param=f.name)
+            object.__setattr__(self, f.name, v)
+
     def validate(self) -> "Settings":
         for name, ok, expected in (("formulation", self.formulation in FORMULATIONS, f"one of {FORMULATIONS}"),
                                    ("frames", self.frames >= 2, ">= 2"), ("frame_dt", self.frame_dt > 0, "> 0 ms"),
@@ -309,6 +330,47 @@ def parse_stack(stack: str) -> dict[str, float]:
     for k in range(len(items) + 1, 5):
         out[f"layer{k}_thickness"] = 0.0
     return out
+
+
+def is_number(v, whole: bool = False) -> bool:
+    """Whether ``v`` is a real number (a numpy one too; a ``bool`` is not), a whole one for ``whole``."""
+    if isinstance(v, (bool, np.bool_)):
+        return False
+    return isinstance(v, numbers.Integral) if whole else isinstance(v, numbers.Real)
+
+
+def a_type(v) -> str:
+    """``a str``, ``an int``: how a refusal names the type it got."""
+    name = type(v).__name__
+    return f"{'an' if name[:1] in 'aeiou' else 'a'} {name}"
+
+
+#: the units a value given in a design unit is most often typed in by mistake: (factor to the design unit, name)
+SLIPS = {"mm": ((1e3, "m"), (1e-3, "µm")), "MPa": ((1e-6, "Pa"), (1e-3, "kPa"), (1e3, "GPa")),
+         "g/mm^3": ((1e-6, "kg/m^3"), (1e-3, "g/cm^3")), "g": ((1e3, "kg"), (1e-3, "mg"))}
+#: a value this many times beyond the nearest end of its expected span is an order-of-magnitude slip, not a design
+SLIP_FACTOR = 10.0
+
+
+def _times(r: float) -> str:
+    return f"{r:.2g}x" if r < 10 else f"{r:,.0f}x" if r < 1e6 else f"{r:.1e}x"
+
+
+def unit_slip(value: float, unit: str, lo: float, hi: float, factor: float = SLIP_FACTOR) -> str | None:
+    """How far ``value`` (in ``unit``) lies beyond ``lo`` .. ``hi`` when it is more than ``factor`` times beyond
+    it, and the unit it looks typed in if read in one (:data:`SLIPS`) it lands inside: ``"7.5e+08 is 7,500x above
+    it; it looks like Pa: 750 MPa?"``; None when it is inside or near."""
+    if not (np.isfinite(value) and lo > 0 and hi > 0):
+        return None
+    if value > hi * factor:
+        how = f"{value:.6g} is {_times(value / hi)} above it"
+    elif value < lo / factor:
+        how = f"{value:.6g} is {_times(lo / value)} below it" if value > 0 else f"{value:.6g} is not above 0"
+    else:
+        return None
+    likely = [f"{name}: {value * scale:.6g} {unit}" for scale, name in SLIPS.get(unit, ())
+              if lo <= value * scale <= hi]
+    return f"{how}; it looks like {' or '.join(likely)}?" if likely else f"{how}, a unit slip?"
 
 
 #: a design estimated to take longer than this is refused unless forced (``hcmt simulate --force``)

@@ -7,12 +7,12 @@ import os
 import shutil
 from pathlib import Path
 
-from hcmt.config import as_config
+from hcmt.config import as_config, default_threads, override_list
 from hcmt.data.runs import RunFolder, check_start
 from hcmt.errors import InputError
 from hcmt.files import check_apart
 from hcmt.training.runtime import deterministic_scope, lock_run
-from hcmt.training.start import check_model, inherit
+from hcmt.training.start import check_data, check_model, check_paths, inherit
 from hcmt.training.trainer import Trainer
 
 
@@ -35,21 +35,12 @@ def train(config, data, model: str | None, out, *, overrides=None, resume: bool 
     ``model:`` settings (and its whole config when ``config`` is None, its model when ``model`` is None); an
     override changing its architecture is refused in one line listing what differs; ``init_normalizers`` ``keep``
     freezes its normalizer statistics, ``reaccumulate`` zeroes them and accumulates them on ``data``. run.yaml
-    records it."""
-    if resume and overwrite:
-        raise InputError("hcmt.train: resume=True and overwrite=True contradict each other; choose one")
-    config, model = inherit(init, config, model) if init is not None and not resume else (config, model)
-    model = check_model(config, model)
-    out = Path(out)
-    check_apart({"out": out}, {"data": data, "init": None if str(init or "").startswith("pretrained:") else init},
-                owned=("out",))
-    folder = RunFolder(out, must_exist=False)
-    if folder.holds_run() and not resume and overwrite:
-        shutil.rmtree(out)
-        folder = RunFolder(out, must_exist=False)
-    check_start(folder, resume)
-    cfg = as_config(config, list(overrides or []) + ([f"model.ablation={ablation}"] if ablation else [])
-                    ).for_training()
+    records it. Threads: torch's count where the caller set one, else the command's default (``--threads auto``,
+    :func:`hcmt.config.default_threads`)."""
+    cfg, model = _start(config, data, model, out, overrides=overrides, resume=resume, overwrite=overwrite,
+                        ablation=ablation, init=init)
+    out, folder = Path(out), RunFolder(out, must_exist=False)
+    default_threads()
 
     def run() -> dict:
         with deterministic_scope():  # train.deterministic holds for this run only
@@ -73,6 +64,30 @@ def train(config, data, model: str | None, out, *, overrides=None, resume: bool 
         raise
     finally:
         lock.unlink(missing_ok=True)
+
+
+def _start(config, data, model, out, *, overrides, resume: bool, overwrite: bool, ablation, init):
+    """:func:`train`'s config and model, every check done before anything is written or deleted (a bad config or
+    data of another dataset leaves a run that ``overwrite`` would replace in place); then ``overwrite``'s deletion
+    and the run folder's start rules (:func:`hcmt.data.runs.check_start`)."""
+    check_paths(data=data, out=out)
+    if resume and overwrite:
+        raise InputError("hcmt.train: resume=True and overwrite=True contradict each other; choose one")
+    given = config
+    config, model = inherit(init, config, model) if init is not None and not resume else (config, model)
+    model = check_model(config, model)
+    out = Path(out)
+    check_apart({"out": out}, {"data": data, "init": None if str(init or "").startswith("pretrained:") else init},
+                owned=("out",))
+    overrides = override_list(overrides) + ([f"model.ablation={ablation}"] if ablation else [])
+    cfg = as_config(config, overrides).for_training()
+    check_data(cfg, data, given, init, overrides)  # a config of another dataset than the data's
+    folder = RunFolder(out, must_exist=False)
+    if folder.holds_run() and not resume and overwrite:
+        shutil.rmtree(out)
+        folder = RunFolder(out, must_exist=False)
+    check_start(folder, resume)
+    return cfg, model
 
 
 __all__ = ["Trainer", "train"]

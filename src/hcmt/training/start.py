@@ -3,12 +3,14 @@ started from) and the checks before anything is written: a resumed run's setting
 fine-tuned run's (``--init``) model is its source's, inherited (:func:`inherit`)."""
 from __future__ import annotations
 
+import os
 from dataclasses import replace
 from pathlib import Path
 
-from hcmt.config import INIT_NORMALIZERS, MODELS, Config, as_config
+from hcmt.config import INIT_NORMALIZERS, MODELS, Config, as_config, check_same_dataset, set_in
+from hcmt.data.format import read_meta
 from hcmt.data.runs import RunFolder
-from hcmt.errors import InputError
+from hcmt.errors import InputError, clip
 from hcmt.inference.run import Run
 from hcmt.models import architecture
 from hcmt.training.runtime import check_resume
@@ -46,6 +48,35 @@ def check_model(config, model: str | None) -> str:
     if model not in MODELS:
         raise InputError(f"hcmt.train: unknown model {model!r}; expected one of {', '.join(MODELS)}")
     return model
+
+
+def check_paths(**paths) -> None:
+    """``hcmt.train``'s folders (``data=``, ``out=``): each a path, refused in one line naming the parameter
+    otherwise (None, a number)."""
+    for name, value in paths.items():
+        if not isinstance(value, (str, os.PathLike)) or not str(value).strip():
+            what = "the native dataset folder (meta.json + train.h5)" if name == "data" else "the run folder to write"
+            raise InputError(f"expected a path, {what}; got {clip(repr(value))}", param=name)
+
+
+def check_data(cfg: Config, data, config, init: str | None, overrides: list) -> None:
+    """Refuse ``data`` of another dataset than the config's ``dataset`` (:func:`hcmt.config.check_same_dataset`),
+    naming the config as given (``config``: its file or name, and the base that set ``dataset``; a fine-tuned
+    run's source when None)."""
+    meta = read_meta(data)
+    if meta.get("dataset") in (None, cfg.dataset):
+        return
+    origin = None
+    if isinstance(config, (str, os.PathLike)):
+        source = f"config {config}"
+        if any(str(o).startswith("dataset=") for o in overrides):
+            origin = "an override"
+        else:
+            base = set_in(config, "dataset")
+            origin = None if base in (None, str(config), Path(str(config)).stem) else f"its base {base}"
+    else:
+        source = f"config of {init}" if config is None and init is not None else "config"
+    check_same_dataset(cfg.dataset, meta, data, source, origin)
 
 
 def start_record(folder: RunFolder, args: dict, cfg: Config, data, seed: int, world: int, *, resume: bool,

@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import shutil
 import time
 from pathlib import Path
@@ -31,6 +32,10 @@ torch.set_num_threads(1)
 
 ROOT = Path(__file__).resolve().parent
 RESULTS = ROOT / "results"
+CHECKOUT = ROOT.parent
+#: the work folder that commands in docs/RESULTS.md name as ``$HCMT_WORK`` (data sets, run folders, scratch results):
+#: the environment variable ``HCMT_WORK``, else ``benchmarks/work`` inside the checkout (ignored by git)
+WORK = Path(os.environ.get("HCMT_WORK") or ROOT / "work").resolve()
 
 # The accuracy study's scale (stated in docs/RESULTS.md): `small` preset, CPU budget per run.
 DATASET = dict(preset="small", train=40, valid=4, test=10, seed=2024, variants=20)
@@ -125,11 +130,31 @@ def claim(run: Path) -> bool:
     return take_lock(run.parent / f"{run.name}.lock") in (None, os.getpid())
 
 
+def portable(obj):
+    """``obj`` (a path, a command line, or a result's dicts and lists of them) as a fresh clone reads it: every
+    absolute path inside the work folder :data:`WORK` written as ``$HCMT_WORK/...``, inside the checkout relative
+    to its root, so a result file records no folder of the machine that wrote it. Other values are returned as
+    they are."""
+    if isinstance(obj, dict):
+        return {k: portable(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [portable(v) for v in obj]
+    if isinstance(obj, Path):
+        obj = str(obj)
+    if not isinstance(obj, str):
+        return obj
+    # the work folder first: by default it lies inside the checkout
+    for root, name in ((WORK, "$HCMT_WORK"), (CHECKOUT, ".")):
+        obj = re.sub(re.escape(str(root)) + r"(/|(?![\w.-]))", lambda m: name + m.group(1), obj)
+    return re.sub(r"(?<![\w$.])\./(?=[\w$])", "", obj)  # ./benchmarks/x -> benchmarks/x
+
+
 def write_json(name: str, obj) -> Path:
+    """Write ``benchmarks/results/NAME`` (its paths :func:`portable`)."""
     RESULTS.mkdir(parents=True, exist_ok=True)
     path = RESULTS / name
     with atomic_path(path) as tmp:
-        tmp.write_text(json.dumps(obj, indent=2))
+        tmp.write_text(json.dumps(portable(obj), indent=2))
     return path
 
 

@@ -3,7 +3,7 @@ formatting mean ± std, and the rules that choose the report's judging words.
 
 Every judging phrase of the report ("ahead", "faster", "not reproduced", "the clearest effect", ...) is chosen by a
 comparison of the numbers it prints, by the rules below. A fact that no result file holds (the paper's numbers, the
-machine, the goals of an issue) is a named constant here or in its section's module."""
+machine, the goals a study was built to check) is a named constant here or in its section's module."""
 from __future__ import annotations
 
 import json
@@ -27,8 +27,8 @@ PAPER_WORST_ABLATION = "only-hmt"  # the worst variant of Table 3
 # This project's fixed facts.
 MACHINE = "2-core CPU"  # the development machine (no GPU)
 SHIPPED_STEPS = 36_000  # training steps of the shipped model (docs/MODELS.md)
-GOAL_NODES = 250_000  # issue "Fast on a GPU": the mesh size a GPU step should take
-# issue "Fast on a GPU": (goal, threshold, larger is better)
+GOAL_NODES = 250_000  # the GPU goals: the mesh size a GPU step should take
+# the GPU goals, what makes a GPU worth its cost for a design check: (goal, threshold, larger is better)
 GOALS = (("≥ 40× for one paper design", 40, True), ("≥ 400× for a 64-design sweep", 400, True),
          ("≤ 12 ms per paper-size train step", 12, False), ("≥ 1,000 samples/s", 1000, True),
          ("≤ 3 ms inference", 3, False))
@@ -37,15 +37,16 @@ GOALS = (("≥ 40× for one paper design", 40, True), ("≥ 400× for a 64-desig
 SAME_SIZE = 2.0  # "of the same size": largest ÷ smallest below this factor
 ABOUT = 1.25  # "about as large as": within this factor
 TINY = 0.01  # "tiny next to the paper's": below this fraction of its budget
-PEAK_GOAL_PCT = 5.0  # the shipped model's peak plate stress goal (median error, issue "Impact physics")
-#: issue 35 item 5: the mesh model's median errors on designs of fresh seeds (the judge, choose_checkpoint.py, the
-#: scaling study's "what budget would reach them"), keyed as a scaling point's ``errors``
+PEAK_GOAL_PCT = 5.0  # the shipped model's peak plate stress goal (median error; within what a design margin absorbs)
+#: the model goals: the median errors a shipped mesh model must reach on designs of fresh seeds before its design
+#: check stands in for the solver's (the judge, choose_checkpoint.py, the scaling study's "what budget would reach
+#: them"), keyed as a scaling point's ``errors``
 MODEL_GOALS = {"peak_error_pct": 3.0, "deflection_error_pct": 4.0, "ghost_difference": 0.05}
-#: issue 35 item 5 outside the training ranges (thicker, higher): the medians
+#: the model goals outside the training ranges (thicker, higher): the medians, looser since a model extrapolates
 OUTSIDE_GOALS = {"peak_error_pct": 6.0, "deflection_error_pct": 8.0}
 
 
-#: the scripts' paths before benchmarks/ was split into folders (issue 38; benchmarks/README.md, "Old paths"): a result
+#: the scripts' paths before benchmarks/ was split into folders (benchmarks/README.md, "Old paths"): a result
 #: file written before then names the old one in its ``command``, which the report quotes at the current path
 MOVED = {
     "benchmarks/bench_graph.py": "benchmarks/micro/bench_graph.py",

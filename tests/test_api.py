@@ -26,7 +26,7 @@ def test_readme_api_example_runs_twice_in_a_row(tmp_path, monkeypatch):
         exec(compile(block.group(1), "README.md (api example)", "exec"), namespace)
     assert (tmp_path / "run_tiny" / "metrics_test.json").is_file()
     assert namespace["graph"].num_nodes == namespace["target"].shape[0]
-    assert namespace["p"].summary["peak_plate_stress_mpa"] > 0
+    assert namespace["p"].summary.peak_plate_stress_mpa > 0
 
 
 def test_train_api_refuses_a_held_folder_in_python_words(tmp_path):

@@ -1,4 +1,4 @@
-"""Choosing a long run's checkpoint (benchmarks/release/choose_checkpoint.py, issue 35 item 4): every kept
+"""Choosing a long run's checkpoint (benchmarks/release/choose_checkpoint.py): every kept
 checkpoint is judged on the validation split with the scaling study's errors, the worst ratio to the goals decides,
 and the chosen one loads for shipping; a missing kept step is an error, never silently the latest."""
 import json

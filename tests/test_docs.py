@@ -1,4 +1,4 @@
-"""The documentation that is generated or promised stays true (issue 38, "a front door"): docs/cli.md is the
+"""The documentation that is generated or promised stays true: docs/cli.md is the
 argument parsers' own help, regenerated in memory; the README stays a front door and its links lead somewhere."""
 import importlib.util
 import re

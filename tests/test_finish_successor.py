@@ -1,4 +1,4 @@
-"""benchmarks/release/finish_successor.sh (issue 35: the successor's measured shipping steps, unattended): it runs
+"""benchmarks/release/finish_successor.sh (the successor's measured shipping steps, unattended): it runs
 the steps in order with the checkpoint chosen on the validation split, marks a step done only when it succeeded,
 resumes from the marks, runs the judge beside the transfer, refuses an unfinished run, and writes the report last.
 The steps' scripts are replaced by a recorder (``PY``): what is tested is the script's own control flow."""

@@ -1,4 +1,4 @@
-"""The judge of issue 35 item 5 (benchmarks/surrogate/run.py): a sweep's trend agrees with the solver's when its sign
+"""The judge of the model goals (benchmarks/surrogate/run.py): a sweep's trend agrees with the solver's when its sign
 is the solver's and its size within 30 % of it, for the model and the response surface alike."""
 import sys
 from dataclasses import asdict, replace

@@ -1,6 +1,6 @@
-"""The scaling study's arithmetic and report (benchmarks/scaling): the power-law fit recovers a known law, the
-plan has the points the issue asks for, and docs/RESULTS.md's section says "not run yet" without points and
-words only the numbers it prints with them."""
+"""The scaling study's arithmetic and report (benchmarks/scaling): the power-law fit recovers a known law, the plan has
+the points the study needs (both axes, the cheap budgets on every seed), and docs/RESULTS.md's section says "not run
+yet" without points and words only the numbers it prints with them."""
 import json
 import sys
 from pathlib import Path
@@ -117,7 +117,7 @@ def test_the_budget_a_goal_needs_solves_the_fitted_law():
 
 
 def test_report_says_what_budget_would_reach_the_goals_beside_the_long_run():
-    """Issue 35 item 5: each goal's budget from the study's HCMT fit, and which of the latest long run's kept
+    """Each model goal's budget from the study's HCMT fit, and which of the latest long run's kept
     checkpoints meet it, with how far below the fit its best lies."""
     keys, r = KEYS, _budget_study(lambda b: 40.0 * b ** -0.25)
     row = {"designs": 480, "trajectories": 24, "lr": 1e-3, "lr_final": 1e-5, "schedule_steps": 400000,
@@ -171,8 +171,8 @@ def test_report_says_which_points_were_restored_and_checks_their_test_designs():
 
 
 def test_report_keeps_the_outside_rows_out_of_the_test_tables_and_judges_them_on_their_goals():
-    """long_run.py --split rows (designs outside the training ranges) get their own table against issue 35's outside
-    goals; the test-split table and the goal budgets read only the rows without a split."""
+    """long_run.py --split rows (designs outside the training ranges) get their own table against the model goals
+    outside the ranges; the test-split table and the goal budgets read only the rows without a split."""
     keys, r = KEYS, _budget_study(lambda b: 40.0 * b ** -0.25)
     row = {"designs": 480, "trajectories": 24, "lr": 1e-3, "lr_final": 1e-5, "schedule_steps": 400000,
            "rebound_agreement": 1.0, "run": "second run"}

@@ -1,4 +1,4 @@
-"""benchmarks/micro/train_parts.py (issue 37 item 1: where a training step's time goes): its timing marks leave the
+"""benchmarks/micro/train_parts.py (where a training step's time goes): its timing marks leave the
 trainer's step unchanged and split it into parts that add up; its report section computes the rest from the rows."""
 import json
 import sys

@@ -1,4 +1,4 @@
-"""The transfer benchmark (benchmarks/transfer/run.py) with a given base model (issue 35 item 6: the new shipped
+"""The transfer benchmark (benchmarks/transfer/run.py) with a given base model (the shipped
 model, fine-tuned at a learning rate of at most 1e-4): end to end on the test run's generated data, the base judged
 once, zero-shot and few-shot rows per family, the fine-tuning at the asked rate, the summary in the --json file; and
 its docs/RESULTS.md section (benchmarks/transfer/report.py) on a made-up summary of the same shape."""

@@ -1,4 +1,4 @@
-"""Measured ablations of the stress that stays after the ball leaves (issue 35, item 3), on the validation split.
+"""Measured ablations of the stress that stays after the ball leaves, on the validation split.
 
     python benchmarks/ghost_diagnosis/ablate.py --data DATA --init RUN --work WORK [--steps 4000] [--arms a,b]
                                               [--json benchmarks/results/ghost_ablations.json]

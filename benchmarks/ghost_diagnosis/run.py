@@ -1,4 +1,4 @@
-"""Where the mesh model's stress after the ball leaves comes from (issue 35, item 3): its stress head or its rollout.
+"""Where the mesh model's stress after the ball leaves comes from: its stress head or its rollout.
 
     python benchmarks/ghost_diagnosis/run.py --data DATA [--run pretrained:impact_plate_small] [--split valid]
                                          [--limit N] [--threads 1] [--json benchmarks/results/ghost_diagnosis.json]

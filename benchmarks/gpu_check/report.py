@@ -1,6 +1,6 @@
-"""docs/RESULTS.md's sections of issue "Fast on a GPU": eager against compiled steps and batch throughput
+"""docs/RESULTS.md's GPU sections: eager against compiled steps and batch throughput
 (benchmarks/micro/bench_models.py --compile), the learned design sweep against the solver
-(benchmarks/micro/design_speed.py), the issue's goals, and benchmarks/gpu_check/run.py's JSON."""
+(benchmarks/micro/design_speed.py), the GPU goals, and benchmarks/gpu_check/run.py's JSON."""
 from __future__ import annotations
 
 import json
@@ -15,7 +15,7 @@ AGREES = ("agrees with the eager step to float tolerance, not bit for bit (tests
 
 
 def gpu_path(lines):
-    """Issue "Fast on a GPU": eager vs compiled steps, throughput by batch size, learned design check vs solver."""
+    """The GPU sections: eager vs compiled steps, throughput by batch size, learned design check vs solver."""
     modes, designs = load("models_modes_cpu.json"), load("design_speed_cpu.json")
     if not modes and not designs:
         return
@@ -97,7 +97,7 @@ def sweep(lines, designs):
 
 
 def goals(lines, modes, designs, models, roll):
-    """The issue's goals against the best CPU value of the rows above (None: no row measures it)."""
+    """The GPU goals against the best CPU value of the rows above (None: no row measures it)."""
     one, many = designs["batches"].get("1"), designs["batches"].get("64")
     step_rows = [r for e in modes for r in e["rows"] if r["batch"] == 1]
     plain = [r for e in models for r in e["models"].values()]
@@ -116,7 +116,7 @@ def goals(lines, modes, designs, models, roll):
     cpu = ("they are not reached (rows above)" if set(state) == {"not reached"} else
            "; ".join(f"{g}: {s}" for (g, _, _), s in zip(GOALS, state)) + " (rows above)")
     gpu = "see the GPU check below" if gpu_check_ran() else "they are not measured"
-    lines += ["", sentences(f"The issue's goals ({', '.join(g for g, _, _ in GOALS)}) are GPU goals.",
+    lines += ["", sentences(f"The GPU goals ({', '.join(g for g, _, _ in GOALS)}) are GPU goals.",
                             f"On this {MACHINE} {cpu}; on a GPU {gpu}."), ""]
 
 
@@ -124,7 +124,7 @@ NODE_GOAL = (f"a {GOAL_NODES:,}-node step", GOAL_NODES, True)  # the GPU check's
 
 
 def gpu_goals(d) -> list[tuple[float | None, str]]:
-    """Issue "Fast on a GPU"'s goals (:data:`GOALS`, then :data:`NODE_GOAL`) against gpu_check.json: the best
+    """The GPU goals (:data:`GOALS`, then :data:`NODE_GOAL`) against gpu_check.json: the best
     measured value (None: not measured) and which row it comes from."""
     steps = d["steps"]
     rows = steps.get("train step", {}).get("rows", [])
@@ -178,17 +178,17 @@ def gpu_check(lines):
     lines += ["## GPU check", ""]
     if not d or d.get("smoke"):
         every = ", ".join(g for g, _, _ in GOALS + (NODE_GOAL,))
-        lines += [sentences("`PYTHONPATH=src python benchmarks/gpu_check/run.py --out OUT` has not run on a GPU yet "
-                            "(no GPU lent).", f"Every GPU goal ({every}) is **not measured**."), ""]
+        lines += [sentences("`PYTHONPATH=src python benchmarks/gpu_check/run.py --out $HCMT_WORK/gpu_check` has not "
+                            "run on a GPU yet (no GPU lent).", f"Every GPU goal ({every}) is **not measured**."), ""]
         return
     calls = d.get("earlier_calls", []) + [{"budget_s": d["budget_s"]}]
     budgets = ", then ".join(f"{c['budget_s']:.0f} s" for c in calls)
     how = (f"{len(calls)} calls ({budgets} of budget; the later "
            "ones with `--resume`, which keeps the steps an earlier call finished)" if len(calls) > 1
            else f"budget {d['budget_s']:.0f} s")
-    lines += [f"Command: `PYTHONPATH=src python benchmarks/gpu_check/run.py --out OUT` on {d['device']} "
-              f"(torch {d['torch']}; {how}). The train step times one paper-size Impact Plate graph (batch B = B "
-              "copies), median of 20 steps after 5.", "",
+    lines += ["Command: `PYTHONPATH=src python benchmarks/gpu_check/run.py --out $HCMT_WORK/gpu_check` on "
+              f"{d['device']} (torch {d['torch']}; {how}). The train step times one paper-size Impact Plate graph "
+              "(batch B = B copies), median of 20 steps after 5.", "",
               "| goal | best measured | row | reached |", "|---|---|---|---|"]
     for (goal, threshold, up), (value, row) in zip(GOALS + (NODE_GOAL,), gpu_goals(d)):
         state = "not measured" if value is None else "yes" if reached(value, threshold, up) else "no"

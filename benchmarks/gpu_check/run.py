@@ -1,7 +1,7 @@
-"""Every GPU number in one time-boxed command (issue "Every GPU number in one call of eight minutes").
+"""Every GPU number in one time-boxed command, so a GPU lent for minutes yields every GPU number.
 
     python benchmarks/gpu_check/run.py --out $OUT [--budget-s 480]            # on a GPU machine
-    python benchmarks/gpu_check/run.py --smoke --device cpu --out /tmp/gc     # the CI rehearsal: toy sizes, < 1 min
+    python benchmarks/gpu_check/run.py --smoke --device cpu --out $HCMT_WORK/gc  # the CI rehearsal: toy sizes, < 1 min
 
 Steps, in order of value, each skipped (and named in the summary) when the time left is below its minimum:
 cuda tests, train step (HCMT paper / official attention, MGN: eager, compile default, compile reduce-overhead, bf16;
@@ -30,6 +30,7 @@ HERE = Path(__file__).resolve().parent.parent  # benchmarks/: micro, speed
 ROOT = HERE.parent
 sys.path.insert(0, str(HERE))
 
+from common import portable  # noqa: E402
 from hcmt.config import load_config  # noqa: E402
 from hcmt.data.runs import RunFolder  # noqa: E402
 from hcmt.design.check import check_designs  # noqa: E402
@@ -80,7 +81,7 @@ class Check:
             except Exception as exc:  # a failed step is recorded; the next ones still run
                 self.data["steps"][name] = {"wall_s": time.perf_counter() - t0, "error": f"{type(exc).__name__}: {exc}"}
         with atomic_path(self.out / "gpu_check.json") as tmp:
-            tmp.write_text(json.dumps(self.data, indent=2, default=str))
+            tmp.write_text(json.dumps(portable(self.data), indent=2, default=str))
 
 
 def cuda_tests(c: Check) -> dict:
@@ -270,8 +271,8 @@ def accuracy(c: Check) -> dict:
     rows = []
     for model, seed, out in runs:
         m = evaluate(Run.load(out, str(c.device)), data, "test", batch=16, progress=False)
-        rows.append({"model": model, "seed": seed, "position_rmse_all": m["position"]["rmse_all"],
-                     "stress_rmse_all": m["stress"]["rmse_all"], "physics": m.get("physics")})
+        rows.append({"model": model, "seed": seed, "position_rmse_all": m.position.rmse_all,
+                     "stress_rmse_all": m.stress.rmse_all, "physics": m.physics})
     mean = {k: statistics.mean(r["position_rmse_all"] for r in rows if r["model"] == k) for k in ("hcmt", "mgn")}
     return {"steps": steps, "rows": rows, "hcmt_over_mgn_position": mean["hcmt"] / mean["mgn"]}
 

@@ -25,9 +25,9 @@ def main() -> None:
     rows = []
     for h in a.sizes:
         r = simulate(Design(thickness=0.9, mesh_size=h, ball_radius=3.75, plate_half_length=12.0), Settings(frames=45))
-        f = r["fields"]
+        f = r.fields
         plate = plate_mask(f["cells"], f["node_type"])
-        rows.append({"mesh_size": h, "nodes": r["info"]["num_nodes"],
+        rows.append({"mesh_size": h, "nodes": r.info.num_nodes,
                      "peak_plate_stress_mpa": peak(f["stress"], plate)[0],
                      "max_deflection_mm": max_deflection(f["world_pos"], f["mesh_pos"], plate)})
         print(rows[-1], flush=True)

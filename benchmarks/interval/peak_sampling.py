@@ -30,6 +30,7 @@ for _v in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):  # one
 import argparse  # noqa: E402
 import json  # noqa: E402
 import re  # noqa: E402
+import sys  # noqa: E402
 import tempfile  # noqa: E402
 import time  # noqa: E402
 from dataclasses import asdict, fields  # noqa: E402
@@ -43,12 +44,21 @@ from hcmt.sim.driver import simulate  # noqa: E402
 from hcmt.sim.params import Design, Settings  # noqa: E402
 from hcmt.sim.scene import design_mesh  # noqa: E402
 
-DATA = "/work/interval/impact_plate_small_40_89_dt0.002"
+#: the 0.002 ms dataset of the frame-interval study (interval/run.py --work $HCMT_WORK/interval)
+DATA = os.path.join(os.environ.get("HCMT_WORK") or "benchmarks/work", "interval", "impact_plate_small_40_89_dt0.002")
 OUT = Path(__file__).resolve().parent.parent / "results" / "peak_sampling.json"
 BASE_DT = 0.002  # ms, the finest recorded interval
 FACTORS = {0.002: 1, 0.004: 2, 0.008: 4}  # interval (ms) -> multiple of BASE_DT
 BODIES = {"plate": 0, "ball": 1}
 DESIGN_KEYS = {f.name for f in fields(Design)}
+
+
+def _portable(obj):
+    """``obj`` with the work folder as ``$HCMT_WORK`` and the checkout as relative paths (benchmarks/common.py;
+    imported here, when the result is written, as common loads the training stack)."""
+    sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
+    from common import portable
+    return portable(obj)
 
 
 def write_json(path: Path, obj) -> None:
@@ -99,14 +109,14 @@ def one_design(design: Design, settings: Settings, recorded: dict, compare: dict
     assert plan(design, fine)["substeps"] == window * per_frame, "the fine run must take one substep per frame"
     mesh = design_mesh(design)
     result = simulate(design, fine)
-    f, info = result["fields"], result["info"]
+    f, info = result.fields, result.info
     if not np.array_equal(f["mesh_pos"], recorded["mesh_pos"]):
         raise RuntimeError("the design's mesh differs from the dataset's: not the same design")
     stress = f["stress"][..., 0]  # [T_fine, N]
     t = np.arange(len(stress)) * fine.frame_dt
     curves = body_curves(stress, mesh["body"])
-    row = {"substeps_per_frame": per_frame, "substep_dt_ms": info["dt"], "num_nodes": info["num_nodes"],
-           "wall_s": round(info["wall_time"], 2)}
+    row = {"substeps_per_frame": per_frame, "substep_dt_ms": info.dt, "num_nodes": info.num_nodes,
+           "wall_s": round(info.wall_time, 2)}
     for name, c in curves.items():
         k = int(c.argmax())
         r = {"true_peak_mpa": float(c[k]), "true_peak_time_ms": float(t[k]), "true_peak_substep": k, "intervals": {}}
@@ -223,7 +233,7 @@ def main(argv=None) -> int:
               "settings": asdict(settings), "intervals_ms": list(FACTORS),
               "compared": {f"{dt:g}": str(v[0]) for dt, v in others.items()},
               "summary": summary, "rows": rows, "wall_s": round(time.perf_counter() - start, 1)}
-    write_json(Path(args.out), result)
+    write_json(Path(args.out), _portable(result))
     print(json.dumps(summary, indent=1))
     print(f"wrote {args.out} in {result['wall_s']} s")
     return 0

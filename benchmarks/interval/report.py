@@ -1,4 +1,4 @@
-"""docs/RESULTS.md's frame-interval study (issue "The paper's mechanism at CPU scale"): benchmarks/interval/run.py,
+"""docs/RESULTS.md's frame-interval study: benchmarks/interval/run.py,
 with the design check per interval (--speed) and what a coarse interval loses of the peak
 (benchmarks/interval/peak_sampling.py)."""
 from __future__ import annotations
@@ -13,7 +13,7 @@ PEAK_FIELD = ("`hcmt generate --peak-stress` records `stress_max`, each node's l
 
 
 def interval(lines):
-    """The frame-interval study (issue "The paper's mechanism at CPU scale"): benchmarks/interval/run.py."""
+    """The frame-interval study: benchmarks/interval/run.py."""
     t = opened(lines, "## Frame interval: HCMT against MGN as the impact outruns a message (`small` preset)",
                "interval.json")
     if not t:
@@ -22,14 +22,14 @@ def interval(lines):
     frames = {dt: t["data"][dt]["frames"] for dt in dts}
     d0 = t["data"][dts[0]]
     span = (d0["frames"] - 1) * d0["frame_dt"]
-    lines += [f"`python benchmarks/interval/run.py --work /work/interval --steps {t['steps']}` (two processes share "
-              "the work; then `--speed` and `--table-only`). The same "
+    lines += [f"`python benchmarks/interval/run.py --work $HCMT_WORK/interval --steps {t['steps']}` (two processes "
+              "share the work; then `--speed` and `--table-only`). The same "
               f"{d0['train']} / {d0['valid']} / {d0['test']} designs (seed {d0['seed']}) recorded over the same "
               f"{span:.3f} ms at " + ", ".join(f"{dt} ms ({frames[dt]} frames)" for dt in dts) + " (`hcmt generate "
               "--frame-dt`). Per interval and formulation, three models at equal steps "
               f"({t['steps']}, `{t['config']}`): HCMT (official attention), MGN (11 blocks) and MGN with 22 blocks "
               "(the depth control). Formulations: *today* (velocity target, noise on NORMAL nodes) and *recipe* "
-              "(the physics issue's choice: " + " ".join(t["formulations"]["recipe"]) + "). σ per model, interval "
+              "(the recipe study's choice: " + " ".join(t["formulations"]["recipe"]) + "). σ per model, interval "
               "and formulation on the validation split (seed 0 at each candidate: "
               + ", ".join(f"{x:g}" for x in t["sigma_candidates_at_0.002"]) + " mm at 0.002 ms, scaled with the "
               "interval), then seeds " + ", ".join(map(str, t["seeds"][1:])) + " at the chosen σ. Test split, mean ± "

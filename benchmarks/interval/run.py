@@ -1,4 +1,4 @@
-"""Issue "frame interval": accuracy and speed of HCMT and MGN against the frame interval, at CPU scale.
+"""The frame-interval study: accuracy and speed of HCMT and MGN against the frame interval, at CPU scale.
 
 The same 40 / 4 / 12 designs of the `small` preset (seed 2026) are recorded over the same 0.176 ms window at
 0.002, 0.004 and 0.008 ms (89, 45 and 23 frames; `hcmt generate --frame-dt`). Per interval and formulation
@@ -10,10 +10,10 @@ trained at each of the candidates (3e-4 and 1e-3 mm at 0.002 ms, scaled with the
 motion) and the lowest validation position RMSE-all wins; seeds 1 and 2 then train at that σ. Resumable; several
 processes may share the work (run locks).
 
-    python benchmarks/interval/run.py --work /work/interval [--steps 1000]   # data + training + evaluation
-    python benchmarks/interval/run.py --work /work/interval --peaks          # recorded vs true peak stress
-    python benchmarks/interval/run.py --work /work/interval --speed          # design check per interval
-    python benchmarks/interval/run.py --work /work/interval --table-only     # results/interval.json + figure
+    python benchmarks/interval/run.py --work $HCMT_WORK/interval [--steps 1000]   # data + training + evaluation
+    python benchmarks/interval/run.py --work $HCMT_WORK/interval --peaks          # recorded vs true peak stress
+    python benchmarks/interval/run.py --work $HCMT_WORK/interval --speed          # design check per interval
+    python benchmarks/interval/run.py --work $HCMT_WORK/interval --table-only     # results/interval.json + figure
 """
 from __future__ import annotations
 

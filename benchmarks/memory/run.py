@@ -1,4 +1,4 @@
-"""Issue 37 items 4-5: the memory of a process that builds training items, and how fast one builds them.
+"""The memory of a process that builds training items, and how fast one builds them.
 
     python benchmarks/memory/run.py            # writes benchmarks/results/data_memory.json (about 5-10 min)
 

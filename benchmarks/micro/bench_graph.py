@@ -1,4 +1,4 @@
-"""Graph construction speed (issue #4, item 8): the 6-level HCMT hierarchy of a paper-size Impact Plate mesh
+"""Graph construction speed: the 6-level HCMT hierarchy of a paper-size Impact Plate mesh
 (target <= 50 ms) and the contact search of one step at ~2,200 nodes (target <= 2 ms); also one frame's Graph.
 
     python benchmarks/micro/bench_graph.py [--repeats 50] [--json benchmarks/results/graph.json]

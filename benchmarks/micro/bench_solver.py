@@ -5,7 +5,7 @@
 Simulates ``n`` designs drawn as the generator draws them (seed 0, split train), one after the other in this
 process (single-threaded: the solver uses no thread pool; BLAS threads are set to 1), and prints per trajectory:
 nodes, substeps, wall and CPU time, microseconds per substep; then the mean. On a shared machine the CPU time is
-the better figure (wall time includes waiting for the core). Target of issue #3: <= 5 s per paper-preset
+the better figure (wall time includes waiting for the core). Target: <= 5 s per paper-preset
 trajectory (52 frames x 0.002 ms).
 """
 from __future__ import annotations
@@ -32,12 +32,12 @@ def main() -> None:
     times, cpu = [], []
     for i in range(args.n):
         design = sample_design(trajectory_rng(args.seed, "train", i), args.preset)
-        info = simulate(design, Settings())["info"]
-        times.append(info["wall_time"])
-        cpu.append(info["cpu_time"])
-        print(f"{args.preset} #{i}: {info['num_nodes']} nodes, {info['num_cells']} cells, {info['substeps']} substeps, "
-              f"{info['wall_time']:.2f} s wall, {info['cpu_time']:.2f} s CPU "
-              f"({1e6 * info['wall_time'] / info['substeps']:.0f} us/substep)", flush=True)
+        info = simulate(design, Settings()).info
+        times.append(info.wall_time)
+        cpu.append(info.cpu_time)
+        print(f"{args.preset} #{i}: {info.num_nodes} nodes, {info.num_cells} cells, {info.substeps} substeps, "
+              f"{info.wall_time:.2f} s wall, {info.cpu_time:.2f} s CPU "
+              f"({1e6 * info.wall_time / info.substeps:.0f} us/substep)", flush=True)
     print(f"mean {np.mean(times):.2f} s wall ({np.mean(cpu):.2f} s CPU) per {args.preset} trajectory "
           f"(wall min {np.min(times):.2f}, max {np.max(times):.2f}; "
           f"{os.cpu_count()} cpus on the machine, load average {os.getloadavg()[0]:.1f})")

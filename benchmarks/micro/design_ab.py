@@ -1,4 +1,4 @@
-"""The design check of two checkouts and the solver side by side (issue 37, item 2): seconds per design on the
+"""The design check of two checkouts and the solver side by side: seconds per design on the
 shipped model's `small` preset, one CPU thread.
 
     python benchmarks/micro/design_ab.py --old OLD_TREE --new NEW_TREE [--designs 48] [--rounds 2] [--threads 1]
@@ -129,10 +129,12 @@ def main() -> None:
     }
     print(" ".join(f"{k} {v:.3f}" for k, v in summary.items()))
     a.json.parent.mkdir(parents=True, exist_ok=True)
-    a.json.write_text(json.dumps({"commits": commits, "device": platform.processor() or platform.machine(),
+    sys.path.insert(0, str(Path(__file__).resolve().parent.parent))  # benchmarks/: common
+    from common import portable  # noqa: E402  (the work folder as $HCMT_WORK, the checkout as relative)
+    a.json.write_text(json.dumps(portable({"commits": commits, "device": platform.processor() or platform.machine(),
                                   "threads": a.threads, "designs": a.designs, "rounds": a.rounds, "model": a.model,
                                   "command": "python benchmarks/micro/design_ab.py " + " ".join(sys.argv[1:]),
-                                  "summary": summary, "rows": rows}, indent=1) + "\n")
+                                  "summary": summary, "rows": rows}), indent=1) + "\n")
     print(f"wrote {a.json}")
 
 

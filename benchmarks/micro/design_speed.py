@@ -1,5 +1,5 @@
-"""Learned design check against the built-in solver on the same designs and machine (issue "Fast on a GPU", the
-rollout rows): one design at a time and a batched sweep.
+"""Learned design check against the built-in solver on the same designs and machine (the GPU
+goals' rollout rows): one design at a time and a batched sweep.
 
     python benchmarks/micro/design_speed.py [--model pretrained:impact_plate_small] [--designs 64] [--batches 1 64]
                                       [--device cpu|cuda] [--threads 1] [--json design_speed_cpu.json]

@@ -1,4 +1,4 @@
-"""One rollout step of the shipped model in every inference mode this CPU offers (issue 37, item 2): where the
+"""One rollout step of the shipped model in every inference mode this CPU offers: where the
 design check's time goes and what each option buys.
 
     python benchmarks/micro/forward_modes.py [--model pretrained:impact_plate_small] [--threads 1] [--repeats 30]

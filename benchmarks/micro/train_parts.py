@@ -1,4 +1,4 @@
-"""Where a training step's time goes (issue 37, item 1): the trainer's compiled CPU step taken apart.
+"""Where a training step's time goes: the trainer's compiled CPU step taken apart.
 
     python benchmarks/micro/train_parts.py --data DATA [--threads 1 2] [--recipes cpu ship] [--steps 60] [--warm 40]
         [--rounds 1] [--json train_parts_cpu.json]

@@ -1,4 +1,4 @@
-"""Training throughput of two checkouts side by side (issue 37, item 1): samples per second on the ``small`` preset.
+"""Training throughput of two checkouts side by side: samples per second on the ``small`` preset.
 
     python benchmarks/micro/train_speed.py --old OLD_TREE --new NEW_TREE [--also NAME=TREE] --data DATA [--threads 1 2]
         [--recipes cpu ship] [--steps 150] [--rounds 2] [--json benchmarks/results/train_speed.json]
@@ -110,10 +110,12 @@ def main() -> None:
             print(f"{recipe:5s} {threads} thread(s): old {med['old']:.2f} samples/s, new {med['new']:.2f}, "
                   f"ratio {med['new'] / med['old']:.2f}x{also}")
     a.json.parent.mkdir(parents=True, exist_ok=True)
-    a.json.write_text(json.dumps({"commits": commits, "device": platform.processor() or platform.machine(),
+    sys.path.insert(0, str(Path(__file__).resolve().parent.parent))  # benchmarks/: common
+    from common import portable  # noqa: E402  (the work folder as $HCMT_WORK, the checkout as relative)
+    a.json.write_text(json.dumps(portable({"commits": commits, "device": platform.processor() or platform.machine(),
                                   "cpu": cpu_name(), "steps": a.steps, "rounds": a.rounds,
                                   "new_set": a.new_set, "command": "python " + " ".join(sys.argv), "data": str(a.data),
-                                  "summary": summary, "rows": rows}, indent=1) + "\n")
+                                  "summary": summary, "rows": rows}), indent=1) + "\n")
     print(f"wrote {a.json}")
 
 

@@ -1,4 +1,4 @@
-"""docs/RESULTS.md's headline (issue "Parity": the `paper` preset at CPU scale, benchmarks/parity/run.py) with its noise
+"""docs/RESULTS.md's headline (the `paper` preset at CPU scale, benchmarks/parity/run.py) with its noise
 sweep, the propagation in hops behind it (benchmarks/parity/propagation.py) and the hierarchy statistics
 (`hcmt hierarchy`)."""
 from __future__ import annotations
@@ -42,7 +42,7 @@ SHARED = ("`train ms/step` in the table was measured while two study processes (
 
 
 def parity(lines):
-    """Issue "Parity": the `paper` preset at CPU scale, σ chosen per model on the validation split."""
+    """The headline: the `paper` preset at CPU scale, σ chosen per model on the validation split."""
     got = opened(lines, "## Headline: HCMT vs MGN on the `paper` preset (CPU)", "parity_paper.json", "noise_sweep.json")
     if not got:
         return

@@ -1,4 +1,4 @@
-"""Issue "Parity": HCMT (paper and official attention), MGN and GT on the `paper` preset at CPU scale, with the
+"""The headline: HCMT (paper and official attention), MGN and GT on the `paper` preset at CPU scale, with the
 training noise σ chosen per model on the validation split. Resumable (finished runs are skipped).
 
     python benchmarks/parity/run.py --work benchmarks/work [--steps 800] [--sigmas 3e-4 1e-3 3e-3] [--seeds 0 1 2]

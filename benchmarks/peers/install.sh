@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
-# Creates the peers' venvs under ${PEERS:-/work/persist/peers} (skipped when present). See README.md.
+# Creates the peers' venvs under ${PEERS:-$HCMT_WORK/peers} (HCMT_WORK: default benchmarks/work; skipped when
+# present). See README.md.
 set -euo pipefail
-PEERS=${PEERS:-/work/persist/peers}
+PEERS=${PEERS:-${HCMT_WORK:-benchmarks/work}/peers}
 PY=${PYTHON:-python3}
 WHICH=${1:-all}   # tf | physicsnemo | all
 mkdir -p "$PEERS"

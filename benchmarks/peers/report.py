@@ -1,5 +1,5 @@
 """docs/RESULTS.md's section "Speed against the peers", from benchmarks/results/peers_cpu.json
-(``benchmarks/peers/run.py``). The verdict per ratio is the issue's target, hcmt ≤ 0.8× the peer, read off the
+(``benchmarks/peers/run.py``). The verdict per ratio is the target, hcmt ≤ 0.8× the peer, read off the
 median of the per-round ratios; the range of the rounds is printed next to it. ``python benchmarks/peers/report.py``
 prints the section alone."""
 from __future__ import annotations
@@ -10,7 +10,7 @@ from pathlib import Path
 
 HEADING = "## Speed against the peers (one CPU thread)"
 COMMAND = "benchmarks/peers/install.sh && PYTHONPATH=src python benchmarks/peers/run.py"
-TARGET = 0.8  # issue 37: hcmt at most 0.8x the peer's time
+TARGET = 0.8  # the goal: hcmt at most 0.8x the peer's time (no slower than a rewrite should be)
 KINDS = (("train", "train step"), ("infer", "inference"))
 
 

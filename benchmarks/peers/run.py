@@ -1,9 +1,11 @@
-"""Issue 37 item 3: hcmt's MGN and HCMT (``official``) against PhysicsNeMo's MeshGraphNet and the authors'
+"""hcmt's MGN and HCMT (``official``) against PhysicsNeMo's MeshGraphNet and the authors'
 TensorFlow HCMT, on the same graph, one CPU thread each, interleaved.
 
-    benchmarks/peers/install.sh            # the peers' venvs under /work/persist/peers (skipped when present)
-    PYTHONPATH=src python benchmarks/peers/run.py [--rounds 5] [--steps 2] [--peers /work/persist/peers]
-        [--authors /work/persist/peers/hcmt-tf] [--json benchmarks/results/peers_cpu.json]
+    benchmarks/peers/install.sh            # the peers' venvs under $HCMT_WORK/peers (skipped when present)
+    PYTHONPATH=src python benchmarks/peers/run.py [--rounds 5] [--steps 2] [--peers $HCMT_WORK/peers]
+        [--authors $HCMT_WORK/peers/hcmt-tf] [--json benchmarks/results/peers_cpu.json]
+
+``$HCMT_WORK`` is the work folder outside git (default ``benchmarks/work``; docs/RESULTS.md, "Folders").
 
 One graph (:mod:`export_graph`, an .npz every process reads); each contestant is its own process (its own venv)
 that builds its model, warms up (compiling, for hcmt's compiled path) and then idles until told to time ``--steps``
@@ -178,8 +180,9 @@ def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--rounds", type=int, default=5)
     p.add_argument("--steps", type=int, default=2, help="timed calls per contestant, kind and round")
-    p.add_argument("--peers", type=Path, default=Path("/work/persist/peers"), help="where install.sh put the venvs")
-    p.add_argument("--authors", type=Path, default=Path("/work/persist/peers/hcmt-tf"),
+    work = Path(os.environ.get("HCMT_WORK") or ROOT / "benchmarks" / "work")
+    p.add_argument("--peers", type=Path, default=work / "peers", help="where install.sh put the venvs")
+    p.add_argument("--authors", type=Path, default=work / "peers" / "hcmt-tf",
                    help="the authors' code (github.com/yuyudeep/hcmt: core_model.py, model.py, ...)")
     p.add_argument("--only", nargs="+", choices=("mgn", "hcmt"), default=("mgn", "hcmt"))
     p.add_argument("--modes", nargs="+", choices=("eager", "compiled"), default=("eager", "compiled"),
@@ -217,7 +220,9 @@ def main(argv=None) -> int:
         print(f"FAILED {name}: {err}")
     a.json.parent.mkdir(parents=True, exist_ok=True)
     result = merged(result, a.json, set(a.only), {c[0] for c in contestants})
-    a.json.write_text(json.dumps(result, indent=2) + "\n")
+    sys.path.insert(0, str(Path(__file__).resolve().parent.parent))  # benchmarks/: common
+    from common import portable  # noqa: E402  (the work folder as $HCMT_WORK, the checkout as relative)
+    a.json.write_text(json.dumps(portable(result), indent=2) + "\n")
     print(f"wrote {a.json}")
     return 0
 

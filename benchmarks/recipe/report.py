@@ -1,4 +1,4 @@
-"""docs/RESULTS.md's sections of issue "Impact physics": the recorded window (benchmarks/recipe/window.py) and the
+"""docs/RESULTS.md's impact-physics sections: the recorded window (benchmarks/recipe/window.py) and the
 training recipe study (benchmarks/recipe/run.py)."""
 from __future__ import annotations
 
@@ -48,7 +48,7 @@ def window(lines):
 
 
 def recipe(lines):
-    """The training-recipe study (issue "Impact physics"): benchmarks/recipe/run.py."""
+    """The training-recipe study: benchmarks/recipe/run.py."""
     window(lines)
     t = opened(lines, f"## Impact physics: the training recipe (`small` preset, {RECORDED_FRAMES} frames)",
                "recipe_small.json")
@@ -56,7 +56,8 @@ def recipe(lines):
         return
     chosen = min(t["rank_sums"], key=t["rank_sums"].get) if t["rank_sums"] else t["chosen"]
     ranks = ", ".join(f"{k} {v:g}" for k, v in sorted(t["rank_sums"].items(), key=lambda kv: kv[1]))
-    lines += [f"`python benchmarks/recipe/run.py --work /work/study --steps {t['steps']}` (then `--table-only`): HCMT "
+    lines += [f"`python benchmarks/recipe/run.py --work $HCMT_WORK/study --steps {t['steps']}` (then `--table-only`): "
+              "HCMT "
               f"(`{t['config']}`, {' '.join('--set ' + b for b in t['base'])}) on {t['dataset']['train']} / "
               f"{t['dataset']['valid']} / {t['dataset']['test']} designs (seed {t['dataset']['seed']}), "
               f"{t['steps']} steps per run, the validation checkpoint with the lowest position RMSE. Mean ± std over "

@@ -1,10 +1,10 @@
-"""Issue "Impact physics": the training recipe study on the `small` preset (90-frame window), HCMT with the
+"""The training recipe study on the `small` preset (90-frame window), HCMT with the
 recommended attention (official, σ 3e-4 mm), equal steps, 3 seeds: today's formulation (velocity target, noise on
 NORMAL nodes) against each option of the formulation, alone and combined. Resumable; several processes may share
 the work (run locks).
 
-    python benchmarks/recipe/run.py --work /work/study [--steps 3000] [--seeds 0 1 2]        # train + evaluate
-    python benchmarks/recipe/run.py --work /work/study --table-only                          # the tables
+    python benchmarks/recipe/run.py --work $HCMT_WORK/study [--steps 3000] [--seeds 0 1 2]        # train + evaluate
+    python benchmarks/recipe/run.py --work $HCMT_WORK/study --table-only                          # the tables
 
 Every run is evaluated on the validation and the test split (``metrics_<split>.json``, physics metrics included);
 the recipe is chosen on the validation split (:func:`choose`), never the test split. Writes
@@ -72,7 +72,7 @@ def run_summary(run: Path, data: Path, split: str) -> dict:
     file predates them)."""
     m = json.loads((run / f"metrics_{split}.json").read_text())
     if "physics" not in m:
-        m = evaluate(Run.load(run, "cpu"), data, split, progress=False)
+        m = evaluate(Run.load(run, "cpu"), data, split, progress=False).to_json()  # as the file holds it
     p = m["physics"]
     out = {"position_rmse_all": m["position"]["rmse_all"], "stress_rmse_all": m["stress"]["rmse_all"],
            "rebound_agreement": p["rebound_agreement"], "model_rebounds": p["model_rebounds"],

@@ -29,7 +29,7 @@ def main() -> None:
     for th, height in CORNERS:
         for radius in (3.5, 4.25):
             d = Design(**{**mid, "thickness": th, "drop_height": height, "ball_radius": radius})
-            f = simulate(d, Settings(frames=101))["fields"]
+            f = simulate(d, Settings(frames=101)).fields
             w = f["world_pos"]
             plate = plate_mask(f["cells"], f["node_type"])
             value, frame, _ = peak(f["stress"], plate)

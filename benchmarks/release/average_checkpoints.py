@@ -1,4 +1,4 @@
-"""Average a long run's kept checkpoints into one (issue 35 item 4): a candidate for choose_checkpoint.py.
+"""Average a long run's kept checkpoints into one: a candidate for choose_checkpoint.py.
 
     python benchmarks/release/average_checkpoints.py RUN --steps 360000 380000 400000
 

@@ -9,7 +9,7 @@ every number comes from the result files:
 
 * ``model_NAME.json`` (benchmarks/release/ship_model.py): how it was made, the held-out designs of a fresh seed, the
   sweeps, the measured error by region, the test split, the speed;
-* ``model_judge.json`` (benchmarks/surrogate/run.py ``--seed-in/--seed-out``): issue 35's goals, where it judged
+* ``model_judge.json`` (benchmarks/surrogate/run.py ``--seed-in/--seed-out``): the model goals, where it judged
   *this* model (the same name, training designs and checkpoint step; else the block says which model it judged);
 * ``surrogate.json`` (benchmarks/surrogate/run.py): this model beside the response surface on the card's designs,
   where it measured this model.
@@ -147,13 +147,13 @@ def _test_and_speed(m: dict) -> list[str]:
 def _judged(name: str, m: dict, judge: dict | None) -> list[str]:
     if not measured_this(judge, name, m):
         if not judge:
-            return ["**Against issue 35's goals**: not judged (no model_judge.json).", ""]
-        return [f"**Against issue 35's goals**: this model is not judged; model_judge.json judged "
+            return ["**Against the model goals**: not judged (no model_judge.json).", ""]
+        return [f"**Against the model goals**: this model is not judged; model_judge.json judged "
                 f"`{judge['model']}` (step {judge['checkpoint_step']:,}, {judge['training_designs']} training "
-                "designs), docs/RESULTS.md \"The mesh model judged against the issue's goals\".", ""]
+                "designs), docs/RESULTS.md \"The mesh model judged against the model goals\".", ""]
     goals = judge["goals"]
     met = sum(g["hcmt_met"] for g in goals)
-    out = [f"**Against issue 35's goals** (`{command(judge)}`: designs of seeds {judge['seeds']['in_range']} in range "
+    out = [f"**Against the model goals** (`{command(judge)}`: designs of seeds {judge['seeds']['in_range']} in range "
            f"and {judge['seeds']['outside']} outside, which no study used; the response surface fitted on the same "
            f"{judge['training_designs']} runs): it meets {met} of {len(goals)}.", "",
            "| goal | target | this model | met | response surface |", "|---|---|---|---|---|"]

@@ -1,4 +1,4 @@
-"""Choose the checkpoint of a long run to ship on the validation split's engineering errors (issue 35, item 4).
+"""Choose the checkpoint of a long run to ship on the validation split's engineering errors.
 
     python benchmarks/release/choose_checkpoint.py RUN --data DATA [--split valid] [--limit N] [--json OUT]
         [--cache DIR]
@@ -9,7 +9,7 @@ checkpoint with the best position error had twice another's deflection error. So
 average_checkpoints.py) is rolled out on ``--split`` (the validation split: the
 test split stays for the model card) and judged as the scaling study judges a point
 (:func:`scaling.run.test_errors`: medians over trajectories of |peak plate stress error| %, |max deflection error| %
-and the ghost difference). The choice is the checkpoint whose worst ratio to issue 35's goals (peak 3 %, deflection
+and the ghost difference). The choice is the checkpoint whose worst ratio to the model goals (peak 3 %, deflection
 4 %, ghost 0.05) is lowest. ``--json`` keeps every row and the choice; ``ship_model.py RUN --checkpoint NAME`` ships it.
 """
 from __future__ import annotations

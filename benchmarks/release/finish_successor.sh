@@ -1,22 +1,25 @@
 #!/usr/bin/env bash
-# Issue 35's measured steps once the successor's training (train_successor.sh) has finished, in order,
-# unattended: average the last kept steps, choose on the validation split, the long run's test rows, ship the
-# chosen checkpoint as pretrained:impact_plate_small, judge it on seeds no study used (item 5), the design check
-# beside its response surface on the card's designs, the transfer again (item 6), the report. Each step leaves a mark in WORK when it finishes and is skipped on a rerun, so an interrupted
-# finish resumes (the judge and the transfer also cache their own groups). The docs' rewriting stays a person's job.
+# The measured steps that ship the successor once its training (train_successor.sh) has finished, in order,
+# unattended: average the last kept steps, choose on the validation split, the long run's test rows, ship the chosen
+# checkpoint as pretrained:impact_plate_small, judge it against the model goals on seeds no study used, the design
+# check beside its response surface on the card's designs, the transfer again, the report. Each step leaves a mark in
+# WORK when it finishes and is skipped on a rerun, so an interrupted finish resumes (the judge and the transfer also
+# cache their own groups). The docs' rewriting stays a person's job.
 #
 #     bash benchmarks/release/finish_successor.sh        # from the repository root's checkout that is to ship it
 #
 # RUN, DATA (train_successor.sh's), STACK3 and PEN (the panel families of benchmarks/transfer/report.py's commands)
-# and WORK live outside the work tree; PY is the Python with this checkout's hcmt (e.g. PYTHONPATH=src PY=.venv/bin/python).
+# and WORK default to folders of $HCMT_WORK (default benchmarks/work, which git ignores; docs/RESULTS.md, "Folders");
+# PY is the Python with this checkout's hcmt (e.g. PYTHONPATH=src PY=.venv/bin/python).
 set -euo pipefail
 cd "$(dirname "$0")/../.."  # the checkout: ship_model.py writes src/hcmt/pretrained/ and benchmarks/results/ here
 PY=${PY:-python}
-RUN=${RUN:-/work/persist/runs/ship480}
-DATA=${DATA:-/work/persist/data/ip480}
-STACK3=${STACK3:-/work/persist/data/fam_stack3}
-PEN=${PEN:-/work/persist/data/fam_pen}
-WORK=${WORK:-/work/persist/finish}
+W=${HCMT_WORK:-benchmarks/work}  # the work folder outside git (docs/RESULTS.md, "Folders")
+RUN=${RUN:-$W/runs/ship480}
+DATA=${DATA:-$W/data/ip480}
+STACK3=${STACK3:-$W/data/fam_stack3}
+PEN=${PEN:-$W/data/fam_pen}
+WORK=${WORK:-$W/finish}
 LAST=${LAST:-"360000 380000 400000"}  # the kept steps averaged (the schedule's last three)
 export OMP_NUM_THREADS=1
 

@@ -86,7 +86,7 @@ def main() -> None:
     print(format_table(check.preds, check.verified))
     regions = {}
     for p in check.preds:
-        regions.setdefault(region_of(p.design, preliminary.ranges), []).append(p.summary["verify"])
+        regions.setdefault(region_of(p.design, preliminary.ranges), []).append(p.summary.verify)
     labels = {"inside": "inside the ranges' edges", "thin": "thin plates (lowest fifth of thickness)",
               "high": "high drops (top fifth of drop height)", "thin+high": "thin plates dropped from high"}
     card["confidence"] = [
@@ -113,13 +113,13 @@ def main() -> None:
         sc, analysis = sw.sweep(shipped, param, lo, hi, n, base, verify=True, yield_mpa=a.yield_mpa, progress=False)
         print(sw.format_analysis(analysis))
         sweeps[vary] = {"design": fixed, **analysis,
-                        "model_peak": [q.summary["peak_plate_stress_mpa"] for q in sc.preds],
-                        "solver_peak": [t.summary["peak_plate_stress_mpa"] for t in sc.truth],
-                        "model_deflection": [q.summary["max_deflection_mm"] for q in sc.preds],
-                        "solver_deflection": [t.summary["max_deflection_mm"] for t in sc.truth]}
+                        "model_peak": [q.summary.peak_plate_stress_mpa for q in sc.preds],
+                        "solver_peak": [t.summary.peak_plate_stress_mpa for t in sc.truth],
+                        "model_deflection": [q.summary.max_deflection_mm for q in sc.preds],
+                        "solver_deflection": [t.summary.max_deflection_mm for t in sc.truth]}
     single = predict(shipped, designs[:1], batch=1, progress=False)[0]
     out = {"name": a.name, "file_mb": path.stat().st_size / 1e6, "card": card,
-           "test_metrics": {k: metrics[k] for k in ("split", "trajectories", "position", "stress",
+           "test_metrics": {k: metrics.to_json()[k] for k in ("split", "trajectories", "position", "stress",
                                                     "inference_ms_per_step", "physics")},
            "verify": check.verified, "per_design": [{"name": q.name, **q.summary.to_json()} for q in check.preds],
            "sweeps": sweeps, "predict_wall_s_total": check.wall_s, "batch": a.batch, "threads": a.threads,

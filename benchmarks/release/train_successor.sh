@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# The shipped model pretrained:impact_plate_small (issue 35 item 4, shipped 2026-12-04; it replaced a model of 36,000
+# The shipped model pretrained:impact_plate_small (shipped 2026-12-04; it replaced a model of 36,000
 # steps on 120 designs): HCMT with the shipped recipe (config impact_plate_shipped, which holds every setting below)
 # on the 480 training designs of the scaling study's data, 400,000 steps (11x its predecessor's at the same graph
 # size), one CPU thread, validated every 10,000 steps on 6 designs, step_<N>.pt kept every 20,000 steps so the
@@ -8,12 +8,14 @@
 #
 #     bash benchmarks/release/train_successor.sh          # start, or continue where it stopped (both resume)
 #
-# DATA and RUN (defaults below) live outside the work tree; run it from a frozen worktree with its own venv
+# DATA and RUN default to folders of $HCMT_WORK (default benchmarks/work, relative to where it runs, which git
+# ignores; docs/RESULTS.md, "Folders"); run it from a frozen worktree with its own venv
 # (HCMT=path/to/venv/bin/hcmt), in the background: `setsid nohup bash ... > LOG 2>&1 < /dev/null &`.
 set -euo pipefail
 HCMT=${HCMT:-hcmt}
-DATA=${DATA:-/work/persist/data/ip480}
-RUN=${RUN:-/work/persist/runs/ship480}
+W=${HCMT_WORK:-benchmarks/work}  # the work folder outside git (docs/RESULTS.md, "Folders")
+DATA=${DATA:-$W/data/ip480}
+RUN=${RUN:-$W/runs/ship480}
 export OMP_NUM_THREADS=1
 
 # the data: the scaling study's command (benchmarks/scaling/README.md); an interrupted generation resumes in place

@@ -1,4 +1,4 @@
-"""The long run's checkpoints as points beyond the scaling study's budgets (issue 35, items 2 and 4).
+"""The long run's checkpoints as points beyond the scaling study's budgets.
 
     python benchmarks/scaling/long_run.py SNAPSHOT --data DATA [--checkpoint best|step_N] [--label NAME]
         [--split SPLIT [SPLIT ...]] [--out benchmarks/results/scaling_long_run.json]

@@ -1,4 +1,4 @@
-"""The long run's kept checkpoints on the judge's sweeps (issue 35 item 5): do the trends' size and the limit calls
+"""The long run's kept checkpoints on the judge's sweeps: do the trends' size and the limit calls
 of the model alone improve with the training budget?
 
     python benchmarks/scaling/long_run_sweeps.py RUN --checkpoints step_120000 step_200000 ... \
@@ -69,7 +69,7 @@ def main(argv=None) -> None:
         model = {}
         for name in dict.fromkeys([f"sweep_{h:g}" for h, _ in SWEEPS] + ["sweep_height"]):
             check = check_designs(run, sets[name], batch=len(sets[name]), surrogate=False, progress=False)
-            model[name] = {q: [pr.summary[q] for pr in check.preds] for q in TREND_QUANTITIES}
+            model[name] = {q: [getattr(pr.summary, q) for pr in check.preds] for q in TREND_QUANTITIES}
         rows[which] = {"checkpoint": which, "checkpoint_step": run.checkpoint_step, **judged(model, judge),
                        "model_peaks": {k: v["peak_plate_stress_mpa"] for k, v in model.items()}}
         r = rows[which]

@@ -23,9 +23,9 @@ from scaling.analysis import (  # noqa: E402
 
 HEADING = "## Scaling with budget and designs"
 MODELS = (("hcmt", "HCMT"), ("mgn", "MGN"))
-DATA = ("hcmt generate impact-plate /work/data/ip480 --preset small --train 480 --valid 12 --test 24 --variants "
+DATA = ("hcmt generate impact-plate $HCMT_WORK/data/ip480 --preset small --train 480 --valid 12 --test 24 --variants "
         "--variant-count 8 --seed 3035 --frames 90 --edge-fraction 0.35 --peak-stress --workers 1")
-COMMAND = "python benchmarks/scaling/run.py --data /work/data/ip480 --work WORK"
+COMMAND = "python benchmarks/scaling/run.py --data $HCMT_WORK/data/ip480 --work $HCMT_WORK/scaling"
 # The rules.
 MARGIN_FLAT = 0.05  # |exponent of HCMT ÷ MGN against the axis| below this: the margin is "about constant"
 FALLS = 0.0  # a fitted exponent above this: the error falls along the axis
@@ -171,12 +171,13 @@ def _long_run(long: dict, pts: list[dict], full: int) -> list[str]:
 
 
 def _long_run_outside(rows: list[dict]) -> list[str]:
-    """The long run's checkpoints on designs outside the training ranges (long_run.py --split), against issue 35's
-    outside-range goals (the judge's: peak plate stress ≤ 6 %, deflection ≤ 8 %, medians)."""
+    """The long run's checkpoints on designs outside the training ranges (long_run.py --split), against the model
+    goals outside the ranges (the judge's: peak plate stress ≤ 6 %, deflection ≤ 8 %, medians)."""
     label = dict(METRICS)
     out = [f"**The long run's checkpoints outside the training ranges** (`python benchmarks/scaling/long_run.py "
-           f"SNAPSHOT --data DATA --checkpoint step_N --label RUN --split {rows[0]['split'].replace(' + ', ' ')}`: "
-           f"the {rows[0]['trajectories']} designs of those splits pooled, medians over them; issue 35's goals "
+           "SNAPSHOT --data $HCMT_WORK/data/ip480 --checkpoint step_N --label RUN --split "
+           f"{rows[0]['split'].replace(' + ', ' ')}`: "
+           f"the {rows[0]['trajectories']} designs of those splits pooled, medians over them; the model goals "
            "there: " + ", ".join(f"{label[k]} ≤ {g:g}" for k, g in OUTSIDE_GOALS.items()) + ")", "",
            "| run | checkpoint step | splits | " + " | ".join(n for _, n in METRICS) + " | rebound agreement |",
            "|---" * (len(METRICS) + 4) + "|"]
@@ -194,7 +195,7 @@ def _long_run_outside(rows: list[dict]) -> list[str]:
 
 
 def _long_run_sweeps(sw: dict) -> list[str]:
-    """The long run's kept checkpoints on the judge's sweeps (long_run_sweeps.py): the two goals of issue 35 item 5
+    """The long run's kept checkpoints on the judge's sweeps (long_run_sweeps.py): the two model goals
     that a median error does not measure, the model alone's limit calls and the trends' size, against the budget."""
     rows = sw["rows"]
     height = rows[0]["trends"]["sweep_height"]["peak_plate_stress_mpa"]["solver"]
@@ -225,7 +226,7 @@ def _shipped(judge: dict) -> bool:
 
 
 def _long_run_judges(judges: list[dict]) -> list[str]:
-    """Issue 35 item 5's goals, all of them, at several checkpoints of the long run on the judge's designs (its seeds):
+    """The model goals, all of them, at several checkpoints of the long run on the judge's designs (its seeds):
     the shipped one's model_judge.json and scaling_judge_step*.json (``surrogate/run.py --checkpoint step_N
     --solver-from``), a column each."""
     judges = sorted(judges, key=lambda j: j["checkpoint_step"])
@@ -288,13 +289,13 @@ def _judged_budget(judges: list[dict]) -> list[str]:
 
 
 def _goal_budgets(long: dict | None, pts: list[dict], full: int) -> list[str]:
-    """Issue 35 item 5: the budget at which the study's HCMT fit against the budget reaches each goal, and beside it
+    """The budget at which the study's HCMT fit against the budget reaches each goal, and beside it
     what the long run's latest run reached at its kept checkpoints (where it did better than the fit, by how much)."""
     means = {key: means_by(pts, "hcmt", "budget", key, {"designs": full}) for key in MODEL_GOALS}
     fits = {key: fit_power_law(list(m), list(m.values())) for key, m in means.items()}
     rows = [r for r in (long or {}).get("checkpoints", []) if run_of(r) == run_of(long["checkpoints"][-1])]
     name = run_of(rows[-1]) if rows else None
-    out = ["**What budget would reach the goals** (issue 35 item 5: the median errors on held-out designs; the study's "
+    out = ["**What budget would reach the goals** (the model goals: the median errors on held-out designs; the study's "
            "HCMT fit against the budget above, solved for the goal"
            + (f"; beside it the long run's {name} at its kept checkpoints" if rows else "") + ")", "",
            "| goal | target | the study's fit reaches it at | × the paper's steps | R² |"

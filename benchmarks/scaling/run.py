@@ -1,4 +1,4 @@
-"""The scaling study (issue 35, item 2): HCMT and MGN on the `small` preset, error against the training budget and
+"""The scaling study: HCMT and MGN on the `small` preset, error against the training budget and
 against the number of training designs, judged on held-out designs.
 
     python benchmarks/scaling/run.py --data DATA --work WORK [--budgets 1000 3000 10000 30000] \
@@ -37,7 +37,7 @@ import numpy as np
 import torch
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))  # benchmarks/: common, report_common
-from common import RESULTS, claim  # noqa: E402
+from common import RESULTS, claim, portable  # noqa: E402
 from hcmt.config import COMPILE_MODES, load_config  # noqa: E402
 from hcmt.data.format import Split  # noqa: E402
 from hcmt.data.runs import RunFolder  # noqa: E402
@@ -113,8 +113,8 @@ def test_errors(loaded: Run, data: Path, limit: int | None, split: str | tuple[s
     errors; its rollout files are not kept."""
     splits = (split,) if isinstance(split, str) else tuple(split)
     ms = [evaluate(loaded, data, s, limit=limit, progress=False) for s in splits]
-    rows = [r["physics"] for m in ms for r in m["per_trajectory"]]
-    counts = [m["trajectories"] for m in ms]
+    rows = [r["physics"] for m in ms for r in m.per_trajectory]
+    counts = [m.trajectories for m in ms]
     peak = np.abs([r["peak_plate_stress_error_pct"] for r in rows])
     defl = np.abs([r["max_deflection_error_pct"] for r in rows])
     ghost = np.abs([r["model_ghost_ratio"] - r["solver_ghost_ratio"] for r in rows])
@@ -125,14 +125,14 @@ def test_errors(loaded: Run, data: Path, limit: int | None, split: str | tuple[s
         return float(np.average(values, weights=counts))
 
     return {"trajectories": sum(counts), "checkpoint_step": loaded.checkpoint_step,
-            "errors": {"position_rmse_all": pooled([m["position"]["rmse_all"] for m in ms]),
-                       "stress_rmse_all": pooled([m["stress"]["rmse_all"] for m in ms]),
+            "errors": {"position_rmse_all": pooled([m.position.rmse_all for m in ms]),
+                       "stress_rmse_all": pooled([m.stress.rmse_all for m in ms]),
                        "peak_error_pct": float(np.median(peak)), "deflection_error_pct": float(np.median(defl)),
                        "ghost_difference": float(np.median(ghost))},
             "worst": {"peak_error_pct": float(peak.max()), "deflection_error_pct": float(defl.max()),
                       "ghost_difference": float(ghost.max())},
             "solver_ghost_ratio": float(np.median([r["solver_ghost_ratio"] for r in rows])),
-            "rebound_agreement": pooled([m["physics"]["rebound_agreement"] for m in ms])}
+            "rebound_agreement": pooled([m.physics["rebound_agreement"] for m in ms])}
 
 
 def point(work: Path, data: Path, p: dict, cfg_name: str, ovr: list[str], limit: int | None) -> dict | None:
@@ -187,7 +187,8 @@ def finished(work: Path, points: list[dict]) -> list[dict]:
 def write(out: Path, header: dict, points: list[dict], planned: int) -> None:
     out.parent.mkdir(parents=True, exist_ok=True)
     with atomic_path(out) as tmp:
-        tmp.write_text(json.dumps({**header, "planned": planned, "done": len(points), "points": points}, indent=1))
+        tmp.write_text(json.dumps(portable({**header, "planned": planned, "done": len(points), "points": points}),
+                                  indent=1))
 
 
 def main(argv=None) -> None:

@@ -1,6 +1,6 @@
 #!/bin/bash
-# CPU regression check (issue "Fast on a GPU": the CPU must not get slower): the eager paper-size train step and
-# inference of two checkouts, alternately, twice, each on one thread under the same load.
+# CPU regression check (the CPU path must not get slower while the GPU path is tuned): the eager paper-size train
+# step and inference of two checkouts, alternately, twice, each on one thread under the same load.
 #     bash benchmarks/speed/cpu_ab.sh OLD_CHECKOUT NEW_CHECKOUT   (e.g. a `git worktree add --detach ../old REV`)
 # writes benchmarks/results/cpu_ab_{old,new}_{1,2}.json (micro/bench_models.py's format); speed/report.py compares them.
 # Each checkout runs its own bench_models.py: benchmarks/micro/ since the layout by kind, benchmarks/ before.

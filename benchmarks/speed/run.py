@@ -1,4 +1,4 @@
-"""Speed (issue 8, item 4): learned rollout against the solver on the same trajectories, and how a training step's
+"""Speed: learned rollout against the solver on the same trajectories, and how a training step's
 time and peak memory grow with node count.
 
     python benchmarks/speed/run.py rollout --n 3 [--run RUN]    # paper preset: solver s/trajectory vs HCMT/MGN rollout
@@ -65,7 +65,7 @@ def _rollout(args) -> None:
         t0 = time.perf_counter()
         sim = simulate(design, Settings())
         solver_s = time.perf_counter() - t0
-        fields = sim["fields"]
+        fields = sim.fields
         steps = fields["world_pos"].shape[0] - 1
         row = {"nodes": int(fields["mesh_pos"].shape[0]), "frames": steps + 1, "solver_s": solver_s,
                "solver_ms_per_frame": 1e3 * solver_s / steps}

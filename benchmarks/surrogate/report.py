@@ -6,8 +6,8 @@ from hcmt.design.check import TRUST
 from hcmt.sim.params import Design
 from report_common import load, said, sentences
 
-COMMAND = ("python benchmarks/surrogate/run.py --data DATA --work WORK --threads 1   # DATA: the shipped model's "
-           "training data (docs/MODELS.md)")
+COMMAND = ("python benchmarks/surrogate/run.py --data $HCMT_WORK/data/ip480 --work $HCMT_WORK/finish/surrogate "
+           "--threads 1   # the shipped model's training data (docs/MODELS.md)")
 SETS = {"in_range": "30 in range", "thicker": "6 thicker (1.03-1.2 mm)", "higher": "6 higher (1030-1200 mm)",
         "both": "4 thicker and higher"}
 QUANTITY = {"peak_plate_stress_mpa": "peak plate stress", "max_deflection_mm": "max deflection",
@@ -284,11 +284,11 @@ def note(lines: list[str], n: dict) -> None:
 
 
 def judge(lines, d) -> None:
-    """Issue 35 item 5: a model judged on designs of fresh seeds against the goals, the response surface fitted on the
+    """A model judged on designs of fresh seeds against the model goals, the response surface fitted on the
     same runs beside it (``python benchmarks/surrogate/run.py ... --json model_judge.json``)."""
     if not d or "goals" not in d:
         return
-    lines += ["### The mesh model judged against the issue's goals", "",
+    lines += ["### The mesh model judged against the model goals", "",
               f"Command: `{d['command']}` (model {d['model']}"
               + (f" at step {d['checkpoint_step']:,}" if d.get("checkpoint_step") else "")
               + f"; designs of seeds {d['seeds']['in_range']} in range and {d['seeds']['outside']} outside; "

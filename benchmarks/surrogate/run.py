@@ -1,5 +1,5 @@
-"""The design check against the response surfaces an engineer would fit instead (issue "The design check against
-the response surface"): the shipped HCMT, a Gaussian process and a quadratic response surface on the same held-out
+"""The design check against the response surfaces an engineer would fit instead: the shipped
+HCMT, a Gaussian process and a quadratic response surface on the same held-out
 designs, the limit calls of each trusted interval on decision sweeps, ghost stress, the time of the peak and the
 low-confidence note.
 
@@ -13,13 +13,13 @@ benchmarks/results/surrogate.json (docs/RESULTS.md and docs/MODELS.md quote it).
 
 Designs: 30 uniform inside the training ranges (seed 90210, the model card's), 16 outside as the paper's Table 13
 (6 thicker 1.03-1.2 mm, 6 dropped from 1030-1200 mm, 4 both; seed 31337); the dataset's own 18 valid + test
-designs tune the note's threshold (judged on the 46 others). Sweeps: thickness 0.5 → 1.0 mm in 11 points at the
-issue's four (drop height, yield) pairs and two more whose yield is the median of the solver's peaks; a drop-height
+designs tune the note's threshold (judged on the 46 others). Sweeps (:data:`SWEEPS`): thickness 0.5 → 1.0 mm in 11
+points at four (drop height, yield) pairs and two more whose yield is the median of the solver's peaks; a drop-height
 sweep (520 → 990 mm in 6 points at thickness 0.75 mm) for the trends.
 
-Judging a model (issue 35, item 5): ``--seed-in`` / ``--seed-out`` draw the in-range and outside designs from seeds no
+Judging a model: ``--seed-in`` / ``--seed-out`` draw the in-range and outside designs from seeds no
 study used (and a WORK of their own: the cache is per group name); ``goals`` in the JSON sets the model's and the
-response surface's numbers (fitted on DATA, the same runs) beside the issue's goals, and ``trends`` the sign and size of
+response surface's numbers (fitted on DATA, the same runs) beside the model goals, and ``trends`` the sign and size of
 each sweep's change from its first point to its last, model and response surface against the solver. Another
 checkpoint of a run on the same seeds (``--model RUN --checkpoint step_N``, benchmarks/scaling/README.md) needs only
 its own rollouts: ``--solver-from`` names the first judge's WORK, whose solver trajectories it reuses.
@@ -41,13 +41,13 @@ from sklearn.preprocessing import PolynomialFeatures
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))  # benchmarks/: common
 from common import write_json  # noqa: E402
 from hcmt.data.runs import PRETRAINED_DIR  # noqa: E402
+from hcmt.design.calls import trusted_bounds  # noqa: E402
 from hcmt.design.check import (  # noqa: E402
     TRUSTS,
     Prediction,
     call_of,
     check_designs,
     summarize,
-    trusted_interval,
     verify_designs,
 )
 from hcmt.design.inputs import region_of, settings_of  # noqa: E402
@@ -57,9 +57,9 @@ from hcmt.design.readout import (
     DEFAULT_READOUT,
     DERIVED_KEYS,
     READOUTS,
-    readout_key,
     summarize_fields,
 )
+from hcmt.design.summary import Summary  # noqa: E402
 from hcmt.design.surrogate import QUANTITIES, Z95, Surrogate, dataset_answers  # noqa: E402
 from hcmt.design.sweep import trends_agree  # noqa: E402
 from hcmt.files import atomic_path  # noqa: E402
@@ -68,17 +68,17 @@ from hcmt.inference.run import Run  # noqa: E402
 from hcmt.sim.params import Design, middle_design, sample_design  # noqa: E402
 from report_common import MODEL_GOALS, OUTSIDE_GOALS  # noqa: E402
 
-#: the issue's four thickness sweeps (drop height mm, yield MPa); two more get the solver's median peak as yield
+#: the four thickness sweeps (drop height mm, yield MPa); two more get the solver's median peak as yield
 SWEEPS = [(600.0, 750.0), (600.0, 700.0), (800.0, 800.0), (800.0, 720.0), (700.0, None), (950.0, None)]
 SCALARS = ("peak_plate_stress_mpa", "max_deflection_mm", "peak_ball_stress_mpa")
 #: the read-out whose answer is "the model's" in the study: the design check's default (the model's own outputs)
 MODEL = DEFAULT_READOUT
 
 
-def as_read(s: dict, readout: str) -> dict:
-    """A summary with ``readout``'s derived fields (hcmt.design.readout.readout_key) read as the plain names: the
-    study compares read-outs side by side."""
-    return {**s, **{k: s[readout_key(k, readout)] for k in DERIVED_KEYS if readout_key(k, readout) in s}}
+def as_read(s: Summary) -> Summary:
+    """A summary whose plate peak fields are its chosen read-out's (:attr:`hcmt.design.summary.Summary.chosen`):
+    the study compares read-outs side by side."""
+    return replace(s, **{k: getattr(s.chosen, k) for k in DERIVED_KEYS})
 #: the solver's plate is unloaded where its ball is gone and its plate stress is below this share of its peak
 UNLOADED = 0.10
 CURVE = (15, 30, 60, 120)
@@ -133,7 +133,7 @@ def design_sets(run, seed_in: int = 90210, seed_out: int = 31337) -> dict[str, l
                 d = replace(d, drop_height=float(rng.uniform(*h)))
             rows.append((f"{name}_{i}", d))
         sets[name] = rows
-    base = middle_design(run.meta)  # the preset's middle, as the issue's sweeps (hcmt 0.1's default) were run
+    base = middle_design(run.meta)  # the preset's middle, as the first sweeps (hcmt 0.1's default) were run
     for h, _ in SWEEPS:
         sets[f"sweep_{h:g}"] = [(f"t={t:.2f}", replace(base, drop_height=h, thickness=float(t)))
                                 for t in np.round(np.linspace(0.5, 1.0, 11), 6)]
@@ -151,37 +151,35 @@ def record(p, t, frame_dt: float, end) -> dict:
     plate = plate_mask(p.cells, p.node_type)
     solver_window = contact_window(contact_gap(t.world_pos, t.mesh_pos, plate))
     model = {r: as_read(summarize_fields(fields, frame_dt, r, p.wall_s,
-                                         getattr(end, CONTACT_END_BOUND) if r == "contact" else None), r)
+                                         getattr(end, CONTACT_END_BOUND) if r == "contact" else None))
              for r in READOUTS}
-    model["contact_upper"] = as_read(summarize_fields(fields, frame_dt, "contact", p.wall_s, end.hi), "contact")
-    model["contact_own"] = as_read(summarize_fields(fields, frame_dt, "contact", p.wall_s), "contact")
-    solver_stress = t.summary["plate_stress_history_mpa"]
-    unloaded = [not w and h < UNLOADED * t.summary["peak_plate_stress_mpa"]
-                for w, h in zip(solver_window, solver_stress)]
+    model["contact_upper"] = as_read(summarize_fields(fields, frame_dt, "contact", p.wall_s, end.hi))
+    model["contact_own"] = as_read(summarize_fields(fields, frame_dt, "contact", p.wall_s))
     truth = t.summary
+    unloaded = [not w and h < UNLOADED * truth.peak_plate_stress_mpa
+                for w, h in zip(solver_window, truth.plate_stress_history_mpa)]
     out = {"design": asdict(p.design), "solver": _scalars(truth), "solver_wall_s": t.wall_s,
-           "solver_ghost": ghost_ratio(truth["plate_stress_history_mpa"], truth["peak_plate_stress_mpa"]),
+           "solver_ghost": ghost_ratio(truth.plate_stress_history_mpa, truth.peak_plate_stress_mpa),
            "model": {}}
     for r, s in model.items():
-        out["model"][r] = {**_scalars(s), "ghost": ghost_ratio(s["plate_stress_history_mpa"],
-                                                               s["peak_plate_stress_mpa"]),
-                           "peak_in_solver_contact": bool(solver_window[s["peak_plate_frame"]]),
-                           "peak_where_solver_unloaded": bool(unloaded[s["peak_plate_frame"]]),
-                           "t95_frame_error": s["peak_plate_t95_frame"] - truth["peak_plate_t95_frame"],
-                           "argmax_frame_error": s["peak_plate_frame"] - truth["peak_plate_frame"]}
-    out["contact_end_lag_frames"] = round((model["contact_own"]["contact_end_ms"] - truth["contact_end_ms"])
+        out["model"][r] = {**_scalars(s), "ghost": ghost_ratio(s.plate_stress_history_mpa, s.peak_plate_stress_mpa),
+                           "peak_in_solver_contact": bool(solver_window[s.peak_plate_frame]),
+                           "peak_where_solver_unloaded": bool(unloaded[s.peak_plate_frame]),
+                           "t95_frame_error": s.peak_plate_t95_frame - truth.peak_plate_t95_frame,
+                           "argmax_frame_error": s.peak_plate_frame - truth.peak_plate_frame}
+    out["contact_end_lag_frames"] = round((model["contact_own"].contact_end_ms - truth.contact_end_ms)
                                           / frame_dt)  # the learned ball leaves this much later
-    out["solver_ball_leaves"] = truth["contact_end_ms"] < len(truth["plate_stress_history_mpa"]) * frame_dt - 1e-9
+    out["solver_ball_leaves"] = truth.contact_end_ms < len(truth.plate_stress_history_mpa) * frame_dt - 1e-9
     # how far the solver's peak lies before the GP's lower bound of when its ball leaves (frames)
-    out["solver_peak_before_lower_end_frames"] = int(np.floor(end.lo / frame_dt)) - truth["peak_plate_frame"]
-    out["critical_node_history_correlation"] = p.summary["verify"].critical_node_history_correlation
+    out["solver_peak_before_lower_end_frames"] = int(np.floor(end.lo / frame_dt)) - truth.peak_plate_frame
+    out["critical_node_history_correlation"] = p.summary.verify.critical_node_history_correlation
     out["model_wall_s"] = p.wall_s
-    out["rebound_agrees"] = bool(p.summary["verify"].rebound_agrees)
+    out["rebound_agrees"] = bool(p.summary.verify.rebound_agrees)
     return out
 
 
-def _scalars(s: dict) -> dict:
-    return {k: s[k] for k in (*SCALARS, "peak_plate_t95_ms", "peak_plate_frame", "peak_plate_t95_frame")}
+def _scalars(s: Summary) -> dict:
+    return {k: getattr(s, k) for k in (*SCALARS, "peak_plate_t95_ms", "peak_plate_frame", "peak_plate_t95_frame")}
 
 
 #: a cached design's arrays (``{i}_{key}``)
@@ -286,7 +284,7 @@ def calls(rows, gp, yield_mpa: float) -> dict:
     for trust in TRUSTS:
         made, final = [], []
         for r, g, ok in zip(rows, gps, solver_pass):
-            lo, hi, _ = trusted_interval(_summary(r, g), trust)
+            lo, hi, _ = trusted_bounds(*_answers(r, g), trust)
             c = call_of(lo, hi, yield_mpa)
             made.append(c)
             final.append(("pass" if ok else "fail") if c == "undecided" else c)
@@ -306,11 +304,10 @@ def unsafe_passes(model_peaks, solver_peaks, yield_mpa: float) -> int:
     return int(sum(m < yield_mpa <= t for m, t in zip(model_peaks, solver_peaks)))
 
 
-def _summary(r: dict, g: dict) -> dict:
-    """The part of a design check summary :func:`hcmt.design.check.trusted_interval` reads: the model's peak
-    (default read-out) and the GP's interval of it."""
-    return {"peak_plate_stress_mpa": r["model"][MODEL]["peak_plate_stress_mpa"],
-            "surrogate": {"peak_plate_stress_mpa": asdict(g["peak_plate_stress_mpa"])}}
+def _answers(r: dict, g: dict) -> tuple[float, dict]:
+    """What :func:`hcmt.design.calls.trusted_bounds` reads: the model's peak (default read-out) and the GP's
+    interval of it."""
+    return r["model"][MODEL]["peak_plate_stress_mpa"], asdict(g["peak_plate_stress_mpa"])
 
 
 def _minimum(values, passing) -> float | None:
@@ -327,7 +324,7 @@ def coverage(rows, gp, trust) -> dict:
     designs = [Design(**r["design"]) for r in rows]
     hits = 0
     for r, g in zip(rows, gp.predict(designs)):
-        lo, hi, _ = trusted_interval(_summary(r, g), trust)
+        lo, hi, _ = trusted_bounds(*_answers(r, g), trust)
         hits += lo <= r["solver"]["peak_plate_stress_mpa"] <= hi
     return {"covered": int(hits), "of": len(rows)}
 
@@ -375,7 +372,7 @@ def trend(rows, gp) -> dict:
 
 
 def goals(result: dict, groups: dict, gp) -> list[dict]:
-    """Issue 35 item 5's goals with the model's number and, where it answers that quantity, the response surface's."""
+    """The model goals with the model's number and, where it answers that quantity, the response surface's."""
     acc, out_rows = result["accuracy"]["in_range"], groups["thicker"] + groups["higher"] + groups["both"]
     outside = compare(out_rows, {"gp": gp})
 

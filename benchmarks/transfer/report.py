@@ -8,11 +8,11 @@ import numpy as np
 
 from report_common import SHIPPED_STEPS, command, said, sentences
 
-DATA = ("hcmt generate impact-plate /work/data/fam_train --preset small --family mono,stack2,ring --train 60 "
+DATA = ("hcmt generate impact-plate $HCMT_WORK/data/fam_train --preset small --family mono,stack2,ring --train 60 "
         "--valid 6 --test 12 --seed 7 --frames 90\n"
-        "hcmt generate impact-plate /work/data/fam_stack3 --preset small --family stack3 --train 20 --valid 2 "
+        "hcmt generate impact-plate $HCMT_WORK/data/fam_stack3 --preset small --family stack3 --train 20 --valid 2 "
         "--test 8 --seed 8 --frames 90\n"
-        "hcmt generate impact-plate /work/data/fam_pen --preset small --family pen --train 20 --valid 2 --test 8 "
+        "hcmt generate impact-plate $HCMT_WORK/data/fam_pen --preset small --family pen --train 20 --valid 2 --test 8 "
         "--seed 9 --frames 90")
 MODELS = (("hcmt", "HCMT"), ("mgn", "MGN"))
 LR = "1e-3, decaying to 1e-5"  # the config's schedule (impact_plate_cpu)

@@ -122,9 +122,9 @@ def judged(run: Path | str, data: Path, limit: int, out: Path | None = None) -> 
     m = evaluate(loaded, data, "test", limit=limit, progress=False)
     crit = critical_distance(loaded.folder.rollout_path("test", data), data, "test", limit)
     meta = read_meta(data)
-    families = (meta.get("families") or {}).get("test") or ["mono"] * m["trajectories"]
+    families = (meta.get("families") or {}).get("test") or ["mono"] * m.trajectories
     rows = []
-    for i, r in enumerate(m["per_trajectory"]):
+    for i, r in enumerate(m.per_trajectory):
         p = r["physics"]
         rows.append({"trajectory": r["trajectory"], "family": families[i],
                      "peak_error_pct": p["peak_plate_stress_error_pct"],
@@ -132,7 +132,7 @@ def judged(run: Path | str, data: Path, limit: int, out: Path | None = None) -> 
                      "critical_mm": crit[r["trajectory"]], "rebound_agrees": bool(p["rebound_agrees"]),
                      "stress_rmse_all": r.get("stress_rmse_all"), "position_rmse_all": r.get("position_rmse_all")})
     steps = int(meta["trajectory_length"]) - 2
-    return {"rows": rows, "s_per_design": m["inference_ms_per_step"] * steps / 1e3,
+    return {"rows": rows, "s_per_design": m.inference_ms_per_step * steps / 1e3,
             "checkpoint_step": loaded.checkpoint_step}
 
 
@@ -171,7 +171,7 @@ def solver_seconds(data: Path, count: int = 2) -> float:
     times = []
     with Split(data, "test", meta) as s:
         for i in range(min(count, len(s))):
-            times.append(simulate(design_from_attrs(s.attrs(i)), settings)["info"]["wall_time"])
+            times.append(simulate(design_from_attrs(s.attrs(i)), settings).info.wall_time)
     return float(np.median(times))
 
 

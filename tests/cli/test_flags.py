@@ -1,4 +1,4 @@
-"""Flags spelled and defaulted alike across commands (issue 38, "a front door")."""
+"""Flags spelled and defaulted alike across commands, so a flag learnt on one command works on the next."""
 import argparse
 
 from hcmt.cli import parsers

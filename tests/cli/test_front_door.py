@@ -1,4 +1,4 @@
-"""The front door's flags spelled alike across commands (issue 38 item 6): evaluate / rollout of a shipped model
+"""The front door's flags spelled alike across commands: evaluate / rollout of a shipped model
 with --out, simulate's --design, one --batch default for predict and sweep."""
 from __future__ import annotations
 

@@ -1,5 +1,5 @@
-"""Misuse of the design check, the run files and the other commands (issue "No traceback, no memory blow-up, no
-file outside the output folder"): each case gives one line and exit 2 (or works, documented), leaves nothing
+"""Misuse of the design check, the run files and the other commands (no traceback, no memory blow-up,
+no file outside the output folder): each case gives one line and exit 2 (or works, documented), leaves nothing
 behind, and the run files are fuzzed."""
 import errno
 import json

@@ -1,4 +1,4 @@
-"""Bad input, round 3 (issue 36, part B): a long value echoed in full, slow refusals before the heavy imports,
+"""Bad input, round 3: a long value echoed in full, slow refusals before the heavy imports,
 unbounded counts, messages without the flag, SIGTERM's exit status, an API looser than the command and notes that
 ask for a solver run the command does not do. Each case: one line of at most 300 characters naming the flag or
 file and what was expected, exit 2, nothing written; the API raises InputError with the parameter's name."""
@@ -9,6 +9,7 @@ import resource
 import signal
 import subprocess
 import sys
+from dataclasses import replace
 from pathlib import Path
 from types import SimpleNamespace
 
@@ -25,6 +26,7 @@ from hcmt.design.surrogate import Surrogate, SurrogateError
 from hcmt.errors import InputError
 from hcmt.sim.generate import generate_dataset
 from hcmt.sim.params import Design, Settings, parse_design
+from summaries import fake_summary, fake_verify
 
 ROOT = Path(__file__).resolve().parents[2]
 HEAVY = ("torch", "scipy", "sklearn", "matplotlib")
@@ -255,11 +257,11 @@ def test_settings_and_generate_name_their_parameter(tmp_path):
 
 # -- 11. notes that ask for a solver run that does not come --------------------------------------------------------
 def note_of(call: str | None, verified: bool = False) -> str:
-    summary = {"confidence": {"region": "outside"}, "peak_plate_stress_mpa": 500.0}
+    summary = fake_summary(confidence={"region": "outside"}, peak_plate_stress_mpa=500.0,
+                           verify=fake_verify() if verified else None)
     if call is not None:
-        summary.update(call=call, call_interval_mpa={"lo": 200.0, "hi": 800.0 if call != "pass" else 600.0})
-    if verified:
-        summary["verify"] = {}
+        summary = replace(summary, call=call,
+                          call_interval_mpa={"lo": 200.0, "hi": 800.0 if call != "pass" else 600.0})
     return " ".join(weak_reasons(SimpleNamespace(name="p", summary=summary)))
 
 

@@ -1,4 +1,4 @@
-"""Bad input, round 3 (issue 36, part A): no command writes over one of its inputs or into a folder it reads, however
+"""Bad input, round 3: no command writes over one of its inputs or into a folder it reads, however
 the path is spelled (hcmt.files.check_apart); a refused resume changes nothing; generate has the cost rule of
 simulate; a damaged checkpoint's advice names the other only when that one is readable; a failed predict leaves
 none of its outputs."""

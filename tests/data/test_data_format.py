@@ -1,4 +1,5 @@
-"""The native dataset format: round trip, atomic writes, and every bad-input case of issue 2."""
+"""The native dataset format: round trip, atomic writes, and every bad input it refuses (a missing, damaged or
+inconsistent file)."""
 import json
 
 import h5py

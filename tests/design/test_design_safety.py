@@ -1,4 +1,4 @@
-"""Issue "The design check is as safe as training": strict --designs CSVs (with a fuzz test), results that carry
+"""The design check is as safe as training: strict --designs CSVs (with a fuzz test), results that carry
 their warnings and model, rollouts and metrics keyed by dataset, options checked before the cache, cost refusal,
 one-line interrupts, incomplete datasets, model cards with ranges, pictures, confidence notes."""
 import csv
@@ -22,6 +22,7 @@ from hcmt.sim.params import DESIGN_KEYS, Design, Settings, middle_design, parse_
 from hcmt.training import train
 from hcmt.viz.contours import axis_names, shared_norm
 from hcmt.viz.rollouts import load_case
+from summaries import fake_summary
 
 pytestmark = pytest.mark.slow  # trained runs and solver verification
 
@@ -243,7 +244,7 @@ def test_contour_pair_shows_both_peaks(setup, monkeypatch):
                              verify=True, progress=False)
     p, t = check.preds[0], check.truth[0]
     contour_picture(p, t, run.meta, setup / "img", "MGN")
-    want = sorted({max(p.summary["peak_plate_frame"], 1), max(t.summary["peak_plate_frame"], 1)})
+    want = sorted({max(p.summary.peak_plate_frame, 1), max(t.summary.peak_plate_frame, 1)})
     assert seen["f"] == want
 
 
@@ -266,6 +267,6 @@ def test_confidence_regions_and_the_weak_note():
     thin = Prediction("t", Design(thickness=0.55, drop_height=700), *([np.zeros(1)] * 5), wall_s=1.0)
     inside = Prediction("i", Design(thickness=0.8, drop_height=700), *([np.zeros(1)] * 5), wall_s=1.0)
     for p in (thin, inside):
-        p.summary["confidence"] = confidence(p.design, FakeRun)
+        p.summary = fake_summary(confidence=confidence(p.design, FakeRun))
     assert "median peak plate stress error of 18.0 %" in weak_reasons(thin)[0]
     assert weak_reasons(inside) == []

@@ -32,6 +32,7 @@ from hcmt.design.sweep import analyse, sweep
 from hcmt.errors import InputError
 from hcmt.sim.params import DESIGN_KEYS, DESIGN_UNITS, RANGES, Design, Settings, design_values, preset_design
 from refusals import refused
+from summaries import fake_summary
 
 MODEL = "pretrained:impact_plate_small"
 #: the shipped model's training preset: the ranges of the stand-in checks (the shipped run's own are a little inside)
@@ -55,9 +56,8 @@ def shipped():
 
 def stand_in(design: Design, peak: float, surrogate: tuple[float, float, float] | None = None) -> SimpleNamespace:
     """A prediction as the calls read it: the design, the mesh model's peak and the surrogate's (mean, lo, hi)."""
-    summary = {"peak_plate_stress_mpa": float(peak), "max_deflection_mm": 0.2, "readout": "raw"}
-    if surrogate is not None:
-        summary["surrogate"] = {"peak_plate_stress_mpa": dict(zip(("mean", "lo", "hi"), map(float, surrogate)))}
+    answers = {"peak_plate_stress_mpa": dict(zip(("mean", "lo", "hi"), map(float, surrogate)))} if surrogate else None
+    summary = fake_summary(peak_plate_stress_mpa=float(peak), max_deflection_mm=0.2, surrogate=answers)
     return SimpleNamespace(name="p", design=design, summary=summary)
 
 
@@ -126,7 +126,7 @@ def test_a_slipped_yield_inside_the_span_never_passes():
         peak = rng.uniform(300, 1500)
         p = stand_in(preset_design("small"), peak, (peak, 0.9 * peak, 1.1 * peak))
         add_calls([p], check_options([("a", p.design)], False, typed, 1, "raw"))
-        assert p.summary["call"] != "pass", (typed, peak)
+        assert p.summary.call != "pass", (typed, peak)
 
 
 def slipped_designs() -> list[tuple[str, float]]:
@@ -154,7 +154,7 @@ def test_a_design_value_off_by_orders_of_magnitude_is_refused_or_warned_with_its
         assert "looks like" in warning[0] or "unit slip" in warning[0], warning[0]
         p = stand_in(design, 500.0, (500.0, 450.0, 550.0))
         add_calls([p], 5000.0, ranges=TRAINED)  # the interval says pass; the design is far outside
-        assert p.summary["call"] == "undecided" and p.summary["call_interval_mpa"]["trusted"] is False, (key, value)
+        assert p.summary.call == "undecided" and p.summary.call_interval_mpa["trusted"] is False, (key, value)
     assert accepted >= 10
 
 
@@ -207,27 +207,28 @@ def test_a_far_out_design_is_never_decided_without_the_solver(monkeypatch):
         preds.append(stand_in(d, peak, (0.5 * (lo + hi), lo, hi) if rng.random() < 0.8 else None))
     for y in (1.0, float(rng.uniform(200, 2000)), 1e5):  # below every interval, among them, above every one
         add_calls(preds, y, ranges=TRAINED)
-        assert {p.summary["call"] for p in preds} == {"undecided"}, y
+        assert {p.summary.call for p in preds} == {"undecided"}, y
         final_calls(preds, None, y)
-        assert {p.summary["final_call"] for p in preds} == {"undecided"}
+        assert {p.summary.final_call for p in preds} == {"undecided"}
     solved, y = [], 1000.0
     monkeypatch.setattr(check_module, "solve", lambda items, *a, **k: solved.extend(n for n, _ in items) or [
-        SimpleNamespace(summary={"peak_plate_stress_mpa": 2.0 * y}) for _ in items])  # the solver: all fail
+        SimpleNamespace(summary=fake_summary(peak_plate_stress_mpa=2.0 * y)) for _ in items])  # the solver: all fail
     add_calls(preds, y, ranges=TRAINED)
     named = [SimpleNamespace(name=f"d{i}", design=p.design, summary=p.summary) for i, p in enumerate(preds)]
     truth = solve_chunk(named, "auto", Settings(), "stress", SimpleNamespace(total=0, refresh=lambda: None))
     assert solved == [p.name for p in named]
     final_calls(named, truth, y)
-    assert {p.summary["final_call"] for p in named} == {"fail"}  # the solver's, 2 y > y
+    assert {p.summary.final_call for p in named} == {"fail"}  # the solver's, 2 y > y
 
 
 def test_a_summary_that_records_an_outside_region_is_undecided_too():
     """Without the run's ranges the calls read the region the check recorded (``confidence``)."""
     for call_yield in (1.0, 1e5):
         p = stand_in(Design(), 500.0, (500.0, 450.0, 550.0))
-        p.summary["confidence"] = {"region": "outside", "label": "outside the training ranges", "designs": 0}
+        p.summary = replace(p.summary, confidence={"region": "outside", "label": "outside the training ranges",
+                                                   "designs": 0})
         add_calls([p], call_yield)
-        assert p.summary["call"] == "undecided"
+        assert p.summary.call == "undecided"
 
 
 def test_inside_designs_keep_their_decided_calls():
@@ -238,7 +239,7 @@ def test_inside_designs_keep_their_decided_calls():
         d = replace(preset_design("small"), **{k: lo + (hi - lo) * rng.random() for k, (lo, hi) in ranges.items()})
         p = stand_in(d, 500.0, (500.0, 450.0, 550.0))
         add_calls([p], 1000.0, ranges=TRAINED)
-        assert p.summary["call"] == "pass" and "trusted" not in p.summary["call_interval_mpa"]
+        assert p.summary.call == "pass" and "trusted" not in p.summary.call_interval_mpa
 
 
 def test_a_sweep_never_passes_a_point_outside_the_ranges():
@@ -262,8 +263,8 @@ def test_verify_auto_gives_far_out_designs_to_the_solver(shipped):
                ("thin", design_for(shipped, thickness=0.5, drop_height=2000))]
     check = check_designs(shipped, designs, verify="auto", yield_mpa=1700, progress=False)
     for p, t in zip(check.preds, check.truth):
-        assert p.summary["call"] == "undecided" and t is not None and p.summary["verified"] is True
-        assert p.summary["final_call"] == ("pass" if t.summary["peak_plate_stress_mpa"] < 1700 else "fail")
+        assert p.summary.call == "undecided" and t is not None and p.summary.verified is True
+        assert p.summary.final_call == ("pass" if t.summary.peak_plate_stress_mpa < 1700 else "fail")
 
 
 # -- (c) the API's argument types ----------------------------------------------------------------------------------
@@ -317,4 +318,4 @@ def test_numpy_numbers_are_numbers():
 def test_a_numpy_batch_and_yield_run(shipped):
     (p,) = predict_designs(shipped, [("a", design_for(shipped, thickness=np.float64(0.7)))], batch=np.int64(1),
                            yield_mpa=np.float32(5000), progress=False)
-    assert p.summary["call"] in ("pass", "undecided") and set(DESIGN_KEYS) == set(asdict(p.design))
+    assert p.summary.call in ("pass", "undecided") and set(DESIGN_KEYS) == set(asdict(p.design))

@@ -21,9 +21,10 @@ from hcmt.design.reports import format_table, table_rows
 from hcmt.design.surrogate import for_run
 from hcmt.design.sweep import analyse, format_analysis, plot_sweep, trends_agree
 from hcmt.inference.evaluate import format_metrics
-from hcmt.inference.metrics import format_physics, summarize_impact
+from hcmt.inference.metrics import EvalMetrics, Rmse, format_physics, summarize_impact
 from hcmt.sim.params import Design
 from impact_trajectory import DT, fields
+from summaries import fake_metrics, fake_summary
 
 ROOT = Path(__file__).resolve().parents[2]
 SHIPPED = SimpleNamespace(source="pretrained:impact_plate_small")  # for_run needs only its name here
@@ -49,9 +50,9 @@ def test_predict_header_names_the_surface_without_a_path(capsys):
 
 
 # -- 2. evaluate's RMSE: the table at the file's scale, the file saying it ------------------------------------------
-METRICS = {"split": "test", "trajectories": 2, "units": {"length": "mm", "stress": "MPa"}, "scale": 1000.0,
-           "position": {"rmse_1": 0.25, "rmse_50": 1.5, "rmse_all": 3.25},
-           "stress": {"rmse_1": 120.0, "rmse_50": 900.0, "rmse_all": 2100.0}, "inference_ms_per_step": 10.0}
+METRICS = EvalMetrics(split="test", data="d", trajectories=2, scale=1000.0, rmse_units={}, warnings=[],
+                      units={"length": "mm", "stress": "MPa"}, position=Rmse(0.25, 1.5, 3.25),
+                      stress=Rmse(120.0, 900.0, 2100.0), inference_ms_per_step=10.0, train_ms_per_step=None)
 
 
 def test_evaluate_prints_the_rmse_at_the_scale_its_file_stores_and_says_it():
@@ -78,9 +79,10 @@ def test_evaluate_file_records_the_unit_of_its_rmse_and_the_table_prints_its_num
 
 # -- 3. rebound words ----------------------------------------------------------------------------------------------
 def _physics(model_rebounds: list[bool], solver_rebounds: list[bool]) -> dict:
-    rows = [{"rebound_agrees": a == b, "model_rebounds": a, "solver_rebounds": b,
-             **dict.fromkeys(("peak_plate_stress_error_pct", "peak_ball_stress_error_pct", "peak_plate_frame_error",
-                              "max_deflection_error_pct", "far_deflection_error_um", "far_deflection_error_pct"), 1.0)}
+    rows = [fake_metrics(rebound_agrees=a == b, model_rebounds=a, solver_rebounds=b,
+                         **dict.fromkeys(("peak_plate_stress_error_pct", "peak_ball_stress_error_pct",
+                                          "max_deflection_error_pct", "far_deflection_error_um",
+                                          "far_deflection_error_pct"), 1.0), peak_plate_frame_error=1)
             for a, b in zip(model_rebounds, solver_rebounds)]
     return summarize_impact(rows)
 
@@ -99,8 +101,8 @@ def test_the_sweep_plots_x_axis_names_the_parameters_unit(monkeypatch, tmp_path)
 
     saved = {}
     monkeypatch.setattr(meshplot, "save_figure", lambda fig, path, dpi=120: saved.setdefault("fig", fig) and path)
-    preds = [SimpleNamespace(design=Design(thickness=t), summary={"peak_plate_stress_mpa": s, "max_deflection_mm": d,
-                                                                  "readout": "raw"})
+    preds = [SimpleNamespace(design=Design(thickness=t), summary=fake_summary(peak_plate_stress_mpa=s,
+                                                                              max_deflection_mm=d))
              for t, s, d in ((0.6, 800.0, 0.2), (0.9, 700.0, 0.1))]
     check = SimpleNamespace(preds=preds, truth=None, readout="raw")
     plot_sweep(check, {"param": "drop_height", "values": [520.0, 990.0], "limit": None}, tmp_path, "HCMT")
@@ -138,7 +140,7 @@ def test_the_err_column_is_the_error_of_the_chosen_readouts_peak():
     verify_designs(preds, truth)
     head, rows = table_rows(preds)
     s = preds[0].summary
-    want = 100 * (s["element_peak_plate_stress_mpa"] / truth[0].summary["peak_plate_stress_mpa"] - 1)
+    want = 100 * (s.derived.peak_plate_stress_mpa / truth[0].summary.peak_plate_stress_mpa - 1)
     assert "element MPa" in head and "element err %" in head and "err %" not in head
     assert rows[0][head.index("element err %")] == f"{want:+.1f}"
     raw = [_pred("a")]
@@ -149,10 +151,10 @@ def test_the_err_column_is_the_error_of_the_chosen_readouts_peak():
 # -- 7. --readout contact where it changes nothing ------------------------------------------------------------------
 def test_contact_readout_says_when_it_changes_nothing():
     same = [_pred("a", readout="contact", ghost=False)]
-    assert same[0].summary["contact_peak_plate_stress_mpa"] == same[0].summary["peak_plate_stress_mpa"]
+    assert same[0].summary.derived.peak_plate_stress_mpa == same[0].summary.peak_plate_stress_mpa
     assert "note: --readout contact changes nothing here" in format_table(same)
     ghost = [_pred("a", readout="contact")]  # the raw peak is the ghost after the ball left: contact differs
-    assert ghost[0].summary["contact_peak_plate_stress_mpa"] < ghost[0].summary["peak_plate_stress_mpa"]
+    assert ghost[0].summary.derived.peak_plate_stress_mpa < ghost[0].summary.peak_plate_stress_mpa
     assert "changes nothing" not in format_table(ghost)
     assert "changes nothing" not in format_table([_pred("a", ghost=False)])
 
@@ -160,8 +162,8 @@ def test_contact_readout_says_when_it_changes_nothing():
 # -- 8. one rule of a trend's agreement ----------------------------------------------------------------------------
 def _check(model: list[float], solver: list[float]):
     def mk(v, s):
-        return SimpleNamespace(design=Design(drop_height=v), summary={
-            "peak_plate_stress_mpa": s, "max_deflection_mm": s / 1e4, "readout": "raw"})
+        return SimpleNamespace(design=Design(drop_height=v), summary=fake_summary(
+            peak_plate_stress_mpa=s, max_deflection_mm=s / 1e4))
     heights = [520.0, 755.0, 990.0]
     return SimpleNamespace(preds=[mk(v, s) for v, s in zip(heights, model)],
                            truth=[mk(v, s) for v, s in zip(heights, solver)], readout="raw", solver_runs=3)

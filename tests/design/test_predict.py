@@ -42,7 +42,7 @@ def tiny_run(tmp_path_factory, tiny_config, impact_data):
 
 def test_initial_frames_match_the_solver():
     design, settings = Design(thickness=0.7, mesh_size=0.3, ball_radius=3.6, plate_half_length=12.0), Settings(frames=2)
-    start, solved = initial_frames(design, settings)["fields"], simulate(design, settings)["fields"]
+    start, solved = initial_frames(design, settings)["fields"], simulate(design, settings).fields
     for key in ("mesh_pos", "cells", "node_type", "density", "modulus"):
         np.testing.assert_array_equal(start[key], solved[key])
     moved = np.abs(solved["world_pos"][1] - solved["world_pos"][0]).max()
@@ -81,10 +81,10 @@ def test_summary_reads_peaks_off_the_trajectory():
     stress[3, 1, 0], stress[1, 4, 0] = 250.0, 90.0
     p = Prediction("x", Design(), world, stress, mesh, cells, node_type, wall_s=1.0)
     s = summarize(p, frame_dt=0.002)
-    assert s["peak_plate_stress_mpa"] == 250.0 and s["peak_plate_where_mm"] == [0.0, 0.0]
-    assert s["peak_plate_when_ms"] == pytest.approx(0.006) and s["peak_plate_frame"] == 3
-    assert s["peak_ball_stress_mpa"] == 90.0 and s["peak_ball_when_ms"] == pytest.approx(0.002)
-    assert s["max_deflection_mm"] == pytest.approx(0.3)
+    assert s.peak_plate_stress_mpa == 250.0 and s.peak_plate_where_mm == [0.0, 0.0]
+    assert s.peak_plate_when_ms == pytest.approx(0.006) and s.peak_plate_frame == 3
+    assert s.peak_ball_stress_mpa == 90.0 and s.peak_ball_when_ms == pytest.approx(0.002)
+    assert s.max_deflection_mm == pytest.approx(0.3)
 
 
 def test_cli_designs_csv_json_and_range_warning(tiny_run, tmp_path, capsys):
@@ -127,7 +127,7 @@ def test_verify_compares_with_the_solver(tiny_run, tmp_path, capsys):
                 str(tmp_path / "img"), "--json", str(out), "--device", "cpu", "--no-progress"]) == 0
     res = json.loads(out.read_text())
     v = res["designs"][0]["verify"]
-    solved = simulate(Design(**res["designs"][0]["design"]), Settings(frames=FRAMES))["fields"]
+    solved = simulate(Design(**res["designs"][0]["design"]), Settings(frames=FRAMES)).fields
     plate = plate_mask(solved["cells"], solved["node_type"])
     assert v["solver_peak_plate_stress_mpa"] == pytest.approx(float(solved["stress"][:, plate].max()), rel=1e-6)
     pred = res["designs"][0]["peak_plate_stress_mpa"]
@@ -142,7 +142,7 @@ def test_verify_compares_with_the_solver(tiny_run, tmp_path, capsys):
 def test_model_and_solver_alternate_per_chunk_and_the_note_says_so(tiny_run, monkeypatch, verify):
     """The speedup's two wall times are measured under the same load: each chunk of `batch` designs is predicted,
     then solved (all of it, or its undecided designs for "auto") before the next chunk; the note and the JSON say
-    how (issue 37)."""
+    how."""
     run = Run.load(tiny_run, "cpu")
     designs = [(f"d{i}", replace(middle_design(run.meta), thickness=t)) for i, t in enumerate((0.6, 0.7, 0.8, 0.9))]
     order = []
@@ -159,10 +159,10 @@ def test_model_and_solver_alternate_per_chunk_and_the_note_says_so(tiny_run, mon
     monkeypatch.setattr(prediction, "rollout_batch", rollout_batch)
     monkeypatch.setattr(verification, "simulate", simulate_)
     # "auto" solves the undecided designs only: a yield stress at the model's own answer leaves them all undecided
-    yield_mpa = float(np.median([p.summary["peak_plate_stress_mpa"] for p in predict(run, designs, progress=False)]))
+    yield_mpa = float(np.median([p.summary.peak_plate_stress_mpa for p in predict(run, designs, progress=False)]))
     order.clear()
     check = check_designs(run, designs, batch=2, verify=verify, yield_mpa=yield_mpa, progress=False, surrogate=False)
-    assert [p.summary["call"] for p in check.preds] == ["undecided"] * 4
+    assert [p.summary.call for p in check.preds] == ["undecided"] * 4
     assert order == [("model", ["d0", "d1"]), ("solver", ["d0"]), ("solver", ["d1"]),
                      ("model", ["d2", "d3"]), ("solver", ["d2"]), ("solver", ["d3"])]
     measured = check.verified["speedup_measured"]
@@ -213,7 +213,7 @@ def test_start_frames_solve_the_first_frame_only_when_the_ball_reaches_the_plate
     with pytest.raises(ValueError, match="gap"):
         initial_frames(design, coarse)
     s = start_frames(design, coarse)
-    solved = simulate(design, coarse)["fields"]
+    solved = simulate(design, coarse).fields
     assert s["info"]["solver_frames"] == 1 and s["fields"]["world_pos"].shape[0] == 2
     np.testing.assert_array_equal(s["fields"]["world_pos"], solved["world_pos"][:2])
     fine = start_frames(design, Settings(frames=3, frame_dt=0.002))

@@ -1,7 +1,9 @@
-"""The mesh model's answer is its own outputs (issue 35, item 1): derived read-outs only under their own names and
+"""The mesh model's answer is its own outputs: derived read-outs only under their own names and
 only when chosen, the same default answer whatever the surrogate, ``readout`` recorded; each quantity printed
-once in ``predict --verify``; the sweep's trends compared by size (issue 38, item 1)."""
+once in ``predict --verify``; the sweep's trends compared by size (a trend of the right sign but the wrong size
+misleads)."""
 import json
+from dataclasses import replace
 from types import SimpleNamespace
 
 import numpy as np
@@ -19,6 +21,7 @@ from hcmt.errors import InputError
 from hcmt.inference.run import Run
 from hcmt.sim.params import Design
 from impact_trajectory import DT, fields
+from summaries import fake_summary
 
 CONTACT_KEYS = {"contact_peak_plate_stress_mpa", "contact_peak_plate_where_mm", "contact_peak_plate_when_ms",
                 "contact_peak_plate_frame", "contact_peak_plate_node", "contact_peak_plate_t95_frame",
@@ -29,8 +32,8 @@ CONTACT_KEYS = {"contact_peak_plate_stress_mpa", "contact_peak_plate_where_mm", 
 def test_the_default_is_the_models_own_output_and_a_bound_does_not_change_it():
     f = fields()
     raw = ro.summarize_fields(f, DT)
-    assert raw["readout"] == "raw" and raw["peak_plate_stress_mpa"] == 650.0  # the ghost is the model's output
-    assert raw["plate_stress_history_mpa"] == [0, 0, 200, 400, 500, 300, 0, 0, 650, 650, 650, 650]
+    assert raw.readout == "raw" and raw.peak_plate_stress_mpa == 650.0  # the ghost is the model's output
+    assert raw.plate_stress_history_mpa == [0, 0, 200, 400, 500, 300, 0, 0, 650, 650, 650, 650]
     bounded = ro.summarize_fields(f, DT, contact_end_ms=3 * DT)  # a surrogate's bound: only for contact
     assert bounded == raw
 
@@ -40,24 +43,24 @@ def test_each_derived_readout_lies_only_under_its_own_names_and_only_when_chosen
     raw = ro.summarize_fields(f, DT)
     contact = ro.summarize_fields(f, DT, "contact", contact_end_ms=3 * DT)
     element = ro.summarize_fields(f, DT, "element")
-    assert not any(k.startswith(("contact_peak", "contact_plate", "contact_window", "element_")) for k in raw)
-    assert set(contact) - set(raw) == CONTACT_KEYS
-    assert set(element) - set(raw) == {f"element_{k}" for k in ro.DERIVED_KEYS}
+    assert raw.derived is None
+    assert not any(k.startswith(("contact_peak", "contact_plate", "contact_window", "element_")) for k in raw.to_json())
+    assert set(contact.to_json()) - set(raw.to_json()) == CONTACT_KEYS
+    assert set(element.to_json()) - set(raw.to_json()) == {f"element_{k}" for k in ro.DERIVED_KEYS}
     for derived in (contact, element):  # the default fields stay the model's own
-        assert {k: v for k, v in derived.items() if k in raw and k != "readout"} == {
-            k: v for k, v in raw.items() if k != "readout"}
+        assert replace(derived, readout="raw", derived=None) == raw
     # the contact read-out: frames 2-3 (the bound), then the bending formula
-    assert contact["contact_peak_plate_stress_mpa"] == 400.0 and contact["contact_peak_plate_frame"] == 3
-    assert contact["contact_window_end_ms"] == pytest.approx(4 * DT)
-    assert "response surface" in contact["contact_window_end_from"]
+    assert contact.derived.peak_plate_stress_mpa == 400.0 and contact.derived.peak_plate_frame == 3
+    assert contact.derived.window_end_ms == pytest.approx(4 * DT)
+    assert "response surface" in contact.derived.window_end_from
     own = ro.summarize_fields(f, DT, "contact")  # no bound: the predicted ball's own window, frames 2-6
-    assert own["contact_peak_plate_stress_mpa"] == 500.0 and "last touch" in own["contact_window_end_from"]
-    history = np.array(contact["contact_plate_stress_history_mpa"])
+    assert own.derived.peak_plate_stress_mpa == 500.0 and "last touch" in own.derived.window_end_from
+    history = np.array(contact.derived.plate_stress_history_mpa)
     plate = ro.plate_mask(f["cells"], f["node_type"])
     w = np.abs(f["world_pos"][:, plate, 1] - f["mesh_pos"][None, plate, 1]).max(1)
     np.testing.assert_allclose(history[4:], (ro.BENDING_K * 7e4 * 0.5 * w / 2.0**2)[4:])  # k E t w_max / R^2
     assert ro.chosen(contact, "peak_plate_stress_mpa") == 400.0 and ro.chosen(raw, "peak_plate_stress_mpa") == 650
-    assert ro.chosen(contact, "max_deflection_mm") == raw["max_deflection_mm"]  # not derived: the model's own
+    assert ro.chosen(contact, "max_deflection_mm") == raw.max_deflection_mm  # not derived: the model's own
 
 
 def test_an_unknown_readout_is_refused_naming_it():
@@ -77,7 +80,7 @@ def _pred(name: str, stress_scale: float = 1.0, readout: str = "raw") -> Predict
 def test_calls_use_the_chosen_readout_and_the_json_and_csv_record_it():
     preds = [_pred("a", readout="contact")]
     add_calls(preds, 450.0, "model")  # no surrogate: the model's band around the contact read-out's 400
-    iv = preds[0].summary["call_interval_mpa"]
+    iv = preds[0].summary.call_interval_mpa
     assert iv["model_readout"] == "contact" and iv["hi"] == pytest.approx(400 * 1.6)
     check = SimpleNamespace(readout="contact", surrogate=None, solver_runs=0, notes=[])
     doc = to_json(preds, None, "m", "cpu", check)
@@ -93,7 +96,7 @@ def test_verify_prints_each_quantity_once():
     text = format_table(preds, verified)
     for name in ("peak plate stress error", "time of the plate's peak", "rise time", "max deflection error"):
         assert text.count(name) == 1, (name, text)
-    row = preds[0].summary["verify"]
+    row = preds[0].summary.verify
     assert row.peak_plate_stress_error_pct == pytest.approx(100 * (1 / 1.2 - 1))
     assert verified["peak_plate_stress_error_pct"]["median"] == verified["physics"]["peak_plate_stress_error_pct"][
         "median_abs"]
@@ -104,7 +107,7 @@ def test_the_verify_block_is_typed_and_its_json_keys_are_the_ones_the_dict_wrote
     derived read-out's error last."""
     preds, truth = [_pred("a", readout="contact")], [_pred("a", 1.2)]
     verify_designs(preds, truth)
-    row = preds[0].summary["verify"]
+    row = preds[0].summary.verify
     assert isinstance(row, VerifyRow) and row.speedup == 1.0
     block = to_json(preds, None, "x", "cpu")["designs"][0]["verify"]
     assert list(block) == [
@@ -131,8 +134,8 @@ def test_the_sweep_says_disagree_for_a_small_change_against_a_large_one():
     model = [1000.0, 995.0, 990.0]  # -1 %
     solver = [1000.0, 850.0, 760.0]  # -24 %
     def mk(v, s):
-        return SimpleNamespace(design=Design(thickness=v), summary={
-            "peak_plate_stress_mpa": s, "max_deflection_mm": 0.1 * s / 1000, "readout": "raw"})
+        return SimpleNamespace(design=Design(thickness=v), summary=fake_summary(
+            peak_plate_stress_mpa=s, max_deflection_mm=0.1 * s / 1000))
     check = SimpleNamespace(preds=[mk(v, s) for v, s in zip(values, model)],
                             truth=[mk(v, s) for v, s in zip(values, solver)], readout="raw", solver_runs=3)
     a = analyse(check, "thickness", None)

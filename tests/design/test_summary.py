@@ -1,46 +1,74 @@
-"""Prediction.summary is a typed Summary (hcmt.design.summary) whose JSON keeps the keys (and their order) the
-design check wrote as plain dicts: tests/design/summary_json_keys.json was recorded from that code (commit
-1b29aa3, the shipped model on one design: with a yield stress; contact read-out with the solver; no surrogate)."""
+"""Prediction.summary is a typed, frozen Summary (hcmt.design.summary) whose JSON keeps the keys (and their order)
+the design check wrote as plain dicts: tests/design/summary_json_keys.json was recorded from that code (commit
+1b29aa3, the shipped model on one design: with a yield stress; contact read-out with the solver; no surrogate).
+Each field's declared type is checked against the values of a real run (:func:`summaries.type_errors`): the
+shipped model's check of one design, and a tiny solver run."""
 from __future__ import annotations
 
-import copy
+import dataclasses
 import json
+from collections.abc import Mapping
 from pathlib import Path
 
 import pytest
 
-from hcmt.design.summary import KEYS, Summary
+from hcmt.design.summary import PlateReadout, Summary, VerifyRow
+from summaries import fake_summary, type_errors
 
 RECORDED = json.loads((Path(__file__).with_name("summary_json_keys.json")).read_text())
 
 
-def test_typed_fields_and_mapping_agree_and_keep_the_order_set():
-    s = Summary.of({"peak_plate_stress_mpa": 612.0, "readout": "contact", "contact_peak_plate_stress_mpa": 580.0})
-    s["call"] = "pass"
-    s.verified = True  # a typed field set as an attribute is a key too
-    assert s.peak_plate_stress_mpa == 612.0 and s["contact_peak_plate_stress_mpa"] == 580.0
-    assert s.extra == {"contact_peak_plate_stress_mpa": 580.0}
-    assert list(s) == ["peak_plate_stress_mpa", "readout", "contact_peak_plate_stress_mpa", "call", "verified"]
-    assert s.to_json() == dict(s) == {**s} and "verify" not in s and s.get("verify") is None
-    with pytest.raises(KeyError):
-        s["verify"]
-    t = copy.deepcopy(s)
-    del t["call"]
-    assert "call" not in t and t.call is None and "call" in s
-    assert "extra" not in KEYS and "final_call" in KEYS
+def test_a_summary_is_frozen_and_no_mapping():
+    s = fake_summary(peak_plate_stress_mpa=612.0, readout="contact")
+    assert not isinstance(s, Mapping) and s.peak_plate_stress_mpa == 612.0
+    with pytest.raises(TypeError):
+        s["peak_plate_stress_mpa"]
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        s.call = "pass"
+    with pytest.raises(TypeError):  # an unknown field is an error, never a silent extra key
+        dataclasses.replace(s, contact_peak_plate_stress_mpa=580.0)
+    with pytest.raises(TypeError):
+        Summary(**{**dataclasses.asdict(s), "made_up": 1})
 
 
-def test_every_recorded_key_but_the_read_outs_is_a_typed_field():
+def test_the_json_writes_the_declared_order_derived_fields_under_their_names_and_leaves_unset_ones_out():
+    derived = PlateReadout(580.0, [0.0, 1.0], 0.004, 2, 7, 2, 0.004, [1.0, 580.0], 0.01, "the ball's last touch", 5.0)
+    s = dataclasses.replace(fake_summary(peak_plate_stress_mpa=612.0, readout="contact", derived=derived),
+                            yield_margin_mpa=88.0, derived_yield_margin_mpa=120.0, call="pass", model="m")
+    j = s.to_json()
+    assert j["contact_peak_plate_stress_mpa"] == 580.0 and j["contact_bending_k"] == 5.0
+    assert j["contact_yield_margin_mpa"] == 120.0 and "derived" not in j and "derived_yield_margin_mpa" not in j
+    assert j["contact_frames"] is None  # a trajectory quantity: always written
+    assert j["confidence"] is None and "verify" not in j and "final_call" not in j  # annotated: confidence null
+    keys = list(j)
+    assert keys.index("readout") < keys.index("contact_peak_plate_stress_mpa") < keys.index("wall_s")
+    assert keys.index("yield_margin_mpa") + 1 == keys.index("contact_yield_margin_mpa") < keys.index("call")
+    element = dataclasses.replace(derived, window_end_ms=None, window_end_from=None, bending_k=None)
+    assert not any(k.startswith("element_window") for k in dataclasses.replace(s, readout="element",
+                                                                               derived=element).to_json())
+
+
+def test_every_recorded_key_is_a_declared_field_or_a_derived_read_outs():
+    declared = {f.name for f in dataclasses.fields(Summary)}
+    derived = {f"{r}_{f.name}" for r in ("contact", "element") for f in dataclasses.fields(PlateReadout)}
+    derived |= {"contact_yield_margin_mpa", "element_yield_margin_mpa"}
     for keys in RECORDED.values():
         for k in keys:
-            assert k in KEYS or k.startswith(("contact_", "element_")) or k in ("name", "design", "notes"), k
+            assert k in declared | derived or k in ("name", "design", "notes"), k
+
+
+def test_the_type_check_finds_a_wrong_type():
+    assert type_errors(fake_summary(peak_plate_frame=3)) == []
+    assert any("peak_plate_frame" in e for e in type_errors(fake_summary(peak_plate_frame=3.0)))
+    assert any("contact_frames" in e for e in type_errors(fake_summary(contact_frames=4)))  # an int: the old type
 
 
 @pytest.mark.slow  # the shipped model on one design three times, and the solver once (~1.5 min on one thread)
-def test_the_json_keys_are_unchanged():
+def test_the_json_keys_and_every_fields_type_on_a_real_run():
     from hcmt.design.check import check_designs
     from hcmt.design.inputs import design_for
     from hcmt.design.reports import to_json
+    from hcmt.design.verification import verify_row
     from hcmt.inference.run import Run
     run = Run.load("pretrained:impact_plate_small", "cpu")
     designs = [("a", design_for(run, thickness=0.7))]
@@ -49,5 +77,20 @@ def test_the_json_keys_are_unchanged():
                          ("plain", dict(surrogate=False))):
         c = check_designs(run, designs, progress=False, **options)
         assert isinstance(c.preds[0].summary, Summary)
+        assert type_errors(c.preds[0].summary) == [], tag
+        if c.truth:
+            assert type_errors(c.truth[0].summary) == [] and isinstance(c.preds[0].summary.verify, VerifyRow)
+            assert type_errors(verify_row(c.preds[0], c.truth[0])[1]) == []  # the physics block: ImpactMetrics
         got = list(to_json(c.preds, c.verified, run.source, "cpu", c)["designs"][0])
         assert got == RECORDED[f"{tag}_json"], tag
+
+
+def test_a_tiny_simulate_is_typed_and_so_are_its_quantities():
+    from hcmt.design.readout import summarize_fields
+    from hcmt.sim.driver import SimResult, SolveInfo, simulate
+    from hcmt.sim.params import Design, Settings
+    r = simulate(Design(thickness=1.0, mesh_size=0.6, plate_half_length=8.0), Settings(frames=4))
+    assert isinstance(r, SimResult) and isinstance(r.info, SolveInfo) and not isinstance(r, Mapping)
+    assert type_errors(r) == []
+    assert type_errors(summarize_fields(r.fields, 0.002, "contact")) == []
+    assert type_errors(summarize_fields(r.fields, 0.002, "element")) == []

@@ -21,6 +21,7 @@ from hcmt.inference.run import Run
 from hcmt.sim.driver import simulate
 from hcmt.sim.params import DESIGN_KEYS, FIRST_SCENE_KEYS, Design, Settings, sample_design
 from hcmt.training import train
+from summaries import fake_summary
 
 pytestmark = pytest.mark.slow  # trained runs, fitted response surfaces, solver verification
 
@@ -183,12 +184,12 @@ def test_a_bound_on_when_the_ball_leaves_ends_the_window_of_a_lingering_learned_
     f["world_pos"][6:, 4:, 1] = f["world_pos"][5, 4:, 1]  # the ball stays on the plate
     f["stress"][8, 0, 0] = 650.0
     lingering = ro.summarize_fields(f, 0.002, "contact")
-    assert lingering["contact_peak_plate_stress_mpa"] == 650.0  # its own window holds the hump
+    assert lingering.derived.peak_plate_stress_mpa == 650.0  # its own window holds the hump
     early = ro.summarize_fields(f, 0.002, "contact", contact_end_ms=6 * 0.002)
     late = ro.summarize_fields(f, 0.002, "contact", contact_end_ms=9 * 0.002)
-    assert early["contact_peak_plate_stress_mpa"] == 500.0 and early["contact_peak_plate_frame"] == 4
-    assert late["contact_peak_plate_stress_mpa"] == 650.0
-    assert early["peak_plate_stress_mpa"] == late["peak_plate_stress_mpa"] == 650.0  # the model's own: unbounded
+    assert early.derived.peak_plate_stress_mpa == 500.0 and early.derived.peak_plate_frame == 4
+    assert late.derived.peak_plate_stress_mpa == 650.0
+    assert early.peak_plate_stress_mpa == late.peak_plate_stress_mpa == 650.0  # the model's own: unbounded
     assert ro.CONTACT_END_BOUND in ("lo", "mean", "hi")
 
 
@@ -222,31 +223,31 @@ def test_t95_is_the_first_frame_of_a_plateau():
     f = two_body()
     f["stress"][2:6, 0, 0] = [480.0, 499.0, 500.0, 490.0]  # a plateau: 480 >= 0.95 * 500
     s = ro.summarize_fields(f, 0.002, "contact")
-    assert s["contact_peak_plate_frame"] == 4 and s["contact_peak_plate_t95_frame"] == 2
-    assert s["contact_peak_plate_t95_ms"] == pytest.approx(0.004)
+    assert s.derived.peak_plate_frame == 4 and s.derived.peak_plate_t95_frame == 2
+    assert s.derived.peak_plate_t95_ms == pytest.approx(0.004)
 
 
 def test_the_solvers_peak_lies_in_its_contact_window():
     design = Design(thickness=0.9, drop_height=900.0, mesh_size=0.3, ball_radius=3.6, plate_half_length=12.0)
-    f = simulate(design, Settings(frames=80))["fields"]
+    f = simulate(design, Settings(frames=80)).fields
     plate = ro.plate_mask(f["cells"], f["node_type"])
     gap = ro.contact_gap(f["world_pos"], f["mesh_pos"], plate)
     s = ro.summarize_fields(f, 0.002)
     assert gap[0] == pytest.approx(design.gap, abs=1e-6) and gap.min() < 0  # penalty contact penetrates
     window = ro.contact_window(gap)
-    assert window[s["peak_plate_frame"]] and not window[-1]  # a thick plate: the ball has left by frame 79
-    assert ro.history_correlation(f["stress"][..., 0], f["stress"][..., 0], s["peak_plate_node"]) == pytest.approx(1)
+    assert window[s.peak_plate_frame] and not window[-1]  # a thick plate: the ball has left by frame 79
+    assert ro.history_correlation(f["stress"][..., 0], f["stress"][..., 0], s.peak_plate_node) == pytest.approx(1)
 
 
 # -- calls ---------------------------------------------------------------------------------------------------------
 def test_calls_pass_only_below_and_fail_only_above_the_trusted_interval():
     assert call_of(600, 690, 700) == "pass" and call_of(710, 800, 700) == "fail"
     assert call_of(650, 750, 700) == "undecided" and call_of(700, 720, 700) == "undecided"
-    summary = {"peak_plate_stress_mpa": 760.0, "surrogate": {"peak_plate_stress_mpa": {"mean": 680, "lo": 660,
-                                                                                      "hi": 700}}}
+    summary = fake_summary(peak_plate_stress_mpa=760.0, surrogate={"peak_plate_stress_mpa": {"mean": 680, "lo": 660,
+                                                                                             "hi": 700}})
     assert trusted_interval(summary, "surrogate")[:2] == (660, 700)
     assert trusted_interval(summary, "union")[:2] == (660, 760)  # widened to hold the mesh model
-    lo, hi, what = trusted_interval({"peak_plate_stress_mpa": 500.0}, "union")  # no surrogate
+    lo, hi, what = trusted_interval(fake_summary(peak_plate_stress_mpa=500.0), "union")  # no surrogate
     assert what == "model" and lo == pytest.approx(500 * (1 - MODEL_BAND)) and hi > 500
     with pytest.raises(ValueError, match="trust"):
         trusted_interval(summary, "best")
@@ -297,7 +298,7 @@ def test_fit_command_writes_the_runs_surrogate_and_predict_reports_both(family, 
     assert "surrogate" not in json.loads(out.read_text())["designs"][0]
     # the Python API runs the same check
     (p,) = predict_designs(Run.load(run, "cpu"), [("x", Design(**d["design"]))], progress=False)
-    assert p.summary["surrogate"]["peak_plate_stress_mpa"]["mean"] == pytest.approx(iv["mean"], rel=1e-9)
+    assert p.summary.surrogate["peak_plate_stress_mpa"]["mean"] == pytest.approx(iv["mean"], rel=1e-9)
 
 
 def test_verify_auto_runs_the_solver_on_the_undecided_designs_only(family, tmp_path, capsys):
@@ -307,16 +308,16 @@ def test_verify_auto_runs_the_solver_on_the_undecided_designs_only(family, tmp_p
     probe = check_designs(run, designs, progress=False)
     lo, hi = (min(trusted_interval(p.summary)[k] for p in probe.preds) for k in (0, 1))
     never = check_designs(run, designs, verify="auto", yield_mpa=hi * 2, progress=False)
-    assert never.solver_runs == 0 and all(p.summary["final_call"] == "pass" for p in never.preds)
-    assert all(p.summary["verified"] is False for p in never.preds)
+    assert never.solver_runs == 0 and all(p.summary.final_call == "pass" for p in never.preds)
+    assert all(p.summary.verified is False for p in never.preds)
     first = probe.preds[0].summary
     y = 0.5 * sum(trusted_interval(first)[:2])  # inside design 0's trusted interval: undecided
     auto = check_designs(run, designs, verify="auto", yield_mpa=y, progress=False)
     a = auto.preds[0].summary
-    assert a["call"] == "undecided" and a["verified"] is True and auto.truth[0] is not None
-    assert a["final_call"] == ("pass" if a["verify"].solver_peak_plate_stress_mpa < y else "fail")
-    assert auto.solver_runs == sum(p.summary["call"] == "undecided" for p in auto.preds)
-    assert "solver_plate_stress_history_mpa" in a
+    assert a.call == "undecided" and a.verified is True and auto.truth[0] is not None
+    assert a.final_call == ("pass" if a.verify.solver_peak_plate_stress_mpa < y else "fail")
+    assert auto.solver_runs == sum(p.summary.call == "undecided" for p in auto.preds)
+    assert a.solver_plate_stress_history_mpa is not None
     # refused without a yield stress, in one line
     assert cli(["predict", str(family / "run"), "--design", "thickness=0.7", "--verify", "auto", "--no-progress"]) == 2
     err = capsys.readouterr().err.strip().splitlines()

@@ -1,4 +1,4 @@
-"""A surrogate, a model and a dataset that do not fit each other (issue 36, part A): the surrogate file records its
+"""A surrogate, a model and a dataset that do not fit each other : the surrogate file records its
 training data (format 2), one that differs from the model (frame window, frame interval, family, stress field,
 units, parameter ranges, held values) is refused where they meet in one line naming it, one whose window is not
 known to be the model's never ends the model's read-out window, and format 1 files (the shipped one) still load."""
@@ -156,8 +156,8 @@ def test_a_window_that_never_saw_the_ball_leave_is_not_used(run, tmp_path, monke
 
 @pytest.mark.slow
 def test_predict_refuses_a_short_window_surrogate_before_any_answer(run, tmp_path, capsys):
-    """The issue's case: a surrogate fitted on 10 frames beside a 90-frame model: one line naming --surrogate and
-    the window, exit 2, no JSON written (before: the model's peak fell from 748 to 320 MPa and the call passed)."""
+    """The case that started it: a surrogate fitted on 10 frames beside a 90-frame model: one line naming --surrogate
+    and the window, exit 2, no JSON written (before: the model's peak fell from 748 to 320 MPa and the call passed)."""
     doc = fitting(run)
     doc["dataset"].update(frames=10, censored=len(doc["designs"]))
     path, out = write(tmp_path, doc), tmp_path / "p.json"

@@ -1,4 +1,4 @@
-"""Issue 38 item 2: the adapters are built with keywords, and the config becomes only the chosen model's
+"""The adapters are built with keywords, and the config becomes only the chosen model's
 constructor arguments (an MGN run gets no HCMT depth)."""
 from pathlib import Path
 

@@ -1,4 +1,4 @@
-"""Issue "Impact physics": the training formulation options (target, noise nodes, γ, pushforward), the physics
+"""Impact physics: the training formulation options (target, noise nodes, γ, pushforward), the physics
 metrics an engineer reads, design sweeps and --threads."""
 import json
 import shutil
@@ -22,6 +22,7 @@ from hcmt.training import train
 from hcmt.training.dataset import FrameDataset, collate_samples
 from hcmt.training.schedule import keras_epsilon
 from hcmt.training.trainer import Trainer
+from summaries import fake_metrics
 
 pytestmark = pytest.mark.slow  # training runs on generated data
 
@@ -161,22 +162,21 @@ def _impact(T=20, rebound=True, peak_frame=10, peak=100.0, defl=0.05):
 def test_impact_metrics_read_known_errors():
     tp, ts, plate = _impact()
     m = impact_metrics(tp, ts, tp, ts, plate)
-    assert m["rebound_agrees"] and m["solver_rebounds"] and m["peak_plate_stress_error_pct"] == 0
-    assert m["peak_plate_frame_error"] == 0 and m["max_deflection_error_pct"] == 0 and m["far_deflection_error_um"] == 0
+    assert m.rebound_agrees and m.solver_rebounds and m.peak_plate_stress_error_pct == 0
+    assert m.peak_plate_frame_error == 0 and m.max_deflection_error_pct == 0 and m.far_deflection_error_um == 0
     pp, ps, _ = _impact(rebound=False, peak_frame=13, peak=90.0, defl=0.06)
     m = impact_metrics(pp, ps, tp, ts, plate)
-    assert not m["model_rebounds"] and not m["rebound_agrees"]
-    assert m["peak_plate_stress_error_pct"] == pytest.approx(-10.0)
-    assert m["peak_ball_stress_error_pct"] == pytest.approx(-10.0)
-    assert m["peak_plate_frame_error"] == 3
-    assert m["max_deflection_error_pct"] == pytest.approx(20.0)
-    assert m["far_deflection_error_um"] > 0
+    assert not m.model_rebounds and not m.rebound_agrees
+    assert m.peak_plate_stress_error_pct == pytest.approx(-10.0)
+    assert m.peak_ball_stress_error_pct == pytest.approx(-10.0)
+    assert m.peak_plate_frame_error == 3
+    assert m.max_deflection_error_pct == pytest.approx(20.0)
+    assert m.far_deflection_error_um > 0
 
 
 def test_summarize_impact_medians_percentiles_and_the_signed_worst():
-    rows = [{"rebound_agrees": a, "model_rebounds": a, "solver_rebounds": True, "peak_plate_stress_error_pct": e,
-             "peak_ball_stress_error_pct": 0.0, "peak_plate_frame_error": f, "max_deflection_error_pct": 0.0,
-             "far_deflection_error_um": 1.0, "far_deflection_error_pct": 2.0}
+    rows = [fake_metrics(rebound_agrees=a, model_rebounds=a, solver_rebounds=True, peak_plate_stress_error_pct=e,
+                         peak_plate_frame_error=f, far_deflection_error_um=1.0, far_deflection_error_pct=2.0)
             for a, e, f in [(True, -30.0, 1), (True, 10.0, -2), (False, 5.0, 0), (True, -1.0, 4)]]
     s = summarize_impact(rows)
     assert s["rebound_agreement"] == 0.75 and s["model_rebounds"] == 3 and s["solver_rebounds"] == 4
@@ -189,10 +189,10 @@ def test_summarize_impact_medians_percentiles_and_the_signed_worst():
 def test_evaluate_reports_physics_and_errors_by_body(data, tmp_path, tiny_config):
     train(tiny_config(*EXTRA), data, "mgn", tmp_path / "run", progress=False)
     m = evaluate(Run.load(tmp_path / "run", "cpu"), data, "test")
-    p = m["physics"]
+    p = m.physics
     assert p["trajectories"] == 1 and 0 <= p["rebound_agreement"] <= 1
-    assert set(m["error_by_step"]) == {f"{q}_{g}" for q in ("position", "stress") for g in ("ball", "contact", "far")}
-    assert len(m["error_by_step"]["position_far"]) == FRAMES - 2
+    assert set(m.error_by_step) == {f"{q}_{g}" for q in ("position", "stress") for g in ("ball", "contact", "far")}
+    assert len(m.error_by_step["position_far"]) == FRAMES - 2
     saved = json.loads((tmp_path / "run" / "metrics_test.json").read_text())
     assert saved["physics"] == p and "physics" in saved["per_trajectory"][0]
 

@@ -71,11 +71,11 @@ def test_contact_window_end_and_rebound():
 def test_impact_summary_holds_each_definition():
     x, stress, rest, cells, node_type = trajectory()
     s = q.impact_summary(x, stress, rest, q.plate_mask(cells, node_type), DT)
-    assert s["peak_plate_stress_mpa"] == 650.0 and s["peak_plate_frame"] == 8 and s["peak_plate_node"] == 2
-    assert s["peak_ball_stress_mpa"] == 900.0 and s["peak_ball_when_ms"] == pytest.approx(4 * DT)
-    assert s["peak_plate_t95_frame"] == 8 and s["max_deflection_mm"] == pytest.approx(0.06)
-    assert s["contact_frames"] == [2, 5] and s["contact_end_ms"] == pytest.approx(6 * DT) and s["rebounds"]
-    assert s["ghost_ratio"] == pytest.approx(4000 / 10 / 650) and len(s["plate_stress_history_mpa"]) == T
+    assert s.peak_plate_stress_mpa == 650.0 and s.peak_plate_frame == 8 and s.peak_plate_node == 2
+    assert s.peak_ball_stress_mpa == 900.0 and s.peak_ball_when_ms == pytest.approx(4 * DT)
+    assert s.peak_plate_t95_frame == 8 and s.max_deflection_mm == pytest.approx(0.06)
+    assert s.contact_frames == [2, 5] and s.contact_end_ms == pytest.approx(6 * DT) and s.rebounds
+    assert s.ghost_ratio == pytest.approx(4000 / 10 / 650) and len(s.plate_stress_history_mpa) == T
 
 
 def test_metrics_read_the_same_definitions():
@@ -85,11 +85,11 @@ def test_metrics_read_the_same_definitions():
     truth = stress.copy()
     truth[8:] = 0.0  # the solver has no ghost: its plate peak is 500 at frame 4
     m = impact_metrics(x, stress, x, truth, plate)
-    assert m["peak_plate_stress_error_pct"] == pytest.approx(30.0) and m["peak_plate_frame_error"] == 4
-    assert m["peak_ball_stress_error_pct"] == 0.0 and m["max_deflection_error_pct"] == 0.0
-    assert m["model_ghost_ratio"] == pytest.approx(4000 / 10 / 650)
-    assert m["solver_ghost_ratio"] == pytest.approx(1400 / 10 / 500)
+    assert m.peak_plate_stress_error_pct == pytest.approx(30.0) and m.peak_plate_frame_error == 4
+    assert m.peak_ball_stress_error_pct == 0.0 and m.max_deflection_error_pct == 0.0
+    assert m.model_ghost_ratio == pytest.approx(4000 / 10 / 650)
+    assert m.solver_ghost_ratio == pytest.approx(1400 / 10 / 500)
     moved = x.copy()
     moved[3:, 3, 1] -= 0.004  # the far rim node 4 µm off in predicted frames 3..11 (start 2: frame 2 counts, 0 off)
     m = impact_metrics(moved, stress, x, truth, plate)
-    assert m["far_deflection_error_um"] == pytest.approx(4.0 * 9 / 10 / 2)  # mean over 2 far nodes, 10 frames
+    assert m.far_deflection_error_um == pytest.approx(4.0 * 9 / 10 / 2)  # mean over 2 far nodes, 10 frames

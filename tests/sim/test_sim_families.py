@@ -107,7 +107,7 @@ def test_simply_supported_ring_centre_deflection_matches_timoshenko():
 
 def impact_answers(design: Design, frames: int = 45) -> tuple[float, float]:
     """(peak plate stress MPa, max plate deflection mm) of a ball impact."""
-    f = simulate(design, Settings(frames=frames))["fields"]
+    f = simulate(design, Settings(frames=frames)).fields
     plate = (f["node_type"][:, 0] != 1) & (f["mesh_pos"][:, 1] <= 1e-9)
     x = f["world_pos"]
     return float(f["stress"][:, plate].max()), float(np.abs(x[:, plate, 1] - x[0, plate, 1]).max())

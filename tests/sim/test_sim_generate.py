@@ -248,10 +248,10 @@ def test_peak_stress_is_the_largest_stress_between_frames():
     coarse = Settings(frames=6, frame_dt=0.008, peak_stress=True)
     n = plan(d, coarse)["substeps"] // (coarse.frames - 1)  # substeps per coarse frame
     fine = simulate(d, Settings(frames=(coarse.frames - 1) * n + 1, frame_dt=coarse.frame_dt / n))
-    assert fine["info"]["substeps"] == (coarse.frames - 1) * n  # one substep per fine frame
+    assert fine.info.substeps == (coarse.frames - 1) * n  # one substep per fine frame
     r = simulate(d, coarse)
-    got, stress = r["fields"]["stress_max"][..., 0], r["fields"]["stress"][..., 0]
-    want = fine["fields"]["stress"][..., 0]
+    got, stress = r.fields["stress_max"][..., 0], r.fields["stress"][..., 0]
+    want = fine.fields["stress"][..., 0]
     np.testing.assert_allclose(stress, want[::n], rtol=1e-5, atol=1e-4)  # the same trajectory
     for k in range(1, coarse.frames):
         np.testing.assert_allclose(got[k], want[(k - 1) * n + 1:k * n + 1].max(0), rtol=1e-5, atol=1e-4)
@@ -270,6 +270,6 @@ def test_generate_peak_stress_writes_the_field_and_a_model_trains_on_it(tmp_path
     run = Run.load(tmp_path / "run", "cpu")
     assert run.adapter.stress_field == "stress_max"
     m = evaluate(run, out, "test", progress=False)
-    assert np.isfinite(m["stress"]["rmse_all"])
+    assert np.isfinite(m.stress.rmse_all)
     with pytest.raises(ValueError, match="data.stress_field: unknown value 'peak'"):
         tiny_config("data.stress_field=peak")

@@ -1,4 +1,4 @@
-"""Config files a new user writes by mistake (issue "bad input", the config part): a ``base`` loop of one, two or
+"""Config files a new user writes by mistake: a ``base`` loop of one, two or
 three files, a key given twice at any depth, a config of another dataset than the data's, YAML 1.1's number
 strings (``1e-3``), a relative ``base``, wrong types, and the Python API's loose arguments. Each refusal: one line
 naming the file and the key and what was expected (``InputError``; ``hcmt train``: exit 2, nothing written)."""
@@ -9,7 +9,7 @@ import pytest
 import torch
 
 import hcmt
-import hcmt.config
+import hcmt.config.threads
 from hcmt.cli import GUARD, main as cli
 from hcmt.config import Config, check_same_dataset, default_threads, load_config, set_threads
 from hcmt.errors import InputError
@@ -278,9 +278,9 @@ def threads(monkeypatch):
     """torch's thread count put back after the test; the busy machine's auto count made 1, and torch's start
     count the one it has now."""
     before = torch.get_num_threads()
-    monkeypatch.setattr(hcmt.config, "_THREADS", {})
-    monkeypatch.setattr(hcmt.config, "auto_threads", lambda: 1)
-    monkeypatch.setattr(hcmt.config, "_torch_start_counts", lambda: {3})
+    monkeypatch.setattr(hcmt.config.threads, "_THREADS", {})
+    monkeypatch.setattr(hcmt.config.threads, "auto_threads", lambda: 1)
+    monkeypatch.setattr(hcmt.config.threads, "_torch_start_counts", lambda: {3})
     for var in ("OMP_NUM_THREADS", "MKL_NUM_THREADS"):
         monkeypatch.delenv(var, raising=False)
     torch.set_num_threads(3)  # torch's start count (above), so the default applies
@@ -290,7 +290,7 @@ def threads(monkeypatch):
 
 def test_the_api_takes_the_commands_thread_default_unless_the_caller_chose(threads, monkeypatch):
     assert default_threads() == 1 and torch.get_num_threads() == 1  # torch's own count: the command's default
-    monkeypatch.setattr(hcmt.config, "auto_threads", lambda: 2)  # the load fell: the count chosen stays
+    monkeypatch.setattr(hcmt.config.threads, "auto_threads", lambda: 2)  # the load fell: the count chosen stays
     assert default_threads() == 1
     torch.set_num_threads(5)  # the caller's choice: kept
     assert default_threads() == 5 and torch.get_num_threads() == 5

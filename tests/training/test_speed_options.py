@@ -1,4 +1,4 @@
-"""The training engine's speed options agree with the reference step (issue 37): the fused Adam the trainer uses
+"""The training engine's speed options agree with the reference step: the fused Adam the trainer uses
 (one kernel for every parameter, on the CPU too) ends a short run within float32 rounding of PyTorch's per-tensor
 Adam, the reference implementation."""
 import pytest

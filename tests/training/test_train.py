@@ -26,6 +26,7 @@ from hcmt.domains.trajectory import build_graph, load_split
 from hcmt.errors import DatasetError, RolloutError
 from hcmt.graph.batch import PadSizes
 from hcmt.inference.evaluate import evaluate, run_rollouts
+from hcmt.inference.metrics import Rmse
 from hcmt.inference.quantities import CONTACT_TOL
 from hcmt.inference.rollout import rollout
 from hcmt.inference.run import Run, load_run
@@ -62,8 +63,8 @@ def test_tiny_end_to_end(impact, tmp_path, model, tiny_config):
     assert [r["step"] for r in logs if "loss" in r] == [1, 2, 3, 4]
     assert any("valid/position_rmse_all" in r for r in logs)
     m = evaluate(Run.load(tmp_path / "run", "cpu"), impact, "test")
-    assert set(m["position"]) == {"rmse_1", "rmse_50", "rmse_all"} and "stress" in m
-    assert np.isfinite(m["position"]["rmse_all"]) and m["inference_ms_per_step"] > 0
+    assert isinstance(m.position, Rmse) and m.stress is not None
+    assert np.isfinite(m.position.rmse_all) and m.inference_ms_per_step > 0
     assert json.loads((tmp_path / "run" / "metrics_test.json").read_text())["trajectories"] == 1
     evaluate(Run.load(tmp_path / "run", "cpu"), impact, "valid")  # another split never overwrites the test metrics
     assert json.loads((tmp_path / "run" / "metrics_test.json").read_text())["split"] == "test"
@@ -151,8 +152,8 @@ def test_adapters_on_official_layouts(tmp_path, kind, tiny_config):
                       base=f"{kind}_cpu")
     train(cfg, tmp_path / "data", "hcmt", tmp_path / "run", progress=False)
     m = evaluate(Run.load(tmp_path / "run", "cpu"), tmp_path / "data", "test")
-    assert np.isfinite(m["position"]["rmse_all"])
-    assert ("stress" in m) == get_adapter(kind).stress_output
+    assert np.isfinite(m.position.rmse_all)
+    assert (m.stress is not None) == get_adapter(kind).stress_output
     # prescribed obstacles and handles follow the data exactly
     with h5py.File(tmp_path / "run" / "rollout_test.h5") as f, open_split(tmp_path / "data", "test") as s:
         pred, truth = f["traj_00000/world_pos"][()], s[0]

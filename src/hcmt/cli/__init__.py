@@ -27,7 +27,7 @@ from hcmt.config import VERSION, auto_threads, machine_cores, set_threads  # noq
 from hcmt.errors import InputError, RolloutError
 
 COMMANDS: dict[str, tuple[str, str]] = {
-    "generate": ("hcmt.cli.data", "generate a dataset with the built-in FEM solver (impact-plate)"),
+    "generate": ("hcmt.cli.data", "generate a dataset with the built-in FEM solvers (impact-plate, deforming-plate)"),
     "simulate": ("hcmt.cli.data", "simulate one Impact Plate design with explicit parameters (solver baseline)"),
     "convert": ("hcmt.cli.data",
                 "convert a MeshGraphNets/HCMT TFRecord or Deformable Plate pickle dataset to native HDF5"),

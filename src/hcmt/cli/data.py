@@ -13,7 +13,7 @@ from pathlib import Path
 from tqdm import tqdm
 
 from hcmt.cli import CommandError, check_outputs
-from hcmt.cli.parsers import parse_families, settings_of_args, simulate_inputs
+from hcmt.cli.parsers import parse_families, plate_settings_of_args, settings_of_args, simulate_inputs
 from hcmt.config import plural
 from hcmt.data.convert import convert
 from hcmt.data.format import read_meta, write_meta, write_split
@@ -23,6 +23,7 @@ from hcmt.files import atomic_path, check_apart, undo_on_error
 from hcmt.graph.report import dataset_quality, format_table
 from hcmt.inference import quantities
 from hcmt.sim.cost import check_cost, plan, validated_warnings, window_warnings
+from hcmt.sim.deforming_data import estimate_seconds, generate_deforming_plate
 from hcmt.sim.driver import simulate
 from hcmt.sim.generate import dataset_meta, generate_dataset, generation_cost, trajectory_name
 from hcmt.sim.params import VARIANTS
@@ -31,6 +32,8 @@ from hcmt.sim.params import VARIANTS
 # -- generate, simulate ---------------------------------------------------------------------------------------------
 def main_generate(args) -> int:
     counts = dict(train=args.train, valid=args.valid, test=args.test)
+    if args.dataset == "deforming-plate":
+        return _generate_deforming(args, counts)
     if args.variants:
         counts.update({v: args.variant_count for v in VARIANTS})
     total = sum(max(int(v), 0) for v in counts.values())
@@ -47,6 +50,21 @@ def main_generate(args) -> int:
     print(f"{args.out}: simulated {plural(result['simulated'], 'trajectory', 'trajectories')}, reused "
           f"{result['skipped']}; splits: "
           + ", ".join(f"{k} ({counts[k]})" for k in result["splits"]))
+    return 0
+
+
+def _generate_deforming(args, counts: dict[str, int]) -> int:
+    settings = plate_settings_of_args(args)
+    total = sum(max(int(v), 0) for v in counts.values())
+    if total:
+        each = estimate_seconds(settings)
+        print(f"{plural(total, 'trajectory', 'trajectories')} of about {settings.plate_nodes} plate nodes and "
+              f"{settings.frames - 1} quasi-static steps each: about {each:.0f} s per trajectory on one core, "
+              f"{total * each / 60:.1f} core-minutes in all (finished trajectories are reused on a rerun)", flush=True)
+    result = generate_deforming_plate(args.out, counts=counts, seed=args.seed, workers=args.workers,
+                                      settings=settings, progress=not args.no_progress, force=args.force)
+    print(f"{args.out}: simulated {plural(result['simulated'], 'trajectory', 'trajectories')}, reused "
+          f"{result['skipped']}; splits: " + ", ".join(f"{k} ({counts[k]})" for k in result["splits"]))
     return 0
 
 
@@ -114,11 +132,11 @@ def main_simulate(args) -> int:
                disable=args.no_progress or cost["estimated_s"] < 5.0)
     result = simulate(design, settings, progress=lambda k: bar.update(1))
     bar.close()
-    info, f = result["info"], result["fields"]
+    info, f = result.info, result.fields
     print(f"simulated {settings.frames} frames ({(settings.frames - 1) * settings.frame_dt:.3f} ms) of "
-          f"{info['num_nodes']} nodes / {info['num_cells']} triangles in {info['substeps']} substeps "
-          f"(dt {info['dt']:.3e} ms): wall-clock {info['wall_time']:.2f} s "
-          f"({1e3 * info['wall_time'] / (settings.frames - 1):.1f} ms per frame)")
+          f"{info.num_nodes} nodes / {info.num_cells} triangles in {info.substeps} substeps "
+          f"(dt {info.dt:.3e} ms): wall-clock {info.wall_time:.2f} s "
+          f"({1e3 * info.wall_time / (settings.frames - 1):.1f} ms per frame)")
     print(peak_line(f, settings.frame_dt))
     plate = quantities.plate_mask(f["cells"], f["node_type"])  # the ball never came, or the window cut the peak
     for w in window_warnings(design, settings, quantities.body_history(f["stress"], plate),
@@ -127,7 +145,7 @@ def main_simulate(args) -> int:
     if target is not None:
         path = Path(args.out)
         with undo_on_error(path.parent if target["write"] else None):
-            write_split(path, target["meta"], [(trajectory_name(0), f, result["attrs"])])
+            write_split(path, target["meta"], [(trajectory_name(0), f, result.attrs)])
             if target["write"]:
                 write_meta(path.parent, target["meta"])
         print(f"wrote {path}" + (f" and {path.parent / 'meta.json'}" if target["write"] else ""))

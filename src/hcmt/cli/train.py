@@ -94,7 +94,7 @@ def main_evaluate(args: argparse.Namespace) -> int:
         run = _load(args)
         m = evaluate(run, args.data, args.split, limit=args.limit, batch=args.batch, compile=args.compile,
                      progress=not args.no_progress)
-    _print_warnings(args, m["warnings"])
+    _print_warnings(args, m.warnings)
     print(format_metrics(m))
     print(f"wrote {run.folder.metrics_path(args.split, args.data)}")
     return 0

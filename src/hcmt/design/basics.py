@@ -12,6 +12,7 @@ from hcmt.errors import InputError, clip
 from hcmt.sim.params import (
     CONTACT_RADIUS,
     DESIGN_KEYS,
+    DESIGN_UNITS,
     MAX_LAYER_POISSON,
     a_type,
     design_key,
@@ -24,7 +25,7 @@ from hcmt.sim.params import (
 #: the scalar answers a surrogate predicts (keys of a design's summary)
 QUANTITIES = ("peak_plate_stress_mpa", "peak_ball_stress_mpa", "max_deflection_mm", "peak_plate_t95_ms",
               "contact_end_ms")
-RESTARTS = 3  # optimizer restarts of the marginal likelihood (the issue's comparison used 3)
+RESTARTS = 3  # optimizer restarts of the marginal likelihood (3: the comparison with the mesh model was made with 3)
 #: the design check's read-outs (:mod:`hcmt.design.readout`): ``raw``, the model's own outputs alone (the default);
 #: the others add a derived read-out under their own names
 READOUTS = ("raw", "contact", "element")
@@ -150,22 +151,25 @@ def _rules(values: dict[str, float]) -> list[tuple[str, object, str]]:
     the parameters ``values`` leave unset: a layer's, the backing's or the pen's material only where ``values``
     itself sets that layer's, the backing's or the pen's size."""
     positive, zero_or_more = lambda v: v > 0, lambda v: v >= 0
-    rules = [(k, positive, "> 0 (mm)") for k in ("thickness", "drop_height", "ball_radius", "mesh_size",
-                                                  "plate_half_length", "gap")]
-    rules += [(k, zero_or_more, ">= 0 mm (0: none)") for k in ("layer2_thickness", "layer3_thickness",
-                                                               "layer4_thickness", "support_radius",
-                                                               "backing_thickness", "pen_tip_radius")]
-    rules.append(("gap", lambda v: v < CONTACT_RADIUS, f"smaller than the contact radius {CONTACT_RADIUS} mm"))
+    unit = DESIGN_UNITS  # each parameter's unit, declared once (hcmt.sim.units)
+    rules = [(k, positive, f"> 0 ({unit[k]})") for k in ("thickness", "drop_height", "ball_radius", "mesh_size",
+                                                          "plate_half_length", "gap")]
+    rules += [(k, zero_or_more, f">= 0 {unit[k]} (0: none)") for k in ("layer2_thickness", "layer3_thickness",
+                                                                       "layer4_thickness", "support_radius",
+                                                                       "backing_thickness", "pen_tip_radius")]
+    rules.append(("gap", lambda v: v < CONTACT_RADIUS,
+                  f"smaller than the contact radius {CONTACT_RADIUS} {unit['gap']}"))
     materials = ["plate", "ball"] + [f"layer{k}" for k in (2, 3, 4) if values.get(f"layer{k}_thickness", 0) > 0]
     for m in materials:
-        rules += [(f"{m}_density", positive, "> 0 g/mm^3"), (f"{m}_modulus", positive, "> 0 MPa (Young's modulus)"),
+        rules += [(f"{m}_density", positive, f"> 0 {unit[f'{m}_density']}"),
+                  (f"{m}_modulus", positive, f"> 0 {unit[f'{m}_modulus']} (Young's modulus)"),
                   (f"{m}_poisson", lambda v: -1 < v < 0.5, "in (-1, 0.5) (Poisson ratio)") if m in ("plate", "ball")
                   else (f"{m}_poisson", lambda v: 0 <= v <= MAX_LAYER_POISSON, f"in [0, {MAX_LAYER_POISSON}] (near "
                         "0.5 the linear triangles lock volumetrically)")]
     if values.get("backing_thickness", 0) > 0:
-        rules.append(("backing_modulus", positive, "> 0 MPa (Young's modulus)"))
+        rules.append(("backing_modulus", positive, f"> 0 {unit['backing_modulus']} (Young's modulus)"))
     if values.get("pen_tip_radius", 0) > 0:
-        rules.append(("pen_mass", positive, "> 0 g"))
+        rules.append(("pen_mass", positive, f"> 0 {unit['pen_mass']}"))
     return rules
 
 

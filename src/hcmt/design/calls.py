@@ -3,9 +3,11 @@ peak plate stress interval it trusts (:func:`trusted_interval`), the yield margi
 solver ran (:func:`final_calls`)."""
 from __future__ import annotations
 
+from dataclasses import replace
+
 from hcmt.design.inputs import outside
 from hcmt.design.prediction import Prediction
-from hcmt.design.readout import DEFAULT_READOUT, chosen, readout_key
+from hcmt.design.summary import Summary
 from hcmt.errors import InputError
 
 #: the interval the limit calls trust (:func:`trusted_interval`), chosen by measurement (docs/MODELS.md, "Calls")
@@ -20,15 +22,22 @@ TRUSTS = ("surrogate", "union", "model")
 MODEL_BAND = 0.6
 
 
-def trusted_interval(summary: dict, trust: str = TRUST) -> tuple[float, float, str]:
-    """(lo, hi, what) of the peak plate stress a call trusts: ``surrogate``, the surrogate's 95 % interval;
-    ``union``, that interval widened to hold the mesh model's answer; ``model`` (and whenever there is no
-    surrogate), the mesh model's answer ± :data:`MODEL_BAND`; the mesh model's answer as the summary's chosen
-    read-out reports it (:func:`hcmt.design.readout.chosen`)."""
+def trusted_interval(summary: Summary, trust: str = TRUST) -> tuple[float, float, str]:
+    """(lo, hi, what) of the peak plate stress a call trusts (:func:`trusted_bounds`): the mesh model's answer as
+    the summary's chosen read-out reports it (:attr:`hcmt.design.summary.Summary.chosen`), the surrogate's
+    interval of it where the summary has one."""
+    return trusted_bounds(summary.chosen.peak_plate_stress_mpa,
+                          (summary.surrogate or {}).get("peak_plate_stress_mpa"), trust)
+
+
+def trusted_bounds(model: float, surrogate: dict | None, trust: str = TRUST) -> tuple[float, float, str]:
+    """(lo, hi, what) of the peak plate stress a call trusts, from the mesh model's answer ``model`` and the
+    surrogate's ``{mean, lo, hi}`` (None: no surrogate): ``surrogate``, the surrogate's 95 % interval; ``union``,
+    that interval widened to hold the mesh model's answer; ``model`` (and whenever there is no surrogate), the mesh
+    model's answer ± :data:`MODEL_BAND`."""
     if trust not in TRUSTS:
         raise InputError(f"must be one of {', '.join(TRUSTS)}, got {trust!r}", param="trust")
-    m = chosen(summary, "peak_plate_stress_mpa")
-    s = (summary.get("surrogate") or {}).get("peak_plate_stress_mpa")
+    m, s = model, surrogate
     if s is None or trust == "model":
         return m * (1 - MODEL_BAND), m * (1 + MODEL_BAND), "model"
     if trust == "surrogate":
@@ -49,7 +58,7 @@ def outside_reason(p: Prediction, ranges: dict[str, tuple[float, float]] | None)
         if not keys:
             return None
         where = f" ({', '.join(keys)})"
-    elif (p.summary.get("confidence") or {}).get("region") == "outside":
+    elif (p.summary.confidence or {}).get("region") == "outside":
         where = ""
     else:
         return None
@@ -67,10 +76,10 @@ def add_calls(preds: list[Prediction], yield_mpa: float | None, trust: str = TRU
     for p in preds:
         lo, hi, what = trusted_interval(p.summary, trust)
         reason = outside_reason(p, ranges)
-        p.summary["call"] = "undecided" if reason else call_of(lo, hi, yield_mpa)
-        p.summary["call_interval_mpa"] = {"lo": float(lo), "hi": float(hi), "from": what,
-                                          "model_readout": p.summary.get("readout", DEFAULT_READOUT),
-                                          **({"trusted": False, "reason": reason} if reason else {})}
+        p.summary = replace(p.summary, call="undecided" if reason else call_of(lo, hi, yield_mpa),
+                            call_interval_mpa={"lo": float(lo), "hi": float(hi), "from": what,
+                                               "model_readout": p.summary.readout,
+                                               **({"trusted": False, "reason": reason} if reason else {})})
 
 
 def final_calls(preds: list[Prediction], truth: list[Prediction | None] | None, yield_mpa: float | None) -> None:
@@ -80,22 +89,22 @@ def final_calls(preds: list[Prediction], truth: list[Prediction | None] | None, 
         return
     for i, p in enumerate(preds):
         t = truth[i] if truth is not None else None
-        p.summary["verified"] = t is not None
         if t is None:
-            p.summary["final_call"] = p.summary["call"]
+            p.summary = replace(p.summary, verified=False, final_call=p.summary.call)
         else:
-            p.summary["solver_call"] = "pass" if t.summary["peak_plate_stress_mpa"] < yield_mpa else "fail"
-            p.summary["final_call"] = p.summary["solver_call"]
+            solver = "pass" if t.summary.peak_plate_stress_mpa < yield_mpa else "fail"
+            p.summary = replace(p.summary, verified=True, solver_call=solver, final_call=solver)
 
 
 def add_margin(preds: list[Prediction], yield_mpa: float | None) -> None:
+    """Each design's ``yield_margin_mpa`` (yield - the model's own peak plate stress) and, with a derived
+    read-out, ``derived_yield_margin_mpa`` (yield - that read-out's peak)."""
     if yield_mpa is None:
         return
     if not yield_mpa > 0:
         raise InputError(f"must be > 0, got {yield_mpa}", param="yield_mpa")
     for p in preds:
-        key = readout_key("peak_plate_stress_mpa", p.summary.get("readout", DEFAULT_READOUT))
-        p.summary["yield_margin_mpa"] = float(yield_mpa - p.summary["peak_plate_stress_mpa"])
-        if key != "peak_plate_stress_mpa":
-            p.summary[key.replace("peak_plate_stress_mpa", "yield_margin_mpa")] = float(yield_mpa - p.summary[key])
-
+        s = p.summary
+        p.summary = replace(s, yield_margin_mpa=float(yield_mpa - s.peak_plate_stress_mpa),
+                            derived_yield_margin_mpa=None if s.derived is None else
+                            float(yield_mpa - s.derived.peak_plate_stress_mpa))

@@ -2,7 +2,7 @@
 no solver run.
 
 For each design (the parameters of ``hcmt simulate``, :class:`hcmt.sim.scene.Design`) the generator's scene code
-builds the mesh and the first two frames (:func:`hcmt.sim.scene.initial_frames`: the ball in free flight just above
+builds the mesh and the first two frames (:func:`hcmt.design.start.initial_frames`: the ball in free flight just above
 the plate), the model rolls out over the training data's recorded window (e.g. 52 frames of 0.002 ms), several
 designs as one batched graph per step (:func:`hcmt.inference.rollout.rollout_batch`), and :func:`summarize` reads off
 
@@ -85,9 +85,9 @@ MODEL_SECONDS_PER_NODE_STEP = 1e-4
 
 
 def cost_check(run, designs: list[tuple[str, Design]], settings: Settings, verify: bool, force: bool) -> None:
-    """Refuse, before any array is built, a design whose mesh exceeds :data:`hcmt.sim.scene.MAX_NODES`
-    (:func:`hcmt.sim.scene.check_size`: always), and one whose estimated time (the learned rollout's, plus the
-    solver's for ``verify``, from :func:`hcmt.sim.scene.estimate`) exceeds ``MAX_ESTIMATED_SECONDS`` (600 s)
+    """Refuse, before any array is built, a design whose mesh exceeds :data:`hcmt.sim.cost.MAX_NODES`
+    (:func:`hcmt.sim.cost.check_size`: always), and one whose estimated time (the learned rollout's, plus the
+    solver's for ``verify``, from :func:`hcmt.sim.cost.estimate`) exceeds ``MAX_ESTIMATED_SECONDS`` (600 s)
     unless ``force``; as ``hcmt simulate`` does."""
     for name, d in designs:
         cost = check_size(d, settings, where=f"{name}: ")
@@ -100,17 +100,19 @@ def cost_check(run, designs: list[tuple[str, Design]], settings: Settings, verif
 def beside_model(p: Prediction, run, surrogate: Surrogate | None, interval: dict | None, cannot: list[str]) -> None:
     """The surrogate's answer beside the model's in ``p.summary`` (and its range warnings), or the warning that it
     cannot take the design."""
+    warnings = list(p.summary.warnings or [])
     if cannot:
-        p.summary["warnings"].append(
+        warnings.append(
             f"the response surface cannot take {', '.join(cannot)} (held fixed over its training designs: "
             "another design family); no surrogate answer for this design, the call trusts the model's band")
+    answers = {}
     if interval is not None:
-        p.summary.update(side_by_side(p.summary, interval))
+        answers = side_by_side(p.summary, interval)
         # a user's own surrogate has its own training ranges: warn for a parameter outside them too
         own = set(outside(p.design, run.ranges))
-        p.summary["warnings"] += range_warnings(
-            p.design, {k: r for k, r in surrogate.ranges().items() if k not in own},
-            "the response surface's training designs")
+        warnings += range_warnings(p.design, {k: r for k, r in surrogate.ranges().items() if k not in own},
+                                   "the response surface's training designs")
+    p.summary = replace(p.summary, warnings=warnings, **answers)
 
 
 def check_options(designs, verify, yield_mpa: float | None, batch: int, readout: str) -> float | None:
@@ -131,11 +133,10 @@ def check_options(designs, verify, yield_mpa: float | None, batch: int, readout:
 def annotate(p: Prediction, run, surrogate: Surrogate | None, interval: dict | None, cannot: list[str]) -> None:
     """A prediction's summary as the check reports it: the model's name, range warnings, confidence, the
     surrogate's answer beside the model's (:func:`beside_model`) and whether its confidence is low."""
-    p.summary["model"] = run.source
-    p.summary["warnings"] = range_warnings(p.design, run.ranges)
-    p.summary["confidence"] = confidence(p.design, run)
+    p.summary = replace(p.summary, model=run.source, warnings=range_warnings(p.design, run.ranges),
+                        confidence=confidence(p.design, run))
     beside_model(p, run, surrogate, interval, cannot)
-    p.summary["low_confidence"] = bool(weak_reasons(p))
+    p.summary = replace(p.summary, low_confidence=bool(weak_reasons(p)))
 
 
 def solve_chunk(chunk: list[Prediction], verify: bool | str, settings: Settings, field_: str,
@@ -144,7 +145,7 @@ def solve_chunk(chunk: list[Prediction], verify: bool | str, settings: Settings,
     (``verify=True``), the undecided ones (``"auto"``: their calls made) or none (None where not run)."""
     if not verify:
         return [None] * len(chunk)
-    chosen = [i for i, p in enumerate(chunk) if verify is True or p.summary.get("call") == "undecided"]
+    chosen = [i for i, p in enumerate(chunk) if verify is True or p.summary.call == "undecided"]
     if verify == "auto":  # the bar learns its total chunk by chunk, as the calls are made
         bar.total += len(chosen)
         bar.refresh()
@@ -184,10 +185,11 @@ def check_designs(run, designs: list[tuple[str, Design]], *, batch: int = DESIGN
     field_ = run.adapter.stress_field  # stress_max: the solver records it as the model learned it
     solver_settings = replace(settings, peak_stress=True) if field_ == "stress_max" else settings
     # The speedup compares the solver's wall time with the model's, so both are measured under the same load: the
-    # model and the solver alternate per chunk of ``batch`` designs (issue 37). Everything after the rollout is per
-    # design (warnings, the surrogate beside the model, margin, call), so each chunk's calls are made as soon as it
-    # is predicted, and verify="auto" solves the chunk's undecided designs right after it as verify=True solves all
-    # of them: one order for both, the model timed once. Only the final calls and the comparison wait for the end.
+    # model and the solver alternate per chunk of ``batch`` designs, so a change of load on a shared machine slows
+    # both alike. Everything after the rollout is per design (warnings, the surrogate beside the model, margin,
+    # call), so each chunk's calls are made as soon as it is predicted, and verify="auto" solves the chunk's
+    # undecided designs right after it as verify=True solves all of them: one order for both, the model timed once.
+    # Only the final calls and the comparison wait for the end.
     preds: list[Prediction] = []
     truth: list[Prediction | None] = []
     with predict_bar(run, designs, progress) as bar, tqdm(

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 from hcmt.design.prediction import Prediction
-from hcmt.design.readout import DEFAULT_READOUT, chosen
 
 #: the low-confidence note also fires where the mesh model and the surrogate differ by more than this share of
 #: the surrogate's estimate (tuned for the model shipped before 2026-12-04 on its 18 valid + test designs; judged
@@ -18,16 +17,16 @@ def weak_reasons(p: Prediction) -> list[str]:
     without one, where the model card measured large errors. A design outside the training ranges says so either way
     (its call is undecided: :func:`hcmt.design.calls.add_calls`)."""
     out = []
-    c = p.summary.get("confidence")
+    c = p.summary.confidence
     if c and c["region"] == "outside":
         out.append(f"{p.name}: outside the training ranges: no pass / fail call is decided there (the model card "
                    "measured the error only on designs just beyond the thickness and drop height ranges)"
                    + verify_hint(p))
-    g = (p.summary.get("surrogate") or {}).get("peak_plate_stress_mpa")
+    g = (p.summary.surrogate or {}).get("peak_plate_stress_mpa")
     if g:
-        gap = (chosen(p.summary, "peak_plate_stress_mpa") - g["mean"]) / g["mean"]
+        gap = (p.summary.chosen.peak_plate_stress_mpa - g["mean"]) / g["mean"]
         if abs(gap) > NOTE_DISAGREEMENT:
-            how = "" if p.summary.get("readout", DEFAULT_READOUT) == "raw" else f" ({p.summary['readout']} read-out)"
+            how = "" if p.summary.readout == "raw" else f" ({p.summary.readout} read-out)"
             out.append(f"{p.name}: the mesh model's peak plate stress{how} is {100 * gap:+.0f} % from the response "
                        f"surface's {g['mean']:.0f} MPa [{g['lo']:.0f}, {g['hi']:.0f}]; low confidence"
                        + verify_hint(p))
@@ -47,11 +46,11 @@ def verify_hint(p: Prediction) -> str:
     already allows for it (its whole trusted interval lies on one side of the yield stress, so ``--verify auto``
     rightly leaves it to the model); else the advice to verify with the solver."""
     s = p.summary
-    if "verify" in s:
+    if s.verify is not None:
         return ""
-    if s.get("call") in ("pass", "fail") and s.get("call_interval_mpa"):
-        iv = s["call_interval_mpa"]
-        side = "below" if s["call"] == "pass" else "above"
-        return (f"; the {s['call']} call already allows for it: its whole interval {iv['lo']:.0f}-{iv['hi']:.0f} MPa "
+    if s.call in ("pass", "fail") and s.call_interval_mpa:
+        iv = s.call_interval_mpa
+        side = "below" if s.call == "pass" else "above"
+        return (f"; the {s.call} call already allows for it: its whole interval {iv['lo']:.0f}-{iv['hi']:.0f} MPa "
                 f"lies {side} the yield stress")
     return "; verify with the solver (--verify)"

@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Iterator
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 from tqdm import tqdm
@@ -36,7 +36,7 @@ class Prediction:
     cells: np.ndarray  # [C, 3]
     node_type: np.ndarray  # [N]
     wall_s: float  # seconds spent on this design (a batch's wall time split evenly over its designs)
-    summary: Summary = field(default_factory=Summary)  # the numbers read off (typed; the JSON's keys)
+    summary: Summary | None = None  # the numbers read off (:func:`summarize`; the check adds to them)
     modulus: np.ndarray | None = None  # [N] MPa (the bending read-out after the ball has left)
 
     def fields(self) -> dict:
@@ -47,7 +47,7 @@ class Prediction:
 
 
 def design_trajectory(run, name: str, design: Design, settings: Settings):
-    """The rollout input of a design: frames 0 and 1 from :func:`hcmt.sim.scene.start_frames` (the solver's first
+    """The rollout input of a design: frames 0 and 1 from :func:`hcmt.design.start.start_frames` (the solver's first
     frame only when the ball reaches the plate within it), later frames holding only what the boundary conditions
     read (the clamped rim and the symmetry line do not move: frame 0's positions)."""
     start = start_frames(design, settings)
@@ -144,5 +144,5 @@ def summarize(p: Prediction, frame_dt: float, readout: str = DEFAULT_READOUT,
     """The trajectory's own quantities (peak plate and ball stress, where, when, rise time, deflection, the plate's
     stress history, ...) and a derived ``readout``'s under its own names
     (:func:`hcmt.design.readout.summarize_fields`), as a :class:`~hcmt.design.summary.Summary`."""
-    return Summary.of(summarize_fields(p.fields(), frame_dt, readout, p.wall_s, contact_end_ms))
+    return summarize_fields(p.fields(), frame_dt, readout, p.wall_s, contact_end_ms)
 

@@ -31,6 +31,7 @@ from __future__ import annotations
 import numpy as np
 
 from hcmt.design.basics import DEFAULT_READOUT, READOUTS  # noqa: F401 (light: the parsers read them there)
+from hcmt.design.summary import PlateReadout, Summary
 from hcmt.errors import InputError
 from hcmt.inference import quantities as q
 from hcmt.inference.quantities import contact_gap, contact_window, ghost_ratio, plate_mask  # noqa: F401 (re-exported)
@@ -61,9 +62,10 @@ def readout_key(key: str, readout: str) -> str:
     return key if readout == "raw" or key not in DERIVED_KEYS else f"{readout}_{key}"
 
 
-def chosen(summary: dict, key: str) -> float:
-    """``key`` as the summary's chosen read-out (its ``readout``) reports it."""
-    return summary[readout_key(key, summary.get("readout", "raw"))]
+def chosen(summary: Summary, key: str) -> float:
+    """``key`` (a field of :data:`DERIVED_KEYS`, or another of the summary's) as the summary's chosen read-out (its
+    ``readout``) reports it."""
+    return getattr(summary.chosen if key in DERIVED_KEYS else summary, key)
 
 
 def bending_stress(world_pos: np.ndarray, mesh_pos: np.ndarray, plate: np.ndarray, modulus: np.ndarray,
@@ -88,19 +90,20 @@ def element_stress(world_pos: np.ndarray, fields: dict, formulation: str = "axis
     return np.stack([nodal_von_mises(model, np.asarray(x, np.float64)) for x in world_pos])
 
 
-def _plate_readout(stress, plate, x, frame_dt: float, frames=None, history=None) -> dict:
-    """The plate's peak block (:data:`DERIVED_KEYS`) of a stress field read on ``frames`` (default all)."""
-    out = q.peak_fields(stress, plate, x, frame_dt, "plate", frames)
+def _plate_readout(stress, plate, x, frame_dt: float, frames=None, history=None, **contact) -> PlateReadout:
+    """The plate's peak block (:data:`DERIVED_KEYS`) of a stress field read on ``frames`` (default all);
+    ``contact``: the ``contact`` read-out's own fields (window end, bending constant)."""
+    value, where, when, frame, node = q.peak_values(stress, plate, x, frame_dt, frames)
     history = q.body_history(stress, plate) if history is None else history
-    first = q.rise_frame(history, out["peak_plate_stress_mpa"], frames)
-    out.update(peak_plate_t95_frame=first, peak_plate_t95_ms=float(max(first, 1) * frame_dt),
-               plate_stress_history_mpa=[float(v) for v in history])
-    return out
+    first = q.rise_frame(history, value, frames)
+    return PlateReadout(value, where, when, frame, node, peak_plate_t95_frame=first,
+                        peak_plate_t95_ms=float(max(first, 1) * frame_dt),
+                        plate_stress_history_mpa=[float(v) for v in history], **contact)
 
 
 def contact_readout(fields: dict, frame_dt: float, contact_end_ms: float | None = None,
-                    k: float = BENDING_K) -> dict:
-    """The ``contact`` read-out's fields (module docstring), every key prefixed ``contact_``."""
+                    k: float = BENDING_K) -> PlateReadout:
+    """The ``contact`` read-out (module docstring): the JSON writes each field prefixed ``contact_``."""
     x, X = np.asarray(fields["world_pos"]), np.asarray(fields["mesh_pos"])
     plate = plate_mask(fields["cells"], fields["node_type"])
     window, source = contact_window(contact_gap(x, X, plate)), "the predicted ball's last touch"
@@ -115,51 +118,44 @@ def contact_readout(fields: dict, frame_dt: float, contact_end_ms: float | None 
     history = q.body_history(fields["stress"], plate)
     after = np.arange(len(history)) > last
     history = np.where(after, bending_stress(x, X, plate, fields["modulus"], k), history)
-    out = _plate_readout(fields["stress"], plate, x, frame_dt, window, history)
-    out = {readout_key(key, "contact"): v for key, v in out.items()}
-    return {**out, "contact_window_end_ms": float((last + 1) * frame_dt), "contact_window_end_from": source,
-            "contact_bending_k": float(k)}
+    return _plate_readout(fields["stress"], plate, x, frame_dt, window, history,
+                          window_end_ms=float((last + 1) * frame_dt), window_end_from=source, bending_k=float(k))
 
 
-def contact_note(summaries: list[dict]) -> str | None:
+def contact_note(summaries: list[Summary]) -> str | None:
     """A one-line note when ``--readout contact`` changed nothing on these designs: on every one the model's own
     peak lies inside the contact window (:func:`contact_readout` reads the same frames' stress up to the ball's
     leaving and only replaces the stress after it), so the contact peak, and the calls made from it, are the raw
     ones. It can differ only where a model's peak comes after the ball has left ("ghost stress"); None otherwise,
     or for another read-out."""
-    if not summaries or any(s.get("readout") != "contact" for s in summaries):
+    if not summaries or any(s.readout != "contact" for s in summaries):
         return None
-    if any(s["contact_peak_plate_frame"] != s["peak_plate_frame"] for s in summaries):
+    if any(s.derived.peak_plate_frame != s.peak_plate_frame for s in summaries):
         return None
     return ("--readout contact changes nothing here: on every design the model's own peak comes before the ball "
             "leaves the plate, so contact_* repeats its peak and the calls are the raw ones (the read-out differs "
             "only where a model's peak comes after the ball has left: docs/MODELS.md, \"The contact read-out\")")
 
 
-def element_readout(fields: dict, frame_dt: float) -> dict:
-    """The ``element`` read-out's fields (module docstring), every key prefixed ``element_``."""
+def element_readout(fields: dict, frame_dt: float) -> PlateReadout:
+    """The ``element`` read-out (module docstring): the JSON writes each field prefixed ``element_``."""
     x = np.asarray(fields["world_pos"])
     plate = plate_mask(fields["cells"], fields["node_type"])
-    out = _plate_readout(element_stress(x, fields), plate, x, frame_dt)
-    return {readout_key(key, "element"): v for key, v in out.items()}
+    return _plate_readout(element_stress(x, fields), plate, x, frame_dt)
 
 
 def summarize_fields(fields: dict, frame_dt: float, readout: str = DEFAULT_READOUT, wall_s: float = 0.0,
-                     contact_end_ms: float | None = None) -> dict:
+                     contact_end_ms: float | None = None) -> Summary:
     """The design check's numbers of one trajectory (module docstring): its own quantities, and with a derived
-    ``readout`` that read-out's fields under their own names; ``contact_end_ms``: the ``contact`` read-out's bound
-    on when the ball leaves (ignored by the others)."""
+    ``readout`` that read-out's block (``derived``); ``contact_end_ms``: the ``contact`` read-out's bound on when
+    the ball leaves (ignored by the others)."""
     check_readout(readout)
     x, X = np.asarray(fields["world_pos"]), np.asarray(fields["mesh_pos"])
     plate = plate_mask(fields["cells"], fields["node_type"])
-    out = q.impact_summary(x, fields["stress"], X, plate, frame_dt)
-    out["readout"] = readout
-    if readout == "contact":
-        out.update(contact_readout(fields, frame_dt, contact_end_ms))
-    elif readout == "element":
-        out.update(element_readout(fields, frame_dt))
-    out["wall_s"] = float(wall_s)
-    return out
+    own = q.impact_summary(x, fields["stress"], X, plate, frame_dt)
+    derived = (contact_readout(fields, frame_dt, contact_end_ms) if readout == "contact" else
+               element_readout(fields, frame_dt) if readout == "element" else None)
+    return Summary(**vars(own), readout=readout, derived=derived, wall_s=float(wall_s))
 
 
 def history_correlation(model_stress: np.ndarray, solver_stress: np.ndarray, node: int) -> float:

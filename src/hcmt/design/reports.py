@@ -11,7 +11,7 @@ import numpy as np
 
 from hcmt.config import plural
 from hcmt.design.check import Check, Prediction, weak_reasons
-from hcmt.design.readout import chosen, contact_note, readout_key
+from hcmt.design.readout import contact_note, readout_key
 from hcmt.design.summary import Summary
 from hcmt.files import atomic_path
 from hcmt.inference.metrics import format_physics
@@ -38,11 +38,10 @@ def _interval(block: dict | None, fmt: str = "{:.0f}") -> str:
     return f"{fmt.format(block['mean'])} [{fmt.format(block['lo'])}, {fmt.format(block['hi'])}]"
 
 
-def verify_block(summary) -> dict:
-    """A design's verify row as its JSON block (:meth:`hcmt.design.verification.VerifyRow.to_json`; ``{}`` when
-    the solver did not run on it)."""
-    row = summary.get("verify")
-    return row.to_json() if hasattr(row, "to_json") else dict(row or {})
+def verify_block(summary: Summary) -> dict:
+    """A design's verify row as its JSON block (:meth:`hcmt.design.summary.VerifyRow.to_json`; ``{}`` when the
+    solver did not run on it)."""
+    return summary.verify.to_json() if summary.verify is not None else {}
 
 
 def verify_columns(readout: str) -> list[tuple[str, str, str]]:
@@ -55,23 +54,24 @@ def verify_columns(readout: str) -> list[tuple[str, str, str]]:
 
 
 def table_rows(preds: list[Prediction]) -> tuple[list[str], list[list[str]]]:
-    cols = [c for c in COLUMNS if c[2] != "yield_margin_mpa" or "yield_margin_mpa" in preds[0].summary]
-    derived = readout_key("peak_plate_stress_mpa", preds[0].summary.get("readout", "raw"))
-    if derived != "peak_plate_stress_mpa":  # the chosen derived read-out's peak beside the model's own
-        cols.insert(2, (f"{preds[0].summary['readout']} MPa", "{:.1f}", derived))
-    with_surrogate = any("surrogate" in p.summary for p in preds)
-    vcols = verify_columns(preds[0].summary.get("readout", "raw")) if any("verify" in p.summary for p in preds) else []
+    """The table's head and rows: its columns are the JSON's keys (:meth:`hcmt.design.summary.Summary.to_json`)."""
+    first = preds[0].summary
+    cols = [c for c in COLUMNS if c[2] != "yield_margin_mpa" or first.yield_margin_mpa is not None]
+    if first.derived is not None:  # the chosen derived read-out's peak beside the model's own
+        cols.insert(2, (f"{first.readout} MPa", "{:.1f}", readout_key("peak_plate_stress_mpa", first.readout)))
+    with_surrogate = any(p.summary.surrogate is not None for p in preds)
+    vcols = verify_columns(first.readout) if any(p.summary.verify is not None for p in preds) else []
     head = [c[0] for c in cols[:2]] + (["surrogate MPa [95 %]"] if with_surrogate else []) + \
         [c[0] for c in cols[2:] + vcols]
     rows = []
     for p in preds:
-        s = {**p.summary, "name": p.name, **verify_block(p.summary)}
+        s = {**p.summary.to_json(), "name": p.name, **verify_block(p.summary)}
         cells = []
         for _, fmt, key in cols + vcols:
             v = s.get(key)
             cells.append("-" if v is None else f"{v[0]:.2f},{v[1]:.2f}" if isinstance(v, list) else fmt.format(v))
         if with_surrogate:
-            cells.insert(2, _interval((p.summary.get("surrogate") or {}).get("peak_plate_stress_mpa")))
+            cells.insert(2, _interval((p.summary.surrogate or {}).get("peak_plate_stress_mpa")))
         rows.append(cells)
     return head, rows
 
@@ -106,24 +106,24 @@ def format_calls(preds: list[Prediction], yield_mpa: float, label: str = "design
     """The limit calls as a table: value, model, surrogate ± interval, the interval trusted, call, solver (where
     run) and the final call; then how many designs needed the solver."""
     value = value or (lambda p: p.name)
-    readout = preds[0].summary.get("readout", "raw")
+    readout = preds[0].summary.readout
     model = "model MPa" if readout == "raw" else f"model ({readout}) MPa"
     head = [label, model, "surrogate MPa [95 %]", "trusted [lo, hi]", "call", "solver MPa", "final"]
     rows = []
     for p in preds:
-        s, iv = p.summary, p.summary["call_interval_mpa"]
-        solver = verify_block(s).get("solver_peak_plate_stress_mpa")
-        rows.append([str(value(p)), f"{chosen(s, 'peak_plate_stress_mpa'):.0f}",
-                     _interval((s.get("surrogate") or {}).get("peak_plate_stress_mpa")),
-                     f"{iv['from']} [{iv['lo']:.0f}, {iv['hi']:.0f}]", s["call"],
-                     "-" if solver is None else f"{solver:.0f}", s.get("final_call", s["call"])])
+        s, iv = p.summary, p.summary.call_interval_mpa
+        solver = s.verify.solver_peak_plate_stress_mpa if s.verify is not None else None
+        rows.append([str(value(p)), f"{s.chosen.peak_plate_stress_mpa:.0f}",
+                     _interval((s.surrogate or {}).get("peak_plate_stress_mpa")),
+                     f"{iv['from']} [{iv['lo']:.0f}, {iv['hi']:.0f}]", s.call,
+                     "-" if solver is None else f"{solver:.0f}", s.final_call or s.call])
     width = [max(len(h), *(len(r[i]) for r in rows)) for i, h in enumerate(head)]
     lines = [f"limit calls for a yield stress of {yield_mpa:g} MPa (pass: the trusted interval lies below it, fail: "
              "above it, undecided: it straddles it, or the design lies outside the training ranges)"]
     lines += ["  " + "  ".join(h.rjust(w) for h, w in zip(head, width))]
     lines += ["  " + "  ".join(c.rjust(w) for c, w in zip(r, width)) for r in rows]
-    undecided = sum(p.summary["call"] == "undecided" for p in preds)
-    ran = sum(bool(p.summary.get("verified")) for p in preds)
+    undecided = sum(p.summary.call == "undecided" for p in preds)
+    ran = sum(bool(p.summary.verified) for p in preds)
     lines.append(f"  {undecided} of {len(preds)} undecided; the solver ran on {ran}"
                  + ("" if ran >= undecided else " (--verify auto runs it on the undecided ones)"))
     return "\n".join(lines)
@@ -139,12 +139,13 @@ def csv_rows(preds: list[Prediction]) -> tuple[list[str], list[list]]:
     at full precision (positions split into r and y), the surrogate's answers (``surrogate_<answer>_mean/lo/hi``),
     the calls, the verify block's columns, the model and the warnings. The stress histories are the JSON's."""
     head = ["name", *DESIGN_KEYS]
+    blocks = [p.summary.to_json() for p in preds]  # the columns are the JSON's keys
     keys = []
-    for p in preds:
-        keys += [k for k in p.summary if k not in _NOT_COLUMNS and not k.endswith("history_mpa") and k not in keys]
+    for block in blocks:
+        keys += [k for k in block if k not in _NOT_COLUMNS and not k.endswith("history_mpa") and k not in keys]
     skeys = []
     for p in preds:
-        skeys += [q for q in (p.summary.get("surrogate") or {}) if q not in skeys]
+        skeys += [q for q in (p.summary.surrogate or {}) if q not in skeys]
     vkeys = []
     for p in preds:
         vkeys += [k for k in verify_block(p.summary) if k not in vkeys and k != "solver_warnings"]
@@ -153,18 +154,17 @@ def csv_rows(preds: list[Prediction]) -> tuple[list[str], list[list]]:
     head += [f"surrogate_{q}_{b}" for q in skeys for b in ("mean", "lo", "hi")]
     head += [f"verify_{k}" for k in vkeys] + ["model", "readout", "warnings"]
     rows = []
-    for p in preds:
+    for p, block in zip(preds, blocks):
         row = [p.name, *(getattr(p.design, k) for k in DESIGN_KEYS)]
         for k in keys:
-            v = p.summary.get(k)
+            v = block.get(k)
             row += (list(v) if v else ["", ""]) if k.endswith("where_mm") else [v]
-        block = p.summary.get("surrogate") or {}
-        row += [block.get(q, {}).get(b) for q in skeys for b in ("mean", "lo", "hi")]
+        answers = p.summary.surrogate or {}
+        row += [answers.get(q, {}).get(b) for q in skeys for b in ("mean", "lo", "hi")]
         verify = verify_block(p.summary)
         row += [verify.get(k) for k in vkeys]
-        warnings = (p.summary.get("warnings", []) + verify.get("solver_warnings", [])
-                    + weak_reasons(p))
-        row += [p.summary.get("model", ""), p.summary.get("readout", "raw"), "; ".join(warnings)]
+        warnings = (p.summary.warnings or []) + verify.get("solver_warnings", []) + weak_reasons(p)
+        row += [p.summary.model or "", p.summary.readout, "; ".join(warnings)]
         rows.append([repr(v) if isinstance(v, float) else "" if v is None else v for v in row])  # repr: every digit
     return head, rows
 
@@ -186,7 +186,7 @@ def to_json(preds: list[Prediction], verified: dict | None, run_source: str, dev
     stress history and the notes), the verify summary, the read-out used, the surrogate's source and the solver
     runs."""
     out = {"model": run_source, "device": device, "units": {"stress": "MPa", "length": "mm", "time": "ms"},
-           "designs": [{"name": p.name, "design": asdict(p.design), **summary_json(p.summary),
+           "designs": [{"name": p.name, "design": asdict(p.design), **p.summary.to_json(),
                         "notes": weak_reasons(p)}
                        for p in preds],
            **({"verify": verified} if verified else {})}
@@ -198,17 +198,11 @@ def to_json(preds: list[Prediction], verified: dict | None, run_source: str, dev
     return finite(out)
 
 
-def summary_json(summary) -> dict:
-    """A design's summary as its JSON block (:meth:`hcmt.design.summary.Summary.to_json`; a plain dict read as one,
-    its keys in their order)."""
-    return (summary if isinstance(summary, Summary) else Summary.of(summary)).to_json()
-
-
 def finite(obj):
     """``obj`` with every NaN or infinite float as None: standard JSON (``jq``, ``JSON.parse``) has no NaN."""
     if isinstance(obj, float):
         return obj if np.isfinite(obj) else None
-    if isinstance(obj, Mapping):  # a dict, or a Summary
+    if isinstance(obj, Mapping):
         return {k: finite(v) for k, v in obj.items()}
     if isinstance(obj, (list, tuple)):
         return [finite(v) for v in obj]
@@ -226,8 +220,8 @@ def contour_picture(p: Prediction, truth: Prediction | None, meta: dict, out_dir
                     [pred], meta)
     else:
         case = Case(p.name, p.mesh_pos, p.cells, p.node_type, pred, [], meta)
-    frames = {max(int(p.summary["peak_plate_frame"]), 1)}
+    frames = {max(int(p.summary.peak_plate_frame), 1)}
     if truth is not None:
-        frames.add(max(int(truth.summary["peak_plate_frame"]), 1))
+        frames.add(max(int(truth.summary.peak_plate_frame), 1))
     paths = plot_contours(case, Path(out_dir) / p.name, sorted(frames))
     return paths[-1]

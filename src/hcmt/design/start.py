@@ -58,6 +58,6 @@ def start_frames(design: Design, settings: Settings = Settings()) -> dict:
     if first_frame_fall(design.validate(), settings.validate()) < design.gap:
         return {**initial_frames(design, settings), "info": {"solver_frames": 0, "wall_time": 0.0}}
     r = simulate(design, replace(settings, frames=2))
-    f = dict(r["fields"])
+    f = dict(r.fields)
     f.pop("stress_max", None)
-    return {"fields": f, "attrs": r["attrs"], "info": {"solver_frames": 1, "wall_time": r["info"]["wall_time"]}}
+    return {"fields": f, "attrs": r.attrs, "info": {"solver_frames": 1, "wall_time": r.info.wall_time}}

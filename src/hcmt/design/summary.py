@@ -1,120 +1,129 @@
-"""Design check, one design's numbers as typed fields: :class:`Summary`, what ``Prediction.summary`` holds.
+"""Design check, one design's numbers as typed, frozen records: :class:`Summary` (what ``Prediction.summary``
+holds), its derived read-out (:class:`PlateReadout`) and its comparison with the solver (:class:`VerifyRow`).
 
-Its fields are the keys of the design check's JSON (``hcmt predict --json``: each design's block, beside ``name``,
-``design`` and ``notes``), unchanged: the trajectory's own quantities (:func:`hcmt.inference.quantities.
-impact_summary`), the read-out used and the wall time, then what the check adds (the model, range warnings,
-confidence, the surrogate's answers, the margin, the calls, the solver's comparison). A derived read-out's fields
-(``contact_*``, ``element_*``: :mod:`hcmt.design.readout`) and any other key go to ``extra``. A field not set is
-absent from the JSON (not null), and the keys keep the order they were set in, as the dicts did before:
-:meth:`Summary.to_json` writes the same keys in the same order. It reads and writes as a mapping too
-(``summary["call"]``, ``summary.get("verify")``, ``"verify" in summary``, ``{**summary}``)."""
+A summary is the trajectory's own quantities (:class:`hcmt.inference.quantities.ImpactQuantities`, which it
+extends), the read-out used, a derived read-out's peak block (``derived``), the wall time, then what the design
+check adds (the model, range warnings, confidence, the surrogate's answers, the margin, the calls, the solver's
+comparison). The check builds each design's summary from its read-out and adds to it with
+:func:`dataclasses.replace`; an unknown field is an error there, as in the constructor.
+
+:meth:`Summary.to_json` is each design's block of the design check's JSON (``hcmt predict --json``, beside
+``name``, ``design`` and ``notes``), its keys and their order those the check wrote as plain dicts: the declared
+order, a derived read-out's fields under its own names (``contact_peak_plate_stress_mpa``, ...), and a field the
+check did not set (None) absent rather than null; only the trajectory's own quantities, ``readout`` and
+``wall_s`` are always written, and ``confidence`` whenever the check annotated the design (``model`` set).
+"""
 from __future__ import annotations
 
-from collections.abc import Iterator, Mapping, MutableMapping
-from dataclasses import dataclass, field, fields
-from typing import TYPE_CHECKING
+from dataclasses import asdict, dataclass, field, fields
 
-if TYPE_CHECKING:
-    from hcmt.design.verification import VerifyRow
+from hcmt.inference.quantities import ImpactQuantities
 
 
-@dataclass(eq=False)
-class Summary(MutableMapping):
+@dataclass(frozen=True)
+class PlateReadout:
+    """The plate's peak block as a derived read-out reports it (:mod:`hcmt.design.readout`): the JSON writes each
+    field under the read-out's name (``<readout>_<field>``). The ``contact`` read-out also says where its window
+    ended and the bending constant it used (None for another read-out: not written)."""
+
+    peak_plate_stress_mpa: float
+    peak_plate_where_mm: list[float]
+    peak_plate_when_ms: float
+    peak_plate_frame: int
+    peak_plate_node: int
+    peak_plate_t95_frame: int
+    peak_plate_t95_ms: float
+    plate_stress_history_mpa: list[float]
+    window_end_ms: float | None = None
+    window_end_from: str | None = None
+    bending_k: float | None = None
+
+    def to_json(self, readout: str) -> dict:
+        """The block under ``readout``'s names, in order (a field not set left out)."""
+        return {f"{readout}_{k}": v for k, v in asdict(self).items() if v is not None}
+
+
+@dataclass(frozen=True)
+class VerifyRow:
+    """One design, model against solver: ``Summary.verify``. Stresses MPa, lengths mm (``_um``: µm), times ms;
+    errors signed (model - solver), in % of the solver's value where named ``_pct``, in frames where
+    ``_frame_error``. :meth:`to_json` is the design's ``verify`` block of the design check's JSON."""
+
+    solver_peak_plate_stress_mpa: float
+    solver_max_deflection_mm: float
+    # the physics block's (hcmt.inference.metrics.impact_metrics)
+    peak_plate_stress_error_pct: float
+    max_deflection_error_pct: float
+    model_rebounds: bool
+    solver_rebounds: bool
+    rebound_agrees: bool
+    peak_plate_frame_error: int
+    peak_ball_stress_error_pct: float
+    far_deflection_error_um: float
+    # read off the two summaries
+    peak_plate_location_error_mm: float
+    position_rmse_mm: float  # over the window: all nodes, the predicted frames
+    solver_peak_plate_t95_ms: float
+    peak_plate_t95_frame_error: int  # the rise time (first frame at 95 % of the plate's peak)
+    critical_node_history_correlation: float  # the model's stress history at the solver's peak node against it
+    solver_wall_s: float
+    speedup: float  # solver wall time / prediction wall time
+    solver_warnings: list[str] = field(default_factory=list)  # the design outside the solver's validated ranges
+    readout_errors: dict[str, float] = field(default_factory=dict)  # a derived read-out's peak error, by its name
+
+    def to_json(self) -> dict:
+        """The ``verify`` block: every field in order, a derived read-out's error under its own name
+        (``contact_peak_plate_stress_error_pct``) last."""
+        out = {f.name: getattr(self, f.name) for f in fields(self) if f.name != "readout_errors"}
+        return {**out, **self.readout_errors}
+
+
+@dataclass(frozen=True)
+class Summary(ImpactQuantities):
     """One design's numbers (module docstring): stresses MPa (von Mises), lengths mm, times ms; None: not set."""
 
-    # the trajectory's own quantities
-    peak_plate_stress_mpa: float | None = None
-    peak_plate_where_mm: list[float] | None = None  # (r, y) of the peak's node at its frame
-    peak_plate_when_ms: float | None = None
-    peak_plate_frame: int | None = None
-    peak_plate_node: int | None = None
-    peak_ball_stress_mpa: float | None = None
-    peak_ball_where_mm: list[float] | None = None
-    peak_ball_when_ms: float | None = None
-    peak_ball_frame: int | None = None
-    peak_ball_node: int | None = None
-    peak_plate_t95_frame: int | None = None  # first frame at 95 % of the peak (the rise time)
-    peak_plate_t95_ms: float | None = None
-    max_deflection_mm: float | None = None  # max |u_y| over the plate's nodes and frames
-    far_deflection_mm: float | None = None
-    contact_frames: int | None = None
-    contact_end_ms: float | None = None
-    ghost_ratio: float | None = None
-    rebounds: bool | None = None
-    plate_stress_history_mpa: list[float] | None = None  # the plate's peak stress per frame
-    readout: str | None = None  # the derived read-out reported beside the model's own answer (raw: none)
-    wall_s: float | None = None
+    readout: str = "raw"  # the derived read-out reported beside the model's own answer (raw: none)
+    derived: PlateReadout | None = None  # that read-out's peak block (None for raw)
+    wall_s: float = 0.0
     # what the design check adds
     model: str | None = None
     warnings: list[str] | None = None  # range warnings, one line each
-    confidence: dict | None = None  # the model card's region of the design
-    surrogate: dict | None = None  # the response surface's answers {key: {mean, lo, hi}}
-    disagreement: float | None = None
-    disagreement_by_answer: dict | None = None
+    confidence: dict | None = None  # the model card's region of the design (None: the card has none)
+    surrogate: dict | None = None  # the response surface's answers {answer: {mean, lo, hi}}
+    disagreement: bool | None = None  # the model's peak plate stress outside the surrogate's interval
+    disagreement_by_answer: dict[str, bool] | None = None
     low_confidence: bool | None = None
     yield_margin_mpa: float | None = None  # yield - peak plate stress
+    derived_yield_margin_mpa: float | None = None  # yield - the derived read-out's peak (``<readout>_yield_...``)
     call: str | None = None  # pass, fail or undecided (hcmt.design.calls)
-    call_interval_mpa: dict | None = None  # {lo, hi, from, model_readout}
+    call_interval_mpa: dict | None = None  # {lo, hi, from, model_readout[, trusted, reason]}
     verify: VerifyRow | None = None  # model against solver (hcmt.design.verification.verify_row)
     solver_plate_stress_history_mpa: list[float] | None = None
-    solver_warnings: list[str] | None = None
+    solver_warnings: list[str] | None = None  # a solver run's own summary: the design outside its validated ranges
     verified: bool | None = None
     solver_call: str | None = None
     final_call: str | None = None
-    extra: dict = field(default_factory=dict)  # contact_* / element_* read-out fields and any other key
 
-    def __post_init__(self) -> None:
-        object.__setattr__(self, "_keys", [k for k in KEYS if getattr(self, k) is not None])
-
-    @classmethod
-    def of(cls, values: Mapping) -> "Summary":
-        """A summary holding ``values`` (e.g. :func:`hcmt.design.readout.summarize_fields`'s dict), in order."""
-        out = cls()
-        out.update(values)
-        return out
-
-    def __setattr__(self, name: str, value) -> None:
-        object.__setattr__(self, name, value)
-        keys = self.__dict__.get("_keys")
-        if keys is not None and name in KEYS and name not in keys:
-            keys.append(name)
-
-    def __getitem__(self, key: str):
-        if key not in self._keys:
-            raise KeyError(key)
-        return getattr(self, key) if key in KEYS else self.extra[key]
-
-    def __setitem__(self, key: str, value) -> None:
-        if key in KEYS:
-            setattr(self, key, value)
-            return
-        self.extra[key] = value
-        if key not in self._keys:
-            self._keys.append(key)
-
-    def __delitem__(self, key: str) -> None:
-        if key not in self._keys:
-            raise KeyError(key)
-        self._keys.remove(key)
-        if key in KEYS:
-            object.__setattr__(self, key, None)
-        else:
-            del self.extra[key]
-
-    def __iter__(self) -> Iterator[str]:
-        return iter(list(self._keys))
-
-    def __len__(self) -> int:
-        return len(self._keys)
-
-    def __repr__(self) -> str:
-        return f"Summary({', '.join(f'{k}={self[k]!r}' for k in self)})"
+    @property
+    def chosen(self) -> ImpactQuantities | PlateReadout:
+        """The plate's peak block as the chosen read-out reports it: the derived one's, else the summary itself."""
+        return self.derived if self.derived is not None else self
 
     def to_json(self) -> dict:
-        """The keys set, in the order they were set: each design's block of the design check's JSON (``verify``:
-        :meth:`hcmt.design.verification.VerifyRow.to_json`)."""
-        return {k: self[k].to_json() if k == "verify" and hasattr(self[k], "to_json") else self[k] for k in self}
+        """Each design's block of the design check's JSON (module docstring): the one writer of a summary."""
+        out = {}
+        for f in fields(self):
+            v = getattr(self, f.name)
+            if f.name == "derived":
+                out.update(v.to_json(self.readout) if v is not None else {})
+            elif f.name == "derived_yield_margin_mpa":
+                out.update({f"{self.readout}_yield_margin_mpa": v} if v is not None else {})
+            elif f.name == "verify":
+                out.update({"verify": v.to_json()} if v is not None else {})
+            elif v is not None or f.name in ALWAYS or (f.name == "confidence" and self.model is not None):
+                out[f.name] = v
+        return out
 
 
-#: the typed keys of a summary (every field but ``extra``)
-KEYS = frozenset(f.name for f in fields(Summary) if f.name != "extra")
+#: the fields a summary's JSON always holds (a None among them written as null: ``contact_frames``)
+ALWAYS = frozenset(f.name for f in fields(ImpactQuantities)) | {"readout", "wall_s"}

@@ -10,16 +10,15 @@ log outputs, each standardized over the training designs:
 Its 95 % interval is ``exp(m_q + s_q (μ ± 1.96 σ))`` with the predictive σ of the white-noise-including kernel, so
 a design's answer is a central estimate and a band that is not symmetric in MPa. Inputs are the parameters that
 vary over the training designs (a parameter held fixed there is recorded with its value: the surrogate cannot learn
-what it never saw vary). The answers (:data:`QUANTITIES`) are those of :func:`hcmt.design.readout.summarize` on the
-solver's trajectories: peak plate and ball stress, maximum deflection, the time the plate first reaches 95 % of
+what it never saw vary). The answers (:data:`QUANTITIES`) are those of :func:`hcmt.design.readout.summarize_fields`
+on the solver's trajectories: peak plate and ball stress, maximum deflection, the time the plate first reaches 95 % of
 its peak and the time the ball leaves the plate (which bounds the mesh model's contact window:
 :func:`hcmt.design.readout.summarize_fields`).
 
-Stored without pickle (:meth:`Surrogate.save`, :meth:`Surrogate.load`): JSON with the kernel's hyperparameters,
-the training designs and their solver answers, and the transforms; loading refits the posterior with the stored
-hyperparameters (``optimizer=None``), so a loaded surrogate predicts what the fitted one did, to rounding. Format
-version 2 adds ``dataset`` (:func:`dataset_facts`: the training data's frame window and interval, families, stress
-field, units and how many runs the window ended before the ball left); version 1 files (no ``dataset``) still load.
+Stored without pickle (:meth:`Surrogate.save`, :meth:`Surrogate.load`; the format: :mod:`hcmt.design.surrogate_file`):
+loading refits the posterior with the stored hyperparameters (no optimizer run), so a loaded surrogate predicts what
+the fitted one did, to rounding. The process itself is :mod:`hcmt.design.gp`; the training data and what a surrogate
+records of it, :mod:`hcmt.design.surrogate_data`.
 A surrogate meets a model in :func:`for_run`: one that does not fit it (:meth:`Surrogate.check_model`) is refused,
 and one whose window is not known to be the model's never ends the model's read-out window.
 """
@@ -27,47 +26,28 @@ from __future__ import annotations
 
 import json
 import math
-import warnings
-from dataclasses import asdict, dataclass
+from dataclasses import asdict
 from pathlib import Path
 
 import numpy as np
-from sklearn.exceptions import ConvergenceWarning
-from sklearn.gaussian_process import GaussianProcessRegressor
-from sklearn.gaussian_process.kernels import RBF, ConstantKernel, WhiteKernel
 
 from hcmt.config import plural
-from hcmt.data.format import Split, read_meta
+from hcmt.data.format import read_meta
 from hcmt.data.runs import PRETRAINED_DIR
-from hcmt.design.basics import QUANTITIES, RESTARTS
-from hcmt.design.readout import summarize_fields
-from hcmt.errors import InputError, clip
+from hcmt.design.basics import QUANTITIES, RESTARTS  # noqa: F401 (QUANTITIES: hcmt.design.surrogate.QUANTITIES)
+from hcmt.design.gp import Z95, Interval, fit_gp, intervals  # noqa: F401 (Z95: re-exported)
+from hcmt.design.surrogate_data import (  # noqa: F401 (re-exported: hcmt.design.surrogate.dataset_facts, ...)
+    ANSWER_UNITS,
+    SurrogateError,
+    data_differences,
+    dataset_answers,
+    dataset_facts,
+    range_differences,
+)
+from hcmt.design.surrogate_file import FORMAT, READS, VERSION, document, parse_document, read_document  # noqa: F401
+from hcmt.errors import InputError
 from hcmt.files import atomic_path
-from hcmt.sim.cost import check_size
-from hcmt.sim.params import DESIGN_KEYS, DESIGN_UNITS, FIRST_SCENE_KEYS, Design, design_from_attrs
-
-FORMAT, VERSION = "hcmt-surrogate", 2
-READS = (1, 2)  # the format versions this hcmt loads (1: no "dataset" block)
-#: the unit of each answer (:data:`hcmt.design.basics.QUANTITIES`)
-ANSWER_UNITS = {"peak_plate_stress_mpa": "MPa", "peak_ball_stress_mpa": "MPa", "max_deflection_mm": "mm",
-                "peak_plate_t95_ms": "ms", "contact_end_ms": "ms"}
-Z95 = 1.959963984540054  # the standard normal's 97.5 % quantile: a central 95 % interval
-
-
-class SurrogateError(InputError):
-    """A surrogate file that cannot be used; the message names the file and what is wrong."""
-
-
-@dataclass
-class Interval:
-    """A surrogate's answer: central estimate and the central 95 % interval."""
-
-    mean: float
-    lo: float
-    hi: float
-
-    def covers(self, value: float) -> bool:
-        return self.lo <= value <= self.hi
+from hcmt.sim.params import DESIGN_KEYS, Design
 
 
 class Surrogate:
@@ -114,20 +94,11 @@ class Surrogate:
         self.y_mean = {q: float(np.log(v).mean()) for q, v in self.Y.items()}
         self.y_std = {q: float(max(np.log(v).std(), 1e-12)) for q, v in self.Y.items()}
         self.kernels: dict = {}
-        self._gps: dict[str, GaussianProcessRegressor] = {}
+        self._gps = {}
         z = self._z(self.X)
         for q, v in self.Y.items():
             y = (np.log(v) - self.y_mean[q]) / self.y_std[q]
-            hyper = (kernels or {}).get(q)
-            if hyper is None:
-                gp = GaussianProcessRegressor(_kernel(d), n_restarts_optimizer=restarts, random_state=seed)
-            else:
-                gp = GaussianProcessRegressor(_kernel(d, hyper), optimizer=None)
-            with warnings.catch_warnings():  # a length scale at its upper bound: that parameter does not matter
-                warnings.simplefilter("ignore", ConvergenceWarning)
-                gp.fit(z, y)
-            self._gps[q] = gp
-            self.kernels[q] = hyper or _hyper(gp.kernel_)
+            self._gps[q], self.kernels[q] = fit_gp(z, y, (kernels or {}).get(q), restarts, seed)
 
     # -- fitting ---------------------------------------------------------------------------------------------------
     @classmethod
@@ -189,14 +160,8 @@ class Surrogate:
         if not np.all(X[:, self._log] > 0):
             raise InputError("design parameters must be positive for the surrogate (log inputs)")
         z = self._z(X)
-        out: list[dict[str, Interval]] = [{} for _ in designs]
-        for q, gp in self._gps.items():
-            mu, sd = gp.predict(z, return_std=True)
-            m, s = self.y_mean[q], self.y_std[q]
-            for i in range(len(designs)):
-                out[i][q] = Interval(float(np.exp(m + s * mu[i])), float(np.exp(m + s * (mu[i] - Z95 * sd[i]))),
-                                     float(np.exp(m + s * (mu[i] + Z95 * sd[i]))))
-        return out
+        answers = {q: intervals(gp, z, self.y_mean[q], self.y_std[q]) for q, gp in self._gps.items()}
+        return [{q: v[i] for q, v in answers.items()} for i in range(len(designs))]
 
     def ranges(self) -> dict[str, tuple[float, float]]:
         """Min and max of every design parameter over the training designs (fixed ones: their value twice)."""
@@ -219,19 +184,9 @@ class Surrogate:
         return (f"Surrogate({len(self)} designs, parameters {self.parameters}, answers {list(self.Y)}"
                 + (f", from {self.source}" if self.source else "") + ")")
 
-    # -- storing ---------------------------------------------------------------------------------------------------
+    # -- storing (the format: hcmt.design.surrogate_file) -------------------------------------------------------------
     def to_dict(self) -> dict:
-        return {"format": FORMAT, "version": VERSION, "source": self.source,
-                **({"dataset": self.dataset} if self.dataset is not None else {}),
-                "model": "GaussianProcessRegressor: ConstantKernel * RBF(ARD) + WhiteKernel on standardized log "
-                         "inputs and log outputs; 95 % interval = exp(m + s (mu +- 1.96 sd))",
-                "parameters": self.parameters, "fixed": self.fixed,
-                "input_transform": {"kind": "log-standardize", "mean": self.x_mean.tolist(),
-                                    "std": self.x_std.tolist(), "linear": self.linear},
-                "output_transform": {q: {"kind": "log-standardize", "mean": self.y_mean[q], "std": self.y_std[q]}
-                                     for q in self.Y},
-                "kernels": self.kernels,
-                "designs": self.X.tolist(), "answers": {q: v.tolist() for q, v in self.Y.items()}}
+        return document(self)
 
     def save(self, path: str | Path) -> Path:
         """Write the surrogate as JSON, atomically."""
@@ -245,63 +200,11 @@ class Surrogate:
         """Read a surrogate written by :meth:`save` and refit its posterior with the stored hyperparameters (no
         optimizer run). A file that is missing, not JSON, truncated or inconsistent raises
         :class:`SurrogateError` naming it."""
-        path = Path(path)
-        if not path.is_file():
-            raise SurrogateError(f"{path}: no such surrogate file (make one with `hcmt surrogate fit DATA --out "
-                                 f"{path.name}`)")
-        try:
-            doc = json.loads(path.read_text(encoding="utf-8"))
-        except (UnicodeDecodeError, json.JSONDecodeError, RecursionError) as exc:
-            raise SurrogateError(f"{path}: not a surrogate JSON file (truncated or corrupt?): "
-                                 f"{str(exc).splitlines()[0][:200] if str(exc) else exc.__class__.__name__}") from None
-        return cls.from_dict(doc, where=str(path))
+        return cls.from_dict(read_document(Path(path)), where=str(path))
 
     @classmethod
     def from_dict(cls, doc, where: str = "surrogate") -> "Surrogate":
-        if not isinstance(doc, dict) or doc.get("format") != FORMAT:
-            raise SurrogateError(f"{where}: not an hcmt surrogate (expected \"format\": \"{FORMAT}\")")
-        if doc.get("version") not in READS:
-            raise SurrogateError(f"{where}: surrogate format version {doc.get('version')!r}, this hcmt reads "
-                                 f"{' and '.join(map(str, READS))}")
-        try:
-            params, fixed, designs = list(doc["parameters"]), dict(doc["fixed"]), doc["designs"]
-            answers, kernels = dict(doc["answers"]), dict(doc["kernels"])
-            unknown = [k for k in [*params, *fixed] if k not in DESIGN_KEYS]
-            if unknown:
-                raise SurrogateError(f"{where}: unknown design parameters {unknown}; expected some of "
-                                     f"{', '.join(DESIGN_KEYS)}")
-            X = np.asarray(designs, np.float64)
-            if X.ndim != 2 or X.shape[1] != len(params):
-                raise SurrogateError(f"{where}: \"designs\" must be a table of {len(params)} columns (the "
-                                     "parameters)")
-            for q, k in kernels.items():
-                ls = np.asarray(k["length_scales"], np.float64)
-                if ls.shape != (len(params),) or not all(
-                        np.isfinite(float(k[h])) and 0 < float(k[h]) <= 1e6 for h in ("constant", "noise")) \
-                        or not np.all(np.isfinite(ls) & (ls > 0)):
-                    raise SurrogateError(f"{where}: kernel of {q!r}: expected positive constant, noise and "
-                                         f"{len(params)} length scales")
-            if set(kernels) != set(answers):
-                raise SurrogateError(f"{where}: kernels for {sorted(kernels)} but answers for {sorted(answers)}")
-            transform = doc.get("input_transform") or {}
-            linear = transform.get("linear") or [] if isinstance(transform, dict) else None
-            if not isinstance(linear, list) or any(k not in params for k in linear):
-                raise SurrogateError(f"{where}: \"input_transform\": expected {{\"linear\": [parameters taken "
-                                     "linearly]}}")
-            for i, row in enumerate(X):  # each training design one hcmt could build (a 1e308 mm plate is none)
-                try:
-                    check_size(Design(**{**fixed, **dict(zip(params, map(float, row)))}).validate())
-                except InputError as exc:
-                    raise SurrogateError(f"{where}: training design {i + 1} is no design hcmt builds: "
-                                         f"{clip(exc, 160)}") from None
-            return cls(params, {k: float(v) for k, v in fixed.items()}, X, answers, kernels,
-                       source=str(doc.get("source", "")), linear=linear,
-                       dataset=_read_facts(doc["dataset"], where) if "dataset" in doc else None)
-        except SurrogateError:
-            raise
-        except (KeyError, TypeError, ValueError, OverflowError) as exc:
-            what = f"missing key {exc}" if isinstance(exc, KeyError) else str(exc).splitlines()[0][:200]
-            raise SurrogateError(f"{where}: not a usable surrogate: {what}") from None
+        return parse_document(doc, cls, where)
 
     # -- use against a model ---------------------------------------------------------------------------------------
     def check_parameters(self, ranges: dict[str, tuple[float, float]], where: str, param: str | None = None) -> None:
@@ -321,8 +224,8 @@ class Surrogate:
         parameters, training ranges that do not cover the model's, a parameter held at another value, and (when
         the file records its data, format 2) another frame window or interval, stress field, family or unit."""
         self.check_parameters(ranges, where, param)
-        differ = _data_differences(self.dataset, meta, stress_field) if self.dataset is not None and meta else []
-        narrow = self._range_differences(ranges)
+        differ = data_differences(self.dataset, meta, stress_field) if self.dataset is not None and meta else []
+        narrow = range_differences(self.ranges(), ranges)
         if narrow:
             others = [n.split(" ", 1)[0] for n in narrow[1:]]
             differ.append(f"its training ranges do not cover the model's: {narrow[0]}"
@@ -332,134 +235,15 @@ class Surrogate:
             raise SurrogateError(f"{where}: does not fit the model: {differ[0]}{more}; fit it on the model's own "
                                  "training data", param=param)
 
-    def _range_differences(self, ranges: dict[str, tuple[float, float]]) -> list[str]:
-        """Each parameter whose training range does not cover the model's, or held at another value."""
-        own = self.ranges()
-        out = []
-        for k, (lo, hi) in ranges.items():
-            if k not in own:
-                continue
-            a, b = own[k]
-            tol = 1e-6 * max(abs(lo), abs(hi), 1e-12)
-            if a > lo + tol or b < hi - tol:
-                out.append(f"{k} {a:.3g}..{b:.3g} vs {lo:.3g}..{hi:.3g}")
-        return out
 
-
-def dataset_facts(meta: dict, split: str, stress_field: str, answers: dict[str, list[float]]) -> dict:
-    """What a surrogate records of its training data (its ``dataset`` block): the frame window and interval, the
-    families of the split, the stress field, the units of the design parameters and answers, and ``censored``:
-    how many runs' window ended before the ball left (or before it touched), whose ``contact_end_ms`` is then the
-    window's, not the ball's."""
-    frames, dt = _window(meta)
-    ends = np.asarray(answers.get("contact_end_ms", []), np.float64)
-    censored = int(np.sum((ends >= (frames - 0.5) * dt) | (ends <= 1.5 * dt)))
-    return {"frames": frames, "frame_dt_ms": dt, "split": split, "families": _families(meta, split),
-            "stress_field": stress_field, "units": dict(DESIGN_UNITS), "answer_units": dict(ANSWER_UNITS),
-            "censored": censored, "runs": int(len(ends))}
-
-
-def _window(meta: dict | None) -> tuple[int, float]:
-    """(frames, frame interval in ms) of a dataset's meta.json (0, 0.0 when it records none)."""
-    settings = ((meta or {}).get("generator") or {}).get("settings") or {}
-    return int(settings.get("frames") or 0), float((meta or {}).get("dt") or settings.get("frame_dt") or 0.0)
-
-
-def _families(meta: dict | None, split: str = "train") -> list[str]:
-    """The design families of a dataset's split (``mono`` for data made before them)."""
-    listed = ((meta or {}).get("families") or {}).get(split) or ((meta or {}).get("generator") or {}).get("families")
-    return sorted(set(listed or ["mono"]))
-
-
-def _data_differences(facts: dict, meta: dict, stress_field: str) -> list[str]:
-    """What differs between a surrogate's recorded training data (``facts``) and a model's (``meta``)."""
-    frames, dt = _window(meta)
-    out = []
-    if facts["frames"] != frames or not math.isclose(facts["frame_dt_ms"], dt, rel_tol=1e-6):
-        out.append(f"fitted on a window of {facts['frames']} frames of {facts['frame_dt_ms']:g} ms, the model's is "
-                   f"{frames} frames of {dt:g} ms")
-    if facts["stress_field"] != stress_field:
-        out.append(f"fitted on {facts['stress_field']!r}, the model learned {stress_field!r}")
-    missing = sorted(set(_families(meta)) - set(facts["families"]))
-    if missing:
-        out.append(f"fitted on the families {', '.join(facts['families'])}, the model trained on "
-                   f"{', '.join(missing)} too")
-    units = [f"{k} in {u}" for k, u in {**facts["units"], **facts["answer_units"]}.items()
-             if {**DESIGN_UNITS, **ANSWER_UNITS}.get(k, u) != u]
-    if units:
-        out.append(f"its units differ ({', '.join(units[:3])})")
-    return out
-
-
-def _read_facts(facts, where: str) -> dict:
-    """A version 2 file's ``dataset`` block, checked."""
-    try:
-        out = dict(facts)
-        out.update(frames=int(out["frames"]), frame_dt_ms=float(out["frame_dt_ms"]),
-                   censored=int(out["censored"]), stress_field=str(out["stress_field"]),
-                   families=[str(f) for f in out["families"]],
-                   units=dict(out.get("units") or {}), answer_units=dict(out.get("answer_units") or {}))
-        if out["frames"] < 2 or not (math.isfinite(out["frame_dt_ms"]) and out["frame_dt_ms"] > 0) \
-                or out["censored"] < 0:
-            raise ValueError("frames >= 2, frame_dt_ms > 0 and censored >= 0 expected")
-        return out
-    except (KeyError, TypeError, ValueError) as exc:
-        what = f"missing key {exc}" if isinstance(exc, KeyError) else str(exc).splitlines()[0][:120]
-        raise SurrogateError(f"{where}: \"dataset\" block not usable ({what}); it is written by `hcmt surrogate "
-                             "fit`") from None
-
-
-def dataset_answers(data: str | Path, split: str = "train", limit: int | None = None, stress_field: str = "stress"
-                    ) -> tuple[list[Design], dict[str, list[float]]]:
-    """The designs of a dataset split (each trajectory's attributes) and their answers (:data:`QUANTITIES`, read
-    off the solver's trajectory by :func:`hcmt.design.readout.summarize_fields`); the first ``limit`` only;
-    ``stress_field``: the stress a model learned (``stress_max`` for ``generate --peak-stress`` data)."""
-    data = Path(data)
-    meta = read_meta(data)
-    frame_dt = _window(meta)[1]
-    designs, answers = [], {q: [] for q in QUANTITIES}
-    with Split(data, split, meta) as s:
-        count = len(s) if limit is None else min(limit, len(s))
-        for i in range(count):
-            attrs = s.attrs(i)
-            missing = [k for k in DESIGN_KEYS[:FIRST_SCENE_KEYS] if k not in attrs]
-            if missing:
-                raise InputError(f"{s.path} trajectory {s.names[i]}: no design parameters {missing} in its "
-                                 "attributes; a surrogate is fitted on hcmt-generated Impact Plate data")
-            designs.append(design_from_attrs(attrs))
-            fields = s[i]
-            if stress_field not in fields:
-                raise InputError(f"{s.path} trajectory {s.names[i]}: no field {stress_field!r} (a model that learned "
-                                 "stress_max needs data made by `hcmt generate --peak-stress`)")
-            summary = summarize_fields({**fields, "stress": fields[stress_field]}, frame_dt)
-            for q in QUANTITIES:
-                answers[q].append(summary[q])
-    return designs, answers
-
-
-def _kernel(d: int, hyper: dict | None = None):
-    """c² RBF(ℓ_1..ℓ_d) + σ_n², with the stored values when ``hyper`` is given."""
-    if hyper is None:
-        return (ConstantKernel(1.0, (1e-3, 1e3)) * RBF(np.ones(d), (1e-2, 1e3))
-                + WhiteKernel(1e-4, (1e-8, 1e-1)))
-    return (ConstantKernel(float(hyper["constant"]), "fixed") * RBF(np.asarray(hyper["length_scales"], float), "fixed")
-            + WhiteKernel(float(hyper["noise"]), "fixed"))
-
-
-def _hyper(kernel) -> dict:
-    """The fitted hyperparameters of :func:`_kernel`'s structure as plain numbers."""
-    prod, white = kernel.k1, kernel.k2
-    return {"constant": float(prod.k1.constant_value),
-            "length_scales": [float(v) for v in np.atleast_1d(prod.k2.length_scale)],
-            "noise": float(white.noise_level)}
-
-
-def side_by_side(summary: dict, interval: dict[str, Interval]) -> dict:
-    """The JSON block of a design's surrogate answers (``{q: {mean, lo, hi}}``) and ``disagreement``: the mesh
-    model's answer (``summary``) outside the surrogate's 95 % interval, per answer and for peak plate stress."""
+def side_by_side(summary, interval: dict[str, Interval]) -> dict:
+    """The surrogate's fields of a design's summary: its answers (``{q: {mean, lo, hi}}``) and ``disagreement``:
+    the mesh model's answer (``summary``) outside the surrogate's 95 % interval, per answer and for peak plate
+    stress."""
     block = {q: asdict(v) for q, v in interval.items()}
-    outside = {q: not v.covers(summary[q]) for q, v in interval.items() if q in summary and
-               isinstance(summary[q], (int, float)) and math.isfinite(summary[q])}
+    model = {q: getattr(summary, q, None) for q in interval}  # the model's own answers (a Summary's fields)
+    outside = {q: not v.covers(model[q]) for q, v in interval.items()
+               if isinstance(model[q], (int, float)) and math.isfinite(model[q])}
     return {"surrogate": block, "disagreement": bool(outside.get("peak_plate_stress_mpa", False)),
             "disagreement_by_answer": outside}
 

@@ -32,7 +32,8 @@ from hcmt.sim.params import DESIGN_UNITS, Design
 #: steps smaller than this share of a series' range count as flat in the monotonicity test
 TREND_TOL = 0.02
 QUANTITIES = {"peak_plate_stress_mpa": "peak plate stress (MPa)", "max_deflection_mm": "max deflection (mm)"}
-#: a trend agrees when its sign is the solver's and its size is within this share of the solver's (issue 35 item 5)
+#: a trend agrees when its sign is the solver's and its size is within this share of the solver's (a trend of the
+#: right sign but half the size would mislead a design choice)
 TREND_SIZE = 0.30
 
 
@@ -121,7 +122,7 @@ def analyse(check: Check, param: str, yield_mpa: float | None) -> dict:
         calls = {who: limit_call(params, np.array([chosen(s, "peak_plate_stress_mpa") for s in rows]), yield_mpa)
                  for who, rows in series.items()}
         # the model alone passes no point outside its training ranges (no interval was measured there)
-        inside = [p.summary["call_interval_mpa"].get("trusted", True) for p in check.preds]
+        inside = [p.summary.call_interval_mpa.get("trusted", True) for p in check.preds]
         model_ok = np.array([chosen(p.summary, "peak_plate_stress_mpa") < yield_mpa for p in check.preds]) & inside
         calls["model"] = limit_of(params, model_ok)
         if "solver" in calls:
@@ -132,7 +133,7 @@ def analyse(check: Check, param: str, yield_mpa: float | None) -> dict:
                 calls["within_one_step"] = a["side"] == b["side"]
             calls["unsafe"] = _unsafe(a, b)
         # the final calls: pass only where the trusted interval (or, where it ran, the solver) says so
-        final = [p.summary["final_call"] for p in check.preds]
+        final = [p.summary.final_call for p in check.preds]
         calls["final"] = {**limit_of(params, [c == "pass" for c in final]), "calls": final,
                           "undecided": [float(v) for v, c in zip(params, final) if c == "undecided"],
                           "solver_runs": check.solver_runs}
@@ -216,14 +217,14 @@ def plot_sweep(check: Check, analysis: dict, out_dir: str | Path, label: str) ->
     fig = new_figure(10, 4)
     axes = fig.subplots(1, 2)
     for ax, (q, name) in zip(axes, QUANTITIES.items()):
-        ax.plot(x, [p.summary[q] for p in check.preds], "o-", label=label)
-        if any(chosen(p.summary, q) != p.summary[q] for p in check.preds):  # a derived read-out, beside it
+        ax.plot(x, [getattr(p.summary, q) for p in check.preds], "o-", label=label)
+        if any(chosen(p.summary, q) != getattr(p.summary, q) for p in check.preds):  # a derived read-out, beside it
             ax.plot(x, [chosen(p.summary, q) for p in check.preds], "o:", label=f"{label} ({check.readout} read-out)")
         if check.truth is not None:
-            ran = [(v, t.summary[q]) for v, t in zip(x, check.truth) if t is not None]
+            ran = [(v, getattr(t.summary, q)) for v, t in zip(x, check.truth) if t is not None]
             if ran:
                 ax.plot(*zip(*ran), "s--", color="k", label="Solver")
-        band = [(v, p.summary["surrogate"][q]) for v, p in zip(x, check.preds) if q in p.summary.get("surrogate", {})]
+        band = [(v, p.summary.surrogate[q]) for v, p in zip(x, check.preds) if q in (p.summary.surrogate or {})]
         if band:
             xs, bs = zip(*band)
             ax.fill_between(xs, [b["lo"] for b in bs], [b["hi"] for b in bs], color="C1", alpha=0.25,

@@ -2,14 +2,15 @@
 it, per design (:func:`verify_row`, a :class:`VerifyRow`) and summarized over designs (:func:`verify_designs`)."""
 from __future__ import annotations
 
-from dataclasses import dataclass, field, fields
+from dataclasses import replace
 
 import numpy as np
 from tqdm import tqdm
 
 from hcmt.config import plural
 from hcmt.design.prediction import Prediction, summarize
-from hcmt.design.readout import DEFAULT_READOUT, history_correlation, readout_key
+from hcmt.design.readout import history_correlation
+from hcmt.design.summary import VerifyRow
 from hcmt.inference.metrics import impact_metrics, rollout_rmse, summarize_impact
 from hcmt.inference.quantities import plate_mask
 from hcmt.sim.cost import validated_warnings
@@ -30,51 +31,16 @@ def solve(designs: list[tuple[str, Design]], settings: Settings, stress_field: s
     out = []
     for name, design in designs:
         r = simulate(design, settings)
-        f = r["fields"]
+        f = r.fields
         p = Prediction(name, design, f["world_pos"], f[stress_field], f["mesh_pos"], f["cells"],
-                       f["node_type"].reshape(-1), r["info"]["wall_time"], modulus=f["modulus"].reshape(-1))
-        p.summary = summarize(p, settings.frame_dt)  # the solver's own quantities: the truth
-        p.summary["solver_warnings"] = validated_warnings(design)
+                       f["node_type"].reshape(-1), r.info.wall_time, modulus=f["modulus"].reshape(-1))
+        # the solver's own quantities: the truth
+        p.summary = replace(summarize(p, settings.frame_dt), solver_warnings=validated_warnings(design))
         out.append(p)
         bar.update(1)
     if own:
         bar.close()
     return out
-
-
-@dataclass(frozen=True)
-class VerifyRow:
-    """One design, model against solver: ``Prediction.summary.verify``. Stresses MPa, lengths mm (``_um``: µm),
-    times ms; errors signed (model - solver), in % of the solver's value where named ``_pct``, in frames where
-    ``_frame_error``. :meth:`to_json` is the design's ``verify`` block of the design check's JSON."""
-
-    solver_peak_plate_stress_mpa: float
-    solver_max_deflection_mm: float
-    # the physics block's (hcmt.inference.metrics.impact_metrics)
-    peak_plate_stress_error_pct: float
-    max_deflection_error_pct: float
-    model_rebounds: bool
-    solver_rebounds: bool
-    rebound_agrees: bool
-    peak_plate_frame_error: int
-    peak_ball_stress_error_pct: float
-    far_deflection_error_um: float
-    # read off the two summaries
-    peak_plate_location_error_mm: float
-    position_rmse_mm: float  # over the window: all nodes, the predicted frames
-    solver_peak_plate_t95_ms: float
-    peak_plate_t95_frame_error: int  # the rise time (first frame at 95 % of the plate's peak)
-    critical_node_history_correlation: float  # the model's stress history at the solver's peak node against it
-    solver_wall_s: float
-    speedup: float  # solver wall time / prediction wall time
-    solver_warnings: list[str] = field(default_factory=list)  # the design outside the solver's validated ranges
-    readout_errors: dict[str, float] = field(default_factory=dict)  # a derived read-out's peak error, by its name
-
-    def to_json(self) -> dict:
-        """The ``verify`` block: every field in order, a derived read-out's error under its own name
-        (``contact_peak_plate_stress_error_pct``) last."""
-        out = {f.name: getattr(self, f.name) for f in fields(self) if f.name != "readout_errors"}
-        return {**out, **self.readout_errors}
 
 
 #: the physics block's keys a verify row holds
@@ -89,24 +55,21 @@ def verify_row(p: Prediction, t: Prediction) -> tuple[VerifyRow, dict]:
     a, b = p.summary, t.summary
     phys = impact_metrics(p.world_pos, p.stress, t.world_pos, t.stress, plate_mask(t.cells, t.node_type), 2)
     derived = {}
-    key = readout_key("peak_plate_stress_mpa", a.get("readout", DEFAULT_READOUT))
-    if key in a and key != "peak_plate_stress_mpa":  # a derived read-out: its own error, under its own name
-        derived[key.replace("stress_mpa", "stress_error_pct")] = float(
-            100.0 * (a[key] - b["peak_plate_stress_mpa"]) / b["peak_plate_stress_mpa"])
+    if a.derived is not None:  # a derived read-out: its own error, under its own name
+        derived[f"{a.readout}_peak_plate_stress_error_pct"] = float(
+            100.0 * (a.derived.peak_plate_stress_mpa - b.peak_plate_stress_mpa) / b.peak_plate_stress_mpa)
     row = VerifyRow(
-        solver_peak_plate_stress_mpa=b["peak_plate_stress_mpa"],
-        solver_max_deflection_mm=b["max_deflection_mm"],
-        **{k: phys[k] for k in _PHYSICS},
-        peak_plate_location_error_mm=float(np.linalg.norm(np.subtract(a["peak_plate_where_mm"],
-                                                                      b["peak_plate_where_mm"]))),
+        solver_peak_plate_stress_mpa=b.peak_plate_stress_mpa,
+        solver_max_deflection_mm=b.max_deflection_mm,
+        **{k: getattr(phys, k) for k in _PHYSICS},
+        peak_plate_location_error_mm=float(np.linalg.norm(np.subtract(a.peak_plate_where_mm, b.peak_plate_where_mm))),
         position_rmse_mm=rollout_rmse(p.world_pos, t.world_pos, 2)["rmse_all"] / 1e3,
-        solver_peak_plate_t95_ms=b["peak_plate_t95_ms"],
-        peak_plate_t95_frame_error=int(a["peak_plate_t95_frame"] - b["peak_plate_t95_frame"]),
-        critical_node_history_correlation=history_correlation(p.stress[..., 0], t.stress[..., 0],
-                                                              b["peak_plate_node"]),
+        solver_peak_plate_t95_ms=b.peak_plate_t95_ms,
+        peak_plate_t95_frame_error=int(a.peak_plate_t95_frame - b.peak_plate_t95_frame),
+        critical_node_history_correlation=history_correlation(p.stress[..., 0], t.stress[..., 0], b.peak_plate_node),
         solver_wall_s=t.wall_s,
         speedup=t.wall_s / p.wall_s,
-        solver_warnings=list(b.get("solver_warnings", [])),
+        solver_warnings=list(b.solver_warnings or []),
         readout_errors=derived,
     )
     return row, phys
@@ -123,8 +86,8 @@ def verify_designs(preds: list[Prediction], truth: list[Prediction], measured: d
     for p, t in zip(preds, truth):
         row, phys = verify_row(p, t)
         physics.append(phys)
-        p.summary["verify"] = row
-        p.summary["solver_plate_stress_history_mpa"] = t.summary["plate_stress_history_mpa"]
+        p.summary = replace(p.summary, verify=row,
+                            solver_plate_stress_history_mpa=t.summary.plate_stress_history_mpa)
         rows.append(row.to_json())
 
     def stats(key):

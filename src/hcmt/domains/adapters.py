@@ -26,7 +26,7 @@ import numpy as np
 import torch
 from torch import Tensor
 
-from hcmt.config import DATASET_NAMES, Config, load_config
+from hcmt.config import DATASET_NAMES, NOISE_NODES, Config, load_config
 from hcmt.data.format import NODE_TYPE_SIZE, NodeType
 from hcmt.domains.updater import update_positions
 from hcmt.errors import InputError
@@ -125,7 +125,7 @@ DEFAULT_GAMMA = {"velocity": 1.0, "acceleration": 0.1}
 #: ``train.noise_nodes``: which nodes get training noise.
 #:   normal:    NORMAL nodes only (MeshGraphNets and the authors' HCMT code)
 #:   predicted: every position channel the model predicts (the ball's OBSTACLE nodes too; the symmetry line's y)
-NOISE_NODES = ("normal", "predicted")
+#: (the names: :data:`hcmt.config.NOISE_NODES`, imported above)
 
 
 def config_adapter(cfg: Config) -> Adapter:
@@ -232,7 +232,7 @@ def model_args(cfg: Config, model_name: str, meta: dict) -> dict:
     dimensions (meta.json), and its own settings (:data:`hcmt.models.REGISTRY`), from ``model:``."""
     adapter = config_adapter(cfg)
     widths = adapter.widths(int(meta["dimension"]), int(meta["features"]["mesh_pos"]["shape"][-1]))
-    if cfg.model.ablation and model_name != "hcmt":
+    if cfg.model.ablation and "ablation" not in REGISTRY[model_name].settings:
         raise InputError(f"model.ablation {cfg.model.ablation}: an ablation of HCMT; model {model_name} has none")
     if not cfg.data.remesh and not REGISTRY[model_name].needs_hierarchy:
         raise InputError(f"data.remesh false: it changes the coarse levels of HCMT's hierarchy; model {model_name} "
@@ -260,6 +260,8 @@ def build_for_dataset(name: str, dataset: str, **overrides) -> Simulator:
     """:func:`hcmt.models.build_model` with the dataset's widths (Table 9) and depths (Table 8); keywords override
     them."""
     spec = dataset_spec(dataset)
-    kwargs = dict(levels=spec["levels"], L_C=spec["L_C"]) if name.lower() == "hcmt" else {}
+    info = REGISTRY.get(name.lower())
+    depths = {"levels", "L_C"} <= set(info.settings) if info else False  # a model with HCMT's depth settings
+    kwargs = dict(levels=spec["levels"], L_C=spec["L_C"]) if depths else {}
     kwargs.update(overrides)
     return build_model(name, spec["node_in"], spec["mesh_in"], spec["contact_in"], spec["out"], **kwargs)

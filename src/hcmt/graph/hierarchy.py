@@ -26,22 +26,18 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components
 
-from hcmt.errors import DatasetError, InputError
+from hcmt.errors import InputError
 from hcmt.files import atomic_path
 from hcmt.graph.contact import object_ids
 from hcmt.graph.edges import cells_to_edges, undirected_to_edges
 from hcmt.graph.pooling import bistride_pool
-from hcmt.graph.quality import signed_measure
+from hcmt.graph.quality import MeshWarning, check_mesh, warn_defects  # noqa: F401 (read from here too)
 from hcmt.graph.remesh import Domain, delaunay_remesh, prepare_domain, two_hop_edges
 
 #: Bump when the algorithm or the file layout changes: cached hierarchies of other versions are not reused.
 #: 2: one flat ``.npy`` per hierarchy: a load took 1.3 ms against 8.2 ms for version 1's ``.npz`` of 23 members
 #: (cProfile, small preset, a loaded core), paid per training item by the per-item data path
 HIERARCHY_VERSION = 2
-
-
-class MeshWarning(UserWarning):
-    """A mesh defect that the hierarchy handles (degenerate or inverted cells, unreferenced nodes, ...)."""
 
 
 @dataclass(eq=False)
@@ -126,68 +122,6 @@ def unpool(coarse, fine, index):
     return out
 
 
-def check_mesh(mesh_pos, cells, node_type=None, *, warn: bool = True) -> tuple[np.ndarray, np.ndarray]:
-    """Validate a mesh; return ``(mesh_pos float64 [N, D], cells int64 [C, k])``.
-
-    Refused (:class:`~hcmt.errors.DatasetError`): wrong shapes, non-finite positions, cell indices out of
-    range, cells that are neither triangles nor tetrahedra or have more dimensions than the mesh space.
-    Handled, with a :class:`MeshWarning`: cells that repeat a vertex or have zero measure (they give edges but
-    no domain for the remeshing filter), inverted cells (orientation opposite to the rest of their object; the
-    hierarchy does not depend on orientation), nodes no cell references (each becomes an object of its own,
-    kept at every level).
-    """
-    pos = np.asarray(mesh_pos)
-    if pos.ndim != 2 or pos.shape[1] not in (2, 3) or not np.issubdtype(pos.dtype, np.number):
-        raise DatasetError(f"shape {list(pos.shape)}; expected [N, 2] or [N, 3] coordinates", field="mesh_pos")
-    pos = pos.astype(np.float64)
-    if not np.isfinite(pos).all():
-        bad = int(np.flatnonzero(~np.isfinite(pos).all(1))[0])
-        raise DatasetError(f"node {bad} has a non-finite coordinate", field="mesh_pos")
-    c = np.asarray(cells)
-    if c.ndim != 2 or c.shape[1] not in (3, 4) or (c.size and not np.issubdtype(c.dtype, np.integer)):
-        raise DatasetError(f"shape {list(c.shape)} dtype {c.dtype}; expected integer [C, 3] triangles or "
-                           "[C, 4] tetrahedra", field="cells")
-    c = c.astype(np.int64)
-    n = len(pos)
-    if c.size and (c.min() < 0 or c.max() >= n):
-        raise DatasetError(f"cell index out of range [{int(c.min())}, {int(c.max())}]; the mesh has {n} nodes",
-                           field="cells")
-    if c.shape[1] - 1 > pos.shape[1]:
-        raise DatasetError(f"{c.shape[1]}-vertex cells in a {pos.shape[1]}-D mesh space", field="cells")
-    if node_type is not None:
-        t = np.asarray(node_type)
-        if t.reshape(len(t), -1).shape != (n, 1):
-            raise DatasetError(f"shape {list(t.shape)}; expected [{n}] or [{n}, 1]", field="node_type")
-    if warn:
-        _warn_defects(pos, c, object_ids(c, n))
-    return pos, c
-
-
-def _warn_defects(pos: np.ndarray, cells: np.ndarray, object_id: np.ndarray) -> None:
-    n = len(pos)
-    degenerate = np.zeros(len(cells), bool)
-    for a, b in zip(*np.triu_indices(cells.shape[1], 1)):  # a repeated vertex: 3 or 6 column comparisons
-        degenerate |= cells[:, a] == cells[:, b]
-    unreferenced = np.flatnonzero(np.bincount(cells.ravel(), minlength=n) == 0)
-    inverted = np.zeros(len(cells), bool)
-    if cells.shape[1] - 1 == pos.shape[1] and len(cells):
-        vol = signed_measure(pos, cells)
-        edge = np.linalg.norm(pos[cells[:, 1:]] - pos[cells[:, :1]], axis=-1).max(1)
-        degenerate |= np.abs(vol) <= 1e-12 * edge ** pos.shape[1]
-        obj = object_id[cells[:, 0]]
-        sign = np.sign(vol)
-        majority = np.sign(np.bincount(obj, sign, obj.max() + 1))[obj]
-        inverted = (sign != 0) & (majority != 0) & (sign != majority) & ~degenerate
-    for count, what in ((degenerate.sum(), "degenerate cells (repeated vertex or zero measure), e.g. cell "
-                         f"{np.flatnonzero(degenerate)[:3].tolist()}; they give edges but no area"),
-                        (inverted.sum(), "inverted cells (orientation opposite to the rest of their object), e.g. "
-                         f"cell {np.flatnonzero(inverted)[:3].tolist()}; used as they are"),
-                        (len(unreferenced), "nodes referenced by no cell, e.g. node "
-                         f"{unreferenced[:3].tolist()}; each is an object of its own, kept at every level")):
-        if count:
-            warnings.warn(f"mesh has {int(count)} {what}", MeshWarning, stacklevel=3)
-
-
 def build_hierarchy(mesh_pos, cells, node_type=None, levels: int = 1, remesh: bool = True) -> Hierarchy:
     """Build ``levels`` (lambda) pooled levels of a mesh.
 
@@ -201,7 +135,7 @@ def build_hierarchy(mesh_pos, cells, node_type=None, levels: int = 1, remesh: bo
     pos, cells = check_mesh(mesh_pos, cells, node_type, warn=False)
     n0 = len(pos)
     obj = object_ids(cells, n0)
-    _warn_defects(pos, cells, obj)
+    warn_defects(pos, cells, obj)
     edges = [cells_to_edges(cells, n0)]
     nodes = [np.arange(n0, dtype=np.int64)]
     all_cells = [cells]

@@ -22,6 +22,9 @@ from hcmt.errors import InputError, RolloutError, clip
 from hcmt.files import atomic_path, ensure_space, read_json
 from hcmt.inference.metrics import (
     SCALE,
+    EvalMetrics,
+    ImpactMetrics,
+    Rmse,
     aggregate,
     format_physics,
     impact_metrics,
@@ -166,7 +169,7 @@ def rollout_file(run: Run | RunFolder, data, split: str, *, need: int | None = N
 
 
 def evaluate(run: Run, data, split: str = "test", *, limit: int | None = None, batch: int = 1,
-             compile: str = "auto", progress: bool = True) -> dict:
+             compile: str = "auto", progress: bool = True) -> EvalMetrics:
     """Paper metrics (and for Impact Plate the physics metrics) of a run on a split, written to
     ``RUN/metrics_<split>.json`` (``metrics_<split>@<data name>.json`` for a dataset other than the run's own);
     rolls out first if the rollout file is missing or stale. A dataset of another frame interval is refused;
@@ -198,23 +201,22 @@ def evaluate(run: Run, data, split: str = "test", *, limit: int | None = None, b
                 for key, curve in steps.items():
                     by_step[key].append(curve)
     means = aggregate([{k: v for k, v in r.items() if k != "trajectory"} for r in per_traj])
+    for row, phys in zip(per_traj, physics):
+        row["physics"] = phys.to_json()
     units = meta.get("units") or {}
-    metrics = {"split": split, "data": str(Path(data).resolve()), "trajectories": len(per_traj), "scale": SCALE,
-               "rmse_units": rmse_units(units),  # every RMSE below (and error_by_step) is ×scale: in these units
-               "units": {k: units[k] for k in ("length", "stress") if k in units}, "warnings": warnings}
-    for q in ("position", "stress"):
-        if f"{q}_rmse_all" in means:
-            metrics[q] = {k: means[f"{q}_{k}"] for k in ("rmse_1", "rmse_50", "rmse_all")}
-    metrics["inference_ms_per_step"] = float(np.median(ms))
-    metrics["train_ms_per_step"] = (folder.train_stats() or {}).get("train_ms_per_step")
-    if physics:
-        metrics["physics"] = summarize_impact(physics)
-        metrics["error_by_step"] = {k: np.mean(v, 0).tolist() for k, v in by_step.items()}
-        for row, phys in zip(per_traj, physics):
-            row["physics"] = phys
-    metrics["per_trajectory"] = per_traj
+    rmse = {q: Rmse(*(means[f"{q}_{k}"] for k in ("rmse_1", "rmse_50", "rmse_all")))
+            for q in ("position", "stress") if f"{q}_rmse_all" in means}
+    metrics = EvalMetrics(
+        split=split, data=str(Path(data).resolve()), trajectories=len(per_traj), scale=SCALE,
+        rmse_units=rmse_units(units),  # every RMSE (and error_by_step) is ×scale: in these units
+        units={k: units[k] for k in ("length", "stress") if k in units}, warnings=warnings,
+        position=rmse.get("position"), stress=rmse.get("stress"), inference_ms_per_step=float(np.median(ms)),
+        train_ms_per_step=(folder.train_stats() or {}).get("train_ms_per_step"),
+        physics=summarize_impact(physics) if physics else None,
+        error_by_step={k: np.mean(v, 0).tolist() for k, v in by_step.items()} if physics else None,
+        per_trajectory=per_traj)
     with atomic_path(folder.metrics_path(split, data)) as tmp:  # one file per split: never overwrites another's
-        tmp.write_text(json.dumps(metrics, indent=2))
+        tmp.write_text(json.dumps(metrics.to_json(), indent=2))
     return metrics
 
 
@@ -238,7 +240,7 @@ def validation_rmse(model, adapter, trajs, radius: float) -> dict:
     return out
 
 
-def impact_physics(pos, stress, truth: dict, start: int) -> tuple[dict, dict]:
+def impact_physics(pos, stress, truth: dict, start: int) -> tuple[ImpactMetrics, dict]:
     """(:func:`hcmt.inference.metrics.impact_metrics`, the position and stress error by step (×10³) of the ball, the
     contact zone and the far plate) of one Impact Plate rollout against its trajectory ``truth``."""
     plate = plate_mask(truth["cells"], truth["node_type"])
@@ -250,21 +252,20 @@ def impact_physics(pos, stress, truth: dict, start: int) -> tuple[dict, dict]:
     return impact_metrics(pos, stress, truth["world_pos"], truth["stress"], plate, start), steps
 
 
-def format_metrics(m: dict) -> str:
+def format_metrics(m: EvalMetrics) -> str:
     """The RMSE table at the scale metrics_<split>.json stores it (the paper's ×10³, in :func:`rmse_units`)."""
-    units = rmse_units(m.get("units") or {})
-    lines = [f"split {m['split']}: {plural(m['trajectories'], 'trajectory', 'trajectories')}, "
-             f"RMSE ×{SCALE:g} over the rollout's steps 1, 1-50 and all (as metrics_{m['split']}.json stores it)",
+    units = rmse_units(m.units or {})
+    lines = [f"split {m.split}: {plural(m.trajectories, 'trajectory', 'trajectories')}, "
+             f"RMSE ×{SCALE:g} over the rollout's steps 1, 1-50 and all (as metrics_{m.split}.json stores it)",
              f"  {'':<20}{'rmse_1':>12}{'rmse_50':>12}{'rmse_all':>12}"]
-    for q in ("position", "stress"):
-        if q in m:
+    for q, r in (("position", m.position), ("stress", m.stress)):
+        if r is not None:
             name = f"{q} [{units[q]}]"
-            lines.append(f"  {name:<20}"
-                         + "".join(f"{m[q][k]:>12.4g}" for k in ("rmse_1", "rmse_50", "rmse_all")))
-    lines.append(f"  inference {m['inference_ms_per_step']:.2f} ms/step"
-                 + (f", training {m['train_ms_per_step']:.2f} ms/step" if m.get("train_ms_per_step") else ""))
-    if "physics" in m:
-        lines += format_physics(m["physics"])
+            lines.append(f"  {name:<20}" + "".join(f"{v:>12.4g}" for v in (r.rmse_1, r.rmse_50, r.rmse_all)))
+    lines.append(f"  inference {m.inference_ms_per_step:.2f} ms/step"
+                 + (f", training {m.train_ms_per_step:.2f} ms/step" if m.train_ms_per_step else ""))
+    if m.physics is not None:
+        lines += format_physics(m.physics)
     return "\n".join(lines)
 
 

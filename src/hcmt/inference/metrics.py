@@ -18,6 +18,8 @@ zone (plate nodes within half the radius) and the far plate (:func:`impact_group
 """
 from __future__ import annotations
 
+from dataclasses import asdict, dataclass, field, fields
+
 import numpy as np
 
 from hcmt.config import plural
@@ -35,6 +37,49 @@ def rmse_units(units: dict) -> dict[str, str]:
     "MPa"}`` ("data units" where the data names none)."""
     return {q: f"{1 / SCALE:g} {units.get(key) or 'data units'}"
             for q, key in (("position", "length"), ("stress", "stress"))}
+
+
+@dataclass(frozen=True)
+class Rmse:
+    """The paper's three RMSEs of one quantity (×:data:`SCALE` of the data's units): steps 1, 1-50 and all."""
+
+    rmse_1: float
+    rmse_50: float
+    rmse_all: float
+
+
+@dataclass(frozen=True)
+class EvalMetrics:
+    """What :func:`hcmt.inference.evaluate.evaluate` measures of a run on a split; :meth:`to_json` is
+    ``metrics_<split>.json``. Every RMSE (and ``error_by_step``) is ×``scale``, in ``rmse_units``; ``physics``
+    (:func:`summarize_impact`) and ``error_by_step`` only for Impact Plate data with stress, ``stress`` only for
+    data with stress (None: not written)."""
+
+    split: str
+    data: str  # the dataset's folder, resolved
+    trajectories: int
+    scale: float
+    rmse_units: dict[str, str]
+    units: dict[str, str]  # the data's own (length, stress)
+    warnings: list[str]  # how the dataset differs from the run's training data
+    position: Rmse | None
+    stress: Rmse | None
+    inference_ms_per_step: float
+    train_ms_per_step: float | None  # None: the run folder records no training time
+    physics: dict | None = None
+    error_by_step: dict[str, list[float]] | None = None  # the ball, the contact zone, the far plate, by step
+    per_trajectory: list[dict] = field(default_factory=list)  # {trajectory, position_rmse_*, ..., physics}
+
+    def to_json(self) -> dict:
+        """The metrics file's document: the fields in order, ``position`` / ``stress`` / ``physics`` /
+        ``error_by_step`` left out where None."""
+        out = {}
+        for f in fields(self):
+            v = getattr(self, f.name)
+            if v is None and f.name in ("position", "stress", "physics", "error_by_step"):
+                continue
+            out[f.name] = asdict(v) if isinstance(v, Rmse) else v
+        return out
 
 
 def step_rmse(pred: np.ndarray, true: np.ndarray) -> np.ndarray:
@@ -70,9 +115,9 @@ def summarize_runs(metrics: list[dict]) -> dict:
     """Mean ± std over runs (seeds) of ``metrics.json`` dicts: ``{"position": {"rmse_1": {mean, std, n}, ...},
     "stress": ..., "train_ms_per_step": ..., "inference_ms_per_step": ...}`` (a missing time counts as NaN)."""
     out = {}
-    for field in ("position", "stress"):
-        if all(field in m for m in metrics):
-            out[field] = {k: mean_std(m[field][k] for m in metrics) for k in HORIZONS}
+    for name in ("position", "stress"):
+        if all(name in m for m in metrics):
+            out[name] = {k: mean_std(m[name][k] for m in metrics) for k in HORIZONS}
     for key in ("train_ms_per_step", "inference_ms_per_step"):
         out[key] = mean_std(np.nan if m.get(key) is None else m[key] for m in metrics)
     return out
@@ -89,33 +134,64 @@ def rollout_details(pred: np.ndarray, true: np.ndarray, start: int, groups: dict
 
 
 # -- Impact Plate: the physics an engineer reads (each quantity defined once, in hcmt.inference.quantities) -------
-def impact_metrics(pred_pos, pred_stress, true_pos, true_stress, plate: np.ndarray, start: int = 2) -> dict:
+@dataclass(frozen=True)
+class ImpactMetrics:
+    """One Impact Plate trajectory, model against solver (:func:`impact_metrics`): stresses MPa, lengths mm,
+    velocities mm per frame; errors signed (model - solver) in % of the solver's value, frames or µm as named.
+    :meth:`to_json` is its ``physics`` block in ``metrics_<split>.json``."""
+
+    model_ball_vy_end: float
+    model_rebounds: bool
+    solver_ball_vy_end: float
+    solver_rebounds: bool
+    rebound_agrees: bool
+    peak_plate_stress_mpa: float
+    solver_peak_plate_stress_mpa: float
+    peak_plate_stress_error_pct: float
+    peak_plate_frame_error: int
+    peak_ball_stress_mpa: float
+    solver_peak_ball_stress_mpa: float
+    peak_ball_stress_error_pct: float
+    max_deflection_mm: float
+    solver_max_deflection_mm: float
+    max_deflection_error_pct: float
+    far_deflection_error_um: float  # mean |u_y error| over the far plate's nodes and the predicted frames
+    far_deflection_error_pct: float  # that, in % of the solver's largest far-field deflection
+    model_ghost_ratio: float
+    solver_ghost_ratio: float
+
+    def to_json(self) -> dict:
+        """The fields in order, as the metrics file writes them."""
+        return asdict(self)
+
+
+def impact_metrics(pred_pos, pred_stress, true_pos, true_stress, plate: np.ndarray, start: int = 2) -> ImpactMetrics:
     """One Impact Plate trajectory, model (``pred_*``) against solver (``true_*``): positions [T, N, 2] mm,
     stress [T, N, 1] MPa, ``plate`` [N] bool (:func:`plate_mask`), ``start`` the first predicted frame; the rest
     positions are the solver's frame 0. Each quantity as :mod:`hcmt.inference.quantities` defines it."""
     pp, tp = np.asarray(pred_pos, np.float64), np.asarray(true_pos, np.float64)
     rest = tp[0]
-    out = {}
-    for who, x in (("model", pp), ("solver", tp)):
-        out[f"{who}_ball_vy_end"] = q.ball_vy_end(x, plate)  # mm per frame
-        out[f"{who}_rebounds"] = q.rebounds(x, plate)
-    out["rebound_agrees"] = out["model_rebounds"] == out["solver_rebounds"]
+    peaks = {}
     for body, mask in (("plate", plate), ("ball", ~plate)):
         (a, fa, _), (b, fb, _) = q.peak(pred_stress, mask), q.peak(true_stress, mask)
-        out[f"peak_{body}_stress_mpa"], out[f"solver_peak_{body}_stress_mpa"] = a, b
-        out[f"peak_{body}_stress_error_pct"] = float(100.0 * (a - b) / b)
-        if body == "plate":
-            out["peak_plate_frame_error"] = fa - fb
+        peaks[body] = (a, b, float(100.0 * (a - b) / b), fa - fb)
     a, b = q.max_deflection(pp, rest, plate), q.max_deflection(tp, rest, plate)
-    out["max_deflection_mm"], out["solver_max_deflection_mm"] = a, b
-    out["max_deflection_error_pct"] = float(100.0 * (a - b) / b)
     far = q.impact_groups(rest, plate)["far"]
     err = np.abs(q.deflection(pp, rest, far) - q.deflection(tp, rest, far))[start:]
-    out["far_deflection_error_um"] = float(err.mean() * 1e3)
-    out["far_deflection_error_pct"] = float(100.0 * err.mean() / max(q.far_deflection(tp, rest, plate), 1e-12))
-    for who, s in (("model", pred_stress), ("solver", true_stress)):
-        out[f"{who}_ghost_ratio"] = q.ghost_ratio(q.body_history(s, plate), q.peak(s, plate)[0])
-    return out
+    model_rebounds, solver_rebounds = q.rebounds(pp, plate), q.rebounds(tp, plate)
+    return ImpactMetrics(
+        model_ball_vy_end=q.ball_vy_end(pp, plate), model_rebounds=model_rebounds,
+        solver_ball_vy_end=q.ball_vy_end(tp, plate), solver_rebounds=solver_rebounds,
+        rebound_agrees=model_rebounds == solver_rebounds,
+        peak_plate_stress_mpa=peaks["plate"][0], solver_peak_plate_stress_mpa=peaks["plate"][1],
+        peak_plate_stress_error_pct=peaks["plate"][2], peak_plate_frame_error=peaks["plate"][3],
+        peak_ball_stress_mpa=peaks["ball"][0], solver_peak_ball_stress_mpa=peaks["ball"][1],
+        peak_ball_stress_error_pct=peaks["ball"][2],
+        max_deflection_mm=a, solver_max_deflection_mm=b, max_deflection_error_pct=float(100.0 * (a - b) / b),
+        far_deflection_error_um=float(err.mean() * 1e3),
+        far_deflection_error_pct=float(100.0 * err.mean() / max(q.far_deflection(tp, rest, plate), 1e-12)),
+        model_ghost_ratio=q.ghost_ratio(q.body_history(pred_stress, plate), q.peak(pred_stress, plate)[0]),
+        solver_ghost_ratio=q.ghost_ratio(q.body_history(true_stress, plate), q.peak(true_stress, plate)[0]))
 
 
 #: per-trajectory signed errors summarized by :func:`summarize_impact`
@@ -123,20 +199,20 @@ SIGNED = ("peak_plate_stress_error_pct", "peak_ball_stress_error_pct", "peak_pla
           "max_deflection_error_pct")
 
 
-def summarize_impact(rows: list[dict]) -> dict:
+def summarize_impact(rows: list[ImpactMetrics]) -> dict:
     """Over trajectories: rebound agreement (fraction, and how many rebound in model and solver); for each signed
     error the median of |error|, the median signed error, the 90th percentile of |error| and the worst (the signed
     error of largest magnitude); the far-field deflection error's median and worst."""
     out = {"trajectories": len(rows),
-           "rebound_agreement": float(np.mean([r["rebound_agrees"] for r in rows])),
-           "model_rebounds": int(sum(r["model_rebounds"] for r in rows)),
-           "solver_rebounds": int(sum(r["solver_rebounds"] for r in rows))}
+           "rebound_agreement": float(np.mean([r.rebound_agrees for r in rows])),
+           "model_rebounds": int(sum(r.model_rebounds for r in rows)),
+           "solver_rebounds": int(sum(r.solver_rebounds for r in rows))}
     for key in SIGNED:
-        v = np.asarray([r[key] for r in rows], np.float64)
+        v = np.asarray([getattr(r, key) for r in rows], np.float64)
         out[key] = {"median_abs": float(np.median(np.abs(v))), "median": float(np.median(v)),
                     "p90_abs": float(np.percentile(np.abs(v), 90)), "worst": float(v[np.argmax(np.abs(v))])}
     for key in ("far_deflection_error_um", "far_deflection_error_pct"):
-        v = np.asarray([r[key] for r in rows], np.float64)
+        v = np.asarray([getattr(r, key) for r in rows], np.float64)
         out[key] = {"median": float(np.median(v)), "worst": float(v.max())}
     return out
 

@@ -23,6 +23,8 @@ Every command that reports these (``hcmt evaluate``, ``hcmt predict`` / ``sweep`
 """
 from __future__ import annotations
 
+from dataclasses import asdict, dataclass
+
 import numpy as np
 
 from hcmt.data.format import NodeType
@@ -181,21 +183,53 @@ def rebounds(world_pos: np.ndarray, plate: np.ndarray) -> bool:
 
 
 # -- all of them ---------------------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class ImpactQuantities:
+    """Every quantity above of one trajectory (:func:`impact_summary`), under the names the design check's JSON
+    reports them by and in its order. Stresses MPa (von Mises), lengths mm, times ms."""
+
+    peak_plate_stress_mpa: float
+    peak_plate_where_mm: list[float]  # (r, y) of the peak's node at its frame
+    peak_plate_when_ms: float
+    peak_plate_frame: int
+    peak_plate_node: int
+    peak_ball_stress_mpa: float
+    peak_ball_where_mm: list[float]
+    peak_ball_when_ms: float
+    peak_ball_frame: int
+    peak_ball_node: int
+    peak_plate_t95_frame: int  # first frame at 95 % of the peak (the rise time)
+    peak_plate_t95_ms: float  # > 0: the surrogate takes its log
+    max_deflection_mm: float  # max |u_y| over the plate's nodes and frames
+    far_deflection_mm: float
+    contact_frames: list[int] | None  # [first, last] frame where the ball touches; None: it never does
+    contact_end_ms: float
+    ghost_ratio: float
+    rebounds: bool
+    plate_stress_history_mpa: list[float]  # the plate's peak stress per frame
+
+    def to_json(self) -> dict:
+        """The fields in order, as the JSON writes them."""
+        return asdict(self)
+
+
+def peak_values(stress, mask, world_pos, frame_dt: float, frames=None) -> tuple[float, list[float], float, int, int]:
+    """(stress, where, when, frame, node) of :func:`peak`: the node's position in that frame, the time in ms."""
+    value, t, node = peak(stress, mask, frames)
+    return value, [float(v) for v in world_pos[t, node]], float(t * frame_dt), t, node
+
+
 def impact_summary(world_pos: np.ndarray, stress: np.ndarray, rest: np.ndarray, plate: np.ndarray,
-                   frame_dt: float) -> dict:
-    """Every quantity above of one trajectory, under the names the design check's JSON reports them by."""
+                   frame_dt: float) -> ImpactQuantities:
+    """Every quantity above of one trajectory, as :class:`ImpactQuantities`."""
     x = np.asarray(world_pos)
-    out = {**peak_fields(stress, plate, x, frame_dt, "plate"), **peak_fields(stress, ~plate, x, frame_dt, "ball")}
+    plate_peak, ball_peak = peak_values(stress, plate, x, frame_dt), peak_values(stress, ~plate, x, frame_dt)
     history = body_history(stress, plate)
-    first = rise_frame(history, out["peak_plate_stress_mpa"])
-    out["peak_plate_t95_frame"] = first
-    out["peak_plate_t95_ms"] = float(max(first, 1) * frame_dt)  # > 0: the surrogate takes its log
-    out["max_deflection_mm"] = max_deflection(x, rest, plate)
-    out["far_deflection_mm"] = far_deflection(x, rest, plate)
+    first = rise_frame(history, plate_peak[0])
     gap = contact_gap(x, rest, plate)
-    out["contact_frames"] = contact_frames(gap)
-    out["contact_end_ms"] = float(contact_end_frame(gap) * frame_dt)
-    out["ghost_ratio"] = ghost_ratio(history, out["peak_plate_stress_mpa"])
-    out["rebounds"] = rebounds(x, plate)
-    out["plate_stress_history_mpa"] = [float(v) for v in history]
-    return out
+    return ImpactQuantities(
+        *plate_peak, *ball_peak, peak_plate_t95_frame=first, peak_plate_t95_ms=float(max(first, 1) * frame_dt),
+        max_deflection_mm=max_deflection(x, rest, plate), far_deflection_mm=far_deflection(x, rest, plate),
+        contact_frames=contact_frames(gap), contact_end_ms=float(contact_end_frame(gap) * frame_dt),
+        ghost_ratio=ghost_ratio(history, plate_peak[0]), rebounds=rebounds(x, plate),
+        plate_stress_history_mpa=[float(v) for v in history])

@@ -1,14 +1,13 @@
 """Learned simulators: HCMT (the paper's model), MeshGraphNets and Graph Transformer baselines.
 
 ``build_model(name, node_in, mesh_in, contact_in, out, ...)`` makes one; :data:`REGISTRY` says, per model name, its
-display label, whether it needs the mesh hierarchy and whether it returns attention maps;
+display label, whether it needs the mesh hierarchy and whether it returns attention maps, as each model declares it
+(:mod:`hcmt.models.registry`; adding a model: docs/extending.md);
 :func:`hcmt.domains.adapters.build_for_dataset` fills the widths (Table 9) and depths (Table 8) of a dataset. Every
 model maps a :class:`hcmt.graph.batch.Graph` to a normalized output ``[N, out]`` and owns its normalizers
 (``normalize_target``, ``denormalize``).
 """
 from __future__ import annotations
-
-from dataclasses import dataclass
 
 from hcmt.config import MODELS, ModelConfig
 from hcmt.errors import InputError
@@ -19,24 +18,12 @@ from .gt import GT
 from .hcmt import ABLATIONS, HCMT
 from .mgn import MGN
 from .normalizer import Normalizer
+from .registry import REGISTRY as _REGISTERED, ModelInfo
 
-
-@dataclass(frozen=True)
-class ModelInfo:
-    """What the rest of hcmt needs to know of a model without building it."""
-
-    label: str  # the display label everywhere (tables, legends, titles)
-    needs_hierarchy: bool  # HCMT: the mesh hierarchy (unless an ablation drops it)
-    has_attention: bool  # has attention maps (hcmt.models.attention.recording)
-    settings: tuple[str, ...]  # the ModelConfig keys it is built from (its constructor arguments besides widths)
-
-
-#: one table of the models: name (:data:`hcmt.config.MODELS`, in its order) -> :class:`ModelInfo`
-REGISTRY: dict[str, ModelInfo] = dict(zip(MODELS, (
-    ModelInfo("HCMT", True, True, ("ablation", "levels", "L_C", "hidden", "heads", "clip", "attention", "ffn_bias")),
-    ModelInfo("MGN", False, False, ("hidden", "blocks")),
-    ModelInfo("GT (Graph Transformer)", False, True, ("hidden", "blocks", "heads", "clip")),  # not "ground truth"
-)))
+#: one table of the models, name -> :class:`ModelInfo`, each entry declared by its model class
+#: (:func:`hcmt.models.registry.register`), in the order of :data:`hcmt.config.MODELS` (a name there that no model
+#: registers fails here, at import)
+REGISTRY: dict[str, ModelInfo] = {name: _REGISTERED[name] for name in MODELS}
 WIDTHS = ("node_in", "mesh_in", "contact_in", "out")
 
 
@@ -56,19 +43,18 @@ def build_model(name: str, node_in: int, mesh_in: int, contact_in: int, out: int
                 ffn_bias: bool = _M.ffn_bias) -> Simulator:
     """HCMT uses ``levels`` (λ; its HMT has ``L_H = 2λ + 1`` blocks) and ``L_C``; MGN and GT use ``blocks``; GT and
     HCMT use ``heads`` and ``clip``; ``ablation``, ``attention`` (``paper`` | ``official``) and ``ffn_bias`` are
-    HCMT's (the authors' code: ``official``, no FFN bias). The defaults are :class:`hcmt.config.ModelConfig`'s."""
+    HCMT's (the authors' code: ``official``, no FFN bias). The defaults are :class:`hcmt.config.ModelConfig`'s;
+    each model gets the arguments its :data:`REGISTRY` entry names."""
     check_mode(attention)
     name = name.lower()
-    if name == "hcmt":
-        return HCMT(node_in, mesh_in, contact_in, out, L_C=L_C, levels=levels, hidden=hidden, heads=heads,
-                    clip=clip, ablation=ablation, lpe_k=lpe_k, attention=attention, ffn_bias=ffn_bias)
-    if ablation not in (None, "", "none"):
+    info = REGISTRY.get(name)
+    if info is None:
+        raise InputError(f"unknown model {name!r}; expected one of {', '.join(REGISTRY)}")
+    if "ablation" not in info.arguments and ablation not in (None, "", "none"):
         raise InputError(f"ablations apply to HCMT only, got ablation={ablation!r} for model {name!r}")
-    if name == "mgn":
-        return MGN(node_in, mesh_in, contact_in, out, blocks=blocks, hidden=hidden)
-    if name == "gt":
-        return GT(node_in, mesh_in, contact_in, out, blocks=blocks, heads=heads, hidden=hidden, clip=clip)
-    raise InputError(f"unknown model {name!r}; expected one of {', '.join(MODELS)}")
+    given = dict(ablation=ablation, levels=levels, L_C=L_C, hidden=hidden, heads=heads, clip=clip, blocks=blocks,
+                 lpe_k=lpe_k, attention=attention, ffn_bias=ffn_bias)
+    return info.builder(node_in, mesh_in, contact_in, out, **{k: given[k] for k in info.arguments})
 
 
 def make_model(args: dict) -> Simulator:

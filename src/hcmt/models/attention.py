@@ -19,7 +19,7 @@ Choices where the paper is ambiguous (documented here once for CMT, HMT and the 
   the clipped query-key product by :math:`E\,e_{ij}`; hcmt follows the paper, the spec.
 * **Scale** :math:`\sqrt{d_k}` with :math:`d_k = d/H` the head width (the authors' code and Dwivedi & Bresson);
   the paper writes :math:`\sqrt{d_z}`, a constant factor the learned Q, K absorb.
-* **Softmax, not the authors' unnormalized** ``exp``: the issue and the paper's ``softmax_j`` ask for normalized
+* **Softmax, not the authors' unnormalized** ``exp``: the paper's ``softmax_j`` asks for normalized
   weights. It is numerically stable: :func:`torch_geometric.utils.softmax` subtracts the per-receiver maximum (the
   clip bounds only the query-key part; the edge term is unbounded).
 * The softmax weights :math:`a_{ij}` are what :func:`propagate` returns as attention weights; the gate
@@ -46,15 +46,16 @@ from __future__ import annotations
 
 import contextlib
 import math
-import re
 from dataclasses import dataclass
 
 from torch import Tensor, nn
 from torch_geometric.utils import scatter, softmax
 
+from hcmt.config import ATTENTION_MODES
 from hcmt.errors import InputError
 
-MODES = ("paper", "official")
+#: ``model.attention``'s modes, declared with the config's other choices (:mod:`hcmt.config.choices`)
+MODES = ATTENTION_MODES
 
 
 @dataclass
@@ -78,46 +79,56 @@ class AttentionMap:
 
 
 class AttentionTap(nn.Module):
-    """Where a block's attention weights pass (the identity): a forward hook (:func:`recording`) reads them there,
-    with their edges and branch, so ``forward`` returns outputs only."""
+    """Where a block's attention weights pass (the identity): a forward hook (:func:`recording`, on the taps the
+    model declares: :class:`TapSite`) reads them there, with their edges and branch, so ``forward`` returns outputs
+    only."""
 
     def forward(self, weights: Tensor, edges: Tensor, branch: str, normalized: bool) -> Tensor:
         return weights
 
 
-#: a tap's module path -> (name, stage, block, level); HMT's bottom block sits on level λ (the model's ``levels``)
-_SITES = ((r"cmt\.(\d+)\.tap", lambda n, b, lam: (f"cmt{n}.{b}", "cmt", n, 0)),
-          (r"hmt\.(down|up)\.(\d+)\.tap", lambda s, n, b, lam: (f"hmt.{s}{n}", s, n, n)),
-          (r"hmt\.bottom\.tap", lambda b, lam: (f"hmt.bottom{lam}", "bottom", lam, lam)),
-          (r"layers\.(\d+)\.tap", lambda n, b, lam: (f"gt{n}", "gt", n, 0)))
+@dataclass(eq=False)
+class TapSite:
+    """Where a model's :class:`AttentionTap` sits, as the model declares it (:meth:`attention_taps` of
+    :class:`~hcmt.models.base.Simulator`): the map's ``name`` (``{branch}`` is filled with the branch the block
+    passes: ``cmt0.{branch}``), its ``stage``, ``block`` number and hierarchy ``level``."""
+
+    tap: AttentionTap
+    name: str
+    stage: str
+    block: int = 0
+    level: int = 0
 
 
-def _site(path: str, branch: str, levels: int) -> tuple:
-    for pattern, site in _SITES:
-        m = re.fullmatch(pattern, path)
-        if m:
-            return site(*(int(g) if g.isdigit() else g for g in m.groups()), branch, levels)
-    raise InputError(f"attention tap {path!r}: not a CMT, HMT or GT block")
+def declared_taps(model: nn.Module) -> list[TapSite]:
+    """The model's declared taps, refusing a model with an :class:`AttentionTap` it does not declare (a model that
+    adds a tap must say where it sits, or its maps would be unnamed)."""
+    sites = list(model.attention_taps()) if hasattr(model, "attention_taps") else []
+    declared = {id(s.tap) for s in sites}
+    missing = [path for path, m in model.named_modules() if isinstance(m, AttentionTap) and id(m) not in declared]
+    if missing:
+        raise RuntimeError(f"{type(model).__name__} has attention taps it does not declare in attention_taps(): "
+                           f"{', '.join(missing[:4])}")
+    return sites
 
 
 @contextlib.contextmanager
 def recording(model: nn.Module):
     """While open, every forward of ``model`` appends one :class:`AttentionMap` per block and branch, in call order,
     to the list it yields (CMT: ``cmt{ℓ}.mesh`` / ``cmt{ℓ}.contact`` on level 0; HMT: ``hmt.down{l}`` /
-    ``hmt.bottom{λ}`` / ``hmt.up{l}`` on level ``l``; GT: ``gt{ℓ}``); forward hooks on the blocks' taps."""
+    ``hmt.bottom{λ}`` / ``hmt.up{l}`` on level ``l``; GT: ``gt{ℓ}``); forward hooks on the taps the model declares
+    (:func:`declared_taps`)."""
     maps, handles = [], []
-    levels = getattr(model, "levels", 0)
 
-    def hook_for(path):
+    def hook_for(site: TapSite):
         def hook(tap, args, weights):
             edges, branch, normalized = args[1:]
-            name, stage, block, level = _site(path, branch, levels)
-            maps.append(AttentionMap(name, level, edges, weights, normalized, stage, block, branch))
+            maps.append(AttentionMap(site.name.format(branch=branch), site.level, edges, weights, normalized,
+                                     site.stage, site.block, branch))
         return hook
 
-    for path, module in model.named_modules():
-        if isinstance(module, AttentionTap):
-            handles.append(module.register_forward_hook(hook_for(path)))
+    for site in declared_taps(model):
+        handles.append(site.tap.register_forward_hook(hook_for(site)))
     try:
         yield maps
     finally:

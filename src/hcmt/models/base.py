@@ -129,6 +129,13 @@ class Simulator(nn.Module):
             return checkpoint(block, *args, use_reentrant=False)
         return block(*args)
 
+    def attention_taps(self) -> list:
+        """Every :class:`~hcmt.models.attention.AttentionTap` of the model with where it sits
+        (:class:`~hcmt.models.attention.TapSite`: map name, stage, block, level), in no particular order;
+        :func:`~hcmt.models.attention.recording` hooks these and refuses a model with a tap it does not list.
+        None by default: a model without attention (MGN)."""
+        return []
+
     def __init__(self, node_in: int, mesh_in: int, contact_in: int, out: int, *, hidden: int = 128):
         super().__init__()
         for name, size in (("node_in", node_in), ("mesh_in", mesh_in), ("contact_in", contact_in), ("out", out),

@@ -27,9 +27,10 @@ from torch_geometric.utils import scatter, softmax
 from hcmt.errors import InputError
 from hcmt.graph.batch import Graph
 
-from .attention import AttentionTap
+from .attention import AttentionTap, TapSite
 from .base import Simulator
 from .mlp import ffn
+from .registry import register
 
 
 class GTLayer(nn.Module):
@@ -67,6 +68,8 @@ class GTLayer(nn.Module):
         return h, e
 
 
+@register("gt", "GT (Graph Transformer)", has_attention=True,  # the label: not "ground truth"
+          settings=("hidden", "blocks", "heads", "clip"))
 class GT(Simulator):
     r"""Graph Transformer (Dwivedi & Bresson 2021), the paper's attention baseline: encode, ``blocks`` layers of
     clipped edge-gated attention over mesh and contact edges together (one softmax per receiver), edges updated
@@ -90,6 +93,10 @@ class GT(Simulator):
         if blocks < 1:
             raise InputError(f"GT needs at least one layer, got {blocks}")
         self.layers = nn.ModuleList(GTLayer(hidden, heads, clip, update_edges=n < blocks - 1) for n in range(blocks))
+
+    def attention_taps(self) -> list[TapSite]:
+        """Layer ℓ's map ``gt{ℓ}`` on level 0, over mesh and contact edges together."""
+        return [TapSite(layer.tap, f"gt{n}", "gt", n, 0) for n, layer in enumerate(self.layers)]
 
     def forward(self, graph: Graph, accumulate: bool | None = None) -> Tensor:
         """Normalized output ``[N, out]`` (:func:`~hcmt.models.attention.recording` collects one

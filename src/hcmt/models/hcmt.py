@@ -42,10 +42,11 @@ from hcmt.errors import DatasetError, InputError
 from hcmt.graph.batch import Graph
 from hcmt.graph.hierarchy import pool as pool_nodes, unpool
 
-from .attention import check_mode
+from .attention import TapSite, check_mode
 from .base import Simulator
 from .block import TransformerBlock
 from .lpe import LaplacianPE
+from .registry import register
 
 
 class HMT(nn.Module):
@@ -83,6 +84,8 @@ class HMT(nn.Module):
         return h
 
 
+@register("hcmt", "HCMT", needs_hierarchy=True, has_attention=True, extra=("lpe_k",),
+          settings=("ablation", "levels", "L_C", "hidden", "heads", "clip", "attention", "ffn_bias"))
 class HCMT(Simulator):
     r"""The Hierarchical Contact Mesh Transformer (paper §3.2, module docstring): encode, :math:`L_C` CMT blocks over
     level-0 mesh and contact edges (eqs. 1–4), an HMT U over :math:`\lambda` pooled levels,
@@ -134,6 +137,17 @@ class HCMT(Simulator):
         self.lpe = LaplacianPE(hidden, lpe_k) if ablation == "lpe" else None
         if not self.cmt:  # only-hmt never sees contact edges: no unused parameters
             self.contact_encoder = None
+
+    def attention_taps(self) -> list[TapSite]:
+        """CMT block ℓ's branches ``cmt{ℓ}.mesh`` / ``cmt{ℓ}.contact`` on level 0; HMT's ``hmt.down{l}`` and
+        ``hmt.up{l}`` on level ``l``, ``hmt.bottom{λ}`` on level λ."""
+        sites = [TapSite(b.tap, f"cmt{n}.{{branch}}", "cmt", n, 0) for n, b in enumerate(self.cmt)]
+        if self.hmt is not None:
+            lam = self.levels
+            sites += [TapSite(b.tap, f"hmt.{stage}{n}", stage, n, n)
+                      for stage in ("down", "up") for n, b in enumerate(getattr(self.hmt, stage))]
+            sites.append(TapSite(self.hmt.bottom.tap, f"hmt.bottom{lam}", "bottom", lam, lam))
+        return sites
 
     @property
     def uses_hierarchy(self) -> bool:

@@ -22,6 +22,7 @@ from hcmt.graph.batch import Graph
 
 from .base import Simulator
 from .mlp import mlp
+from .registry import register
 
 
 class MGNBlock(nn.Module):
@@ -55,6 +56,7 @@ class MGNBlock(nn.Module):
         return z, e + de, s + ds
 
 
+@register("mgn", "MGN", settings=("hidden", "blocks"))
 class MGN(Simulator):
     r"""MeshGraphNets (Pfaff et al. 2021), the paper's baseline: encode, ``blocks`` message-passing blocks that
     update mesh edges, contact edges and nodes (:math:`e'_{ij} = f(e_{ij}, v_i, v_j)`,

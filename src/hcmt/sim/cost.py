@@ -7,7 +7,8 @@ from __future__ import annotations
 import numpy as np
 
 from hcmt.errors import InputError
-from hcmt.sim.params import BACKING_DENSITY, BACKING_POISSON, MAX_ESTIMATED_SECONDS, Design, Settings
+from hcmt.sim.families import features
+from hcmt.sim.params import MAX_ESTIMATED_SECONDS, Design, Settings
 from hcmt.sim.scene import design_mesh, fem_model
 from hcmt.sim.solver import stable_time_step
 
@@ -49,18 +50,12 @@ def estimate(design: Design, settings: Settings = Settings()) -> dict:
     overflow."""
     with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
         h, L, r = (float(v) for v in (design.mesh_size, design.plate_half_length, design.impactor_radius))
-        layers = [(float(t), rho, E, nu) for t, rho, E, nu in design.layers]
-        if design.backing_thickness > 0:
-            layers.append((float(design.backing_thickness), BACKING_DENSITY, design.backing_modulus,
-                           BACKING_POISSON))
+        under = [layer for f in features(design) for layer in f.under(design)]  # a backing's rows
+        layers = [(float(t), rho, E, nu) for t, rho, E, nu in [*design.layers, *under]]
         rows = [max(1.0, t / h) for t, *_ in layers]
         rows[0] += max(0.0, 4.0 - sum(rows[:len(design.layers)]))  # at least 4 rows through the panel
-        if design.pen_tip_radius > 0:  # quarter disk at min(h, r / 3)
-            hb = min(h, r / 3.0)
-            impactor = np.pi * r * r / (4.0 * hb * hb) + 2.0 * r / hb + 1.0
-        else:
-            hb = h
-            impactor = np.pi * r * r / (2.0 * h * h) + 2.0 * r / h + 1.0
+        own = [c for c in (f.cost(design, h) for f in features(design)) if c is not None]  # the pen's tip
+        hb, impactor = own[0] if own else (h, np.pi * r * r / (2.0 * h * h) + 2.0 * r / h + 1.0)
         nodes = (L / h + 1.0) * (sum(rows) + 1.0) + impactor
         speeds = [np.sqrt(E * (1 - nu) / (rho * (1 + nu) * (1 - 2 * nu))) for _, rho, E, nu in layers]
         ball = np.sqrt(design.ball_modulus * (1 - design.ball_poisson) / (

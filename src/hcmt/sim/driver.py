@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import time
-from dataclasses import asdict
+from dataclasses import asdict, dataclass
 
 import numpy as np
 
@@ -13,6 +13,31 @@ from hcmt.sim.cost import check_size
 from hcmt.sim.params import Design, Settings
 from hcmt.sim.scene import design_mesh, fem_model, fixed_dofs, static_fields
 from hcmt.sim.solver import CentralDifference, deformation, nodal_von_mises, stable_time_step
+
+
+@dataclass(frozen=True)
+class SolveInfo:
+    """How a solve went: wall and CPU time (s), substeps over the window, the time step (ms), the mesh's size and
+    the final energies (mJ: kinetic, strain, contact penalty, gravity potential, ...)."""
+
+    wall_time: float
+    cpu_time: float
+    substeps: int
+    dt: float
+    num_nodes: int
+    num_cells: int
+    energy: dict[str, float]
+
+
+@dataclass(frozen=True)
+class SimResult:
+    """One design's solved trajectory (:func:`simulate`): ``fields``, the native-format arrays; ``attrs``, the
+    design parameters, its impact speed, the formulation and the family (a trajectory's attributes in the HDF5
+    file); ``info``, how the solve went."""
+
+    fields: dict[str, np.ndarray]
+    attrs: dict[str, float | str]
+    info: SolveInfo
 
 
 class SolverError(InputError):
@@ -37,10 +62,10 @@ def solver(design: Design, settings: Settings = Settings()) -> tuple[CentralDiff
     return sim, mesh, substeps
 
 
-def simulate(design: Design, settings: Settings = Settings(), *, progress=None) -> dict:
-    """Simulate one design. Returns ``fields`` (the native-format arrays: mesh_pos, cells, node_type, density,
-    modulus static; world_pos [T,N,2], stress [T,N,1] dynamic; float32/int32), ``attrs`` (the design parameters,
-    its impact speed and the formulation) and ``info`` (wall and CPU time, substeps, time step, final energies).
+def simulate(design: Design, settings: Settings = Settings(), *, progress=None) -> SimResult:
+    """Simulate one design, as a :class:`SimResult`: ``fields`` (the native-format arrays: mesh_pos, cells,
+    node_type, density, modulus static; world_pos [T,N,2], stress [T,N,1] dynamic; float32/int32), ``attrs`` (the
+    design parameters, its impact speed and the formulation) and ``info`` (:class:`SolveInfo`).
 
     Frame k is the state at t = k * frame_dt; frame 0 the initial one. ``stress`` is the nodal von Mises stress
     (MPa): element Cauchy stress, the out-of-plane (hoop) component included, area-averaged to the nodes of its
@@ -84,6 +109,7 @@ def simulate(design: Design, settings: Settings = Settings(), *, progress=None) 
         fields_["stress_max"] = peak
     attrs = {**asdict(design), "impact_speed": design.impact_speed, "formulation": settings.formulation,
              "family": design.family}
-    info = dict(wall_time=time.perf_counter() - start, cpu_time=time.process_time() - cpu_start,
-                substeps=substeps * (T - 1), dt=dt, num_nodes=N, num_cells=len(cells), energy=sim.energies())
-    return dict(fields=fields_, attrs=attrs, info=info)
+    info = SolveInfo(wall_time=time.perf_counter() - start, cpu_time=time.process_time() - cpu_start,
+                     substeps=substeps * (T - 1), dt=float(dt), num_nodes=N, num_cells=len(cells),
+                     energy={k: float(v) for k, v in sim.energies().items()})
+    return SimResult(fields_, attrs, info)

@@ -77,18 +77,25 @@ def dataset_meta(preset: str, seed: int, counts: dict[str, int], settings: Setti
                      units=UNITS, generator=generator, dataset="impact_plate")
 
 
-def _run_one(task: tuple) -> tuple[str, int, float]:
-    """Worker: simulate one trajectory and write its part file atomically (spawn-safe, top level)."""
-    out, meta, preset, seed, split, index, settings = task
+def impact_trajectory(meta: dict, preset: str, seed: int, split: str, index: int, settings: dict) -> tuple:
+    """(fields, attrs) of Impact Plate trajectory ``index`` of ``split``."""
     variant = split if split in VARIANTS else None
     edges = float(meta["generator"].get("edge_fraction", 0.0)) if split == "train" else 0.0
     design = sample_design(trajectory_rng(seed, split, index), preset, variant, edges,
                            family=trajectory_family(meta, index))
     result = simulate(design, Settings(**settings))
+    return result.fields, result.attrs
+
+
+def _run_one(task: tuple) -> tuple[str, int]:
+    """Worker: simulate one trajectory with the task's top-level ``trajectory`` function (``(meta, preset, seed,
+    split, index, settings) -> (fields, attrs)``) and write its part file atomically (spawn-safe, top level)."""
+    out, meta, preset, seed, split, index, settings, trajectory = task
+    fields, attrs = trajectory(meta, preset, seed, split, index, settings)
     part = Path(out) / ".parts" / split / f"{index:05d}.h5"
     part.parent.mkdir(parents=True, exist_ok=True)
-    write_split(part, meta, [(trajectory_name(index), result["fields"], result["attrs"])])
-    return split, index, result["info"]["wall_time"]
+    write_split(part, meta, [(trajectory_name(index), fields, attrs)])
+    return split, index
 
 
 def _ignore_sigint() -> None:
@@ -163,9 +170,18 @@ def generate_dataset(out, *, preset: str = "small", counts: dict[str, int], seed
     families, counts = _checked_arguments(preset, counts, workers, edge_fraction, families, settings)
     design, cost = generation_cost(preset, families, settings)
     check_cost(cost["estimated_s"], cost["num_nodes"], design, force, what=" per trajectory")
-    out = Path(out)
     meta = dataset_meta(preset, seed, counts, settings, edge_fraction, families)
     meta["families"] = {split: [trajectory_family(meta, i) for i in range(n)] for split, n in counts.items()}
+    return write_dataset(out, meta, counts, (preset, int(seed), asdict(settings), impact_trajectory), workers,
+                         progress, f"impact-plate {preset}")
+
+
+def write_dataset(out, meta: dict, counts: dict[str, int], job: tuple, workers: int, progress: bool,
+                  desc: str) -> dict:
+    """Write (or finish) the dataset ``meta`` describes in ``out``, one part file per trajectory: ``job`` is
+    ``(preset, seed, settings dict, trajectory function)`` (:func:`_run_one`). Any problem's generator: resumable,
+    parallel, locked, grown only with the same generator settings."""
+    out = Path(out)
     if out.exists() and not out.is_dir():
         raise InputError(f"{out}: is a file; name a folder for the dataset", param="out")
     if (out / "meta.json").is_file():
@@ -174,8 +190,8 @@ def generate_dataset(out, *, preset: str = "small", counts: dict[str, int], seed
         if (out / "meta.json").is_file():  # again under the lock: a generate that just ended may have grown it
             _check_growth(out, read_meta(out), meta, counts)
         write_meta(out, meta)
-        todo, done_splits, skipped = _tasks(out, meta, preset, seed, counts, settings)
-        _run_all(todo, workers, progress, f"impact-plate {preset}")
+        todo, done_splits, skipped = _tasks(out, meta, counts, job)
+        _run_all(todo, workers, progress, desc)
         for split, n in counts.items():
             if split not in done_splits:
                 done_splits[split] = _assemble(out, meta, split, n)
@@ -222,20 +238,27 @@ def _checked_arguments(preset: str, counts: dict[str, int], workers: int, edge_f
         raise InputError(f"must be in [0, 1], got {edge_fraction}", param="edge_fraction")
     if preset not in RANGES:
         raise InputError(f"unknown preset {preset!r}; expected one of {sorted(RANGES)}")
+    counts = checked_counts(counts, workers)
+    if not isinstance(settings, Settings):
+        raise InputError(f"must be an hcmt.Settings(...), got a {type(settings).__name__}", param="settings")
+    settings.validate()
+    return families, counts
+
+
+def checked_counts(counts: dict[str, int], workers: int, splits: tuple[str, ...] = SPLITS) -> dict[str, int]:
+    """The positive trajectory counts, after refusing an unknown split, a count out of bounds, a worker count
+    beyond the machine's cores, or nothing to do (each in one line naming its parameter)."""
     for split, n in counts.items():
-        if split not in SPLITS:
-            raise InputError(f"unknown split {split!r}; expected one of {SPLITS}")
+        if split not in splits:
+            raise InputError(f"unknown split {split!r}; expected one of {splits}")
         if not 0 <= int(n) <= MAX_TRAJECTORIES:
             raise InputError(f"{split}: expected 0 to {MAX_TRAJECTORIES:,} trajectories, got {n}", param="counts")
     if not 1 <= int(workers) <= machine_cores():
         raise InputError(f"must be 1 to this machine's {machine_cores()} cores, got {workers}", param="workers")
-    if not isinstance(settings, Settings):
-        raise InputError(f"must be an hcmt.Settings(...), got a {type(settings).__name__}", param="settings")
-    settings.validate()
     counts = {k: int(v) for k, v in counts.items() if int(v) > 0}
     if not counts:
         raise InputError("nothing to generate: every trajectory count (train, valid, test) is 0")
-    return families, counts
+    return counts
 
 
 def _check_growth(out: Path, old: dict, meta: dict, counts: dict[str, int]) -> None:
@@ -254,8 +277,7 @@ def _check_growth(out: Path, old: dict, meta: dict, counts: dict[str, int]) -> N
                            "least as many, or choose another output folder", file=out / "meta.json")
 
 
-def _tasks(out: Path, meta: dict, preset: str, seed: int, counts: dict[str, int],
-           settings: Settings) -> tuple[list[tuple], dict[str, Path], int]:
+def _tasks(out: Path, meta: dict, counts: dict[str, int], job: tuple) -> tuple[list[tuple], dict[str, Path], int]:
     """(the trajectories still to simulate, as :func:`_run_one` tasks; the splits already complete; how many
     trajectories are done). A complete split's leftover parts are removed."""
     todo, done_splits, skipped = [], {}, 0
@@ -270,7 +292,8 @@ def _tasks(out: Path, meta: dict, preset: str, seed: int, counts: dict[str, int]
             if i < have or (out / ".parts" / split / f"{i:05d}.h5").is_file():
                 skipped += 1
             else:
-                todo.append((str(out), meta, preset, int(seed), split, i, asdict(settings)))
+                preset, seed, settings, trajectory = job
+                todo.append((str(out), meta, preset, seed, split, i, settings, trajectory))
     return todo, done_splits, skipped
 
 

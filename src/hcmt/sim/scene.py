@@ -19,24 +19,27 @@ from __future__ import annotations
 
 import numpy as np
 
+from hcmt.sim.families import features
 from hcmt.sim.mesh import HANDLE, SYMMETRIC, WALL_BOUNDARY, impact_plate_mesh
-from hcmt.sim.params import BACKING_DENSITY, BACKING_POISSON, Design, Settings
+from hcmt.sim.params import Design, Settings
 from hcmt.sim.solver import build_model
 
 
 def design_mesh(design: Design) -> dict[str, np.ndarray]:
+    """The design's mesh: the first scene's lengths, the panel's layers, and each family feature's own arguments
+    of :func:`~hcmt.sim.mesh.impact_plate_mesh` (:meth:`hcmt.sim.families.Feature.mesh`: a ring's radius, a
+    backing's thickness, the pen)."""
+    extra = {k: v for f in features(design) for k, v in f.mesh(design).items()}
     return impact_plate_mesh(design.thickness, design.impactor_radius, design.mesh_size,
                              plate_half_length=design.plate_half_length, gap=design.gap,
-                             layers=[layer[0] for layer in design.layers], support_radius=design.support_radius,
-                             backing_thickness=design.backing_thickness, impactor=design.impactor)
+                             layers=[layer[0] for layer in design.layers], **extra)
 
 
 def cell_materials(design: Design, mesh: dict) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(density, modulus, Poisson) per cell [C] from the mesh's ``cell_layer``: the panel's layers, the backing
     (last), the impactor (-1: the ball_* material)."""
-    table = np.array([layer[1:] for layer in design.layers]
-                     + ([(BACKING_DENSITY, design.backing_modulus, BACKING_POISSON)] if design.backing_thickness > 0
-                        else [])
+    under = [layer for f in features(design) for layer in f.under(design)]  # a backing's (Feature.under)
+    table = np.array([layer[1:] for layer in [*design.layers, *under]]
                      + [(design.ball_density, design.ball_modulus, design.ball_poisson)])
     m = table[mesh["cell_layer"]]  # -1 picks the impactor's row
     return m[:, 0], m[:, 1], m[:, 2]
@@ -63,8 +66,8 @@ def static_fields(design: Design, mesh: dict, formulation: str = "axisymmetric")
     """The native-format static fields of a design's mesh: mesh_pos, cells, node_type, density, modulus.
 
     A node's density and modulus are those of the softest cell it belongs to, so that a soft layer one element
-    thick is seen at both its faces. The pen's nodes carry the pen's effective density, its whole mass (tip and
-    rod) over the tip's volume: a learned model sees the rod only through it."""
+    thick is seen at both its faces. A family feature may change the density then (:meth:`Feature.scene
+    <hcmt.sim.families.Feature.scene>`: the pen's nodes carry the whole pen's mass over the tip's volume)."""
     rho_c, E_c, _ = cell_materials(design, mesh)
     cells = mesh["cells"]
     rank = np.lexsort((rho_c, E_c))  # cells from softest to stiffest
@@ -74,14 +77,8 @@ def static_fields(design: Design, mesh: dict, formulation: str = "axisymmetric")
     np.minimum.at(node_rank, cells.ravel(), np.repeat(order, 3))
     softest = rank[node_rank]
     density, modulus = rho_c[softest], E_c[softest]
-    if design.pen_tip_radius > 0:
-        tip = mesh["cell_body"] == 1
-        p = mesh["mesh_pos"][cells[tip]]
-        area = 0.5 * np.abs((p[:, 1, 0] - p[:, 0, 0]) * (p[:, 2, 1] - p[:, 0, 1])
-                            - (p[:, 1, 1] - p[:, 0, 1]) * (p[:, 2, 0] - p[:, 0, 0]))
-        weight = 2 * np.pi * p[:, :, 0].mean(1) if formulation == "axisymmetric" else 1.0  # revolved, or per mm
-        volume = float(np.sum(weight * area))
-        density = np.where(mesh["body"] == 1, design.ball_density + design.pen_mass / volume, density)
+    for f in features(design):
+        density = f.scene(design, mesh, density, formulation)
     return dict(
         mesh_pos=mesh["mesh_pos"].astype(np.float32), cells=cells.astype(np.int32),
         node_type=mesh["node_type"].astype(np.int32)[:, None],

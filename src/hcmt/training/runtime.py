@@ -114,7 +114,7 @@ def distributed() -> tuple[int, int]:
 
 
 def lock_run(out: Path) -> Path:
-    """``RUN/.lock`` holding our pid (:func:`hcmt.data.format.take_lock`); a second writer is refused."""
+    """``RUN/.lock`` holding our pid (:func:`hcmt.files.take_lock`); a second writer is refused."""
     lock = out / ".lock"
     holder = take_lock(lock)
     if holder is not None:

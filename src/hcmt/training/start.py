@@ -9,7 +9,7 @@ from pathlib import Path
 
 from hcmt.config import INIT_NORMALIZERS, MODELS, Config, as_config, check_same_dataset, set_in
 from hcmt.data.format import read_meta
-from hcmt.data.runs import RunFolder
+from hcmt.data.runs import RunFolder, read_checkpoint
 from hcmt.errors import InputError, clip
 from hcmt.inference.run import Run
 from hcmt.models import architecture
@@ -100,3 +100,23 @@ def start_record(folder: RunFolder, args: dict, cfg: Config, data, seed: int, wo
     if resume and folder.info is not None:
         check_resume(folder.info, run, folder.path)
     return run, source
+
+
+def resume_state(folder: RunFolder, model, opt, device, steps: int, rank: int) -> tuple[int, float, list | None]:
+    """Load the latest checkpoint of ``folder`` into ``model`` and ``opt``: (its step, its best validation score,
+    the log records up to that step on rank 0, read and checked here, else None). A checkpoint that does not fit
+    the model or optimizer, or a run with more steps done than ``train.steps``, is refused in one line."""
+    path = folder.latest
+    state = read_checkpoint(path, device, earlier=folder.best)
+    try:
+        model.load_state_dict(state["model"])
+        opt.load_state_dict(state["optimizer"])
+    except (KeyError, RuntimeError, ValueError) as exc:
+        raise InputError(f"{path}: the checkpoint does not fit this run's model or optimizer "
+                         f"({exc.__class__.__name__}); resuming continues only the run that wrote it") from None
+    step, best = int(state["step"]), float(state["best"])
+    if step > steps:
+        raise InputError(f"{folder.path}: train.steps {steps}, but the run has done {step} steps; a "
+                         "run only grows (train.steps, --steps in hcmt train, >= the steps done)")
+    kept = [r for r in folder.log_records() if r["step"] <= step] if rank == 0 and folder.log.is_file() else None
+    return step, best, kept

@@ -33,7 +33,7 @@ from tqdm import tqdm
 
 from hcmt.config import Config
 from hcmt.data.format import read_meta
-from hcmt.data.runs import RunFolder, check_start, read_checkpoint
+from hcmt.data.runs import RunFolder, check_start
 from hcmt.domains.adapters import config_adapter, model_args, noise_gamma
 from hcmt.domains.frames import step_seed
 from hcmt.domains.trajectory import load_split
@@ -56,7 +56,7 @@ from hcmt.training.runtime import (
     stop_together,
     summary_writer,
 )
-from hcmt.training.start import start_record
+from hcmt.training.start import resume_state, start_record
 
 logger = logging.getLogger("hcmt.train")  # rank-zero messages (hcmt.training.runtime.rank_zero_logging)
 
@@ -154,19 +154,9 @@ class Trainer:
             self.net = compile_simulator(self.net, self.compile, dynamic=self.dynamic)
 
     def _resume(self) -> None:
-        state = read_checkpoint(self.ckpt_path, self.device, earlier=self.folder.best)
-        try:
-            self.model.load_state_dict(state["model"])
-            self.opt.load_state_dict(state["optimizer"])
-        except (KeyError, RuntimeError, ValueError) as exc:
-            raise InputError(f"{self.ckpt_path}: the checkpoint does not fit this run's model or optimizer "
-                             f"({exc.__class__.__name__}); resuming continues only the run that wrote it") from None
-        self.step_count, self.best = int(state["step"]), float(state["best"])
-        if self.step_count > self.steps:
-            raise InputError(f"{self.out}: train.steps {self.steps}, but the run has done {self.step_count} steps; a "
-                             "run only grows (train.steps, --steps in hcmt train, >= the steps done)")
-        self._kept_log = ([r for r in self.folder.log_records() if r["step"] <= self.step_count]
-                          if self.rank == 0 and self.folder.log.is_file() else None)  # read (and checked) here
+        """Model, optimizer, step and best score from the run's latest checkpoint (:func:`resume_state`)."""
+        self.step_count, self.best, self._kept_log = resume_state(self.folder, self.model, self.opt, self.device,
+                                                                  self.steps, self.rank)
 
     def _pushforward_probability(self) -> float:
         """``train.pushforward`` from ``train.pushforward_start`` on (and never while only the normalizers learn)."""

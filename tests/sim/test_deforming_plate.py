@@ -105,3 +105,31 @@ def test_command_refuses_impact_options_and_bad_frames(tmp_path, capsys, extra, 
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and flag in err[0]
     assert not (tmp_path / "d").exists()
+
+
+def test_a_design_that_does_not_converge_is_replaced_by_the_next_draw(monkeypatch):
+    """The generator's job redraws from the trajectory's own stream when the solve fails (deterministic: the
+    replacement is the stream's second design) and records how many it replaced; five failures are refused."""
+    import hcmt.sim.deforming_data as dd
+    from hcmt.sim.generate import trajectory_rng
+    from hcmt.sim.plate_params import sample_plate_design
+    from hcmt.sim.quasistatic import NotConverged
+
+    seen = []
+
+    def solve(design, settings, fail=1):
+        seen.append(design)
+        if len(seen) <= fail:
+            raise NotConverged("stand-in")
+        return {"fields": {"x": np.zeros(1)}, "attrs": {"shape": design.shape}}
+
+    monkeypatch.setattr(dd, "simulate_plate", solve)
+    fields, attrs = dd.deforming_trajectory({}, "", 0, "train", 14, {"frames": 3})
+    rng = trajectory_rng(0, "train", 14)
+    first, second = sample_plate_design(rng), sample_plate_design(rng)
+    assert seen == [first, second] and first != second
+    assert attrs == {"shape": second.shape, "redraws": 1}
+    seen.clear()
+    monkeypatch.setattr(dd, "simulate_plate", lambda d, s: solve(d, s, fail=99))
+    with pytest.raises(NotConverged, match="none of 5 designs"):
+        dd.deforming_trajectory({}, "", 0, "train", 14, {"frames": 3})

@@ -2,7 +2,8 @@
 #   make demo   -- create .venv, install hcmt with the extras the demo uses, run the quickstart
 #   make test   -- create .venv, install hcmt with the test extras, run the whole suite
 #   make quick  -- the quick loop: every test not marked slow (no training, no subprocess)
-#   make lint   -- ruff over src, tests and benchmarks (pyproject's [tool.ruff])
+#   make lint   -- ruff over src, tests and benchmarks (pyproject's [tool.ruff]), then mypy over the public API
+#                  modules (pyproject's [tool.mypy] files)
 PYTHON ?= python3
 VENV   ?= .venv
 BIN     = $(VENV)/bin
@@ -10,7 +11,7 @@ BIN     = $(VENV)/bin
 # pip pulls the CUDA build and GBs of CUDA packages).
 TORCH  ?= torch==2.13.0
 # all: matplotlib + meshio (pictures, export), tensorboard (training scalars), tfrecord + crc32c (TFRecord datasets)
-# test: what the suite needs (every extra) and ruff
+# test: what the suite needs (every extra), ruff and mypy
 EXTRAS ?= all,test
 
 .PHONY: setup demo test quick lint clean
@@ -35,6 +36,7 @@ quick: setup
 
 lint: setup
 	$(BIN)/ruff check src tests benchmarks
+	$(BIN)/mypy
 
 clean:
 	rm -rf $(VENV) build src/*.egg-info

@@ -40,9 +40,10 @@ def _spec(cls) -> dict[str, Spec]:
         t = hints[f.name]
         args = [a for a in get_args(t) if a is not type(None)]
         base = args[0] if args else t
-        out[f.name] = Spec(_KIND[get_origin(base) or base], tuple(f.metadata.get("allowed", ())),
-                           type(None) in get_args(t),
-                           *(f.metadata.get(k) for k in ("required", "minimum", "maximum", "above", "says")))
+        m = f.metadata  # sections._field's; a field declared without it has none: required False, no bounds
+        out[f.name] = Spec(_KIND[get_origin(base) or base], tuple(m.get("allowed", ())), type(None) in get_args(t),
+                           bool(m.get("required", False)), m.get("minimum"), m.get("maximum"), m.get("above"),
+                           m.get("says"))
     return out
 
 
@@ -120,7 +121,7 @@ def current_model_args(args: dict) -> dict:
 
 
 
-def apply_overrides(cfg: dict, overrides: list[str] | None) -> dict:
+def apply_overrides(cfg: dict, overrides: list[str] | str | None) -> dict:
     """``cfg`` (a copy) with ``section.key=value`` items applied, each checked against the schema first (the one
     path of every override, ``hcmt train --set`` for a new run and for ``--resume``)."""
     cfg = copy.deepcopy(cfg)
@@ -181,7 +182,7 @@ def _bounds(spec: Spec, value) -> str | None:
     return None
 
 
-def _unknown(key: str, known: list[str], source: str):
+def _unknown(key: str, known: list[str], source: str | None) -> InputError:
     close = difflib.get_close_matches(key, known, n=1, cutoff=0.6)
     hint = f"; did you mean {close[0]}?" if close else f"; known: {clip(', '.join(known), 120)}"
     return InputError(f"{_head(source)}{clip(key)}: unknown key{hint}")

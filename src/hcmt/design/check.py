@@ -35,6 +35,7 @@ from hcmt.design.calls import (  # noqa: F401 (re-exported: hcmt.design.check.tr
     final_calls,
     trusted_interval,
 )
+from hcmt.design.gp import Interval
 from hcmt.design.inputs import check_run, confidence, outside, range_warnings, settings_of
 from hcmt.design.notes import NOTE_DISAGREEMENT, verify_hint, weak_reasons  # noqa: F401 (re-exported)
 from hcmt.design.prediction import (  # noqa: F401 (re-exported)
@@ -47,6 +48,7 @@ from hcmt.design.prediction import (  # noqa: F401 (re-exported)
     summarize,
 )
 from hcmt.design.readout import CONTACT_END_BOUND, DEFAULT_READOUT, check_readout
+from hcmt.design.summary import Summary
 from hcmt.design.surrogate import Surrogate, for_run, side_by_side
 from hcmt.design.verification import (  # noqa: F401 (re-exported)
     solve,
@@ -97,22 +99,30 @@ def cost_check(run, designs: list[tuple[str, Design]], settings: Settings, verif
                    " (model and solver)" if verify else " (model rollout)")
 
 
+def summary_of(p: Prediction) -> Summary:
+    """A predicted design's summary: :func:`predict_chunks` summarizes every prediction it yields."""
+    assert p.summary is not None, "predict_chunks summarizes every prediction it yields"
+    return p.summary
+
+
 def beside_model(p: Prediction, run, surrogate: Surrogate | None, interval: dict | None, cannot: list[str]) -> None:
     """The surrogate's answer beside the model's in ``p.summary`` (and its range warnings), or the warning that it
     cannot take the design."""
-    warnings = list(p.summary.warnings or [])
+    summary = summary_of(p)
+    warnings = list(summary.warnings or [])
     if cannot:
         warnings.append(
             f"the response surface cannot take {', '.join(cannot)} (held fixed over its training designs: "
             "another design family); no surrogate answer for this design, the call trusts the model's band")
     answers = {}
     if interval is not None:
-        answers = side_by_side(p.summary, interval)
+        assert surrogate is not None, "an interval is the surrogate's answer"
+        answers = side_by_side(summary, interval)
         # a user's own surrogate has its own training ranges: warn for a parameter outside them too
         own = set(outside(p.design, run.ranges))
         warnings += range_warnings(p.design, {k: r for k, r in surrogate.ranges().items() if k not in own},
                                    "the response surface's training designs")
-    p.summary = replace(p.summary, warnings=warnings, **answers)
+    p.summary = replace(summary, warnings=warnings, **answers)
 
 
 def check_options(designs, verify, yield_mpa: float | None, batch: int, readout: str) -> float | None:
@@ -133,10 +143,10 @@ def check_options(designs, verify, yield_mpa: float | None, batch: int, readout:
 def annotate(p: Prediction, run, surrogate: Surrogate | None, interval: dict | None, cannot: list[str]) -> None:
     """A prediction's summary as the check reports it: the model's name, range warnings, confidence, the
     surrogate's answer beside the model's (:func:`beside_model`) and whether its confidence is low."""
-    p.summary = replace(p.summary, model=run.source, warnings=range_warnings(p.design, run.ranges),
+    p.summary = replace(summary_of(p), model=run.source, warnings=range_warnings(p.design, run.ranges),
                         confidence=confidence(p.design, run))
     beside_model(p, run, surrogate, interval, cannot)
-    p.summary = replace(p.summary, low_confidence=bool(weak_reasons(p)))
+    p.summary = replace(summary_of(p), low_confidence=bool(weak_reasons(p)))
 
 
 def solve_chunk(chunk: list[Prediction], verify: bool | str, settings: Settings, field_: str,
@@ -145,7 +155,7 @@ def solve_chunk(chunk: list[Prediction], verify: bool | str, settings: Settings,
     (``verify=True``), the undecided ones (``"auto"``: their calls made) or none (None where not run)."""
     if not verify:
         return [None] * len(chunk)
-    chosen = [i for i, p in enumerate(chunk) if verify is True or p.summary.call == "undecided"]
+    chosen = [i for i, p in enumerate(chunk) if verify is True or summary_of(p).call == "undecided"]
     if verify == "auto":  # the bar learns its total chunk by chunk, as the calls are made
         bar.total += len(chosen)
         bar.refresh()
@@ -175,7 +185,8 @@ def check_designs(run, designs: list[tuple[str, Design]], *, batch: int = DESIGN
     surrogate, note, ends_window = for_run(run, surrogate)
     notes = [note] if note else []
     cost_check(run, designs, settings, bool(verify), force)
-    intervals = surrogate.predict([d for _, d in designs]) if surrogate is not None else None
+    intervals: list[dict[str, Interval] | None] | None = (
+        list(surrogate.predict([d for _, d in designs])) if surrogate is not None else None)
     # a design with a parameter the surrogate's training designs held fixed (another family): no surrogate answer
     cannot = [surrogate.cannot_take(d) if surrogate is not None else [] for _, d in designs]
     if intervals is not None:
@@ -204,9 +215,9 @@ def check_designs(run, designs: list[tuple[str, Design]], *, batch: int = DESIGN
             add_margin(chunk, yield_mpa)
             add_calls(chunk, yield_mpa, trust, run.ranges)
             truth += solve_chunk(chunk, verify, solver_settings, field_, solver_bar)
-    chosen = [i for i, t in enumerate(truth) if t is not None]
+    solved = [(p, t) for p, t in zip(preds, truth) if t is not None]  # the designs the solver ran
     measured = speedup_measured(batch, len(designs), verify, str(run.device), torch.get_num_threads())
-    verified = verify_designs([preds[i] for i in chosen], [truth[i] for i in chosen], measured) if chosen else None
+    verified = verify_designs([p for p, _ in solved], [t for _, t in solved], measured) if solved else None
     final_calls(preds, truth if verify else None, yield_mpa)
     return Check(preds, truth if verify else None, verified, settings, sum(p.wall_s for p in preds),
                  surrogate.label if surrogate is not None else None, notes, readout)

@@ -111,7 +111,7 @@ class Summary(ImpactQuantities):
 
     def to_json(self) -> dict:
         """Each design's block of the design check's JSON (module docstring): the one writer of a summary."""
-        out = {}
+        out: dict[str, object] = {}
         for f in fields(self):
             v = getattr(self, f.name)
             if f.name == "derived":

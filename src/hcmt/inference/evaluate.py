@@ -280,6 +280,9 @@ def compare(runs: list[str | Path | RunFolder | Run], split: str = "test") -> di
         if not mpath.is_file():
             raise FileNotFoundError(f"{mpath}: run `hcmt evaluate {folder.path} --data ... --split {split}` first")
         m = read_json(mpath, f"`hcmt evaluate {folder.path} --split {split}`")
+        if folder.info is None:  # a shipped model's results folder (Run.writing_to) has no run.yaml
+            raise InputError(f"{folder.path}: no run.yaml (a shipped model's results, or a damaged run folder); "
+                             "hcmt compare takes run folders made by `hcmt train`")
         groups[(model_label(folder.info["model"], folder.info.get("config")), m.get("data", "?"))].append(m)
     datasets = {d for _, d in groups}
     return {(label if len(datasets) == 1 else f"{label} [{Path(d).name}]"): summarize_runs(ms)

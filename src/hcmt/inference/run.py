@@ -32,7 +32,7 @@ from hcmt.models import REGISTRY, from_checkpoint, resolve_device, uses_hierarch
 def model_label(args: dict, config: Config | None = None) -> str:
     """The display label of a model from its constructor arguments (:data:`hcmt.models.REGISTRY`), with its
     ablation, and ``no-remesh`` where its ``config`` builds the hierarchy without remeshing (``data.remesh``)."""
-    info = REGISTRY.get(args.get("name"))
+    info = REGISTRY.get(args["name"]) if "name" in args else None
     label = info.label if info else str(args.get("name")).upper()
     remesh = config is None or config.data.remesh or not uses_hierarchy(args, False)[0]
     return label + (f" ({args['ablation']})" if args.get("ablation") else "") + ("" if remesh else f" ({NO_REMESH})")
@@ -85,6 +85,8 @@ def load_run(run: str | Path | RunFolder, which: str = "best", device: str = "cp
     except (KeyError, TypeError, RuntimeError, ValueError) as exc:
         raise InputError(f"{path}: the checkpoint does not hold the model run.yaml describes ({exc.__class__.__name__}:"
                          f" {str(exc).splitlines()[0][:200]})") from None
+    if folder.info is None:  # a RunFolder(must_exist=False) whose run.yaml is missing or damaged
+        raise InputError(folder.damaged or f"{folder.run_yaml}: missing; restore it or train the run again")
     try:  # a hand-edited or damaged run.yaml: its settings must still make the run's adapter and graph
         info = RunInfo.from_record(folder.info, CheckpointInfo(path.name, int(state["step"])))
         config_adapter(info.config.for_training())  # a KeyError when run.yaml has no config
@@ -164,7 +166,11 @@ class Run:
 
     @property
     def radius(self) -> float:
-        return self.config.train.contact_radius
+        radius = self.config.train.contact_radius
+        if radius is None:  # Run.load's configs are complete for training; a Run made by hand may not be
+            raise InputError(f"{self.source}: its config has no train.contact_radius (the contact search radius "
+                             "its model was trained with)")
+        return radius
 
     @property
     def hierarchy_spec(self) -> tuple[int, bool]:

@@ -65,7 +65,8 @@ def trajectory_family(meta: dict, index: int) -> str:
 
 def dataset_meta(preset: str, seed: int, counts: dict[str, int], settings: Settings, edge_fraction: float = 0.0,
                  families: tuple[str, ...] = ("mono",)) -> dict:
-    extra = {"edge_fraction": float(edge_fraction)} if edge_fraction else {}  # absent: datasets made before it
+    # edge_fraction absent: datasets made before it
+    extra: dict[str, object] = {"edge_fraction": float(edge_fraction)} if edge_fraction else {}
     if tuple(families) != ("mono",):  # absent: one family, the first scene (datasets made before families)
         extra.update(families=list(families),
                      family_ranges={f: {k: list(v) for k, v in FAMILIES[f].items()} for f in families})

@@ -221,7 +221,9 @@ def exclude_trajectories(names: list[str], excluded: list[int] | None) -> np.nda
     excluded = [int(i) for i in excluded or []]
     bad = [i for i in excluded if not 0 <= i < len(names)]
     if bad:
-        raise InputError(f"data.exclude_trajectories {bad}: out of range for a split of {len(names)} trajectories")
+        raise InputError(f"data.exclude_trajectories {bad}: out of range for a split of {len(names)} trajectories "
+                         "(the deforming_plate configs leave out the public data's bad trajectories 173 and 233; "
+                         "for other data set data.exclude_trajectories=[])")
     keep = np.ones(len(names), bool)
     keep[excluded] = False
     return np.flatnonzero(keep)

@@ -252,9 +252,12 @@ def test_a_sweep_never_passes_a_point_outside_the_ranges():
     add_calls(preds, 1000.0, ranges=TRAINED)
     final_calls(preds, None, 1000.0)
     check = SimpleNamespace(preds=preds, truth=None, readout="raw", solver_runs=0)
-    final = analyse(check, "thickness", 1000.0)["limit"]["final"]
+    limit = analyse(check, "thickness", 1000.0)["limit"]
+    final = limit["final"]
     assert final["passing"] and max(final["passing"]) <= hi * (1 + 1e-6)
     assert final["undecided"] == [float(t) for t in values if t > hi * (1 + 1e-6)]
+    # the "model alone" line passes no outside point either, though every peak there is below the yield stress
+    assert limit["model"]["passing"] == [float(t) for t in values if t <= hi * (1 + 1e-6)]
 
 
 @pytest.mark.slow  # the shipped model and the solver on two designs

@@ -119,12 +119,12 @@ def analyse(check: Check, param: str, yield_mpa: float | None) -> dict:
             row["rule"] = TREND_RULE
         out["trend"][q] = row
     if yield_mpa is not None:
-        calls = {who: limit_call(params, np.array([chosen(s, "peak_plate_stress_mpa") for s in rows]), yield_mpa)
-                 for who, rows in series.items()}
         # the model alone passes no point outside its training ranges (no interval was measured there)
-        inside = [p.summary.call_interval_mpa.get("trusted", True) for p in check.preds]
-        model_ok = np.array([chosen(p.summary, "peak_plate_stress_mpa") < yield_mpa for p in check.preds]) & inside
-        calls["model"] = limit_of(params, model_ok)
+        trusted = {"model": np.array([p.summary.call_interval_mpa.get("trusted", True) for p in check.preds])}
+        calls = {}
+        for who, rows in series.items():
+            below = np.array([chosen(s, "peak_plate_stress_mpa") for s in rows]) < yield_mpa
+            calls[who] = limit_of(params, below & trusted.get(who, True))
         if "solver" in calls:
             a, b = calls["model"], calls["solver"]
             if a["call_index"] is not None and b["call_index"] is not None:

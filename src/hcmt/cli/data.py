@@ -13,7 +13,7 @@ from pathlib import Path
 from tqdm import tqdm
 
 from hcmt.cli import CommandError, check_outputs
-from hcmt.cli.parsers import parse_families, plate_settings_of_args, settings_of_args, simulate_inputs
+from hcmt.cli.parsers import parse_families, plate_settings_of_args, range_overrides, settings_of_args, simulate_inputs
 from hcmt.config import plural
 from hcmt.data.convert import convert
 from hcmt.data.format import read_meta, write_meta, write_split
@@ -46,7 +46,8 @@ def main_generate(args) -> int:
               f"core-minutes in all (finished trajectories are reused on a rerun)", flush=True)
     result = generate_dataset(args.out, preset=args.preset, counts=counts, seed=args.seed, workers=args.workers,
                               settings=settings_of_args(args), progress=not args.no_progress,
-                              edge_fraction=args.edge_fraction, families=families, force=args.force)
+                              edge_fraction=args.edge_fraction, families=families, force=args.force,
+                              ranges=range_overrides(args))
     print(f"{args.out}: simulated {plural(result['simulated'], 'trajectory', 'trajectories')}, reused "
           f"{result['skipped']}; splits: "
           + ", ".join(f"{k} ({counts[k]})" for k in result["splits"]))

@@ -39,6 +39,7 @@ from hcmt.sim.params import (
     VARIANTS,
     Design,
     Settings,
+    checked_ranges,
     preset_design,
     sample_design,
 )
@@ -64,14 +65,17 @@ def trajectory_family(meta: dict, index: int) -> str:
 
 
 def dataset_meta(preset: str, seed: int, counts: dict[str, int], settings: Settings, edge_fraction: float = 0.0,
-                 families: tuple[str, ...] = ("mono",)) -> dict:
-    # edge_fraction absent: datasets made before it
+                 families: tuple[str, ...] = ("mono",), ranges: dict[str, tuple[float, float]] | None = None) -> dict:
+    # edge_fraction, range_overrides absent: datasets made before them (or made without)
     extra: dict[str, object] = {"edge_fraction": float(edge_fraction)} if edge_fraction else {}
+    if ranges:
+        extra["range_overrides"] = {k: [float(lo), float(hi)] for k, (lo, hi) in ranges.items()}
     if tuple(families) != ("mono",):  # absent: one family, the first scene (datasets made before families)
         extra.update(families=list(families),
                      family_ranges={f: {k: list(v) for k, v in FAMILIES[f].items()} for f in families})
     generator = dict(name="hcmt impact-plate", preset=preset, seed=int(seed), counts=dict(counts), **extra,
-                     settings=asdict(settings), ranges={k: list(v) for k, v in RANGES[preset].items()},
+                     settings=asdict(settings),
+                     ranges={k: list(v) for k, v in {**RANGES[preset], **(ranges or {})}.items()},
                      variants={k: {p: list(r) for p, r in v.items()} for k, v in VARIANTS.items()},
                      contact_radius=CONTACT_RADIUS)
     return make_meta(feature_spec(settings), trajectory_length=settings.frames, dimension=2, dt=settings.frame_dt,
@@ -82,8 +86,9 @@ def impact_trajectory(meta: dict, preset: str, seed: int, split: str, index: int
     """(fields, attrs) of Impact Plate trajectory ``index`` of ``split``."""
     variant = split if split in VARIANTS else None
     edges = float(meta["generator"].get("edge_fraction", 0.0)) if split == "train" else 0.0
+    override = {k: (lo, hi) for k, (lo, hi) in (meta["generator"].get("range_overrides") or {}).items()}
     design = sample_design(trajectory_rng(seed, split, index), preset, variant, edges,
-                           family=trajectory_family(meta, index))
+                           family=trajectory_family(meta, index), override=override)
     result = simulate(design, Settings(**settings))
     return result.fields, result.attrs
 
@@ -160,18 +165,22 @@ def _differences(old: dict, new: dict, prefix: str = "") -> str:
 
 def generate_dataset(out, *, preset: str = "small", counts: dict[str, int], seed: int = 0, workers: int = 1,
                      settings: Settings = Settings(), progress: bool = True, edge_fraction: float = 0.0,
-                     families: tuple[str, ...] = ("mono",), force: bool = False) -> dict:
+                     families: tuple[str, ...] = ("mono",), force: bool = False,
+                     ranges: dict[str, tuple[float, float]] | None = None) -> dict:
     """Generate (or finish) an Impact Plate dataset in ``out``. ``counts`` maps split names (of :data:`SPLITS`) to
     trajectory counts; ``edge_fraction`` of the training designs are drawn at the ranges' edges (thin plates, high
     drops: :data:`hcmt.sim.params.EDGES`); ``families`` (:data:`hcmt.sim.params.FAMILIES`) take the trajectories of
-    every split in turn, and meta.json's ``families`` lists each trajectory's. Returns ``{"simulated": n,
+    every split in turn, and meta.json's ``families`` lists each trajectory's; ``ranges`` (``{name: (lo, hi)}``,
+    ``generate --range``) replaces sampled parameters' ranges in every split but the variants (meta.json's
+    ``range_overrides``). Returns ``{"simulated": n,
     "skipped": n, "splits": {split: path}}``. A trajectory estimated at over
     :data:`hcmt.sim.params.MAX_ESTIMATED_SECONDS` (:func:`generation_cost`) is refused before anything is written,
     unless ``force``."""
     families, counts = _checked_arguments(preset, counts, workers, edge_fraction, families, settings)
+    ranges = checked_ranges(preset, families, ranges)
     design, cost = generation_cost(preset, families, settings)
     check_cost(cost["estimated_s"], cost["num_nodes"], design, force, what=" per trajectory")
-    meta = dataset_meta(preset, seed, counts, settings, edge_fraction, families)
+    meta = dataset_meta(preset, seed, counts, settings, edge_fraction, families, ranges)
     meta["families"] = {split: [trajectory_family(meta, i) for i in range(n)] for split, n in counts.items()}
     return write_dataset(out, meta, counts, (preset, int(seed), asdict(settings), impact_trajectory), workers,
                          progress, f"impact-plate {preset}")

@@ -159,16 +159,49 @@ VARIANTS: dict[str, dict[str, tuple[float, float]]] = {
 EDGES = {"thickness": (0.0, 0.2), "drop_height": (0.8, 1.0)}
 
 
-def family_ranges(preset: str = "small", family: str = "mono", variant: str | None = None) -> dict:
-    """The sampling ranges of a family: the preset's, the family's replacing or adding to them, a
-    generalization variant's last (ranges of :data:`RELATIVE` parameters stay fractions)."""
+def family_ranges(preset: str = "small", family: str = "mono", variant: str | None = None,
+                  override: dict[str, tuple[float, float]] | None = None) -> dict:
+    """The sampling ranges of a family: the preset's, the family's replacing or adding to them, ``override``'s
+    (``generate --range``: a sampled parameter's range widened or narrowed), a generalization variant's last
+    (ranges of :data:`RELATIVE` parameters stay fractions)."""
     if preset not in RANGES:
         raise InputError(f"unknown preset {preset!r}; expected one of {sorted(RANGES)}")
     if family not in FAMILIES:
         raise InputError(f"unknown family {family!r}; expected one of {', '.join(FAMILIES)}")
     if variant is not None and variant not in VARIANTS:
         raise InputError(f"unknown variant {variant!r}; expected one of {sorted(VARIANTS)}")
-    return {**RANGES[preset], **FAMILIES[family], **(VARIANTS[variant] if variant else {})}
+    ranges = {**RANGES[preset], **FAMILIES[family]}
+    for name, span in (override or {}).items():
+        if name not in ranges:
+            raise InputError(f"{name} is not a sampled parameter of the {preset} preset's {family} family; those are "
+                             f"{', '.join(sorted(ranges))}", param="range")
+        ranges[name] = (float(span[0]), float(span[1]))
+    return {**ranges, **(VARIANTS[variant] if variant else {})}
+
+
+def checked_ranges(preset: str, families: tuple[str, ...],
+                   ranges: dict[str, tuple[float, float]] | None) -> dict[str, tuple[float, float]]:
+    """``generate_dataset``'s ``ranges`` checked: sampled parameters of every family, finite, low <= high, and
+    the designs at every corner valid (each refusal one line naming ``range``)."""
+    out: dict[str, tuple[float, float]] = {}
+    for name, span in (ranges or {}).items():
+        try:
+            lo, hi = (float(v) for v in span)
+        except (TypeError, ValueError):
+            raise InputError(f"{name}: expected (low, high), got {clip(span)!r}", param="range") from None
+        if not (np.isfinite(lo) and np.isfinite(hi) and lo <= hi):
+            raise InputError(f"{name}={lo:g}:{hi:g}: expected finite bounds with low <= high", param="range")
+        out[str(name)] = (lo, hi)
+    for family in families:
+        full = family_ranges(preset, family, override=out)
+        for corner in (0, 1):
+            values = {k: (v[corner] if k in out else 0.5 * (v[0] + v[1])) for k, v in full.items()}
+            try:
+                Design(**resolve_relative(values)).validate()
+            except InputError as e:
+                raise InputError(f"{', '.join(f'{k}={lo:g}:{hi:g}' for k, (lo, hi) in out.items())} gives a "
+                                 f"design the solver refuses: {e}", param="range") from None
+    return out
 
 
 def resolve_relative(values: dict[str, float]) -> dict[str, float]:
@@ -264,12 +297,14 @@ def preset_design(preset: str, family: str = "mono") -> Design:
 
 
 def sample_design(rng: np.random.Generator, preset: str = "small", variant: str | None = None,
-                  edge_fraction: float = 0.0, family: str = "mono") -> Design:
+                  edge_fraction: float = 0.0, family: str = "mono",
+                  override: dict[str, tuple[float, float]] | None = None) -> Design:
     """Draw one design: every parameter of the family's ranges (:func:`family_ranges`) uniform, in sorted order,
     a variant's ranges replacing the training ones. With ``edge_fraction`` > 0, that share of designs then has its
     thickness or its drop height redrawn inside :data:`EDGES` (draws after the uniform ones: a design with
-    ``edge_fraction`` 0 is the same as before; a ``mono`` design the same as before families existed)."""
-    ranges = family_ranges(preset, family, variant)
+    ``edge_fraction`` 0 is the same as before; a ``mono`` design the same as before families existed;
+    ``override``: :func:`family_ranges`'s, the same draws mapped onto the changed ranges)."""
+    ranges = family_ranges(preset, family, variant, override)
     names = sorted(ranges)
     u = rng.random(len(names))
     values = resolve_relative({k: float(ranges[k][0] + (ranges[k][1] - ranges[k][0]) * ui)

@@ -48,6 +48,7 @@ from hcmt.cli.parsers.data import (
     configure_simulate,
     parse_families,
     plate_settings_of_args,
+    range_overrides,
     settings_of_args,
     simulate_inputs,
 )
@@ -93,6 +94,6 @@ __all__ = [
     "configure_generate", "configure_hierarchy", "configure_info", "configure_models", "configure_plot",
     "configure_predict", "configure_rollout", "configure_simulate", "configure_surrogate", "configure_sweep",
     "configure_train", "cores", "cores_count", "count", "frames_of", "model_arg", "parse_families", "pictures_of",
-    "plate_settings_of_args", "readout_arg", "same_as", "settings_of_args", "simulate_inputs", "span",
-    "surrogate_args", "take_model", "threads_arg", "verify_arg",
+    "plate_settings_of_args", "range_overrides", "readout_arg", "same_as", "settings_of_args", "simulate_inputs",
+    "span", "surrogate_args", "take_model", "threads_arg", "verify_arg",
 ]

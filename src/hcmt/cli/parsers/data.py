@@ -19,6 +19,7 @@ from hcmt.sim.params import (
     RANGES,
     Design,
     Settings,
+    checked_ranges,
     describe_family,
     design_values,
     parse_stack,
@@ -36,6 +37,29 @@ def parse_families(text: str) -> tuple[str, ...]:
             raise CommandError(f"--family {clip(text)!r}: family {clip(name)!r} does not exist; the families are "
                                f"{', '.join(FAMILIES)}")
     return names
+
+
+def parameter_range(text: str) -> tuple[str, float, float]:
+    """``--range NAME=LO:HI`` parsed (argparse turns the ValueError into one line naming the flag)."""
+    name, eq, span = text.partition("=")
+    lo, colon, hi = span.partition(":")
+    try:
+        bounds = float(lo), float(hi)
+    except ValueError:
+        bounds = ()
+    if not (eq and colon and name.strip() and bounds):
+        raise argparse.ArgumentTypeError(f"expected NAME=LO:HI such as thickness=0.5:1.25, got {clip(text)!r}")
+    return name.strip(), *bounds
+
+
+def range_overrides(args) -> dict[str, tuple[float, float]]:
+    """``--range`` as ``generate_dataset``'s ``ranges`` (a name given twice refused)."""
+    out: dict[str, tuple[float, float]] = {}
+    for name, lo, hi in args.range:
+        if name in out:
+            raise CommandError(f"--range {name} is given twice; give each parameter once")
+        out[name] = (lo, hi)
+    return out
 
 
 def _settings_arguments(parser: argparse.ArgumentParser, generate: bool = False) -> None:
@@ -85,6 +109,10 @@ def configure_generate(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--edge-fraction", type=float, default=0.0,
                         help="share of training designs drawn at the ranges' edges where models fail first: thin "
                              "plates (lowest fifth of the thickness range) or high drops (top fifth); default 0")
+    parser.add_argument("--range", type=parameter_range, action="append", default=[], metavar="NAME=LO:HI",
+                        help="replace a sampled parameter's range in the train, valid and test splits (repeatable; "
+                             "e.g. --range thickness=0.5:1.25 --range drop_height=500:1250); the variant splits keep "
+                             "theirs; meta.json records it as range_overrides")
     parser.add_argument("--workers", type=cores_count, default=1, metavar="N",
                         help=f"worker processes, 1 to this machine's cores ({cores()}; default 1)")
     parser.add_argument("--family", default="mono", metavar="F[,F...]",
@@ -101,7 +129,7 @@ _IMPACT_ONLY = (("--preset", "preset", "small"), ("--variants", "variants", Fals
                 ("--edge-fraction", "edge_fraction", 0.0), ("--formulation", "formulation", Settings().formulation),
                 ("--frame-dt", "frame_dt", Settings().frame_dt), ("--penalty", "penalty", Settings().penalty),
                 ("--bulk-viscosity", "bulk_viscosity", Settings().bulk_viscosity),
-                ("--peak-stress", "peak_stress", False))
+                ("--peak-stress", "peak_stress", False), ("--range", "range", []))
 
 
 def plate_settings_of_args(args) -> PlateSettings:
@@ -119,8 +147,9 @@ def check_generate(args) -> None:
                                    "--test, --seed, --workers, --frames, --force and --no-progress")
         plate_settings_of_args(args)
         return
-    parse_families(args.family)
+    families = parse_families(args.family)
     settings_of_args(args)
+    checked_ranges(args.preset, families, range_overrides(args))
 
 
 def configure_simulate(parser: argparse.ArgumentParser) -> None:

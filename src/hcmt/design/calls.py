@@ -27,22 +27,36 @@ def trusted_interval(summary: Summary, trust: str = TRUST) -> tuple[float, float
     the summary's chosen read-out reports it (:attr:`hcmt.design.summary.Summary.chosen`), the surrogate's
     interval of it where the summary has one."""
     return trusted_bounds(summary.chosen.peak_plate_stress_mpa,
-                          (summary.surrogate or {}).get("peak_plate_stress_mpa"), trust)
+                          (summary.surrogate or {}).get("peak_plate_stress_mpa"), trust, model_bounds(summary))
 
 
-def trusted_bounds(model: float, surrogate: dict | None, trust: str = TRUST) -> tuple[float, float, str]:
-    """(lo, hi, what) of the peak plate stress a call trusts, from the mesh model's answer ``model`` and the
-    surrogate's ``{mean, lo, hi}`` (None: no surrogate): ``surrogate``, the surrogate's 95 % interval; ``union``,
-    that interval widened to hold the mesh model's answer; ``model`` (and whenever there is no surrogate), the mesh
-    model's answer ± :data:`MODEL_BAND`."""
+def model_bounds(summary: Summary) -> tuple[float, float] | None:
+    """The mesh model's own calibrated interval of its peak plate stress (:mod:`hcmt.design.model_interval`), or
+    None: none calibrated for the design's cell, or a derived read-out chosen (the interval bounds the model's own
+    answer only)."""
+    if summary.model_interval is None or summary.readout != "raw":
+        return None
+    return summary.model_interval.bounds["peak_plate_stress_mpa"]
+
+
+def trusted_bounds(model: float, surrogate: dict | None, trust: str = TRUST,
+                   interval: tuple[float, float] | None = None) -> tuple[float, float, str]:
+    """(lo, hi, what) of the peak plate stress a call trusts, from the mesh model's answer ``model``, its own
+    calibrated ``interval`` (None: none) and the surrogate's ``{mean, lo, hi}`` (None: no surrogate):
+    ``surrogate``, the surrogate's 95 % interval; ``union``, that interval widened to hold the mesh model's
+    interval (its answer where it has none); ``model`` (and whenever there is no surrogate), the mesh model's
+    interval, or its answer ± :data:`MODEL_BAND` where it has none."""
     if trust not in TRUSTS:
         raise InputError(f"must be one of {', '.join(TRUSTS)}, got {trust!r}", param="trust")
     m, s = model, surrogate
+    lo, hi = interval if interval is not None else (m, m)
     if s is None or trust == "model":
+        if interval is not None:
+            return lo, hi, "model interval"
         return m * (1 - MODEL_BAND), m * (1 + MODEL_BAND), "model"
     if trust == "surrogate":
         return s["lo"], s["hi"], "surrogate"
-    return min(s["lo"], m), max(s["hi"], m), "union"
+    return min(s["lo"], lo), max(s["hi"], hi), "union"
 
 
 def call_of(lo: float, hi: float, yield_mpa: float) -> str:
@@ -52,7 +66,11 @@ def call_of(lo: float, hi: float, yield_mpa: float) -> str:
 
 def outside_reason(p: Prediction, ranges: dict[str, tuple[float, float]] | None) -> str | None:
     """Why ``p`` gets no decided call, or None: a design outside the model's training ranges (``ranges``, the
-    run's; without them, the region its summary's ``confidence`` records: :func:`hcmt.design.inputs.region_of`)."""
+    run's; without them, the region its summary's ``confidence`` records: :func:`hcmt.design.inputs.region_of`)
+    whose cell has no calibrated interval of the mesh model (:func:`model_bounds`: its coverage was measured
+    there, so it decides)."""
+    if model_bounds(p.summary) is not None:
+        return None
     if ranges is not None:
         keys = outside(p.design, ranges)
         if not keys:
@@ -62,7 +80,7 @@ def outside_reason(p: Prediction, ranges: dict[str, tuple[float, float]] | None)
         where = ""
     else:
         return None
-    return (f"outside the model's training ranges{where}: no interval was measured there, so neither the model "
+    return (f"outside the model's training ranges{where}: no interval was calibrated there, so neither the model "
             "nor the response surface decides pass or fail; the solver does (--verify)")
 
 

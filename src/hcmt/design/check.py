@@ -37,6 +37,7 @@ from hcmt.design.calls import (  # noqa: F401 (re-exported: hcmt.design.check.tr
 )
 from hcmt.design.gp import Interval
 from hcmt.design.inputs import check_run, confidence, outside, range_warnings, settings_of
+from hcmt.design.model_interval import ANSWERS, Calibration, ModelInterval, for_run as interval_for_run
 from hcmt.design.notes import NOTE_DISAGREEMENT, verify_hint, weak_reasons  # noqa: F401 (re-exported)
 from hcmt.design.prediction import (  # noqa: F401 (re-exported)
     Prediction,
@@ -140,11 +141,23 @@ def check_options(designs, verify, yield_mpa: float | None, batch: int, readout:
     return yield_mpa
 
 
-def annotate(p: Prediction, run, surrogate: Surrogate | None, interval: dict | None, cannot: list[str]) -> None:
-    """A prediction's summary as the check reports it: the model's name, range warnings, confidence, the
-    surrogate's answer beside the model's (:func:`beside_model`) and whether its confidence is low."""
+def own_interval(p: Prediction, run, calibration: Calibration | None) -> ModelInterval | None:
+    """The mesh model's own interval of a prediction from the run's calibration (None: none, or the design's
+    cell not calibrated): :meth:`hcmt.design.model_interval.Calibration.interval` of its own answers."""
+    if calibration is None:
+        return None
+    s = summary_of(p)
+    return calibration.interval(p.design, run.ranges, {a: getattr(s, a) for a in ANSWERS},
+                                s.plate_stress_history_mpa)
+
+
+def annotate(p: Prediction, run, surrogate: Surrogate | None, interval: dict | None, cannot: list[str],
+             calibration: Calibration | None = None) -> None:
+    """A prediction's summary as the check reports it: the model's name, range warnings, confidence, its own
+    calibrated interval (:func:`own_interval`), the surrogate's answer beside the model's (:func:`beside_model`)
+    and whether its confidence is low."""
     p.summary = replace(summary_of(p), model=run.source, warnings=range_warnings(p.design, run.ranges),
-                        confidence=confidence(p.design, run))
+                        confidence=confidence(p.design, run), model_interval=own_interval(p, run, calibration))
     beside_model(p, run, surrogate, interval, cannot)
     p.summary = replace(summary_of(p), low_confidence=bool(weak_reasons(p)))
 
@@ -166,7 +179,8 @@ def solve_chunk(chunk: list[Prediction], verify: bool | str, settings: Settings,
 def check_designs(run, designs: list[tuple[str, Design]], *, batch: int = DESIGN_BATCH, verify: bool | str = False,
                   yield_mpa: float | None = None, compile: str = "auto", progress: bool = True,
                   force: bool = False, surrogate: Surrogate | str | Path | bool | None = True,
-                  readout: str = DEFAULT_READOUT, trust: str = TRUST) -> Check:
+                  readout: str = DEFAULT_READOUT, trust: str = TRUST,
+                  interval: Calibration | str | Path | bool | None = True) -> Check:
     """The design check, the one sequence behind ``hcmt predict``, ``hcmt sweep``, ``hcmt demo`` and
     :func:`predict_designs`: cost check, prediction (range warnings, the model's name and the confidence recorded
     in each summary), the surrogate's answers beside the model's (``surrogate``: True, the run's own; a path or a
@@ -177,13 +191,18 @@ def check_designs(run, designs: list[tuple[str, Design]], *, batch: int = DESIGN
     ``batch`` designs solved right after the model predicted it. The model's
     answer is its own outputs whatever the surrogate; ``readout`` (:data:`hcmt.design.readout.READOUTS`) adds a
     derived read-out under its own names, which the calls then use (recorded as ``readout``); only ``contact``
-    reads the surrogate (its bound on when the ball leaves). A design outside the model's training ranges gets no
-    decided call (:func:`hcmt.design.calls.add_calls`): ``verify="auto"`` runs the solver on it."""
+    reads the surrogate (its bound on when the ball leaves). ``interval``: the mesh model's own calibrated
+    interval (:mod:`hcmt.design.model_interval`; True, the run's own file; a path or a
+    :class:`~hcmt.design.model_interval.Calibration`; False / None: none), recorded as each summary's
+    ``model_interval`` and trusted by the calls. A design outside the model's training ranges gets no decided
+    call unless its cell's interval was calibrated (:func:`hcmt.design.calls.add_calls`): ``verify="auto"`` runs
+    the solver on it."""
     check_run(run)
     yield_mpa, batch = check_options(designs, verify, yield_mpa, batch, readout), int(batch)
     settings = settings_of(run.meta)
+    calibration, interval_note = interval_for_run(run, interval)
     surrogate, note, ends_window = for_run(run, surrogate)
-    notes = [note] if note else []
+    notes = [n for n in (interval_note, note) if n]
     cost_check(run, designs, settings, bool(verify), force)
     intervals: list[dict[str, Interval] | None] | None = (
         list(surrogate.predict([d for _, d in designs])) if surrogate is not None else None)
@@ -210,7 +229,8 @@ def check_designs(run, designs: list[tuple[str, Design]], *, batch: int = DESIGN
                                     contact_end_ms=ends):
             for p in chunk:
                 i = len(preds)
-                annotate(p, run, surrogate, intervals[i] if intervals is not None else None, cannot[i])
+                annotate(p, run, surrogate, intervals[i] if intervals is not None else None, cannot[i],
+                         calibration)
                 preds.append(p)
             add_margin(chunk, yield_mpa)
             add_calls(chunk, yield_mpa, trust, run.ranges)

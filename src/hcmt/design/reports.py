@@ -60,9 +60,10 @@ def table_rows(preds: list[Prediction]) -> tuple[list[str], list[list[str]]]:
     if first.derived is not None:  # the chosen derived read-out's peak beside the model's own
         cols.insert(2, (f"{first.readout} MPa", "{:.1f}", readout_key("peak_plate_stress_mpa", first.readout)))
     with_surrogate = any(p.summary.surrogate is not None for p in preds)
+    with_interval = any(p.summary.model_interval is not None for p in preds)
     vcols = verify_columns(first.readout) if any(p.summary.verify is not None for p in preds) else []
-    head = [c[0] for c in cols[:2]] + (["surrogate MPa [95 %]"] if with_surrogate else []) + \
-        [c[0] for c in cols[2:] + vcols]
+    head = [c[0] for c in cols[:2]] + (["model's own [95 %]"] if with_interval else []) + \
+        (["surrogate MPa [95 %]"] if with_surrogate else []) + [c[0] for c in cols[2:] + vcols]
     rows = []
     for p in preds:
         s = {**p.summary.to_json(), "name": p.name, **verify_block(p.summary)}
@@ -72,6 +73,9 @@ def table_rows(preds: list[Prediction]) -> tuple[list[str], list[list[str]]]:
             cells.append("-" if v is None else f"{v[0]:.2f},{v[1]:.2f}" if isinstance(v, list) else fmt.format(v))
         if with_surrogate:
             cells.insert(2, _interval((p.summary.surrogate or {}).get("peak_plate_stress_mpa")))
+        if with_interval:
+            iv = p.summary.model_interval
+            cells.insert(2, "-" if iv is None else "[{:.0f}, {:.0f}]".format(*iv.bounds["peak_plate_stress_mpa"]))
         rows.append(cells)
     return head, rows
 

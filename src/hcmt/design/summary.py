@@ -17,6 +17,7 @@ from __future__ import annotations
 
 from dataclasses import asdict, dataclass, field, fields
 
+from hcmt.design.model_interval import ModelInterval
 from hcmt.inference.quantities import ImpactQuantities
 
 
@@ -89,6 +90,7 @@ class Summary(ImpactQuantities):
     model: str | None = None
     warnings: list[str] | None = None  # range warnings, one line each
     confidence: dict | None = None  # the model card's region of the design (None: the card has none)
+    model_interval: ModelInterval | None = None  # the mesh model's own calibrated interval (hcmt.design.model_interval)
     surrogate: dict | None = None  # the response surface's answers {answer: {mean, lo, hi}}
     disagreement: bool | None = None  # the model's peak plate stress outside the surrogate's interval
     disagreement_by_answer: dict[str, bool] | None = None
@@ -118,8 +120,8 @@ class Summary(ImpactQuantities):
                 out.update(v.to_json(self.readout) if v is not None else {})
             elif f.name == "derived_yield_margin_mpa":
                 out.update({f"{self.readout}_yield_margin_mpa": v} if v is not None else {})
-            elif f.name == "verify":
-                out.update({"verify": v.to_json()} if v is not None else {})
+            elif f.name in ("verify", "model_interval"):
+                out.update({f.name: v.to_json()} if v is not None else {})
             elif v is not None or f.name in ALWAYS or (f.name == "confidence" and self.model is not None):
                 out[f.name] = v
         return out

@@ -171,8 +171,8 @@ def generate_dataset(out, *, preset: str = "small", counts: dict[str, int], seed
     trajectory counts; ``edge_fraction`` of the training designs are drawn at the ranges' edges (thin plates, high
     drops: :data:`hcmt.sim.params.EDGES`); ``families`` (:data:`hcmt.sim.params.FAMILIES`) take the trajectories of
     every split in turn, and meta.json's ``families`` lists each trajectory's; ``ranges`` (``{name: (lo, hi)}``,
-    ``generate --range``) replaces sampled parameters' ranges in every split but the variants (meta.json's
-    ``range_overrides``). Returns ``{"simulated": n,
+    ``generate --range``) replaces sampled parameters' ranges in every split, a variant split keeping its own range
+    of the parameters it sets (meta.json's ``range_overrides``). Returns ``{"simulated": n,
     "skipped": n, "splits": {split: path}}``. A trajectory estimated at over
     :data:`hcmt.sim.params.MAX_ESTIMATED_SECONDS` (:func:`generation_cost`) is refused before anything is written,
     unless ``force``."""

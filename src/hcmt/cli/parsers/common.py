@@ -88,6 +88,14 @@ def surrogate_args(p: argparse.ArgumentParser) -> None:
     g.add_argument("--surrogate", metavar="FILE.json", help="the response surface to report beside the model (made "
                    "by `hcmt surrogate fit`; default: the model's own, shipped with it or RUN/surrogate.json)")
     g.add_argument("--no-surrogate", action="store_true", help="no response surface: the mesh model alone")
+    m = p.add_mutually_exclusive_group()
+    m.add_argument("--model-interval", metavar="FILE.json", help="the mesh model's own calibrated 95 %% interval "
+                   "(peak plate stress, max deflection, a band on the plate stress history; calibrated on held-out "
+                   "solver runs by benchmarks/trust/run.py; default: the model's own, shipped with it or "
+                   "RUN/interval.json); the calls trust it, and decide outside the training ranges only where it "
+                   "was calibrated")
+    m.add_argument("--no-model-interval", action="store_true", help="no interval of the mesh model's own: the calls "
+                   "fall back to its answer and the response surface")
 
 
 def readout_arg(p: argparse.ArgumentParser) -> None:

@@ -110,9 +110,9 @@ def configure_generate(parser: argparse.ArgumentParser) -> None:
                         help="share of training designs drawn at the ranges' edges where models fail first: thin "
                              "plates (lowest fifth of the thickness range) or high drops (top fifth); default 0")
     parser.add_argument("--range", type=parameter_range, action="append", default=[], metavar="NAME=LO:HI",
-                        help="replace a sampled parameter's range in the train, valid and test splits (repeatable; "
-                             "e.g. --range thickness=0.5:1.25 --range drop_height=500:1250); the variant splits keep "
-                             "theirs; meta.json records it as range_overrides")
+                        help="replace a sampled parameter's range in every split (repeatable; e.g. --range "
+                             "thickness=0.5:1.25 --range drop_height=500:1250); a variant split keeps its own range "
+                             "of the parameters it sets; meta.json records it as range_overrides")
     parser.add_argument("--workers", type=cores_count, default=1, metavar="N",
                         help=f"worker processes, 1 to this machine's cores ({cores()}; default 1)")
     parser.add_argument("--family", default="mono", metavar="F[,F...]",

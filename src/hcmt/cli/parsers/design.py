@@ -74,7 +74,8 @@ def check_options(args) -> dict:
     if verify == "auto" and args.yield_mpa is None:
         raise CommandError("--verify auto runs the solver on the designs whose call is undecided: give --yield-mpa Y")
     return {"verify": verify, "yield_mpa": check_yield(args.yield_mpa), "readout": args.readout,
-            "surrogate": False if args.no_surrogate else (args.surrogate or True)}
+            "surrogate": False if args.no_surrogate else (args.surrogate or True),
+            "interval": False if args.no_model_interval else (args.model_interval or True)}
 
 
 def check_predict(args) -> None:

@@ -1,0 +1,226 @@
+"""Design check, the mesh model's own interval: split-conformal bounds calibrated on held-out solver runs, by where a
+design lies against the model's training ranges.
+
+A design's **cell** (:func:`cell_of`) is ``inside`` when every parameter lies in the training ranges; otherwise the
+parameters beyond them with their side (``thickness+``: thicker than any training design, ``drop_height-``: lower)
+joined by ``,``, and how far out: the largest excess as a share of its range's width, rounded up to
+:data:`DISTANCE_STEP` (``thickness+:0.2``: up to a fifth of the thickness range beyond its top).
+
+For each cell and answer (:data:`ANSWERS`: peak plate stress, max deflection) the calibration keeps, from its n
+held-out designs, the log ratios ``r = log(solver / model)``, their median ``b`` and the conformal half-width ``w``,
+the ``ceil((n + 1)(1 - alpha))``-th smallest ``|r - b|`` (split conformal, Vovk et al. 2005; alpha 0.05): the
+interval is ``model * exp(b - w) .. model * exp(b + w)``. The plate stress history gets a simultaneous band,
+``model(t) +- w_h * model's peak``, ``w_h`` the same order statistic of each design's
+``max_t |solver(t) - model(t)| / model's peak``. The model's answer stays its own; the interval is beside it.
+
+A cell with fewer than :data:`MIN_DESIGNS` held-out designs (too few for a finite 95 % bound), and a design in no
+calibrated cell, gets no interval: its pass / fail call stays undecided (:mod:`hcmt.design.calls`).
+:func:`fit` makes a calibration from (design, model summary, solver summary) triples;
+``benchmarks/trust/run.py`` fits the shipped model's and measures its coverage on designs of other seeds.
+"""
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import asdict, dataclass
+from pathlib import Path
+
+import numpy as np
+
+from hcmt.data.runs import PRETRAINED_DIR
+from hcmt.errors import InputError
+from hcmt.files import atomic_path
+from hcmt.sim.params import DESIGN_KEYS, Design
+
+#: the answers the interval bounds (each a :class:`hcmt.inference.quantities.ImpactQuantities` field)
+ANSWERS = ("peak_plate_stress_mpa", "max_deflection_mm")
+#: how far out a cell reaches, in steps of this share of a range's width
+DISTANCE_STEP = 0.2
+#: the nominal coverage
+LEVEL = 0.95
+#: a cell needs ``ceil((n + 1) * LEVEL) <= n`` held-out designs for a finite bound: 19 at 95 %
+MIN_DESIGNS = math.ceil(LEVEL / (1 - LEVEL) - 1e-9)
+#: the file beside a model: ``hcmt/pretrained/NAME.interval.json``, ``RUN/interval.json``
+SUFFIX = ".interval.json"
+
+
+def cell_of(design: Design, ranges: dict[str, tuple[float, float]]) -> str:
+    """The design's cell (module docstring): ``inside``, or ``NAME+[,NAME-...]:DISTANCE``. A parameter whose
+    training range is a single value counts a step out when it differs from it."""
+    sides, far = [], 0.0
+    for key in sorted(ranges):
+        if key not in DESIGN_KEYS:
+            continue
+        lo, hi = ranges[key]
+        v, tol = getattr(design, key), 1e-6 * max(abs(lo), abs(hi), 1e-12)
+        if lo - tol <= v <= hi + tol:
+            continue
+        sides.append(f"{key}{'+' if v > hi else '-'}")
+        far = max(far, (v - hi if v > hi else lo - v) / (hi - lo) if hi > lo else DISTANCE_STEP)
+    if not sides:
+        return "inside"
+    return f"{','.join(sides)}:{DISTANCE_STEP * math.ceil(far / DISTANCE_STEP - 1e-9):.1f}"
+
+
+def conformal_half_width(scores: np.ndarray, level: float = LEVEL) -> float:
+    """The ``ceil((n + 1) level)``-th smallest score (inf when that exceeds n): split conformal's bound."""
+    s = np.sort(np.asarray(scores, float))
+    k = math.ceil((len(s) + 1) * level - 1e-9)
+    return float(s[k - 1]) if k <= len(s) else math.inf
+
+
+@dataclass(frozen=True)
+class Cell:
+    """One cell's calibration: ``designs`` held out, per answer the center ``b`` and half-width ``w`` of
+    ``log(solver / model)``, the history band's ``w_h`` (a share of the model's peak)."""
+
+    designs: int
+    center: dict[str, float]
+    half_width: dict[str, float]
+    band: float
+
+
+@dataclass(frozen=True)
+class ModelInterval:
+    """A design's interval from its model's calibration: ``lo``/``hi`` per answer, the history band, the cell
+    and the held-out designs behind it. :meth:`to_json` is the design's ``model_interval`` block of the JSON."""
+
+    cell: str
+    designs: int
+    level: float
+    bounds: dict[str, tuple[float, float]]
+    history_lo_mpa: list[float]
+    history_hi_mpa: list[float]
+
+    def to_json(self) -> dict:
+        return {"cell": self.cell, "held_out_designs": self.designs, "level": self.level,
+                **{k: {"lo": lo, "hi": hi} for k, (lo, hi) in self.bounds.items()},
+                "plate_stress_history_band_mpa": {"lo": self.history_lo_mpa, "hi": self.history_hi_mpa}}
+
+
+@dataclass(frozen=True)
+class Calibration:
+    """A model's calibration: its cells (:class:`Cell`), the level, what it was fitted on (``source``: seeds,
+    command) and the coverage measured on other designs (``measured``, written by the benchmark)."""
+
+    model: str
+    level: float
+    cells: dict[str, Cell]
+    source: dict
+    measured: dict | None = None
+
+    def interval(self, design: Design, ranges: dict[str, tuple[float, float]], answers: dict[str, float],
+                 history: list[float]) -> ModelInterval | None:
+        """The interval of a design whose model answers are ``answers`` (:data:`ANSWERS`) and plate stress history
+        ``history``, or None when its cell is not calibrated."""
+        key = cell_of(design, ranges)
+        cell = self.cells.get(key)
+        if cell is None:
+            return None
+        bounds = {a: (float(answers[a] * math.exp(cell.center[a] - cell.half_width[a])),
+                      float(answers[a] * math.exp(cell.center[a] + cell.half_width[a]))) for a in ANSWERS}
+        h = np.asarray(history, float)
+        half = cell.band * float(answers["peak_plate_stress_mpa"])
+        return ModelInterval(key, cell.designs, self.level, bounds, [float(v) for v in np.maximum(h - half, 0.0)],
+                             [float(v) for v in h + half])
+
+    def reason(self, design: Design, ranges: dict[str, tuple[float, float]]) -> str:
+        """Why a design has no interval (its cell, the cells calibrated)."""
+        return (f"no interval: its cell {cell_of(design, ranges)} was not calibrated (calibrated: "
+                f"{', '.join(sorted(self.cells))}); the call stays undecided")
+
+    def to_json(self) -> dict:
+        return {"format": "hcmt model interval 1", "model": self.model, "level": self.level,
+                "cells": {k: asdict(c) for k, c in sorted(self.cells.items())}, "source": self.source,
+                **({"measured": self.measured} if self.measured is not None else {})}
+
+    def save(self, path: str | Path) -> Path:
+        path = Path(path)
+        with atomic_path(path) as tmp:
+            tmp.write_text(json.dumps(self.to_json(), indent=1) + "\n")
+        return path
+
+    @classmethod
+    def load(cls, path: str | Path) -> "Calibration":
+        """Read a calibration file (plain JSON, no code); anything else is refused naming the file."""
+        path = Path(path)
+        try:
+            raw = json.loads(path.read_text())
+            if raw.get("format") != "hcmt model interval 1":
+                raise ValueError("not an hcmt model interval file (format)")
+            cells = {str(k): Cell(int(c["designs"]), {a: float(c["center"][a]) for a in ANSWERS},
+                                  {a: float(c["half_width"][a]) for a in ANSWERS}, float(c["band"]))
+                     for k, c in raw["cells"].items()}
+            return cls(str(raw["model"]), float(raw["level"]), cells, dict(raw.get("source") or {}),
+                       raw.get("measured"))
+        except (OSError, ValueError, KeyError, TypeError, AttributeError) as e:
+            raise InputError(f"{path}: not a model interval calibration ({type(e).__name__}: {e})") from None
+
+
+def fit(triples: list[tuple[Design, object, object]], ranges: dict[str, tuple[float, float]], model: str,
+        source: dict | None = None, level: float = LEVEL) -> Calibration:
+    """A calibration from held-out designs: ``(design, model summary, solver summary)`` triples (summaries with
+    :data:`ANSWERS` and ``plate_stress_history_mpa``), grouped by :func:`cell_of`; cells with fewer than
+    :data:`MIN_DESIGNS` designs are left out."""
+    groups: dict[str, list[tuple[object, object]]] = {}
+    for design, m, s in triples:
+        groups.setdefault(cell_of(design, ranges), []).append((m, s))
+    cells = {}
+    for key, pairs in groups.items():
+        if len(pairs) < MIN_DESIGNS:
+            continue
+        center, half = {}, {}
+        for a in ANSWERS:
+            r = np.log([float(getattr(s, a)) / float(getattr(m, a)) for m, s in pairs])
+            center[a] = float(np.median(r))
+            half[a] = conformal_half_width(np.abs(r - center[a]), level)
+        band = conformal_half_width(np.array([history_score(m, s) for m, s in pairs]), level)
+        cells[key] = Cell(len(pairs), center, half, band)
+    return Calibration(model, level, cells, dict(source or {}))
+
+
+def history_score(model, solver) -> float:
+    """``max_t |solver(t) - model(t)| / model's peak`` over the frames both histories hold."""
+    m, s = np.asarray(model.plate_stress_history_mpa, float), np.asarray(solver.plate_stress_history_mpa, float)
+    n = min(len(m), len(s))
+    return float(np.max(np.abs(s[:n] - m[:n])) / float(model.peak_plate_stress_mpa))
+
+
+def covers(iv: ModelInterval, solver) -> dict[str, bool]:
+    """Whether the interval holds the solver's answers and its whole plate stress history."""
+    out = {a: bool(iv.bounds[a][0] <= float(getattr(solver, a)) <= iv.bounds[a][1]) for a in ANSWERS}
+    s = np.asarray(solver.plate_stress_history_mpa, float)
+    n = min(len(s), len(iv.history_lo_mpa))
+    out["plate_stress_history_mpa"] = bool(np.all((np.asarray(iv.history_lo_mpa[:n]) <= s[:n])
+                                                  & (s[:n] <= np.asarray(iv.history_hi_mpa[:n]))))
+    return out
+
+
+def interval_path(run) -> Path | None:
+    """Where a run's own calibration lives: ``hcmt/pretrained/NAME.interval.json`` beside a shipped model,
+    ``RUN/interval.json`` in a run folder."""
+    if str(run.source).startswith("pretrained:"):
+        return PRETRAINED_DIR / f"{run.source.split(':', 1)[1]}{SUFFIX}"
+    folder = getattr(run, "folder", None)
+    return folder.path / "interval.json" if folder is not None else None
+
+
+def for_run(run, choice: "Calibration | str | Path | bool | None" = True) -> tuple[Calibration | None, str | None]:
+    """(calibration, note) for a run: ``True``, the run's own (:func:`interval_path`; a note when it has none);
+    a path, that file; a :class:`Calibration`, itself; ``False`` / ``None``, none."""
+    if choice is None or choice is False:
+        return None, None
+    if isinstance(choice, Calibration):
+        return choice, None
+    if choice is True:
+        path = interval_path(run)
+        if path is None or not path.is_file():
+            where = path.name if path is not None else "no run folder"
+            return None, (f"{run.source} has no calibrated interval of its own ({where}): its calls fall back to "
+                          "its answer and the response surface; benchmarks/trust/run.py calibrates one")
+        return Calibration.load(path), None
+    if isinstance(choice, (str, Path)):
+        return Calibration.load(choice), None
+    raise InputError(f"expected True, False, a path or an hcmt Calibration, got {type(choice).__name__}",
+                     param="interval")
+

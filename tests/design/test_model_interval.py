@@ -22,7 +22,7 @@ from hcmt.design.model_interval import (
     fit,
 )
 from hcmt.errors import InputError
-from hcmt.sim.params import Design
+from hcmt.sim.params import DESIGN_KEYS, Design
 
 RANGES = {"thickness": (0.5, 1.0), "drop_height": (500.0, 1000.0), "plate_half_length": (12.0, 12.0)}
 BASE = Design(thickness=0.75, drop_height=750.0, plate_half_length=12.0)
@@ -128,6 +128,7 @@ def shipped():
     return hcmt.load_pretrained("impact_plate_small", "cpu")
 
 
+@pytest.mark.slow  # rolls the shipped model out
 def test_check_attaches_the_interval_and_calls_outside_only_in_calibrated_cells(shipped):
     """Two designs of the shipped model (short window): one inside, one thicker. A calibration with only the
     thicker cell: the thicker design gets that interval (model x exp(b +- w) of its own answer) and a decided call
@@ -150,3 +151,33 @@ def test_check_attaches_the_interval_and_calls_outside_only_in_calibrated_cells(
     assert out.to_json()["model_interval"]["cell"] == cell
     uncal = check_designs(shipped, designs[1:], yield_mpa=5000.0, surrogate=False, interval=False, progress=False)
     assert uncal.preds[0].summary.call == "undecided"  # outside, no calibrated cell: the solver decides
+
+
+@pytest.mark.slow  # rolls the shipped model out
+def test_fuzz_far_outside_the_ranges_no_decided_call_where_nothing_was_calibrated(shipped):
+    """Designs 1-3 parameters beyond the training ranges by half a range to ten ranges, either side, any yield
+    stress: the calibrated cells reach 0.4 of a range out, so none of them is decided (the solver decides with
+    --verify auto). A small, fast version of benchmarks/trust/run.py --fuzz."""
+    rng = np.random.default_rng(52)
+    varied = [k for k, (lo, hi) in shipped.ranges.items() if hi > lo and k in DESIGN_KEYS]
+    cal = Calibration(shipped.source, 0.95, {c: Cell(30, {a: 0.0 for a in ANSWERS}, {a: 0.05 for a in ANSWERS}, 0.2)
+                                             for c in ("inside", "thickness+:0.2", "thickness+:0.4")}, {})
+    designs = []
+    while len(designs) < 4:
+        base = hcmt.design_for(shipped)
+        change = {}
+        for key in rng.choice(varied, size=rng.integers(1, 4), replace=False):
+            lo, hi = shipped.ranges[key]
+            out = (hi - lo) * rng.uniform(0.5, 10.0)
+            change[key] = hi + out if rng.random() < 0.5 or lo - out <= 0 else lo - out
+        try:
+            d = replace(base, **change).validate()
+        except InputError:
+            continue
+        if d.thickness <= 1.8 and d.ball_radius <= 8:  # keep the meshes small: a fast test
+            designs.append((f"far{len(designs)}", d))
+    check = check_designs(shipped, designs, yield_mpa=float(rng.uniform(300, 3000)), surrogate=True,
+                          interval=cal, progress=False, batch=4)
+    for p in check.preds:
+        assert cell_of(p.design, shipped.ranges) not in cal.cells
+        assert p.summary.call == "undecided" and p.summary.final_call == "undecided", (p.name, p.design)

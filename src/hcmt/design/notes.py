@@ -17,11 +17,17 @@ def weak_reasons(p: Prediction) -> list[str]:
     without one, where the model card measured large errors. A design outside the training ranges says so either way
     (its call is undecided: :func:`hcmt.design.calls.add_calls`)."""
     out = []
-    c = p.summary.confidence
+    c, iv = p.summary.confidence, p.summary.model_interval
     if c and c["region"] == "outside":
-        out.append(f"{p.name}: outside the training ranges: no pass / fail call is decided there (the model card "
-                   "measured the error only on designs just beyond the thickness and drop height ranges)"
-                   + verify_hint(p))
+        if iv is not None:
+            lo, hi = iv.bounds["peak_plate_stress_mpa"]
+            out.append(f"{p.name}: outside the training ranges ({iv.cell}): the mesh model's interval there was "
+                       f"calibrated on {iv.designs} held-out solver runs: peak plate stress {lo:.0f}-{hi:.0f} MPa "
+                       f"({100 * iv.level:.0f} %)" + verify_hint(p))
+        else:
+            out.append(f"{p.name}: outside the training ranges, where no interval of the mesh model was calibrated "
+                       "(hcmt models lists the calibrated cells): no pass / fail call is decided there"
+                       + verify_hint(p))
     g = (p.summary.surrogate or {}).get("peak_plate_stress_mpa")
     if g:
         gap = (p.summary.chosen.peak_plate_stress_mpa - g["mean"]) / g["mean"]

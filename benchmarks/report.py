@@ -30,6 +30,7 @@ from surrogate.report import (
     surrogate as surrogate_section,  # noqa: E402
 )
 from transfer.report import transfer as transfer_section, transfer_given  # noqa: E402
+from trust.report import trust as trust_section  # noqa: E402
 
 DOC = ROOT.parent / "docs" / "RESULTS.md"
 INTRO = ("Every number below was produced by the command quoted with it, on this project's development machine "
@@ -57,6 +58,7 @@ def main() -> None:
     surrogate_section(lines, load("surrogate.json"))
     judge = load("model_judge.json")
     judge_section(lines, judge)
+    trust_section(lines, load("trust.json"))
     transfer_section(lines, load("transfer.json"))
     transfer_given(lines, load("transfer_shipped.json"))
     judges = [load(p.name) for p in sorted(RESULTS.glob("scaling_judge_step*.json"))]

@@ -13,6 +13,7 @@ from hcmt.design.calls import call_of, outside_reason, trusted_bounds
 from hcmt.design.check import check_designs
 from hcmt.design.model_interval import (
     ANSWERS,
+    BAND_FRAMES,
     MIN_DESIGNS,
     Calibration,
     Cell,
@@ -20,6 +21,7 @@ from hcmt.design.model_interval import (
     conformal_half_width,
     covers,
     fit,
+    history_score,
 )
 from hcmt.errors import InputError
 from hcmt.sim.params import DESIGN_KEYS, Design
@@ -90,11 +92,13 @@ def test_interval_is_the_model_times_exp_center_plus_minus_half_width():
                                                          {"peak_plate_stress_mpa": 0.05, "max_deflection_mm": 0.2},
                                                          0.1)}, {})
     d = replace(BASE, thickness=1.05)
-    iv = cal.interval(d, RANGES, {"peak_plate_stress_mpa": 500.0, "max_deflection_mm": 0.1}, [0.0, 250.0, 500.0])
+    history = [0.0, 100.0, 200.0, 300.0, 500.0, 300.0, 100.0, 50.0]
+    iv = cal.interval(d, RANGES, {"peak_plate_stress_mpa": 500.0, "max_deflection_mm": 0.1}, history)
     assert iv.bounds["peak_plate_stress_mpa"] == pytest.approx((500 * math.exp(0.05), 500 * math.exp(0.15)))
     assert iv.bounds["max_deflection_mm"] == pytest.approx((0.1 * math.exp(-0.2), 0.1 * math.exp(0.2)))
-    assert iv.history_lo_mpa == pytest.approx([0.0, 200.0, 450.0]) and iv.history_hi_mpa == pytest.approx(
-        [50.0, 300.0, 550.0])
+    near = [history[max(t - BAND_FRAMES, 0):t + BAND_FRAMES + 1] for t in range(len(history))]  # the envelope
+    assert iv.history_lo_mpa == pytest.approx([max(min(w) - 50.0, 0.0) for w in near])  # band 0.1 x the peak 500
+    assert iv.history_hi_mpa == pytest.approx([max(w) + 50.0 for w in near])
     assert cal.interval(BASE, RANGES, {"peak_plate_stress_mpa": 500.0, "max_deflection_mm": 0.1}, [1.0]) is None
     assert "inside was not calibrated" in cal.reason(BASE, RANGES)
 
@@ -113,6 +117,14 @@ def test_file_round_trip_and_refusal(tmp_path):
     (tmp_path / "bad.json").write_text('{"format": "something else"}')
     with pytest.raises(InputError, match="bad.json: not a model interval calibration"):
         Calibration.load(tmp_path / "bad.json")
+
+
+def test_history_score_is_how_far_the_solver_leaves_the_envelope():
+    model = _summary(500.0, 0.1, [0.0, 100.0, 500.0, 100.0, 0.0, 0.0, 0.0, 0.0])
+    late = _summary(0.0, 0.0, [0.0, 0.0, 100.0, 500.0, 100.0, 0.0, 0.0, 0.0])  # one frame late: inside the envelope
+    assert history_score(model, late) == 0.0
+    high = _summary(0.0, 0.0, [0.0, 100.0, 600.0, 100.0, 0.0, 0.0, 0.0, 80.0])  # 100 MPa over the peak, 80 late
+    assert history_score(model, high) == pytest.approx(100.0 / 500.0)
 
 
 def test_calls_trust_the_interval_and_decide_outside_only_where_calibrated():
@@ -148,6 +160,7 @@ def test_check_attaches_the_interval_and_calls_outside_only_in_calibrated_cells(
                                       out.peak_plate_stress_mpa * math.exp(0.15)))
     assert out.call == "pass" and out.call_interval_mpa["from"] == "model interval"
     assert outside_reason(check.preds[1], ranges) is None
+    assert outside_reason(check.preds[1], ranges, "surrogate")  # the surface alone was never calibrated out there
     assert out.to_json()["model_interval"]["cell"] == cell
     uncal = check_designs(shipped, designs[1:], yield_mpa=5000.0, surrogate=False, interval=False, progress=False)
     assert uncal.preds[0].summary.call == "undecided"  # outside, no calibrated cell: the solver decides

@@ -64,12 +64,13 @@ def call_of(lo: float, hi: float, yield_mpa: float) -> str:
     return "pass" if hi < yield_mpa else "fail" if lo > yield_mpa else "undecided"
 
 
-def outside_reason(p: Prediction, ranges: dict[str, tuple[float, float]] | None) -> str | None:
+def outside_reason(p: Prediction, ranges: dict[str, tuple[float, float]] | None, trust: str = TRUST) -> str | None:
     """Why ``p`` gets no decided call, or None: a design outside the model's training ranges (``ranges``, the
     run's; without them, the region its summary's ``confidence`` records: :func:`hcmt.design.inputs.region_of`)
     whose cell has no calibrated interval of the mesh model (:func:`model_bounds`: its coverage was measured
-    there, so it decides)."""
-    if model_bounds(p.summary) is not None:
+    there, so it decides, with ``trust`` ``model`` or ``union``; the response surface alone was never calibrated
+    outside the ranges)."""
+    if model_bounds(p.summary) is not None and trust in ("model", "union"):
         return None
     if ranges is not None:
         keys = outside(p.design, ranges)
@@ -93,7 +94,7 @@ def add_calls(preds: list[Prediction], yield_mpa: float | None, trust: str = TRU
         return
     for p in preds:
         lo, hi, what = trusted_interval(p.summary, trust)
-        reason = outside_reason(p, ranges)
+        reason = outside_reason(p, ranges, trust)
         p.summary = replace(p.summary, call="undecided" if reason else call_of(lo, hi, yield_mpa),
                             call_interval_mpa={"lo": float(lo), "hi": float(hi), "from": what,
                                                "model_readout": p.summary.readout,

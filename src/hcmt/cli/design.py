@@ -15,6 +15,7 @@ from hcmt.design import sweep as sw
 from hcmt.design.basics import parse_vary
 from hcmt.design.check import check_designs
 from hcmt.design.inputs import range_warnings, read_designs_csv, settings_of
+from hcmt.design.model_interval import Calibration, interval_path
 from hcmt.design.reports import contour_picture, format_calls, format_table, to_json, write_csv
 from hcmt.design.surrogate import run_surrogate_path
 from hcmt.errors import missing_extra
@@ -161,6 +162,7 @@ def main_models(args: argparse.Namespace) -> int:
                        "window": {"frames": settings.frames, "frame_dt_ms": settings.frame_dt},
                        "surrogate": str(surrogate) if surrogate is not None and surrogate.is_file() else None,
                        "families": trained_families(run.meta),
+                       "model_interval": interval_card(run),
                        "design_parameters": {k: {"training_range": list(run.ranges[k]) if k in run.ranges else None,
                                                  "default": getattr(defaults, k), "unit": DESIGN_UNITS[k]}
                                              for k in DESIGN_KEYS}}
@@ -181,6 +183,7 @@ def main_models(args: argparse.Namespace) -> int:
               + f"; the generator's families (hcmt generate --family): {', '.join(FAMILIES)}; a design of another "
               "family is outside its training and warned as such")
         print(f"  response surface beside it: {c['surrogate'] or 'none'}")
+        print("  " + interval_lines(c["model_interval"]))
         if c.get("confidence"):
             print("  measured error by region (docs/MODELS.md): "
                   + "; ".join(f"{r['label']}: peak plate stress median {r['peak_plate_stress_error_pct_median']:.1f} %"
@@ -189,3 +192,35 @@ def main_models(args: argparse.Namespace) -> int:
     for k in FAMILIES:
         print(f"  {k:<8} {describe_family(k)}")
     return 0
+
+
+def interval_card(run) -> dict | None:
+    """The model's own calibrated interval as ``hcmt models`` reports it: the cells, their held-out designs and
+    the coverage measured on designs of other seeds (the calibration file's ``measured`` block), or None."""
+    path = interval_path(run)
+    if path is None or not path.is_file():
+        return None
+    cal = Calibration.load(path)
+    return {"file": str(path), "level": cal.level, "cells": {k: c.designs for k, c in cal.cells.items()},
+            "measured": cal.measured}
+
+
+def interval_lines(card: dict | None) -> str:
+    """The model's own interval in a few lines: each calibrated cell, its held-out designs, and where measured the
+    coverage of the peak plate stress, the deflection and the whole history with the peak's median width."""
+    if card is None:
+        return "the mesh model's own interval: none calibrated (outside the ranges its calls stay undecided)"
+    measured = (card.get("measured") or {}).get("by_cell", {})
+    lines = [f"the mesh model's own {100 * card['level']:.0f} % interval, by cell (held-out designs it was "
+             "calibrated on; coverage of the solver measured on designs of other seeds: peak, deflection, whole "
+             "history; the peak interval's median width):"]
+    for cell, n in card["cells"].items():
+        m = measured.get(cell)
+        got = "not measured" if not m else (
+            f"covers {100 * m['peak_plate_stress_mpa']:.0f} / {100 * m['max_deflection_mm']:.0f} / "
+            f"{100 * m['plate_stress_history_mpa']:.0f} % of {m['designs']}, width "
+            f"{100 * m['median_rel_width_peak']:.0f} %")
+        lines.append(f"    {cell:<28} {n:>3} designs; {got}")
+    lines.append("    any other cell outside the ranges: no interval, the call stays undecided")
+    return "\n".join(lines)
+

@@ -466,7 +466,8 @@ def fuzz_one(run, runner: Runner, cal: Calibration, name: str, d: Design, y: flo
         solver = runner.solver([(name, d)], "fuzz solver")[name]
     peak = solver[PEAK] if solver is not None else None
     return {**base, "call": s.call, "final_call": s.final_call, "verified": bool(s.verified),
-            "model_peak_mpa": float(s.peak_plate_stress_mpa), "call_interval_mpa": s.call_interval_mpa,
+            "model_peak_mpa": float(s.peak_plate_stress_mpa),
+            "call_interval_mpa": s.call_interval_mpa.to_json() if s.call_interval_mpa else None,
             "model_interval": s.model_interval.to_json()["peak_plate_stress_mpa"] if s.model_interval else None,
             "solver_peak_mpa": peak, "unsafe": bool(s.final_call == "pass" and peak is not None and peak >= y)}
 

@@ -22,6 +22,7 @@ from hcmt.config import MAX_TRAJECTORIES, PRETRAINED_DIR, load_config
 from hcmt.data.convert import convert
 from hcmt.design.check import weak_reasons
 from hcmt.design.inputs import read_designs_csv
+from hcmt.design.summary import CallInterval
 from hcmt.design.surrogate import Surrogate, SurrogateError
 from hcmt.errors import InputError
 from hcmt.sim.generate import generate_dataset
@@ -261,7 +262,7 @@ def note_of(call: str | None, verified: bool = False) -> str:
                            verify=fake_verify() if verified else None)
     if call is not None:
         summary = replace(summary, call=call,
-                          call_interval_mpa={"lo": 200.0, "hi": 800.0 if call != "pass" else 600.0})
+                          call_interval_mpa=CallInterval(200.0, 800.0 if call != "pass" else 600.0, "model", "raw"))
     return " ".join(weak_reasons(SimpleNamespace(name="p", summary=summary)))
 
 

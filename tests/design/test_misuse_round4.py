@@ -154,7 +154,7 @@ def test_a_design_value_off_by_orders_of_magnitude_is_refused_or_warned_with_its
         assert "looks like" in warning[0] or "unit slip" in warning[0], warning[0]
         p = stand_in(design, 500.0, (500.0, 450.0, 550.0))
         add_calls([p], 5000.0, ranges=TRAINED)  # the interval says pass; the design is far outside
-        assert p.summary.call == "undecided" and p.summary.call_interval_mpa["trusted"] is False, (key, value)
+        assert p.summary.call == "undecided" and p.summary.call_interval_mpa.trusted is False, (key, value)
     assert accepted >= 10
 
 
@@ -239,7 +239,7 @@ def test_inside_designs_keep_their_decided_calls():
         d = replace(preset_design("small"), **{k: lo + (hi - lo) * rng.random() for k, (lo, hi) in ranges.items()})
         p = stand_in(d, 500.0, (500.0, 450.0, 550.0))
         add_calls([p], 1000.0, ranges=TRAINED)
-        assert p.summary.call == "pass" and "trusted" not in p.summary.call_interval_mpa
+        assert p.summary.call == "pass" and p.summary.call_interval_mpa.trusted
 
 
 def test_a_sweep_never_passes_a_point_outside_the_ranges():

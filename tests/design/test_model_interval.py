@@ -158,7 +158,7 @@ def test_check_attaches_the_interval_and_calls_outside_only_in_calibrated_cells(
     lo, hi = out.model_interval.bounds["peak_plate_stress_mpa"]
     assert (lo, hi) == pytest.approx((out.peak_plate_stress_mpa * math.exp(0.05),
                                       out.peak_plate_stress_mpa * math.exp(0.15)))
-    assert out.call == "pass" and out.call_interval_mpa["from"] == "model interval"
+    assert out.call == "pass" and out.call_interval_mpa.source == "model interval"
     assert outside_reason(check.preds[1], ranges) is None
     assert outside_reason(check.preds[1], ranges, "surrogate")  # the surface alone was never calibrated out there
     assert out.to_json()["model_interval"]["cell"] == cell

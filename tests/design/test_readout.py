@@ -81,7 +81,7 @@ def test_calls_use_the_chosen_readout_and_the_json_and_csv_record_it():
     preds = [_pred("a", readout="contact")]
     add_calls(preds, 450.0, "model")  # no surrogate: the model's band around the contact read-out's 400
     iv = preds[0].summary.call_interval_mpa
-    assert iv["model_readout"] == "contact" and iv["hi"] == pytest.approx(400 * 1.6)
+    assert iv.model_readout == "contact" and iv.hi == pytest.approx(400 * 1.6)
     check = SimpleNamespace(readout="contact", surrogate=None, solver_runs=0, notes=[])
     doc = to_json(preds, None, "m", "cpu", check)
     assert doc["readout"] == "contact" and doc["designs"][0]["readout"] == "contact"

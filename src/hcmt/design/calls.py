@@ -7,7 +7,7 @@ from dataclasses import replace
 
 from hcmt.design.inputs import outside
 from hcmt.design.prediction import Prediction
-from hcmt.design.summary import Summary
+from hcmt.design.summary import CallInterval, Summary
 from hcmt.errors import InputError
 
 #: the interval the limit calls trust (:func:`trusted_interval`), chosen by measurement (docs/MODELS.md, "Calls")
@@ -96,9 +96,8 @@ def add_calls(preds: list[Prediction], yield_mpa: float | None, trust: str = TRU
         lo, hi, what = trusted_interval(p.summary, trust)
         reason = outside_reason(p, ranges, trust)
         p.summary = replace(p.summary, call="undecided" if reason else call_of(lo, hi, yield_mpa),
-                            call_interval_mpa={"lo": float(lo), "hi": float(hi), "from": what,
-                                               "model_readout": p.summary.readout,
-                                               **({"trusted": False, "reason": reason} if reason else {})})
+                            call_interval_mpa=CallInterval(float(lo), float(hi), what, p.summary.readout,
+                                                           reason is None, reason))
 
 
 def final_calls(preds: list[Prediction], truth: list[Prediction | None] | None, yield_mpa: float | None) -> None:

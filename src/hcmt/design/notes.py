@@ -57,6 +57,6 @@ def verify_hint(p: Prediction) -> str:
     if s.call in ("pass", "fail") and s.call_interval_mpa:
         iv = s.call_interval_mpa
         side = "below" if s.call == "pass" else "above"
-        return (f"; the {s.call} call already allows for it: its whole interval {iv['lo']:.0f}-{iv['hi']:.0f} MPa "
+        return (f"; the {s.call} call already allows for it: its whole interval {iv.lo:.0f}-{iv.hi:.0f} MPa "
                 f"lies {side} the yield stress")
     return "; verify with the solver (--verify)"

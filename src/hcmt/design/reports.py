@@ -119,7 +119,7 @@ def format_calls(preds: list[Prediction], yield_mpa: float, label: str = "design
         solver = s.verify.solver_peak_plate_stress_mpa if s.verify is not None else None
         rows.append([str(value(p)), f"{s.chosen.peak_plate_stress_mpa:.0f}",
                      _interval((s.surrogate or {}).get("peak_plate_stress_mpa")),
-                     f"{iv['from']} [{iv['lo']:.0f}, {iv['hi']:.0f}]", s.call,
+                     f"{iv.source} [{iv.lo:.0f}, {iv.hi:.0f}]", s.call,
                      "-" if solver is None else f"{solver:.0f}", s.final_call or s.call])
     width = [max(len(h), *(len(r[i]) for r in rows)) for i, h in enumerate(head)]
     lines = [f"limit calls for a yield stress of {yield_mpa:g} MPa (pass: the trusted interval lies below it, fail: "

@@ -80,6 +80,25 @@ class VerifyRow:
 
 
 @dataclass(frozen=True)
+class CallInterval:
+    """The peak plate stress interval a limit call trusted (:func:`hcmt.design.calls.add_calls`), MPa: ``lo``,
+    ``hi``, where it came from (``source``: ``model interval``, ``model``, ``union`` or ``surrogate``; the JSON's
+    ``from``), the read-out whose peak it holds, and for a design whose call it may not decide, ``trusted`` False
+    and the ``reason``. :meth:`to_json` is the design's ``call_interval_mpa`` block of the JSON."""
+
+    lo: float
+    hi: float
+    source: str
+    model_readout: str
+    trusted: bool = True
+    reason: str | None = None
+
+    def to_json(self) -> dict:
+        return {"lo": self.lo, "hi": self.hi, "from": self.source, "model_readout": self.model_readout,
+                **({"trusted": False, "reason": self.reason} if not self.trusted else {})}
+
+
+@dataclass(frozen=True)
 class Summary(ImpactQuantities):
     """One design's numbers (module docstring): stresses MPa (von Mises), lengths mm, times ms; None: not set."""
 
@@ -98,7 +117,7 @@ class Summary(ImpactQuantities):
     yield_margin_mpa: float | None = None  # yield - peak plate stress
     derived_yield_margin_mpa: float | None = None  # yield - the derived read-out's peak (``<readout>_yield_...``)
     call: str | None = None  # pass, fail or undecided (hcmt.design.calls)
-    call_interval_mpa: dict | None = None  # {lo, hi, from, model_readout[, trusted, reason]}
+    call_interval_mpa: CallInterval | None = None  # the interval the call trusted
     verify: VerifyRow | None = None  # model against solver (hcmt.design.verification.verify_row)
     solver_plate_stress_history_mpa: list[float] | None = None
     solver_warnings: list[str] | None = None  # a solver run's own summary: the design outside its validated ranges
@@ -120,7 +139,7 @@ class Summary(ImpactQuantities):
                 out.update(v.to_json(self.readout) if v is not None else {})
             elif f.name == "derived_yield_margin_mpa":
                 out.update({f"{self.readout}_yield_margin_mpa": v} if v is not None else {})
-            elif f.name in ("verify", "model_interval"):
+            elif f.name in ("verify", "model_interval", "call_interval_mpa"):
                 out.update({f.name: v.to_json()} if v is not None else {})
             elif v is not None or f.name in ALWAYS or (f.name == "confidence" and self.model is not None):
                 out[f.name] = v

@@ -120,7 +120,7 @@ def analyse(check: Check, param: str, yield_mpa: float | None) -> dict:
         out["trend"][q] = row
     if yield_mpa is not None:
         # the model alone passes no point outside its training ranges (no interval was measured there)
-        trusted = {"model": np.array([p.summary.call_interval_mpa.get("trusted", True) for p in check.preds])}
+        trusted = {"model": np.array([p.summary.call_interval_mpa.trusted for p in check.preds])}
         calls = {}
         for who, rows in series.items():
             below = np.array([chosen(s, "peak_plate_stress_mpa") for s in rows]) < yield_mpa

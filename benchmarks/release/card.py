@@ -12,7 +12,9 @@ every number comes from the result files:
 * ``model_judge.json`` (benchmarks/surrogate/run.py ``--seed-in/--seed-out``): the model goals, where it judged
   *this* model (the same name, training designs and checkpoint step; else the block says which model it judged);
 * ``surrogate.json`` (benchmarks/surrogate/run.py): this model beside the response surface on the card's designs,
-  where it measured this model.
+  where it measured this model;
+* ``trust.json`` (benchmarks/trust/run.py): the mesh model's own interval, its coverage and width by region, where
+  it measured this model.
 """
 from __future__ import annotations
 
@@ -24,13 +26,14 @@ import numpy as np
 from hcmt.design.sweep import TREND_SIZE, trends_agree
 from report_common import command, load
 from surrogate.report import COMMAND, accuracy_table
+from trust.report import COMMAND as TRUST_COMMAND, coverage_table
 
 DOC = Path(__file__).resolve().parent.parent.parent / "docs" / "MODELS.md"
 
 
 def begin(name: str) -> str:
     return (f"<!-- card {name}: written by python benchmarks/report.py from benchmarks/results/model_{name}.json, "
-            "model_judge.json and surrogate.json; edit those, not this block -->")
+            "model_judge.json, surrogate.json and trust.json; edit those, not this block -->")
 
 
 def end(name: str) -> str:
@@ -176,10 +179,24 @@ def _beside(name: str, m: dict, surrogate: dict | None) -> list[str]:
             *accuracy_table(surrogate), ""]
 
 
-def card(name: str, m: dict, judge: dict | None, surrogate: dict | None) -> list[str]:
+def _interval(name: str, trust: dict | None) -> list[str]:
+    """The mesh model's own interval by region, where trust.json measured this model (pretrained:NAME)."""
+    if not trust or trust.get("model") != f"pretrained:{name}":
+        return ["**The mesh model's own interval**: not measured for this model "
+                f"(`{TRUST_COMMAND}` writes it).", ""]
+    pooled = trust["coverage"]["pooled"]
+    return [f"**The mesh model's own {100 * trust['level']:.0f} % interval** (`{command(trust)}`: calibrated on "
+            f"{trust['designs']['calibration']} solver runs of seed {trust['seeds']['calibration']}, measured on "
+            f"{trust['designs']['evaluation']} designs of seed(s) "
+            + ", ".join(str(x) for x in trust["seeds"]["evaluation"])
+            + "; docs/RESULTS.md \"The mesh model's own interval\" has the calls and the fuzzer):", "",
+            *coverage_table(pooled), ""]
+
+
+def card(name: str, m: dict, judge: dict | None, surrogate: dict | None, trust: dict | None = None) -> list[str]:
     """The block's lines, markers included."""
     return [begin(name), *_made(m), *_fresh(m), *_regions(m), *_test_and_speed(m), *_judged(name, m, judge),
-            *_beside(name, m, surrogate), end(name)]
+            *_beside(name, m, surrogate), *_interval(name, trust), end(name)]
 
 
 def write_cards(doc: Path = DOC) -> list[str]:
@@ -196,7 +213,8 @@ def write_cards(doc: Path = DOC) -> list[str]:
             continue
         head, rest = text.split(line, 1)
         tail = rest.split(end(name), 1)[1]
-        text = head + "\n".join(card(name, m, load("model_judge.json"), load("surrogate.json"))) + tail
+        text = head + "\n".join(card(name, m, load("model_judge.json"), load("surrogate.json"),
+                                     load("trust.json"))) + tail
         written.append(name)
     doc.write_text(text)
     return written

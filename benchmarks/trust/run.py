@@ -64,6 +64,7 @@ import torch
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))  # benchmarks/: common
 from common import RESULTS, portable  # noqa: E402
 from hcmt.config import VERSION  # noqa: E402
+from hcmt.config.threads import set_threads  # noqa: E402
 from hcmt.design.calls import MODEL_BAND, call_of, outside_reason, trusted_bounds  # noqa: E402
 from hcmt.design.check import check_designs  # noqa: E402
 from hcmt.design.inputs import settings_of  # noqa: E402
@@ -554,7 +555,7 @@ def main() -> None:
         print(f"note: a cell needs {MIN_DESIGNS} designs for a {LEVEL:.0%} bound; smaller ones get no interval")
     if a.checkpoint != "best" and a.model.startswith("pretrained:"):
         p.error("--checkpoint: a shipped model has one; pass a run folder as --model")
-    torch.set_num_threads(a.threads)
+    set_threads(a.threads)  # kept by Run.load (torch.set_num_threads alone may be taken for its default)
     t_start = time.perf_counter()
     run = Run.load(a.model, "cpu", which=a.checkpoint)
     name = run_name(run) + ("" if a.checkpoint == "best" else f"@{a.checkpoint}")

@@ -194,3 +194,15 @@ def test_fuzz_far_outside_the_ranges_no_decided_call_where_nothing_was_calibrate
     for p in check.preds:
         assert cell_of(p.design, shipped.ranges) not in cal.cells
         assert p.summary.call == "undecided" and p.summary.final_call == "undecided", (p.name, p.design)
+
+
+def test_a_higher_level_needs_more_designs_and_a_zero_answer_gets_no_interval():
+    rng = np.random.default_rng(4)
+    triples = _synthetic(rng, 30, 0.0, 0.03)
+    assert set(fit(triples, RANGES, "m", level=0.95).cells) == {"inside"}
+    assert fit(triples, RANGES, "m", level=0.99).cells == {}  # 99 % needs 99 designs: no cell, no infinite bound
+    cal = fit(triples, RANGES, "m")
+    assert cal.interval(BASE, RANGES, {"peak_plate_stress_mpa": 0.0, "max_deflection_mm": 0.1}, [0.0]) is None
+    iv = cal.interval(BASE, RANGES, {"peak_plate_stress_mpa": 500.0, "max_deflection_mm": 0.1}, [0.0] * 5)
+    solver = _summary(500.0, 0.1, [0.0] * 6)  # one frame more than the model's history: not held
+    assert covers(iv, solver)["plate_stress_history_mpa"] is False

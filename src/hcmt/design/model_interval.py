@@ -44,8 +44,13 @@ DISTANCE_STEP = 0.2
 BAND_FRAMES = 2
 #: the nominal coverage
 LEVEL = 0.95
-#: a cell needs ``ceil((n + 1) * LEVEL) <= n`` held-out designs for a finite bound: 19 at 95 %
-MIN_DESIGNS = math.ceil(LEVEL / (1 - LEVEL) - 1e-9)
+def min_designs(level: float) -> int:
+    """The fewest held-out designs with a finite bound at ``level``: ``ceil((n + 1) level) <= n``."""
+    return math.ceil(level / (1 - level) - 1e-9)
+
+
+#: a cell needs this many held-out designs at :data:`LEVEL`: 19 at 95 %
+MIN_DESIGNS = min_designs(LEVEL)
 #: the file beside a model: ``hcmt/pretrained/NAME.interval.json``, ``RUN/interval.json``
 SUFFIX = ".interval.json"
 
@@ -122,7 +127,7 @@ class Calibration:
         ``history``, or None when its cell is not calibrated."""
         key = cell_of(design, ranges)
         cell = self.cells.get(key)
-        if cell is None:
+        if cell is None or not answers["peak_plate_stress_mpa"] > 0:  # no bound of a ratio to a zero answer
             return None
         bounds = {a: (float(answers[a] * math.exp(cell.center[a] - cell.half_width[a])),
                       float(answers[a] * math.exp(cell.center[a] + cell.half_width[a]))) for a in ANSWERS}
@@ -168,13 +173,15 @@ def fit(triples: list[tuple[Design, object, object]], ranges: dict[str, tuple[fl
         source: dict | None = None, level: float = LEVEL) -> Calibration:
     """A calibration from held-out designs: ``(design, model summary, solver summary)`` triples (summaries with
     :data:`ANSWERS` and ``plate_stress_history_mpa``), grouped by :func:`cell_of`; cells with fewer than
-    :data:`MIN_DESIGNS` designs are left out."""
+    :func:`min_designs` designs at ``level`` are left out, as are designs whose model answer is not positive (no
+    ratio to it)."""
     groups: dict[str, list[tuple[object, object]]] = {}
     for design, m, s in triples:
-        groups.setdefault(cell_of(design, ranges), []).append((m, s))
+        if all(float(getattr(m, a)) > 0 for a in ANSWERS):
+            groups.setdefault(cell_of(design, ranges), []).append((m, s))
     cells = {}
     for key, pairs in groups.items():
-        if len(pairs) < MIN_DESIGNS:
+        if len(pairs) < min_designs(level):
             continue
         center, half = {}, {}
         for a in ANSWERS:
@@ -205,12 +212,12 @@ def history_score(model, solver) -> float:
 
 
 def covers(iv: ModelInterval, solver) -> dict[str, bool]:
-    """Whether the interval holds the solver's answers and its whole plate stress history."""
+    """Whether the interval holds the solver's answers and its whole plate stress history (a history of another
+    length is not held)."""
     out = {a: bool(iv.bounds[a][0] <= float(getattr(solver, a)) <= iv.bounds[a][1]) for a in ANSWERS}
     s = np.asarray(solver.plate_stress_history_mpa, float)
-    n = min(len(s), len(iv.history_lo_mpa))
-    out["plate_stress_history_mpa"] = bool(np.all((np.asarray(iv.history_lo_mpa[:n]) <= s[:n])
-                                                  & (s[:n] <= np.asarray(iv.history_hi_mpa[:n]))))
+    out["plate_stress_history_mpa"] = len(s) == len(iv.history_lo_mpa) and bool(
+        np.all((np.asarray(iv.history_lo_mpa) <= s) & (s <= np.asarray(iv.history_hi_mpa))))
     return out
 
 

@@ -404,17 +404,7 @@ def main() -> None:
                    help="2+ run folders of one dataset (the ensemble's members)")
     p.add_argument("--which", default="best", help="the members' checkpoint: best, checkpoint or step_N")
     p.add_argument("--also", default=None, metavar="MODEL", help="one more model measured on the same designs")
-    p.add_argument("--work", type=Path, required=True)
-    p.add_argument("--calibration-seed", type=int, default=5201)
-    p.add_argument("--eval-seeds", type=int, nargs="+", default=[5202, 5203])
-    p.add_argument("--inside", type=int, default=60, help="designs inside the ranges, per seed")
-    p.add_argument("--per-cell", type=int, default=24, help="designs per outside cell and distance, per seed")
-    p.add_argument("--cells", nargs="+", default=["thickness+", "drop_height+", "drop_height+,thickness+"],
-                   help="outside directions: parameters with their side, joined by ','")
-    p.add_argument("--distances", type=float, nargs="+", default=[0.2, 0.4],
-                   help=f"how far out, in multiples of {DISTANCE_STEP} of a range's width")
-    p.add_argument("--batch", type=int, default=8)
-    p.add_argument("--threads", type=int, default=1)
+    trust.design_arguments(p)
     p.add_argument("--cost-designs", type=int, default=8, help="evaluation designs timed afresh (0: none)")
     p.add_argument("--json", default="trust_ensemble.json",
                    help="result file: a name under benchmarks/results/, or a path")

@@ -523,10 +523,8 @@ def result_path(arg: str) -> Path:
     return RESULTS / p if p.parent == Path(".") else p
 
 
-def main() -> None:
-    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    p.add_argument("--model", default="pretrained:impact_plate_small")
-    p.add_argument("--checkpoint", default="best", help="with a run folder as --model: best, checkpoint or step_N")
+def design_arguments(p: argparse.ArgumentParser) -> None:
+    """The work folder, seeds, design counts, cells and speed options that run.py and ensemble.py share."""
     p.add_argument("--work", type=Path, required=True)
     p.add_argument("--calibration-seed", type=int, default=5201)
     p.add_argument("--eval-seeds", type=int, nargs="+", default=[5202, 5203])
@@ -538,6 +536,13 @@ def main() -> None:
                    help=f"how far out, in multiples of {DISTANCE_STEP} of a range's width")
     p.add_argument("--batch", type=int, default=8)
     p.add_argument("--threads", type=int, default=1)
+
+
+def main() -> None:
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("--model", default="pretrained:impact_plate_small")
+    p.add_argument("--checkpoint", default="best", help="with a run folder as --model: best, checkpoint or step_N")
+    design_arguments(p)
     p.add_argument("--fuzz", type=int, default=0, help="designs far outside the ranges through the design check")
     p.add_argument("--fuzz-seed", type=int, default=5299)
     p.add_argument("--write", action="store_true", help="write the calibration, with its measured block, to the "

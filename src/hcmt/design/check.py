@@ -4,7 +4,8 @@ no solver run.
 For each design (the parameters of ``hcmt simulate``, :class:`hcmt.sim.scene.Design`) the generator's scene code
 builds the mesh and the first two frames (:func:`hcmt.design.start.initial_frames`: the ball in free flight just above
 the plate), the model rolls out over the training data's recorded window (e.g. 52 frames of 0.002 ms), several
-designs as one batched graph per step (:func:`hcmt.inference.rollout.rollout_batch`), and :func:`summarize` reads off
+designs as one batched graph per step (on the CPU in blocks of at most ``CPU_BLOCK_NODES`` nodes:
+:func:`hcmt.inference.rollout.rollout_batch`), and :func:`summarize` reads off
 
 * the peak von Mises stress in the plate and in the ball (MPa), where (the node's position, mm) and when (ms);
 * the maximum plate deflection ``max |u_y|`` over the plate's nodes and frames (mm);

@@ -1,8 +1,8 @@
 """Design check, the prediction: each design's rollout input from the generator's scene code
 (:func:`design_trajectory`: the ball in free flight just above the plate), the model rolled out over the training
 data's recorded window, ``batch`` designs as one batched graph per step
-(:func:`hcmt.inference.rollout.rollout_batch`), and the numbers read off (:func:`summarize`,
-:func:`hcmt.design.readout.summarize_fields`) into :class:`Prediction`."""
+(on the CPU in blocks of at most ``CPU_BLOCK_NODES`` nodes: :func:`hcmt.inference.rollout.rollout_batch`), and the
+numbers read off (:func:`summarize`, :func:`hcmt.design.readout.summarize_fields`) into :class:`Prediction`."""
 from __future__ import annotations
 
 import time

@@ -157,7 +157,8 @@ def position_mask(adapter: Adapter, node_type: Tensor, dim: int) -> Tensor:
     """[N, dim] float: 1 where the position channel is predicted, 0 where a boundary condition sets it."""
     nt = node_type.reshape(-1)
     mask = torch.ones(nt.shape[0], dim, dtype=torch.float32, device=nt.device)
-    mask[torch.isin(nt, torch.tensor((int(NodeType.HANDLE), *adapter.prescribed), dtype=nt.dtype))] = 0.0
+    fixed = torch.tensor((int(NodeType.HANDLE), *adapter.prescribed), dtype=nt.dtype, device=nt.device)
+    mask[torch.isin(nt, fixed)] = 0.0
     mask[nt == int(NodeType.SYMMETRIC), 0] = 0.0  # symmetry line: x is fixed
     mask[nt == int(NodeType.WALL_BOUNDARY), dim - 1] = 0.0  # a roller (Impact Plate's support ring): y is fixed
     return mask
@@ -179,7 +180,7 @@ def node_features(adapter: Adapter, static: dict[str, Tensor], pos: Tensor, prev
     if adapter.velocity_input:
         parts.append(pos - prev)
     if adapter.obstacle_velocity_input:
-        moving = torch.isin(nt, torch.tensor(adapter.prescribed, dtype=nt.dtype))
+        moving = torch.isin(nt, torch.tensor(adapter.prescribed, dtype=nt.dtype, device=nt.device))
         parts.append(torch.where(moving[:, None], next_prescribed - pos, torch.zeros_like(pos)))
     for name in adapter.node_fields:
         parts.append(static[name].reshape(nt.shape[0], -1).to(pos.dtype))

@@ -123,18 +123,18 @@ def _kdtree_contacts(x, obj, ntype, radius, allowed, self_contact, exclude, batc
     x = np.asarray(x, np.float64)
     n = len(x)
     obj = np.asarray(obj, np.int64)
-    if batch is not None:  # graphs of a batch: one object set per graph, spread apart so no pair crosses graphs
-        batch = np.asarray(batch, np.int64)
-        obj = obj + batch * (obj.max() + 1 if n else 0)
-        span = np.ptp(x[:, 0]) + 2 * radius + 1.0 if n else 0.0
-        x = x.copy()
-        x[:, 0] += batch * span
+    span = int(obj.max()) + 1 if n else 1
+    if batch is not None:  # graphs of a batch: one object set per graph; objects of two graphs are never paired
+        obj = obj + np.asarray(batch, np.int64) * span
     cand = np.ones(n, bool)
     if allowed is not None:  # only nodes whose type takes part in some rule can be in contact
         cand = allowed.any(1)[np.asarray(ntype, np.int64)]
     order = np.argsort(obj, kind="stable")
-    bounds = np.searchsorted(obj[order], np.unique(obj), side="left")
+    ids = np.unique(obj)
+    bounds = np.searchsorted(obj[order], ids, side="left")
     groups = [g[cand[g]] for g in np.split(order, bounds[1:])]  # node indices of each object (a few objects)
+    graph = ids // span if batch is not None else np.zeros(len(ids), np.int64)  # each object's graph (ascending)
+    last = np.searchsorted(graph, graph, side="right")  # objects a + 1 .. last[a] - 1 share object a's graph
     lo = [x[g].min(0) - radius if len(g) else None for g in groups]
     hi = [x[g].max(0) + radius if len(g) else None for g in groups]
     found_i, found_q = [], []
@@ -146,7 +146,7 @@ def _kdtree_contacts(x, obj, ntype, radius, allowed, self_contact, exclude, batc
             pairs = cKDTree(x[ga]).query_pairs(radius, output_type="ndarray")
             found_i.append(ga[pairs[:, 0]])
             found_q.append(ga[pairs[:, 1]])
-        for b in range(a + 1, len(groups)):
+        for b in range(a + 1, int(last[a])):
             gb = groups[b]
             if not len(gb):
                 continue
@@ -175,18 +175,19 @@ def _dense_contacts(x, obj, ntype, radius, allowed, self_contact, exclude, batch
     if table is not None:
         ntype = ntype.long()
     slack = radius * (1 + 1e-5)  # cdist may use a matrix product; exact distances are recomputed below
-    found = []
+    found, window = [], _graph_window(batch, n)
     for s in range(0, n, block):  # loop over row blocks (memory: block x N), not over nodes
         e = min(s + block, n)
-        near = torch.cdist(x[s:e], x) < slack
+        lo, hi = (int(window[0][s]), int(window[1][e - 1])) if window is not None else (0, n)
+        near = torch.cdist(x[s:e], x[lo:hi]) < slack
         if not self_contact:
-            near &= obj[s:e, None] != obj[None, :]
+            near &= obj[s:e, None] != obj[None, lo:hi]
         if batch is not None:
-            near &= batch[s:e, None] == batch[None, :]
+            near &= batch[s:e, None] == batch[None, lo:hi]
         if table is not None:
-            near &= table[ntype[s:e, None], ntype[None, :]]
+            near &= table[ntype[s:e, None], ntype[None, lo:hi]]
         i, q = near.nonzero(as_tuple=True)
-        i = i + s
+        i, q = i + s, q + lo
         keep = (i < q) & (torch.linalg.vector_norm(x[i] - x[q], dim=1) < radius)
         found.append(torch.stack([i[keep], q[keep]]))
     pairs = torch.cat(found, dim=1) if found else torch.zeros((2, 0), dtype=torch.long, device=x.device)
@@ -196,3 +197,15 @@ def _dense_contacts(x, obj, ntype, radius, allowed, self_contact, exclude, batch
         pos = torch.searchsorted(exclude, key).clamp_max(exclude.numel() - 1)
         key = key[exclude[pos] != key]
     return torch.stack([key // n, key % n]) if n else torch.zeros((2, 0), dtype=torch.long, device=x.device)
+
+
+def _graph_window(batch, n: int) -> tuple[Tensor, Tensor] | None:
+    """For collated graphs (``batch`` ascending: each graph a contiguous node range), the first and one past the last
+    node of every node's graph (on the host), so a row block is tested against its graphs' nodes only, not all ``n``;
+    None without a batch or for one in another order."""
+    if batch is None or n == 0:
+        return None
+    b = batch.detach().cpu()
+    if not bool((b[1:] >= b[:-1]).all()):
+        return None
+    return torch.searchsorted(b, b, side="left"), torch.searchsorted(b, b, side="right")

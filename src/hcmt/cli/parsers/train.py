@@ -67,7 +67,8 @@ def _run_args(p: argparse.ArgumentParser) -> None:
                    help=f"only the first N trajectories, {span(1, MAX_TRAJECTORIES)}")
     p.add_argument("--checkpoint", default="best", choices=["best", "checkpoint"])
     p.add_argument("--device", help="cpu, cuda, cuda:N (default: cuda when available)")
-    batch_arg(p, "trajectories rolled out as one batched graph", 1, "1")
+    batch_arg(p, "trajectories rolled out together (one batched graph per step; on the CPU in blocks of at most "
+                 "1,536 nodes)", 1, "1")
     compile_arg(p)
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
 

@@ -26,7 +26,7 @@ import numpy as np
 from hcmt.design.sweep import TREND_SIZE, trends_agree
 from report_common import command, load
 from surrogate.report import COMMAND, accuracy_table
-from trust.report import COMMAND as TRUST_COMMAND, coverage_table
+from trust.report import COMMAND as TRUST_COMMAND, coverage_table, seeds_text
 
 DOC = Path(__file__).resolve().parent.parent.parent / "docs" / "MODELS.md"
 
@@ -186,7 +186,8 @@ def _interval(name: str, trust: dict | None) -> list[str]:
                 f"(`{TRUST_COMMAND}` writes it).", ""]
     pooled = trust["coverage"]["pooled"]
     return [f"**The mesh model's own {100 * trust['level']:.0f} % interval** (`{command(trust)}`: calibrated on "
-            f"{trust['designs']['calibration']} solver runs of seed {trust['seeds']['calibration']}, measured on "
+            f"{trust['designs']['calibration']} solver runs of seed(s) {seeds_text(trust['seeds']['calibration'])}, "
+            "measured on "
             f"{trust['designs']['evaluation']} designs of seed(s) "
             + ", ".join(str(x) for x in trust["seeds"]["evaluation"])
             + "; docs/RESULTS.md \"The mesh model's own interval\" has the calls and the fuzzer):", "",

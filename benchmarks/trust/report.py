@@ -17,6 +17,11 @@ CALLS = (("model", "the model's interval alone (`model`)"), ("union", "with the 
 SHORT_P = 0.05
 
 
+def seeds_text(seeds) -> str:
+    """A seed or a list of them, as text."""
+    return ", ".join(map(str, seeds)) if isinstance(seeds, list) else str(seeds)
+
+
 def _pct(x, digits=0) -> str:
     return "-" if x is None else f"{100 * x:.{digits}f} %"
 
@@ -119,7 +124,8 @@ def trust(lines: list[str], r: dict | None) -> None:
     lines += ["```bash", command(r), "```", "",
               sentences(f"The mesh model's own {_pct(r['level'])} interval (`hcmt.design.model_interval`, model "
                         f"`{r['model']}`): split conformal per cell, fitted on the solver's runs of "
-                        f"{d['calibration']} designs of seed {r['seeds']['calibration']} ({d['inside']} inside the "
+                        f"{d['calibration']} designs of seed(s) {seeds_text(r['seeds']['calibration'])} "
+                        f"({d['inside']} per seed inside the "
                         f"training ranges and {d['per_cell']} per outside cell: {cells} at "
                         + said([f"{x:g}" for x in d["distances"]]) + " of a range's width beyond it), measured on "
                         f"{d['evaluation']} designs of seed{'s' if len(r['seeds']['evaluation']) > 1 else ''} "

@@ -543,13 +543,17 @@ def main() -> None:
     p.add_argument("--model", default="pretrained:impact_plate_small")
     p.add_argument("--checkpoint", default="best", help="with a run folder as --model: best, checkpoint or step_N")
     design_arguments(p)
+    p.add_argument("--more-calibration-seeds", type=int, nargs="*", default=[], metavar="SEED",
+                   help="more seeds whose designs join the calibration (a cell's bound is an order statistic: more "
+                        "designs, less spread from one calibration set to the next)")
     p.add_argument("--fuzz", type=int, default=0, help="designs far outside the ranges through the design check")
     p.add_argument("--fuzz-seed", type=int, default=5299)
     p.add_argument("--write", action="store_true", help="write the calibration, with its measured block, to the "
                    "model's own file (hcmt.design.model_interval.interval_path)")
     p.add_argument("--json", default="trust.json", help="result file: a name under benchmarks/results/, or a path")
     a = p.parse_args()
-    seeds = [a.calibration_seed, *a.eval_seeds, *([a.fuzz_seed] if a.fuzz else [])]
+    calibration_seeds = [a.calibration_seed, *a.more_calibration_seeds]
+    seeds = [*calibration_seeds, *a.eval_seeds, *([a.fuzz_seed] if a.fuzz else [])]
     if len(set(seeds)) != len(seeds):
         p.error("--calibration-seed, --eval-seeds and --fuzz-seed must all differ: the calibration is measured on "
                 "designs it was not fitted on")
@@ -573,10 +577,13 @@ def main() -> None:
     command = portable("python benchmarks/trust/run.py " + " ".join(sys.argv[1:]))
 
     skipped: dict[str, int] = {}
-    print(f"calibration: seed {a.calibration_seed}", flush=True)
-    cal_rows = rows_of(runner, seed_designs(run, a.calibration_seed, a, cells, skipped), a.calibration_seed, gp)
+    cal_rows = []
+    for seed in calibration_seeds:
+        print(f"calibration: seed {seed}", flush=True)
+        cal_rows += rows_of(runner, seed_designs(run, seed, a, cells, skipped), seed, gp)
     cal = fit([(r["design"], as_summary(r["model"]), as_summary(r["solver"])) for r in cal_rows], run.ranges, name,
-              source={"seed": a.calibration_seed, "designs": len(cal_rows), "command": command})
+              source={"seed": calibration_seeds if len(calibration_seeds) > 1 else a.calibration_seed,
+                      "designs": len(cal_rows), "command": command})
     print("  cells calibrated: " + ", ".join(f"{k} ({c.designs})" for k, c in sorted(cal.cells.items())))
     judge(cal_rows, cal, run.ranges)
     rows = {}
@@ -601,7 +608,8 @@ def main() -> None:
         "command": command, "model": a.model, "model_label": label, "checkpoint_step": run.checkpoint_step,
         "hcmt": VERSION, "torch": torch.__version__, "device": "cpu",
         "machine": platform.processor() or platform.machine(), "cores": os.cpu_count(), "threads": a.threads,
-        "seeds": {"calibration": a.calibration_seed, "evaluation": a.eval_seeds,
+        "seeds": {"calibration": calibration_seeds if len(calibration_seeds) > 1 else a.calibration_seed,
+                  "evaluation": a.eval_seeds,
                   "fuzz": a.fuzz_seed if a.fuzz else None},
         "designs": {"inside": a.inside, "per_cell": a.per_cell, "cells": [cell_label(c) for c in cells],
                     "distances": a.distances, "redrawn_invalid": skipped, "calibration": len(cal_rows),
@@ -629,7 +637,8 @@ def main() -> None:
     path.parent.mkdir(parents=True, exist_ok=True)
     with atomic_path(path) as tmp:
         tmp.write_text(json.dumps(portable(result), indent=2))
-    print(f"\npooled over seeds {', '.join(map(str, a.eval_seeds))} (calibrated on seed {a.calibration_seed}; "
+    print(f"\npooled over seeds {', '.join(map(str, a.eval_seeds))} (calibrated on seed(s) "
+          f"{', '.join(map(str, calibration_seeds))}; "
           f"coverage: share of designs with an interval whose solver value it holds; width: median (hi - lo) / model):")
     print_table(cov["pooled"], call["pooled"], fz)
     print(f"requirement (model interval alone): unsafe {requirement['unsafe']}, solver on "

@@ -59,6 +59,10 @@ def _mismatch(value, hint, where: str) -> list[str]:
         if type(value) is not list:
             return [f"{where}: {type(value).__name__} is not a list"]
         return [e for v in value for e in _mismatch(v, args[0], where + "[]")]
+    if origin is tuple:
+        if type(value) is not tuple or len(value) != len(args):
+            return [f"{where}: {value!r:.60} is not a tuple of {len(args)}"]
+        return [e for v, a in zip(value, args) for e in _mismatch(v, a, where + "[]")]
     if origin is dict:
         if type(value) is not dict:
             return [f"{where}: {type(value).__name__} is not a dict"]

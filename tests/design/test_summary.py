@@ -1,6 +1,7 @@
 """Prediction.summary is a typed, frozen Summary (hcmt.design.summary) whose JSON keeps the keys (and their order)
 the design check wrote as plain dicts: tests/design/summary_json_keys.json was recorded from that code (commit
-1b29aa3, the shipped model on one design: with a yield stress; contact read-out with the solver; no surrogate).
+1b29aa3, the shipped model on one design: with a yield stress; contact read-out with the solver; no surrogate),
+with the mesh model's own interval (``model_interval``) added after ``confidence`` since.
 Each field's declared type is checked against the values of a real run (:func:`summaries.type_errors`): the
 shipped model's check of one design, and a tiny solver run."""
 from __future__ import annotations

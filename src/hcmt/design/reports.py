@@ -123,7 +123,8 @@ def format_calls(preds: list[Prediction], yield_mpa: float, label: str = "design
                      "-" if solver is None else f"{solver:.0f}", s.final_call or s.call])
     width = [max(len(h), *(len(r[i]) for r in rows)) for i, h in enumerate(head)]
     lines = [f"limit calls for a yield stress of {yield_mpa:g} MPa (pass: the trusted interval lies below it, fail: "
-             "above it, undecided: it straddles it, or the design lies outside the training ranges)"]
+             "above it, undecided: it straddles it, or the design lies outside the training ranges where no interval "
+             "of the mesh model was calibrated)"]
     lines += ["  " + "  ".join(h.rjust(w) for h, w in zip(head, width))]
     lines += ["  " + "  ".join(c.rjust(w) for c, w in zip(r, width)) for r in rows]
     undecided = sum(p.summary.call == "undecided" for p in preds)

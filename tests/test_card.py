@@ -88,7 +88,8 @@ def test_the_committed_cards_and_the_readme_quote_the_result_files_as_they_are()
         if line.startswith("<!-- card "):
             name = line.split()[2].rstrip(":")
             m = card_module.load(f"model_{name}.json")
-            block = "\n".join(card(name, m, card_module.load("model_judge.json"), card_module.load("surrogate.json")))
+            block = "\n".join(card(name, m, card_module.load("model_judge.json"), card_module.load("surrogate.json"),
+                                   card_module.load("trust.json")))
             assert block in text, f"docs/MODELS.md's card {name} is stale: run python benchmarks/report.py"
     m, surrogate = card_module.load("model_impact_plate_small.json"), card_module.load("surrogate.json")
     p, n = m["verify"]["physics"], m["verify"]["designs"]
@@ -104,6 +105,10 @@ def test_the_committed_cards_and_the_readme_quote_the_result_files_as_they_are()
     gp = surrogate["accuracy"]["in_range"]["peak_plate_stress_mpa"]["gp"]
     assert (f"| response surface on the same {surrogate['training_designs']} solver runs: peak plate stress, median / "
             f"worst | {gp['median_abs_pct']:.1f} % / {gp['worst_abs_pct']:.1f} % |") in readme
+    regions = card_module.load("trust.json")["coverage"]["pooled"]["by_region"]
+    got = [(regions[k]["coverage"]["peak_plate_stress_mpa"], regions[k]["median_rel_width_peak"])
+           for k in ("inside", "outside")]
+    assert (" | " + ", ".join(f"{c['covered']} / {c['of']} ({100 * w:.0f} %)" for c, w in got) + " |") in readme
 
 
 def test_a_shipped_model_reports_the_step_of_its_weights():

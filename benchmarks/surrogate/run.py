@@ -51,6 +51,10 @@ from hcmt.design.check import (  # noqa: E402
     verify_designs,
 )
 from hcmt.design.inputs import region_of, settings_of  # noqa: E402
+from hcmt.design.model_interval import (
+    ANSWERS,  # noqa: E402
+    for_run as interval_for_run,  # noqa: E402
+)
 from hcmt.design.notes import NOTE_DISAGREEMENT  # noqa: E402
 from hcmt.design.readout import (
     CONTACT_END_BOUND,
@@ -240,8 +244,19 @@ def run_group(run, name: str, designs, work: Path, batch: int, frame_dt: float, 
             p.summary = summarize(p, frame_dt)
             t.summary = summarize(t, frame_dt)
             verify_designs([p], [t])
-            rows.append(record(p, t, frame_dt, ends[i]))
+            rows.append({**record(p, t, frame_dt, ends[i]), "model_interval": own_peak_interval(run, p)})
     return rows
+
+
+def own_peak_interval(run, p: Prediction) -> list[float] | None:
+    """The model's own calibrated interval of its peak plate stress (:mod:`hcmt.design.model_interval`, the run's
+    own calibration; None: none, or the design's cell not calibrated), as the design check attaches it."""
+    calibration, _ = interval_for_run(run, True)
+    if calibration is None:
+        return None
+    s = p.summary
+    iv = calibration.interval(p.design, run.ranges, {a: getattr(s, a) for a in ANSWERS}, s.plate_stress_history_mpa)
+    return None if iv is None else list(iv.bounds["peak_plate_stress_mpa"])
 
 
 def errors(pred: list[float], true: list[float]) -> dict:
@@ -284,7 +299,7 @@ def calls(rows, gp, yield_mpa: float) -> dict:
     for trust in TRUSTS:
         made, final = [], []
         for r, g, ok in zip(rows, gps, solver_pass):
-            lo, hi, _ = trusted_bounds(*_answers(r, g), trust)
+            lo, hi, _ = trusted_bounds(*_answers(r, g), trust, own(r))
             c = call_of(lo, hi, yield_mpa)
             made.append(c)
             final.append(("pass" if ok else "fail") if c == "undecided" else c)
@@ -310,6 +325,12 @@ def _answers(r: dict, g: dict) -> tuple[float, dict]:
     return r["model"][MODEL]["peak_plate_stress_mpa"], asdict(g["peak_plate_stress_mpa"])
 
 
+def own(r: dict) -> tuple[float, float] | None:
+    """A design's own model interval of the peak (:func:`own_peak_interval`) as the calls read it."""
+    iv = r.get("model_interval")
+    return None if iv is None else (float(iv[0]), float(iv[1]))
+
+
 def _minimum(values, passing) -> float | None:
     """The smallest value from which every larger one passes (None: the largest fails)."""
     if not passing[-1]:
@@ -324,7 +345,7 @@ def coverage(rows, gp, trust) -> dict:
     designs = [Design(**r["design"]) for r in rows]
     hits = 0
     for r, g in zip(rows, gp.predict(designs)):
-        lo, hi, _ = trusted_bounds(*_answers(r, g), trust)
+        lo, hi, _ = trusted_bounds(*_answers(r, g), trust, own(r))
         hits += lo <= r["solver"]["peak_plate_stress_mpa"] <= hi
     return {"covered": int(hits), "of": len(rows)}
 

@@ -10,6 +10,7 @@ COMMAND = "python benchmarks/trust/run.py --work $HCMT_WORK/trust --fuzz 200 --w
 ANSWERS = (("peak_plate_stress_mpa", "peak"), ("max_deflection_mm", "deflection"),
            ("plate_stress_history_mpa", "whole history"))
 CALLS = (("model", "the model's interval alone (`model`)"), ("union", "with the response surface (`union`)"),
+         ("intersection", "narrowed by the response surface (`intersection`)"),
          ("model_before", "before: the model ± 60 %, outside undecided"),
          ("union_before", "before: the response surface and the model's answer, outside undecided"))
 #: a coverage is "short of the level" when so few covered designs would happen with this probability or less at the

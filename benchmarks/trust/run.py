@@ -65,7 +65,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent.parent))  # benchmarks/: 
 from common import RESULTS, portable  # noqa: E402
 from hcmt.config import VERSION  # noqa: E402
 from hcmt.config.threads import set_threads  # noqa: E402
-from hcmt.design.calls import MODEL_BAND, call_of, outside_reason, trusted_bounds  # noqa: E402
+from hcmt.design.calls import MODEL_BAND, call_of, outside_reason, trust_for, trusted_bounds  # noqa: E402
 from hcmt.design.check import check_designs  # noqa: E402
 from hcmt.design.inputs import settings_of  # noqa: E402
 from hcmt.design.model_interval import (  # noqa: E402
@@ -95,7 +95,8 @@ FACTORS = (0.8, 0.9, 0.95, 1.05, 1.1, 1.2)
 #: the calls measured: the calibrated interval alone, with the response surface, and the calls before it existed
 #: (no interval: the model ± MODEL_BAND, or the response surface widened to hold the model's answer; a design outside
 #: the training ranges undecided)
-CALLS = {"model": ("model", True), "union": ("union", True), "model_before": ("model", False),
+CALLS = {"model": ("model", True), "union": ("union", True), "intersection": ("intersection", True),
+         "model_before": ("model", False),
          "union_before": ("union", False)}
 #: the requirement on the calibrated interval alone: no unsafe call, the solver on at most this share of points
 SOLVER_SHARE = 0.30
@@ -352,6 +353,7 @@ def call_row(r: dict, ranges: dict, trust: str, calibrated: bool, yield_mpa: flo
     design outside the ranges without a calibrated interval (:func:`outside_reason`)."""
     iv = r["interval"] if calibrated else None
     bounds = iv.bounds[PEAK] if iv is not None else None
+    trust = trust_for(r["design"], ranges, trust)
     lo, hi, _ = trusted_bounds(r["model"][PEAK], r["gp"], trust, bounds)
     p = SimpleNamespace(design=r["design"], summary=SimpleNamespace(model_interval=iv, readout="raw",
                                                                      confidence=None))

@@ -206,3 +206,11 @@ def test_a_higher_level_needs_more_designs_and_a_zero_answer_gets_no_interval():
     iv = cal.interval(BASE, RANGES, {"peak_plate_stress_mpa": 500.0, "max_deflection_mm": 0.1}, [0.0] * 5)
     solver = _summary(500.0, 0.1, [0.0] * 6)  # one frame more than the model's history: not held
     assert covers(iv, solver)["plate_stress_history_mpa"] is False
+
+
+def test_intersection_narrows_where_both_intervals_overlap_and_falls_back_to_the_union():
+    surface = {"mean": 660.0, "lo": 640.0, "hi": 690.0}
+    assert trusted_bounds(650.0, surface, "intersection", (600.0, 700.0)) == (640.0, 690.0, "intersection")
+    assert trusted_bounds(650.0, surface, "intersection", (700.0, 760.0))[:2] == (640.0, 760.0)  # disjoint: union
+    assert trusted_bounds(650.0, surface, "intersection", None)[:2] == (640.0, 690.0)  # no interval: union with 650
+    assert trusted_bounds(650.0, None, "intersection", (600.0, 700.0))[:2] == (600.0, 700.0)  # no surface: its own

@@ -14,7 +14,7 @@ from hcmt.errors import InputError
 TRUST = "union"
 
 
-TRUSTS = ("surrogate", "union", "model")
+TRUSTS = ("surrogate", "union", "model", "intersection")
 
 
 #: without a surrogate, the mesh model's interval is its answer ± this share: the worst peak plate stress error
@@ -45,7 +45,9 @@ def trusted_bounds(model: float, surrogate: dict | None, trust: str = TRUST,
     calibrated ``interval`` (None: none) and the surrogate's ``{mean, lo, hi}`` (None: no surrogate):
     ``surrogate``, the surrogate's 95 % interval; ``union``, that interval widened to hold the mesh model's
     interval (its answer where it has none); ``model`` (and whenever there is no surrogate), the mesh model's
-    interval, or its answer ± :data:`MODEL_BAND` where it has none."""
+    interval, or its answer ± :data:`MODEL_BAND` where it has none; ``intersection``, the part both intervals hold
+    (the union where they do not overlap or the model has none; outside the training ranges the model's interval
+    alone, :func:`trust_for`)."""
     if trust not in TRUSTS:
         raise InputError(f"must be one of {', '.join(TRUSTS)}, got {trust!r}", param="trust")
     m, s = model, surrogate
@@ -56,6 +58,8 @@ def trusted_bounds(model: float, surrogate: dict | None, trust: str = TRUST,
         return m * (1 - MODEL_BAND), m * (1 + MODEL_BAND), "model"
     if trust == "surrogate":
         return s["lo"], s["hi"], "surrogate"
+    if trust == "intersection" and interval is not None and max(s["lo"], lo) <= min(s["hi"], hi):
+        return max(s["lo"], lo), min(s["hi"], hi), "intersection"  # both calibrated: the surface narrows it
     return min(s["lo"], lo), max(s["hi"], hi), "union"
 
 
@@ -85,6 +89,12 @@ def outside_reason(p: Prediction, ranges: dict[str, tuple[float, float]] | None,
             "nor the response surface decides pass or fail; the solver does (--verify)")
 
 
+def trust_for(design, ranges: dict[str, tuple[float, float]] | None, trust: str) -> str:
+    """The trust a design's call uses: ``intersection`` outside the training ranges is the model's interval alone
+    (the response surface was never calibrated there, so it narrows nothing)."""
+    return "model" if trust == "intersection" and ranges is not None and outside(design, ranges) else trust
+
+
 def add_calls(preds: list[Prediction], yield_mpa: float | None, trust: str = TRUST,
               ranges: dict[str, tuple[float, float]] | None = None) -> None:
     """Each design's ``call`` for ``yield_mpa`` from the trusted interval (:func:`trusted_interval`): ``undecided``
@@ -93,8 +103,9 @@ def add_calls(preds: list[Prediction], yield_mpa: float | None, trust: str = TRU
     if yield_mpa is None:
         return
     for p in preds:
-        lo, hi, what = trusted_interval(p.summary, trust)
-        reason = outside_reason(p, ranges, trust)
+        used = trust_for(p.design, ranges, trust)
+        lo, hi, what = trusted_interval(p.summary, used)
+        reason = outside_reason(p, ranges, used)
         p.summary = replace(p.summary, call="undecided" if reason else call_of(lo, hi, yield_mpa),
                             call_interval_mpa=CallInterval(float(lo), float(hi), what, p.summary.readout,
                                                            reason is None, reason))

@@ -47,14 +47,12 @@ from hcmt.design.check import (  # noqa: E402
     Prediction,
     call_of,
     check_designs,
+    own_interval,
     summarize,
     verify_designs,
 )
 from hcmt.design.inputs import region_of, settings_of  # noqa: E402
-from hcmt.design.model_interval import (
-    ANSWERS,  # noqa: E402
-    for_run as interval_for_run,  # noqa: E402
-)
+from hcmt.design.model_interval import for_run as interval_for_run  # noqa: E402
 from hcmt.design.notes import NOTE_DISAGREEMENT  # noqa: E402
 from hcmt.design.readout import (
     CONTACT_END_BOUND,
@@ -231,6 +229,7 @@ def run_group(run, name: str, designs, work: Path, batch: int, frame_dt: float, 
               solver_from: Path | None = None) -> list[dict]:
     """Model and solver on a group of designs (cached: :func:`cache_group`), each design's record."""
     path = cache_group(run, name, designs, work, batch, solver_from)
+    calibration, _ = interval_for_run(run, True)  # the model's own interval, as the design check attaches it
     rows = []
     ends = [iv["contact_end_ms"] for iv in gp.predict([d for _, d in designs])]  # the GP's intervals
     with np.load(path) as z:
@@ -244,19 +243,10 @@ def run_group(run, name: str, designs, work: Path, batch: int, frame_dt: float, 
             p.summary = summarize(p, frame_dt)
             t.summary = summarize(t, frame_dt)
             verify_designs([p], [t])
-            rows.append({**record(p, t, frame_dt, ends[i]), "model_interval": own_peak_interval(run, p)})
+            iv = own_interval(p, run, calibration)
+            rows.append({**record(p, t, frame_dt, ends[i]),
+                         "model_interval": None if iv is None else list(iv.bounds["peak_plate_stress_mpa"])})
     return rows
-
-
-def own_peak_interval(run, p: Prediction) -> list[float] | None:
-    """The model's own calibrated interval of its peak plate stress (:mod:`hcmt.design.model_interval`, the run's
-    own calibration; None: none, or the design's cell not calibrated), as the design check attaches it."""
-    calibration, _ = interval_for_run(run, True)
-    if calibration is None:
-        return None
-    s = p.summary
-    iv = calibration.interval(p.design, run.ranges, {a: getattr(s, a) for a in ANSWERS}, s.plate_stress_history_mpa)
-    return None if iv is None else list(iv.bounds["peak_plate_stress_mpa"])
 
 
 def errors(pred: list[float], true: list[float]) -> dict:
@@ -326,7 +316,7 @@ def _answers(r: dict, g: dict) -> tuple[float, dict]:
 
 
 def own(r: dict) -> tuple[float, float] | None:
-    """A design's own model interval of the peak (:func:`own_peak_interval`) as the calls read it."""
+    """A design's own model interval of the peak (:func:`run_group`) as the calls read it."""
     iv = r.get("model_interval")
     return None if iv is None else (float(iv[0]), float(iv[1]))
 

@@ -193,6 +193,15 @@ class RunFolder:
         return self.path / f"metrics_{split}{self.data_key(data)}.json"
 
 
+def beside_model(run, name: str) -> Path | None:
+    """A file that belongs to a model (``name``: ``surrogate.json``, ``interval.json``): ``hcmt/pretrained/
+    MODEL.NAME`` beside a shipped model, ``RUN/NAME`` in a run folder, None for a model with neither."""
+    if str(run.source).startswith("pretrained:"):
+        return PRETRAINED_DIR / f"{run.source.split(':', 1)[1]}.{name}"
+    folder = getattr(run, "folder", None)
+    return folder.path / name if folder is not None else None
+
+
 def read_run_yaml(path: Path) -> dict:
     """``run.yaml`` as a dict with its ``model`` and, when it has one, its ``config`` read back through
     :meth:`hcmt.config.Config.from_dict` (completed and checked); one line naming the file when it is not."""

@@ -31,7 +31,7 @@ from pathlib import Path
 
 import numpy as np
 
-from hcmt.data.runs import PRETRAINED_DIR
+from hcmt.data.runs import beside_model
 from hcmt.errors import InputError
 from hcmt.files import atomic_path
 from hcmt.sim.params import DESIGN_KEYS, Design
@@ -44,6 +44,8 @@ DISTANCE_STEP = 0.2
 BAND_FRAMES = 2
 #: the nominal coverage
 LEVEL = 0.95
+
+
 def min_designs(level: float) -> int:
     """The fewest held-out designs with a finite bound at ``level``: ``ceil((n + 1) level) <= n``."""
     return math.ceil(level / (1 - level) - 1e-9)
@@ -51,8 +53,6 @@ def min_designs(level: float) -> int:
 
 #: a cell needs this many held-out designs at :data:`LEVEL`: 19 at 95 %
 MIN_DESIGNS = min_designs(LEVEL)
-#: the file beside a model: ``hcmt/pretrained/NAME.interval.json``, ``RUN/interval.json``
-SUFFIX = ".interval.json"
 
 
 def cell_of(design: Design, ranges: dict[str, tuple[float, float]]) -> str:
@@ -224,10 +224,7 @@ def covers(iv: ModelInterval, solver) -> dict[str, bool]:
 def interval_path(run) -> Path | None:
     """Where a run's own calibration lives: ``hcmt/pretrained/NAME.interval.json`` beside a shipped model,
     ``RUN/interval.json`` in a run folder."""
-    if str(run.source).startswith("pretrained:"):
-        return PRETRAINED_DIR / f"{run.source.split(':', 1)[1]}{SUFFIX}"
-    folder = getattr(run, "folder", None)
-    return folder.path / "interval.json" if folder is not None else None
+    return beside_model(run, "interval.json")
 
 
 def for_run(run, choice: "Calibration | str | Path | bool | None" = True) -> tuple[Calibration | None, str | None]:

@@ -33,7 +33,7 @@ import numpy as np
 
 from hcmt.config import plural
 from hcmt.data.format import read_meta
-from hcmt.data.runs import PRETRAINED_DIR
+from hcmt.data.runs import beside_model
 from hcmt.design.basics import QUANTITIES, RESTARTS  # noqa: F401 (QUANTITIES: hcmt.design.surrogate.QUANTITIES)
 from hcmt.design.gp import Z95, Interval, fit_gp, intervals  # noqa: F401 (Z95: re-exported)
 from hcmt.design.surrogate_data import (  # noqa: F401 (re-exported: hcmt.design.surrogate.dataset_facts, ...)
@@ -251,10 +251,7 @@ def side_by_side(summary, interval: dict[str, Interval]) -> dict:
 def run_surrogate_path(run) -> Path | None:
     """Where a run's own surrogate lives: ``hcmt/pretrained/NAME.surrogate.json`` beside a shipped model,
     ``RUN/surrogate.json`` in a run folder (``hcmt surrogate fit DATA --out RUN/surrogate.json``)."""
-    if str(run.source).startswith("pretrained:"):
-        return PRETRAINED_DIR / f"{run.source.split(':', 1)[1]}.surrogate.json"
-    folder = getattr(run, "folder", None)
-    return folder.path / "surrogate.json" if folder is not None else None
+    return beside_model(run, "surrogate.json")
 
 
 def run_name(run) -> str:

@@ -2,7 +2,7 @@
 #   make demo   -- create .venv, install hcmt with the extras the demo uses, run the quickstart
 #   make test   -- create .venv, install hcmt with the test extras, run the whole suite
 #   make quick  -- the quick loop: every test not marked slow (no training, no subprocess)
-#   make lint   -- ruff over src, tests and benchmarks (pyproject's [tool.ruff]), then mypy over the public API
+#   make lint   -- ruff's linter and formatter check over src, tests, benchmarks and scripts (pyproject's [tool.ruff]), then mypy over the public API
 #                  modules (pyproject's [tool.mypy] files)
 PYTHON ?= python3
 VENV   ?= .venv
@@ -35,7 +35,8 @@ quick: setup
 	$(BIN)/python -m pytest -q -m "not slow" tests
 
 lint: setup
-	$(BIN)/ruff check src tests benchmarks
+	$(BIN)/ruff check src tests benchmarks scripts
+	$(BIN)/ruff format --check src tests benchmarks scripts
 	$(BIN)/mypy
 
 clean:

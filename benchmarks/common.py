@@ -3,6 +3,7 @@
 Every script is resumable: a finished run (``metrics_<split>.json`` present) is skipped, an interrupted one resumes
 from its last checkpoint, and the dataset is generated once (the generator itself skips finished trajectories).
 """
+
 from __future__ import annotations
 
 import json
@@ -44,22 +45,35 @@ DATASET = dict(preset="small", train=40, valid=4, test=10, seed=2024, variants=2
 def dataset(work: Path, spec: dict = DATASET) -> Path:
     """The benchmark's dataset under ``work``, generated (or finished: the generator skips what exists) by
     :func:`hcmt.sim.generate.generate_dataset`."""
-    data = work / (f"impact_plate_{spec['preset']}_{spec['train']}"
-                   + (f"_{spec['frames']}" if spec.get("frames") else "")
-                   + (f"_dt{spec['frame_dt']:g}" if spec.get("frame_dt") else ""))
+    data = work / (
+        f"impact_plate_{spec['preset']}_{spec['train']}"
+        + (f"_{spec['frames']}" if spec.get("frames") else "")
+        + (f"_dt{spec['frame_dt']:g}" if spec.get("frame_dt") else "")
+    )
     counts = {"train": spec["train"], "valid": spec["valid"], "test": spec["test"]}
     if spec.get("variants"):
         counts.update({v: spec["variants"] for v in VARIANTS})
     default = Settings()
     settings = Settings(frames=spec.get("frames") or default.frames, frame_dt=spec.get("frame_dt") or default.frame_dt)
-    generate_dataset(data, preset=spec["preset"], counts=counts, seed=spec["seed"], workers=2, settings=settings,
-                     progress=False)
+    generate_dataset(
+        data, preset=spec["preset"], counts=counts, seed=spec["seed"], workers=2, settings=settings, progress=False
+    )
     return data
 
 
-def run_and_evaluate(work: Path, data: Path, name: str, model: str, seed: int, overrides: list[str],
-                     splits=("test",), ablation: str | None = None, config: str = "impact_plate_cpu",
-                     details: bool = False, keep_rollouts: bool = False) -> dict:
+def run_and_evaluate(
+    work: Path,
+    data: Path,
+    name: str,
+    model: str,
+    seed: int,
+    overrides: list[str],
+    splits=("test",),
+    ablation: str | None = None,
+    config: str = "impact_plate_cpu",
+    details: bool = False,
+    keep_rollouts: bool = False,
+) -> dict:
     """Train (or resume, or skip) one run, then evaluate it on each split; returns {split: metrics}."""
     run = work / "runs" / name
     folder = RunFolder(run, must_exist=False)
@@ -82,8 +96,9 @@ def run_and_evaluate(work: Path, data: Path, name: str, model: str, seed: int, o
     return out
 
 
-def _train_and_evaluate(run, data, model, seed, overrides, splits, ablation, config, details=False,
-                        keep_rollouts=False) -> None:
+def _train_and_evaluate(
+    run, data, model, seed, overrides, splits, ablation, config, details=False, keep_rollouts=False
+) -> None:
     """Train the run unless trained (resuming a checkpoint), then write ``metrics_<split>.json`` per split."""
     cfg = load_config(config, overrides)
     folder = RunFolder(run, must_exist=False)
@@ -118,10 +133,17 @@ def rollout_details(run: Path, data: Path, split: str) -> dict:
             pos = details(f[name]["world_pos"][()], truth["world_pos"], start, groups)
             st = details(f[name]["stress"][()], truth["stress"], start, groups)
             rows.append((pos, st))
-    return {"groups": {g: {"position": float(np.mean([p["groups"][g] for p, _ in rows])),
-                           "stress": float(np.mean([t["groups"][g] for _, t in rows]))} for g in ("plate", "ball")},
-            "position_by_step": np.mean([p["by_step"] for p, _ in rows], 0).tolist(),
-            "stress_by_step": np.mean([t["by_step"] for _, t in rows], 0).tolist()}
+    return {
+        "groups": {
+            g: {
+                "position": float(np.mean([p["groups"][g] for p, _ in rows])),
+                "stress": float(np.mean([t["groups"][g] for _, t in rows])),
+            }
+            for g in ("plate", "ball")
+        },
+        "position_by_step": np.mean([p["by_step"] for p, _ in rows], 0).tolist(),
+        "stress_by_step": np.mean([t["by_step"] for _, t in rows], 0).tolist(),
+    }
 
 
 def claim(run: Path) -> bool:

@@ -1,5 +1,6 @@
 """The benchmark machine's fixed facts, read once for every script that reports a share of the hardware's limit (no
 torch, no hcmt: the peers' orchestrator imports it too)."""
+
 from __future__ import annotations
 
 import platform
@@ -18,6 +19,11 @@ def core_peak() -> dict:
     mhz = re.search(r"^cpu MHz\s*:\s*([\d.]+)", text, re.M)
     ghz = float(mhz.group(1)) / 1000 if mhz else float("nan")
     model = re.search(r"^model name\s*:\s*(.*)$", text, re.M)
-    return {"cpu": model.group(1) if model else platform.processor(), "ghz": ghz, "fp32_lanes": lanes,
-            "fma_units": 2, "gflops": 2 * lanes * 2 * ghz,
-            "derivation": f"2 FMA units x {lanes} fp32 lanes x 2 FLOP/FMA x {ghz:.2f} GHz (cpu MHz of /proc/cpuinfo)"}
+    return {
+        "cpu": model.group(1) if model else platform.processor(),
+        "ghz": ghz,
+        "fp32_lanes": lanes,
+        "fma_units": 2,
+        "gflops": 2 * lanes * 2 * ghz,
+        "derivation": f"2 FMA units x {lanes} fp32 lanes x 2 FLOP/FMA x {ghz:.2f} GHz (cpu MHz of /proc/cpuinfo)",
+    }

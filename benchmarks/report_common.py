@@ -4,6 +4,7 @@ formatting mean ± std, and the rules that choose the report's judging words.
 Every judging phrase of the report ("ahead", "faster", "not reproduced", "the clearest effect", ...) is chosen by a
 comparison of the numbers it prints, by the rules below. A fact that no result file holds (the paper's numbers, the
 machine, the goals a study was built to check) is a named constant here or in its section's module."""
+
 from __future__ import annotations
 
 import json
@@ -29,9 +30,13 @@ MACHINE = "2-core CPU"  # the development machine (no GPU)
 SHIPPED_STEPS = 36_000  # training steps of the shipped model (docs/MODELS.md)
 GOAL_NODES = 250_000  # the GPU goals: the mesh size a GPU step should take
 # the GPU goals, what makes a GPU worth its cost for a design check: (goal, threshold, larger is better)
-GOALS = (("≥ 40× for one paper design", 40, True), ("≥ 400× for a 64-design sweep", 400, True),
-         ("≤ 12 ms per paper-size train step", 12, False), ("≥ 1,000 samples/s", 1000, True),
-         ("≤ 3 ms inference", 3, False))
+GOALS = (
+    ("≥ 40× for one paper design", 40, True),
+    ("≥ 400× for a 64-design sweep", 400, True),
+    ("≤ 12 ms per paper-size train step", 12, False),
+    ("≥ 1,000 samples/s", 1000, True),
+    ("≤ 3 ms inference", 3, False),
+)
 
 # The rules.
 SAME_SIZE = 2.0  # "of the same size": largest ÷ smallest below this factor
@@ -87,8 +92,7 @@ MOVED = {
 
 def command(result: dict) -> str:
     """A result file's ``command``, each moved script named by its current path (:data:`MOVED`)."""
-    return re.sub(r"benchmarks/[\w.]+\.(?:py|sh)\b", lambda m: MOVED.get(m.group(0), m.group(0)),
-                  result["command"])
+    return re.sub(r"benchmarks/[\w.]+\.(?:py|sh)\b", lambda m: MOVED.get(m.group(0), m.group(0)), result["command"])
 
 
 def load(name):

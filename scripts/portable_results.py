@@ -6,6 +6,7 @@ the portable names the benchmarks record now (benchmarks/common.py, ``portable``
 
 The files are edited as text, so every number keeps its exact spelling; a file is checked to hold the same JSON
 apart from the rewritten strings."""
+
 from __future__ import annotations
 
 import json
@@ -15,9 +16,11 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
 #: (pattern, replacement), applied in order; the checkout before the work folders that hold it
-RULES = ((re.compile(r"(?<![\w.-])/work/main(?=[/\"\s]|$)/?"), lambda m: "" if m.group(0).endswith("/") else "."),
-         (re.compile(r"(?<![\w.-])/(?:work|root)/persist(?=[/\"\s}]|$)"), lambda m: "$HCMT_WORK"),
-         (re.compile(r"(?<![\w.-])/work(?=/)"), lambda m: "$HCMT_WORK"))
+RULES = (
+    (re.compile(r"(?<![\w.-])/work/main(?=[/\"\s]|$)/?"), lambda m: "" if m.group(0).endswith("/") else "."),
+    (re.compile(r"(?<![\w.-])/(?:work|root)/persist(?=[/\"\s}]|$)"), lambda m: "$HCMT_WORK"),
+    (re.compile(r"(?<![\w.-])/work(?=/)"), lambda m: "$HCMT_WORK"),
+)
 
 
 def rewrite(text: str) -> str:
@@ -36,8 +39,10 @@ def numbers(obj) -> list:
 
 
 def main(paths: list[str]) -> None:
-    files = [Path(p) for p in paths] or [*sorted((ROOT / "benchmarks" / "results").glob("*.json")),
-                                         *sorted((ROOT / "src" / "hcmt" / "pretrained").glob("*.json"))]
+    files = [Path(p) for p in paths] or [
+        *sorted((ROOT / "benchmarks" / "results").glob("*.json")),
+        *sorted((ROOT / "src" / "hcmt" / "pretrained").glob("*.json")),
+    ]
     for path in files:
         old = path.read_text()
         new = rewrite(old)

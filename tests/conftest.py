@@ -6,13 +6,21 @@ steps, MGN/GT blocks, a checkpoint or validation period, another width) appends 
 ``section.key=value`` for a key wins, so the extras override TINY. Test files build configs with the
 ``tiny_config`` fixture; ``--set`` command lines take the list itself (``from conftest import TINY``).
 """
+
 import pytest
 
 from hcmt.cli import main as cli
 from hcmt.config import load_config
 
-TINY = ["model.levels=1", "model.L_C=1", "model.hidden=16", "model.heads=2", "train.normalizer_steps=1",
-        "train.valid_every=0", "train.lr=1e-3"]
+TINY = [
+    "model.levels=1",
+    "model.L_C=1",
+    "model.hidden=16",
+    "model.heads=2",
+    "train.normalizer_steps=1",
+    "train.valid_every=0",
+    "train.lr=1e-3",
+]
 
 
 def tiny(*extra: str, base: str = "impact_plate_cpu") -> dict:
@@ -38,7 +46,27 @@ def impact_data(tmp_path_factory):
     module that needs real generator data (its meta.json, design attributes and solver trajectories)."""
     out = tmp_path_factory.mktemp("impact_data") / "data"
     spec = IMPACT_DATA
-    assert cli(["generate", "impact-plate", str(out), "--preset", "small", "--train", str(spec["train"]), "--valid",
-                str(spec["valid"]), "--test", str(spec["test"]), "--seed", str(spec["seed"]), "--frames",
-                str(spec["frames"]), "--no-progress"]) == 0
+    assert (
+        cli(
+            [
+                "generate",
+                "impact-plate",
+                str(out),
+                "--preset",
+                "small",
+                "--train",
+                str(spec["train"]),
+                "--valid",
+                str(spec["valid"]),
+                "--test",
+                str(spec["test"]),
+                "--seed",
+                str(spec["seed"]),
+                "--frames",
+                str(spec["frames"]),
+                "--no-progress",
+            ]
+        )
+        == 0
+    )
     return out

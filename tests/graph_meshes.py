@@ -1,5 +1,6 @@
 """Small meshes for the graph tests: built here from first principles (scipy Delaunay, structured grids), so the
 tests do not depend on the solver's mesher."""
+
 from __future__ import annotations
 
 import numpy as np
@@ -27,8 +28,7 @@ def grid_triangles(nx: int, ny: int, lx: float = 1.0, ly: float = 1.0):
     return pos, cells.astype(np.int64)
 
 
-def plate_and_ball(h: float = 0.1, length: float = 4.0, thickness: float = 0.5, radius: float = 1.0,
-                   gap: float = 0.02):
+def plate_and_ball(h: float = 0.1, length: float = 4.0, thickness: float = 0.5, radius: float = 1.0, gap: float = 0.02):
     """Impact-Plate-like scene: a structured plate ``[0, L] x [-t, 0]`` and a Delaunay half disk above it.
     Symmetry-line nodes are SYMMETRIC on both bodies, the plate's far end HANDLE."""
     nx, ny = int(round(length / h)) + 1, max(int(round(thickness / h)), 4) + 1
@@ -45,7 +45,7 @@ def plate_and_ball(h: float = 0.1, length: float = 4.0, thickness: float = 0.5, 
     pos = np.concatenate([p_pos, b_pos])
     cells = np.concatenate([p_cells, b_cells + len(p_pos)])
     node_type = np.r_[np.full(len(p_pos), NORMAL), np.full(len(b_pos), OBSTACLE)]
-    node_type[:len(p_pos)][p_pos[:, 0] > length - 1e-9] = HANDLE
+    node_type[: len(p_pos)][p_pos[:, 0] > length - 1e-9] = HANDLE
     node_type[pos[:, 0] == 0.0] = SYMMETRIC
     return dict(mesh_pos=pos, cells=cells, node_type=node_type, n_plate=len(p_pos))
 
@@ -68,8 +68,14 @@ def tet_box(nx: int = 7, ny: int = 6, nz: int = 5, size=(1.0, 0.8, 0.6)):
     idx = np.arange(nx * ny * nz).reshape(nx, ny, nz)
     corner = idx[:-1, :-1, :-1].ravel()
     off = {(a, b, c): idx[a, b, c] - idx[0, 0, 0] for a in (0, 1) for b in (0, 1) for c in (0, 1)}
-    paths = [((1, 0, 0), (1, 1, 0)), ((1, 0, 0), (1, 0, 1)), ((0, 1, 0), (1, 1, 0)),
-             ((0, 1, 0), (0, 1, 1)), ((0, 0, 1), (1, 0, 1)), ((0, 0, 1), (0, 1, 1))]
+    paths = [
+        ((1, 0, 0), (1, 1, 0)),
+        ((1, 0, 0), (1, 0, 1)),
+        ((0, 1, 0), (1, 1, 0)),
+        ((0, 1, 0), (0, 1, 1)),
+        ((0, 0, 1), (1, 0, 1)),
+        ((0, 0, 1), (0, 1, 1)),
+    ]
     tets = [np.stack([corner, corner + off[p], corner + off[q], corner + off[(1, 1, 1)]], 1) for p, q in paths]
     cells = np.concatenate(tets).astype(np.int64)
     e = pos[cells[:, 1:]] - pos[cells[:, :1]]

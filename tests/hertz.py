@@ -1,5 +1,6 @@
 """Hertz's impact of a sphere on a flat elastic body, and the contact-force history of a solve, for the solver's
 impact checks (tests/sim/test_sim_physics.py: the ball; tests/sim/test_sim_families.py: the pen)."""
+
 import numpy as np
 
 

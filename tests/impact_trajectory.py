@@ -1,4 +1,5 @@
 """A hand-made Impact Plate trajectory whose quantities are known (tests/inference/test_quantities.py has them)."""
+
 import numpy as np
 
 T = 12
@@ -30,5 +31,11 @@ def trajectory():
 def fields() -> dict:
     """The trajectory as the design check reads it (modulus: glass plate, steel ball)."""
     x, stress, rest, cells, node_type = trajectory()
-    return {"world_pos": x, "stress": stress, "mesh_pos": rest, "cells": cells, "node_type": node_type,
-            "modulus": np.array([7e4] * 4 + [2e5] * 3)}
+    return {
+        "world_pos": x,
+        "stress": stress,
+        "mesh_pos": rest,
+        "cells": cells,
+        "node_type": node_type,
+        "modulus": np.array([7e4] * 4 + [2e5] * 3),
+    }

@@ -1,4 +1,5 @@
 """Small files in the official layouts of the public datasets, with real (if tiny) geometry, for tests."""
+
 from __future__ import annotations
 
 import json
@@ -34,8 +35,10 @@ def box_tetrahedra(nx, ny, nz, origin=(0, 0, 0), h=1.0):
     """Structured tetrahedral box: each hexahedron split into 6 tetrahedra (Kuhn)."""
     g = np.stack(np.meshgrid(*(np.arange(n + 1) for n in (nx, ny, nz)), indexing="ij"), -1).reshape(-1, 3)
     pos = g * h + np.asarray(origin, float)
+
     def idx(x, y, z):
         return (x * (ny + 1) + y) * (nz + 1) + z
+
     cx, cy, cz = np.meshgrid(np.arange(nx), np.arange(ny), np.arange(nz), indexing="ij")
     cx, cy, cz = cx.ravel(), cy.ravel(), cz.ravel()
     v = [idx(cx + (k >> 0 & 1), cy + (k >> 1 & 1), cz + (k >> 2 & 1)) for k in range(8)]
@@ -53,20 +56,26 @@ def impact_like(n_traj=2, steps=6, seed=0):
     cells = np.concatenate([ptri, btri + len(plate)]).astype(np.int32)
     n = len(pos)
     nt = np.zeros((n, 1), np.int32)
-    nt[len(plate):] = NodeType.OBSTACLE
+    nt[len(plate) :] = NodeType.OBSTACLE
     nt[np.isclose(pos[:, 0], 0)] = NodeType.SYMMETRIC
     nt[: len(plate)][np.isclose(plate[:, 0], 5.0)] = NodeType.HANDLE
     trajs = []
     for k in range(n_traj):
         world = np.repeat(pos[None], steps, 0).copy()
         v = 0.05 + 0.02 * k
-        world[:, len(plate):, 1] -= v * np.arange(steps)[:, None]
+        world[:, len(plate) :, 1] -= v * np.arange(steps)[:, None]
         bend = 0.01 * np.maximum(np.arange(steps) - 2, 0)[:, None] * np.cos(plate[:, 0] / 10 * np.pi / 2)[None]
         world[:, : len(plate), 1] -= bend
         stress = np.abs(rng.normal(size=(steps, n, 1))).astype(np.float32) * 10
-        fields = {"mesh_pos": pos, "cells": cells, "node_type": nt, "world_pos": world.astype(np.float32),
-                  "stress": stress, "density": np.full((n, 1), 2.5e-3, np.float32),
-                  "modulus": np.full((n, 1), 7e4 + 1e3 * k, np.float32)}
+        fields = {
+            "mesh_pos": pos,
+            "cells": cells,
+            "node_type": nt,
+            "world_pos": world.astype(np.float32),
+            "stress": stress,
+            "density": np.full((n, 1), 2.5e-3, np.float32),
+            "modulus": np.full((n, 1), 7e4 + 1e3 * k, np.float32),
+        }
         trajs.append(fields)
     return trajs
 
@@ -85,8 +94,9 @@ def write_impact_like(folder, n_train=2, n_valid=1, n_test=1, steps=6):
     folder.mkdir(parents=True, exist_ok=True)
     for split, count, seed in (("train", n_train, 0), ("valid", n_valid, 1), ("test", n_test, 2)):
         trajs = impact_like(count, steps, seed)
-        write_split(folder / f"{split}.h5", meta,
-                    ((f"traj_{i:05d}", t, {"thickness": 0.5}) for i, t in enumerate(trajs)))
+        write_split(
+            folder / f"{split}.h5", meta, ((f"traj_{i:05d}", t, {"thickness": 0.5}) for i, t in enumerate(trajs))
+        )
     write_meta(folder, meta)
     return folder
 
@@ -98,22 +108,35 @@ def deforming_plate_tfrecord(folder, steps=4, n=2):
     pos = np.concatenate([plate, obst]).astype(np.float32)
     cells = np.concatenate([ptet, otet + len(plate)]).astype(np.int32)
     nt = np.zeros(len(pos), np.int32)
-    nt[len(plate):] = NodeType.OBSTACLE
+    nt[len(plate) :] = NodeType.OBSTACLE
     nt[: len(plate)][np.isclose(plate[:, 0], 0)] = NodeType.HANDLE
-    meta = {"simulator": "comsol", "dt": 0.0, "collision_radius": 0.03, "trajectory_length": steps,
-            "field_names": ["cells", "node_type", "mesh_pos", "world_pos", "stress"],
-            "features": {"cells": {"type": "static", "shape": [1, -1, 4], "dtype": "int32"},
-                         "node_type": {"type": "static", "shape": [1, -1, 1], "dtype": "int32"},
-                         "mesh_pos": {"type": "static", "shape": [1, -1, 3], "dtype": "float32"},
-                         "world_pos": {"type": "dynamic", "shape": [steps, -1, 3], "dtype": "float32"},
-                         "stress": {"type": "dynamic", "shape": [steps, -1, 1], "dtype": "float32"}}}
+    meta = {
+        "simulator": "comsol",
+        "dt": 0.0,
+        "collision_radius": 0.03,
+        "trajectory_length": steps,
+        "field_names": ["cells", "node_type", "mesh_pos", "world_pos", "stress"],
+        "features": {
+            "cells": {"type": "static", "shape": [1, -1, 4], "dtype": "int32"},
+            "node_type": {"type": "static", "shape": [1, -1, 1], "dtype": "int32"},
+            "mesh_pos": {"type": "static", "shape": [1, -1, 3], "dtype": "float32"},
+            "world_pos": {"type": "dynamic", "shape": [steps, -1, 3], "dtype": "float32"},
+            "stress": {"type": "dynamic", "shape": [steps, -1, 1], "dtype": "float32"},
+        },
+    }
     recs = []
     for k in range(n):
         world = np.repeat(pos[None], steps, 0).copy()
-        world[:, len(plate):, 2] -= 0.005 * (k + 1) * np.arange(steps)[:, None]
-        recs.append({"cells": cells[None], "node_type": nt.reshape(1, -1, 1), "mesh_pos": pos[None],
-                     "world_pos": world.astype(np.float32),
-                     "stress": np.random.rand(steps, len(pos), 1).astype(np.float32)})
+        world[:, len(plate) :, 2] -= 0.005 * (k + 1) * np.arange(steps)[:, None]
+        recs.append(
+            {
+                "cells": cells[None],
+                "node_type": nt.reshape(1, -1, 1),
+                "mesh_pos": pos[None],
+                "world_pos": world.astype(np.float32),
+                "stress": np.random.rand(steps, len(pos), 1).astype(np.float32),
+            }
+        )
     write_tf_dataset(folder, meta, {"train": recs, "valid": recs[:1], "test": recs[:1]})
 
 
@@ -122,20 +145,33 @@ def sphere_simple_tfrecord(folder, steps=4, n=2):
     cloth, tri = grid_triangles(5, 5, dx=0.1, dy=0.1)
     nt = np.zeros(len(cloth), np.int32)
     nt[[0, 5]] = NodeType.HANDLE
-    meta = {"simulator": "arcsim", "dt": 0.01, "collision_radius": 0.05, "trajectory_length": steps,
-            "field_names": ["cells", "mesh_pos", "node_type", "world_pos"],
-            "features": {"cells": {"type": "static", "shape": [1, -1, 3], "dtype": "int32"},
-                         "mesh_pos": {"type": "static", "shape": [1, -1, 2], "dtype": "float32"},
-                         "node_type": {"type": "static", "shape": [1, -1, 1], "dtype": "int32"},
-                         "world_pos": {"type": "dynamic", "shape": [steps, -1, 3], "dtype": "float32"}}}
+    meta = {
+        "simulator": "arcsim",
+        "dt": 0.01,
+        "collision_radius": 0.05,
+        "trajectory_length": steps,
+        "field_names": ["cells", "mesh_pos", "node_type", "world_pos"],
+        "features": {
+            "cells": {"type": "static", "shape": [1, -1, 3], "dtype": "int32"},
+            "mesh_pos": {"type": "static", "shape": [1, -1, 2], "dtype": "float32"},
+            "node_type": {"type": "static", "shape": [1, -1, 1], "dtype": "int32"},
+            "world_pos": {"type": "dynamic", "shape": [steps, -1, 3], "dtype": "float32"},
+        },
+    }
     recs = []
     for k in range(n):
         w0 = np.concatenate([cloth, np.zeros((len(cloth), 1))], 1)
         world = np.repeat(w0[None], steps, 0)
         drop = 0.01 * (k + 1) * np.arange(steps)[:, None] ** 2 * (nt == 0)[None]
         world[:, :, 2] -= drop
-        recs.append({"cells": tri.astype(np.int32)[None], "mesh_pos": cloth.astype(np.float32)[None],
-                     "node_type": nt.reshape(1, -1, 1), "world_pos": world.astype(np.float32)})
+        recs.append(
+            {
+                "cells": tri.astype(np.int32)[None],
+                "mesh_pos": cloth.astype(np.float32)[None],
+                "node_type": nt.reshape(1, -1, 1),
+                "world_pos": world.astype(np.float32),
+            }
+        )
     write_tf_dataset(folder, meta, {"train": recs, "valid": recs[:1], "test": recs[:1]})
 
 
@@ -150,9 +186,17 @@ def ggns_pickles(folder, steps=4, n=2):
         grid[:, :, 1] -= 0.002 * np.arange(steps)[:, None] * np.exp(-((plate[:, 0] - 0.3) ** 2) / 0.02)[None]
         collider = np.repeat(coll[None], steps, 0).copy()
         collider[:, :, 1] -= 0.003 * np.arange(steps)[:, None]
-        trajs.append({"nodes_grid": grid, "edge_index_grid": np.zeros((2, 0), int), "triangles_grid": ptri,
-                      "nodes_collider": collider, "triangles_collider": ctri, "poisson_ratio": 0.3 + 0.1 * k,
-                      "pcd_points": np.zeros((3, 2))})
+        trajs.append(
+            {
+                "nodes_grid": grid,
+                "edge_index_grid": np.zeros((2, 0), int),
+                "triangles_grid": ptri,
+                "nodes_collider": collider,
+                "triangles_collider": ctri,
+                "poisson_ratio": 0.3 + 0.1 * k,
+                "pcd_points": np.zeros((3, 2)),
+            }
+        )
     for split in ("train", "valid", "test"):
         with open(folder / f"{split}.pkl", "wb") as f:
             pickle.dump(trajs, f)

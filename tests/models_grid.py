@@ -4,6 +4,7 @@ hand-made hierarchy (every other row and column kept per level, coarse edges = t
 Stand-alone on purpose (no dependency on hcmt.graph's hierarchy builder), so the model invariants are tested on a
 hierarchy whose hop distances are known.
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -20,9 +21,11 @@ from hcmt.sim.mesh import preset_mesh
 def grid_edges(rows: int, cols: int) -> np.ndarray:
     """Both directions of the edges of a ``rows x cols`` grid split into triangles by one diagonal per square."""
     idx = np.arange(rows * cols).reshape(rows, cols)
-    pairs = [np.stack([idx[:, :-1].ravel(), idx[:, 1:].ravel()]),  # horizontal
-             np.stack([idx[:-1, :].ravel(), idx[1:, :].ravel()]),  # vertical
-             np.stack([idx[:-1, :-1].ravel(), idx[1:, 1:].ravel()])]  # diagonal
+    pairs = [
+        np.stack([idx[:, :-1].ravel(), idx[:, 1:].ravel()]),  # horizontal
+        np.stack([idx[:-1, :].ravel(), idx[1:, :].ravel()]),  # vertical
+        np.stack([idx[:-1, :-1].ravel(), idx[1:, 1:].ravel()]),
+    ]  # diagonal
     und = np.concatenate(pairs, axis=1)
     return np.concatenate([und, und[::-1]], axis=1).astype(np.int64)
 
@@ -33,8 +36,9 @@ def _features(mesh_pos: np.ndarray, world_pos: np.ndarray, edges: np.ndarray) ->
     return np.concatenate([u, np.linalg.norm(u, axis=1, keepdims=True), x, np.linalg.norm(x, axis=1, keepdims=True)], 1)
 
 
-def grid_graph(rows: int = 17, cols: int = 17, levels: int = 2, *, node_in: int = 5, contacts: int = 0,
-               seed: int = 0) -> Graph:
+def grid_graph(
+    rows: int = 17, cols: int = 17, levels: int = 2, *, node_in: int = 5, contacts: int = 0, seed: int = 0
+) -> Graph:
     """A grid graph with ``levels`` pooled levels, random node features (width ``node_in``), mesh edge features
     ``[u, |u|, x, |x|]`` (width 6) from a slightly perturbed world position, and ``contacts`` random contact
     edges (both directions, width-3 features ``[x_iq, |x_iq|]``)."""
@@ -72,7 +76,9 @@ def grid_graph(rows: int = 17, cols: int = 17, levels: int = 2, *, node_in: int 
         mesh_features=torch.from_numpy(_features(mesh_pos, world_pos, edges)).float(),
         contact_edges=torch.from_numpy(ce.astype(np.int64)),
         contact_features=torch.from_numpy(cf).float(),
-        pool=pool, level_edges=level_edges, level_features=level_features,
+        pool=pool,
+        level_edges=level_edges,
+        level_features=level_features,
     )
 
 
@@ -104,8 +110,16 @@ def permute_graph(g: Graph, seed: int = 1) -> tuple[Graph, torch.Tensor]:
         e, f = shuffle(g.level_edges[l], g.level_features[l], inverse[l + 1])
         level_edges.append(e)
         level_features.append(f)
-    return Graph(g.node_features[perms[0]], mesh_edges, mesh_features, contact_edges, contact_features,
-                 pool, level_edges, level_features), perms[0]
+    return Graph(
+        g.node_features[perms[0]],
+        mesh_edges,
+        mesh_features,
+        contact_edges,
+        contact_features,
+        pool,
+        level_edges,
+        level_features,
+    ), perms[0]
 
 
 def paper_graph(seed: int = 0, levels: int = 6) -> Graph:

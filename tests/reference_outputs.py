@@ -6,6 +6,7 @@ output of a forward pass that accumulates the normalizers, then the gradients of
 
 tests/models/test_reference_outputs.py compares the current code against the stored file.
 """
+
 from __future__ import annotations
 
 from pathlib import Path
@@ -35,12 +36,21 @@ def compute(label: str) -> dict[str, torch.Tensor]:
     torch.manual_seed(0)
     model = build_model(args.pop("name"), 5, 6, 3, 3, **args).double()
     g = graph()
-    g = type(g)(**{k: (v.double() if torch.is_tensor(v) and v.is_floating_point() else
-                       [t.double() if t.is_floating_point() else t for t in v] if isinstance(v, list) else v)
-                   for k, v in vars(g).items()})
+    g = type(g)(
+        **{
+            k: (
+                v.double()
+                if torch.is_tensor(v) and v.is_floating_point()
+                else [t.double() if t.is_floating_point() else t for t in v]
+                if isinstance(v, list)
+                else v
+            )
+            for k, v in vars(g).items()
+        }
+    )
     model.train()
     out = model(g, accumulate=True)
-    (out ** 2).mean().backward()
+    (out**2).mean().backward()
     result = {"output": out.detach()}
     result.update({f"grad.{n}": p.grad.detach().clone() for n, p in model.named_parameters() if p.grad is not None})
     return result

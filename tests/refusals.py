@@ -1,5 +1,6 @@
 """The one line of a refused command, shared by the bad-input tests: exit status 2, one line of at most the
 guard's length, no traceback (warning lines, which a command may print before it refuses, set apart)."""
+
 from hcmt.cli import GUARD, main as cli
 
 

@@ -1,6 +1,7 @@
 """Hand-made design-check records for tests that need a few fields only: :func:`fake_summary` (a
 :class:`hcmt.design.summary.Summary` whose trajectory quantities are zeros), :func:`fake_metrics` and
 :func:`fake_verify` likewise; and :func:`type_errors`, each field of a result whose value is not its declared type."""
+
 from __future__ import annotations
 
 import dataclasses
@@ -11,14 +12,23 @@ from dataclasses import MISSING, fields
 from hcmt.design.summary import Summary, VerifyRow
 from hcmt.inference.metrics import ImpactMetrics
 
-_ZERO = {"float": 0.0, "int": 0, "bool": False, "list[float]": [0.0, 0.0], "list[float] | None": None,
-         "list[int] | None": None}
+_ZERO = {
+    "float": 0.0,
+    "int": 0,
+    "bool": False,
+    "list[float]": [0.0, 0.0],
+    "list[float] | None": None,
+    "list[int] | None": None,
+}
 
 
 def _zeros(cls, given: dict):
     """``cls`` holding ``given``; every other field without a default a zero of its declared type."""
-    base = {f.name: _ZERO[f.type] for f in fields(cls)
-            if f.default is MISSING and f.default_factory is MISSING and f.name not in given}
+    base = {
+        f.name: _ZERO[f.type]
+        for f in fields(cls)
+        if f.default is MISSING and f.default_factory is MISSING and f.name not in given
+    }
     return cls(**base, **given)
 
 

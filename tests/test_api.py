@@ -1,4 +1,5 @@
 """The README's Python API example runs as written (in a temporary folder)."""
+
 import ast
 import inspect
 import re
@@ -56,8 +57,13 @@ def test_the_public_api_is_declared_for_type_checkers_and_loads_lazily():
     """Every lazy name is also imported under TYPE_CHECKING (what IDEs read), listed in __all__ and resolvable;
     the model classes document their constructor arguments."""
     tree = ast.parse(inspect.getsource(hcmt))
-    checked = {a.asname or a.name for node in ast.walk(tree) if isinstance(node, ast.If)
-               and getattr(node.test, "id", "") == "TYPE_CHECKING" for imp in node.body for a in imp.names}
+    checked = {
+        a.asname or a.name
+        for node in ast.walk(tree)
+        if isinstance(node, ast.If) and getattr(node.test, "id", "") == "TYPE_CHECKING"
+        for imp in node.body
+        for a in imp.names
+    }
     assert checked == set(hcmt._LAZY)
     assert set(hcmt._LAZY) | {"load_pretrained", "__version__"} == set(hcmt.__all__)
     for name in hcmt._LAZY:

@@ -1,6 +1,7 @@
 """docs/MODELS.md's measured card blocks (benchmarks/release/card.py, written by benchmarks/report.py): the numbers come
 from the model's result file, the judgement and the response surface appear only where they measured this model,
 the text outside the markers is kept, and a rewrite of an unchanged result is the same text."""
+
 import copy
 import json
 import sys
@@ -25,13 +26,32 @@ def model():
 
 
 def judge_of(model_name: str, step: int, designs: int) -> dict:
-    goals = [{"goal": "peak plate stress error, median %", "target": 3.0, "at_least": False, "hcmt": 2.5,
-              "gp": 1.0, "hcmt_met": True},
-             {"goal": "rebound agreement (designs, at least)", "target": 29, "at_least": True, "hcmt": 28,
-              "gp": None, "hcmt_met": False}]
-    return {"model": model_name, "checkpoint_step": step, "training_designs": designs, "goals": goals,
-            "seeds": {"in_range": 8101, "outside": 8102},
-            "command": "python benchmarks/surrogate/run.py --seed-in 8101"}
+    goals = [
+        {
+            "goal": "peak plate stress error, median %",
+            "target": 3.0,
+            "at_least": False,
+            "hcmt": 2.5,
+            "gp": 1.0,
+            "hcmt_met": True,
+        },
+        {
+            "goal": "rebound agreement (designs, at least)",
+            "target": 29,
+            "at_least": True,
+            "hcmt": 28,
+            "gp": None,
+            "hcmt_met": False,
+        },
+    ]
+    return {
+        "model": model_name,
+        "checkpoint_step": step,
+        "training_designs": designs,
+        "goals": goals,
+        "seeds": {"in_range": 8101, "outside": 8102},
+        "command": "python benchmarks/surrogate/run.py --seed-in 8101",
+    }
 
 
 def test_a_result_measured_this_model_only_with_its_name_designs_and_step(model):
@@ -58,7 +78,7 @@ def test_the_block_quotes_the_result_files(model):
     for r in model["card"]["confidence"]:
         assert f"| {r['label']} | {r['designs']} | {r['peak_plate_stress_error_pct_median']:.1f} % / " in text
     weak = max(model["card"]["confidence"], key=lambda r: r["peak_plate_stress_error_pct_median"])
-    assert f"is in the region \"{weak['label']}\"" in text
+    assert f'is in the region "{weak["label"]}"' in text
     assert "it meets 1 of 2." in text and "| rebound agreement (designs, at least) | ≥ 29 | 28 | no | - |" in text
     assert "**Beside the response surface**: not measured for this model (surrogate.json measured nothing)" in text
     other = "\n".join(card("small", model, judge_of("/runs/interim", 120000, 480), None))
@@ -69,12 +89,15 @@ def test_write_cards_replaces_only_the_blocks_it_has_results_for(model, tmp_path
     files = {"model_small.json": model, "model_judge.json": judge_of("pretrained:small", 400000, 480)}
     monkeypatch.setattr(card_module, "load", lambda name: files.get(name))
     doc = tmp_path / "MODELS.md"
-    doc.write_text("# Models\n\nhand-written\n\n<!-- card small -->\nold numbers\n<!-- /card small -->\n\nafter\n\n"
-                   "<!-- card none -->\nkept\n<!-- /card none -->\n")
+    doc.write_text(
+        "# Models\n\nhand-written\n\n<!-- card small -->\nold numbers\n<!-- /card small -->\n\nafter\n\n"
+        "<!-- card none -->\nkept\n<!-- /card none -->\n"
+    )
     assert write_cards(doc) == ["small"]
     text = doc.read_text()
     assert text.startswith("# Models\n\nhand-written\n\n" + begin("small")) and text.endswith(
-        "\n\nafter\n\n<!-- card none -->\nkept\n<!-- /card none -->\n")
+        "\n\nafter\n\n<!-- card none -->\nkept\n<!-- /card none -->\n"
+    )
     assert "old numbers" not in text and "it meets 1 of 2." in text
     assert write_cards(doc) == ["small"] and doc.read_text() == text  # the same results: the same text
 
@@ -88,26 +111,45 @@ def test_the_committed_cards_and_the_readme_quote_the_result_files_as_they_are()
         if line.startswith("<!-- card "):
             name = line.split()[2].rstrip(":")
             m = card_module.load(f"model_{name}.json")
-            block = "\n".join(card(name, m, card_module.load("model_judge.json"), card_module.load("surrogate.json"),
-                                   card_module.load("trust.json")))
+            block = "\n".join(
+                card(
+                    name,
+                    m,
+                    card_module.load("model_judge.json"),
+                    card_module.load("surrogate.json"),
+                    card_module.load("trust.json"),
+                )
+            )
             assert block in text, f"docs/MODELS.md's card {name} is stale: run python benchmarks/report.py"
     m, surrogate = card_module.load("model_impact_plate_small.json"), card_module.load("surrogate.json")
     p, n = m["verify"]["physics"], m["verify"]["designs"]
     readme = (ROOT / "README.md").read_text()
     pct = "{median_abs:.1f} % / {worst:.1f} %"
-    assert f"| shipped model on {n} held-out designs: rebound agreement | {round(p['rebound_agreement'] * n)} / {n} |" \
+    assert (
+        f"| shipped model on {n} held-out designs: rebound agreement | {round(p['rebound_agreement'] * n)} / {n} |"
         in readme
-    for label, key in (("peak plate stress", "peak_plate_stress_error_pct"),
-                       ("max deflection", "max_deflection_error_pct")):
+    )
+    for label, key in (
+        ("peak plate stress", "peak_plate_stress_error_pct"),
+        ("max deflection", "max_deflection_error_pct"),
+    ):
         e = p[key]
-        assert f"| shipped model: {label} error, median / worst | " + pct.format(
-            median_abs=e["median_abs"], worst=abs(e["worst"])) + " |" in readme
+        assert (
+            f"| shipped model: {label} error, median / worst | "
+            + pct.format(median_abs=e["median_abs"], worst=abs(e["worst"]))
+            + " |"
+            in readme
+        )
     gp = surrogate["accuracy"]["in_range"]["peak_plate_stress_mpa"]["gp"]
-    assert (f"| response surface on the same {surrogate['training_designs']} solver runs: peak plate stress, median / "
-            f"worst | {gp['median_abs_pct']:.1f} % / {gp['worst_abs_pct']:.1f} % |") in readme
+    assert (
+        f"| response surface on the same {surrogate['training_designs']} solver runs: peak plate stress, median / "
+        f"worst | {gp['median_abs_pct']:.1f} % / {gp['worst_abs_pct']:.1f} % |"
+    ) in readme
     regions = card_module.load("trust.json")["coverage"]["pooled"]["by_region"]
-    got = [(regions[k]["coverage"]["peak_plate_stress_mpa"], regions[k]["median_rel_width_peak"])
-           for k in ("inside", "outside")]
+    got = [
+        (regions[k]["coverage"]["peak_plate_stress_mpa"], regions[k]["median_rel_width_peak"])
+        for k in ("inside", "outside")
+    ]
     assert (" | " + ", ".join(f"{c['covered']} / {c['of']} ({100 * w:.0f} %)" for c, w in got) + " |") in readme
 
 

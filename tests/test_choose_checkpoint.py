@@ -1,6 +1,7 @@
 """Choosing a long run's checkpoint (benchmarks/release/choose_checkpoint.py): every kept
 checkpoint is judged on the validation split with the scaling study's errors, the worst ratio to the goals decides,
 and the chosen one loads for shipping; a missing kept step is an error, never silently the latest."""
+
 import json
 import shutil
 import sys
@@ -28,11 +29,17 @@ def test_score_is_the_worst_ratio_to_the_goals():
 
 
 def test_every_kept_checkpoint_is_judged_on_the_validation_split_and_the_lowest_score_chosen(
-        impact_data, tmp_path, tiny_config):
+    impact_data, tmp_path, tiny_config
+):
     data = tmp_path / "data"
     shutil.copytree(impact_data, data)
-    cfg = tiny_config("train.steps=3", "train.keep_every=1", "train.checkpoint_every=1", "train.valid_every=1",
-                      "train.valid_trajectories=1")
+    cfg = tiny_config(
+        "train.steps=3",
+        "train.keep_every=1",
+        "train.checkpoint_every=1",
+        "train.valid_every=1",
+        "train.valid_trajectories=1",
+    )
     train(cfg, data, "hcmt", tmp_path / "run", progress=False, device="cpu")
     folder = RunFolder(tmp_path / "run")
     assert kept(folder) == ["best", "step_1", "step_2", "step_3"]
@@ -45,8 +52,10 @@ def test_every_kept_checkpoint_is_judged_on_the_validation_split_and_the_lowest_
     chosen = Run.load(tmp_path / "run", "cpu", out["chosen"])
     assert chosen.checkpoint_step == out["chosen_step"]
     first = torch.load(tmp_path / "run" / "step_1.pt", weights_only=False)["model"]
-    assert not all(torch.equal(first[k], v) for k, v in
-                   torch.load(tmp_path / "run" / "step_3.pt", weights_only=False)["model"].items())
+    assert not all(
+        torch.equal(first[k], v)
+        for k, v in torch.load(tmp_path / "run" / "step_3.pt", weights_only=False)["model"].items()
+    )
     with pytest.raises(InputError, match="step_9.pt: no such checkpoint"):
         Run.load(tmp_path / "run", "cpu", "step_9")
     json.dumps(out)  # the --json file's content
@@ -54,8 +63,14 @@ def test_every_kept_checkpoint_is_judged_on_the_validation_split_and_the_lowest_
 
 def test_a_cache_judges_kept_checkpoints_once_and_best_every_time(impact_data, tmp_path, tiny_config, monkeypatch):
     import release.choose_checkpoint as cc
-    cfg = tiny_config("train.steps=2", "train.keep_every=1", "train.checkpoint_every=1", "train.valid_every=1",
-                      "train.valid_trajectories=1")
+
+    cfg = tiny_config(
+        "train.steps=2",
+        "train.keep_every=1",
+        "train.checkpoint_every=1",
+        "train.valid_every=1",
+        "train.valid_trajectories=1",
+    )
     train(cfg, impact_data, "hcmt", tmp_path / "run", progress=False, device="cpu")
     judged = []
     real = cc.test_errors
@@ -75,7 +90,8 @@ def test_a_cache_judges_kept_checkpoints_once_and_best_every_time(impact_data, t
 
 
 def test_an_average_of_kept_steps_is_their_mean_with_the_last_ones_statistics_and_a_candidate(
-        impact_data, tmp_path, tiny_config):
+    impact_data, tmp_path, tiny_config
+):
     cfg = tiny_config("train.steps=3", "train.keep_every=1", "train.checkpoint_every=1")
     train(cfg, impact_data, "hcmt", tmp_path / "run", progress=False, device="cpu")
     out = average(tmp_path / "run", [3, 1])

@@ -1,5 +1,6 @@
 """The documentation that is generated or promised stays true: docs/cli.md is the
 argument parsers' own help, regenerated in memory; the README stays a front door and its links lead somewhere."""
+
 import importlib.util
 import re
 from pathlib import Path
@@ -16,8 +17,9 @@ def gen_cli_docs():
 
 def test_cli_reference_is_fresh():
     text = gen_cli_docs().render()
-    assert (ROOT / "docs" / "cli.md").read_text() == text, \
+    assert (ROOT / "docs" / "cli.md").read_text() == text, (
         "docs/cli.md is stale: run `PYTHONPATH=src python scripts/gen_cli_docs.py`"
+    )
 
 
 def test_cli_reference_has_every_command_and_no_machine_numbers(monkeypatch):
@@ -41,12 +43,12 @@ def test_architecture_map_names_every_module_and_the_layers():
 
     text = (ROOT / "docs" / "architecture.md").read_text()
     src = ROOT / "src" / "hcmt"
-    missing = [str(p.relative_to(src)) for p in sorted(src.rglob("*.py"))
-               if p.name != "__init__.py" and p.name not in text]
+    missing = [
+        str(p.relative_to(src)) for p in sorted(src.rglob("*.py")) if p.name != "__init__.py" and p.name not in text
+    ]
     assert missing == [], f"docs/architecture.md does not name {missing}"
     chain = re.search(r"```\n(errors .*?)\n```", text).group(1)
     assert set(re.findall(r"\w+", chain)) == set(LAYERS)
-
 
 
 def test_readme_is_a_front_door():
@@ -65,7 +67,11 @@ def test_readme_is_a_front_door():
 def test_no_python_line_over_120_characters():
     """ruff's E501 does not count a trailing ``# noqa`` pragma, so a long import with one would pass it: this counts
     every character of every line of the Python files under src, tests, benchmarks and scripts."""
-    long = [f"{p.relative_to(ROOT)}:{i}" for folder in ("src", "tests", "benchmarks", "scripts")
-            for p in sorted((ROOT / folder).rglob("*.py"))
-            for i, line in enumerate(p.read_text(encoding="utf-8").splitlines(), 1) if len(line) > 120]
+    long = [
+        f"{p.relative_to(ROOT)}:{i}"
+        for folder in ("src", "tests", "benchmarks", "scripts")
+        for p in sorted((ROOT / folder).rglob("*.py"))
+        for i, line in enumerate(p.read_text(encoding="utf-8").splitlines(), 1)
+        if len(line) > 120
+    ]
     assert not long, f"lines over 120 characters: {', '.join(long)}"

@@ -1,6 +1,7 @@
 """The extension points of docs/extending.md: each step of adding a model, a panel family, a dataset or a
 design-check quantity is checked here, so that a step left out fails a test instead of passing silently. And the
 panel families' scenes and trajectories equal a direct construction from the design's fields."""
+
 from __future__ import annotations
 
 import inspect
@@ -111,11 +112,20 @@ def direct_scene(d) -> tuple[dict, np.ndarray]:
     pen = d.pen_tip_radius > 0
     panel = [(d.thickness, d.plate_density, d.plate_modulus, d.plate_poisson)] + [
         tuple(getattr(d, f"layer{k}_{m}") for m in ("thickness", "density", "modulus", "poisson"))
-        for k in (2, 3, 4) if getattr(d, f"layer{k}_thickness") > 0]
-    mesh = impact_plate_mesh(d.thickness, d.pen_tip_radius if pen else d.ball_radius, d.mesh_size,
-                             plate_half_length=d.plate_half_length, gap=d.gap, layers=[p[0] for p in panel],
-                             support_radius=d.support_radius, backing_thickness=d.backing_thickness,
-                             impactor="pen" if pen else "ball")
+        for k in (2, 3, 4)
+        if getattr(d, f"layer{k}_thickness") > 0
+    ]
+    mesh = impact_plate_mesh(
+        d.thickness,
+        d.pen_tip_radius if pen else d.ball_radius,
+        d.mesh_size,
+        plate_half_length=d.plate_half_length,
+        gap=d.gap,
+        layers=[p[0] for p in panel],
+        support_radius=d.support_radius,
+        backing_thickness=d.backing_thickness,
+        impactor="pen" if pen else "ball",
+    )
     backing = [(BACKING_DENSITY, d.backing_modulus, BACKING_POISSON)] if d.backing_thickness > 0 else []
     table = np.array([p[1:] for p in panel] + backing + [(d.ball_density, d.ball_modulus, d.ball_poisson)])
     return mesh, table[mesh["cell_layer"]]
@@ -146,13 +156,25 @@ def test_a_familys_trajectory_equals_a_solve_built_by_hand(family):
     d, settings = DESIGNS[family], Settings(frames=5)
     mesh, m = direct_scene(d)
     X = mesh["mesh_pos"]
-    model = fem(X, mesh["cells"], m[:, 0], m[:, 1], m[:, 2], formulation=settings.formulation,
-                bulk_viscosity=settings.bulk_viscosity)
+    model = fem(
+        X,
+        mesh["cells"],
+        m[:, 0],
+        m[:, 1],
+        m[:, 2],
+        formulation=settings.formulation,
+        bulk_viscosity=settings.bulk_viscosity,
+    )
     substeps = int(np.ceil(settings.frame_dt / stable_time_step(model, settings.safety)))
     dt = settings.frame_dt / substeps
-    sim = CentralDifference(model, fixed_dofs(mesh["node_type"]), dt, gravity=settings.gravity,
-                            contact=PenaltyContact(X, mesh["cells"], mesh["body"], model.mass, dt,
-                                                   alpha=settings.penalty), rigid=(mesh["rigid"], d.pen_mass))
+    sim = CentralDifference(
+        model,
+        fixed_dofs(mesh["node_type"]),
+        dt,
+        gravity=settings.gravity,
+        contact=PenaltyContact(X, mesh["cells"], mesh["body"], model.mass, dt, alpha=settings.penalty),
+        rigid=(mesh["rigid"], d.pen_mass),
+    )
     v0 = np.zeros_like(X)
     v0[mesh["body"] == 1, 1] = -np.sqrt(2 * settings.gravity * d.drop_height)
     sim.start(X, v0)

@@ -1,5 +1,6 @@
 """The optional dependencies (pyproject's extras): each is imported where it is used, and without it that use fails
 in one line naming the extra to install (TensorBoard scalars are simply left out); one version source."""
+
 from __future__ import annotations
 
 import logging
@@ -49,8 +50,11 @@ def test_tfrecords_without_the_tfrecord_extra_are_refused_in_one_line(tmp_path, 
     path = tmp_path / "train.tfrecord"
     path.write_bytes(bytes(16))
     monkeypatch.setitem(sys.modules, "crc32c", None)
-    with pytest.raises(MissingExtra, match=r"^crc32c is not installed \(the tfrecord extra\); "
-                                           r"pip install 'hcmt\[tfrecord\]'$"):
+    with pytest.raises(
+        MissingExtra,
+        match=r"^crc32c is not installed \(the tfrecord extra\); "
+        r"pip install 'hcmt\[tfrecord\]'$",
+    ):
         next(iter_records(path))
 
 
@@ -65,8 +69,9 @@ def test_training_without_tensorboard_writes_no_scalars_and_says_so_once(tmp_pat
         runtime._say_no_tensorboard()
         runtime._say_no_tensorboard()
     said = [r.getMessage() for r in caplog.records if "TensorBoard" in r.getMessage()]
-    assert said == ["no TensorBoard scalars: tensorboard is not installed (pip install 'hcmt[tensorboard]'); "
-                    "log.jsonl has them"]
+    assert said == [
+        "no TensorBoard scalars: tensorboard is not installed (pip install 'hcmt[tensorboard]'); log.jsonl has them"
+    ]
 
 
 def test_one_version_source():
@@ -83,8 +88,11 @@ def test_torch_is_a_range_and_the_makefile_pins_it():
     extras = project["project"]["optional-dependencies"]
     hard = " ".join(project["project"]["dependencies"])
     for name in ("matplotlib", "meshio", "tensorboard", "tfrecord", "crc32c"):
-        assert name not in hard and any(d.startswith(name) for d in extras["all"]) and \
-            any(d.startswith(name) for d in extras["test"])
+        assert (
+            name not in hard
+            and any(d.startswith(name) for d in extras["all"])
+            and any(d.startswith(name) for d in extras["test"])
+        )
     assert "TORCH  ?= torch==2.13.0" in (ROOT / "Makefile").read_text()
 
 
@@ -99,8 +107,16 @@ def _forget(names: list[str], monkeypatch) -> None:
 
 
 def _block_matplotlib(monkeypatch):
-    _forget([m for m in sys.modules if m.startswith(("hcmt.viz", "hcmt.cli.viz", "hcmt.design", "hcmt.cli.design",
-                                                     "hcmt.cli.demo", "matplotlib"))], monkeypatch)
+    _forget(
+        [
+            m
+            for m in sys.modules
+            if m.startswith(
+                ("hcmt.viz", "hcmt.cli.viz", "hcmt.design", "hcmt.cli.design", "hcmt.cli.demo", "matplotlib")
+            )
+        ],
+        monkeypatch,
+    )
     monkeypatch.setitem(sys.modules, "matplotlib", None)  # what an uninstalled package looks like to import
 
 
@@ -108,8 +124,8 @@ def test_the_design_check_imports_without_matplotlib(monkeypatch):
     """predict, sweep and demo need matplotlib only for their pictures: their modules import without it."""
     _block_matplotlib(monkeypatch)
     import importlib
-    for module in ("hcmt.design.check", "hcmt.design.reports", "hcmt.design.sweep", "hcmt.cli.design",
-                   "hcmt.cli.demo"):
+
+    for module in ("hcmt.design.check", "hcmt.design.reports", "hcmt.design.sweep", "hcmt.cli.design", "hcmt.cli.demo"):
         importlib.import_module(module)
     assert "hcmt.viz" not in sys.modules
 
@@ -124,7 +140,22 @@ def test_predict_images_without_matplotlib_is_refused_before_the_model_runs(monk
 @pytest.mark.slow  # rolls out the shipped model on two designs
 def test_sweep_without_matplotlib_runs_and_says_no_plot(tmp_path, monkeypatch, capsys):
     _block_matplotlib(monkeypatch)
-    assert cli(["sweep", "pretrained:impact_plate_small", "--vary", "thickness=0.6:0.7:2", "--no-surrogate",
-                "--no-progress", "--out", str(tmp_path / "s"), "--json", str(tmp_path / "s.json")]) == 0
+    assert (
+        cli(
+            [
+                "sweep",
+                "pretrained:impact_plate_small",
+                "--vary",
+                "thickness=0.6:0.7:2",
+                "--no-surrogate",
+                "--no-progress",
+                "--out",
+                str(tmp_path / "s"),
+                "--json",
+                str(tmp_path / "s.json"),
+            ]
+        )
+        == 0
+    )
     out = capsys.readouterr().out
     assert "no plot: matplotlib is not installed (the viz extra)" in out and (tmp_path / "s.json").is_file()

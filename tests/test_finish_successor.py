@@ -2,6 +2,7 @@
 the steps in order with the checkpoint chosen on the validation split, marks a step done only when it succeeded,
 resumes from the marks, runs the judge beside the transfer, refuses an unfinished run, and writes the report last.
 The steps' scripts are replaced by a recorder (``PY``): what is tested is the script's own control flow."""
+
 import json
 import os
 import shutil
@@ -41,15 +42,28 @@ def checkout(tmp_path):
     py = tmp_path / "py"
     py.write_text(RECORDER)
     py.chmod(0o755)
-    env = dict(os.environ, PY=str(py), RUN=str(tmp_path / "run"), DATA=str(tmp_path / "data"),
-               STACK3=str(tmp_path / "stack3"), PEN=str(tmp_path / "pen"), WORK=str(tmp_path / "work"),
-               CALLS=str(tmp_path / "calls"), FAIL="")
+    env = dict(
+        os.environ,
+        PY=str(py),
+        RUN=str(tmp_path / "run"),
+        DATA=str(tmp_path / "data"),
+        STACK3=str(tmp_path / "stack3"),
+        PEN=str(tmp_path / "pen"),
+        WORK=str(tmp_path / "work"),
+        CALLS=str(tmp_path / "calls"),
+        FAIL="",
+    )
     return repo, env
 
 
 def finish(repo: Path, env: dict, **extra) -> subprocess.CompletedProcess:
-    return subprocess.run(["bash", str(repo / "benchmarks" / "release" / "finish_successor.sh")],
-                          env={**env, **extra}, capture_output=True, text=True, timeout=60)
+    return subprocess.run(
+        ["bash", str(repo / "benchmarks" / "release" / "finish_successor.sh")],
+        env={**env, **extra},
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
 
 
 def calls(env: dict) -> list[str]:
@@ -67,8 +81,14 @@ def test_every_step_runs_once_in_order_with_the_chosen_checkpoint(checkout):
     assert done.returncode == 0, done.stderr
     got = calls(env)
     names = [script_of(c) for c in got]
-    assert names[:6] == ["average_checkpoints.py", "choose_checkpoint.py", "long_run.py", "long_run.py",
-                         "long_run.py", "ship_model.py"]
+    assert names[:6] == [
+        "average_checkpoints.py",
+        "choose_checkpoint.py",
+        "long_run.py",
+        "long_run.py",
+        "long_run.py",
+        "ship_model.py",
+    ]
     assert sorted(names[6:9]) == ["run.py", "run.py", "run.py"] and names[9] == "report.py"  # judge, check, transfer
     ship = got[5]
     assert f"--cache {env['WORK']}/choose_cache" in got[1]  # kept steps judged while the run trained are read
@@ -88,7 +108,7 @@ def test_a_failed_step_is_not_marked_and_a_rerun_resumes_there(checkout):
     before = calls(env)
     assert script_of(before[-1]) == "ship_model.py"  # nothing after the failed step ran
     finish(repo, env)
-    after = calls(env)[len(before):]
+    after = calls(env)[len(before) :]
     assert script_of(after[0]) == "ship_model.py" and script_of(after[-1]) == "report.py"  # resumed at ship
 
 

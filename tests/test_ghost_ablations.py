@@ -1,5 +1,6 @@
 """The ghost ablations' report (benchmarks/ghost_diagnosis/report.py): an arm is called beyond the protocol's
 spread only when it moves the ghost difference more than the two controls differ."""
+
 import sys
 from pathlib import Path
 
@@ -8,16 +9,27 @@ from ghost_diagnosis.report import ablation_text  # noqa: E402
 
 
 def arm(ghost: float, sets=()) -> dict:
-    return {"sets": list(sets), "ghost_difference_median": {"rollout": ghost, "teacher_forced": 0.01},
-            "peak_error_median": 0.03, "deflection_error_median": 0.04, "amplification_median": 300.0,
-            "rows": [{}] * 12}
+    return {
+        "sets": list(sets),
+        "ghost_difference_median": {"rollout": ghost, "teacher_forced": 0.01},
+        "peak_error_median": 0.03,
+        "deflection_error_median": 0.04,
+        "amplification_median": 300.0,
+        "rows": [{}] * 12,
+    }
 
 
 def text(arms: dict) -> str:
     lines = []
-    ablation_text(lines, {"command": "c", "init": "run", "steps": 4000, "common": ["train.lr=1e-4"], "arms": arms},
-                  {"run": "pretrained:x", "ghost_difference_median": {"rollout": 0.1, "teacher_forced": 0.01},
-                   "amplification_median": 6000.0})
+    ablation_text(
+        lines,
+        {"command": "c", "init": "run", "steps": 4000, "common": ["train.lr=1e-4"], "arms": arms},
+        {
+            "run": "pretrained:x",
+            "ghost_difference_median": {"rollout": 0.1, "teacher_forced": 0.01},
+            "amplification_median": 6000.0,
+        },
+    )
     return "\n".join(lines)
 
 

@@ -1,5 +1,6 @@
 """The judge of the model goals (benchmarks/surrogate/run.py): a sweep's trend agrees with the solver's when its sign
 is the solver's and its size within 30 % of it, for the model and the response surface alike."""
+
 import sys
 from dataclasses import asdict, replace
 from pathlib import Path
@@ -24,10 +25,18 @@ class LineGP:
 
 def test_trend_agrees_on_sign_and_size_within_30_percent():
     thin, thick = (replace(Design(), thickness=t) for t in (0.5, 1.0))
-    rows = [{"design": asdict(thin), "solver": {"peak_plate_stress_mpa": 100.0, "max_deflection_mm": 2.0},
-             "model": {MODEL: {"peak_plate_stress_mpa": 90.0, "max_deflection_mm": 2.2}}},
-            {"design": asdict(thick), "solver": {"peak_plate_stress_mpa": 80.0, "max_deflection_mm": 1.5},
-             "model": {MODEL: {"peak_plate_stress_mpa": 76.0, "max_deflection_mm": 2.4}}}]
+    rows = [
+        {
+            "design": asdict(thin),
+            "solver": {"peak_plate_stress_mpa": 100.0, "max_deflection_mm": 2.0},
+            "model": {MODEL: {"peak_plate_stress_mpa": 90.0, "max_deflection_mm": 2.2}},
+        },
+        {
+            "design": asdict(thick),
+            "solver": {"peak_plate_stress_mpa": 80.0, "max_deflection_mm": 1.5},
+            "model": {MODEL: {"peak_plate_stress_mpa": 76.0, "max_deflection_mm": 2.4}},
+        },
+    ]
     gp = LineGP({"peak_plate_stress_mpa": {0.5: 100.0, 1.0: 95.0}, "max_deflection_mm": {0.5: 2.0, 1.0: 1.4}})
     got = trend(rows, gp)
     peak, defl = got["peak_plate_stress_mpa"], got["max_deflection_mm"]
@@ -39,11 +48,18 @@ def test_trend_agrees_on_sign_and_size_within_30_percent():
 def test_judge_section_counts_goals_met_and_where_the_response_surface_does_better():
     from surrogate.report import judge
 
-    d = {"command": "c", "model": "m", "seeds": {"in_range": 1, "outside": 2}, "training_designs": 480,
-         "goals": [{"goal": "peak", "target": 3.0, "at_least": False, "hcmt": 2.0, "gp": 1.0, "hcmt_met": True},
-                   {"goal": "rebound", "target": 29, "at_least": True, "hcmt": 28, "gp": None, "hcmt_met": False},
-                   {"goal": "trends", "target": 10, "at_least": True, "hcmt": 9, "gp": 8, "hcmt_met": False}],
-         "trends": {"sweep_600": {"peak_plate_stress_mpa": {"solver": -0.2, "hcmt": -0.25, "gp": None}}}}
+    d = {
+        "command": "c",
+        "model": "m",
+        "seeds": {"in_range": 1, "outside": 2},
+        "training_designs": 480,
+        "goals": [
+            {"goal": "peak", "target": 3.0, "at_least": False, "hcmt": 2.0, "gp": 1.0, "hcmt_met": True},
+            {"goal": "rebound", "target": 29, "at_least": True, "hcmt": 28, "gp": None, "hcmt_met": False},
+            {"goal": "trends", "target": 10, "at_least": True, "hcmt": 9, "gp": 8, "hcmt_met": False},
+        ],
+        "trends": {"sweep_600": {"peak_plate_stress_mpa": {"solver": -0.2, "hcmt": -0.25, "gp": None}}},
+    }
     lines = []
     judge(lines, d)
     text = "\n".join(lines)
@@ -60,20 +76,37 @@ def test_the_note_report_names_the_best_rule_and_judges_hcmts_own_threshold_apar
     from surrogate.report import note
 
     def rate(hits, large, false, small):
-        return {"hits": hits, "large_errors": large, "hit_rate": hits / large if large else None,
-                "false_alarms": false, "small_errors": small, "false_alarm_rate": false / small}
+        return {
+            "hits": hits,
+            "large_errors": large,
+            "hit_rate": hits / large if large else None,
+            "false_alarms": false,
+            "small_errors": small,
+            "false_alarm_rate": false / small,
+        }
 
-    n = {"large_error_pct": 10.0, "threshold_pct": 5.0, "tuned_on": 36, "judged_on": 46,
-         "region (the card)": rate(5, 6, 11, 40), "model-GP disagreement > 5.0 %": rate(6, 6, 10, 40),
-         "shipped_threshold_pct": 10.0, "model-GP disagreement > 10.0 % (hcmt's NOTE_DISAGREEMENT)": rate(6, 6, 1, 40)}
+    n = {
+        "large_error_pct": 10.0,
+        "threshold_pct": 5.0,
+        "tuned_on": 36,
+        "judged_on": 46,
+        "region (the card)": rate(5, 6, 11, 40),
+        "model-GP disagreement > 5.0 %": rate(6, 6, 10, 40),
+        "shipped_threshold_pct": 10.0,
+        "model-GP disagreement > 10.0 % (hcmt's NOTE_DISAGREEMENT)": rate(6, 6, 1, 40),
+    }
     lines = []
     note(lines, n)
     text = "\n".join(lines)
     assert "| model-GP disagreement > 10.0 % (hcmt's NOTE_DISAGREEMENT) | 6 / 6 | 1 / 40 |" in text
-    assert "fewest false alarms among those that flag at least 80% of the large errors: **model-GP disagreement > " \
-           "10.0 % (hcmt's NOTE_DISAGREEMENT)**" in text
-    assert "hcmt's note uses a model-GP disagreement above 10.0 % (`NOTE_DISAGREEMENT`): on these designs it flagged " \
-           "6 of 6 large errors with 1 false alarms in 40" in text
+    assert (
+        "fewest false alarms among those that flag at least 80% of the large errors: **model-GP disagreement > "
+        "10.0 % (hcmt's NOTE_DISAGREEMENT)**" in text
+    )
+    assert (
+        "hcmt's note uses a model-GP disagreement above 10.0 % (`NOTE_DISAGREEMENT`): on these designs it flagged "
+        "6 of 6 large errors with 1 false alarms in 40" in text
+    )
     del n["model-GP disagreement > 10.0 % (hcmt's NOTE_DISAGREEMENT)"], n["shipped_threshold_pct"]
     lines = []
     note(lines, n)  # an older result file: the tuned rule, as it was reported then
@@ -98,9 +131,16 @@ def test_another_checkpoint_reuses_the_judges_solver_runs_and_rolls_out_only_the
 
     def traj(seed):
         rng = np.random.default_rng(seed)
-        return SimpleNamespace(world_pos=rng.random((3, 4, 2)), stress=rng.random((3, 4)), mesh_pos=rng.random((4, 2)),
-                               cells=np.arange(6).reshape(2, 3), node_type=np.zeros(4), modulus=np.ones(4),
-                               wall_s=float(seed))
+        return SimpleNamespace(
+            world_pos=rng.random((3, 4, 2)),
+            stress=rng.random((3, 4)),
+            mesh_pos=rng.random((4, 2)),
+            cells=np.arange(6).reshape(2, 3),
+            node_type=np.zeros(4),
+            modulus=np.ones(4),
+            wall_s=float(seed),
+        )
+
     calls = []
 
     def fake_check(run, designs, *, batch, verify, surrogate, progress):

@@ -6,6 +6,7 @@ and any layer below; ``hcmt/__init__.py`` (the lazy public API, PEP 562) and ``h
 Imports of hcmt modules inside functions are refused too: they only ever dodged a cycle; the one exception is
 hcmt.viz (an optional extra) in the design check's drawing functions (``PICTURES_WHEN_ASKED``).
 """
+
 from __future__ import annotations
 
 import ast
@@ -18,8 +19,21 @@ import pytest
 SRC = Path(__file__).resolve().parent.parent / "src" / "hcmt"
 
 #: layer of each top-level module or subpackage of hcmt, bottom (0) to top; equal numbers may not import each other
-LAYERS = {"config": 0, "data": 1, "sim": 2, "graph": 2, "models": 3, "domains": 4, "inference": 5, "training": 6,
-          "viz": 6, "design": 7, "cli": 8, "files": 0, "errors": -1}
+LAYERS = {
+    "config": 0,
+    "data": 1,
+    "sim": 2,
+    "graph": 2,
+    "models": 3,
+    "domains": 4,
+    "inference": 5,
+    "training": 6,
+    "viz": 6,
+    "design": 7,
+    "cli": 8,
+    "files": 0,
+    "errors": -1,
+}
 
 
 #: modules that import hcmt.viz (the viz extra: matplotlib) inside the function that draws, so that the design check
@@ -43,8 +57,9 @@ def import_statements(path: Path) -> list[tuple[str, list[str], int, bool]]:
         for child in ast.iter_child_nodes(node):
             inner = in_function or isinstance(child, (ast.FunctionDef, ast.AsyncFunctionDef, ast.Lambda))
             if isinstance(child, ast.Import):
-                out.extend((a.name, [], child.lineno, in_function) for a in child.names
-                           if a.name.split(".")[0] == "hcmt")
+                out.extend(
+                    (a.name, [], child.lineno, in_function) for a in child.names if a.name.split(".")[0] == "hcmt"
+                )
             elif isinstance(child, ast.ImportFrom):
                 if child.level:
                     base = package.split(".")[: len(package.split(".")) - child.level + 1]
@@ -119,7 +134,7 @@ def module_cycles(graph: dict[str, set[str]]) -> list[list[str]]:
         stack.append(m)
         for n in sorted(graph.get(m, ())):
             if state.get(n) == "open":
-                found.append(stack[stack.index(n):] + [n])
+                found.append(stack[stack.index(n) :] + [n])
             elif n not in state:
                 visit(n)
         stack.pop()
@@ -145,8 +160,9 @@ def test_the_cycle_check_finds_a_cycle(tmp_path, monkeypatch):
     (fake / "design" / "__init__.py").write_text("")
     (fake / "design" / "a.py").write_text("from hcmt.design.b import x\n")
     (fake / "design" / "b.py").write_text("from . import c\n")
-    (fake / "design" / "c.py").write_text("from typing import TYPE_CHECKING\nif TYPE_CHECKING:\n"
-                                          "    from hcmt.design.a import y\n")
+    (fake / "design" / "c.py").write_text(
+        "from typing import TYPE_CHECKING\nif TYPE_CHECKING:\n    from hcmt.design.a import y\n"
+    )
     (fake / "design" / "d.py").write_text("from hcmt.design import a, b\n")
     monkeypatch.setattr(__import__(__name__), "SRC", fake)
     graph = module_graph()
@@ -177,17 +193,31 @@ def test_the_checker_sees_violations(tmp_path, monkeypatch):
     (fake / "inference" / "ok.py").write_text("from hcmt.models import build_model\nfrom . import metrics\n")
     monkeypatch.setattr(__import__(__name__), "SRC", fake)
     found = violations()
-    assert any("models/__init__.py:1 imports hcmt.inference.run: models (layer 3) may not import inference" in v
-               for v in found)
+    assert any(
+        "models/__init__.py:1 imports hcmt.inference.run: models (layer 3) may not import inference" in v for v in found
+    )
     assert any("models/m.py:2 imports hcmt.domains" in v for v in found)
     assert any("inference/__init__.py:2 imports hcmt.models inside a function" in v for v in found)
     assert not any("ok.py" in v for v in found)
 
 
 @pytest.mark.slow  # one fresh interpreter per module
-@pytest.mark.parametrize("module", ["hcmt.config", "hcmt.models", "hcmt.domains.adapters", "hcmt.inference.run",
-                                    "hcmt.training", "hcmt.viz.rollouts", "hcmt.design.check", "hcmt.cli",
-                                    "hcmt.sim.params", "hcmt.design.basics", "hcmt.cli.parsers"])
+@pytest.mark.parametrize(
+    "module",
+    [
+        "hcmt.config",
+        "hcmt.models",
+        "hcmt.domains.adapters",
+        "hcmt.inference.run",
+        "hcmt.training",
+        "hcmt.viz.rollouts",
+        "hcmt.design.check",
+        "hcmt.cli",
+        "hcmt.sim.params",
+        "hcmt.design.basics",
+        "hcmt.cli.parsers",
+    ],
+)
 def test_each_layer_imports_alone(module):
     """Each module imports in a fresh interpreter (no cycle hidden by import order)."""
     r = subprocess.run([sys.executable, "-c", f"import {module}"], capture_output=True, text=True)

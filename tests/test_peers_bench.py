@@ -1,5 +1,6 @@
 """The peers benchmark's arithmetic and report (benchmarks/peers): paired per-round ratios, GFLOP/s from the
 counted FLOPs (a peer without a count borrows hcmt's), the core-peak derivation and the RESULTS.md section."""
+
 from __future__ import annotations
 
 import sys
@@ -19,10 +20,14 @@ class _W:
 
 def _result():
     names = [CONTESTANTS[3][0], CONTESTANTS[5][0]]  # hcmt official eager, the authors' TF
-    workers = {names[0]: _W({"framework": "hcmt", "flops_train": 3e9, "flops_infer": 1e9}),
-               names[1]: _W({"framework": "tf"})}
-    times = {names[0]: {"train": [[100, 100], [300, 300]], "infer": [[40], [40]]},
-             names[1]: {"train": [[200, 200], [300, 300]], "infer": [[80], [20]]}}
+    workers = {
+        names[0]: _W({"framework": "hcmt", "flops_train": 3e9, "flops_infer": 1e9}),
+        names[1]: _W({"framework": "tf"}),
+    }
+    times = {
+        names[0]: {"train": [[100, 100], [300, 300]], "infer": [[40], [40]]},
+        names[1]: {"train": [[200, 200], [300, 300]], "infer": [[80], [20]]},
+    }
     peak = {"gflops": 100.0, "derivation": "test"}
     return summarize(CONTESTANTS, workers, times, peak), peak
 
@@ -46,9 +51,16 @@ def test_core_peak_is_lanes_times_fma_times_clock():
 
 def test_report_section():
     (rows, ratios), peak = _result()
-    result = {"graph": {"nodes": 10, "mesh_edges": 20, "contact_edges": 2, "level_nodes": [5, 3]}, "rounds": 2,
-              "steps_per_round": 2, "load_average": [3.0, 0, 0], "peak": peak, "rows": rows, "ratios": ratios,
-              "failed": {"PhysicsNeMo MeshGraphNet": "no interpreter"}}
+    result = {
+        "graph": {"nodes": 10, "mesh_edges": 20, "contact_edges": 2, "level_nodes": [5, 3]},
+        "rounds": 2,
+        "steps_per_round": 2,
+        "load_average": [3.0, 0, 0],
+        "peak": peak,
+        "rows": rows,
+        "ratios": ratios,
+        "failed": {"PhysicsNeMo MeshGraphNet": "no interpreter"},
+    }
     lines: list[str] = []
     peers(lines, result)
     text = "\n".join(lines)
@@ -67,8 +79,12 @@ def test_warm_up_times_the_first_calls_then_counts_one_more_of_each():
     from torch.utils.flop_counter import FlopCounterMode
 
     calls, a, b = [], torch.ones(4, 8), torch.ones(8, 2)
-    info = warm_up({"model": "x"}, lambda: calls.append("train") or a @ b, lambda: calls.append("infer"),
-                   lambda: FlopCounterMode(display=False))
+    info = warm_up(
+        {"model": "x"},
+        lambda: calls.append("train") or a @ b,
+        lambda: calls.append("infer"),
+        lambda: FlopCounterMode(display=False),
+    )
     assert calls == ["train"] * 3 + ["infer"] * 2 + ["train", "infer"]
     assert list(info) == ["model", "warmup_train_s", "warmup_infer_s", "flops_train", "flops_infer"]
     assert info["flops_train"] == 2 * 4 * 8 * 2 and info["flops_infer"] == 0

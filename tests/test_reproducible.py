@@ -1,6 +1,7 @@
 """What the docs and the code tell a reader holds on a fresh clone: no command names a folder of the machine that ran
 it (data and run folders are relative paths or ``$HCMT_WORK``, docs/RESULTS.md "Folders"), no comment sends the
 reader to a tracker they cannot see instead of saying why, and every ``hcmt.x.y`` a docstring or doc names exists."""
+
 from __future__ import annotations
 
 import ast
@@ -23,8 +24,11 @@ def files(root: Path, parts: tuple[str, ...], suffixes: tuple[str, ...]) -> list
     for part in parts:
         base = root / part
         found = [base] if base.is_file() else sorted(base.rglob("*")) if base.is_dir() else []
-        out += [f for f in found if f.is_file() and f.suffix in suffixes
-                and not SKIP_DIRS & set(f.relative_to(root).parts[:-1])]
+        out += [
+            f
+            for f in found
+            if f.is_file() and f.suffix in suffixes and not SKIP_DIRS & set(f.relative_to(root).parts[:-1])
+        ]
     return out
 
 
@@ -49,9 +53,10 @@ def machine_paths(root: Path = ROOT) -> list[str]:
 
 def test_no_command_or_result_names_a_folder_of_the_machine_that_ran_it():
     found = machine_paths()
-    assert not found, ("absolute machine paths (write them relative to the checkout or as $HCMT_WORK/..., "
-                       "docs/RESULTS.md \"Folders\"; result files: benchmarks/common.py's portable):\n"
-                       + "\n".join(found))
+    assert not found, (
+        "absolute machine paths (write them relative to the checkout or as $HCMT_WORK/..., "
+        'docs/RESULTS.md "Folders"; result files: benchmarks/common.py\'s portable):\n' + "\n".join(found)
+    )
 
 
 #: a pointer to the project's tracker: "issue 35", "Issue #4", "issues 36", 'issue "Fast on a GPU"', "the issue's
@@ -66,8 +71,9 @@ def tracker_references(root: Path = ROOT) -> list[str]:
 
 def test_no_comment_or_doc_points_at_an_issue_tracker_instead_of_the_reason():
     found = tracker_references()
-    assert not found, ("references to an issue tracker the reader cannot see (say what the choice does and why):\n"
-                       + "\n".join(found))
+    assert not found, (
+        "references to an issue tracker the reader cannot see (say what the choice does and why):\n" + "\n".join(found)
+    )
 
 
 #: a dotted name in the package (``hcmt.x.y.func``, also inside :func:`...`): not preceded by a word, path or dot
@@ -129,8 +135,13 @@ def prose(path: Path) -> list[tuple[int, str]]:
     out = [(t.start[0], t.string) for t in tokens if t.type == tokenize.COMMENT]
     for node in ast.walk(tree):
         body = getattr(node, "body", None)
-        if isinstance(body, list) and body and isinstance(body[0], ast.Expr) \
-                and isinstance(body[0].value, ast.Constant) and isinstance(body[0].value.value, str):
+        if (
+            isinstance(body, list)
+            and body
+            and isinstance(body[0], ast.Expr)
+            and isinstance(body[0].value, ast.Constant)
+            and isinstance(body[0].value.value, str)
+        ):
             first = body[0].lineno
             out += [(first + k, line) for k, line in enumerate(body[0].value.value.splitlines())]
     return out
@@ -144,14 +155,18 @@ def stale_references(root: Path = ROOT) -> list[str]:
         for i, line in prose(f):
             for m in DOTTED.finditer(line):
                 where.setdefault(m.group(0), []).append(f"{f.relative_to(root)}:{i}")
-    return [f"{name} ({', '.join(spots[:3])})" for name, spots in sorted(where.items())
-            if name.rsplit(".", 1)[-1] not in FILE_ENDINGS and resolves(name) is False]
+    return [
+        f"{name} ({', '.join(spots[:3])})"
+        for name, spots in sorted(where.items())
+        if name.rsplit(".", 1)[-1] not in FILE_ENDINGS and resolves(name) is False
+    ]
 
 
 def test_every_named_function_and_module_exists():
     found = stale_references()
-    assert not found, ("docstrings or docs name a function or module that does not exist (moved? renamed?):\n"
-                       + "\n".join(found))
+    assert not found, (
+        "docstrings or docs name a function or module that does not exist (moved? renamed?):\n" + "\n".join(found)
+    )
 
 
 def test_benchmarks_record_folders_as_a_fresh_clone_reads_them():
@@ -161,8 +176,18 @@ def test_benchmarks_record_folders_as_a_fresh_clone_reads_them():
     import common
 
     work, here = str(common.WORK), str(common.CHECKOUT)
-    got = common.portable({"command": f"python x.py --data {work}/data/ip480 --new {here} --json {here}/a.json",
-                           "runs": [Path(f"{work}/runs/r"), f"{work}"], "other": "/elsewhere/x", "n": 0.1 + 0.2})
-    assert got == {"command": "python x.py --data $HCMT_WORK/data/ip480 --new . --json a.json",
-                   "runs": ["$HCMT_WORK/runs/r", "$HCMT_WORK"], "other": "/elsewhere/x", "n": 0.1 + 0.2}
+    got = common.portable(
+        {
+            "command": f"python x.py --data {work}/data/ip480 --new {here} --json {here}/a.json",
+            "runs": [Path(f"{work}/runs/r"), f"{work}"],
+            "other": "/elsewhere/x",
+            "n": 0.1 + 0.2,
+        }
+    )
+    assert got == {
+        "command": "python x.py --data $HCMT_WORK/data/ip480 --new . --json a.json",
+        "runs": ["$HCMT_WORK/runs/r", "$HCMT_WORK"],
+        "other": "/elsewhere/x",
+        "n": 0.1 + 0.2,
+    }
     assert not common.portable(f"{work}ish/x").startswith("$HCMT_WORK")  # a sibling whose name starts alike

@@ -1,5 +1,6 @@
 """benchmarks/micro/train_parts.py (where a training step's time goes): its timing marks leave the
 trainer's step unchanged and split it into parts that add up; its report section computes the rest from the rows."""
+
 import json
 import sys
 from pathlib import Path
@@ -18,8 +19,10 @@ from speed.report import train_parts  # noqa: E402
 @pytest.mark.slow  # two tiny trainers, a few eager steps each
 def test_timed_steps_change_nothing_and_their_parts_add_up(impact_data, tmp_path, tiny_config):
     cfg = tiny_config("train.steps=6", "train.compile=none")
-    runs = [Trainer(cfg, impact_data, "hcmt", tmp_path / name, seed=0, resume=False, device="cpu", progress=False)
-            for name in ("plain", "timed")]
+    runs = [
+        Trainer(cfg, impact_data, "hcmt", tmp_path / name, seed=0, resume=False, device="cpu", progress=False)
+        for name in ("plain", "timed")
+    ]
     loaders = [tr._loader(6) for tr in runs]
     for tr, loader in zip(runs, loaders):
         tr.model.train()
@@ -38,12 +41,38 @@ def test_timed_steps_change_nothing_and_their_parts_add_up(impact_data, tmp_path
 
 
 def test_report_gives_each_rows_rest_and_the_matmul_share(monkeypatch):
-    rows = [{"recipe": "cpu", "threads": 1, "step": 50.0, "batch": 5.0, "forward_loss": 20.0, "backward": 22.0,
-             "adam": 3.0, "profiled_step_ms": 60.0, "matmul_ms": 21.0, "matmul_calls": 237, "matmul_gflops": 101.0,
-             "inductor_kernels_ms": 15.0, "inductor_kernel_calls": 205},
-            {"recipe": "ship", "threads": 1, "step": 60.0, "batch": 9.0, "forward_loss": 20.0, "backward": 24.0,
-             "adam": 3.0, "profiled_step_ms": 80.0, "matmul_ms": 36.0, "matmul_calls": 300, "matmul_gflops": 99.0,
-             "inductor_kernels_ms": 20.0, "inductor_kernel_calls": 250}]
+    rows = [
+        {
+            "recipe": "cpu",
+            "threads": 1,
+            "step": 50.0,
+            "batch": 5.0,
+            "forward_loss": 20.0,
+            "backward": 22.0,
+            "adam": 3.0,
+            "profiled_step_ms": 60.0,
+            "matmul_ms": 21.0,
+            "matmul_calls": 237,
+            "matmul_gflops": 101.0,
+            "inductor_kernels_ms": 15.0,
+            "inductor_kernel_calls": 205,
+        },
+        {
+            "recipe": "ship",
+            "threads": 1,
+            "step": 60.0,
+            "batch": 9.0,
+            "forward_loss": 20.0,
+            "backward": 24.0,
+            "adam": 3.0,
+            "profiled_step_ms": 80.0,
+            "matmul_ms": 36.0,
+            "matmul_calls": 300,
+            "matmul_gflops": 99.0,
+            "inductor_kernels_ms": 20.0,
+            "inductor_kernel_calls": 250,
+        },
+    ]
     d = {"command": "python benchmarks/micro/train_parts.py --data d", "cpu": "Xeon", "rows": rows}
     monkeypatch.setattr(report_common, "load", lambda name: json.loads(json.dumps(d)) if "parts" in name else None)
     lines = []
@@ -66,8 +95,10 @@ def test_report_gives_each_rows_rest_and_the_matmul_share(monkeypatch):
 
 
 def test_a_rows_rounds_give_each_numbers_median():
-    rounds = [{"recipe": "cpu", "threads": 1, "step": s, "batch": b, "matmul_calls": 237.0}
-              for s, b in ((50.0, 5.0), (70.0, 4.0), (52.0, 9.0))]
+    rounds = [
+        {"recipe": "cpu", "threads": 1, "step": s, "batch": b, "matmul_calls": 237.0}
+        for s, b in ((50.0, 5.0), (70.0, 4.0), (52.0, 9.0))
+    ]
     row = median_row(rounds)
     assert row["step"] == 52.0 and row["batch"] == 5.0 and row["matmul_calls"] == 237.0  # each field on its own
     assert row["recipe"] == "cpu" and row["threads"] == 1 and row["rounds"] == 3
@@ -76,16 +107,44 @@ def test_a_rows_rounds_give_each_numbers_median():
 
 def test_what_2x_would_need_is_half_the_old_step_less_the_kernels():
     from speed.report import two_x_floor
-    parts = {"commit": "abc1234", "rows": [
-        {"recipe": "cpu", "threads": 2, "step": 45.0, "batch": 4.4, "adam": 2.5, "matmul_ms": 13.5,
-         "inductor_kernels_ms": 16.0},
-        {"recipe": "ship", "threads": 2, "step": 45.0, "batch": 11.0, "adam": 2.5, "matmul_ms": 14.5,
-         "inductor_kernels_ms": 12.8}]}
+
+    parts = {
+        "commit": "abc1234",
+        "rows": [
+            {
+                "recipe": "cpu",
+                "threads": 2,
+                "step": 45.0,
+                "batch": 4.4,
+                "adam": 2.5,
+                "matmul_ms": 13.5,
+                "inductor_kernels_ms": 16.0,
+            },
+            {
+                "recipe": "ship",
+                "threads": 2,
+                "step": 45.0,
+                "batch": 11.0,
+                "adam": 2.5,
+                "matmul_ms": 14.5,
+                "inductor_kernels_ms": 12.8,
+            },
+        ],
+    }
     runs = [("cpu", 72.0), ("cpu", 74.0), ("ship", 67.6), ("new", 40.0)]
-    speed = {"commits": {"old": "c18f6a3", "new": "def5678"},
-             "summary": [{"recipe": "cpu", "threads": 2}, {"recipe": "ship", "threads": 2}],
-             "rows": [{"side": "new" if r == "new" else "old", "recipe": "cpu" if r == "new" else r, "threads": 2,
-                       "ms_per_step": ms} for r, ms in runs]}
+    speed = {
+        "commits": {"old": "c18f6a3", "new": "def5678"},
+        "summary": [{"recipe": "cpu", "threads": 2}, {"recipe": "ship", "threads": 2}],
+        "rows": [
+            {
+                "side": "new" if r == "new" else "old",
+                "recipe": "cpu" if r == "new" else r,
+                "threads": 2,
+                "ms_per_step": ms,
+            }
+            for r, ms in runs
+        ],
+    }
     lines = []
     two_x_floor(lines, parts, speed)
     text = "\n".join(lines)
@@ -98,7 +157,9 @@ def test_what_2x_would_need_is_half_the_old_step_less_the_kernels():
     lines = []
     two_x_floor(lines, parts, speed)
     text = "\n".join(lines)
-    assert "on 2 threads the goal leaves 4.50 ms for everything outside the kernels, less than building the batch " \
-           "alone takes (4.60 ms)" in text
+    assert (
+        "on 2 threads the goal leaves 4.50 ms for everything outside the kernels, less than building the batch "
+        "alone takes (4.60 ms)" in text
+    )
     assert text.count("less than building") == 1  # not the shipped recipe: its batch includes a forward
     assert "(train_speed at def5678, train_parts at abc1234)" in text

@@ -1,6 +1,7 @@
 """Datasets and run folders for the viz tests: a small Impact-Plate-like dataset with units, and "runs" whose
 rollout file holds a known perturbation of the ground truth (so every error the pictures and exports show is
 known exactly)."""
+
 from __future__ import annotations
 
 import h5py

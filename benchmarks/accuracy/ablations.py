@@ -5,6 +5,7 @@ study's data. Resumable.
 
 Writes benchmarks/results/ablations.json and benchmarks/results/levels.json.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -44,12 +45,18 @@ def main() -> None:
         print(label, flush=True)
         run = f"acc_hcmt_s{a.seed}_{a.steps}" if name is None else f"abl_{label}_s{a.seed}_{a.steps}"
         model_ablation = None if name in GRAPH_ABLATIONS else name
-        abl[label] = row(run_and_evaluate(a.work, data, run, "hcmt", a.seed, base + GRAPH_ABLATIONS.get(name, []),
-                                          ablation=model_ablation))
+        abl[label] = row(
+            run_and_evaluate(
+                a.work, data, run, "hcmt", a.seed, base + GRAPH_ABLATIONS.get(name, []), ablation=model_ablation
+            )
+        )
     for c in CLIPS if a.part != "levels" else []:
         print(f"clip {c}", flush=True)
-        abl[f"clip-{c:g}"] = row(run_and_evaluate(a.work, data, f"abl_clip{c:g}_s{a.seed}_{a.steps}", "hcmt", a.seed,
-                                                  base + [f"model.clip={c}"]))
+        abl[f"clip-{c:g}"] = row(
+            run_and_evaluate(
+                a.work, data, f"abl_clip{c:g}_s{a.seed}_{a.steps}", "hcmt", a.seed, base + [f"model.clip={c}"]
+            )
+        )
     abl = {k: v for k, v in abl.items() if v is not None}
     lev = {k: v for k, v in lev.items() if v is not None}
     if abl:
@@ -58,8 +65,7 @@ def main() -> None:
         print(f"levels {lam}", flush=True)
         # λ = 4 is the accuracy study's HCMT configuration (impact_plate_cpu): reuse that run
         name = f"acc_hcmt_s{a.seed}_{a.steps}" if lam == 4 else f"lev{lam}_s{a.seed}_{a.steps}"
-        lev[lam] = row(run_and_evaluate(a.work, data, name, "hcmt", a.seed,
-                                        base + [f"model.levels={lam}"]))
+        lev[lam] = row(run_and_evaluate(a.work, data, name, "hcmt", a.seed, base + [f"model.levels={lam}"]))
     lev = {k: v for k, v in lev.items() if v is not None}
     if lev:
         write_json("levels.json", {"seed": a.seed, "steps": a.steps, "L_C": 2, "rows": lev})

@@ -5,6 +5,7 @@ on the test, thicker, higher and thicker-and-higher splits. Resumable.
 
 Writes benchmarks/results/generalization.json.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -29,8 +30,9 @@ def main() -> None:
     for model in ("mgn", "hcmt"):
         per_split = {s: [] for s in SPLITS}
         for seed in a.seeds:
-            res = run_and_evaluate(a.work, data, f"acc_{model}_s{seed}_{a.steps}", model, seed,
-                                   [f"train.steps={a.steps}"], splits=SPLITS)
+            res = run_and_evaluate(
+                a.work, data, f"acc_{model}_s{seed}_{a.steps}", model, seed, [f"train.steps={a.steps}"], splits=SPLITS
+            )
             if res is None:  # another process is training it
                 continue
             for s in SPLITS:
@@ -44,8 +46,10 @@ def main() -> None:
     print(f"{'split':<22}{'MGN pos':>12}{'MGN stress':>14}{'HCMT pos':>12}{'HCMT stress':>14}")
     for s in SPLITS:
         g, h = out["mgn"][s], out["hcmt"][s]
-        print(f"{s:<22}{g['position']['rmse_all']['mean']:>12.4g}{g['stress']['rmse_all']['mean']:>14.4g}"
-              f"{h['position']['rmse_all']['mean']:>12.4g}{h['stress']['rmse_all']['mean']:>14.4g}")
+        print(
+            f"{s:<22}{g['position']['rmse_all']['mean']:>12.4g}{g['stress']['rmse_all']['mean']:>14.4g}"
+            f"{h['position']['rmse_all']['mean']:>12.4g}{h['stress']['rmse_all']['mean']:>14.4g}"
+        )
 
 
 if __name__ == "__main__":

@@ -6,6 +6,7 @@ Impact Plate dataset (scale in benchmarks/common.py: DATASET). Resumable.
 Writes benchmarks/results/accuracy.json as {model: {"position": {"rmse_1": {"mean", "std"}, "rmse_all": ...},
 "stress": {...}, "train_ms_per_step": ..., "inference_ms_per_step": ...}} and prints the table.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -33,8 +34,9 @@ def main() -> None:
         ms = []
         for seed in a.seeds:
             print(f"{model} seed {seed}", flush=True)
-            res = run_and_evaluate(a.work, data, f"acc_{model}_s{seed}_{a.steps}", model, seed,
-                                   [f"train.steps={a.steps}", *a.set])
+            res = run_and_evaluate(
+                a.work, data, f"acc_{model}_s{seed}_{a.steps}", model, seed, [f"train.steps={a.steps}", *a.set]
+            )
             if res is not None:  # None: another process is training it
                 ms.append((seed, res["test"]))
         if not ms:
@@ -45,19 +47,26 @@ def main() -> None:
     path = write_json(a.json, table)
     if not table:
         return
-    print(f"\n{'model':<6}{'pos RMSE-1':>18}{'pos RMSE-all':>20}{'stress RMSE-1':>20}{'stress RMSE-all':>22}"
-          f"{'train ms':>12}")
+    print(
+        f"\n{'model':<6}{'pos RMSE-1':>18}{'pos RMSE-all':>20}{'stress RMSE-1':>20}{'stress RMSE-all':>22}"
+        f"{'train ms':>12}"
+    )
     for m, r in table.items():
-        print(f"{m:<6}{fmt(r['position']['rmse_1']):>18}{fmt(r['position']['rmse_all']):>20}"
-              f"{fmt(r['stress']['rmse_1']):>20}{fmt(r['stress']['rmse_all']):>22}"
-              f"{r['train_ms_per_step']['mean']:>12.1f}")
+        print(
+            f"{m:<6}{fmt(r['position']['rmse_1']):>18}{fmt(r['position']['rmse_all']):>20}"
+            f"{fmt(r['stress']['rmse_1']):>20}{fmt(r['stress']['rmse_all']):>22}"
+            f"{r['train_ms_per_step']['mean']:>12.1f}"
+        )
     if "hcmt" not in table or "mgn" not in table:
         return
     h, g = table["hcmt"], table["mgn"]
-    print(f"HCMT/MGN position RMSE-all {h['position']['rmse_all']['mean'] / g['position']['rmse_all']['mean']:.2f}, "
-          f"stress RMSE-all {h['stress']['rmse_all']['mean'] / g['stress']['rmse_all']['mean']:.2f} "
-          "(paper: 0.51 and 0.41)")
+    print(
+        f"HCMT/MGN position RMSE-all {h['position']['rmse_all']['mean'] / g['position']['rmse_all']['mean']:.2f}, "
+        f"stress RMSE-all {h['stress']['rmse_all']['mean'] / g['stress']['rmse_all']['mean']:.2f} "
+        "(paper: 0.51 and 0.41)"
+    )
     print(f"wrote {path}")
+
 
 if __name__ == "__main__":
     main()

@@ -8,6 +8,7 @@ stress, the actuator force and the free end's deflection. The press path is mono
 hyperelastic, so the last frame does not depend on the number of load steps. Writes
 benchmarks/results/deforming_convergence.json. Cost: a few minutes (the finest mesh dominates).
 """
+
 from __future__ import annotations
 
 import os
@@ -37,15 +38,27 @@ def main() -> None:
         r = solve_plate(PlateDesign(), PlateSettings(frames=a.frames, plate_nodes=nodes, layers=layers))
         pos = r["scene"].body.pos
         end = pos[:, 0] == pos[:, 0].max()
-        rows.append({"layers": layers, "plate_nodes": len(pos), "spacing_mm": round(r["scene"].spacing, 3),
-                     "peak_von_mises_MPa": round(float(r["von_mises"][-1].max()), 4),
-                     "actuator_force_N": round(float(r["actuator_force"][-1, 2]), 4),
-                     "end_deflection_mm": round(float(-(r["world"][-1, end, 2] - pos[end, 2]).mean()), 4),
-                     "cpu_s": round(time.process_time() - start, 1)})
+        rows.append(
+            {
+                "layers": layers,
+                "plate_nodes": len(pos),
+                "spacing_mm": round(r["scene"].spacing, 3),
+                "peak_von_mises_MPa": round(float(r["von_mises"][-1].max()), 4),
+                "actuator_force_N": round(float(r["actuator_force"][-1, 2]), 4),
+                "end_deflection_mm": round(float(-(r["world"][-1, end, 2] - pos[end, 2]).mean()), 4),
+                "cpu_s": round(time.process_time() - start, 1),
+            }
+        )
         print(rows[-1], flush=True)
-    write_json("deforming_convergence.json", {"frames": a.frames, "rows": rows,
-                                              "command": "OMP_NUM_THREADS=1 PYTHONPATH=src python "
-                                                         f"benchmarks/deforming/convergence.py --frames {a.frames}"})
+    write_json(
+        "deforming_convergence.json",
+        {
+            "frames": a.frames,
+            "rows": rows,
+            "command": "OMP_NUM_THREADS=1 PYTHONPATH=src python "
+            f"benchmarks/deforming/convergence.py --frames {a.frames}",
+        },
+    )
 
 
 if __name__ == "__main__":

@@ -6,6 +6,7 @@ Simulates the first ``n`` training designs of ``hcmt generate deforming-plate --
 draws) and reports each one's wall and CPU seconds, nodes, Newton iterations and substeps. Writes
 benchmarks/results/deforming_cost.json. Cost: about n x 30 s.
 """
+
 from __future__ import annotations
 
 import os
@@ -38,16 +39,31 @@ def main() -> None:
         r = simulate_plate(design, PlateSettings(frames=a.frames))
         wall, cpu = time.perf_counter() - wall, time.process_time() - cpu
         its = json.loads(r["attrs"]["newton_iterations"])
-        rows.append({"index": i, "shape": design.shape, "path": design.path, "nodes": r["info"]["num_nodes"],
-                     "wall_s": round(wall, 2), "cpu_s": round(cpu, 2), "newton_iterations": sum(its),
-                     "iterations_per_step": round(sum(its) / len(its), 3), "max_iterations": max(its),
-                     "max_substeps": max(json.loads(r["attrs"]["substeps"]))})
+        rows.append(
+            {
+                "index": i,
+                "shape": design.shape,
+                "path": design.path,
+                "nodes": r["info"]["num_nodes"],
+                "wall_s": round(wall, 2),
+                "cpu_s": round(cpu, 2),
+                "newton_iterations": sum(its),
+                "iterations_per_step": round(sum(its) / len(its), 3),
+                "max_iterations": max(its),
+                "max_substeps": max(json.loads(r["attrs"]["substeps"])),
+            }
+        )
         print(rows[-1], flush=True)
     cpu = [r["cpu_s"] for r in rows]
-    summary = {"frames": a.frames, "seed": a.seed, "mean_cpu_s": round(sum(cpu) / len(cpu), 2),
-               "load_average": os.getloadavg()[0], "rows": rows,
-               "command": "OMP_NUM_THREADS=1 PYTHONPATH=src python benchmarks/deforming/cost.py "
-                          f"--n {a.n} --frames {a.frames} --seed {a.seed}"}
+    summary = {
+        "frames": a.frames,
+        "seed": a.seed,
+        "mean_cpu_s": round(sum(cpu) / len(cpu), 2),
+        "load_average": os.getloadavg()[0],
+        "rows": rows,
+        "command": "OMP_NUM_THREADS=1 PYTHONPATH=src python benchmarks/deforming/cost.py "
+        f"--n {a.n} --frames {a.frames} --seed {a.seed}",
+    }
     print(f"mean CPU seconds per trajectory: {summary['mean_cpu_s']}")
     write_json("deforming_cost.json", summary)
 

@@ -15,6 +15,7 @@ the question matters (a run from scratch at this machine's budget is dominated b
 
 Resumable: a finished arm is read back from WORK, a stopped one resumes (``hcmt train --resume``).
 """
+
 from __future__ import annotations
 
 import argparse
@@ -41,8 +42,14 @@ ARMS = {
     "contact-free-x4": (["train.contact_free_weight=4"], 0),
 }
 #: every arm's schedule: a fine-tuning rate, frozen normalizers (--init's default), checkpoints to resume from
-COMMON = ["train.lr=1e-4", "train.lr_final=1e-5", "train.valid_every=0", "train.pushforward_start=0",
-          "train.checkpoint_every=500", "train.log_every=100"]
+COMMON = [
+    "train.lr=1e-4",
+    "train.lr_final=1e-5",
+    "train.valid_every=0",
+    "train.pushforward_start=0",
+    "train.checkpoint_every=500",
+    "train.log_every=100",
+]
 
 
 def train_arm(name: str, init: str, data: Path, work: Path, steps: int, threads: int) -> Path:
@@ -54,10 +61,22 @@ def train_arm(name: str, init: str, data: Path, work: Path, steps: int, threads:
     if folder.latest.is_file():
         cmd = ["--resume", "--out", str(out), "--steps", str(steps)]
     else:
-        cmd = ["--init", init, "--data", str(data), "--out", str(out), "--steps", str(steps), "--seed", str(seed),
-               *[a for s in COMMON + sets for a in ("--set", s)]]
-    subprocess.run([sys.executable, "-m", "hcmt", "train", *cmd, "--threads", str(threads), "--no-progress"],
-                   check=True)
+        cmd = [
+            "--init",
+            init,
+            "--data",
+            str(data),
+            "--out",
+            str(out),
+            "--steps",
+            str(steps),
+            "--seed",
+            str(seed),
+            *[a for s in COMMON + sets for a in ("--set", s)],
+        ]
+    subprocess.run(
+        [sys.executable, "-m", "hcmt", "train", *cmd, "--threads", str(threads), "--no-progress"], check=True
+    )
     return out
 
 
@@ -77,15 +96,24 @@ def main() -> None:
         p.error(f"--arms: unknown {', '.join(unknown)}; expected some of {', '.join(ARMS)}")
     torch.set_num_threads(a.threads)
     out = json.loads(a.json.read_text()) if a.json.is_file() else {}
-    out.update(command="python benchmarks/ghost_diagnosis/ablate.py " + " ".join(sys.argv[1:]), init=a.init,
-               steps=a.steps, common=COMMON)
+    out.update(
+        command="python benchmarks/ghost_diagnosis/ablate.py " + " ".join(sys.argv[1:]),
+        init=a.init,
+        steps=a.steps,
+        common=COMMON,
+    )
     out.setdefault("arms", {})
     for name in arms:
         folder = a.init if ARMS[name] is None else train_arm(name, a.init, a.data, a.work, a.steps, a.threads)
-        rows = diagnose(Run.load(str(folder), "cpu", which="checkpoint" if ARMS[name] else "best"), a.data, "valid",
-                        None)
-        out["arms"][name] = {"sets": [] if ARMS[name] is None else ARMS[name][0],
-                             "seed": None if ARMS[name] is None else ARMS[name][1], **medians(rows), "rows": rows}
+        rows = diagnose(
+            Run.load(str(folder), "cpu", which="checkpoint" if ARMS[name] else "best"), a.data, "valid", None
+        )
+        out["arms"][name] = {
+            "sets": [] if ARMS[name] is None else ARMS[name][0],
+            "seed": None if ARMS[name] is None else ARMS[name][1],
+            **medians(rows),
+            "rows": rows,
+        }
         write_json(a.json, out)  # after every arm: a stopped study keeps what it measured
         print(name, {k: v for k, v in out["arms"][name].items() if k != "rows"}, flush=True)
 

@@ -21,6 +21,7 @@ the dynamics, not in the stress head's inputs. If the perturbed rollout's ghost 
 rollout's error, that state is set by amplified error: training for stability (noise, pushforward), not the stress
 head, is the remedy.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -56,9 +57,12 @@ def teacher_forced_stress(run: Run, tr) -> np.ndarray:
 def summary(stress: np.ndarray, world_pos: np.ndarray, rest: np.ndarray, plate: np.ndarray) -> dict:
     history = q.body_history(stress, plate)
     peak = float(history.max())
-    return {"peak_mpa": peak, "ghost_ratio": q.ghost_ratio(history, peak),
-            "max_deflection_mm": q.max_deflection(world_pos, rest, plate),
-            "contact_end_frame": int(q.contact_end_frame(q.contact_gap(world_pos, rest, plate)))}
+    return {
+        "peak_mpa": peak,
+        "ghost_ratio": q.ghost_ratio(history, peak),
+        "max_deflection_mm": q.max_deflection(world_pos, rest, plate),
+        "contact_end_frame": int(q.contact_end_frame(q.contact_gap(world_pos, rest, plate))),
+    }
 
 
 def perturbed(tr, size: float, seed: int):
@@ -81,20 +85,24 @@ def diagnose(run: Run, data: Path, split: str, limit: int | None, perturb: float
             pred = rollout(run.model, run.adapter, tr, run.radius)
             moved = rollout(run.model, run.adapter, perturbed(tr, perturb, len(rows)), run.radius)
             gap = (moved["world_pos"] - pred["world_pos"]).abs().amax(dim=(1, 2)).numpy()
-            row = {"trajectory": tr.name,
-                   "solver": summary(tr.stress.numpy(), true_pos, rest, plate),
-                   "rollout": summary(pred["stress"].numpy(), pred["world_pos"].numpy(), rest, plate),
-                   "teacher_forced": summary(teacher_forced_stress(run, tr), true_pos, rest, plate),
-                   "perturbed": summary(moved["stress"].numpy(), moved["world_pos"].numpy(), rest, plate),
-                   "perturbed_distance_mm": [float(x) for x in gap],
-                   "amplification": float(gap[-1] / perturb)}
+            row = {
+                "trajectory": tr.name,
+                "solver": summary(tr.stress.numpy(), true_pos, rest, plate),
+                "rollout": summary(pred["stress"].numpy(), pred["world_pos"].numpy(), rest, plate),
+                "teacher_forced": summary(teacher_forced_stress(run, tr), true_pos, rest, plate),
+                "perturbed": summary(moved["stress"].numpy(), moved["world_pos"].numpy(), rest, plate),
+                "perturbed_distance_mm": [float(x) for x in gap],
+                "amplification": float(gap[-1] / perturb),
+            }
             rows.append(row)
-            print(f"{tr.name}: ghost ratio solver {row['solver']['ghost_ratio']:.2f}, rollout "
-                  f"{row['rollout']['ghost_ratio']:.2f}, teacher-forced {row['teacher_forced']['ghost_ratio']:.2f}; "
-                  f"ball leaves at frame {row['solver']['contact_end_frame']} (solver), "
-                  f"{row['rollout']['contact_end_frame']} (rollout); a {perturb:g} mm perturbation grows "
-                  f"{row['amplification']:.1e}x, perturbed ghost ratio {row['perturbed']['ghost_ratio']:.2f}",
-                  flush=True)
+            print(
+                f"{tr.name}: ghost ratio solver {row['solver']['ghost_ratio']:.2f}, rollout "
+                f"{row['rollout']['ghost_ratio']:.2f}, teacher-forced {row['teacher_forced']['ghost_ratio']:.2f}; "
+                f"ball leaves at frame {row['solver']['contact_end_frame']} (solver), "
+                f"{row['rollout']['contact_end_frame']} (rollout); a {perturb:g} mm perturbation grows "
+                f"{row['amplification']:.1e}x, perturbed ghost ratio {row['perturbed']['ghost_ratio']:.2f}",
+                flush=True,
+            )
     return rows
 
 
@@ -102,21 +110,29 @@ def medians(rows: list[dict]) -> dict:
     def med(values):
         return float(np.median(values))
 
-    ghost = {k: [abs(r[k]["ghost_ratio"] - r["solver"]["ghost_ratio"]) for r in rows]
-             for k in ("rollout", "teacher_forced", "perturbed")}
+    ghost = {
+        k: [abs(r[k]["ghost_ratio"] - r["solver"]["ghost_ratio"]) for r in rows]
+        for k in ("rollout", "teacher_forced", "perturbed")
+    }
 
     def error(key):  # |rollout / solver - 1| of a summary's value
         return med([abs(r["rollout"][key] / r["solver"][key] - 1) for r in rows])
-    return {"ghost_difference_median": {k: med(v) for k, v in ghost.items()},
-            "solver_ghost_ratio_median": med([r["solver"]["ghost_ratio"] for r in rows]),
-            "rollout_ghost_ratio_median": med([r["rollout"]["ghost_ratio"] for r in rows]),
-            "teacher_forced_ghost_ratio_median": med([r["teacher_forced"]["ghost_ratio"] for r in rows]),
-            "perturbed_ghost_shift_median": med([abs(r["perturbed"]["ghost_ratio"] - r["rollout"]["ghost_ratio"])
-                                                 for r in rows]),
-            "amplification_median": med([r["amplification"] for r in rows]),
-            "peak_error_median": error("peak_mpa"), "deflection_error_median": error("max_deflection_mm"),
-            "contact_end_frames_late_median": med([r["rollout"]["contact_end_frame"] - r["solver"]["contact_end_frame"]
-                                                   for r in rows])}
+
+    return {
+        "ghost_difference_median": {k: med(v) for k, v in ghost.items()},
+        "solver_ghost_ratio_median": med([r["solver"]["ghost_ratio"] for r in rows]),
+        "rollout_ghost_ratio_median": med([r["rollout"]["ghost_ratio"] for r in rows]),
+        "teacher_forced_ghost_ratio_median": med([r["teacher_forced"]["ghost_ratio"] for r in rows]),
+        "perturbed_ghost_shift_median": med(
+            [abs(r["perturbed"]["ghost_ratio"] - r["rollout"]["ghost_ratio"]) for r in rows]
+        ),
+        "amplification_median": med([r["amplification"] for r in rows]),
+        "peak_error_median": error("peak_mpa"),
+        "deflection_error_median": error("max_deflection_mm"),
+        "contact_end_frames_late_median": med(
+            [r["rollout"]["contact_end_frame"] - r["solver"]["contact_end_frame"] for r in rows]
+        ),
+    }
 
 
 def main() -> None:
@@ -132,8 +148,15 @@ def main() -> None:
     torch.set_num_threads(a.threads)
     run = Run.load(a.run, "cpu")
     rows = diagnose(run, a.data, a.split, a.limit, a.perturb)
-    out = {"command": "python benchmarks/ghost_diagnosis/run.py " + " ".join(sys.argv[1:]), "run": a.run,
-           "split": a.split, "perturb_mm": a.perturb, "trajectories": len(rows), **medians(rows), "rows": rows}
+    out = {
+        "command": "python benchmarks/ghost_diagnosis/run.py " + " ".join(sys.argv[1:]),
+        "run": a.run,
+        "split": a.split,
+        "perturb_mm": a.perturb,
+        "trajectories": len(rows),
+        **medians(rows),
+        "rows": rows,
+    }
     print(json.dumps({k: v for k, v in out.items() if k != "rows"}, indent=1))
     write_json(a.json, out)
 

@@ -11,6 +11,7 @@ and an accuracy mini-study (HCMT and MGN, 2 seeds each, trained concurrently). `
 after every step, so a killed run keeps what finished, and ``--resume`` (the same OUT, its gpu_check.json copied
 back) runs only the steps it lacks; a one-screen summary ends the run.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -56,13 +57,20 @@ class Check:
         self.out, self.budget, self.smoke, self.device = out, budget, smoke, torch.device(device)
         self.start = time.perf_counter()
         name = torch.cuda.get_device_name(self.device) if self.device.type == "cuda" else "cpu"
-        self.data = {"device": name, "torch": torch.__version__, "smoke": smoke, "budget_s": budget, "steps": {},
-                     "skipped": []}
+        self.data = {
+            "device": name,
+            "torch": torch.__version__,
+            "smoke": smoke,
+            "budget_s": budget,
+            "steps": {},
+            "skipped": [],
+        }
         if resume and (out / "gpu_check.json").is_file():  # a call cut short (the device's time): keep what finished
             old = json.loads((out / "gpu_check.json").read_text())
             self.data["steps"] = {k: v for k, v in old["steps"].items() if "error" not in v}
             self.data["earlier_calls"] = old.get("earlier_calls", []) + [
-                {k: old[k] for k in ("device", "torch", "budget_s") if k in old}]
+                {k: old[k] for k in ("device", "torch", "budget_s") if k in old}
+            ]
         out.mkdir(parents=True, exist_ok=True)
 
     def left(self) -> float:
@@ -85,9 +93,24 @@ class Check:
 
 
 def cuda_tests(c: Check) -> dict:
-    r = subprocess.run([sys.executable, "-m", "pytest", "-q", "-k", "cuda", "tests/training/test_train.py",
-                        "tests/models/test_models_invariants.py", "-p", "no:cacheprovider"], cwd=ROOT,
-                       capture_output=True, text=True, timeout=max(c.left(), 10))
+    r = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "pytest",
+            "-q",
+            "-k",
+            "cuda",
+            "tests/training/test_train.py",
+            "tests/models/test_models_invariants.py",
+            "-p",
+            "no:cacheprovider",
+        ],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        timeout=max(c.left(), 10),
+    )
     lines = [l for l in r.stdout.splitlines() if "passed" in l or "failed" in l or "skipped" in l or "FAILED" in l]
     return {"returncode": r.returncode, "lines": lines[-12:]}
 
@@ -107,12 +130,12 @@ def _timed(fn, device, reps: int, warmup: int) -> float:
 
 def _graph(c: Check):
     if c.smoke:
-
         mesh = impact_plate_mesh(0.75, 3.5, 0.4, plate_half_length=8.0)
         h = build_hierarchy(mesh["mesh_pos"], mesh["cells"], mesh["node_type"], levels=2)
         pos = torch.from_numpy(mesh["mesh_pos"]).float()
-        feats = torch.cat([torch.nn.functional.one_hot(torch.from_numpy(mesh["node_type"]), 9).float(),
-                           torch.randn(len(pos), 4)], 1)
+        feats = torch.cat(
+            [torch.nn.functional.one_hot(torch.from_numpy(mesh["node_type"]), 9).float(), torch.randn(len(pos), 4)], 1
+        )
         return frame_graph(feats, pos, pos + 0.01 * torch.randn_like(pos), h, 0.4)
     return impact_plate_graph()
 
@@ -131,8 +154,11 @@ def train_step(c: Check) -> dict:
     base, rows = _graph(c), []
     out_dim = dataset_spec("impact_plate")["out"]
     reps, warmup = (2, 1) if c.smoke else (20, 5)
-    modes = ["eager", "bf16"] + ([] if c.smoke else ["compile-default"]) + (
-        ["compile-reduce-overhead"] if c.device.type == "cuda" else [])
+    modes = (
+        ["eager", "bf16"]
+        + ([] if c.smoke else ["compile-default"])
+        + (["compile-reduce-overhead"] if c.device.type == "cuda" else [])
+    )
     for name, attention in (("hcmt", "paper"), ("hcmt", "official"), ("mgn", "paper")):
         for mode in modes:
             for batch in (1, 8, 32) if mode in ("eager", "bf16") else (1,):
@@ -150,9 +176,16 @@ def train_step(c: Check) -> dict:
                     def step():
                         with torch.autocast(c.device.type, dtype=torch.bfloat16):
                             plain()
+
                 ms = _timed(step, c.device, reps, warmup)
-                row = {"model": f"{name}-{attention}" if name == "hcmt" else name, "mode": mode, "batch": batch,
-                       "nodes": g.num_nodes, "train_ms": ms, "samples_per_s": 1e3 * batch / ms}
+                row = {
+                    "model": f"{name}-{attention}" if name == "hcmt" else name,
+                    "mode": mode,
+                    "batch": batch,
+                    "nodes": g.num_nodes,
+                    "train_ms": ms,
+                    "samples_per_s": 1e3 * batch / ms,
+                }
                 if batch == 1:
                     row["inference_ms"] = _timed(infer, c.device, reps, warmup)
                 rows.append(row)
@@ -163,7 +196,6 @@ def train_step(c: Check) -> dict:
 
 def rollout_vs_solver(c: Check) -> dict:
 
-
     run = Run.load("pretrained:impact_plate_small", str(c.device))
     rng = np.random.default_rng(7)
     n = 2 if c.smoke else 64
@@ -173,10 +205,16 @@ def rollout_vs_solver(c: Check) -> dict:
     # the solver's median from the first few designs: solving all 64 serially on the CPU outran the whole budget
     solved = check_designs(run, designs[:SOLVER_DESIGNS], batch=SOLVER_DESIGNS, verify=True, progress=False)
     solver = one.truth[0].wall_s
-    out = {"one_design_s": one.preds[0].wall_s, "solver_one_design_s": solver,
-           "speedup_one": solver / one.preds[0].wall_s, "batch": n, "batch_per_design_s": many.preds[0].wall_s,
-           "solver": "built-in FEM, one CPU core per design", "solver_designs": len(solved.truth),
-           "solver_median_s": float(np.median([t.wall_s for t in solved.truth]))}
+    out = {
+        "one_design_s": one.preds[0].wall_s,
+        "solver_one_design_s": solver,
+        "speedup_one": solver / one.preds[0].wall_s,
+        "batch": n,
+        "batch_per_design_s": many.preds[0].wall_s,
+        "solver": "built-in FEM, one CPU core per design",
+        "solver_designs": len(solved.truth),
+        "solver_median_s": float(np.median([t.wall_s for t in solved.truth])),
+    }
     out["speedup_batch"] = out["solver_median_s"] / many.preds[0].wall_s
     if not c.smoke and c.left() > 240:  # the forward compiled ahead of time (--compile aot): built once, then loaded
         t0 = time.perf_counter()
@@ -193,7 +231,7 @@ SOLVER_DESIGNS = 4  # designs the solver runs for its median time per design
 
 def memory(c: Check) -> dict:
     rows = []
-    for nodes in ((1500,) if c.smoke else (64000, 128000, 250000)):
+    for nodes in (1500,) if c.smoke else (64000, 128000, 250000):
         for ckpt in (False, True):
             try:
                 rows.append(_one("hcmt", nodes, 1 if c.smoke else 3, ckpt, str(c.device)))
@@ -211,24 +249,55 @@ def _generate(c: Check, out: Path) -> Path:
     data = out / "data"
     if not (data / "test.h5").is_file():  # the generator resumes where it stopped
         counts, frames = (dict(train=2, valid=1, test=1), 6) if c.smoke else (dict(train=128, valid=8, test=16), 90)
-        generate_dataset(data, preset="small", counts=counts, seed=5, workers=max(os.cpu_count() or 1, 1),
-                         settings=Settings(frames=frames), progress=False)
+        generate_dataset(
+            data,
+            preset="small",
+            counts=counts,
+            seed=5,
+            workers=max(os.cpu_count() or 1, 1),
+            settings=Settings(frames=frames),
+            progress=False,
+        )
     return data
 
 
 def _overrides(c: Check) -> list[str]:
     """The config overrides of this check's training runs (a tiny model for the smoke run)."""
-    size = ["model.hidden=16", "model.levels=1", "model.L_C=1", "model.blocks=3", "train.normalizer_steps=1"] \
-        if c.smoke else ["model.hidden=128"]
+    size = (
+        ["model.hidden=16", "model.levels=1", "model.L_C=1", "model.blocks=3", "train.normalizer_steps=1"]
+        if c.smoke
+        else ["model.hidden=128"]
+    )
     return ["train.valid_every=0", *size]
 
 
 def _train_args(c: Check, data: Path, model: str, seed: int, out: Path, steps: int, extra=()) -> list[str]:
     """``hcmt train`` in its own process (the accuracy runs train four at once on the one device)."""
     sets = [a for o in [*_overrides(c), *extra] for a in ("--set", o)]
-    return [sys.executable, "-m", "hcmt", "train", "--config", "impact_plate_cpu", "--data", str(data), "--model",
-            model, "--seed", str(seed), "--steps", str(steps), "--out", str(out), "--device", str(c.device),
-            "--no-progress", "--threads", "1", *sets]
+    return [
+        sys.executable,
+        "-m",
+        "hcmt",
+        "train",
+        "--config",
+        "impact_plate_cpu",
+        "--data",
+        str(data),
+        "--model",
+        model,
+        "--seed",
+        str(seed),
+        "--steps",
+        str(steps),
+        "--out",
+        str(out),
+        "--device",
+        str(c.device),
+        "--no-progress",
+        "--threads",
+        "1",
+        *sets,
+    ]
 
 
 def deterministic_resume(c: Check) -> dict:
@@ -237,8 +306,10 @@ def deterministic_resume(c: Check) -> dict:
 
     data = _generate(c, c.out / "mini")
     steps = 4 if c.smoke else 40
-    cfg = load_config("impact_plate_cpu", _overrides(c) + [f"train.steps={steps}", "train.deterministic=true",
-                                                       f"train.checkpoint_every={steps // 2}"])
+    cfg = load_config(
+        "impact_plate_cpu",
+        _overrides(c) + [f"train.steps={steps}", "train.deterministic=true", f"train.checkpoint_every={steps // 2}"],
+    )
     once, twice = c.out / "det_once", c.out / "det_twice"
     for run in (once, twice):
         if run.exists():
@@ -262,8 +333,13 @@ def accuracy(c: Check) -> dict:
         for seed in (0, 1):
             out = c.out / f"acc_{model}_s{seed}"
             extra = ["model.attention=official"] if model == "hcmt" else []
-            procs.append(subprocess.Popen(_train_args(c, data, model, seed, out, steps, extra),
-                                          stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL))
+            procs.append(
+                subprocess.Popen(
+                    _train_args(c, data, model, seed, out, steps, extra),
+                    stdout=subprocess.DEVNULL,
+                    stderr=subprocess.DEVNULL,
+                )
+            )
             runs.append((model, seed, out))
     for p in procs:
         p.wait(timeout=max(c.left(), 10))
@@ -271,14 +347,27 @@ def accuracy(c: Check) -> dict:
     rows = []
     for model, seed, out in runs:
         m = evaluate(Run.load(out, str(c.device)), data, "test", batch=16, progress=False)
-        rows.append({"model": model, "seed": seed, "position_rmse_all": m.position.rmse_all,
-                     "stress_rmse_all": m.stress.rmse_all, "physics": m.physics})
+        rows.append(
+            {
+                "model": model,
+                "seed": seed,
+                "position_rmse_all": m.position.rmse_all,
+                "stress_rmse_all": m.stress.rmse_all,
+                "physics": m.physics,
+            }
+        )
     mean = {k: statistics.mean(r["position_rmse_all"] for r in rows if r["model"] == k) for k in ("hcmt", "mgn")}
     return {"steps": steps, "rows": rows, "hcmt_over_mgn_position": mean["hcmt"] / mean["mgn"]}
 
 
-STEPS = [("cuda tests", cuda_tests, 20), ("train step", train_step, 30), ("rollout vs solver", rollout_vs_solver, 20),
-         ("memory", memory, 30), ("deterministic resume", deterministic_resume, 20), ("accuracy", accuracy, 240)]
+STEPS = [
+    ("cuda tests", cuda_tests, 20),
+    ("train step", train_step, 30),
+    ("rollout vs solver", rollout_vs_solver, 20),
+    ("memory", memory, 30),
+    ("deterministic resume", deterministic_resume, 20),
+    ("accuracy", accuracy, 240),
+]
 
 
 def summary(data: dict) -> str:
@@ -293,8 +382,14 @@ def summary(data: dict) -> str:
                     best.setdefault(row["model"], []).append(f"{row['mode']} {row['train_ms']:.1f} ms")
             lines += [f"  train step {k}: " + ", ".join(v) for k, v in best.items()]
         else:
-            lines.append(f"  {name}: " + ", ".join(f"{k} {v:.3g}" if isinstance(v, float) else f"{k} {v}"
-                                                   for k, v in r.items() if not isinstance(v, (list, dict))))
+            lines.append(
+                f"  {name}: "
+                + ", ".join(
+                    f"{k} {v:.3g}" if isinstance(v, float) else f"{k} {v}"
+                    for k, v in r.items()
+                    if not isinstance(v, (list, dict))
+                )
+            )
     lines += [f"  skipped: {s}" for s in data["skipped"]]
     return "\n".join(lines)
 
@@ -305,12 +400,17 @@ def main(argv=None) -> int:
     p.add_argument("--budget-s", type=float, default=480.0)
     p.add_argument("--device", default="cuda")
     p.add_argument("--smoke", action="store_true", help="toy sizes (the CI rehearsal; with --device cpu)")
-    p.add_argument("--resume", action="store_true",
-                   help="keep the steps OUT/gpu_check.json already holds without an error; run only the others")
+    p.add_argument(
+        "--resume",
+        action="store_true",
+        help="keep the steps OUT/gpu_check.json already holds without an error; run only the others",
+    )
     a = p.parse_args(argv)
     if torch.device(a.device).type == "cuda" and not torch.cuda.is_available():
-        print("gpu_check: error: no CUDA device here; on a CPU machine run the rehearsal: --smoke --device cpu",
-              file=sys.stderr)
+        print(
+            "gpu_check: error: no CUDA device here; on a CPU machine run the rehearsal: --smoke --device cpu",
+            file=sys.stderr,
+        )
         return 2
     if torch.device(a.device).type == "cpu" and not a.smoke:
         print("gpu_check: error: --device cpu is for the rehearsal only (add --smoke)", file=sys.stderr)

@@ -5,6 +5,7 @@
 A 0.9 mm glass plate of the small preset (radius 12 mm, ball 3.75 mm, 750 mm drop, 45 frames): the nodal peak
 under the ball at each mesh size beside the deflection. Writes benchmarks/results/peak_convergence.json.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -27,12 +28,22 @@ def main() -> None:
         r = simulate(Design(thickness=0.9, mesh_size=h, ball_radius=3.75, plate_half_length=12.0), Settings(frames=45))
         f = r.fields
         plate = plate_mask(f["cells"], f["node_type"])
-        rows.append({"mesh_size": h, "nodes": r.info.num_nodes,
-                     "peak_plate_stress_mpa": peak(f["stress"], plate)[0],
-                     "max_deflection_mm": max_deflection(f["world_pos"], f["mesh_pos"], plate)})
+        rows.append(
+            {
+                "mesh_size": h,
+                "nodes": r.info.num_nodes,
+                "peak_plate_stress_mpa": peak(f["stress"], plate)[0],
+                "max_deflection_mm": max_deflection(f["world_pos"], f["mesh_pos"], plate),
+            }
+        )
         print(rows[-1], flush=True)
-    write_json("peak_convergence.json", {"command": "python benchmarks/interval/peak_convergence.py --sizes "
-                                         + " ".join(map(str, a.sizes)), "rows": rows})
+    write_json(
+        "peak_convergence.json",
+        {
+            "command": "python benchmarks/interval/peak_convergence.py --sizes " + " ".join(map(str, a.sizes)),
+            "rows": rows,
+        },
+    )
 
 
 if __name__ == "__main__":

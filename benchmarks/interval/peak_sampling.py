@@ -20,6 +20,7 @@ substep: ``Settings(frames=88 n + 1, frame_dt=0.002 / n)`` with ``n`` the subste
     PYTHONPATH=src python benchmarks/interval/peak_sampling.py [--data DIR] [--split test] [--limit N]
         # writes benchmarks/results/peak_sampling.json
 """
+
 from __future__ import annotations
 
 import os
@@ -58,6 +59,7 @@ def _portable(obj):
     imported here, when the result is written, as common loads the training stack)."""
     sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
     from common import portable
+
     return portable(obj)
 
 
@@ -115,8 +117,12 @@ def one_design(design: Design, settings: Settings, recorded: dict, compare: dict
     stress = f["stress"][..., 0]  # [T_fine, N]
     t = np.arange(len(stress)) * fine.frame_dt
     curves = body_curves(stress, mesh["body"])
-    row = {"substeps_per_frame": per_frame, "substep_dt_ms": info.dt, "num_nodes": info.num_nodes,
-           "wall_s": round(info.wall_time, 2)}
+    row = {
+        "substeps_per_frame": per_frame,
+        "substep_dt_ms": info.dt,
+        "num_nodes": info.num_nodes,
+        "wall_s": round(info.wall_time, 2),
+    }
     for name, c in curves.items():
         k = int(c.argmax())
         r = {"true_peak_mpa": float(c[k]), "true_peak_time_ms": float(t[k]), "true_peak_substep": k, "intervals": {}}
@@ -127,9 +133,11 @@ def one_design(design: Design, settings: Settings, recorded: dict, compare: dict
             # every offset of the grid: the frames o, o + step, ... inside the window
             phase = np.array([shortfall(c[k], c[o::step].max()) for o in range(step)])
             r["intervals"][f"{dt:g}"] = {
-                "recorded_peak_mpa": float(grid[j]), "recorded_peak_time_ms": float(t[j * step]),
+                "recorded_peak_mpa": float(grid[j]),
+                "recorded_peak_time_ms": float(t[j * step]),
                 "shortfall_pct": shortfall(c[k], grid[j]),
-                "phases": {"mean_shortfall_pct": float(phase.mean()), "worst_shortfall_pct": float(phase.max())}}
+                "phases": {"mean_shortfall_pct": float(phase.mean()), "worst_shortfall_pct": float(phase.max())},
+            }
         row[name] = r
 
     # the fine run's 0.002 ms grid against the dataset's own recorded stress (same substep: should agree closely)
@@ -138,10 +146,13 @@ def one_design(design: Design, settings: Settings, recorded: dict, compare: dict
     ref = body_curves(theirs, mesh["body"])
     grid = body_curves(mine, mesh["body"])
     row["agreement_0.002"] = {
-        **{f"{name}_peak_diff_pct": float(100 * abs(grid[name].max() - ref[name].max()) / ref[name].max())
-           for name in BODIES},
+        **{
+            f"{name}_peak_diff_pct": float(100 * abs(grid[name].max() - ref[name].max()) / ref[name].max())
+            for name in BODIES
+        },
         "max_abs_stress_diff_mpa": float(np.abs(mine - theirs).max()),
-        "max_abs_position_diff_mm": float(np.abs(f["world_pos"][::per_frame] - recorded["world_pos"]).max())}
+        "max_abs_position_diff_mm": float(np.abs(f["world_pos"][::per_frame] - recorded["world_pos"]).max()),
+    }
     # the study's coarser datasets: their solve has its own substep (ceil(frame_dt / stable dt) per frame)
     for dt, other in compare.items():
         m = FACTORS[dt]
@@ -149,8 +160,13 @@ def one_design(design: Design, settings: Settings, recorded: dict, compare: dict
         row[f"agreement_{dt:g}"] = {
             "substeps_per_frame": other["substeps_per_frame"],
             **{f"{name}_recorded_peak_mpa": float(other_curve[name].max()) for name in BODIES},
-            **{f"{name}_peak_diff_pct": float(100 * abs(curves[name][::m * per_frame].max() - other_curve[name].max())
-                                              / other_curve[name].max()) for name in BODIES}}
+            **{
+                f"{name}_peak_diff_pct": float(
+                    100 * abs(curves[name][:: m * per_frame].max() - other_curve[name].max()) / other_curve[name].max()
+                )
+                for name in BODIES
+            },
+        }
     return row
 
 
@@ -162,15 +178,21 @@ def summarise(rows: list[dict]) -> dict:
             s = np.array([r[name]["intervals"][f"{dt:g}"]["shortfall_pct"] for r in rows])
             pm = np.array([r[name]["intervals"][f"{dt:g}"]["phases"]["mean_shortfall_pct"] for r in rows])
             pw = np.array([r[name]["intervals"][f"{dt:g}"]["phases"]["worst_shortfall_pct"] for r in rows])
-            out[name][f"{dt:g}"] = {"median_shortfall_pct": float(np.median(s)), "worst_shortfall_pct": float(s.max()),
-                                    "mean_shortfall_pct": float(s.mean()),
-                                    "phases_mean_shortfall_pct": float(pm.mean()),
-                                    "phases_worst_shortfall_pct": float(pw.max())}
+            out[name][f"{dt:g}"] = {
+                "median_shortfall_pct": float(np.median(s)),
+                "worst_shortfall_pct": float(s.max()),
+                "mean_shortfall_pct": float(s.mean()),
+                "phases_mean_shortfall_pct": float(pm.mean()),
+                "phases_worst_shortfall_pct": float(pw.max()),
+            }
     agree = {}
     for key in sorted({k for r in rows for k in r if k.startswith("agreement_")}):
         have = [r[key] for r in rows if key in r]
-        agree[key] = {k: float(max(h[k] for h in have)) for k in have[0] if k.endswith(("_pct", "_mpa", "_mm"))
-                      and not k.endswith("recorded_peak_mpa")}
+        agree[key] = {
+            k: float(max(h[k] for h in have))
+            for k in have[0]
+            if k.endswith(("_pct", "_mpa", "_mm")) and not k.endswith("recorded_peak_mpa")
+        }
     out["agreement_max"] = agree
     n = [r["substeps_per_frame"] for r in rows]
     out["substeps_per_frame"] = {"min": int(min(n)), "median": float(np.median(n)), "max": int(max(n))}
@@ -182,9 +204,13 @@ def main(argv=None) -> int:
     p.add_argument("--data", default=DATA, help=f"dataset folder recorded at 0.002 ms (default {DATA})")
     p.add_argument("--split", default="test", help="split whose designs are solved (default test)")
     p.add_argument("--limit", type=int, default=None, help="only the first N designs")
-    p.add_argument("--compare", nargs="*", default=None,
-                   help="datasets of the same designs at coarser intervals to check (default: the study's "
-                        "..._dt0.004 / ..._dt0.008 folders beside --data, where present)")
+    p.add_argument(
+        "--compare",
+        nargs="*",
+        default=None,
+        help="datasets of the same designs at coarser intervals to check (default: the study's "
+        "..._dt0.004 / ..._dt0.008 folders beside --data, where present)",
+    )
     p.add_argument("--out", default=str(OUT), help=f"result JSON (default {OUT})")
     args = p.parse_args(argv)
 
@@ -194,12 +220,13 @@ def main(argv=None) -> int:
     gen = meta["generator"]
     settings = Settings(**gen["settings"]).validate()
     if abs(settings.frame_dt - BASE_DT) > 1e-12 or settings.frames != 89:
-        raise SystemExit(f"--data must be recorded at {BASE_DT} ms over 89 frames, got {settings.frame_dt} ms x "
-                         f"{settings.frames}")
+        raise SystemExit(
+            f"--data must be recorded at {BASE_DT} ms over 89 frames, got {settings.frame_dt} ms x {settings.frames}"
+        )
     split = open_split(data, args.split)
     count = len(split) if args.limit is None else min(args.limit, len(split))
     others = {}
-    for path in (sibling_datasets(data) if args.compare is None else [Path(c) for c in args.compare]):
+    for path in sibling_datasets(data) if args.compare is None else [Path(c) for c in args.compare]:
         m = read_meta(path)
         others[float(m["dt"])] = (path, Settings(**m["generator"]["settings"]), open_split(path, args.split))
 
@@ -211,28 +238,43 @@ def main(argv=None) -> int:
         for dt, (path, st, sp) in others.items():
             if sp.names[i] != split.names[i] or any(sp.attrs(i)[k] != attrs[k] for k in DESIGN_KEYS):
                 raise SystemExit(f"{path}: trajectory {i} is not the same design as in {data}")
-            compare[dt] = {"stress": sp[i]["stress"],
-                           "substeps_per_frame": plan(design, st)["substeps"] // (st.frames - 1)}
-        row = {"trajectory": split.names[i], "design": asdict(design),
-               **one_design(design, settings, split[i], compare)}
+            compare[dt] = {
+                "stress": sp[i]["stress"],
+                "substeps_per_frame": plan(design, st)["substeps"] // (st.frames - 1),
+            }
+        row = {
+            "trajectory": split.names[i],
+            "design": asdict(design),
+            **one_design(design, settings, split[i], compare),
+        }
         rows.append(row)
         pl, ba = row["plate"], row["ball"]
-        print(f"{row['trajectory']}: n={row['substeps_per_frame']:3d}  plate true {pl['true_peak_mpa']:7.1f} MPa at "
-              f"{pl['true_peak_time_ms']:.4f} ms, shortfall "
-              + " / ".join(f"{pl['intervals'][k]['shortfall_pct']:.2f}" for k in ("0.002", "0.004", "0.008"))
-              + f" %; ball true {ba['true_peak_mpa']:7.1f} MPa, shortfall "
-              + " / ".join(f"{ba['intervals'][k]['shortfall_pct']:.2f}" for k in ("0.002", "0.004", "0.008"))
-              + f" %; agreement {row['agreement_0.002']['plate_peak_diff_pct']:.2e} %  ({row['wall_s']} s)",
-              flush=True)
+        print(
+            f"{row['trajectory']}: n={row['substeps_per_frame']:3d}  plate true {pl['true_peak_mpa']:7.1f} MPa at "
+            f"{pl['true_peak_time_ms']:.4f} ms, shortfall "
+            + " / ".join(f"{pl['intervals'][k]['shortfall_pct']:.2f}" for k in ("0.002", "0.004", "0.008"))
+            + f" %; ball true {ba['true_peak_mpa']:7.1f} MPa, shortfall "
+            + " / ".join(f"{ba['intervals'][k]['shortfall_pct']:.2f}" for k in ("0.002", "0.004", "0.008"))
+            + f" %; agreement {row['agreement_0.002']['plate_peak_diff_pct']:.2e} %  ({row['wall_s']} s)",
+            flush=True,
+        )
     summary = summarise(rows)
-    result = {"command": "PYTHONPATH=src python benchmarks/interval/peak_sampling.py"
-                         + (f" --data {args.data}" if args.data != DATA else "")
-                         + (f" --split {args.split}" if args.split != "test" else "")
-                         + (f" --limit {args.limit}" if args.limit is not None else ""),
-              "data": str(data), "split": args.split, "designs": count, "window_ms": (settings.frames - 1) * BASE_DT,
-              "settings": asdict(settings), "intervals_ms": list(FACTORS),
-              "compared": {f"{dt:g}": str(v[0]) for dt, v in others.items()},
-              "summary": summary, "rows": rows, "wall_s": round(time.perf_counter() - start, 1)}
+    result = {
+        "command": "PYTHONPATH=src python benchmarks/interval/peak_sampling.py"
+        + (f" --data {args.data}" if args.data != DATA else "")
+        + (f" --split {args.split}" if args.split != "test" else "")
+        + (f" --limit {args.limit}" if args.limit is not None else ""),
+        "data": str(data),
+        "split": args.split,
+        "designs": count,
+        "window_ms": (settings.frames - 1) * BASE_DT,
+        "settings": asdict(settings),
+        "intervals_ms": list(FACTORS),
+        "compared": {f"{dt:g}": str(v[0]) for dt, v in others.items()},
+        "summary": summary,
+        "rows": rows,
+        "wall_s": round(time.perf_counter() - start, 1),
+    }
     write_json(Path(args.out), _portable(result))
     print(json.dumps(summary, indent=1))
     print(f"wrote {args.out} in {result['wall_s']} s")

@@ -15,6 +15,7 @@ processes may share the work (run locks).
     python benchmarks/interval/run.py --work $HCMT_WORK/interval --speed          # design check per interval
     python benchmarks/interval/run.py --work $HCMT_WORK/interval --table-only     # results/interval.json + figure
 """
+
 from __future__ import annotations
 
 import argparse
@@ -39,8 +40,7 @@ WINDOW_FRAMES = {0.002: 89, 0.004: 45, 0.008: 23}  # 88 x 0.002 = 44 x 0.004 = 2
 DATA = dict(preset="small", train=40, valid=4, test=12, seed=2026, variants=0)
 CONFIG = "impact_plate_cpu"
 #: label -> (model name, overrides)
-MODELS = {"hcmt": ("hcmt", ["model.attention=official"]), "mgn": ("mgn", []),
-          "mgn-deep": ("mgn", ["model.blocks=22"])}
+MODELS = {"hcmt": ("hcmt", ["model.attention=official"]), "mgn": ("mgn", []), "mgn-deep": ("mgn", ["model.blocks=22"])}
 SIGMAS = (3e-4, 1e-3)  # candidates at 0.002 ms (mm), scaled with the interval
 SEEDS = (0, 1, 2)
 
@@ -48,9 +48,16 @@ SEEDS = (0, 1, 2)
 def forms(steps: int) -> dict[str, list[str]]:
     """label -> overrides of the two formulations (pushforward from a third of the steps, as in the recipe
     study)."""
-    return {"today": [],
-            "recipe": ["model.target=acceleration", "train.noise_nodes=predicted", "train.pushforward=0.5",
-                       f"train.pushforward_start={steps // 3}", "model.deformation=true"]}
+    return {
+        "today": [],
+        "recipe": [
+            "model.target=acceleration",
+            "train.noise_nodes=predicted",
+            "train.pushforward=0.5",
+            f"train.pushforward_start={steps // 3}",
+            "model.deformation=true",
+        ],
+    }
 
 
 def data_spec(dt: float) -> dict:
@@ -96,8 +103,16 @@ def train_all(work: Path, steps: int, datasets: dict[float, Path]) -> None:
     def one(dt, form, model, seed, sigma, splits):
         name = run_name(dt, form, model, seed, sigma, steps)
         print(f"{name}", flush=True)
-        return run_and_evaluate(work, datasets[dt], name, MODELS[model][0], seed,
-                                overrides(dt, form, model, sigma, steps), splits=splits, config=CONFIG)
+        return run_and_evaluate(
+            work,
+            datasets[dt],
+            name,
+            MODELS[model][0],
+            seed,
+            overrides(dt, form, model, sigma, steps),
+            splits=splits,
+            config=CONFIG,
+        )
 
     for dt, form, model in configs(steps):  # 1. seed 0 at every σ candidate (validation split: the choice)
         for base in SIGMAS:
@@ -126,24 +141,30 @@ def propagation(datasets: dict[float, Path], limit: int = 12) -> dict:
         # the front reaches the clamp within a frame or two at coarse intervals: its hops per frame is then the
         # clamp distance over the frames it took (a lower bound), from frame 1 (the ball is released at frame 0)
         front = [r["front_hops_per_frame"] if r["front_hops_per_frame"] > 0 else np.nan for r in rows]
-        out[f"{dt:g}"] = {"trajectories": len(rows), "front_hops_per_frame": float(np.nanmedian(front)),
-                   "p_wave_hops_per_frame": float(np.median([r["p_wave_hops_per_frame"] for r in rows])),
-                   "frames_to_reach_clamp": float(np.median([r["frames_to_reach_clamp"] or np.nan for r in rows])),
-                   "impact_to_clamp_hops": float(np.median([r["impact_to_clamp_hops"] for r in rows])),
-                   "reach_per_step": {"mgn": 11, "mgn-deep": 22, "hcmt": reach["hops_per_step"]}}
+        out[f"{dt:g}"] = {
+            "trajectories": len(rows),
+            "front_hops_per_frame": float(np.nanmedian(front)),
+            "p_wave_hops_per_frame": float(np.median([r["p_wave_hops_per_frame"] for r in rows])),
+            "frames_to_reach_clamp": float(np.median([r["frames_to_reach_clamp"] or np.nan for r in rows])),
+            "impact_to_clamp_hops": float(np.median([r["impact_to_clamp_hops"] for r in rows])),
+            "reach_per_step": {"mgn": 11, "mgn-deep": 22, "hcmt": reach["hops_per_step"]},
+        }
     return out
 
 
 # -- the tables -------------------------------------------------------------------------------------------------------
-KEYS = {"position_rmse_all": lambda m: m["position"]["rmse_all"], "stress_rmse_all": lambda m: m["stress"]["rmse_all"],
-        "rebound_agreement": lambda m: m["physics"]["rebound_agreement"],
-        "peak_plate_stress_error_pct": lambda m: m["physics"]["peak_plate_stress_error_pct"]["median_abs"],
-        "peak_plate_stress_error_pct_signed": lambda m: m["physics"]["peak_plate_stress_error_pct"]["median"],
-        "max_deflection_error_pct": lambda m: m["physics"]["max_deflection_error_pct"]["median_abs"],
-        "peak_plate_frame_error": lambda m: m["physics"]["peak_plate_frame_error"]["median_abs"],
-        "far_deflection_error_um": lambda m: m["physics"]["far_deflection_error_um"]["median"],
-        "inference_ms_per_step": lambda m: m["inference_ms_per_step"],
-        "train_ms_per_step": lambda m: m["train_ms_per_step"]}
+KEYS = {
+    "position_rmse_all": lambda m: m["position"]["rmse_all"],
+    "stress_rmse_all": lambda m: m["stress"]["rmse_all"],
+    "rebound_agreement": lambda m: m["physics"]["rebound_agreement"],
+    "peak_plate_stress_error_pct": lambda m: m["physics"]["peak_plate_stress_error_pct"]["median_abs"],
+    "peak_plate_stress_error_pct_signed": lambda m: m["physics"]["peak_plate_stress_error_pct"]["median"],
+    "max_deflection_error_pct": lambda m: m["physics"]["max_deflection_error_pct"]["median_abs"],
+    "peak_plate_frame_error": lambda m: m["physics"]["peak_plate_frame_error"]["median_abs"],
+    "far_deflection_error_um": lambda m: m["physics"]["far_deflection_error_um"]["median"],
+    "inference_ms_per_step": lambda m: m["inference_ms_per_step"],
+    "train_ms_per_step": lambda m: m["train_ms_per_step"],
+}
 
 
 def cell(work: Path, dt, form, model, steps, split="test") -> dict | None:
@@ -181,18 +202,31 @@ def table(work: Path, steps: int, datasets: dict[float, Path]) -> dict:
     for dt_key, forms_ in rows.items():
         for form, models in forms_.items():
             if "hcmt" in models:
-                models["ratios"] = {f"hcmt/{other}": {k: ratio(models["hcmt"], models[other], k)
-                                                      for k in ("position_rmse_all", "stress_rmse_all")}
-                                    for other in ("mgn", "mgn-deep") if other in models}
+                models["ratios"] = {
+                    f"hcmt/{other}": {
+                        k: ratio(models["hcmt"], models[other], k) for k in ("position_rmse_all", "stress_rmse_all")
+                    }
+                    for other in ("mgn", "mgn-deep")
+                    if other in models
+                }
     sigma_sweep = {}
     for dt, form, model in configs(steps):
         sigma_sweep.setdefault(f"{dt:g}", {}).setdefault(form, {})[model] = {
             f"{sigma_of(dt, b):g}": valid_rmse(work / "runs" / run_name(dt, form, model, 0, sigma_of(dt, b), steps))
-            for b in SIGMAS}
-    out = {"data": {f"{dt:g}": data_spec(dt) for dt in WINDOW_FRAMES}, "config": CONFIG, "steps": steps,
-           "models": {k: v[1] for k, v in MODELS.items()}, "formulations": forms(steps), "seeds": list(SEEDS),
-           "sigma_candidates_at_0.002": list(SIGMAS), "valid_position_rmse_by_sigma": sigma_sweep,
-           "propagation": propagation(datasets), "table": rows}
+            for b in SIGMAS
+        }
+    out = {
+        "data": {f"{dt:g}": data_spec(dt) for dt in WINDOW_FRAMES},
+        "config": CONFIG,
+        "steps": steps,
+        "models": {k: v[1] for k, v in MODELS.items()},
+        "formulations": forms(steps),
+        "seeds": list(SEEDS),
+        "sigma_candidates_at_0.002": list(SIGMAS),
+        "valid_position_rmse_by_sigma": sigma_sweep,
+        "propagation": propagation(datasets),
+        "table": rows,
+    }
     prev = RESULTS / "interval.json"
     if prev.is_file():  # keep the speed and peak sections of an earlier --speed / --peaks run
         old = json.loads(prev.read_text())
@@ -223,8 +257,13 @@ def figure(out: dict) -> Path:
                     ys.append(models["ratios"][f"hcmt/{other}"][q]["ratio"])
                 if xs:
                     order = np.argsort(xs)
-                    ax.plot(np.array(xs)[order], np.array(ys)[order], style, color=colour,
-                            label=f"HCMT ÷ {other.upper().replace('-DEEP', ' (22 blocks)')}, {form}")
+                    ax.plot(
+                        np.array(xs)[order],
+                        np.array(ys)[order],
+                        style,
+                        color=colour,
+                        label=f"HCMT ÷ {other.upper().replace('-DEEP', ' (22 blocks)')}, {form}",
+                    )
         ax.axhline(1.0, color="grey", lw=0.8)
         ax.axvline(1.0, color="grey", lw=0.8, ls=":")
         ax.set_xlabel("stress-front hops per frame ÷ the baseline's hops per step")
@@ -246,22 +285,33 @@ def speed(work: Path, steps: int, datasets: dict[float, Path], form: str = "reci
         sigma = chosen_sigma(work, dt, form, "hcmt", steps)
         run = Run.load(work / "runs" / run_name(dt, form, "hcmt", 0, sigma, steps), "cpu")
         with Split(path, "test") as s:
-            designs = [(s.names[i], Design(**{k: v for k, v in s.attrs(i).items() if k in DESIGN_KEYS}))
-                       for i in range(len(s))]
+            designs = [
+                (s.names[i], Design(**{k: v for k, v in s.attrs(i).items() if k in DESIGN_KEYS})) for i in range(len(s))
+            ]
         one = check_designs(run, designs, batch=1, verify=True, progress=False)
         batched = check_designs(run, designs, batch=len(designs), verify=False, progress=False)
         learned_one = [p.wall_s for p in one.preds]
         solver = [t.wall_s for t in one.truth]
-        out[f"{dt:g}"] = {"run": run.source, "designs": len(designs), "frames": WINDOW_FRAMES[dt],
-                          "learned_s_per_design_one_at_a_time": float(np.median(learned_one)),
-                          "learned_s_per_design_batched": batched.wall_s / len(designs),
-                          "solver_s_per_design": float(np.median(solver)),
-                          "speedup_one_at_a_time": float(np.median(solver) / np.median(learned_one)),
-                          "speedup_batched": float(np.median(solver) / (batched.wall_s / len(designs))),
-                          "verify": {k: one.verified[k] for k in ("peak_plate_stress_error_pct",
-                                                                   "max_deflection_error_pct") if k in one.verified}}
-        print(f"{dt:g} ms: learned {out[f'{dt:g}']['learned_s_per_design_one_at_a_time']:.3f} s/design (batched "
-              f"{out[f'{dt:g}']['learned_s_per_design_batched']:.3f}), solver {np.median(solver):.3f} s", flush=True)
+        out[f"{dt:g}"] = {
+            "run": run.source,
+            "designs": len(designs),
+            "frames": WINDOW_FRAMES[dt],
+            "learned_s_per_design_one_at_a_time": float(np.median(learned_one)),
+            "learned_s_per_design_batched": batched.wall_s / len(designs),
+            "solver_s_per_design": float(np.median(solver)),
+            "speedup_one_at_a_time": float(np.median(solver) / np.median(learned_one)),
+            "speedup_batched": float(np.median(solver) / (batched.wall_s / len(designs))),
+            "verify": {
+                k: one.verified[k]
+                for k in ("peak_plate_stress_error_pct", "max_deflection_error_pct")
+                if k in one.verified
+            },
+        }
+        print(
+            f"{dt:g} ms: learned {out[f'{dt:g}']['learned_s_per_design_one_at_a_time']:.3f} s/design (batched "
+            f"{out[f'{dt:g}']['learned_s_per_design_batched']:.3f}), solver {np.median(solver):.3f} s",
+            flush=True,
+        )
     out["device"] = f"cpu ({platform.processor() or platform.machine()}), 1 thread"
     prev = RESULTS / "interval.json"
     data = json.loads(prev.read_text()) if prev.is_file() else {}
@@ -274,8 +324,9 @@ def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--work", type=Path, default=Path("benchmarks/work"))
     p.add_argument("--steps", type=int, default=1000)
-    p.add_argument("--table-only", action="store_true",
-                   help="write results/interval.json and the figure; train nothing")
+    p.add_argument(
+        "--table-only", action="store_true", help="write results/interval.json and the figure; train nothing"
+    )
     p.add_argument("--speed", action="store_true", help="the design check at each interval (after training)")
     a = p.parse_args()
     datasets = {dt: dataset(a.work, data_spec(dt)) for dt in WINDOW_FRAMES}

@@ -18,6 +18,7 @@ paper trajectory): one paper-preset Impact Plate mesh (``hcmt.sim.scene``, its m
 with synthetic motion and stress over 52 frames, copied with small per-copy perturbations of the mesh and frames
 (each copy its own hierarchy); a tetrahedral plate and obstacle for Deforming Plate.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -86,8 +87,13 @@ def impact_dataset(folder: Path, count: int, frames: int = 52) -> Path:
     if (folder / "meta.json").is_file():
         return folder
     base = {k: v for k, v in paper_mesh().items() if k not in ("world_pos", "stress")}
-    meta = make_meta(feature_spec(Settings(frames=frames)), trajectory_length=frames, dimension=2, dt=0.002,
-                     generator={"preset": "paper", "synthetic": "benchmarks/memory/run.py"})
+    meta = make_meta(
+        feature_spec(Settings(frames=frames)),
+        trajectory_length=frames,
+        dimension=2,
+        dt=0.002,
+        generator={"preset": "paper", "synthetic": "benchmarks/memory/run.py"},
+    )
     write_split(folder / "train.h5", meta, ((f"traj_{k:05d}", impact_copy(base, k, frames), {}) for k in range(count)))
     write_meta(folder, meta)
     return folder
@@ -97,8 +103,10 @@ def box_tets(nx: int, ny: int, nz: int, origin=(0.0, 0.0, 0.0), h: float = 0.01)
     """A box of ``nx * ny * nz`` cubes of side ``h``, six tetrahedra each."""
     grid = np.stack(np.meshgrid(*(np.arange(k + 1) for k in (nx, ny, nz)), indexing="ij"), -1).reshape(-1, 3)
     pos = (grid * h + np.asarray(origin)).astype(np.float32)
+
     def nid(i, j, k):
         return (i * (ny + 1) + j) * (nz + 1) + k
+
     paths = [(0, 1, 3, 7), (0, 1, 5, 7), (0, 2, 3, 7), (0, 2, 6, 7), (0, 4, 5, 7), (0, 4, 6, 7)]
     tets = []
     for i, j, k in np.ndindex(nx, ny, nz):
@@ -114,27 +122,38 @@ def deforming_fields(k: int, frames: int) -> dict:
     obst, otet = box_tets(3, 3, 3, origin=(0.08, 0.08, 0.025))
     pos = np.concatenate([plate, obst])
     nt = np.zeros((len(pos), 1), np.int32)
-    nt[len(plate):] = NodeType.OBSTACLE
-    nt[:len(plate)][plate[:, 0] == 0] = NodeType.HANDLE
+    nt[len(plate) :] = NodeType.OBSTACLE
+    nt[: len(plate)][plate[:, 0] == 0] = NodeType.HANDLE
     rng = np.random.default_rng(k)
     world = np.repeat(pos[None], frames, 0)
-    world[:, len(plate):, 2] -= 1e-4 * np.arange(frames, dtype=np.float32)[:, None]
+    world[:, len(plate) :, 2] -= 1e-4 * np.arange(frames, dtype=np.float32)[:, None]
     world += rng.normal(0, 1e-6, world.shape).astype(np.float32)
-    return {"cells": np.concatenate([ptet, otet + len(plate)]), "node_type": nt, "mesh_pos": pos,
-            "world_pos": world, "stress": np.abs(rng.normal(0, 1e3, (frames, len(pos), 1))).astype(np.float32)}
+    return {
+        "cells": np.concatenate([ptet, otet + len(plate)]),
+        "node_type": nt,
+        "mesh_pos": pos,
+        "world_pos": world,
+        "stress": np.abs(rng.normal(0, 1e3, (frames, len(pos), 1))).astype(np.float32),
+    }
 
 
-DEFORMING_FEATURES = {"cells": ("static", [-1, 4], "int32"), "node_type": ("static", [-1, 1], "int32"),
-                      "mesh_pos": ("static", [-1, 3], "float32"), "world_pos": ("dynamic", [-1, -1, 3], "float32"),
-                      "stress": ("dynamic", [-1, -1, 1], "float32")}
+DEFORMING_FEATURES = {
+    "cells": ("static", [-1, 4], "int32"),
+    "node_type": ("static", [-1, 1], "int32"),
+    "mesh_pos": ("static", [-1, 3], "float32"),
+    "world_pos": ("dynamic", [-1, -1, 3], "float32"),
+    "stress": ("dynamic", [-1, -1, 1], "float32"),
+}
 
 
 def deforming_dataset(folder: Path, count: int, frames: int = 400) -> Path:
     """``count`` Deforming Plate-size trajectories of ``frames`` frames at ``folder`` (kept when present)."""
     if (folder / "meta.json").is_file():
         return folder
-    feats = {k: {"type": t, "shape": [frames, *s[1:]] if t == "dynamic" else s, "dtype": d}
-             for k, (t, s, d) in DEFORMING_FEATURES.items()}
+    feats = {
+        k: {"type": t, "shape": [frames, *s[1:]] if t == "dynamic" else s, "dtype": d}
+        for k, (t, s, d) in DEFORMING_FEATURES.items()
+    }
     meta = make_meta(feats, trajectory_length=frames, dimension=3, dt=None)
     write_split(folder / "train.h5", meta, ((f"traj_{k:05d}", deforming_fields(k, frames), {}) for k in range(count)))
     write_meta(folder, meta)
@@ -146,10 +165,21 @@ def official_tfrecord(folder: Path, count: int, frames: int = 52) -> Path:
     if (folder / "train.tfrecord").is_file():
         return folder
     folder.mkdir(parents=True, exist_ok=True)
-    feats = {k: {"type": t, "shape": [frames, *s[1:]] if t == "dynamic" else [1, *s], "dtype": d}
-             for k, (t, s, d) in DEFORMING_FEATURES.items()}
-    (folder / "meta.json").write_text(json.dumps({"simulator": "comsol", "dt": 0.0, "trajectory_length": frames,
-                                                  "field_names": list(feats), "features": feats}))
+    feats = {
+        k: {"type": t, "shape": [frames, *s[1:]] if t == "dynamic" else [1, *s], "dtype": d}
+        for k, (t, s, d) in DEFORMING_FEATURES.items()
+    }
+    (folder / "meta.json").write_text(
+        json.dumps(
+            {
+                "simulator": "comsol",
+                "dt": 0.0,
+                "trajectory_length": frames,
+                "field_names": list(feats),
+                "features": feats,
+            }
+        )
+    )
     writer = TFRecordWriter(str(folder / "train.tfrecord"))
     for k in range(count):
         rec = deforming_fields(k, frames)
@@ -162,8 +192,17 @@ def official_tfrecord(folder: Path, count: int, frames: int = 52) -> Path:
 def child(spec: dict) -> dict:
     """In a fresh process: build the dataset, then ``items`` training items in one DataLoader worker; RSS of both."""
     adapter = get_adapter(spec["adapter"])
-    ds = FrameDataset(spec["data"], "train", adapter, spec["levels"], True, spec["radius"], noise_std=0.003, seed=1,
-                      in_memory=spec["in_memory"])
+    ds = FrameDataset(
+        spec["data"],
+        "train",
+        adapter,
+        spec["levels"],
+        True,
+        spec["radius"],
+        noise_std=0.003,
+        seed=1,
+        in_memory=spec["in_memory"],
+    )
     main_after_build = proc_kb()["VmRSS"]
     it = step_loader(ds, StepSampler(ds, 1, seed=3, start=0, end=spec["items"]), workers=1)
     worker = it._workers[0].pid
@@ -176,8 +215,13 @@ def child(spec: dict) -> dict:
 
 def rss(data: Path, adapter: str, levels: int, radius: float, in_memory: bool, items: int) -> dict:
     spec = dict(data=str(data), adapter=adapter, levels=levels, radius=radius, in_memory=in_memory, items=items)
-    r = subprocess.run([sys.executable, __file__, "--child", json.dumps(spec)], capture_output=True, text=True,
-                       check=True, env={**os.environ, "OMP_NUM_THREADS": "1"})
+    r = subprocess.run(
+        [sys.executable, __file__, "--child", json.dumps(spec)],
+        capture_output=True,
+        text=True,
+        check=True,
+        env={**os.environ, "OMP_NUM_THREADS": "1"},
+    )
     return json.loads(r.stdout.strip().splitlines()[-1])
 
 
@@ -191,8 +235,13 @@ def throughput(ds: FrameDataset, keys: list) -> dict:
         collate_samples([ds[key]])
         times.append(1e3 * (time.perf_counter() - t0))
     ms = float(np.median(times))
-    return {"frames": len(times), "median_ms": ms, "mean_ms": float(np.mean(times)), "frames_per_s": 1e3 / ms,
-            "workers_for_10ms_gpu_step": math.ceil(ms / GPU_STEP_MS)}
+    return {
+        "frames": len(times),
+        "median_ms": ms,
+        "mean_ms": float(np.mean(times)),
+        "frames_per_s": 1e3 / ms,
+        "workers_for_10ms_gpu_step": math.ceil(ms / GPU_STEP_MS),
+    }
 
 
 def feeding(data: Path, adapter: str, levels: int, radius: float, count: int) -> dict:
@@ -202,20 +251,27 @@ def feeding(data: Path, adapter: str, levels: int, radius: float, count: int) ->
     lazy = FrameDataset(data, "train", get_adapter(adapter), levels, True, radius, noise_std=0.003, seed=1, keep=1)
     spread = [int(i) for i in np.random.default_rng(0).permutation(len(lazy))[:count]]
     first = [i for i in range(len(lazy)) if lazy.frames[i][0] == 0][:count]
-    out = {"nodes": int(lazy.source.nodes[0]), "frames_per_trajectory": int(lazy.source.steps[0]),
-           "trajectories": len(lazy.source), "levels": levels,
-           "read_per_item_lru_misses": throughput(lazy, spread),
-           "read_per_item_lru_hits": throughput(lazy, first)}
-    eager = FrameDataset(data, "train", get_adapter(adapter), levels, True, radius, noise_std=0.003, seed=1,
-                         in_memory=True)
+    out = {
+        "nodes": int(lazy.source.nodes[0]),
+        "frames_per_trajectory": int(lazy.source.steps[0]),
+        "trajectories": len(lazy.source),
+        "levels": levels,
+        "read_per_item_lru_misses": throughput(lazy, spread),
+        "read_per_item_lru_hits": throughput(lazy, first),
+    }
+    eager = FrameDataset(
+        data, "train", get_adapter(adapter), levels, True, radius, noise_std=0.003, seed=1, in_memory=True
+    )
     out["in_memory_spread"] = throughput(eager, spread)
     return out
 
 
 def convert_rss(src: Path, out: Path) -> float:
     """Peak RSS (MB) of ``hcmt convert SRC OUT`` in a fresh process."""
-    code = ("import resource, sys; from hcmt.cli import main; assert main(['convert', sys.argv[1], sys.argv[2]]) "
-            "== 0; print(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024)")
+    code = (
+        "import resource, sys; from hcmt.cli import main; assert main(['convert', sys.argv[1], sys.argv[2]]) "
+        "== 0; print(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024)"
+    )
     r = subprocess.run([sys.executable, "-c", code, str(src), str(out)], capture_output=True, text=True, check=True)
     return float(r.stdout.strip().splitlines()[-1])
 
@@ -250,14 +306,25 @@ def main() -> None:
         print(json.dumps(child(json.loads(args.child))))
         return
     work = Path(args.work)
-    base = subprocess.run([sys.executable, "-c", "import resource, hcmt.training.trainer; print(resource.getrusage("
-                           "resource.RUSAGE_SELF).ru_maxrss / 1024)"], capture_output=True, text=True, check=True)
-    results = {"command": "python benchmarks/memory/run.py " + " ".join(sys.argv[1:]),
-               "python_with_hcmt_training_imported_mb": float(base.stdout.strip()),
-               "rss": memory(work, args.counts, args.items)}
+    base = subprocess.run(
+        [
+            sys.executable,
+            "-c",
+            "import resource, hcmt.training.trainer; print(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024)",
+        ],
+        capture_output=True,
+        text=True,
+        check=True,
+    )
+    results = {
+        "command": "python benchmarks/memory/run.py " + " ".join(sys.argv[1:]),
+        "python_with_hcmt_training_imported_mb": float(base.stdout.strip()),
+        "rss": memory(work, args.counts, args.items),
+    }
     results["throughput"] = {
         "impact_plate_paper": feeding(work / f"impact_paper_{args.counts[1]}", "impact_plate", 6, 0.4, 150),
-        "deforming_plate_size": feeding(work / "deforming_6", "deforming_plate", 2, 0.03, 150)}
+        "deforming_plate_size": feeding(work / "deforming_6", "deforming_plate", 2, 0.03, 150),
+    }
     print(json.dumps(results["throughput"], indent=1), flush=True)
     results["convert_peak_rss_mb"] = {}
     for n in args.convert:

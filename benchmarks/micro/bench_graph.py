@@ -6,6 +6,7 @@
 Medians over ``--repeats`` runs after a warm-up; the contact search runs on world positions with the ball
 pushed 0.1 mm into the plate's contact radius (a frame mid-impact).
 """
+
 from __future__ import annotations
 
 import argparse
@@ -54,25 +55,36 @@ def main() -> None:
     h = build_hierarchy(pos, cells, ntype, a.levels)
     world = pos.copy()
     world[h.object_id == h.object_id[np.argmax(pos[:, 1])], 1] -= 0.1  # the ball (highest node's object)
-    res = {"nodes": n, "levels": [h.num_nodes(l) for l in range(a.levels + 1)], "platform": platform.processor(),
-           "torch_threads": 1}
-    res["hierarchy_remesh_ms"] = median_ms(lambda: build_hierarchy(pos, cells, ntype, a.levels), a.repeats,
-                                           "hierarchy_remesh_ms")
+    res = {
+        "nodes": n,
+        "levels": [h.num_nodes(l) for l in range(a.levels + 1)],
+        "platform": platform.processor(),
+        "torch_threads": 1,
+    }
+    res["hierarchy_remesh_ms"] = median_ms(
+        lambda: build_hierarchy(pos, cells, ntype, a.levels), a.repeats, "hierarchy_remesh_ms"
+    )
     res["hierarchy_no_remesh_ms"] = median_ms(
-        lambda: build_hierarchy(pos, cells, ntype, a.levels, remesh=False), a.repeats, "hierarchy_no_remesh_ms")
+        lambda: build_hierarchy(pos, cells, ntype, a.levels, remesh=False), a.repeats, "hierarchy_no_remesh_ms"
+    )
     obj_np = h.object_id
     wt, ot, tt = torch.from_numpy(world).float(), torch.from_numpy(obj_np), torch.from_numpy(ntype)
     c = contact_edges(world, obj_np, a.radius)
     res["contact_edges"] = int(c.shape[1])
-    res["contact_kdtree_numpy_ms"] = median_ms(lambda: contact_edges(world, obj_np, a.radius), a.repeats * 4,
-                                               "contact_kdtree_numpy_ms")
-    res["contact_kdtree_torch_ms"] = median_ms(lambda: contact_edges(wt, ot, a.radius), a.repeats * 4,
-                                               "contact_kdtree_torch_ms")
+    res["contact_kdtree_numpy_ms"] = median_ms(
+        lambda: contact_edges(world, obj_np, a.radius), a.repeats * 4, "contact_kdtree_numpy_ms"
+    )
+    res["contact_kdtree_torch_ms"] = median_ms(
+        lambda: contact_edges(wt, ot, a.radius), a.repeats * 4, "contact_kdtree_torch_ms"
+    )
     res["contact_kdtree_type_rule_ms"] = median_ms(
-        lambda: contact_edges(wt, ot, a.radius, node_type=tt, type_pairs=OFFICIAL_IMPACT_PLATE_TYPES), a.repeats * 4,
-        "contact_kdtree_type_rule_ms")
-    res["contact_dense_cpu_ms"] = median_ms(lambda: contact_edges(wt, ot, a.radius, method="dense"), a.repeats,
-                                            "contact_dense_cpu_ms")
+        lambda: contact_edges(wt, ot, a.radius, node_type=tt, type_pairs=OFFICIAL_IMPACT_PLATE_TYPES),
+        a.repeats * 4,
+        "contact_kdtree_type_rule_ms",
+    )
+    res["contact_dense_cpu_ms"] = median_ms(
+        lambda: contact_edges(wt, ot, a.radius, method="dense"), a.repeats, "contact_dense_cpu_ms"
+    )
     if torch.cuda.is_available():
         wc, oc = wt.cuda(), ot.cuda()
 
@@ -84,8 +96,7 @@ def main() -> None:
         res["cuda_device"] = torch.cuda.get_device_name()
     feats = torch.zeros(n, 13)
     mp = torch.from_numpy(pos).float()
-    res["frame_graph_ms"] = median_ms(lambda: frame_graph(feats, mp, wt, h, a.radius), a.repeats,
-                                      "frame_graph_ms")
+    res["frame_graph_ms"] = median_ms(lambda: frame_graph(feats, mp, wt, h, a.radius), a.repeats, "frame_graph_ms")
     res["cpu_ms"] = dict(CPU_MS)
     res["load_average_1min"] = os.getloadavg()[0]
     for k, v in res.items():
@@ -93,8 +104,10 @@ def main() -> None:
             continue
         cpu = f"   (CPU {CPU_MS[k]:.3f})" if k in CPU_MS else ""
         print(f"{k:>30}: {v:.3f}{cpu}" if isinstance(v, float) else f"{k:>30}: {v}")
-    print(f"targets: hierarchy <= 50 ms ({'ok' if res['hierarchy_remesh_ms'] <= 50 else 'MISSED'}), "
-          f"contact <= 2 ms ({'ok' if res['contact_kdtree_torch_ms'] <= 2 else 'MISSED'})")
+    print(
+        f"targets: hierarchy <= 50 ms ({'ok' if res['hierarchy_remesh_ms'] <= 50 else 'MISSED'}), "
+        f"contact <= 2 ms ({'ok' if res['contact_kdtree_torch_ms'] <= 2 else 'MISSED'})"
+    )
     if a.json:
         a.json.parent.mkdir(parents=True, exist_ok=True)
         a.json.write_text(json.dumps(res, indent=2) + "\n")

@@ -17,6 +17,7 @@ CUDA. The compile time (first calls) is reported apart. ``--batches 1 8 32``: tr
 samples per second, for batches of that many copies of the graph (HCMT and MGN; eager, and compiled with
 ``--compile``).
 """
+
 from __future__ import annotations
 
 import argparse
@@ -57,8 +58,7 @@ def _step_fn(model, graph, target, opt, compiled, mask, dynamic: bool = False):
     ``dynamic`` symbolic sizes on the graph as it is, the trainer's CPU path, else static shapes)."""
     net = model
     if compiled:
-        net = compile_simulator(model, "reduce-overhead" if graph.node_features.is_cuda else "default",
-                                dynamic=dynamic)
+        net = compile_simulator(model, "reduce-overhead" if graph.node_features.is_cuda else "default", dynamic=dynamic)
 
     def step():
         model.train()
@@ -99,8 +99,9 @@ def bench_modes(device: torch.device, steps: int, batches: list[int], compile_: 
                     graph = pad_graph(g, PadSizes.of([g]))
                     tgt = pad_rows(target, graph.num_nodes)[0]
                 graph, tgt = graph.to(device), tgt.to(device)
-                mask = (graph.node_mask if graph.node_mask is not None
-                        else torch.ones(graph.num_nodes, device=device))[:, None]  # the loss over real rows only
+                mask = (graph.node_mask if graph.node_mask is not None else torch.ones(graph.num_nodes, device=device))[
+                    :, None
+                ]  # the loss over real rows only
                 step, infer = _step_fn(model, graph, tgt, opt, mode == "compiled", mask)
                 row = {"model": name, "mode": mode, "batch": batch, "nodes": g.num_nodes}
                 for kind, fn in (("train", step), ("inference", infer)):
@@ -122,12 +123,20 @@ def bench_modes(device: torch.device, steps: int, batches: list[int], compile_: 
                     row[f"{kind}_ms"] = statistics.median(times)
                 row["samples_per_s"] = 1000 * batch / row["train_ms"]
                 rows.append(row)
-                print(f"{name:5} {mode:8} batch {batch:3}: train {row['train_ms']:9.1f} ms "
-                      f"({row['samples_per_s']:7.2f} samples/s)"
-                      + (f", inference {row['inference_ms']:8.1f} ms" if "inference_ms" in row else "")
-                      + f", warm-up {row['train_warmup_s']:.1f} s", flush=True)
-    return {"device": str(device) if device.type == "cpu" else torch.cuda.get_device_name(device),
-            "threads": torch.get_num_threads(), "nodes": base.num_nodes, "steps": steps, "rows": rows}
+                print(
+                    f"{name:5} {mode:8} batch {batch:3}: train {row['train_ms']:9.1f} ms "
+                    f"({row['samples_per_s']:7.2f} samples/s)"
+                    + (f", inference {row['inference_ms']:8.1f} ms" if "inference_ms" in row else "")
+                    + f", warm-up {row['train_warmup_s']:.1f} s",
+                    flush=True,
+                )
+    return {
+        "device": str(device) if device.type == "cpu" else torch.cuda.get_device_name(device),
+        "threads": torch.get_num_threads(),
+        "nodes": base.num_nodes,
+        "steps": steps,
+        "rows": rows,
+    }
 
 
 def bench(device: torch.device, steps: int, warmup: int = 3) -> dict:
@@ -161,7 +170,8 @@ def bench(device: torch.device, steps: int, warmup: int = 3) -> dict:
     result = {
         "device": str(device) if device.type == "cpu" else torch.cuda.get_device_name(device),
         "threads": torch.get_num_threads(),
-        "nodes": graph.num_nodes, "mesh_edges": int(graph.mesh_edges.shape[1]),
+        "nodes": graph.num_nodes,
+        "mesh_edges": int(graph.mesh_edges.shape[1]),
         "contact_edges": int(graph.contact_edges.shape[1]),
         "level_nodes": [len(p) for p in graph.pool],
         "models": {},
@@ -206,8 +216,10 @@ def main(argv=None) -> int:
         torch.manual_seed(0)
         r = bench(device, args.steps)
         results.append(r)
-        print(f"\n{r['device']} ({r['threads']} threads): {r['nodes']} nodes, {r['mesh_edges']} mesh edges, "
-              f"{r['contact_edges']} contact edges, levels {r['level_nodes']}")
+        print(
+            f"\n{r['device']} ({r['threads']} threads): {r['nodes']} nodes, {r['mesh_edges']} mesh edges, "
+            f"{r['contact_edges']} contact edges, levels {r['level_nodes']}"
+        )
         print(f"{'model':6} {'parameters':>11} {'train ms':>9} {'infer ms':>9}")
         for name, m in r["models"].items():
             print(f"{name:6} {m['parameters']:>11,} {m['train_ms']:>9.1f} {m['inference_ms']:>9.1f}")

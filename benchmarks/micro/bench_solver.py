@@ -8,6 +8,7 @@ nodes, substeps, wall and CPU time, microseconds per substep; then the mean. On 
 the better figure (wall time includes waiting for the core). Target: <= 5 s per paper-preset
 trajectory (52 frames x 0.002 ms).
 """
+
 from __future__ import annotations
 
 import argparse
@@ -35,12 +36,17 @@ def main() -> None:
         info = simulate(design, Settings()).info
         times.append(info.wall_time)
         cpu.append(info.cpu_time)
-        print(f"{args.preset} #{i}: {info.num_nodes} nodes, {info.num_cells} cells, {info.substeps} substeps, "
-              f"{info.wall_time:.2f} s wall, {info.cpu_time:.2f} s CPU "
-              f"({1e6 * info.wall_time / info.substeps:.0f} us/substep)", flush=True)
-    print(f"mean {np.mean(times):.2f} s wall ({np.mean(cpu):.2f} s CPU) per {args.preset} trajectory "
-          f"(wall min {np.min(times):.2f}, max {np.max(times):.2f}; "
-          f"{os.cpu_count()} cpus on the machine, load average {os.getloadavg()[0]:.1f})")
+        print(
+            f"{args.preset} #{i}: {info.num_nodes} nodes, {info.num_cells} cells, {info.substeps} substeps, "
+            f"{info.wall_time:.2f} s wall, {info.cpu_time:.2f} s CPU "
+            f"({1e6 * info.wall_time / info.substeps:.0f} us/substep)",
+            flush=True,
+        )
+    print(
+        f"mean {np.mean(times):.2f} s wall ({np.mean(cpu):.2f} s CPU) per {args.preset} trajectory "
+        f"(wall min {np.min(times):.2f}, max {np.max(times):.2f}; "
+        f"{os.cpu_count()} cpus on the machine, load average {os.getloadavg()[0]:.1f})"
+    )
 
 
 if __name__ == "__main__":

@@ -13,6 +13,7 @@ old batch of 8 and eager model; the new one's ``DESIGN_BATCH`` and ``compile="au
 call's wall time over the designs, compilation included, and ``steady_s`` the median per design after the first chunk
 (compilation excluded). The solver's time per design is each simulation's wall time.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -77,10 +78,15 @@ def one_side(tree: Path, side: str, model: str, designs: list[dict], threads: in
     per = r["per_design"]
     chunk = next((i for i, x in enumerate(per) if x != per[0]), len(per))  # the first chunk's designs
     steady = per[chunk:] if side != "solver" else per
-    return {"side": side, **{k: r[k] for k in ("batch", "compile") if k in r},
-            "per_design_s": r["wall_s"] / len(per), "median_s": statistics.median(per),
-            "steady_s": statistics.median(steady) if steady else None, "wall_s": r["wall_s"],
-            "load_1min": os.getloadavg()[0]}
+    return {
+        "side": side,
+        **{k: r[k] for k in ("batch", "compile") if k in r},
+        "per_design_s": r["wall_s"] / len(per),
+        "median_s": statistics.median(per),
+        "steady_s": statistics.median(steady) if steady else None,
+        "wall_s": r["wall_s"],
+        "load_1min": os.getloadavg()[0],
+    }
 
 
 def main() -> None:
@@ -92,8 +98,9 @@ def main() -> None:
     p.add_argument("--rounds", type=int, default=2)
     p.add_argument("--threads", type=int, default=1)
     p.add_argument("--seed", type=int, default=123)
-    p.add_argument("--json", type=Path, default=Path(__file__).resolve().parent.parent / "results" /
-                   "design_ab_cpu.json")
+    p.add_argument(
+        "--json", type=Path, default=Path(__file__).resolve().parent.parent / "results" / "design_ab_cpu.json"
+    )
     a = p.parse_args()
     sys.path.insert(0, str(a.new.resolve() / "src"))
     import dataclasses
@@ -107,23 +114,32 @@ def main() -> None:
     rng = np.random.default_rng(a.seed)
     designs = [dataclasses.asdict(sample_design(rng, preset)) for _ in range(a.designs)]
     trees = {"old": a.old.resolve(), "new": a.new.resolve(), "solver": a.new.resolve()}
-    commits = {k: subprocess.run(["git", "-C", str(t), "rev-parse", "--short", "HEAD"], capture_output=True,
-                                 text=True).stdout.strip() for k, t in trees.items() if k != "solver"}
+    commits = {
+        k: subprocess.run(
+            ["git", "-C", str(t), "rev-parse", "--short", "HEAD"], capture_output=True, text=True
+        ).stdout.strip()
+        for k, t in trees.items()
+        if k != "solver"
+    }
     rows = []
     for rnd in range(a.rounds):
         order = ("old", "new", "solver") if rnd % 2 == 0 else ("solver", "new", "old")
         for side in order:
             rows.append({"round": rnd, **one_side(trees[side], side, a.model, designs, a.threads)})
             print(json.dumps(rows[-1]), flush=True)
-    med = {side: {k: statistics.median(r[k] for r in rows if r["side"] == side)
-                  for k in ("per_design_s", "steady_s")} for side in trees}
+    med = {
+        side: {k: statistics.median(r[k] for r in rows if r["side"] == side) for k in ("per_design_s", "steady_s")}
+        for side in trees
+    }
     summary = {
-        "old_s_per_design": med["old"]["per_design_s"], "new_s_per_design": med["new"]["per_design_s"],
+        "old_s_per_design": med["old"]["per_design_s"],
+        "new_s_per_design": med["new"]["per_design_s"],
         "solver_s_per_design": med["solver"]["per_design_s"],
         "new_over_old": med["old"]["per_design_s"] / med["new"]["per_design_s"],
         "new_over_solver": med["solver"]["per_design_s"] / med["new"]["per_design_s"],
         "old_over_solver": med["solver"]["per_design_s"] / med["old"]["per_design_s"],
-        "steady_new_s": med["new"]["steady_s"], "steady_old_s": med["old"]["steady_s"],
+        "steady_new_s": med["new"]["steady_s"],
+        "steady_old_s": med["old"]["steady_s"],
         "steady_new_over_old": med["old"]["steady_s"] / med["new"]["steady_s"],
         "steady_new_over_solver": med["solver"]["per_design_s"] / med["new"]["steady_s"],
     }
@@ -131,10 +147,26 @@ def main() -> None:
     a.json.parent.mkdir(parents=True, exist_ok=True)
     sys.path.insert(0, str(Path(__file__).resolve().parent.parent))  # benchmarks/: common
     from common import portable  # noqa: E402  (the work folder as $HCMT_WORK, the checkout as relative)
-    a.json.write_text(json.dumps(portable({"commits": commits, "device": platform.processor() or platform.machine(),
-                                  "threads": a.threads, "designs": a.designs, "rounds": a.rounds, "model": a.model,
-                                  "command": "python benchmarks/micro/design_ab.py " + " ".join(sys.argv[1:]),
-                                  "summary": summary, "rows": rows}), indent=1) + "\n")
+
+    a.json.write_text(
+        json.dumps(
+            portable(
+                {
+                    "commits": commits,
+                    "device": platform.processor() or platform.machine(),
+                    "threads": a.threads,
+                    "designs": a.designs,
+                    "rounds": a.rounds,
+                    "model": a.model,
+                    "command": "python benchmarks/micro/design_ab.py " + " ".join(sys.argv[1:]),
+                    "summary": summary,
+                    "rows": rows,
+                }
+            ),
+            indent=1,
+        )
+        + "\n"
+    )
     print(f"wrote {a.json}")
 
 

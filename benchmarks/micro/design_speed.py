@@ -11,6 +11,7 @@ and the solver alternate per chunk under the same load (one chunk: the batch, th
 ``speedup_measured`` says which); the solver thus runs once per design and configuration. Reports medians and the
 ratio solver ÷ prediction, and names the device.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -38,8 +39,12 @@ def main() -> None:
     p.add_argument("--threads", type=int, default=1)
     p.add_argument("--seed", type=int, default=123)
     p.add_argument("--json", default="design_speed_cpu.json")
-    p.add_argument("--compile", nargs="+", default=["none"], help="inference modes to time (none, default, "
-                   "reduce-overhead): each batch size is timed in each mode")
+    p.add_argument(
+        "--compile",
+        nargs="+",
+        default=["none"],
+        help="inference modes to time (none, default, reduce-overhead): each batch size is timed in each mode",
+    )
     a = p.parse_args()
     torch.set_num_threads(a.threads)
     run = Run.load(a.model, a.device)
@@ -54,23 +59,42 @@ def main() -> None:
         solver += list(mine)
         per = check.wall_s / len(designs)
         key = str(batch) if mode == "none" else f"{batch} compile={mode}"
-        rows[key] = {"wall_s": check.wall_s, "per_design_s": per, "speedup_median_solver": float(np.median(mine) / per),
-                     "peak_stress_error_pct_median": check.verified["peak_plate_stress_error_pct"]["median"],
-                     "solver_s_median": float(np.median(mine)),
-                     "speedup_measured": check.verified["speedup_measured"]}
-        print(f"batch {key}: {per:.3f} s per design ({check.wall_s:.1f} s for {len(designs)}, compilation included); "
-              f"solver median {np.median(mine):.3f} s: speedup {rows[key]['speedup_median_solver']:.2f}x "
-              f"({check.verified['speedup_measured']['how']})", flush=True)
+        rows[key] = {
+            "wall_s": check.wall_s,
+            "per_design_s": per,
+            "speedup_median_solver": float(np.median(mine) / per),
+            "peak_stress_error_pct_median": check.verified["peak_plate_stress_error_pct"]["median"],
+            "solver_s_median": float(np.median(mine)),
+            "speedup_measured": check.verified["speedup_measured"],
+        }
+        print(
+            f"batch {key}: {per:.3f} s per design ({check.wall_s:.1f} s for {len(designs)}, compilation included); "
+            f"solver median {np.median(mine):.3f} s: speedup {rows[key]['speedup_median_solver']:.2f}x "
+            f"({check.verified['speedup_measured']['how']})",
+            flush=True,
+        )
     solver = np.array(solver)
     dev = str(run.device)
-    name = torch.cuda.get_device_name(run.device) if run.device.type == "cuda" else (platform.processor() or
-                                                                                        platform.machine())
-    out = {"model": a.model, "device": f"{dev}: {name}", "threads": a.threads, "designs": a.designs,
-           "solver_s_median": float(np.median(solver)), "solver_s_total": float(solver.sum()),
-           "solver_runs": len(solver), "batches": rows,
-           "wall_total_s": time.perf_counter() - t0,
-           "command": f"python benchmarks/micro/design_speed.py --model {a.model} --designs {a.designs} --batches "
-                      + " ".join(map(str, a.batches)) + f" --threads {a.threads} --compile " + " ".join(a.compile)}
+    name = (
+        torch.cuda.get_device_name(run.device)
+        if run.device.type == "cuda"
+        else (platform.processor() or platform.machine())
+    )
+    out = {
+        "model": a.model,
+        "device": f"{dev}: {name}",
+        "threads": a.threads,
+        "designs": a.designs,
+        "solver_s_median": float(np.median(solver)),
+        "solver_s_total": float(solver.sum()),
+        "solver_runs": len(solver),
+        "batches": rows,
+        "wall_total_s": time.perf_counter() - t0,
+        "command": f"python benchmarks/micro/design_speed.py --model {a.model} --designs {a.designs} --batches "
+        + " ".join(map(str, a.batches))
+        + f" --threads {a.threads} --compile "
+        + " ".join(a.compile),
+    }
     print(f"wrote {write_json(a.json, out)}")
 
 

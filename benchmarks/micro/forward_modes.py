@@ -13,6 +13,7 @@ rollouts use); ``frozen`` (Inductor's ``freezing``: weights as constants, prepac
 sizes and AOTInductor, :mod:`hcmt.models.export`: built once per machine, then loaded). Compilation times are reported
 separately.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -70,6 +71,7 @@ def forward_of(model, mode: str, graph):
     def fn(graph):
         with torch.autocast("cpu", dtype=torch.bfloat16, enabled=bf16):
             return net(graph, accumulate=False).float()
+
     return fn, mode not in ("eager", "bf16", "compiled-dynamic")
 
 
@@ -101,15 +103,29 @@ def main() -> None:
             out = fn(x)[: graph.num_nodes]
         first = time.perf_counter() - t0
         ms = timed(fn, x, a.repeats)
-        rows[mode] = {"ms": ms, "first_call_s": first, "gflop_per_s": flops / ms / 1e6,
-                      "rel_diff": float((out - ref).norm() / ref.norm())}
-        print(f"{mode:17s} {ms:7.2f} ms  {flops / ms / 1e6:5.1f} GFLOP/s  first call {first:6.1f} s  "
-              f"rel diff {rows[mode]['rel_diff']:.1e}", flush=True)
-    out = {"model": a.model, "device": f"cpu: {platform.processor() or platform.machine()}", "threads": a.threads,
-           "nodes": graph.num_nodes, "mesh_edges": int(graph.mesh_edges.shape[1]),
-           "contact_edges": int(graph.contact_edges.shape[1]), "padded_nodes": padded.num_nodes,
-           "gflop_per_forward": flops / 1e9, "modes": rows,
-           "command": "python benchmarks/micro/forward_modes.py " + " ".join(sys.argv[1:])}
+        rows[mode] = {
+            "ms": ms,
+            "first_call_s": first,
+            "gflop_per_s": flops / ms / 1e6,
+            "rel_diff": float((out - ref).norm() / ref.norm()),
+        }
+        print(
+            f"{mode:17s} {ms:7.2f} ms  {flops / ms / 1e6:5.1f} GFLOP/s  first call {first:6.1f} s  "
+            f"rel diff {rows[mode]['rel_diff']:.1e}",
+            flush=True,
+        )
+    out = {
+        "model": a.model,
+        "device": f"cpu: {platform.processor() or platform.machine()}",
+        "threads": a.threads,
+        "nodes": graph.num_nodes,
+        "mesh_edges": int(graph.mesh_edges.shape[1]),
+        "contact_edges": int(graph.contact_edges.shape[1]),
+        "padded_nodes": padded.num_nodes,
+        "gflop_per_forward": flops / 1e9,
+        "modes": rows,
+        "command": "python benchmarks/micro/forward_modes.py " + " ".join(sys.argv[1:]),
+    }
     print(f"wrote {write_json(a.json, out)}")
 
 

@@ -18,6 +18,7 @@ batch size, new ÷ old, the largest batch ÷ the smallest per path, and the larg
 positions and stress. ``--steps N`` rolls out N model steps per design
 (0: the whole recorded window).
 """
+
 from __future__ import annotations
 
 import argparse
@@ -75,22 +76,31 @@ def old_rollout_batch(model, adapter, trajs, radius: float, steps: int | None = 
             x, prev = inputs[b]
             nxt, s = integrate(adapter, o, x, prev, tr.world_pos[t + 1], tr.static["node_type"])
             if not torch.isfinite(nxt).all() or (s is not None and not torch.isfinite(s).all()):
-                raise RolloutError(f"trajectory {tr.name}: the predicted state became non-finite at step {t + 1} "
-                                   f"(frame {t + 1} of {T}); the model diverged")
+                raise RolloutError(
+                    f"trajectory {tr.name}: the predicted state became non-finite at step {t + 1} "
+                    f"(frame {t + 1} of {T}); the model diverged"
+                )
             pos[b].append(nxt)
             if stress[b] is not None:
                 stress[b].append(s if s is not None else tr.stress[t + 1])
         elapsed += time.perf_counter() - start
     per_step = 1e3 * elapsed / max(T - 1 - h, 1) / len(trajs)
-    return [{"world_pos": torch.stack(p), "stress": torch.stack(s) if s is not None else None,
-             "ms_per_step": per_step, "start": h + 1} for p, s in zip(pos, stress)]
+    return [
+        {
+            "world_pos": torch.stack(p),
+            "stress": torch.stack(s) if s is not None else None,
+            "ms_per_step": per_step,
+            "start": h + 1,
+        }
+        for p, s in zip(pos, stress)
+    ]
 
 
 def one_pass(fn, run, trajs: list, batch: int, steps: int | None) -> tuple[float, float, list[dict]]:
     """Wall and CPU seconds per design of rolling ``trajs`` out ``batch`` at a time with ``fn``, and the results."""
     t0, c0, results = time.perf_counter(), time.process_time(), []
     for first in range(0, len(trajs), batch):
-        results += fn(run.model, run.adapter, trajs[first:first + batch], run.radius, steps)
+        results += fn(run.model, run.adapter, trajs[first : first + batch], run.radius, steps)
     return (time.perf_counter() - t0) / len(trajs), (time.process_time() - c0) / len(trajs), results
 
 
@@ -98,9 +108,12 @@ def largest_difference(a: list[dict], b: list[dict]) -> dict:
     """The largest absolute difference of positions (mm) and stress (MPa) between two passes, and the scales."""
     pos = max(float((x["world_pos"] - y["world_pos"]).abs().max()) for x, y in zip(a, b))
     stress = max(float((x["stress"] - y["stress"]).abs().max()) for x, y in zip(a, b))
-    return {"world_pos_abs": pos, "stress_abs": stress,
-            "world_pos_scale": max(float(x["world_pos"].abs().max()) for x in a),
-            "stress_scale": max(float(x["stress"].abs().max()) for x in a)}
+    return {
+        "world_pos_abs": pos,
+        "stress_abs": stress,
+        "world_pos_scale": max(float(x["world_pos"].abs().max()) for x in a),
+        "stress_scale": max(float(x["stress"].abs().max()) for x in a),
+    }
 
 
 def measure(run, trajs: list, batches: list[int], repeats: int, steps: int | None) -> tuple[dict, dict]:
@@ -128,13 +141,21 @@ def summary(times: dict, batches: list[int]) -> dict:
     rows = {}
     for b in batches:
         med = {k: statistics.median(v) for k, v in times[b].items()}
-        rows[str(b)] = {"old_s_per_design": med["old"], "new_s_per_design": med["new"],
-                        "new_over_old": med["new"] / med["old"], "old_cpu_s_per_design": med["old_cpu"],
-                        "new_cpu_s_per_design": med["new_cpu"], "new_over_old_cpu": med["new_cpu"] / med["old_cpu"],
-                        **{f"{k}_runs_s": v for k, v in times[b].items()}}
+        rows[str(b)] = {
+            "old_s_per_design": med["old"],
+            "new_s_per_design": med["new"],
+            "new_over_old": med["new"] / med["old"],
+            "old_cpu_s_per_design": med["old_cpu"],
+            "new_cpu_s_per_design": med["new_cpu"],
+            "new_over_old_cpu": med["new_cpu"] / med["old_cpu"],
+            **{f"{k}_runs_s": v for k, v in times[b].items()},
+        }
     lo, hi = str(min(batches)), str(max(batches))
-    scaling = {f"{p}{c}": rows[hi][f"{p}{c}_s_per_design"] / rows[lo][f"{p}{c}_s_per_design"]
-               for p in ("old", "new") for c in ("", "_cpu")}
+    scaling = {
+        f"{p}{c}": rows[hi][f"{p}{c}_s_per_design"] / rows[lo][f"{p}{c}_s_per_design"]
+        for p in ("old", "new")
+        for c in ("", "_cpu")
+    }
     return {"batches": rows, f"batch_{hi}_over_batch_{lo}": scaling}
 
 
@@ -152,22 +173,35 @@ def main() -> None:
     torch.set_num_threads(a.threads)
     run = Run.load(a.model, "cpu")
     settings, rng = settings_of(run.meta), np.random.default_rng(a.seed)
-    trajs = [design_trajectory(run, f"d{i}", sample_design(rng, run.meta["generator"]["preset"]), settings)[0]
-             for i in range(a.designs)]
+    trajs = [
+        design_trajectory(run, f"d{i}", sample_design(rng, run.meta["generator"]["preset"]), settings)[0]
+        for i in range(a.designs)
+    ]
     steps = a.steps or None
     load = os.getloadavg()[0]
     times, diff = measure(run, trajs, a.batches, a.repeats, steps)
-    out = {"model": a.model, "device": f"cpu: {core_peak()['cpu']} ({platform.machine()})", "threads": a.threads,
-           "cpus": os.cpu_count(), "load_average_before": load, "load_average_after": os.getloadavg()[0],
-           "torch": torch.__version__, "designs": a.designs, "repeats": a.repeats,
-           "model_steps_per_design": (steps or settings.frames - 1 - run.adapter.history),
-           "nodes_per_design": [tr.num_nodes for tr in trajs], **summary(times, a.batches),
-           "largest_difference_new_old": diff,
-           "command": "python benchmarks/micro/rollout_engine.py " + " ".join(sys.argv[1:])}
+    out = {
+        "model": a.model,
+        "device": f"cpu: {core_peak()['cpu']} ({platform.machine()})",
+        "threads": a.threads,
+        "cpus": os.cpu_count(),
+        "load_average_before": load,
+        "load_average_after": os.getloadavg()[0],
+        "torch": torch.__version__,
+        "designs": a.designs,
+        "repeats": a.repeats,
+        "model_steps_per_design": (steps or settings.frames - 1 - run.adapter.history),
+        "nodes_per_design": [tr.num_nodes for tr in trajs],
+        **summary(times, a.batches),
+        "largest_difference_new_old": diff,
+        "command": "python benchmarks/micro/rollout_engine.py " + " ".join(sys.argv[1:]),
+    }
     for b, row in out["batches"].items():
-        print(f"batch {b}: old {row['old_s_per_design']:.3f} s, new {row['new_s_per_design']:.3f} s per design "
-              f"(new/old {row['new_over_old']:.3f}); CPU old {row['old_cpu_s_per_design']:.3f} s, new "
-              f"{row['new_cpu_s_per_design']:.3f} s (new/old {row['new_over_old_cpu']:.3f})")
+        print(
+            f"batch {b}: old {row['old_s_per_design']:.3f} s, new {row['new_s_per_design']:.3f} s per design "
+            f"(new/old {row['new_over_old']:.3f}); CPU old {row['old_cpu_s_per_design']:.3f} s, new "
+            f"{row['new_cpu_s_per_design']:.3f} s (new/old {row['new_over_old_cpu']:.3f})"
+        )
     print(f"largest batch / smallest, per design: {out[next(k for k in out if k.startswith('batch_'))]}")
     print(f"largest difference new - old: {diff}")
     print(f"wrote {write_json(a.json, out)}")

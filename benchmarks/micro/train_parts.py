@@ -15,6 +15,7 @@ it) say how much of the step is already at the hardware's limit; the plain step 
 both (Python, the compiled wrapper, autograd, Adam, the batch). With ``--rounds R`` every row runs R times, each in
 a fresh process, the rows interleaved, and each number is the median over its rounds.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -32,13 +33,19 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from train_speed import RECIPES  # noqa: E402
 
 MATMUL = ("aten::mm", "aten::addmm", "aten::bmm")
-TRAIN_SETS = ("train.valid_every=0", "train.normalizer_steps=10", "train.checkpoint_every=100000",
-              "train.log_every=10", "train.compile=default")
+TRAIN_SETS = (
+    "train.valid_every=0",
+    "train.normalizer_steps=10",
+    "train.checkpoint_every=100000",
+    "train.log_every=10",
+    "train.compile=default",
+)
 
 
 def trainer(data: Path, recipe: str, steps: int, out: Path):
     from hcmt.config import load_config
     from hcmt.training.trainer import Trainer
+
     cfg = load_config("impact_plate_cpu", [*RECIPES[recipe], *TRAIN_SETS, f"train.steps={steps}"])
     return Trainer(cfg, data, "hcmt", out, seed=0, resume=False, device="cpu", progress=False)
 
@@ -82,6 +89,7 @@ def profiled_steps(tr, loader, steps: int) -> dict:
     the self time of Inductor's kernels, and the profiled step's total."""
     import torch._inductor.config as inductor
     from torch.profiler import ProfilerActivity, profile
+
     assert inductor.cpp.enable_kernel_profile  # set before compiling (main): the kernels appear as events
     with profile(activities=[ProfilerActivity.CPU], with_flops=True) as prof:
         for _ in range(steps):
@@ -91,16 +99,21 @@ def profiled_steps(tr, loader, steps: int) -> dict:
     kernels = [e for e in events if "cpp_fused" in e.key]
     mm_us = sum(e.self_cpu_time_total for e in mm)
     flops = sum(e.flops for e in mm)
-    return {"profiled_step_ms": sum(e.self_cpu_time_total for e in events) / 1e3 / steps,
-            "matmul_ms": mm_us / 1e3 / steps, "matmul_calls": sum(e.count for e in mm) / steps,
-            "matmul_gflop": flops / 1e9 / steps, "matmul_gflops": flops / 1e3 / mm_us if mm_us else None,
-            "inductor_kernels_ms": sum(e.self_cpu_time_total for e in kernels) / 1e3 / steps,
-            "inductor_kernel_calls": sum(e.count for e in kernels) / steps}
+    return {
+        "profiled_step_ms": sum(e.self_cpu_time_total for e in events) / 1e3 / steps,
+        "matmul_ms": mm_us / 1e3 / steps,
+        "matmul_calls": sum(e.count for e in mm) / steps,
+        "matmul_gflop": flops / 1e9 / steps,
+        "matmul_gflops": flops / 1e3 / mm_us if mm_us else None,
+        "inductor_kernels_ms": sum(e.self_cpu_time_total for e in kernels) / 1e3 / steps,
+        "inductor_kernel_calls": sum(e.count for e in kernels) / steps,
+    }
 
 
 def one(data: Path, recipe: str, threads: int, steps: int, warm: int) -> dict:
     import torch
     import torch._inductor.config as inductor
+
     inductor.cpp.enable_kernel_profile = True
     torch.set_num_threads(threads)
     with tempfile.TemporaryDirectory(prefix="train_parts_") as tmp:
@@ -110,8 +123,11 @@ def one(data: Path, recipe: str, threads: int, steps: int, warm: int) -> dict:
         t0 = time.perf_counter()
         for _ in range(warm):
             tr.step(*next(loader))
-        row = {"warm_s": time.perf_counter() - t0, **timed_steps(tr, loader, steps),
-               **profiled_steps(tr, loader, steps)}
+        row = {
+            "warm_s": time.perf_counter() - t0,
+            **timed_steps(tr, loader, steps),
+            **profiled_steps(tr, loader, steps),
+        }
     return {"recipe": recipe, "threads": threads, "steps": steps, "warm": warm, **row}
 
 
@@ -139,24 +155,50 @@ def main() -> None:
     from common import write_json  # benchmarks/common.py (the parent folder)
     from hcmt.models.export import cpu_name
     from machine import core_peak
+
     runs: dict = {}
     for _ in range(a.rounds):  # rounds interleaved: a load change on the shared machine falls on every row alike
         for threads in a.threads:
             for recipe in a.recipes:
                 env = dict(os.environ, OMP_NUM_THREADS=str(threads))
-                out = subprocess.run([sys.executable, __file__, "--data", str(a.data), "--steps", str(a.steps),
-                                      "--warm", str(a.warm), "--one", recipe, str(threads)], env=env, check=True,
-                                     capture_output=True, text=True).stdout
+                out = subprocess.run(
+                    [
+                        sys.executable,
+                        __file__,
+                        "--data",
+                        str(a.data),
+                        "--steps",
+                        str(a.steps),
+                        "--warm",
+                        str(a.warm),
+                        "--one",
+                        recipe,
+                        str(threads),
+                    ],
+                    env=env,
+                    check=True,
+                    capture_output=True,
+                    text=True,
+                ).stdout
                 got = {**json.loads(out.strip().splitlines()[-1]), "load_1min": os.getloadavg()[0]}
                 runs.setdefault((threads, recipe), []).append(got)
                 print(json.dumps(got), flush=True)
     rows = [median_row(r) for r in runs.values()]
-    commit = subprocess.run(["git", "-C", str(Path(__file__).parent), "rev-parse", "--short", "HEAD"],
-                            capture_output=True, text=True).stdout.strip()
-    path = write_json(a.json, {"command": "python benchmarks/micro/train_parts.py " + " ".join(sys.argv[1:]),
-                               "commit": commit, "cpu": cpu_name(),
-                               "device": platform.processor() or platform.machine(), "core_peak": core_peak(),
-                               "data": str(a.data), "rows": rows})
+    commit = subprocess.run(
+        ["git", "-C", str(Path(__file__).parent), "rev-parse", "--short", "HEAD"], capture_output=True, text=True
+    ).stdout.strip()
+    path = write_json(
+        a.json,
+        {
+            "command": "python benchmarks/micro/train_parts.py " + " ".join(sys.argv[1:]),
+            "commit": commit,
+            "cpu": cpu_name(),
+            "device": platform.processor() or platform.machine(),
+            "core_peak": core_peak(),
+            "data": str(a.data),
+            "rows": rows,
+        },
+    )
     print(f"wrote {path}")
 
 

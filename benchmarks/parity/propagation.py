@@ -19,6 +19,7 @@ through the hierarchy, each HMT block's median span in level-0 hops (a level-``l
 ``span_l`` plate hops apart; the U has one block per level on the way down and up and one at the bottom).
 Writes benchmarks/results/propagation.json.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -61,11 +62,13 @@ def trajectory_numbers(tr: dict, attrs: dict, frame_dt: float) -> dict:
     lengths = np.linalg.norm(pos0[e[0]] - pos0[e[1]], axis=1)
     E, nu, rho = attrs["plate_modulus"], attrs["plate_poisson"], attrs["plate_density"]
     c = np.sqrt(E * (1 - nu) / (rho * (1 + nu) * (1 - 2 * nu)))  # MPa / (g/mm^3) -> mm^2/ms^2
-    return {"impact_to_clamp_hops": clamp,
-            "front_hops_per_frame": float(np.median(growing)) if len(growing) else 0.0,
-            "frames_to_reach_clamp": int(np.argmax(front >= clamp)) if (front >= clamp).any() else None,
-            "p_wave_hops_per_frame": float(c * frame_dt / np.median(lengths)),
-            "median_edge_mm": float(np.median(lengths))}
+    return {
+        "impact_to_clamp_hops": clamp,
+        "front_hops_per_frame": float(np.median(growing)) if len(growing) else 0.0,
+        "frames_to_reach_clamp": int(np.argmax(front >= clamp)) if (front >= clamp).any() else None,
+        "p_wave_hops_per_frame": float(c * frame_dt / np.median(lengths)),
+        "median_edge_mm": float(np.median(lengths)),
+    }
 
 
 def hcmt_reach(tr: dict, levels: int, L_C: int) -> dict:
@@ -104,13 +107,20 @@ def main() -> None:
             rows = [trajectory_numbers(s[i], s.attrs(i), frame_dt) for i in range(min(a.limit, len(s)))]
             reach = hcmt_reach(s[0], levels, a.L_C)
         summary = {k: float(np.median([r[k] for r in rows if r[k] is not None])) for k in rows[0]}
-        out[preset] = {"data": path, "trajectories": len(rows), "per_trajectory": rows, "median": summary,
-                       "models": {"mgn_gt_hops_per_step": blocks, "hcmt": {"levels": levels, "L_C": a.L_C, **reach}}}
+        out[preset] = {
+            "data": path,
+            "trajectories": len(rows),
+            "per_trajectory": rows,
+            "median": summary,
+            "models": {"mgn_gt_hops_per_step": blocks, "hcmt": {"levels": levels, "L_C": a.L_C, **reach}},
+        }
         m = summary
-        print(f"{preset}: impact->clamp {m['impact_to_clamp_hops']:.0f} hops; stress front "
-              f"{m['front_hops_per_frame']:.1f} hops/frame (P wave {m['p_wave_hops_per_frame']:.1f}); "
-              f"MGN/GT {blocks} hops/step; HCMT {reach['hops_per_step']:.0f} hops/step "
-              f"(level spans {', '.join(f'{x:.0f}' for x in reach['span_per_level'])})")
+        print(
+            f"{preset}: impact->clamp {m['impact_to_clamp_hops']:.0f} hops; stress front "
+            f"{m['front_hops_per_frame']:.1f} hops/frame (P wave {m['p_wave_hops_per_frame']:.1f}); "
+            f"MGN/GT {blocks} hops/step; HCMT {reach['hops_per_step']:.0f} hops/step "
+            f"(level spans {', '.join(f'{x:.0f}' for x in reach['span_per_level'])})"
+        )
     print(f"wrote {write_json('propagation.json', out)}")
 
 

@@ -8,6 +8,7 @@ position RMSE-all (the test split is never looked at to choose). Phase 2: the re
 Writes benchmarks/results/noise_sweep.json and benchmarks/results/parity_paper.json (mean ± std over seeds,
 HCMT ÷ MGN, per-group and per-step errors on the test split).
 """
+
 from __future__ import annotations
 
 import argparse
@@ -48,9 +49,17 @@ def one(work, data, label, seed, sigma, steps, splits):
     name = run_name(label, seed, sigma, steps)
     if TABLE_ONLY and not all((work / "runs" / name / f"metrics_{s}.json").is_file() for s in splits):
         return name, None
-    res = run_and_evaluate(work, data, name, model, seed,
-                           [f"train.steps={steps}", f"train.noise_std={sigma}", *overrides],
-                           splits=splits, config=CONFIG, details=True)
+    res = run_and_evaluate(
+        work,
+        data,
+        name,
+        model,
+        seed,
+        [f"train.steps={steps}", f"train.noise_std={sigma}", *overrides],
+        splits=splits,
+        config=CONFIG,
+        details=True,
+    )
     return name, res
 
 
@@ -77,11 +86,17 @@ def main() -> None:
         for sigma in a.sigmas:
             run = a.work / "runs" / run_name(label, a.seeds[0], sigma, a.steps)
             if (run / "metrics_valid.json").is_file():
-                m = {s: json.loads((run / f"metrics_{s}.json").read_text()) for s in ("valid", "test")
-                     if (run / f"metrics_{s}.json").is_file()}
+                m = {
+                    s: json.loads((run / f"metrics_{s}.json").read_text())
+                    for s in ("valid", "test")
+                    if (run / f"metrics_{s}.json").is_file()
+                }
                 sweep.setdefault(label, {})[str(sigma)] = {
-                    "run": run.name, "seed": a.seeds[0], "steps": a.steps,
-                    **{s: {q: m[s][q] for q in ("position", "stress")} for s in m}}
+                    "run": run.name,
+                    "seed": a.seeds[0],
+                    "steps": a.steps,
+                    **{s: {q: m[s][q] for q in ("position", "stress")} for s in m},
+                }
     write_json("noise_sweep.json", sweep)
     if a.phase == "sweep":
         return
@@ -106,8 +121,10 @@ def main() -> None:
         row = summarize_runs([r for _, _, r in runs])
         row.update(noise_std=chosen[label], seeds=[s for s, _, _ in runs], runs=[n for _, n, _ in runs])
         details = [json.loads((a.work / "runs" / n / "details_test.json").read_text()) for _, n, _ in runs]
-        row["groups"] = {g: {q: mean_std(d["groups"][g][q] for d in details) for q in details[0]["groups"][g]}
-                         for g in details[0]["groups"]}
+        row["groups"] = {
+            g: {q: mean_std(d["groups"][g][q] for d in details) for q in details[0]["groups"][g]}
+            for g in details[0]["groups"]
+        }
         row["position_error_by_step"] = np.mean([d["position_by_step"] for d in details], 0).tolist()
         row["stress_error_by_step"] = np.mean([d["stress_by_step"] for d in details], 0).tolist()
         table["models"][label] = row

@@ -3,6 +3,7 @@
 A worker builds its model, warms it up, prints ``@@ {"ready": info}`` and then answers each stdin line
 ``train N`` / ``infer N`` with ``@@ {"ms": [...]}`` (the N steps' wall times), ``quit`` ends it. Only lines that
 start with ``@@`` belong to the protocol, so a library's own prints on stdout do no harm."""
+
 from __future__ import annotations
 
 import json
@@ -15,8 +16,13 @@ TAG = "@@ "
 
 def one_thread() -> None:
     """One thread for every math library the worker may load (set before they are imported)."""
-    for var in ("OMP_NUM_THREADS", "MKL_NUM_THREADS", "OPENBLAS_NUM_THREADS", "TF_NUM_INTRAOP_THREADS",
-                "TF_NUM_INTEROP_THREADS"):
+    for var in (
+        "OMP_NUM_THREADS",
+        "MKL_NUM_THREADS",
+        "OPENBLAS_NUM_THREADS",
+        "TF_NUM_INTRAOP_THREADS",
+        "TF_NUM_INTEROP_THREADS",
+    ):
         os.environ[var] = "1"
 
 

@@ -2,6 +2,7 @@
 (``benchmarks/peers/run.py``). The verdict per ratio is the target, hcmt ≤ 0.8× the peer, read off the
 median of the per-round ratios; the range of the rounds is printed next to it. ``python benchmarks/peers/report.py``
 prints the section alone."""
+
 from __future__ import annotations
 
 import json
@@ -28,35 +29,52 @@ def _rate(row: dict, kind: str) -> str:
 def _rounds(result: dict) -> str:
     """How each model family was timed (a run per family when ``--only`` split them) and the load it met."""
     parts = result.get("parts") or {"all": result}
-    return "; ".join(f"{'' if f == 'all' else f.upper() + ': '}{p['rounds']} interleaved rounds of "
-                     f"{p['steps_per_round']} calls each, load average {p['load_average'][0]:.1f} on the 2 cores "
-                     f"at the end" for f, p in parts.items())
+    return "; ".join(
+        f"{'' if f == 'all' else f.upper() + ': '}{p['rounds']} interleaved rounds of "
+        f"{p['steps_per_round']} calls each, load average {p['load_average'][0]:.1f} on the 2 cores "
+        f"at the end"
+        for f, p in parts.items()
+    )
 
 
 def peers(lines: list[str], result: dict | None) -> None:
     if not result:
         return
     g, peak = result["graph"], result["peak"]
-    lines += [HEADING, "", (
-        f"`{COMMAND}` (README: benchmarks/peers/README.md). One graph for all: the paper-size Impact Plate frame, "
-        f"{g['nodes']:,} nodes, {g['mesh_edges']:,} mesh and {g['contact_edges']:,} contact edges, hierarchy levels "
-        f"{', '.join(map(str, g['level_nodes']))} nodes. Each contestant in its own process and venv, one thread; "
-        f"{_rounds(result)}; times are the median of the round medians, in brackets the range of the round "
-        f"medians. GFLOP/s from matmul FLOPs counted by "
-        f"`torch.utils.flop_counter` (the authors' TF HCMT is credited with hcmt's official-HCMT count); share of "
-        f"the core's peak {peak['gflops']:.0f} GFLOP/s = {peak['derivation']}."), "",
+    lines += [
+        HEADING,
+        "",
+        (
+            f"`{COMMAND}` (README: benchmarks/peers/README.md). One graph for all: the paper-size Impact Plate frame, "
+            f"{g['nodes']:,} nodes, {g['mesh_edges']:,} mesh and {g['contact_edges']:,} contact edges, hierarchy "
+            f"levels {', '.join(map(str, g['level_nodes']))} nodes. Each contestant in its own process and venv, "
+            f"one thread; {_rounds(result)}; times are the median of the round medians, in brackets the range of "
+            f"the round medians. GFLOP/s from matmul FLOPs counted by "
+            f"`torch.utils.flop_counter` (the authors' TF HCMT is credited with hcmt's official-HCMT count); share of "
+            f"the core's peak {peak['gflops']:.0f} GFLOP/s = {peak['derivation']}."
+        ),
+        "",
         "| contestant | framework | train step ms | inference ms | train GFLOP/s (% peak) | "
-        "inference GFLOP/s (% peak) |", "|---|---|---|---|---|---|"]
+        "inference GFLOP/s (% peak) |",
+        "|---|---|---|---|---|---|",
+    ]
     for row in result["rows"]:
-        fw = row["framework"] + ("; torch_scatter stood in by torch_geometric.utils.scatter"
-                                 if row.get("scatter", "").startswith("stand-in") else "")
-        lines.append(f"| {row['contestant']} | {fw} | {_ms(row, 'train')} | {_ms(row, 'infer')} | "
-                     f"{_rate(row, 'train')} | {_rate(row, 'infer')} |")
+        fw = row["framework"] + (
+            "; torch_scatter stood in by torch_geometric.utils.scatter"
+            if row.get("scatter", "").startswith("stand-in")
+            else ""
+        )
+        lines.append(
+            f"| {row['contestant']} | {fw} | {_ms(row, 'train')} | {_ms(row, 'infer')} | "
+            f"{_rate(row, 'train')} | {_rate(row, 'infer')} |"
+        )
     lines += ["", f"| hcmt | ÷ peer | what | ratio (rounds' range) | target ≤ {TARGET} |", "|---|---|---|---|---|"]
     for r in result["ratios"]:
         ok = "met" if r["ratio"] <= TARGET else "not met"
-        lines.append(f"| {r['hcmt']} | {r['peer']} | {dict(KINDS)[r['kind']]} | {r['ratio']:.2f} "
-                     f"({r['min']:.2f}-{r['max']:.2f}) | {ok} |")
+        lines.append(
+            f"| {r['hcmt']} | {r['peer']} | {dict(KINDS)[r['kind']]} | {r['ratio']:.2f} "
+            f"({r['min']:.2f}-{r['max']:.2f}) | {ok} |"
+        )
     for fam, what in (("mgn", "MGN against PhysicsNeMo"), ("hcmt", "HCMT (official) against the authors' TF")):
         if not any(r["model"] == fam for r in result["rows"]):
             lines += ["", f"Not measured yet: {what} (`run.py --only {fam}`)."]

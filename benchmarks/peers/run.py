@@ -15,6 +15,7 @@ contestant: the median over rounds of each round's median, and the range of the 
 hcmt ÷ peer are taken within a round (paired) and their median and range reported. GFLOP/s = the FLOPs of a step
 (``torch.utils.flop_counter``, matmuls only: see :func:`flops`) ÷ its median time; the core's peak is
 :func:`machine.core_peak`."""
+
 from __future__ import annotations
 
 import argparse
@@ -53,8 +54,9 @@ class Worker:
 
     def __init__(self, name: str, argv: list[str], env: dict, log: Path):
         self.name, self.log, self.info = name, log.open("w"), None
-        self.proc = subprocess.Popen(argv, stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=self.log,
-                                     text=True, env=env, cwd=ROOT)
+        self.proc = subprocess.Popen(
+            argv, stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=self.log, text=True, env=env, cwd=ROOT
+        )
 
     def ready(self, deadline: float) -> None:
         """Wait for the set-up to finish; one that is not done by ``deadline`` (perf_counter) is given up."""
@@ -72,7 +74,7 @@ class Worker:
     def _read(self) -> dict:
         for line in self.proc.stdout:
             if line.startswith(TAG):
-                return json.loads(line[len(TAG):])
+                return json.loads(line[len(TAG) :])
             self.log.write(line)
         self.log.flush()
         raise RuntimeError(f"{self.name}: worker ended (exit {self.proc.wait()}); see {self.log.name}")
@@ -96,8 +98,14 @@ def python_of(venv: str | None, peers: Path) -> str:
 
 def start(contestants, graph: Path, peers: Path, authors: Path, logs: Path, ready_s: float) -> tuple[dict, dict]:
     """Every contestant's process, set up side by side (idle ones do not disturb the timing that follows)."""
-    env = dict(os.environ, OMP_NUM_THREADS="1", MKL_NUM_THREADS="1", TF_USE_LEGACY_KERAS="1",
-               TF_CPP_MIN_LOG_LEVEL="2", PYTHONPATH=os.pathsep.join([str(ROOT / "src"), str(HERE)]))
+    env = dict(
+        os.environ,
+        OMP_NUM_THREADS="1",
+        MKL_NUM_THREADS="1",
+        TF_USE_LEGACY_KERAS="1",
+        TF_CPP_MIN_LOG_LEVEL="2",
+        PYTHONPATH=os.pathsep.join([str(ROOT / "src"), str(HERE)]),
+    )
     workers, failed = {}, {}
     for name, _, venv, args in contestants:
         python = python_of(venv, peers)
@@ -123,13 +131,18 @@ def rounds(workers: dict, n_rounds: int, steps: int) -> dict:
     names = list(workers)
     times = {name: {"train": [], "infer": []} for name in names}
     for r in range(n_rounds):
-        order = names[r % len(names):] + names[: r % len(names)]
+        order = names[r % len(names) :] + names[: r % len(names)]
         for name in order:
             for kind in ("train", "infer"):
                 times[name][kind].append(workers[name].ask(f"{kind} {steps}")["ms"])
-        print(f"round {r + 1}: " + ", ".join(f"{n} {statistics.median(times[n]['train'][-1]):.0f}/"
-                                             f"{statistics.median(times[n]['infer'][-1]):.0f} ms" for n in names),
-              flush=True)
+        print(
+            f"round {r + 1}: "
+            + ", ".join(
+                f"{n} {statistics.median(times[n]['train'][-1]):.0f}/{statistics.median(times[n]['infer'][-1]):.0f} ms"
+                for n in names
+            ),
+            flush=True,
+        )
     return times
 
 
@@ -155,11 +168,21 @@ def summarize(contestants, workers, times, peak) -> tuple[list, list]:
         if name == peer or peer not in workers:
             continue
         for kind in ("train", "infer"):
-            per_round = [statistics.median(a) / statistics.median(b)
-                         for a, b in zip(times[name][kind], times[peer][kind])]
-            ratios.append({"hcmt": name, "peer": peer, "model": family[name], "kind": kind,
-                           "ratio": statistics.median(per_round), "min": min(per_round), "max": max(per_round),
-                           "rounds": per_round})
+            per_round = [
+                statistics.median(a) / statistics.median(b) for a, b in zip(times[name][kind], times[peer][kind])
+            ]
+            ratios.append(
+                {
+                    "hcmt": name,
+                    "peer": peer,
+                    "model": family[name],
+                    "kind": kind,
+                    "ratio": statistics.median(per_round),
+                    "min": min(per_round),
+                    "max": max(per_round),
+                    "rounds": per_round,
+                }
+            )
     return rows, ratios
 
 
@@ -168,8 +191,10 @@ def merged(result: dict, path: Path, families: set, names: set) -> dict:
     ``--only mgn`` updates the MGN part; each part's rounds, graph and load are its own, under ``parts``)."""
     old = json.loads(path.read_text()) if path.is_file() else {}
     part = {k: result[k] for k in ("rounds", "steps_per_round", "timed_wall_s", "load_average", "command")}
-    result["parts"] = {**{f: p for f, p in old.get("parts", {}).items() if f not in families},
-                       **{f: part for f in families}}
+    result["parts"] = {
+        **{f: p for f, p in old.get("parts", {}).items() if f not in families},
+        **{f: part for f in families},
+    }
     result["rows"] = [r for r in old.get("rows", []) if r["model"] not in families] + result["rows"]
     result["ratios"] = [r for r in old.get("ratios", []) if r.get("model") not in families] + result["ratios"]
     result["failed"] = {**{k: v for k, v in old.get("failed", {}).items() if k not in names}, **result["failed"]}
@@ -182,11 +207,20 @@ def main(argv=None) -> int:
     p.add_argument("--steps", type=int, default=2, help="timed calls per contestant, kind and round")
     work = Path(os.environ.get("HCMT_WORK") or ROOT / "benchmarks" / "work")
     p.add_argument("--peers", type=Path, default=work / "peers", help="where install.sh put the venvs")
-    p.add_argument("--authors", type=Path, default=work / "peers" / "hcmt-tf",
-                   help="the authors' code (github.com/yuyudeep/hcmt: core_model.py, model.py, ...)")
+    p.add_argument(
+        "--authors",
+        type=Path,
+        default=work / "peers" / "hcmt-tf",
+        help="the authors' code (github.com/yuyudeep/hcmt: core_model.py, model.py, ...)",
+    )
     p.add_argument("--only", nargs="+", choices=("mgn", "hcmt"), default=("mgn", "hcmt"))
-    p.add_argument("--modes", nargs="+", choices=("eager", "compiled"), default=("eager", "compiled"),
-                   help="hcmt's paths to time (compiled: minutes of compiling when the inductor cache is cold)")
+    p.add_argument(
+        "--modes",
+        nargs="+",
+        choices=("eager", "compiled"),
+        default=("eager", "compiled"),
+        help="hcmt's paths to time (compiled: minutes of compiling when the inductor cache is cold)",
+    )
     p.add_argument("--ready-s", type=float, default=1800, help="give up a worker not set up within this many s")
     p.add_argument("--json", type=Path, default=ROOT / "benchmarks" / "results" / "peers_cpu.json")
     a = p.parse_args(argv)
@@ -196,6 +230,7 @@ def main(argv=None) -> int:
         graph, logs = Path(tmp) / "graph.npz", Path(tmp)
         sys.path.insert(0, str(HERE))
         from export_graph import export
+
         shape = export(str(graph))
         print(f"graph: {shape}; core peak {peak['gflops']:.0f} GFLOP/s ({peak['derivation']})", flush=True)
         workers, failed = start(contestants, graph, a.peers, a.authors, logs, a.ready_s)
@@ -211,9 +246,19 @@ def main(argv=None) -> int:
                 if log.is_file():
                     failed[name] += " | log tail: " + " / ".join(log.read_text().strip().splitlines()[-5:])
     rows, ratios = summarize(contestants, workers, times, peak)
-    result = {"graph": shape, "threads": 1, "rounds": a.rounds, "steps_per_round": a.steps, "timed_wall_s": wall,
-              "load_average": list(os.getloadavg()), "peak": peak, "rows": rows, "ratios": ratios,
-              "failed": failed, "command": "PYTHONPATH=src python benchmarks/peers/run.py " + " ".join(argv or [])}
+    result = {
+        "graph": shape,
+        "threads": 1,
+        "rounds": a.rounds,
+        "steps_per_round": a.steps,
+        "timed_wall_s": wall,
+        "load_average": list(os.getloadavg()),
+        "peak": peak,
+        "rows": rows,
+        "ratios": ratios,
+        "failed": failed,
+        "command": "PYTHONPATH=src python benchmarks/peers/run.py " + " ".join(argv or []),
+    }
     for r in ratios:
         print(f"{r['hcmt']} / {r['peer']} {r['kind']}: {r['ratio']:.2f} (rounds {r['min']:.2f}-{r['max']:.2f})")
     for name, err in failed.items():
@@ -222,6 +267,7 @@ def main(argv=None) -> int:
     result = merged(result, a.json, set(a.only), {c[0] for c in contestants})
     sys.path.insert(0, str(Path(__file__).resolve().parent.parent))  # benchmarks/: common
     from common import portable  # noqa: E402  (the work folder as $HCMT_WORK, the checkout as relative)
+
     a.json.write_text(json.dumps(portable(result), indent=2) + "\n")
     print(f"wrote {a.json}")
     return 0

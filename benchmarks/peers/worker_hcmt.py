@@ -8,6 +8,7 @@ symbolic sizes, the normalizers accumulated eagerly, the forward ``torch.compile
 (:func:`hcmt.models.base.compile_simulator` with ``dynamic=True``, inductor's default; its cache persists in
 ``~/.cache/hcmt/inductor``). Inference: a no-grad forward in eval mode.
 The FLOPs of one eager train step and one inference are counted with ``torch.utils.flop_counter`` (matmuls only)."""
+
 from __future__ import annotations
 
 import sys
@@ -32,9 +33,16 @@ def load_graph(path: str) -> tuple[Graph, int]:
     d = np.load(path)
     t = {k: torch.from_numpy(v) for k, v in d.items() if k != "out_dim"}
     levels = sum(k.startswith("pool_") for k in d)
-    g = Graph(t["node_features"], t["mesh_edges"], t["mesh_features"], t["contact_edges"], t["contact_features"],
-              [t[f"pool_{i}"] for i in range(levels)], [t[f"level_edges_{i}"] for i in range(levels)],
-              [t[f"level_features_{i}"] for i in range(levels)])
+    g = Graph(
+        t["node_features"],
+        t["mesh_edges"],
+        t["mesh_features"],
+        t["contact_edges"],
+        t["contact_features"],
+        [t[f"pool_{i}"] for i in range(levels)],
+        [t[f"level_edges_{i}"] for i in range(levels)],
+        [t[f"level_features_{i}"] for i in range(levels)],
+    )
     return g, int(d["out_dim"])
 
 
@@ -49,8 +57,13 @@ def contestant(path: str, name: str, mode: str):
     mask = torch.ones(graph.num_nodes, 1)
     train, infer = train_and_infer(model, graph, target, opt, mode == "compiled", mask, dynamic=True)  # the trainer's
 
-    info = {"framework": f"hcmt (torch {torch.__version__})", "model": name, "mode": mode,
-            "parameters": sum(p.numel() for p in model.parameters()), "nodes": int(mask.sum())}
+    info = {
+        "framework": f"hcmt (torch {torch.__version__})",
+        "model": name,
+        "mode": mode,
+        "parameters": sum(p.numel() for p in model.parameters()),
+        "nodes": int(mask.sum()),
+    }
     # the warm-up includes compiling (or loading it from the cache); FLOPs counted eagerly only
     warm_up(info, train, infer, (lambda: FlopCounterMode(display=False)) if mode == "eager" else None)
     return train, infer, info

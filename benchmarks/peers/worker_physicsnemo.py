@@ -7,6 +7,7 @@ set, so it gets the level-0 mesh edges and the contact edges together (hcmt's MG
 its own edge MLP: the same messages, a wider node MLP); contact features are zero-padded to the mesh features'
 width. Train step: forward, MSE, backward, Adam (lr 1e-4); inference: a no-grad forward in eval mode. FLOPs of
 one train step and one inference counted with ``torch.utils.flop_counter`` (matmuls only)."""
+
 from __future__ import annotations
 
 import importlib.util
@@ -44,13 +45,15 @@ def scatter_backend() -> str:
     metadata PhysicsNeMo's version check reads. MeshGraphNet calls only ``torch_scatter.scatter``."""
     if importlib.util.find_spec("torch_scatter") is not None:
         import torch_scatter
+
         return f"torch_scatter {torch_scatter.__version__}"
     root = Path(tempfile.mkdtemp(prefix="scatter-shim-"))
     (root / "torch_scatter").mkdir()
     (root / "torch_scatter" / "__init__.py").write_text("from torch_geometric.utils import scatter  # noqa\n")
     (root / "torch_scatter-0.0.0.dist-info").mkdir()
     (root / "torch_scatter-0.0.0.dist-info" / "METADATA").write_text(
-        "Metadata-Version: 2.1\nName: torch_scatter\nVersion: 0.0.0\n")
+        "Metadata-Version: 2.1\nName: torch_scatter\nVersion: 0.0.0\n"
+    )
     sys.path.insert(0, str(root))
     return "stand-in: torch_geometric.utils.scatter (torch_scatter not installed)"
 
@@ -86,9 +89,14 @@ def contestant(path: str):
         with torch.no_grad():
             model(nfeat, efeat, graph)
 
-    info = {"framework": f"PhysicsNeMo {physicsnemo.__version__} (torch {torch.__version__})", "model": "mgn",
-            "mode": "eager", "scatter": scatter, "parameters": sum(p.numel() for p in model.parameters()),
-            "nodes": len(nfeat)}
+    info = {
+        "framework": f"PhysicsNeMo {physicsnemo.__version__} (torch {torch.__version__})",
+        "model": "mgn",
+        "mode": "eager",
+        "scatter": scatter,
+        "parameters": sum(p.numel() for p in model.parameters()),
+        "nodes": len(nfeat),
+    }
     warm_up(info, train, infer, lambda: FlopCounterMode(display=False))
     return train, infer, info
 

@@ -8,6 +8,7 @@ its data pipeline too, so both sides time the model only). Hierarchy, in their l
 ``m_gs[0]`` the level-0 mesh edges, then ``m_ids[l+1]`` = hcmt's ``pool_l``, ``m_gs[l+1]`` = ``level_edges_l``.
 A train step is their ``train_step`` (``model.loss`` under a GradientTape, Keras Adam lr 1e-4) in a
 ``tf.function``; inference ``model(inputs)`` in a ``tf.function``. One intra-op and one inter-op thread."""
+
 from __future__ import annotations
 
 import sys
@@ -36,17 +37,26 @@ def contestant(path: str, authors: str):
     ids = [np.arange(n)] + [d[f"pool_{i}"] for i in range(levels)]
     gs = [d["mesh_edges"]] + [d[f"level_edges_{i}"] for i in range(levels)]
     rng = np.random.default_rng(0)
-    inputs = {"world_pos": c(d["world_pos"]), "prev|world_pos": c(d["world_pos"] - d["velocity"]),
-              "mesh_pos": c(d["mesh_pos"]), "node_type": c(d["node_type"][:, None]), "density": c(d["density"]),
-              "modulus": c(d["modulus"]), "cells": c(d["cells"]),
-              "target|world_pos": c(d["world_pos"] + 0.01 * rng.normal(size=(n, 2)).astype(np.float32)),
-              "target|stress": c(rng.normal(size=(n, 1)).astype(np.float32)),
-              "m_ids": [c(i.astype(np.int32)) for i in ids], "m_gs_s": [c(e[0].astype(np.int32)) for e in gs],
-              "m_gs_r": [c(e[1].astype(np.int32)) for e in gs]}
-    edges = {"m_senders": c(d["mesh_edges"][0].astype(np.int32)),
-             "m_receivers": c(d["mesh_edges"][1].astype(np.int32)),
-             "c_senders": c(d["contact_edges"][0].astype(np.int32)),
-             "c_receivers": c(d["contact_edges"][1].astype(np.int32))}
+    inputs = {
+        "world_pos": c(d["world_pos"]),
+        "prev|world_pos": c(d["world_pos"] - d["velocity"]),
+        "mesh_pos": c(d["mesh_pos"]),
+        "node_type": c(d["node_type"][:, None]),
+        "density": c(d["density"]),
+        "modulus": c(d["modulus"]),
+        "cells": c(d["cells"]),
+        "target|world_pos": c(d["world_pos"] + 0.01 * rng.normal(size=(n, 2)).astype(np.float32)),
+        "target|stress": c(rng.normal(size=(n, 1)).astype(np.float32)),
+        "m_ids": [c(i.astype(np.int32)) for i in ids],
+        "m_gs_s": [c(e[0].astype(np.int32)) for e in gs],
+        "m_gs_r": [c(e[1].astype(np.int32)) for e in gs],
+    }
+    edges = {
+        "m_senders": c(d["mesh_edges"][0].astype(np.int32)),
+        "m_receivers": c(d["mesh_edges"][1].astype(np.int32)),
+        "c_senders": c(d["contact_edges"][0].astype(np.int32)),
+        "c_receivers": c(d["contact_edges"][1].astype(np.int32)),
+    }
 
     class GivenEdges(ImpactModel):
         def _build_graph(self, inputs, is_training):
@@ -76,8 +86,12 @@ def contestant(path: str, authors: str):
     def infer():
         forward()[0].numpy()
 
-    info = {"framework": f"authors' HCMT (TensorFlow {tf.__version__})", "model": "hcmt", "mode": "tf.function",
-            "nodes": n}
+    info = {
+        "framework": f"authors' HCMT (TensorFlow {tf.__version__})",
+        "model": "hcmt",
+        "mode": "tf.function",
+        "nodes": n,
+    }
     warm_up(info, train, infer)  # no FLOP count: credited with hcmt official HCMT's (run.FLOP_SOURCE)
     info["parameters"] = int(sum(np.prod(v.shape) for v in model.trainable_variables))
     return train, infer, info

@@ -10,6 +10,7 @@ Every run is evaluated on the validation and the test split (``metrics_<split>.j
 the recipe is chosen on the validation split (:func:`choose`), never the test split. Writes
 benchmarks/results/recipe_small.json.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -38,13 +39,22 @@ RECIPES = {
     "vel-predicted": ["train.noise_nodes=predicted"],
     "acc-predicted": ["model.target=acceleration", "train.noise_nodes=predicted"],
     "vel-normal-pf": ["train.pushforward=0.5", "train.pushforward_start=1000"],
-    "acc-predicted-pf": ["model.target=acceleration", "train.noise_nodes=predicted", "train.pushforward=0.5",
-                         "train.pushforward_start=1000"],
+    "acc-predicted-pf": [
+        "model.target=acceleration",
+        "train.noise_nodes=predicted",
+        "train.pushforward=0.5",
+        "train.pushforward_start=1000",
+    ],
     # hcmt's edge deformation features (model.deformation), aimed at the plate's missing restoring force
     "vel-normal-def": ["model.deformation=true"],
     "acc-predicted-def": ["model.target=acceleration", "train.noise_nodes=predicted", "model.deformation=true"],
-    "acc-predicted-pf-def": ["model.target=acceleration", "train.noise_nodes=predicted", "train.pushforward=0.5",
-                             "train.pushforward_start=1000", "model.deformation=true"],
+    "acc-predicted-pf-def": [
+        "model.target=acceleration",
+        "train.noise_nodes=predicted",
+        "train.pushforward=0.5",
+        "train.pushforward_start=1000",
+        "model.deformation=true",
+    ],
 }
 SPLITS = ("valid", "test")
 
@@ -57,14 +67,26 @@ def train_all(work: Path, data: Path, steps: int, seeds: list[int], labels: list
     for seed in seeds:  # seed by seed: an interrupted study has every recipe at the same number of seeds
         for label in labels:
             print(f"{label} seed {seed}", flush=True)
-            run_and_evaluate(work, data, run_name(label, seed, steps), "hcmt", seed,
-                             [f"train.steps={steps}", *BASE, *RECIPES[label]], splits=SPLITS, config=CONFIG,
-                             keep_rollouts=True)
+            run_and_evaluate(
+                work,
+                data,
+                run_name(label, seed, steps),
+                "hcmt",
+                seed,
+                [f"train.steps={steps}", *BASE, *RECIPES[label]],
+                splits=SPLITS,
+                config=CONFIG,
+                keep_rollouts=True,
+            )
 
 
 #: validation criteria of :func:`choose`: (key path in a run's summary, larger is better)
-CRITERIA = (("rebound_agreement", True), ("peak_plate_stress_error_pct", False), ("max_deflection_error_pct", False),
-            ("position_rmse_all", False))
+CRITERIA = (
+    ("rebound_agreement", True),
+    ("peak_plate_stress_error_pct", False),
+    ("max_deflection_error_pct", False),
+    ("position_rmse_all", False),
+)
 
 
 def run_summary(run: Path, data: Path, split: str) -> dict:
@@ -74,14 +96,23 @@ def run_summary(run: Path, data: Path, split: str) -> dict:
     if "physics" not in m:
         m = evaluate(Run.load(run, "cpu"), data, split, progress=False).to_json()  # as the file holds it
     p = m["physics"]
-    out = {"position_rmse_all": m["position"]["rmse_all"], "stress_rmse_all": m["stress"]["rmse_all"],
-           "rebound_agreement": p["rebound_agreement"], "model_rebounds": p["model_rebounds"],
-           "solver_rebounds": p["solver_rebounds"],
-           "far_deflection_error_um": p["far_deflection_error_um"]["median"],
-           "train_ms_per_step": json.loads((run / "train_stats.json").read_text())["train_ms_per_step"],
-           "inference_ms_per_step": m["inference_ms_per_step"], "error_by_step": m["error_by_step"]}
-    for key in ("peak_plate_stress_error_pct", "peak_ball_stress_error_pct", "peak_plate_frame_error",
-                "max_deflection_error_pct"):
+    out = {
+        "position_rmse_all": m["position"]["rmse_all"],
+        "stress_rmse_all": m["stress"]["rmse_all"],
+        "rebound_agreement": p["rebound_agreement"],
+        "model_rebounds": p["model_rebounds"],
+        "solver_rebounds": p["solver_rebounds"],
+        "far_deflection_error_um": p["far_deflection_error_um"]["median"],
+        "train_ms_per_step": json.loads((run / "train_stats.json").read_text())["train_ms_per_step"],
+        "inference_ms_per_step": m["inference_ms_per_step"],
+        "error_by_step": m["error_by_step"],
+    }
+    for key in (
+        "peak_plate_stress_error_pct",
+        "peak_ball_stress_error_pct",
+        "peak_plate_frame_error",
+        "max_deflection_error_pct",
+    ):
         out[key] = p[key]["median_abs"]
         out[f"{key}_signed"] = p[key]["median"]
         out[f"{key}_worst"] = p[key]["worst"]
@@ -112,14 +143,25 @@ def table(work: Path, steps: int, seeds: list[int], labels: list[str]) -> Path:
         for split in SPLITS:
             per_run = [run_summary(r, data, split) for r in runs]
             row = {k: mean_std(p[k] for p in per_run) for k in per_run[0] if k != "error_by_step"}
-            row["error_by_step"] = {k: np.mean([p["error_by_step"][k] for p in per_run], 0).tolist()
-                                    for k in per_run[0]["error_by_step"]}
+            row["error_by_step"] = {
+                k: np.mean([p["error_by_step"][k] for p in per_run], 0).tolist() for k in per_run[0]["error_by_step"]
+            }
             rows[label][split] = row
     full = [lab for lab in rows if rows[lab]["seeds"] == max(r["seeds"] for r in rows.values())]
     chosen, ranks = choose({lab: rows[lab]["valid"] for lab in full}) if full else (None, {})
-    return write_json("recipe_small.json", {"dataset": DATA, "config": CONFIG, "base": BASE, "steps": steps,
-                                            "criteria": [k for k, _ in CRITERIA], "rank_sums": ranks,
-                                            "chosen": chosen, "recipes": rows})
+    return write_json(
+        "recipe_small.json",
+        {
+            "dataset": DATA,
+            "config": CONFIG,
+            "base": BASE,
+            "steps": steps,
+            "criteria": [k for k, _ in CRITERIA],
+            "rank_sums": ranks,
+            "chosen": chosen,
+            "recipes": rows,
+        },
+    )
 
 
 def main() -> None:

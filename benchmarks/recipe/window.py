@@ -5,6 +5,7 @@ of the maximum deflection, and how far the peak within 52 frames (the old window
 
     python benchmarks/recipe/window.py          # writes benchmarks/results/window.json
 """
+
 from __future__ import annotations
 
 import sys
@@ -36,14 +37,23 @@ def main() -> None:
             vy = w[1:, ~plate, 1].mean(1) - w[:-1, ~plate, 1].mean(1)
             up = np.flatnonzero(vy > 0)
             defl = np.abs(deflection(w, f["mesh_pos"], plate)).max(1)
-            rows.append({"thickness": th, "drop_height": height, "ball_radius": radius,
-                         "peak_frame": frame, "peak_mpa": value,
-                         "peak_within_52_mpa": float(body_history(f["stress"], plate)[:52].max()),
-                         "rebound_frame": int(up[0]) if len(up) else None,
-                         "max_deflection_frame": int(defl.argmax())})
+            rows.append(
+                {
+                    "thickness": th,
+                    "drop_height": height,
+                    "ball_radius": radius,
+                    "peak_frame": frame,
+                    "peak_mpa": value,
+                    "peak_within_52_mpa": float(body_history(f["stress"], plate)[:52].max()),
+                    "rebound_frame": int(up[0]) if len(up) else None,
+                    "max_deflection_frame": int(defl.argmax()),
+                }
+            )
             print(rows[-1], flush=True)
-    write_json("window.json", {"frames": 101, "frame_dt_ms": 0.002, "designs": rows,
-                               "command": "python benchmarks/recipe/window.py"})
+    write_json(
+        "window.json",
+        {"frames": 101, "frame_dt_ms": 0.002, "designs": rows, "command": "python benchmarks/recipe/window.py"},
+    )
 
 
 if __name__ == "__main__":

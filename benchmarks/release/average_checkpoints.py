@@ -10,6 +10,7 @@ buffers (the normalizers' running statistics: they only accumulate, so the lates
 the averaged steps, no optimizer state (it is a model, not a point to resume from).
 ``choose_checkpoint.py`` judges it beside the kept steps; ``ship_model.py --checkpoint avg_...`` ships it.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -40,12 +41,21 @@ def average(run: Path, steps: list[int]) -> Path:
         raise InputError(f"{run}: the checkpoints of --steps hold different models")
     model = from_checkpoint(last)
     buffers = {name for name, _ in model.named_buffers()}
-    mean = {k: v if k in buffers else torch.stack([s["model"][k] for s in states]).mean(0)
-            for k, v in last["model"].items()}
+    mean = {
+        k: v if k in buffers else torch.stack([s["model"][k] for s in states]).mean(0) for k, v in last["model"].items()
+    }
     model.load_state_dict(mean)
     out = run / f"avg_{'_'.join(str(n) for n in sorted(set(steps)))}.pt"
-    save_atomic({"model_args": last["model_args"], "model": model.state_dict(), "step": int(last["step"]),
-                 "best": float(last.get("best", float("inf"))), "averaged_steps": sorted(set(steps))}, out)
+    save_atomic(
+        {
+            "model_args": last["model_args"],
+            "model": model.state_dict(),
+            "step": int(last["step"]),
+            "best": float(last.get("best", float("inf"))),
+            "averaged_steps": sorted(set(steps)),
+        },
+        out,
+    )
     return out
 
 

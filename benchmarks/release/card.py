@@ -16,6 +16,7 @@ every number comes from the result files:
 * ``trust.json`` (benchmarks/trust/run.py): the mesh model's own interval, its coverage and width by region, where
   it measured this model.
 """
+
 from __future__ import annotations
 
 import re
@@ -32,8 +33,10 @@ DOC = Path(__file__).resolve().parent.parent.parent / "docs" / "MODELS.md"
 
 
 def begin(name: str) -> str:
-    return (f"<!-- card {name}: written by python benchmarks/report.py from benchmarks/results/model_{name}.json, "
-            "model_judge.json, surrogate.json and trust.json; edit those, not this block -->")
+    return (
+        f"<!-- card {name}: written by python benchmarks/report.py from benchmarks/results/model_{name}.json, "
+        "model_judge.json, surrogate.json and trust.json; edit those, not this block -->"
+    )
 
 
 def end(name: str) -> str:
@@ -62,11 +65,18 @@ def _made(m: dict) -> list[str]:
     c = m["card"]
     wall = c["train_wall_s_from_log"]
     took = f"{wall / 3600:.1f} h" if wall >= 7200 else f"{wall / 60:.0f} minutes"
-    return [f"**How it was made**: {c['summary']}, on {c['device']} ({c['machine']}, torch {c['torch']}, seed "
-            f"{c['seed']}): {c['steps']:,} steps at {c['train_ms_per_step']:.0f} ms a step (median), about "
-            f"{took} of training by the log; shipped: `{c['checkpoint']['file']}`, "
-            f"the weights of step {c['checkpoint']['step']:,}. Packaged by `{command(m)}`.", "", "```bash",
-            c["data_command"], c["train_command"], "```", ""]
+    return [
+        f"**How it was made**: {c['summary']}, on {c['device']} ({c['machine']}, torch {c['torch']}, seed "
+        f"{c['seed']}): {c['steps']:,} steps at {c['train_ms_per_step']:.0f} ms a step (median), about "
+        f"{took} of training by the log; shipped: `{c['checkpoint']['file']}`, "
+        f"the weights of step {c['checkpoint']['step']:,}. Packaged by `{command(m)}`.",
+        "",
+        "```bash",
+        c["data_command"],
+        c["train_command"],
+        "```",
+        "",
+    ]
 
 
 def _pct(block: dict) -> str:
@@ -77,8 +87,10 @@ def _limit(lim: dict) -> str:
     model, solver = lim["model"], lim["solver"]
     said = {"none pass": "none passes"}
     word = "unsafe" if lim["unsafe"] else "within one sweep step" if lim["within_one_step"] else "safe side"
-    return (f"{said.get(model['side'], model['call'])} (model) against {said.get(solver['side'], solver['call'])} "
-            f"(solver): {word}")
+    return (
+        f"{said.get(model['side'], model['call'])} (model) against {said.get(solver['side'], solver['call'])} "
+        f"(solver): {word}"
+    )
 
 
 def _trend_word(model: float, solver: float) -> str:
@@ -87,117 +99,161 @@ def _trend_word(model: float, solver: float) -> str:
         return "agrees"
     if np.sign(model) != np.sign(solver):
         return "sign wrong: a miss"
-    return (f"sign right, size {100 * abs(model / solver - 1):.0f} % off: a miss, the rule being within "
-            f"{100 * TREND_SIZE:g} %")
+    return (
+        f"sign right, size {100 * abs(model / solver - 1):.0f} % off: a miss, the rule being within "
+        f"{100 * TREND_SIZE:g} %"
+    )
 
 
 def _fresh(m: dict) -> list[str]:
     v, p = m["verify"], m["verify"]["physics"]
     n = v["designs"]
     seed = m["card"]["verify_designs"]["seed"]
-    out = [f"**On {n} held-out designs of a fresh seed** (`--design-seed {seed}`, uniform "
-           "inside the training ranges; the shipped fp16 file predicts each design from its parameters, the solver "
-           "simulates it again):", "", "| quantity | measured |", "|---|---|",
-           f"| rebound agreement | {round(p['rebound_agreement'] * n)} / {n} (the solver: {p['solver_rebounds']} "
-           "rebounds) |",
-           f"| peak plate stress error, median / worst | {_pct(p['peak_plate_stress_error_pct'])} |",
-           f"| max deflection error, median / worst | {_pct(p['max_deflection_error_pct'])} |",
-           f"| where the plate's peak is, median / worst | {v['peak_plate_location_error_mm']['median']:.2f} / "
-           f"{v['peak_plate_location_error_mm']['max']:.2f} mm |",
-           f"| time of the plate's peak, median frames off | {p['peak_plate_frame_error']['median_abs']:.1f} |",
-           f"| far-field deflection error (r > R/2), median | {p['far_deflection_error_um']['median']:.1f} µm |"]
+    out = [
+        f"**On {n} held-out designs of a fresh seed** (`--design-seed {seed}`, uniform "
+        "inside the training ranges; the shipped fp16 file predicts each design from its parameters, the solver "
+        "simulates it again):",
+        "",
+        "| quantity | measured |",
+        "|---|---|",
+        f"| rebound agreement | {round(p['rebound_agreement'] * n)} / {n} (the solver: {p['solver_rebounds']} "
+        "rebounds) |",
+        f"| peak plate stress error, median / worst | {_pct(p['peak_plate_stress_error_pct'])} |",
+        f"| max deflection error, median / worst | {_pct(p['max_deflection_error_pct'])} |",
+        f"| where the plate's peak is, median / worst | {v['peak_plate_location_error_mm']['median']:.2f} / "
+        f"{v['peak_plate_location_error_mm']['max']:.2f} mm |",
+        f"| time of the plate's peak, median frames off | {p['peak_plate_frame_error']['median_abs']:.1f} |",
+        f"| far-field deflection error (r > R/2), median | {p['far_deflection_error_um']['median']:.1f} µm |",
+    ]
     for sweep, s in m["sweeps"].items():
         lim = s["limit"]
         for q, label in (("peak_plate_stress_mpa", "peak plate stress"), ("max_deflection_mm", "max deflection")):
             t = s["trend"][q]
-            out.append(f"| sweep {sweep} at {', '.join(s['design'])}: {label} | {t['model']['change_pct']:+.1f} % "
-                       f"(the solver: {t['solver']['change_pct']:+.1f} %; "
-                       f"{_trend_word(t['model']['change_pct'], t['solver']['change_pct'])}) |")
+            out.append(
+                f"| sweep {sweep} at {', '.join(s['design'])}: {label} | {t['model']['change_pct']:+.1f} % "
+                f"(the solver: {t['solver']['change_pct']:+.1f} %; "
+                f"{_trend_word(t['model']['change_pct'], t['solver']['change_pct'])}) |"
+            )
         side = "minimum" if lim["solver"]["side"] == "minimum" else "maximum"
-        out.append(f"| sweep {sweep}: {side} {s['param']} with a peak below {lim['yield_mpa']:g} MPa | "
-                   f"{_limit(lim)} |")
+        out.append(f"| sweep {sweep}: {side} {s['param']} with a peak below {lim['yield_mpa']:g} MPa | {_limit(lim)} |")
     return out + [""]
 
 
 def _regions(m: dict) -> list[str]:
     rows = m["card"]["confidence"]
-    out = ["**Measured error by region** (the card's `confidence`, the same designs with the fp32 checkpoint; regions "
-           "are fifths of the training ranges, `hcmt.design.inputs.region_of`):", "",
-           "| region | designs | peak plate stress error, median / worst | max deflection error, median |",
-           "|---|---|---|---|"]
+    out = [
+        "**Measured error by region** (the card's `confidence`, the same designs with the fp32 checkpoint; regions "
+        "are fifths of the training ranges, `hcmt.design.inputs.region_of`):",
+        "",
+        "| region | designs | peak plate stress error, median / worst | max deflection error, median |",
+        "|---|---|---|---|",
+    ]
     for r in rows:
-        out.append(f"| {r['label']} | {r['designs']} | {r['peak_plate_stress_error_pct_median']:.1f} % / "
-                   f"{r['peak_plate_stress_error_pct_worst']:+.1f} % | {r['max_deflection_error_pct_median']:.1f} % |")
+        out.append(
+            f"| {r['label']} | {r['designs']} | {r['peak_plate_stress_error_pct_median']:.1f} % / "
+            f"{r['peak_plate_stress_error_pct_worst']:+.1f} % | {r['max_deflection_error_pct_median']:.1f} % |"
+        )
     weak = max(rows, key=lambda r: r["peak_plate_stress_error_pct_median"])
-    return out + ["", f"The largest median peak plate stress error is in the region \"{weak['label']}\": "
-                  f"{weak['peak_plate_stress_error_pct_median']:.1f} % over {weak['designs']} designs.", ""]
+    return out + [
+        "",
+        f'The largest median peak plate stress error is in the region "{weak["label"]}": '
+        f"{weak['peak_plate_stress_error_pct_median']:.1f} % over {weak['designs']} designs.",
+        "",
+    ]
 
 
 def _test_and_speed(m: dict) -> list[str]:
     t, p = m["test_metrics"], m["test_metrics"]["physics"]
-    return [f"**Test split** (the dataset's {t['trajectories']} test designs, fp32 checkpoint, the paper's metrics "
-            f"×10³): position RMSE-1 {t['position']['rmse_1']:.2f}, RMSE-all {t['position']['rmse_all']:.1f}, stress "
-            f"RMSE-all {t['stress']['rmse_all']:,.0f}; rebound {p['model_rebounds']} / {t['trajectories']} (the "
-            f"solver: {p['solver_rebounds']}), peak plate stress error {_pct(p['peak_plate_stress_error_pct'])} "
-            f"(median / worst), deflection {_pct(p['max_deflection_error_pct'])}, time of the peak "
-            f"{p['peak_plate_frame_error']['median_abs']:.0f} frames.", "",
-            f"**Speed** ({m['device']}): one design alone {m['single_design_wall_s']:.2f} s, the solver "
-            f"{m['solver_wall_s_median']:.2f} s median; in batches of {m['batch']} on {m['threads']} thread(s), "
-            f"{m['verify']['speedup']['median']:.2f}× the solver (`speedup`: the solver's wall time ÷ the "
-            "prediction's per design, median).", ""]
+    return [
+        f"**Test split** (the dataset's {t['trajectories']} test designs, fp32 checkpoint, the paper's metrics "
+        f"×10³): position RMSE-1 {t['position']['rmse_1']:.2f}, RMSE-all {t['position']['rmse_all']:.1f}, stress "
+        f"RMSE-all {t['stress']['rmse_all']:,.0f}; rebound {p['model_rebounds']} / {t['trajectories']} (the "
+        f"solver: {p['solver_rebounds']}), peak plate stress error {_pct(p['peak_plate_stress_error_pct'])} "
+        f"(median / worst), deflection {_pct(p['max_deflection_error_pct'])}, time of the peak "
+        f"{p['peak_plate_frame_error']['median_abs']:.0f} frames.",
+        "",
+        f"**Speed** ({m['device']}): one design alone {m['single_design_wall_s']:.2f} s, the solver "
+        f"{m['solver_wall_s_median']:.2f} s median; in batches of {m['batch']} on {m['threads']} thread(s), "
+        f"{m['verify']['speedup']['median']:.2f}× the solver (`speedup`: the solver's wall time ÷ the "
+        "prediction's per design, median).",
+        "",
+    ]
 
 
 def _judged(name: str, m: dict, judge: dict | None) -> list[str]:
     if not measured_this(judge, name, m):
         if not judge:
             return ["**Against the model goals**: not judged (no model_judge.json).", ""]
-        return [f"**Against the model goals**: this model is not judged; model_judge.json judged "
-                f"`{judge['model']}` (step {judge['checkpoint_step']:,}, {judge['training_designs']} training "
-                "designs), docs/RESULTS.md \"The mesh model judged against the model goals\".", ""]
+        return [
+            f"**Against the model goals**: this model is not judged; model_judge.json judged "
+            f"`{judge['model']}` (step {judge['checkpoint_step']:,}, {judge['training_designs']} training "
+            'designs), docs/RESULTS.md "The mesh model judged against the model goals".',
+            "",
+        ]
     goals = judge["goals"]
     met = sum(g["hcmt_met"] for g in goals)
-    out = [f"**Against the model goals** (`{command(judge)}`: designs of seeds {judge['seeds']['in_range']} in range "
-           f"and {judge['seeds']['outside']} outside, which no study used; the response surface fitted on the same "
-           f"{judge['training_designs']} runs): it meets {met} of {len(goals)}.", "",
-           "| goal | target | this model | met | response surface |", "|---|---|---|---|---|"]
+    out = [
+        f"**Against the model goals** (`{command(judge)}`: designs of seeds {judge['seeds']['in_range']} in range "
+        f"and {judge['seeds']['outside']} outside, which no study used; the response surface fitted on the same "
+        f"{judge['training_designs']} runs): it meets {met} of {len(goals)}.",
+        "",
+        "| goal | target | this model | met | response surface |",
+        "|---|---|---|---|---|",
+    ]
     for g in goals:
         sign = "≥" if g["at_least"] else "≤"
         gp = "-" if g["gp"] is None else f"{g['gp']:.3g}"
-        out.append(f"| {g['goal']} | {sign} {g['target']:g} | {g['hcmt']:.3g} | {'yes' if g['hcmt_met'] else 'no'} | "
-                   f"{gp} |")
+        out.append(
+            f"| {g['goal']} | {sign} {g['target']:g} | {g['hcmt']:.3g} | {'yes' if g['hcmt_met'] else 'no'} | {gp} |"
+        )
     return out + [""]
 
 
 def _beside(name: str, m: dict, surrogate: dict | None) -> list[str]:
     if not measured_this(surrogate, name, m):
-        what = (f"`{surrogate['model']}` on {surrogate['training_designs']} training designs" if surrogate
-                else "nothing")
+        what = f"`{surrogate['model']}` on {surrogate['training_designs']} training designs" if surrogate else "nothing"
         return [f"**Beside the response surface**: not measured for this model (surrogate.json measured {what}).", ""]
     run = command(surrogate) if surrogate.get("command") else COMMAND
-    return [f"**Beside the response surface on the card's designs** (`{run}`; docs/RESULTS.md \"The "
-            "design check against a response surface\" has the calls, the ghost stress and the note):", "",
-            *accuracy_table(surrogate), ""]
+    return [
+        f"**Beside the response surface on the card's designs** (`{run}`; docs/RESULTS.md \"The "
+        'design check against a response surface" has the calls, the ghost stress and the note):',
+        "",
+        *accuracy_table(surrogate),
+        "",
+    ]
 
 
 def _interval(name: str, trust: dict | None) -> list[str]:
     """The mesh model's own interval by region, where trust.json measured this model (pretrained:NAME)."""
     if not trust or trust.get("model") != f"pretrained:{name}":
-        return ["**The mesh model's own interval**: not measured for this model "
-                f"(`{TRUST_COMMAND}` writes it).", ""]
+        return [f"**The mesh model's own interval**: not measured for this model (`{TRUST_COMMAND}` writes it).", ""]
     pooled = trust["coverage"]["pooled"]
-    return [f"**The mesh model's own {100 * trust['level']:.0f} % interval** (`{command(trust)}`: calibrated on "
-            f"{trust['designs']['calibration']} solver runs of seed(s) {seeds_text(trust['seeds']['calibration'])}, "
-            "measured on "
-            f"{trust['designs']['evaluation']} designs of seed(s) "
-            + ", ".join(str(x) for x in trust["seeds"]["evaluation"])
-            + "; docs/RESULTS.md \"The mesh model's own interval\" has the calls and the fuzzer):", "",
-            *coverage_table(pooled), ""]
+    return [
+        f"**The mesh model's own {100 * trust['level']:.0f} % interval** (`{command(trust)}`: calibrated on "
+        f"{trust['designs']['calibration']} solver runs of seed(s) {seeds_text(trust['seeds']['calibration'])}, "
+        "measured on "
+        f"{trust['designs']['evaluation']} designs of seed(s) "
+        + ", ".join(str(x) for x in trust["seeds"]["evaluation"])
+        + '; docs/RESULTS.md "The mesh model\'s own interval" has the calls and the fuzzer):',
+        "",
+        *coverage_table(pooled),
+        "",
+    ]
 
 
 def card(name: str, m: dict, judge: dict | None, surrogate: dict | None, trust: dict | None = None) -> list[str]:
     """The block's lines, markers included."""
-    return [begin(name), *_made(m), *_fresh(m), *_regions(m), *_test_and_speed(m), *_judged(name, m, judge),
-            *_beside(name, m, surrogate), *_interval(name, trust), end(name)]
+    return [
+        begin(name),
+        *_made(m),
+        *_fresh(m),
+        *_regions(m),
+        *_test_and_speed(m),
+        *_judged(name, m, judge),
+        *_beside(name, m, surrogate),
+        *_interval(name, trust),
+        end(name),
+    ]
 
 
 def write_cards(doc: Path = DOC) -> list[str]:
@@ -214,8 +270,9 @@ def write_cards(doc: Path = DOC) -> list[str]:
             continue
         head, rest = text.split(line, 1)
         tail = rest.split(end(name), 1)[1]
-        text = head + "\n".join(card(name, m, load("model_judge.json"), load("surrogate.json"),
-                                     load("trust.json"))) + tail
+        text = (
+            head + "\n".join(card(name, m, load("model_judge.json"), load("surrogate.json"), load("trust.json"))) + tail
+        )
         written.append(name)
     doc.write_text(text)
     return written

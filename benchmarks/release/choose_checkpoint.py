@@ -12,6 +12,7 @@ test split stays for the model card) and judged as the scaling study judges a po
 and the ghost difference). The choice is the checkpoint whose worst ratio to the model goals (peak 3 %, deflection
 4 %, ghost 0.05) is lowest. ``--json`` keeps every row and the choice; ``ship_model.py RUN --checkpoint NAME`` ships it.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -34,9 +35,11 @@ from scaling.run import test_errors  # noqa: E402
 def kept(folder: RunFolder) -> list[str]:
     """The run's checkpoints worth choosing among: ``best``, every kept ``step_<N>`` by step, then every average of
     kept steps (``avg_<N>_<M>...``, average_checkpoints.py) by its last step."""
+
     def named(prefix):
         found = [p.stem for p in folder.path.glob(f"{prefix}_*.pt") if re.fullmatch(rf"{prefix}(_\d+)+", p.stem)]
         return sorted(found, key=lambda n: [int(x) for x in n.split("_")[1:]][::-1])
+
     return (["best"] if folder.best.is_file() else []) + named("step") + named("avg")
 
 
@@ -67,14 +70,24 @@ def choose(run: Path, data: Path, split: str = "valid", limit: int | None = None
         row["score"] = score(row["errors"])
         rows.append(row)
         e = row["errors"]
-        print(f"{which:>12s} (step {row['checkpoint_step']}): peak {e['peak_error_pct']:.1f} %, deflection "
-              f"{e['deflection_error_pct']:.1f} %, ghost {e['ghost_difference']:.3f}, position "
-              f"{e['position_rmse_all']:.4g}: score {row['score']:.2f}", flush=True)
+        print(
+            f"{which:>12s} (step {row['checkpoint_step']}): peak {e['peak_error_pct']:.1f} %, deflection "
+            f"{e['deflection_error_pct']:.1f} %, ghost {e['ghost_difference']:.3f}, position "
+            f"{e['position_rmse_all']:.4g}: score {row['score']:.2f}",
+            flush=True,
+        )
     if not rows:
         raise SystemExit(f"{run}: no best.pt or step_<N>.pt to choose among")
     best = min(rows, key=lambda r: r["score"])
-    return {"run": str(run), "data": str(data), "split": split, "goals": GOALS, "rows": rows,
-            "chosen": best["checkpoint"], "chosen_step": best["checkpoint_step"]}
+    return {
+        "run": str(run),
+        "data": str(data),
+        "split": split,
+        "goals": GOALS,
+        "rows": rows,
+        "chosen": best["checkpoint"],
+        "chosen_step": best["checkpoint_step"],
+    }
 
 
 def main(argv=None) -> None:
@@ -85,13 +98,19 @@ def main(argv=None) -> None:
     p.add_argument("--limit", type=int, default=None, help="only the first N trajectories of the split")
     p.add_argument("--threads", type=int, default=1)
     p.add_argument("--json", type=Path, default=None)
-    p.add_argument("--cache", type=Path, default=None, help="a folder keeping each kept step's and average's row "
-                   "(immutable checkpoints: a later choice judges only the new ones)")
+    p.add_argument(
+        "--cache",
+        type=Path,
+        default=None,
+        help="a folder keeping each kept step's and average's row "
+        "(immutable checkpoints: a later choice judges only the new ones)",
+    )
     a = p.parse_args(argv)
     torch.set_num_threads(a.threads)
     out = choose(a.run, a.data.resolve(), a.split, a.limit, a.cache)
     out["command"] = "python benchmarks/release/choose_checkpoint.py " + " ".join(
-        argv if argv is not None else sys.argv[1:])
+        argv if argv is not None else sys.argv[1:]
+    )
     print(f"chosen: {out['chosen']} (step {out['chosen_step']})")
     if a.json:
         print(f"wrote {write_json(a.json, out)}")

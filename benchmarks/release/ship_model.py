@@ -12,6 +12,7 @@
 4. writes benchmarks/results/model_NAME.json (docs/MODELS.md quotes it);
 5. writes ``src/hcmt/pretrained/NAME.surrogate.json``: the response surface of its training designs.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -47,9 +48,13 @@ def main() -> None:
     p.add_argument("--yield-mpa", type=float, default=703.0, help="limit of the sweeps' minimum-thickness call")
     p.add_argument("--batch", type=int, default=8)
     p.add_argument("--threads", type=int, default=1)
-    p.add_argument("--checkpoint", default="best", help="best, checkpoint (the latest), step_N (kept by "
-                   "train.keep_every) or avg_N_M... (average_checkpoints.py); choose_checkpoint.py chooses on the "
-                   "validation split")
+    p.add_argument(
+        "--checkpoint",
+        default="best",
+        help="best, checkpoint (the latest), step_N (kept by "
+        "train.keep_every) or avg_N_M... (average_checkpoints.py); choose_checkpoint.py chooses on the "
+        "validation split",
+    )
     p.add_argument("--command", default="", help="the training command (recorded in the card)")
     p.add_argument("--data-command", default="", help="the data generation command (recorded in the card)")
     a = p.parse_args()
@@ -64,18 +69,34 @@ def main() -> None:
     args = run.info.model
     card = {
         "summary": f"HCMT (hidden {args['hidden']}, λ {args['levels']}, L_C {args['L_C']}) trained "
-                   f"{stats['steps']} steps (shipped: {a.checkpoint}, the checkpoint of step {run.checkpoint_step}) on "
-                   f"{run.meta['generator']['counts']['train']} generated "
-                   f"`{run.meta['generator']['preset']}` Impact Plate trajectories of "
-                   f"{run.meta['generator']['settings']['frames']} frames",
-        "recipe": {k: getattr(run.config.model if k in ("target", "deformation", "attention") else run.config.train, k)
-                   for k in ("target", "deformation", "attention", "noise_std", "noise_nodes", "pushforward",
-                             "pushforward_start")},
-        "frame_dt_ms": run.meta.get("dt"), "training_designs": run.meta["generator"]["counts"]["train"],
-        "steps": int(stats["steps"]), "device": stats.get("device"), "train_ms_per_step": stats["train_ms_per_step"],
-        "train_wall_s_from_log": wall, "data_command": a.data_command, "train_command": a.command,
-        "checkpoint": asdict(run.info.checkpoint), "seed": run.info.seed, "machine": platform.processor() or
-        platform.machine(), "torch": str(torch.__version__),
+        f"{stats['steps']} steps (shipped: {a.checkpoint}, the checkpoint of step {run.checkpoint_step}) on "
+        f"{run.meta['generator']['counts']['train']} generated "
+        f"`{run.meta['generator']['preset']}` Impact Plate trajectories of "
+        f"{run.meta['generator']['settings']['frames']} frames",
+        "recipe": {
+            k: getattr(run.config.model if k in ("target", "deformation", "attention") else run.config.train, k)
+            for k in (
+                "target",
+                "deformation",
+                "attention",
+                "noise_std",
+                "noise_nodes",
+                "pushforward",
+                "pushforward_start",
+            )
+        },
+        "frame_dt_ms": run.meta.get("dt"),
+        "training_designs": run.meta["generator"]["counts"]["train"],
+        "steps": int(stats["steps"]),
+        "device": stats.get("device"),
+        "train_ms_per_step": stats["train_ms_per_step"],
+        "train_wall_s_from_log": wall,
+        "data_command": a.data_command,
+        "train_command": a.command,
+        "checkpoint": asdict(run.info.checkpoint),
+        "seed": run.info.seed,
+        "machine": platform.processor() or platform.machine(),
+        "torch": str(torch.__version__),
     }
     metrics = evaluate(run, a.data, "test", progress=False)
     # held-out designs of a fresh seed (uniform inside the training ranges; no study or training used the seed)
@@ -87,15 +108,24 @@ def main() -> None:
     regions = {}
     for p in check.preds:
         regions.setdefault(region_of(p.design, preliminary.ranges), []).append(p.summary.verify)
-    labels = {"inside": "inside the ranges' edges", "thin": "thin plates (lowest fifth of thickness)",
-              "high": "high drops (top fifth of drop height)", "thin+high": "thin plates dropped from high"}
+    labels = {
+        "inside": "inside the ranges' edges",
+        "thin": "thin plates (lowest fifth of thickness)",
+        "high": "high drops (top fifth of drop height)",
+        "thin+high": "thin plates dropped from high",
+    }
     card["confidence"] = [
-        {"region": k, "label": labels.get(k, k), "designs": len(rows),
-         "peak_plate_stress_error_pct_median": float(np.median([abs(r.peak_plate_stress_error_pct) for r in rows])),
-         "peak_plate_stress_error_pct_worst": float(max((r.peak_plate_stress_error_pct for r in rows), key=abs)),
-         "max_deflection_error_pct_median": float(np.median([abs(r.max_deflection_error_pct) for r in rows])),
-         "rebound_agreement": float(np.mean([r.rebound_agrees for r in rows]))}
-        for k, rows in sorted(regions.items())]
+        {
+            "region": k,
+            "label": labels.get(k, k),
+            "designs": len(rows),
+            "peak_plate_stress_error_pct_median": float(np.median([abs(r.peak_plate_stress_error_pct) for r in rows])),
+            "peak_plate_stress_error_pct_worst": float(max((r.peak_plate_stress_error_pct for r in rows), key=abs)),
+            "max_deflection_error_pct_median": float(np.median([abs(r.max_deflection_error_pct) for r in rows])),
+            "rebound_agreement": float(np.mean([r.rebound_agrees for r in rows])),
+        }
+        for k, rows in sorted(regions.items())
+    ]
     card["verify_designs"] = {"seed": a.design_seed, "count": a.designs}
     path = run.save_pretrained(PRETRAINED_DIR / f"{a.name}.pt", card)
     print(f"wrote {path} ({path.stat().st_size / 1e6:.2f} MB)")
@@ -112,23 +142,49 @@ def main() -> None:
         base = parse_design(fixed, middle_design(shipped.meta))
         sc, analysis = sw.sweep(shipped, param, lo, hi, n, base, verify=True, yield_mpa=a.yield_mpa, progress=False)
         print(sw.format_analysis(analysis))
-        sweeps[vary] = {"design": fixed, **analysis,
-                        "model_peak": [q.summary.peak_plate_stress_mpa for q in sc.preds],
-                        "solver_peak": [t.summary.peak_plate_stress_mpa for t in sc.truth],
-                        "model_deflection": [q.summary.max_deflection_mm for q in sc.preds],
-                        "solver_deflection": [t.summary.max_deflection_mm for t in sc.truth]}
+        sweeps[vary] = {
+            "design": fixed,
+            **analysis,
+            "model_peak": [q.summary.peak_plate_stress_mpa for q in sc.preds],
+            "solver_peak": [t.summary.peak_plate_stress_mpa for t in sc.truth],
+            "model_deflection": [q.summary.max_deflection_mm for q in sc.preds],
+            "solver_deflection": [t.summary.max_deflection_mm for t in sc.truth],
+        }
     single = predict(shipped, designs[:1], batch=1, progress=False)[0]
-    out = {"name": a.name, "file_mb": path.stat().st_size / 1e6, "card": card,
-           "test_metrics": {k: metrics.to_json()[k] for k in ("split", "trajectories", "position", "stress",
-                                                    "inference_ms_per_step", "physics")},
-           "verify": check.verified, "per_design": [{"name": q.name, **q.summary.to_json()} for q in check.preds],
-           "sweeps": sweeps, "predict_wall_s_total": check.wall_s, "batch": a.batch, "threads": a.threads,
-           "single_design_wall_s": single.wall_s,
-           "solver_wall_s_median": float(np.median([t.wall_s for t in check.truth])),
-           "device": "cpu: " + (platform.processor() or platform.machine()),
-           "command": "python benchmarks/release/ship_model.py " + " ".join(
-               [str(a.run), "--data", str(a.data), "--name", a.name, "--designs", str(a.designs), "--batch",
-                str(a.batch), "--design-seed", str(a.design_seed)])}
+    out = {
+        "name": a.name,
+        "file_mb": path.stat().st_size / 1e6,
+        "card": card,
+        "test_metrics": {
+            k: metrics.to_json()[k]
+            for k in ("split", "trajectories", "position", "stress", "inference_ms_per_step", "physics")
+        },
+        "verify": check.verified,
+        "per_design": [{"name": q.name, **q.summary.to_json()} for q in check.preds],
+        "sweeps": sweeps,
+        "predict_wall_s_total": check.wall_s,
+        "batch": a.batch,
+        "threads": a.threads,
+        "single_design_wall_s": single.wall_s,
+        "solver_wall_s_median": float(np.median([t.wall_s for t in check.truth])),
+        "device": "cpu: " + (platform.processor() or platform.machine()),
+        "command": "python benchmarks/release/ship_model.py "
+        + " ".join(
+            [
+                str(a.run),
+                "--data",
+                str(a.data),
+                "--name",
+                a.name,
+                "--designs",
+                str(a.designs),
+                "--batch",
+                str(a.batch),
+                "--design-seed",
+                str(a.design_seed),
+            ]
+        ),
+    }
     print(f"wrote {write_json(f'model_{a.name}.json', out)}")
 
 

@@ -1,5 +1,6 @@
 """The scaling study's arithmetic (benchmarks/scaling/run.py writes the points, benchmarks/scaling/report.py words
 them): a power law fitted in log-log, its extrapolation, and HCMT's margin over MGN along an axis. Pure numpy."""
+
 from __future__ import annotations
 
 import math
@@ -8,9 +9,13 @@ from pathlib import Path
 import numpy as np
 
 #: the errors judged per point: (key in a point's ``errors``, how the report names it)
-METRICS = (("position_rmse_all", "position RMSE-all ×10⁻³"), ("stress_rmse_all", "stress RMSE-all ×10⁻³"),
-           ("peak_error_pct", "peak plate stress error %"), ("deflection_error_pct", "max deflection error %"),
-           ("ghost_difference", "ghost difference"))
+METRICS = (
+    ("position_rmse_all", "position RMSE-all ×10⁻³"),
+    ("stress_rmse_all", "stress RMSE-all ×10⁻³"),
+    ("peak_error_pct", "peak plate stress error %"),
+    ("deflection_error_pct", "max deflection error %"),
+    ("ghost_difference", "ghost difference"),
+)
 
 
 def fit_power_law(x, y) -> dict | None:
@@ -25,7 +30,7 @@ def fit_power_law(x, y) -> dict | None:
     slope, intercept = np.polyfit(lx, ly, 1)
     resid = ly - (slope * lx + intercept)
     total = float(((ly - ly.mean()) ** 2).sum())
-    r2 = 1.0 - float((resid ** 2).sum()) / total if total > 0 else 1.0
+    r2 = 1.0 - float((resid**2).sum()) / total if total > 0 else 1.0
     return {"k": float(-slope), "c": float(math.exp(intercept)), "r2": r2, "points": int(len(x))}
 
 

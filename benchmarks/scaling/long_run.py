@@ -15,6 +15,7 @@ stand beside the study's fit, not in it (docs/RESULTS.md, section "Scaling with 
 test_thicker_higher``: the designs outside the training ranges that ``hcmt generate --variants`` writes), kept per
 split (rows without one are the test split's).
 """
+
 from __future__ import annotations
 
 import argparse
@@ -35,12 +36,21 @@ def main(argv=None) -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("snapshot", type=Path, help="a copy of the long run's folder (run.yaml, best.pt)")
     p.add_argument("--data", type=Path, required=True)
-    p.add_argument("--checkpoint", default="best", help="best (the default: a snapshot's) or step_N, a checkpoint "
-                   "train.keep_every kept (immutable: the live run folder may be judged)")
+    p.add_argument(
+        "--checkpoint",
+        default="best",
+        help="best (the default: a snapshot's) or step_N, a checkpoint "
+        "train.keep_every kept (immutable: the live run folder may be judged)",
+    )
     p.add_argument("--label", default=None, help="the run's name in the table (default: the snapshot folder)")
-    p.add_argument("--split", nargs="+", default=["test"], help="the splits of DATA judged, pooled (default test; "
-                   "the outside-range splits of `hcmt generate --variants`: test_thicker test_higher "
-                   "test_thicker_higher)")
+    p.add_argument(
+        "--split",
+        nargs="+",
+        default=["test"],
+        help="the splits of DATA judged, pooled (default test; "
+        "the outside-range splits of `hcmt generate --variants`: test_thicker test_higher "
+        "test_thicker_higher)",
+    )
     p.add_argument("--threads", type=int, default=1)
     p.add_argument("--out", type=Path, default=RESULTS / "scaling_long_run.json")
     a = p.parse_args(argv)
@@ -50,10 +60,16 @@ def main(argv=None) -> None:
     for split in a.split:
         if not (a.data / f"{split}.h5").is_file():
             sys.exit(f"long_run.py: --split {split}: {a.data / (split + '.h5')} does not exist")
-    row = {**test_errors(loaded, a.data.resolve(), None, tuple(a.split)),
-           "designs": loaded.meta["generator"]["counts"]["train"],
-           "schedule_steps": cfg.train.steps, "lr": cfg.train.lr, "lr_final": cfg.train.lr_final,
-           "snapshot": str(a.snapshot), "checkpoint": a.checkpoint, "run": a.label or a.snapshot.name}
+    row = {
+        **test_errors(loaded, a.data.resolve(), None, tuple(a.split)),
+        "designs": loaded.meta["generator"]["counts"]["train"],
+        "schedule_steps": cfg.train.steps,
+        "lr": cfg.train.lr,
+        "lr_final": cfg.train.lr_final,
+        "snapshot": str(a.snapshot),
+        "checkpoint": a.checkpoint,
+        "run": a.label or a.snapshot.name,
+    }
     if a.split != ["test"]:
         row["split"] = " + ".join(a.split)
     old = json.loads(a.out.read_text()) if a.out.is_file() else {"checkpoints": []}
@@ -63,10 +79,13 @@ def main(argv=None) -> None:
 
     kept = [r for r in old["checkpoints"] if key(r) != key(row)]
     runs = list(dict.fromkeys(run_of(r) for r in kept + [row]))  # each run's rows together, in order of its first
-    out = {"command": f"python benchmarks/scaling/long_run.py SNAPSHOT --data {a.data} --checkpoint step_N --label RUN",
-           "model": "hcmt", "checkpoints": sorted(kept + [row], key=lambda r: (runs.index(run_of(r)),
-                                                                                 r["checkpoint_step"],
-                                                                                 r.get("split", "test")))}
+    out = {
+        "command": f"python benchmarks/scaling/long_run.py SNAPSHOT --data {a.data} --checkpoint step_N --label RUN",
+        "model": "hcmt",
+        "checkpoints": sorted(
+            kept + [row], key=lambda r: (runs.index(run_of(r)), r["checkpoint_step"], r.get("split", "test"))
+        ),
+    }
     print(json.dumps(row["errors"], indent=1))
     print(f"wrote {write_json(a.out, out)}")
 

@@ -12,6 +12,7 @@ that the solver fails, and the trends that agree with the solver's, counted by t
 (``surrogate.run.unsafe_passes``, ``hcmt.design.sweep.trends_agree``). A checkpoint already in ``--out`` is kept,
 not rolled out again.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -41,10 +42,14 @@ def judged(model: dict[str, dict[str, list[float]]], judge: dict) -> dict:
         for q in TREND_QUANTITIES:
             v, solver = model[name][q][-1] / model[name][q][0] - 1, per_q[q]["solver"]
             trends[name][q] = {"hcmt": v, "solver": solver, "agrees": trends_agree(v, solver)}
-    return {"unsafe": sum(unsafe.values()), "unsafe_by_sweep": unsafe,
-            "points": sum(len(s["solver_peaks"]) for s in judge["sweeps"].values()),
-            "trends_agree": sum(t["agrees"] for per_q in trends.values() for t in per_q.values()),
-            "trends_of": sum(len(per_q) for per_q in trends.values()), "trends": trends}
+    return {
+        "unsafe": sum(unsafe.values()),
+        "unsafe_by_sweep": unsafe,
+        "points": sum(len(s["solver_peaks"]) for s in judge["sweeps"].values()),
+        "trends_agree": sum(t["agrees"] for per_q in trends.values() for t in per_q.values()),
+        "trends_of": sum(len(per_q) for per_q in trends.values()),
+        "trends": trends,
+    }
 
 
 def main(argv=None) -> None:
@@ -70,18 +75,28 @@ def main(argv=None) -> None:
         for name in dict.fromkeys([f"sweep_{h:g}" for h, _ in SWEEPS] + ["sweep_height"]):
             check = check_designs(run, sets[name], batch=len(sets[name]), surrogate=False, progress=False)
             model[name] = {q: [getattr(pr.summary, q) for pr in check.preds] for q in TREND_QUANTITIES}
-        rows[which] = {"checkpoint": which, "checkpoint_step": run.checkpoint_step, **judged(model, judge),
-                       "model_peaks": {k: v["peak_plate_stress_mpa"] for k, v in model.items()}}
+        rows[which] = {
+            "checkpoint": which,
+            "checkpoint_step": run.checkpoint_step,
+            **judged(model, judge),
+            "model_peaks": {k: v["peak_plate_stress_mpa"] for k, v in model.items()},
+        }
         r = rows[which]
         if r["checkpoint_step"] == judge.get("checkpoint_step"):  # the judge's own model: its peaks, fp16 vs fp32
             theirs = {f"sweep_{h:g}": s["model_peaks"] for (h, _), s in zip(SWEEPS, judge["sweeps"].values())}
-            r["judge_peak_max_rel_diff"] = max(abs(m / t - 1) for k, v in theirs.items()
-                                               for m, t in zip(r["model_peaks"][k], v))
-        print(f"{which}: unsafe {r['unsafe']} of {r['points']}, trends {r['trends_agree']} of {r['trends_of']}",
-              flush=True)
-        out = {"command": "python benchmarks/scaling/long_run_sweeps.py RUN --checkpoints step_N ...",
-               "run": str(a.run), "judge": {k: judge.get(k) for k in ("command", "model", "checkpoint_step")},
-               "rows": sorted(rows.values(), key=lambda r: r["checkpoint_step"])}
+            r["judge_peak_max_rel_diff"] = max(
+                abs(m / t - 1) for k, v in theirs.items() for m, t in zip(r["model_peaks"][k], v)
+            )
+        print(
+            f"{which}: unsafe {r['unsafe']} of {r['points']}, trends {r['trends_agree']} of {r['trends_of']}",
+            flush=True,
+        )
+        out = {
+            "command": "python benchmarks/scaling/long_run_sweeps.py RUN --checkpoints step_N ...",
+            "run": str(a.run),
+            "judge": {k: judge.get(k) for k in ("command", "model", "checkpoint_step")},
+            "rows": sorted(rows.values(), key=lambda r: r["checkpoint_step"]),
+        }
         print(f"wrote {write_json(a.out, out)}")
 
 

@@ -23,6 +23,7 @@ finished (a lost work folder). Several processes may share WORK (a run another p
 rewritten after every finished point, so a partial study still reports (benchmarks/report.py, section "Scaling
 with budget and designs"; ``python benchmarks/scaling/report.py OUT`` prints that section alone).
 """
+
 from __future__ import annotations
 
 import argparse
@@ -48,8 +49,14 @@ from hcmt.training import train  # noqa: E402
 from hcmt.training.runtime import TrainingInterrupted  # noqa: E402
 
 #: the shipped model's recipe (docs/MODELS.md); pushforward_start, validation and checkpoints are set per budget
-RECIPE = ["model.attention=official", "train.noise_std=0.0003", "model.target=acceleration",
-          "train.noise_nodes=predicted", "train.pushforward=0.5", "model.deformation=true"]
+RECIPE = [
+    "model.attention=official",
+    "train.noise_std=0.0003",
+    "model.target=acceleration",
+    "train.noise_nodes=predicted",
+    "train.pushforward=0.5",
+    "model.deformation=true",
+]
 SHIPPED = (2000, 36000)  # the shipped model's pushforward_start and steps
 NORMALIZER_STEPS = 200  # impact_plate_cpu's; a fifth of the budget below 1,000 steps
 VALIDATIONS = 8  # validations per run (best.pt: the lowest validation position RMSE-all, as the shipped model)
@@ -61,25 +68,27 @@ def plan(budgets, designs, designs_budget, seeds, multi_seed, models) -> list[di
     full, cheap = max(designs), sorted(budgets)[:multi_seed]
     pts = {(b, full, s) for b in budgets for s in (seeds if b in cheap else seeds[:1])}
     pts |= {(designs_budget, n, s) for n in designs for s in (seeds if designs_budget in cheap else seeds[:1])}
-    return [{"model": m, "budget": b, "designs": n, "seed": s}
-            for b, n, s in sorted(pts) for m in models]
+    return [{"model": m, "budget": b, "designs": n, "seed": s} for b, n, s in sorted(pts) for m in models]
 
 
 def name(p: dict) -> str:
     return f"{p['model']}_b{p['budget']}_d{p['designs']}_s{p['seed']}"
 
 
-def overrides(budget: int, designs: int, total: int, valid_trajectories: int, compile_mode: str,
-              extra: list[str]) -> list[str]:
+def overrides(
+    budget: int, designs: int, total: int, valid_trajectories: int, compile_mode: str, extra: list[str]
+) -> list[str]:
     """The run's config overrides: the recipe scaled to ``budget`` steps, the first ``designs`` of ``total``
     training trajectories."""
-    out = RECIPE + [f"train.steps={budget}",
-                    f"train.pushforward_start={round(budget * SHIPPED[0] / SHIPPED[1])}",
-                    f"train.normalizer_steps={min(NORMALIZER_STEPS, max(1, budget // 5))}",
-                    f"train.valid_every={max(1, budget // VALIDATIONS)}",
-                    f"train.valid_trajectories={valid_trajectories}",
-                    f"train.checkpoint_every={max(1, min(500, budget // 4))}",
-                    f"train.compile={compile_mode}"]
+    out = RECIPE + [
+        f"train.steps={budget}",
+        f"train.pushforward_start={round(budget * SHIPPED[0] / SHIPPED[1])}",
+        f"train.normalizer_steps={min(NORMALIZER_STEPS, max(1, budget // 5))}",
+        f"train.valid_every={max(1, budget // VALIDATIONS)}",
+        f"train.valid_trajectories={valid_trajectories}",
+        f"train.checkpoint_every={max(1, min(500, budget // 4))}",
+        f"train.compile={compile_mode}",
+    ]
     if designs < total:
         out.append(f"data.exclude_trajectories=[{','.join(map(str, range(designs, total)))}]")
     return out + list(extra)
@@ -103,8 +112,11 @@ def judged(run: Path, data: Path, limit: int | None) -> dict:
     """The point's errors on the test split (evaluate's metrics_test.json, plus the engineering errors)."""
     loaded = Run.load(run, "cpu")
     stats = RunFolder(run).train_stats()
-    return {**test_errors(loaded, data, limit), "steps": stats["steps"],
-            "train_ms_per_step": stats["train_ms_per_step"]}
+    return {
+        **test_errors(loaded, data, limit),
+        "steps": stats["steps"],
+        "train_ms_per_step": stats["train_ms_per_step"],
+    }
 
 
 def test_errors(loaded: Run, data: Path, limit: int | None, split: str | tuple[str, ...] = "test") -> dict:
@@ -124,15 +136,24 @@ def test_errors(loaded: Run, data: Path, limit: int | None, split: str | tuple[s
     def pooled(values):  # each split's mean over its trajectories, pooled by their counts
         return float(np.average(values, weights=counts))
 
-    return {"trajectories": sum(counts), "checkpoint_step": loaded.checkpoint_step,
-            "errors": {"position_rmse_all": pooled([m.position.rmse_all for m in ms]),
-                       "stress_rmse_all": pooled([m.stress.rmse_all for m in ms]),
-                       "peak_error_pct": float(np.median(peak)), "deflection_error_pct": float(np.median(defl)),
-                       "ghost_difference": float(np.median(ghost))},
-            "worst": {"peak_error_pct": float(peak.max()), "deflection_error_pct": float(defl.max()),
-                      "ghost_difference": float(ghost.max())},
-            "solver_ghost_ratio": float(np.median([r["solver_ghost_ratio"] for r in rows])),
-            "rebound_agreement": pooled([m.physics["rebound_agreement"] for m in ms])}
+    return {
+        "trajectories": sum(counts),
+        "checkpoint_step": loaded.checkpoint_step,
+        "errors": {
+            "position_rmse_all": pooled([m.position.rmse_all for m in ms]),
+            "stress_rmse_all": pooled([m.stress.rmse_all for m in ms]),
+            "peak_error_pct": float(np.median(peak)),
+            "deflection_error_pct": float(np.median(defl)),
+            "ghost_difference": float(np.median(ghost)),
+        },
+        "worst": {
+            "peak_error_pct": float(peak.max()),
+            "deflection_error_pct": float(defl.max()),
+            "ghost_difference": float(ghost.max()),
+        },
+        "solver_ghost_ratio": float(np.median([r["solver_ghost_ratio"] for r in rows])),
+        "rebound_agreement": pooled([m.physics["rebound_agreement"] for m in ms]),
+    }
 
 
 def point(work: Path, data: Path, p: dict, cfg_name: str, ovr: list[str], limit: int | None) -> dict | None:
@@ -165,8 +186,10 @@ def restore(work: Path, earlier: Path, header: dict, points: list[dict]) -> int:
     old = json.loads(earlier.read_text())
     differ = [k for k in SAME_STUDY if old.get(k) != header[k]]
     if differ:
-        raise SystemExit(f"--restore {earlier}: another study ({', '.join(f'{k} {old.get(k)!r}' for k in differ)}; "
-                         f"this one: {', '.join(repr(header[k]) for k in differ)})")
+        raise SystemExit(
+            f"--restore {earlier}: another study ({', '.join(f'{k} {old.get(k)!r}' for k in differ)}; "
+            f"this one: {', '.join(repr(header[k]) for k in differ)})"
+        )
     wanted, n = {name(q) for q in points}, 0
     for row in old["points"]:
         cached = work / "runs" / name(row) / EVAL_FILE
@@ -187,8 +210,9 @@ def finished(work: Path, points: list[dict]) -> list[dict]:
 def write(out: Path, header: dict, points: list[dict], planned: int) -> None:
     out.parent.mkdir(parents=True, exist_ok=True)
     with atomic_path(out) as tmp:
-        tmp.write_text(json.dumps(portable({**header, "planned": planned, "done": len(points), "points": points}),
-                                  indent=1))
+        tmp.write_text(
+            json.dumps(portable({**header, "planned": planned, "done": len(points), "points": points}), indent=1)
+        )
 
 
 def main(argv=None) -> None:
@@ -208,8 +232,13 @@ def main(argv=None) -> None:
     p.add_argument("--compile", default="none", choices=COMPILE_MODES, help="train.compile")
     p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE", help="another config override")
     p.add_argument("--out", type=Path, default=RESULTS / "scaling.json")
-    p.add_argument("--restore", type=Path, metavar="JSON", help="points judged in this earlier results file of the "
-                   "same study count as finished (a lost work folder; the data regenerated by the same command)")
+    p.add_argument(
+        "--restore",
+        type=Path,
+        metavar="JSON",
+        help="points judged in this earlier results file of the "
+        "same study count as finished (a lost work folder; the data regenerated by the same command)",
+    )
     a = p.parse_args(argv)
     torch.set_num_threads(a.threads)
     data = a.data.resolve()
@@ -220,31 +249,46 @@ def main(argv=None) -> None:
     if max(a.designs) > total:
         raise SystemExit(f"{data}: {total} training designs, --designs asks for {max(a.designs)}")
     points = plan(a.budgets, a.designs, a.designs_budget, a.seeds, a.multi_seed, a.models)
-    header = {"command": "python benchmarks/scaling/run.py " + " ".join(argv if argv is not None else sys.argv[1:]),
-              "data": str(data), "train_designs_in_data": total,
-              "device": f"cpu ({platform.processor() or platform.machine()}), {a.threads} thread(s)",
-              "recipe": RECIPE, "config": a.config, "extra_overrides": a.set, "compile": a.compile,
-              "budgets": sorted(a.budgets), "designs": sorted(a.designs), "designs_budget": a.designs_budget,
-              "seeds": a.seeds, "multi_seed": a.multi_seed, "models": a.models}
+    header = {
+        "command": "python benchmarks/scaling/run.py " + " ".join(argv if argv is not None else sys.argv[1:]),
+        "data": str(data),
+        "train_designs_in_data": total,
+        "device": f"cpu ({platform.processor() or platform.machine()}), {a.threads} thread(s)",
+        "recipe": RECIPE,
+        "config": a.config,
+        "extra_overrides": a.set,
+        "compile": a.compile,
+        "budgets": sorted(a.budgets),
+        "designs": sorted(a.designs),
+        "designs_budget": a.designs_budget,
+        "seeds": a.seeds,
+        "multi_seed": a.multi_seed,
+        "models": a.models,
+    }
     if a.restore:
         print(f"restored {restore(a.work, a.restore, header, points)} judged points from {a.restore}", flush=True)
-    print(f"scaling study: {len(points)} points, {sum(q['budget'] for q in points):,} training steps in all",
-          flush=True)
+    print(
+        f"scaling study: {len(points)} points, {sum(q['budget'] for q in points):,} training steps in all", flush=True
+    )
     for q in points:
         ovr = overrides(q["budget"], q["designs"], total, valid, a.compile, a.set)
         try:
             row = point(a.work, data, q, a.config, ovr, a.eval)
         except (TrainingInterrupted, KeyboardInterrupt) as exc:
             write(a.out, header, finished(a.work, points), len(points))
-            raise SystemExit(f"{exc or 'interrupted'}; {a.out} holds the finished points: run the same command "
-                             "again to resume") from None
+            raise SystemExit(
+                f"{exc or 'interrupted'}; {a.out} holds the finished points: run the same command again to resume"
+            ) from None
         if row is None:
             continue
         done = finished(a.work, points)  # this process's points and those other processes finished
         e = row["errors"]
-        print(f"  {name(q)}: position {e['position_rmse_all']:.4g}, stress {e['stress_rmse_all']:.4g}, peak "
-              f"{e['peak_error_pct']:.1f} %, deflection {e['deflection_error_pct']:.1f} %, ghost "
-              f"{e['ghost_difference']:.3f} ({len(done)}/{len(points)} points done)", flush=True)
+        print(
+            f"  {name(q)}: position {e['position_rmse_all']:.4g}, stress {e['stress_rmse_all']:.4g}, peak "
+            f"{e['peak_error_pct']:.1f} %, deflection {e['deflection_error_pct']:.1f} %, ghost "
+            f"{e['ghost_difference']:.3f} ({len(done)}/{len(points)} points done)",
+            flush=True,
+        )
         write(a.out, header, done, len(points))
     write(a.out, header, finished(a.work, points), len(points))
     print(f"wrote {a.out}")

@@ -17,6 +17,7 @@ Fits time ∝ N^k by least squares in log-log.
 
 Writes benchmarks/results/speed_rollout.json and benchmarks/results/speed_scaling.json.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -57,8 +58,10 @@ def _rollout(args) -> None:
             models[info.model["name"]] = (m, levels)
     else:
         torch.manual_seed(0)
-        models = {"hcmt": (build_for_dataset("hcmt", "impact_plate"), 6),
-                  "mgn": (build_for_dataset("mgn", "impact_plate"), 0)}
+        models = {
+            "hcmt": (build_for_dataset("hcmt", "impact_plate"), 6),
+            "mgn": (build_for_dataset("mgn", "impact_plate"), 0),
+        }
     rows = []
     for i in range(args.n):
         design = sample_design(trajectory_rng(args.seed, "test", i), "paper")
@@ -67,8 +70,12 @@ def _rollout(args) -> None:
         solver_s = time.perf_counter() - t0
         fields = sim.fields
         steps = fields["world_pos"].shape[0] - 1
-        row = {"nodes": int(fields["mesh_pos"].shape[0]), "frames": steps + 1, "solver_s": solver_s,
-               "solver_ms_per_frame": 1e3 * solver_s / steps}
+        row = {
+            "nodes": int(fields["mesh_pos"].shape[0]),
+            "frames": steps + 1,
+            "solver_s": solver_s,
+            "solver_ms_per_frame": 1e3 * solver_s / steps,
+        }
         for name, (model, levels) in models.items():
             traj = prepare_trajectory(fields, f"design{i}", adapter, levels)
             try:
@@ -123,8 +130,13 @@ def _one(model_name: str, target: int, reps: int, checkpoint_blocks: bool = Fals
     rng = np.random.default_rng(0)
     mesh_pos = torch.from_numpy(mesh["mesh_pos"]).float()
     world = mesh_pos + torch.from_numpy(rng.normal(scale=0.005, size=mesh_pos.shape)).float()
-    feats = torch.cat([torch.nn.functional.one_hot(torch.from_numpy(mesh["node_type"]), 9).float(),
-                       torch.from_numpy(rng.normal(size=(n, 4))).float()], 1)
+    feats = torch.cat(
+        [
+            torch.nn.functional.one_hot(torch.from_numpy(mesh["node_type"]), 9).float(),
+            torch.from_numpy(rng.normal(size=(n, 4))).float(),
+        ],
+        1,
+    )
     torch.manual_seed(0)
     model = build_for_dataset(model_name, "impact_plate").to(dev)
     model.checkpoint_blocks = checkpoint_blocks
@@ -142,12 +154,22 @@ def _one(model_name: str, target: int, reps: int, checkpoint_blocks: bool = Fals
             torch.cuda.synchronize(dev)
         if i:  # the first step warms up allocators
             times.append(1e3 * (time.perf_counter() - t0))
-    peak = (torch.cuda.max_memory_allocated(dev) / 2**20 if dev.type == "cuda"
-            else resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024)
-    return {"model": model_name, "nodes": n, "edges": int(g.mesh_edges.shape[1]), "train_ms": statistics.median(times),
-            "hierarchy_ms": hierarchy_ms, "peak_mb": peak, "peak_kb_per_node": peak * 1024 / n,
-            "checkpoint_blocks": checkpoint_blocks, "device": device if dev.type == "cpu"
-            else torch.cuda.get_device_name(dev)}
+    peak = (
+        torch.cuda.max_memory_allocated(dev) / 2**20
+        if dev.type == "cuda"
+        else resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+    )
+    return {
+        "model": model_name,
+        "nodes": n,
+        "edges": int(g.mesh_edges.shape[1]),
+        "train_ms": statistics.median(times),
+        "hierarchy_ms": hierarchy_ms,
+        "peak_mb": peak,
+        "peak_kb_per_node": peak * 1024 / n,
+        "checkpoint_blocks": checkpoint_blocks,
+        "device": device if dev.type == "cpu" else torch.cuda.get_device_name(dev),
+    }
 
 
 def _scaling(args) -> None:
@@ -159,17 +181,32 @@ def _scaling(args) -> None:
     ckpt = bool(args.checkpoint_blocks)
     for size in args.sizes:
         for model in args.models:
-            if any(r["model"] == model and r.get("target_nodes", r.get("nodes")) == size
-                   and r.get("checkpoint_blocks", False) == ckpt and r.get("device", "cpu") in (args.device, None)
-                   for r in rows):
+            if any(
+                r["model"] == model
+                and r.get("target_nodes", r.get("nodes")) == size
+                and r.get("checkpoint_blocks", False) == ckpt
+                and r.get("device", "cpu") in (args.device, None)
+                for r in rows
+            ):
                 continue
-            out = subprocess.run([sys.executable, __file__, "one", model, str(size), "--reps", str(args.reps),
-                                  "--device", args.device] + (["--checkpoint-blocks"] if ckpt else []),
-                                 capture_output=True, text=True, env={**os.environ, "PYTHONUNBUFFERED": "1"})
+            out = subprocess.run(
+                [sys.executable, __file__, "one", model, str(size), "--reps", str(args.reps), "--device", args.device]
+                + (["--checkpoint-blocks"] if ckpt else []),
+                capture_output=True,
+                text=True,
+                env={**os.environ, "PYTHONUNBUFFERED": "1"},
+            )
             if out.returncode:
                 err = out.stderr.strip().splitlines()[-1] if out.stderr.strip() else f"exit {out.returncode}"
-                rows.append({"model": model, "target_nodes": size, "failed": err[-300:], "checkpoint_blocks": ckpt,
-                             "device": args.device})
+                rows.append(
+                    {
+                        "model": model,
+                        "target_nodes": size,
+                        "failed": err[-300:],
+                        "checkpoint_blocks": ckpt,
+                        "device": args.device,
+                    }
+                )
                 print(json.dumps(rows[-1]), flush=True)
                 write_json(args.json, {"rows": rows, "exponent": {}, "threads": torch.get_num_threads()})
                 continue
@@ -178,8 +215,14 @@ def _scaling(args) -> None:
             write_json(args.json, {"rows": rows, "exponent": {}, "threads": torch.get_num_threads()})
     fits = {}
     for model in ("hcmt", "mgn"):
-        r = [x for x in rows if x["model"] == model and "train_ms" in x and not x.get("checkpoint_blocks")
-             and x.get("device", "cpu") in (args.device, None)]
+        r = [
+            x
+            for x in rows
+            if x["model"] == model
+            and "train_ms" in x
+            and not x.get("checkpoint_blocks")
+            and x.get("device", "cpu") in (args.device, None)
+        ]
         if len(r) >= 2:
             k, _ = np.polyfit(np.log([x["nodes"] for x in r]), np.log([x["train_ms"] for x in r]), 1)
             fits[model] = float(k)

@@ -24,6 +24,7 @@ each sweep's change from its first point to its last, model and response surface
 checkpoint of a run on the same seeds (``--model RUN --checkpoint step_N``, benchmarks/scaling/README.md) needs only
 its own rollouts: ``--solver-from`` names the first judge's WORK, whose solver trajectories it reuses.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -81,6 +82,8 @@ def as_read(s: Summary) -> Summary:
     """A summary whose plate peak fields are its chosen read-out's (:attr:`hcmt.design.summary.Summary.chosen`):
     the study compares read-outs side by side."""
     return replace(s, **{k: getattr(s.chosen, k) for k in DERIVED_KEYS})
+
+
 #: the solver's plate is unloaded where its ball is gone and its plate stress is below this share of its peak
 UNLOADED = 0.10
 CURVE = (15, 30, 60, 120)
@@ -114,8 +117,11 @@ class Quadratic:
             mu = A @ coef
             half = Z95 * sd * np.sqrt(1 + np.einsum("ij,jk,ik->i", A, inv, A))
             for i in range(len(designs)):
-                out[i][q] = {"mean": float(np.exp(mu[i])), "lo": float(np.exp(mu[i] - half[i])),
-                             "hi": float(np.exp(mu[i] + half[i]))}
+                out[i][q] = {
+                    "mean": float(np.exp(mu[i])),
+                    "lo": float(np.exp(mu[i] - half[i])),
+                    "hi": float(np.exp(mu[i] + half[i])),
+                }
         return out
 
 
@@ -124,8 +130,11 @@ def design_sets(run, seed_in: int = 90210, seed_out: int = 31337) -> dict[str, l
     rng = np.random.default_rng(seed_in)
     sets = {"in_range": [(f"fresh_{i:02d}", sample_design(rng, preset)) for i in range(30)]}
     rng = np.random.default_rng(seed_out)
-    for name, count, t, h in (("thicker", 6, (1.03, 1.2), None), ("higher", 6, None, (1030.0, 1200.0)),
-                              ("both", 4, (1.03, 1.2), (1030.0, 1200.0))):
+    for name, count, t, h in (
+        ("thicker", 6, (1.03, 1.2), None),
+        ("higher", 6, None, (1030.0, 1200.0)),
+        ("both", 4, (1.03, 1.2), (1030.0, 1200.0)),
+    ):
         rows = []
         for i in range(count):
             d = sample_design(rng, preset)
@@ -137,10 +146,13 @@ def design_sets(run, seed_in: int = 90210, seed_out: int = 31337) -> dict[str, l
         sets[name] = rows
     base = middle_design(run.meta)  # the preset's middle, as the first sweeps (hcmt 0.1's default) were run
     for h, _ in SWEEPS:
-        sets[f"sweep_{h:g}"] = [(f"t={t:.2f}", replace(base, drop_height=h, thickness=float(t)))
-                                for t in np.round(np.linspace(0.5, 1.0, 11), 6)]
-    sets["sweep_height"] = [(f"h={h:.0f}", replace(base, thickness=0.75, drop_height=float(h)))
-                            for h in np.linspace(520.0, 990.0, 6)]
+        sets[f"sweep_{h:g}"] = [
+            (f"t={t:.2f}", replace(base, drop_height=h, thickness=float(t)))
+            for t in np.round(np.linspace(0.5, 1.0, 11), 6)
+        ]
+    sets["sweep_height"] = [
+        (f"h={h:.0f}", replace(base, thickness=0.75, drop_height=float(h))) for h in np.linspace(520.0, 990.0, 6)
+    ]
     return sets
 
 
@@ -152,25 +164,38 @@ def record(p, t, frame_dt: float, end) -> dict:
     fields = p.fields()
     plate = plate_mask(p.cells, p.node_type)
     solver_window = contact_window(contact_gap(t.world_pos, t.mesh_pos, plate))
-    model = {r: as_read(summarize_fields(fields, frame_dt, r, p.wall_s,
-                                         getattr(end, CONTACT_END_BOUND) if r == "contact" else None))
-             for r in READOUTS}
+    model = {
+        r: as_read(
+            summarize_fields(fields, frame_dt, r, p.wall_s, getattr(end, CONTACT_END_BOUND) if r == "contact" else None)
+        )
+        for r in READOUTS
+    }
     model["contact_upper"] = as_read(summarize_fields(fields, frame_dt, "contact", p.wall_s, end.hi))
     model["contact_own"] = as_read(summarize_fields(fields, frame_dt, "contact", p.wall_s))
     truth = t.summary
-    unloaded = [not w and h < UNLOADED * truth.peak_plate_stress_mpa
-                for w, h in zip(solver_window, truth.plate_stress_history_mpa)]
-    out = {"design": asdict(p.design), "solver": _scalars(truth), "solver_wall_s": t.wall_s,
-           "solver_ghost": ghost_ratio(truth.plate_stress_history_mpa, truth.peak_plate_stress_mpa),
-           "model": {}}
+    unloaded = [
+        not w and h < UNLOADED * truth.peak_plate_stress_mpa
+        for w, h in zip(solver_window, truth.plate_stress_history_mpa)
+    ]
+    out = {
+        "design": asdict(p.design),
+        "solver": _scalars(truth),
+        "solver_wall_s": t.wall_s,
+        "solver_ghost": ghost_ratio(truth.plate_stress_history_mpa, truth.peak_plate_stress_mpa),
+        "model": {},
+    }
     for r, s in model.items():
-        out["model"][r] = {**_scalars(s), "ghost": ghost_ratio(s.plate_stress_history_mpa, s.peak_plate_stress_mpa),
-                           "peak_in_solver_contact": bool(solver_window[s.peak_plate_frame]),
-                           "peak_where_solver_unloaded": bool(unloaded[s.peak_plate_frame]),
-                           "t95_frame_error": s.peak_plate_t95_frame - truth.peak_plate_t95_frame,
-                           "argmax_frame_error": s.peak_plate_frame - truth.peak_plate_frame}
-    out["contact_end_lag_frames"] = round((model["contact_own"].contact_end_ms - truth.contact_end_ms)
-                                          / frame_dt)  # the learned ball leaves this much later
+        out["model"][r] = {
+            **_scalars(s),
+            "ghost": ghost_ratio(s.plate_stress_history_mpa, s.peak_plate_stress_mpa),
+            "peak_in_solver_contact": bool(solver_window[s.peak_plate_frame]),
+            "peak_where_solver_unloaded": bool(unloaded[s.peak_plate_frame]),
+            "t95_frame_error": s.peak_plate_t95_frame - truth.peak_plate_t95_frame,
+            "argmax_frame_error": s.peak_plate_frame - truth.peak_plate_frame,
+        }
+    out["contact_end_lag_frames"] = round(
+        (model["contact_own"].contact_end_ms - truth.contact_end_ms) / frame_dt
+    )  # the learned ball leaves this much later
     out["solver_ball_leaves"] = truth.contact_end_ms < len(truth.plate_stress_history_mpa) * frame_dt - 1e-9
     # how far the solver's peak lies before the GP's lower bound of when its ball leaves (frames)
     out["solver_peak_before_lower_end_frames"] = int(np.floor(end.lo / frame_dt)) - truth.peak_plate_frame
@@ -185,8 +210,17 @@ def _scalars(s: Summary) -> dict:
 
 
 #: a cached design's arrays (``{i}_{key}``)
-CACHED = ("model_pos", "model_stress", "solver_pos", "solver_stress", "mesh_pos", "cells", "node_type", "modulus",
-          "wall")
+CACHED = (
+    "model_pos",
+    "model_stress",
+    "solver_pos",
+    "solver_stress",
+    "mesh_pos",
+    "cells",
+    "node_type",
+    "modulus",
+    "wall",
+)
 
 
 def cache_group(run, name: str, designs, work: Path, batch: int, solver_from: Path | None = None) -> Path:
@@ -213,20 +247,38 @@ def cache_group(run, name: str, designs, work: Path, batch: int, solver_from: Pa
             solver_wall = arrays[f"{i}_wall"][1]
         else:
             t = check.truth[i]
-            arrays.update({f"{i}_solver_pos": t.world_pos, f"{i}_solver_stress": t.stress, f"{i}_mesh_pos": p.mesh_pos,
-                           f"{i}_cells": p.cells, f"{i}_node_type": p.node_type, f"{i}_modulus": p.modulus})
+            arrays.update(
+                {
+                    f"{i}_solver_pos": t.world_pos,
+                    f"{i}_solver_stress": t.stress,
+                    f"{i}_mesh_pos": p.mesh_pos,
+                    f"{i}_cells": p.cells,
+                    f"{i}_node_type": p.node_type,
+                    f"{i}_modulus": p.modulus,
+                }
+            )
             solver_wall = t.wall_s
-        arrays.update({f"{i}_model_pos": p.world_pos, f"{i}_model_stress": p.stress,
-                       f"{i}_wall": np.array([p.wall_s, solver_wall])})
+        arrays.update(
+            {
+                f"{i}_model_pos": p.world_pos,
+                f"{i}_model_stress": p.stress,
+                f"{i}_wall": np.array([p.wall_s, solver_wall]),
+            }
+        )
     with atomic_path(path) as tmp, open(tmp, "wb") as f:
         np.savez_compressed(f, **arrays)
-    print(f"  {name}: {len(designs)} designs, model" + (f" (solver from {solved})" if reuse else " and solver")
-          + f", {time.perf_counter() - t0:.0f} s", flush=True)
+    print(
+        f"  {name}: {len(designs)} designs, model"
+        + (f" (solver from {solved})" if reuse else " and solver")
+        + f", {time.perf_counter() - t0:.0f} s",
+        flush=True,
+    )
     return path
 
 
-def run_group(run, name: str, designs, work: Path, batch: int, frame_dt: float, gp,
-              solver_from: Path | None = None) -> list[dict]:
+def run_group(
+    run, name: str, designs, work: Path, batch: int, frame_dt: float, gp, solver_from: Path | None = None
+) -> list[dict]:
     """Model and solver on a group of designs (cached: :func:`cache_group`), each design's record."""
     path = cache_group(run, name, designs, work, batch, solver_from)
     calibration, _ = interval_for_run(run, True)  # the model's own interval, as the design check attaches it
@@ -236,23 +288,32 @@ def run_group(run, name: str, designs, work: Path, batch: int, frame_dt: float, 
         for i, (n, d) in enumerate(designs):
             wall = z[f"{i}_wall"]
             static = [z[f"{i}_{k}"] for k in ("mesh_pos", "cells", "node_type")]
-            p = Prediction(n, d, z[f"{i}_model_pos"], z[f"{i}_model_stress"], *static, float(wall[0]),
-                              modulus=z[f"{i}_modulus"])
-            t = Prediction(n, d, z[f"{i}_solver_pos"], z[f"{i}_solver_stress"], *static, float(wall[1]),
-                              modulus=z[f"{i}_modulus"])
+            p = Prediction(
+                n, d, z[f"{i}_model_pos"], z[f"{i}_model_stress"], *static, float(wall[0]), modulus=z[f"{i}_modulus"]
+            )
+            t = Prediction(
+                n, d, z[f"{i}_solver_pos"], z[f"{i}_solver_stress"], *static, float(wall[1]), modulus=z[f"{i}_modulus"]
+            )
             p.summary = summarize(p, frame_dt)
             t.summary = summarize(t, frame_dt)
             verify_designs([p], [t])
             iv = own_interval(p, run, calibration)
-            rows.append({**record(p, t, frame_dt, ends[i]),
-                         "model_interval": None if iv is None else list(iv.bounds["peak_plate_stress_mpa"])})
+            rows.append(
+                {
+                    **record(p, t, frame_dt, ends[i]),
+                    "model_interval": None if iv is None else list(iv.bounds["peak_plate_stress_mpa"]),
+                }
+            )
     return rows
 
 
 def errors(pred: list[float], true: list[float]) -> dict:
     e = 100 * (np.asarray(pred) - np.asarray(true)) / np.asarray(true)
-    return {"median_abs_pct": float(np.median(np.abs(e))), "worst_abs_pct": float(np.abs(e).max()),
-            "worst_signed_pct": float(e[np.argmax(np.abs(e))])}
+    return {
+        "median_abs_pct": float(np.median(np.abs(e))),
+        "worst_abs_pct": float(np.abs(e).max()),
+        "worst_signed_pct": float(e[np.argmax(np.abs(e))]),
+    }
 
 
 def compare(rows, fits) -> dict:
@@ -262,15 +323,20 @@ def compare(rows, fits) -> dict:
     answers = {name: f.predict(designs) for name, f in fits.items() if f is not None}
     for q in SCALARS:
         true = [r["solver"][q] for r in rows]
-        row = {"hcmt": errors([r["model"][MODEL][q] for r in rows], true),
-               **{f"hcmt_{k}_readout": errors([r["model"][k][q] for r in rows], true) for k in READOUTS if k != MODEL}}
+        row = {
+            "hcmt": errors([r["model"][MODEL][q] for r in rows], true),
+            **{f"hcmt_{k}_readout": errors([r["model"][k][q] for r in rows], true) for k in READOUTS if k != MODEL},
+        }
         for name, a in answers.items():
             if not a or q not in a[0]:
                 continue
             iv = [x[q] for x in a]
             iv = [x if isinstance(x, dict) else asdict(x) for x in iv]
-            row[name] = {**errors([x["mean"] for x in iv], true),
-                         "covered": int(sum(x["lo"] <= t <= x["hi"] for x, t in zip(iv, true))), "of": len(true)}
+            row[name] = {
+                **errors([x["mean"] for x in iv], true),
+                "covered": int(sum(x["lo"] <= t <= x["hi"] for x, t in zip(iv, true))),
+                "of": len(true),
+            }
         out[q] = row
     return out
 
@@ -282,10 +348,13 @@ def calls(rows, gp, yield_mpa: float) -> dict:
     gps = gp.predict(designs)
     thick = [d.thickness for d in designs]
     solver_pass = [r["solver"]["peak_plate_stress_mpa"] < yield_mpa for r in rows]
-    out = {"yield_mpa": yield_mpa, "solver_minimum": _minimum(thick, solver_pass),
-           "solver_peaks": [r["solver"]["peak_plate_stress_mpa"] for r in rows],
-           "model_peaks": [r["model"][MODEL]["peak_plate_stress_mpa"] for r in rows],
-           "gp": [asdict(g["peak_plate_stress_mpa"]) for g in gps]}
+    out = {
+        "yield_mpa": yield_mpa,
+        "solver_minimum": _minimum(thick, solver_pass),
+        "solver_peaks": [r["solver"]["peak_plate_stress_mpa"] for r in rows],
+        "model_peaks": [r["model"][MODEL]["peak_plate_stress_mpa"] for r in rows],
+        "gp": [asdict(g["peak_plate_stress_mpa"]) for g in gps],
+    }
     for trust in TRUSTS:
         made, final = [], []
         for r, g, ok in zip(rows, gps, solver_pass):
@@ -293,14 +362,19 @@ def calls(rows, gp, yield_mpa: float) -> dict:
             c = call_of(lo, hi, yield_mpa)
             made.append(c)
             final.append(("pass" if ok else "fail") if c == "undecided" else c)
-        out[trust] = {"calls": made, "final": final,
-                      "unsafe": int(sum(f == "pass" and not ok for f, ok in zip(final, solver_pass))),
-                      "wrong_fail": int(sum(f == "fail" and ok for f, ok in zip(final, solver_pass))),
-                      "solver_runs": int(sum(c == "undecided" for c in made)),
-                      "minimum": _minimum(thick, [f == "pass" for f in final])}
+        out[trust] = {
+            "calls": made,
+            "final": final,
+            "unsafe": int(sum(f == "pass" and not ok for f, ok in zip(final, solver_pass))),
+            "wrong_fail": int(sum(f == "fail" and ok for f, ok in zip(final, solver_pass))),
+            "solver_runs": int(sum(c == "undecided" for c in made)),
+            "minimum": _minimum(thick, [f == "pass" for f in final]),
+        }
     model_pass = [r["model"][MODEL]["peak_plate_stress_mpa"] < yield_mpa for r in rows]
-    out["model_alone"] = {"unsafe": unsafe_passes(out["model_peaks"], out["solver_peaks"], yield_mpa),
-                          "minimum": _minimum(thick, model_pass)}
+    out["model_alone"] = {
+        "unsafe": unsafe_passes(out["model_peaks"], out["solver_peaks"], yield_mpa),
+        "minimum": _minimum(thick, model_pass),
+    }
     return out
 
 
@@ -349,18 +423,27 @@ def note_rules(rows, gp, card) -> dict:
         m = r["model"][MODEL]["peak_plate_stress_mpa"]
         iv = g["peak_plate_stress_mpa"]
         solver = r["solver"]["peak_plate_stress_mpa"]
-        out.append({"error_pct": 100 * (m - solver) / solver,
-                    "region": card(d), "outside_interval": not iv.lo <= m <= iv.hi,
-                    "disagreement_pct": 100 * abs(m - iv.mean) / iv.mean})
+        out.append(
+            {
+                "error_pct": 100 * (m - solver) / solver,
+                "region": card(d),
+                "outside_interval": not iv.lo <= m <= iv.hi,
+                "disagreement_pct": 100 * abs(m - iv.mean) / iv.mean,
+            }
+        )
     return out
 
 
 def rates(flags, big) -> dict:
     flags, big = np.asarray(flags, bool), np.asarray(big, bool)
-    return {"hits": int((flags & big).sum()), "large_errors": int(big.sum()),
-            "hit_rate": float((flags & big).sum() / big.sum()) if big.any() else None,
-            "false_alarms": int((flags & ~big).sum()), "small_errors": int((~big).sum()),
-            "false_alarm_rate": float((flags & ~big).sum() / (~big).sum()) if (~big).any() else None}
+    return {
+        "hits": int((flags & big).sum()),
+        "large_errors": int(big.sum()),
+        "hit_rate": float((flags & big).sum() / big.sum()) if big.any() else None,
+        "false_alarms": int((flags & ~big).sum()),
+        "small_errors": int((~big).sum()),
+        "false_alarm_rate": float((flags & ~big).sum() / (~big).sum()) if (~big).any() else None,
+    }
 
 
 TREND_QUANTITIES = ("peak_plate_stress_mpa", "max_deflection_mm")
@@ -375,10 +458,15 @@ def trend(rows, gp) -> dict:
     out = {}
     for q in TREND_QUANTITIES:
         solver = rows[-1]["solver"][q] / rows[0]["solver"][q] - 1
-        got = {"hcmt": rows[-1]["model"][MODEL][q] / rows[0]["model"][MODEL][q] - 1,
-               "gp": g1[q].mean / g0[q].mean - 1 if q in g0 else None}
-        out[q] = {"solver": solver, **got,
-                  **{f"{k}_agrees": None if v is None else trends_agree(v, solver) for k, v in got.items()}}
+        got = {
+            "hcmt": rows[-1]["model"][MODEL][q] / rows[0]["model"][MODEL][q] - 1,
+            "gp": g1[q].mean / g0[q].mean - 1 if q in g0 else None,
+        }
+        out[q] = {
+            "solver": solver,
+            **got,
+            **{f"{k}_agrees": None if v is None else trends_agree(v, solver) for k, v in got.items()},
+        }
     return out
 
 
@@ -393,26 +481,55 @@ def goals(result: dict, groups: dict, gp) -> list[dict]:
     trends = [(name, q, t) for name, g in result["trends"].items() for q, t in g.items()]
     unsafe_model = sum(s["model_alone"]["unsafe"] for s in result["sweeps"].values())
     goal = MODEL_GOALS
-    rows = [("peak plate stress error, median %", goal["peak_error_pct"], *pair(acc, "peak_plate_stress_mpa",
-                                                                                 "median_abs_pct")),
-            ("peak plate stress error, worst %", 12.0, *pair(acc, "peak_plate_stress_mpa", "worst_abs_pct")),
-            ("max deflection error, median %", goal["deflection_error_pct"], *pair(acc, "max_deflection_mm",
-                                                                                   "median_abs_pct")),
-            ("ghost difference, median", goal["ghost_difference"], result["ghost"][MODEL]["median_abs_diff_in_range"],
-             None),
-            ("rebound agreement (designs, at least)", -29, -sum(r["rebound_agrees"] for r in groups["in_range"]),
-             None),
-            ("outside: peak plate stress error, median %", OUTSIDE_GOALS["peak_error_pct"],
-             *pair(outside, "peak_plate_stress_mpa", "median_abs_pct")),
-            ("outside: max deflection error, median %", OUTSIDE_GOALS["deflection_error_pct"],
-             *pair(outside, "max_deflection_mm", "median_abs_pct")),
-            ("trends with the solver's sign and size (within 30 %), of all", -len(trends),
-             -sum(t["hcmt_agrees"] for _, _, t in trends), -sum(bool(t["gp_agrees"]) for _, _, t in trends)),
-            ("unsafe passes of the model alone on the thickness sweeps", 0, unsafe_model, None)]
+    rows = [
+        (
+            "peak plate stress error, median %",
+            goal["peak_error_pct"],
+            *pair(acc, "peak_plate_stress_mpa", "median_abs_pct"),
+        ),
+        ("peak plate stress error, worst %", 12.0, *pair(acc, "peak_plate_stress_mpa", "worst_abs_pct")),
+        (
+            "max deflection error, median %",
+            goal["deflection_error_pct"],
+            *pair(acc, "max_deflection_mm", "median_abs_pct"),
+        ),
+        (
+            "ghost difference, median",
+            goal["ghost_difference"],
+            result["ghost"][MODEL]["median_abs_diff_in_range"],
+            None,
+        ),
+        ("rebound agreement (designs, at least)", -29, -sum(r["rebound_agrees"] for r in groups["in_range"]), None),
+        (
+            "outside: peak plate stress error, median %",
+            OUTSIDE_GOALS["peak_error_pct"],
+            *pair(outside, "peak_plate_stress_mpa", "median_abs_pct"),
+        ),
+        (
+            "outside: max deflection error, median %",
+            OUTSIDE_GOALS["deflection_error_pct"],
+            *pair(outside, "max_deflection_mm", "median_abs_pct"),
+        ),
+        (
+            "trends with the solver's sign and size (within 30 %), of all",
+            -len(trends),
+            -sum(t["hcmt_agrees"] for _, _, t in trends),
+            -sum(bool(t["gp_agrees"]) for _, _, t in trends),
+        ),
+        ("unsafe passes of the model alone on the thickness sweeps", 0, unsafe_model, None),
+    ]
     # "at least" goals are stored negated so that every goal reads value <= goal
-    return [{"goal": name, "target": abs(target), "at_least": target < 0,
-             "hcmt": abs(h) if target < 0 else h, "gp": None if g is None else (abs(g) if target < 0 else g),
-             "hcmt_met": bool(h <= target)} for name, target, h, g in rows]
+    return [
+        {
+            "goal": name,
+            "target": abs(target),
+            "at_least": target < 0,
+            "hcmt": abs(h) if target < 0 else h,
+            "gp": None if g is None else (abs(g) if target < 0 else g),
+            "hcmt_met": bool(h <= target),
+        }
+        for name, target, h, g in rows
+    ]
 
 
 def main() -> None:
@@ -420,10 +537,16 @@ def main() -> None:
     p.add_argument("--data", type=Path, required=True)
     p.add_argument("--work", type=Path, required=True)
     p.add_argument("--model", default="pretrained:impact_plate_small")
-    p.add_argument("--checkpoint", default="best", help="with a run folder as --model: best, checkpoint or step_N "
-                   "(a kept checkpoint, train.keep_every)")
-    p.add_argument("--solver-from", type=Path, help="another judge's --work on the same seeds: its solver "
-                   "trajectories are reused (only the model rolls out)")
+    p.add_argument(
+        "--checkpoint",
+        default="best",
+        help="with a run folder as --model: best, checkpoint or step_N (a kept checkpoint, train.keep_every)",
+    )
+    p.add_argument(
+        "--solver-from",
+        type=Path,
+        help="another judge's --work on the same seeds: its solver trajectories are reused (only the model rolls out)",
+    )
     p.add_argument("--threads", type=int, default=1)
     p.add_argument("--batch", type=int, default=8)
     p.add_argument("--large", type=float, default=20.0, help="a peak error above this (%%) is a large one")
@@ -444,33 +567,58 @@ def main() -> None:
     gp_fit_s = time.perf_counter() - t0
     print("solver and model on the held-out designs (cached per group)", flush=True)
     sets = design_sets(run, a.seed_in, a.seed_out)
-    groups = {name: run_group(run, name, designs_, a.work, a.batch, frame_dt, gp, a.solver_from)
-              for name, designs_ in sets.items()}
+    groups = {
+        name: run_group(run, name, designs_, a.work, a.batch, frame_dt, gp, a.solver_from)
+        for name, designs_ in sets.items()
+    }
     # the tuning set: the dataset's own valid + test designs
     tune = []
     for split in ("valid", "test"):
         held, _ = dataset_answers(a.data, split)
-        tune += run_group(run, f"tune_{split}", [(f"{split}_{i}", d) for i, d in enumerate(held)], a.work, a.batch,
-                          frame_dt, gp, a.solver_from)
-    shipped = (Surrogate.load(PRETRAINED_DIR / f"{a.model.split(':', 1)[-1]}.surrogate.json")
-               if a.model.startswith("pretrained:") else None)
+        tune += run_group(
+            run,
+            f"tune_{split}",
+            [(f"{split}_{i}", d) for i, d in enumerate(held)],
+            a.work,
+            a.batch,
+            frame_dt,
+            gp,
+            a.solver_from,
+        )
+    shipped = (
+        Surrogate.load(PRETRAINED_DIR / f"{a.model.split(':', 1)[-1]}.surrogate.json")
+        if a.model.startswith("pretrained:")
+        else None
+    )
     X = gp.matrix(designs)
     t0 = time.perf_counter()
     quad = Quadratic(gp.parameters, X, {q: answers[q] for q in SCALARS})
     quad_fit_s = time.perf_counter() - t0
     fits = {"gp": gp, "quadratic": quad if quad.ok else None}
 
-    result = {"command": "python benchmarks/surrogate/run.py " + " ".join(sys.argv[1:]),
-              "seeds": {"in_range": a.seed_in, "outside": a.seed_out}, "checkpoint_step": run.checkpoint_step,
-              "device": "cpu", "machine": platform.processor() or platform.machine(), "threads": a.threads,
-              "model": a.model, "data": str(a.data), "training_designs": len(designs),
-              "parameters": gp.parameters, "fit_s": {"gp": gp_fit_s, "quadratic": quad_fit_s},
-              "quadratic_terms": quad.terms}
+    result = {
+        "command": "python benchmarks/surrogate/run.py " + " ".join(sys.argv[1:]),
+        "seeds": {"in_range": a.seed_in, "outside": a.seed_out},
+        "checkpoint_step": run.checkpoint_step,
+        "device": "cpu",
+        "machine": platform.processor() or platform.machine(),
+        "threads": a.threads,
+        "model": a.model,
+        "data": str(a.data),
+        "training_designs": len(designs),
+        "parameters": gp.parameters,
+        "fit_s": {"gp": gp_fit_s, "quadratic": quad_fit_s},
+        "quadratic_terms": quad.terms,
+    }
     if shipped is not None:
         probe = [Design(**r["design"]) for r in groups["in_range"]]
-        result["shipped_surrogate_max_rel_diff"] = float(max(
-            abs(x[q].mean - y[q].mean) / y[q].mean for x, y in zip(shipped.predict(probe), gp.predict(probe))
-            for q in QUANTITIES))
+        result["shipped_surrogate_max_rel_diff"] = float(
+            max(
+                abs(x[q].mean - y[q].mean) / y[q].mean
+                for x, y in zip(shipped.predict(probe), gp.predict(probe))
+                for q in QUANTITIES
+            )
+        )
     result["accuracy"] = {name: compare(groups[name], fits) for name in ("in_range", "thicker", "higher", "both")}
     # the learning curve of the GP (the first n training designs) on the in-range designs
     curve = {}
@@ -491,50 +639,67 @@ def main() -> None:
     result["trends"] = {name: trend(groups[name], gp) for name in groups if name.startswith("sweep_")}
     held = groups["in_range"]
     result["coverage_in_range"] = {t: coverage(held, gp, t) for t in TRUSTS}
-    result["coverage_outside"] = {t: coverage(groups["thicker"] + groups["higher"] + groups["both"], gp, t)
-                                  for t in TRUSTS}
+    result["coverage_outside"] = {
+        t: coverage(groups["thicker"] + groups["higher"] + groups["both"], gp, t) for t in TRUSTS
+    }
 
     # ghost stress and the peak's frame, every read-out, on all held-out designs (in range and outside)
     allheld = held + groups["thicker"] + groups["higher"] + groups["both"]
-    result["ghost"] = {r: {"median_abs_diff": float(np.median([abs(x["model"][r]["ghost"] - x["solver_ghost"])
-                                                               for x in allheld])),
-                           "median_abs_diff_in_range": float(np.median([abs(x["model"][r]["ghost"] - x["solver_ghost"])
-                                                                        for x in held])),
-                           "peaks_outside_solver_contact": int(sum(not x["model"][r]["peak_in_solver_contact"]
-                                                                   for x in allheld)),
-                           "peaks_where_solver_unloaded": [n for n, x in zip(
-                               [d[0] for g in ("in_range", "thicker", "higher", "both") for d in sets[g]],
-                               allheld) if x["model"][r]["peak_where_solver_unloaded"]],
-                           "peak_error": errors([x["model"][r]["peak_plate_stress_mpa"] for x in allheld],
-                                                [x["solver"]["peak_plate_stress_mpa"] for x in allheld])}
-                       for r in (*READOUTS, "contact_upper", "contact_own")}
+    result["ghost"] = {
+        r: {
+            "median_abs_diff": float(np.median([abs(x["model"][r]["ghost"] - x["solver_ghost"]) for x in allheld])),
+            "median_abs_diff_in_range": float(
+                np.median([abs(x["model"][r]["ghost"] - x["solver_ghost"]) for x in held])
+            ),
+            "peaks_outside_solver_contact": int(sum(not x["model"][r]["peak_in_solver_contact"] for x in allheld)),
+            "peaks_where_solver_unloaded": [
+                n
+                for n, x in zip([d[0] for g in ("in_range", "thicker", "higher", "both") for d in sets[g]], allheld)
+                if x["model"][r]["peak_where_solver_unloaded"]
+            ],
+            "peak_error": errors(
+                [x["model"][r]["peak_plate_stress_mpa"] for x in allheld],
+                [x["solver"]["peak_plate_stress_mpa"] for x in allheld],
+            ),
+        }
+        for r in (*READOUTS, "contact_upper", "contact_own")
+    }
     result["ghost"]["bound"] = CONTACT_END_BOUND
     result["ghost"]["default"] = MODEL
     before = [x["solver_peak_before_lower_end_frames"] for x in allheld]
     result["ghost"]["solver_peak_before_lower_end_frames"] = {"min": int(min(before)), "max": int(max(before))}
     result["ghost"]["designs"] = len(allheld)
     lags = [x["contact_end_lag_frames"] for x in allheld if x["solver_ball_leaves"]]
-    result["ghost"]["contact_end_lag_frames"] = {"median": float(np.median(lags)), "min": int(min(lags)),
-                                                 "max": int(max(lags)), "designs": len(lags)}
+    result["ghost"]["contact_end_lag_frames"] = {
+        "median": float(np.median(lags)),
+        "min": int(min(lags)),
+        "max": int(max(lags)),
+        "designs": len(lags),
+    }
     result["ghost"]["solver_median"] = float(np.median([x["solver_ghost"] for x in allheld]))
     result["time_of_peak"] = {
         "t95_frames_off_median": float(np.median([abs(x["model"][MODEL]["t95_frame_error"]) for x in allheld])),
-        "argmax_frames_off_median": float(np.median([abs(x["model"][MODEL]["argmax_frame_error"])
-                                                     for x in allheld])),
-        "critical_node_correlation_median": float(np.nanmedian([x["critical_node_history_correlation"]
-                                                                for x in allheld])),
+        "argmax_frames_off_median": float(np.median([abs(x["model"][MODEL]["argmax_frame_error"]) for x in allheld])),
+        "critical_node_correlation_median": float(
+            np.nanmedian([x["critical_node_history_correlation"] for x in allheld])
+        ),
         "critical_node_correlation_min": float(np.nanmin([x["critical_node_history_correlation"] for x in allheld])),
-        "designs": len(allheld)}
+        "designs": len(allheld),
+    }
 
     # the low-confidence note: candidates tuned on the dataset's own designs, judged on the held-out ones
     def region(d):
         return region_of(d, run.ranges)
+
     card = {r["region"]: r for r in run.card.get("confidence", [])}
 
     def region_flag(d):
         c = card.get(region(d)) if region(d) != "outside" else {"region": "outside"}
-        return bool(c) and (c["region"] == "outside" or c["peak_plate_stress_error_pct_median"] > 10.0
-                            or abs(c["peak_plate_stress_error_pct_worst"]) > 25.0)
+        return bool(c) and (
+            c["region"] == "outside"
+            or c["peak_plate_stress_error_pct_median"] > 10.0
+            or abs(c["peak_plate_stress_error_pct_worst"]) > 25.0
+        )
 
     tuned, judged = note_rules(tune, gp, region_flag), note_rules(allheld, gp, region_flag)
     big_t = [abs(r["error_pct"]) > a.large for r in tuned]
@@ -543,17 +708,23 @@ def main() -> None:
     tau = min([a.large / 2] + [0.9 * v for v in small_dis])
     big = [abs(r["error_pct"]) > a.large for r in judged]
     result["note"] = {
-        "large_error_pct": a.large, "threshold_pct": tau, "tuned_on": len(tuned), "judged_on": len(judged),
+        "large_error_pct": a.large,
+        "threshold_pct": tau,
+        "tuned_on": len(tuned),
+        "judged_on": len(judged),
         "region (the card)": rates([r["region"] for r in judged], big),
         "outside the GP interval": rates([r["outside_interval"] for r in judged], big),
         f"model-GP disagreement > {tau:.1f} %": rates([r["disagreement_pct"] > tau for r in judged], big),
-        f"disagreement > {tau:.1f} % or region": rates([r["disagreement_pct"] > tau or r["region"]
-                                                        for r in judged], big),
-        "designs": judged}
+        f"disagreement > {tau:.1f} % or region": rates(
+            [r["disagreement_pct"] > tau or r["region"] for r in judged], big
+        ),
+        "designs": judged,
+    }
     shipped = 100 * NOTE_DISAGREEMENT  # the threshold hcmt's note uses, judged on the same designs
     result["note"]["shipped_threshold_pct"] = shipped
     result["note"][f"model-GP disagreement > {shipped:.1f} % (hcmt's NOTE_DISAGREEMENT)"] = rates(
-        [r["disagreement_pct"] > shipped for r in judged], big)
+        [r["disagreement_pct"] > shipped for r in judged], big
+    )
 
     # seconds per design, side by side
     probe = [Design(**r["design"]) for r in held]
@@ -563,16 +734,29 @@ def main() -> None:
     t0 = time.perf_counter()
     quad.predict(probe) if quad.ok else None
     quad_s = (time.perf_counter() - t0) / len(probe)
-    result["seconds_per_design"] = {"hcmt": float(np.median([r["model_wall_s"] for r in held])),
-                                    "solver": float(np.median([r["solver_wall_s"] for r in held])),
-                                    "gp": gp_s, "quadratic": quad_s}
+    result["seconds_per_design"] = {
+        "hcmt": float(np.median([r["model_wall_s"] for r in held])),
+        "solver": float(np.median([r["solver_wall_s"] for r in held])),
+        "gp": gp_s,
+        "quadratic": quad_s,
+    }
     result["goals"] = goals(result, groups, gp)
     path = write_json(a.json, result)
-    print(json.dumps({k: result[k] for k in ("accuracy", "coverage_in_range", "ghost", "time_of_peak",
-                                             "seconds_per_design")}, indent=1)[:6000])
+    print(
+        json.dumps(
+            {k: result[k] for k in ("accuracy", "coverage_in_range", "ghost", "time_of_peak", "seconds_per_design")},
+            indent=1,
+        )[:6000]
+    )
     for name, s in sweeps.items():
-        print(name, {t: (s[t]["unsafe"], s[t]["solver_runs"], s[t]["minimum"]) for t in TRUSTS},
-              "solver", s["solver_minimum"], "model alone", s["model_alone"])
+        print(
+            name,
+            {t: (s[t]["unsafe"], s[t]["solver_runs"], s[t]["minimum"]) for t in TRUSTS},
+            "solver",
+            s["solver_minimum"],
+            "model alone",
+            s["model_alone"],
+        )
     print({k: v for k, v in result["note"].items() if k != "designs"})
     print(f"wrote {path}")
 

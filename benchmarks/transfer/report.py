@@ -2,30 +2,37 @@
 (``python benchmarks/transfer/run.py``), and "Panel families: transfer from a given model", from
 benchmarks/results/transfer_shipped.json (``run.py --base NAME=RUN``). Every verdict is computed from the numbers the
 table prints."""
+
 from __future__ import annotations
 
 import numpy as np
 
 from report_common import SHIPPED_STEPS, command, said, sentences
 
-DATA = ("hcmt generate impact-plate $HCMT_WORK/data/fam_train --preset small --family mono,stack2,ring --train 60 "
-        "--valid 6 --test 12 --seed 7 --frames 90\n"
-        "hcmt generate impact-plate $HCMT_WORK/data/fam_stack3 --preset small --family stack3 --train 20 --valid 2 "
-        "--test 8 --seed 8 --frames 90\n"
-        "hcmt generate impact-plate $HCMT_WORK/data/fam_pen --preset small --family pen --train 20 --valid 2 --test 8 "
-        "--seed 9 --frames 90")
+DATA = (
+    "hcmt generate impact-plate $HCMT_WORK/data/fam_train --preset small --family mono,stack2,ring --train 60 "
+    "--valid 6 --test 12 --seed 7 --frames 90\n"
+    "hcmt generate impact-plate $HCMT_WORK/data/fam_stack3 --preset small --family stack3 --train 20 --valid 2 "
+    "--test 8 --seed 8 --frames 90\n"
+    "hcmt generate impact-plate $HCMT_WORK/data/fam_pen --preset small --family pen --train 20 --valid 2 --test 8 "
+    "--seed 9 --frames 90"
+)
 MODELS = (("hcmt", "HCMT"), ("mgn", "MGN"))
 LR = "1e-3, decaying to 1e-5"  # the config's schedule (impact_plate_cpu)
-GIVEN = ("python benchmarks/transfer/run.py ... --base new=pretrained:impact_plate_small --ft-lr 1e-4 "
-         "--json transfer_shipped.json")  # the form of the given-model run (transfer_given)
-NEXT = ("A tenth of that learning rate, or more runs, is the next thing to measure; it was not run in this "
-        "session.")
+GIVEN = (
+    "python benchmarks/transfer/run.py ... --base new=pretrained:impact_plate_small --ft-lr 1e-4 "
+    "--json transfer_shipped.json"
+)  # the form of the given-model run (transfer_given)
+NEXT = "A tenth of that learning rate, or more runs, is the next thing to measure; it was not run in this session."
 
 
 def _seeds(rows: dict, model: str, tail: str) -> list[dict]:
     """The rows ``{model}_s{seed}{tail}``, one per seed, in seed order."""
-    return [v for k, v in sorted(rows.items()) if k.startswith(f"{model}_s") and k.endswith(tail)
-            and k[len(model) + 2:-len(tail)].isdigit()]
+    return [
+        v
+        for k, v in sorted(rows.items())
+        if k.startswith(f"{model}_s") and k.endswith(tail) and k[len(model) + 2 : -len(tail)].isdigit()
+    ]
 
 
 def _one(rows: dict, key: str) -> list[dict]:
@@ -46,14 +53,25 @@ def _row(label: str, runs: str, got: list[dict], mesh: bool) -> str:
     if not got:
         return f"| {label} | {runs} | not run | - | - | - | - | - |"
     if not got[0].get("designs"):
-        return f"| {label} | {runs} | cannot answer: its training designs held {', '.join(got[0]['cannot_take'])} " \
-               "fixed | - | - | - | - | - |"
-    peak = _pair([g["peak"]["median_abs"] for g in got]) + " / " + _pair(
-        [abs(g["peak"]["worst"]) for g in got])
-    defl = _pair([g["deflection"]["median_abs"] for g in got]) + " / " + _pair(
-        [abs(g["deflection"]["worst"]) for g in got])
-    crit = (_pair([g["critical_mm"]["median"] for g in got], "{:.2f}") + " / "
-            + _pair([g["critical_mm"]["worst"] for g in got], "{:.2f}")) if mesh else "-"
+        return (
+            f"| {label} | {runs} | cannot answer: its training designs held {', '.join(got[0]['cannot_take'])} "
+            "fixed | - | - | - | - | - |"
+        )
+    peak = _pair([g["peak"]["median_abs"] for g in got]) + " / " + _pair([abs(g["peak"]["worst"]) for g in got])
+    defl = (
+        _pair([g["deflection"]["median_abs"] for g in got])
+        + " / "
+        + _pair([abs(g["deflection"]["worst"]) for g in got])
+    )
+    crit = (
+        (
+            _pair([g["critical_mm"]["median"] for g in got], "{:.2f}")
+            + " / "
+            + _pair([g["critical_mm"]["worst"] for g in got], "{:.2f}")
+        )
+        if mesh
+        else "-"
+    )
     rmse = _pair([g["stress_rmse_all"] / 1e3 for g in got], "{:.1f}") if mesh else "-"
     rebound = _pair([100 * g["rebound_agreement"] for g in got], "{:.0f}") + " %" if mesh else "-"
     secs = float(np.mean([g["s_per_design"] for g in got]))
@@ -62,15 +80,18 @@ def _row(label: str, runs: str, got: list[dict], mesh: bool) -> str:
 
 def _head(runs: str) -> list[str]:
     """A table's header: the approach, the solver-runs column (named ``runs``), the quantities."""
-    return [f"| approach | {runs} | peak plate stress, median / worst error % | deflection, median / worst % | "
-            "critical location, median / worst mm | stress RMSE-all ×10⁻³ | rebound agrees | s per design |",
-            "|---|---|---|---|---|---|---|---|"]
+    return [
+        f"| approach | {runs} | peak plate stress, median / worst error % | deflection, median / worst % | "
+        "critical location, median / worst mm | stress RMSE-all ×10⁻³ | rebound agrees | s per design |",
+        "|---|---|---|---|---|---|---|---|",
+    ]
 
 
 def _shots(r: dict) -> list[int]:
     """The fine-tuning budgets (runs of a new family) of the summary's GP rows."""
-    return sorted({int(k.rsplit("_", 1)[1]) for k in r["rows"] if k.startswith("gp_") and
-                   k.rsplit("_", 1)[1].isdigit()})
+    return sorted(
+        {int(k.rsplit("_", 1)[1]) for k in r["rows"] if k.startswith("gp_") and k.rsplit("_", 1)[1].isdigit()}
+    )
 
 
 def _fitted(r: dict):
@@ -91,9 +112,11 @@ def _given(rows: dict, name: str, key: str, shots: list[int]) -> dict[str, dict]
 def held_out(rows: dict, mesh: list[tuple[str, str, list[dict]]], base) -> list[str]:
     """The table of the training families' held-out designs: each mesh model's line (label, solver runs, its rows),
     then the GP's."""
-    return (["**The training families' held-out designs**", "", *_head("solver runs")]
-            + [_row(label, runs, got, True) for label, runs, got in mesh]
-            + [_row("GP", f"{base}", _one(rows, "gp_base"), False), ""])
+    return (
+        ["**The training families' held-out designs**", "", *_head("solver runs")]
+        + [_row(label, runs, got, True) for label, runs, got in mesh]
+        + [_row("GP", f"{base}", _one(rows, "gp_base"), False), ""]
+    )
 
 
 def _references(rows: dict, key: str, shots: list[int]) -> list[str]:
@@ -102,12 +125,16 @@ def _references(rows: dict, key: str, shots: list[int]) -> list[str]:
     out = [_row("GP fitted on the training families", "0", _one(rows, f"gp_{key}_zero"), False)]
     for n in shots:
         g = rows.get(f"gp_{key}_{n}")
-        label = f"GP fitted on {n}" + (f" ({g['parameters']} parameters: underdetermined)" if g and
-                                        g.get("underdetermined") else "")
+        label = f"GP fitted on {n}" + (
+            f" ({g['parameters']} parameters: underdetermined)" if g and g.get("underdetermined") else ""
+        )
         out.append(_row(label, f"{n}", [g] if g else [], False))
     solver = rows.get(f"solver_{key}", {}).get("s")
-    return out + [f"| solver | every design | 0 | 0 | 0 | 0 | 100 % | {solver:.3g} |" if solver else
-                  "| solver | every design | not run | - | - | - | - | - |"]
+    return out + [
+        f"| solver | every design | 0 | 0 | 0 | 0 | 100 % | {solver:.3g} |"
+        if solver
+        else "| solver | every design | not run | - | - | - | - | - |"
+    ]
 
 
 def table(r: dict, key: str, title: str, shots: list[int], mesh: dict[str, dict], zero_runs: str) -> list[str]:
@@ -115,8 +142,12 @@ def table(r: dict, key: str, title: str, shots: list[int], mesh: dict[str, dict]
     gives it; ``zero_runs``: the zero-shot line's solver runs), then the GP's and the solver's."""
     rows = r["rows"]
     judged = max([v.get("designs", 0) for k, v in rows.items() if f"_{key}_" in k and "designs" in v] or [0])
-    out = [f"**{title}** ({judged} held-out designs of the family; mesh models: mean over the seeds, each seed in "
-           "brackets)", "", *_head("solver runs of this family")]
+    out = [
+        f"**{title}** ({judged} held-out designs of the family; mesh models: mean over the seeds, each seed in "
+        "brackets)",
+        "",
+        *_head("solver runs of this family"),
+    ]
     for name, got in mesh.items():
         out.append(_row(f"{name} zero-shot", zero_runs, got["zero"], True))
         out += [_row(f"{name} fine-tuned on {n}", f"{n}", got[n], True) for n in shots]
@@ -151,9 +182,15 @@ def _tuning(name: str, key: str, got: dict, shots: list[int]) -> list[str]:
         return []
     trend = "".join(f", {v:.1f} % after {n} runs" for n, v in tuned.items())
     worse = [n for n, v in tuned.items() if v > zero]
-    return [f"- {name} on {key}: {zero:.1f} % zero-shot{trend}"
-            + (f"; fine-tuning on {said([str(n) for n in worse])} runs made the median peak error worse than none"
-               if worse else "") + "."]
+    return [
+        f"- {name} on {key}: {zero:.1f} % zero-shot{trend}"
+        + (
+            f"; fine-tuning on {said([str(n) for n in worse])} runs made the median peak error worse than none"
+            if worse
+            else ""
+        )
+        + "."
+    ]
 
 
 def verdicts(r: dict, key: str, shots: list[int]) -> list[str]:
@@ -164,8 +201,10 @@ def verdicts(r: dict, key: str, shots: list[int]) -> list[str]:
         mesh = {name: v for name, got in models.items() if (v := _avg(got[n], "deflection")) is not None}
         if gp is not None and mesh:
             best = min(mesh, key=mesh.get)
-            out.append(f"- {key}, {n} runs, deflection: GP {gp:.1f} %, best mesh model ({best}) {mesh[best]:.1f} % "
-                       f"median error.")
+            out.append(
+                f"- {key}, {n} runs, deflection: GP {gp:.1f} %, best mesh model ({best}) {mesh[best]:.1f} % "
+                f"median error."
+            )
     for name, got in models.items():
         out += _tuning(name, key, got, shots)
     for n in shots:
@@ -174,17 +213,25 @@ def verdicts(r: dict, key: str, shots: list[int]) -> list[str]:
         if not mesh or gp is None:
             continue
         best = min(mesh, key=mesh.get)
-        winner = f"the {best} fine-tuned on them ({mesh[best]:.1f} %)" if mesh[best] < gp else \
-            f"the GP ({gp:.1f} % against the {best}'s {mesh[best]:.1f} %)"
+        winner = (
+            f"the {best} fine-tuned on them ({mesh[best]:.1f} %)"
+            if mesh[best] < gp
+            else f"the GP ({gp:.1f} % against the {best}'s {mesh[best]:.1f} %)"
+        )
         out.append(f"- {key}, {n} runs: median peak-stress error is lowest for {winner}.")
     zero = {name: v for name, got in models.items() if (v := _avg(got["zero"], "peak")) is not None}
     if zero:
         best = min(zero, key=zero.get)
         can = rows.get(f"gp_{key}_zero", {}).get("designs")
-        out.append(f"- {key}, no run of the family: the {best} answers zero-shot with a {zero[best]:.1f} % median "
-                   "peak error; the response surface of the training families "
-                   + ("cannot answer at all (the new parameters were fixed in all its designs)." if not can else
-                      f"answers with {rows[f'gp_{key}_zero']['peak']['median_abs']:.1f} %."))
+        out.append(
+            f"- {key}, no run of the family: the {best} answers zero-shot with a {zero[best]:.1f} % median "
+            "peak error; the response surface of the training families "
+            + (
+                "cannot answer at all (the new parameters were fixed in all its designs)."
+                if not can
+                else f"answers with {rows[f'gp_{key}_zero']['peak']['median_abs']:.1f} %."
+            )
+        )
     return out
 
 
@@ -196,16 +243,33 @@ def transfer(lines: list[str], r: dict | None) -> None:
         lines += ["Not run yet: `python benchmarks/transfer/run.py` (its docstring has the data commands).", ""]
         return
     shots, base = _shots(r), _fitted(r)
-    lines += ["The data (docs/solver.md, \"Panel families\"):", "", "```bash", DATA, "```", "", "```bash",
-              command(r), "```", "",
-              f"Trained on the families {', '.join(r['train_families'])} ({base} runs, the ball); judged on designs "
-              f"of those families and of {', '.join(r['new_families'])}, never trained on. Device: {r['device']}. "
-              "Critical location: the distance at rest between the nodes of the model's and the solver's peak "
-              "plate stress.", ""]
+    lines += [
+        'The data (docs/solver.md, "Panel families"):',
+        "",
+        "```bash",
+        DATA,
+        "```",
+        "",
+        "```bash",
+        command(r),
+        "```",
+        "",
+        f"Trained on the families {', '.join(r['train_families'])} ({base} runs, the ball); judged on designs "
+        f"of those families and of {', '.join(r['new_families'])}, never trained on. Device: {r['device']}. "
+        "Critical location: the distance at rest between the nodes of the model's and the solver's peak "
+        "plate stress.",
+        "",
+    ]
     lines += held_out(r["rows"], [(name, f"{base}", _seeds(r["rows"], m, "_base")) for m, name in MODELS], base)
     for key in r["new_families"]:
-        lines += table(r, key, f"{key}, a family never trained on", shots, _scratch(r["rows"], key, shots),
-                       f"0 (trained on {base} of other families)")
+        lines += table(
+            r,
+            key,
+            f"{key}, a family never trained on",
+            shots,
+            _scratch(r["rows"], key, shots),
+            f"0 (trained on {base} of other families)",
+        )
         lines += verdicts(r, key, shots) + [""]
     lines += analysis(r, shots)
 
@@ -233,9 +297,15 @@ def given_verdicts(rows: dict, key: str, shots: list[int], mesh: dict[str, dict]
     [(name, got)] = mesh.items()
     out = _tuning(name, key, got, shots)
     for n in shots:
-        parts = [s for what, quantity in (("peak", "peak plate stress"), ("deflection", "deflection"))
-                 if (s := _lowest(quantity, name, _avg(got[n], what),
-                                  rows.get(f"gp_{key}_{n}", {}).get(what, {}).get("median_abs")))]
+        parts = [
+            s
+            for what, quantity in (("peak", "peak plate stress"), ("deflection", "deflection"))
+            if (
+                s := _lowest(
+                    quantity, name, _avg(got[n], what), rows.get(f"gp_{key}_{n}", {}).get(what, {}).get("median_abs")
+                )
+            )
+        ]
         if parts:
             out.append(f"- {key}, {n} runs: " + "; ".join(parts) + ".")
     return out
@@ -244,12 +314,18 @@ def given_verdicts(rows: dict, key: str, shots: list[int], mesh: dict[str, dict]
 def _given_intro(r: dict, name: str, run: str, shots: list[int], base) -> list[str]:
     """The command, the given model, the fine-tuning's learning rate, the families and the device."""
     lr = f"{_number(r['ft_lr'])}, decaying to {_number(r['ft_lr'] / 10)}" if r.get("ft_lr") is not None else LR
-    return ["```bash", command(r), "```", "",
-            f"The base is the given model **{name}** (`{run}`), not trained here. It is judged as it is on the "
-            f"held-out designs of the training families {', '.join(r['train_families'])} (the GP: fitted on their "
-            f"{base} runs) and zero-shot on the new families {', '.join(r['new_families'])}, then fine-tuned once per "
-            f"seed on the first {' or '.join(map(str, shots))} runs of each new family at a learning rate of {lr} "
-            f"over {_flag(r['command'], 'ft-steps')} steps, the normalizers kept. Device: {r['device']}.", ""]
+    return [
+        "```bash",
+        command(r),
+        "```",
+        "",
+        f"The base is the given model **{name}** (`{run}`), not trained here. It is judged as it is on the "
+        f"held-out designs of the training families {', '.join(r['train_families'])} (the GP: fitted on their "
+        f"{base} runs) and zero-shot on the new families {', '.join(r['new_families'])}, then fine-tuned once per "
+        f"seed on the first {' or '.join(map(str, shots))} runs of each new family at a learning rate of {lr} "
+        f"over {_flag(r['command'], 'ft-steps')} steps, the normalizers kept. Device: {r['device']}.",
+        "",
+    ]
 
 
 def transfer_given(lines: list[str], r: dict | None) -> None:
@@ -276,30 +352,50 @@ def analysis(r: dict, shots: list[int]) -> list[str]:
     fams = [k for k in r["new_families"] if zero[k] is not None and _peak(rows, k, shots[0]) is not None]
     if fams:
         out.append("- " + zero_shot(rows, fams, zero, shots[0]))
-    wins = [(k, n) for k in fams for n in shots if _peak(rows, k, n) is not None
-            and all(v is None or _peak(rows, k, n) < v
-                    for v in (_mean(rows, m, f"_{k}_{n}", "peak") for m, _ in MODELS))]
+    wins = [
+        (k, n)
+        for k in fams
+        for n in shots
+        if _peak(rows, k, n) is not None
+        and all(v is None or _peak(rows, k, n) < v for v in (_mean(rows, m, f"_{k}_{n}", "peak") for m, _ in MODELS))
+    ]
     base = _mean(rows, "hcmt", "_base", "deflection")
     if base is not None:
         out.append("- " + deflection(r, fams, shots, base, wins))
-    tuned = [(m, k, n) for m, _ in MODELS for k in fams for n in shots
-             if _mean(rows, m, f"_{k}_{n}", "peak") is not None and _mean(rows, m, f"_{k}_zero", "peak") is not None]
-    rose = [t for t in tuned
-            if _mean(rows, t[0], f"_{t[1]}_{t[2]}", "peak") > _mean(rows, t[0], f"_{t[1]}_zero", "peak")]
+    tuned = [
+        (m, k, n)
+        for m, _ in MODELS
+        for k in fams
+        for n in shots
+        if _mean(rows, m, f"_{k}_{n}", "peak") is not None and _mean(rows, m, f"_{k}_zero", "peak") is not None
+    ]
+    rose = [
+        t for t in tuned if _mean(rows, t[0], f"_{t[1]}_{t[2]}", "peak") > _mean(rows, t[0], f"_{t[1]}_zero", "peak")
+    ]
     if tuned:
-        out.append("- " + sentences(
-            f"**Fine-tuning as run here**: in {len(rose)} of {len(tuned)} (model, family, runs) cases the median peak "
-            "error after fine-tuning is above the zero-shot one.",
-            f"Each fine-tune restarts the schedule at the config's learning rate ({LR} over its "
-            f"{_flag(r['command'], 'ft-steps')} steps) on {' or '.join(map(str, shots))} trajectories with the "
-            "normalizers frozen.",
-            NEXT if 2 * len(rose) > len(tuned) else ""))
+        out.append(
+            "- "
+            + sentences(
+                f"**Fine-tuning as run here**: in {len(rose)} of {len(tuned)} (model, family, runs) cases the median "
+                "peak error after fine-tuning is above the zero-shot one.",
+                f"Each fine-tune restarts the schedule at the config's learning rate ({LR} over its "
+                f"{_flag(r['command'], 'ft-steps')} steps) on {' or '.join(map(str, shots))} trajectories with the "
+                "normalizers frozen.",
+                NEXT if 2 * len(rose) > len(tuned) else "",
+            )
+        )
     steps = int(_flag(r["command"], "steps"))
     seeds = len(_seeds(rows, "hcmt", "_base"))
-    out.append("- " + sentences(f"**The budget**: every mesh model here trained {steps} steps on one CPU thread, "
-                                f"{seeds} seeds (the shipped model: {SHIPPED_STEPS:,} steps).",
-                                "The numbers bound what this budget buys, not what the architecture can do."
-                                if steps < SHIPPED_STEPS else ""))
+    out.append(
+        "- "
+        + sentences(
+            f"**The budget**: every mesh model here trained {steps} steps on one CPU thread, "
+            f"{seeds} seeds (the shipped model: {SHIPPED_STEPS:,} steps).",
+            "The numbers bound what this budget buys, not what the architecture can do."
+            if steps < SHIPPED_STEPS
+            else "",
+        )
+    )
     return out + [""]
 
 
@@ -309,16 +405,21 @@ def zero_shot(rows: dict, fams: list[str], zero: dict, few: int) -> str:
     silent = [k for k in fams if not rows.get(f"gp_{k}_zero", {}).get("designs")]
     reach = [k for k in fams if zero[k] <= _peak(rows, k, few)]
     rest = [k for k in fams if k not in reach]
-    return sentences("Where a mesh model earned its place here: a family with **no solver runs at all**." if silent
-                     else "",
-                     f"The response surface of the training families gives no answer on {said(silent)}: it was "
-                     "fitted on designs that never varied their parameters." if silent else "",
-                     "HCMT answers zero-shot with a median peak plate stress error of "
-                     + ", ".join(f"{zero[k]:.1f} % on {k}" for k in fams) + ".",
-                     f"The GP's, once {few} runs of the family exist: "
-                     + ", ".join(f"{_peak(rows, k, few):.1f} % on {k}" for k in fams) + ".",
-                     f"Zero-shot is as good as those runs on {said(reach) if reach else 'none of them'} and worse on "
-                     f"{said(rest) if rest else 'none'}.")
+    return sentences(
+        "Where a mesh model earned its place here: a family with **no solver runs at all**." if silent else "",
+        f"The response surface of the training families gives no answer on {said(silent)}: it was "
+        "fitted on designs that never varied their parameters."
+        if silent
+        else "",
+        "HCMT answers zero-shot with a median peak plate stress error of "
+        + ", ".join(f"{zero[k]:.1f} % on {k}" for k in fams)
+        + ".",
+        f"The GP's, once {few} runs of the family exist: "
+        + ", ".join(f"{_peak(rows, k, few):.1f} % on {k}" for k in fams)
+        + ".",
+        f"Zero-shot is as good as those runs on {said(reach) if reach else 'none of them'} and worse on "
+        f"{said(rest) if rest else 'none'}.",
+    )
 
 
 def deflection(r: dict, fams: list[str], shots: list[int], base: float, wins: list) -> str:
@@ -328,10 +429,14 @@ def deflection(r: dict, fams: list[str], shots: list[int], base: float, wins: li
     gp = {k: rows.get(f"gp_{k}_{most}", {}).get("deflection", {}).get("median_abs") for k in fams}
     both = [k for k in fams if mesh[k] is not None and gp[k] is not None]
     lost = (["**deflection**"] if both and all(gp[k] < min(mesh[k], base) for k in both) else []) + (
-        ["**peak stress once the family has runs**"] if 2 * len(wins) > len(fams) * len(shots) else [])
-    return sentences(f"Where it did not: {said(lost)}." if lost else "",
-                     f"HCMT's median deflection error is {base:.1f} % even on its training families' held-out designs, "
-                     + ", ".join(f"{mesh[k]:.1f} % zero-shot on {k}" for k in both) + ".",
-                     f"The GP's on {most} runs: " + ", ".join(f"{gp[k]:.1f} % on {k}" for k in both) + ".",
-                     f"On peak stress once the family has runs, the GP's median error is the lowest in {len(wins)} of "
-                     f"the {len(fams) * len(shots)} (family, runs) cases.")
+        ["**peak stress once the family has runs**"] if 2 * len(wins) > len(fams) * len(shots) else []
+    )
+    return sentences(
+        f"Where it did not: {said(lost)}." if lost else "",
+        f"HCMT's median deflection error is {base:.1f} % even on its training families' held-out designs, "
+        + ", ".join(f"{mesh[k]:.1f} % zero-shot on {k}" for k in both)
+        + ".",
+        f"The GP's on {most} runs: " + ", ".join(f"{gp[k]:.1f} % on {k}" for k in both) + ".",
+        f"On peak stress once the family has runs, the GP's median error is the lowest in {len(wins)} of "
+        f"the {len(fams) * len(shots)} (family, runs) cases.",
+    )

@@ -31,6 +31,7 @@ Resumable: every run trains or resumes through :func:`hcmt.train`, every evaluat
 under WORK/rows/; several processes may share WORK (a row being made by another process is skipped). The summary
 goes to benchmarks/results/transfer.json (``--report`` only summarizes what exists).
 """
+
 from __future__ import annotations
 
 import argparse
@@ -59,10 +60,18 @@ from hcmt.sim.params import Settings, design_from_attrs  # noqa: E402
 from hcmt.training import train  # noqa: E402
 
 #: the shipped model's recipe (docs/MODELS.md), validation thinned for the CPU budget
-RECIPE = ["model.attention=official", "train.noise_std=0.0003", "model.target=acceleration",
-          "train.noise_nodes=predicted", "train.pushforward=0.5", "train.pushforward_start=2000",
-          "model.deformation=true", "train.valid_every=2000", "train.valid_trajectories=3",
-          "train.checkpoint_every=500"]
+RECIPE = [
+    "model.attention=official",
+    "train.noise_std=0.0003",
+    "model.target=acceleration",
+    "train.noise_nodes=predicted",
+    "train.pushforward=0.5",
+    "train.pushforward_start=2000",
+    "model.deformation=true",
+    "train.valid_every=2000",
+    "train.valid_trajectories=3",
+    "train.checkpoint_every=500",
+]
 FINE_TUNE = ["train.valid_every=500", "train.valid_trajectories=2", "train.pushforward_start=0"]
 
 
@@ -83,8 +92,16 @@ def subset(data: Path, n: int, out: Path) -> Path:
     return out
 
 
-def trained(work: Path, name: str, data: Path, model: str, seed: int, steps: int, init: Path | str | None = None,
-            lr: float | None = None) -> Path:
+def trained(
+    work: Path,
+    name: str,
+    data: Path,
+    model: str,
+    seed: int,
+    steps: int,
+    init: Path | str | None = None,
+    lr: float | None = None,
+) -> Path:
     """Train (or resume, or reuse) one run folder; ``lr``: a fine-tuning's learning rate (to a tenth of it)."""
     run = work / "runs" / name
     if (run / "train_stats.json").is_file():
@@ -93,8 +110,17 @@ def trained(work: Path, name: str, data: Path, model: str, seed: int, steps: int
     overrides += [f"train.lr={lr}", f"train.lr_final={lr / 10}"] if lr is not None else []
     resume = RunFolder(run, must_exist=False).latest.is_file()
     t0 = time.perf_counter()
-    train(load_config("impact_plate_cpu", overrides), data, model, run, seed=seed, resume=resume, progress=False,
-          init=None if resume or init is None else str(init), init_normalizers="keep")
+    train(
+        load_config("impact_plate_cpu", overrides),
+        data,
+        model,
+        run,
+        seed=seed,
+        resume=resume,
+        progress=False,
+        init=None if resume or init is None else str(init),
+        init_normalizers="keep",
+    )
     print(f"  trained {name} ({steps} steps) in {time.perf_counter() - t0:.0f} s", flush=True)
     return run
 
@@ -126,14 +152,24 @@ def judged(run: Path | str, data: Path, limit: int, out: Path | None = None) -> 
     rows = []
     for i, r in enumerate(m.per_trajectory):
         p = r["physics"]
-        rows.append({"trajectory": r["trajectory"], "family": families[i],
-                     "peak_error_pct": p["peak_plate_stress_error_pct"],
-                     "deflection_error_pct": p["max_deflection_error_pct"],
-                     "critical_mm": crit[r["trajectory"]], "rebound_agrees": bool(p["rebound_agrees"]),
-                     "stress_rmse_all": r.get("stress_rmse_all"), "position_rmse_all": r.get("position_rmse_all")})
+        rows.append(
+            {
+                "trajectory": r["trajectory"],
+                "family": families[i],
+                "peak_error_pct": p["peak_plate_stress_error_pct"],
+                "deflection_error_pct": p["max_deflection_error_pct"],
+                "critical_mm": crit[r["trajectory"]],
+                "rebound_agrees": bool(p["rebound_agrees"]),
+                "stress_rmse_all": r.get("stress_rmse_all"),
+                "position_rmse_all": r.get("position_rmse_all"),
+            }
+        )
     steps = int(meta["trajectory_length"]) - 2
-    return {"rows": rows, "s_per_design": m.inference_ms_per_step * steps / 1e3,
-            "checkpoint_step": loaded.checkpoint_step}
+    return {
+        "rows": rows,
+        "s_per_design": m.inference_ms_per_step * steps / 1e3,
+        "checkpoint_step": loaded.checkpoint_step,
+    }
 
 
 def surrogate_row(fit_data: Path, n: int | None, data: Path, limit: int) -> dict:
@@ -155,13 +191,24 @@ def surrogate_row(fit_data: Path, n: int | None, data: Path, limit: int) -> dict
         if missing:
             cannot.update({k: d.__getattribute__(k) for k in missing})
             continue
-        rows.append({"trajectory": i, "family": families[i],
-                     "peak_error_pct": 100 * (p["peak_plate_stress_mpa"].mean / truth["peak_plate_stress_mpa"][i] - 1),
-                     "deflection_error_pct": 100 * (p["max_deflection_mm"].mean / truth["max_deflection_mm"][i] - 1),
-                     "covers_peak": p["peak_plate_stress_mpa"].covers(truth["peak_plate_stress_mpa"][i])})
-    return {"rows": rows, "s_per_design": predict_s, "fit_s": fit_s, "fitted_on": len(designs),
-            "parameters": len(gp.parameters), "underdetermined": bool(gp.underdetermined),
-            "cannot_take": sorted(cannot)}
+        rows.append(
+            {
+                "trajectory": i,
+                "family": families[i],
+                "peak_error_pct": 100 * (p["peak_plate_stress_mpa"].mean / truth["peak_plate_stress_mpa"][i] - 1),
+                "deflection_error_pct": 100 * (p["max_deflection_mm"].mean / truth["max_deflection_mm"][i] - 1),
+                "covers_peak": p["peak_plate_stress_mpa"].covers(truth["peak_plate_stress_mpa"][i]),
+            }
+        )
+    return {
+        "rows": rows,
+        "s_per_design": predict_s,
+        "fit_s": fit_s,
+        "fitted_on": len(designs),
+        "parameters": len(gp.parameters),
+        "underdetermined": bool(gp.underdetermined),
+        "cannot_take": sorted(cannot),
+    }
 
 
 def solver_seconds(data: Path, count: int = 2) -> float:
@@ -202,8 +249,12 @@ def errors(rows: list[dict], key: str) -> dict:
 
 def summarize(row: dict) -> dict:
     rows = row["rows"]
-    out = {"designs": len(rows), "peak": errors(rows, "peak_error_pct"),
-           "deflection": errors(rows, "deflection_error_pct"), "s_per_design": row["s_per_design"]}
+    out = {
+        "designs": len(rows),
+        "peak": errors(rows, "peak_error_pct"),
+        "deflection": errors(rows, "deflection_error_pct"),
+        "s_per_design": row["s_per_design"],
+    }
     if rows and "critical_mm" in rows[0]:
         c = np.asarray([r["critical_mm"] for r in rows])
         out["critical_mm"] = {"median": float(np.median(c)), "worst": float(c.max())}
@@ -227,11 +278,18 @@ def main(argv=None) -> None:
     p.add_argument("--steps", type=int, default=8000)
     p.add_argument("--ft-steps", type=int, default=1500)
     p.add_argument("--shots", nargs="+", type=int, default=[5, 20])
-    p.add_argument("--eval", type=int, default=8, help="test designs judged per new family (all of the training "
-                                                       "families' test split)")
+    p.add_argument(
+        "--eval",
+        type=int,
+        default=8,
+        help="test designs judged per new family (all of the training families' test split)",
+    )
     p.add_argument("--ft-lr", type=float, default=None, help="the fine-tuning's learning rate (to a tenth of it)")
-    p.add_argument("--base", metavar="NAME=RUN", help="this model is the base (a run folder or pretrained:NAME) "
-                   "instead of one trained per model and seed")
+    p.add_argument(
+        "--base",
+        metavar="NAME=RUN",
+        help="this model is the base (a run folder or pretrained:NAME) instead of one trained per model and seed",
+    )
     p.add_argument("--threads", type=int, default=1)
     p.add_argument("--json", default="transfer.json", help="the summary (a name in benchmarks/results or a path)")
     p.add_argument("--report", action="store_true", help="only summarize the rows that exist")
@@ -247,20 +305,23 @@ def main(argv=None) -> None:
         rows["solver_base"] = row_file(work, "solver_base", lambda: {"s": solver_seconds(base_data)})
         rows["gp_base"] = row_file(work, "gp_base", lambda: surrogate_row(base_data, None, base_data, held_out))
         for fam, data in new.items():
-            rows[f"gp_{fam}_zero"] = row_file(work, f"gp_{fam}_zero",
-                                              lambda d=data: surrogate_row(base_data, None, d, a.eval))
+            rows[f"gp_{fam}_zero"] = row_file(
+                work, f"gp_{fam}_zero", lambda d=data: surrogate_row(base_data, None, d, a.eval)
+            )
             for n in a.shots:
-                rows[f"gp_{fam}_{n}"] = row_file(work, f"gp_{fam}_{n}", lambda d=data, n=n: surrogate_row(
-                    d, n, d, a.eval))
+                rows[f"gp_{fam}_{n}"] = row_file(
+                    work, f"gp_{fam}_{n}", lambda d=data, n=n: surrogate_row(d, n, d, a.eval)
+                )
         given = a.base.split("=", 1) if a.base else None
         for seed in a.seeds:
-            for model in ([None] if given else a.models):
+            for model in [None] if given else a.models:
                 if given:  # the given model: its rows once, its fine-tunings per seed
                     base, run = f"{given[0]}_s{seed}", given[1]
                     model = Run.load(run, "cpu").info.model["name"]
                     out = work / "pretrained" / given[0]
-                    rows[f"{given[0]}_base"] = row_file(work, f"{given[0]}_base",
-                                                        lambda: judged(run, base_data, held_out, out))
+                    rows[f"{given[0]}_base"] = row_file(
+                        work, f"{given[0]}_base", lambda: judged(run, base_data, held_out, out)
+                    )
                 else:
                     base, out = f"{model}_s{seed}", None
                     if not claim(work / "runs" / base) and not (work / "runs" / base / "train_stats.json").is_file():
@@ -273,28 +334,44 @@ def main(argv=None) -> None:
                     rows[f"{base}_base"] = row_file(work, f"{base}_base", lambda r=run: judged(r, base_data, held_out))
                 zero = given[0] if given else base
                 for fam, data in new.items():
-                    rows[f"{zero}_{fam}_zero"] = row_file(work, f"{zero}_{fam}_zero",
-                                                          lambda r=run, d=data, o=out: judged(r, d, a.eval, o))
+                    rows[f"{zero}_{fam}_zero"] = row_file(
+                        work, f"{zero}_{fam}_zero", lambda r=run, d=data, o=out: judged(r, d, a.eval, o)
+                    )
                     for n in a.shots:
                         name = f"{base}_{fam}{n}"
                         data_n = subset(data, n, work / "subsets" / f"{fam}_{n}")
                         ft = trained(work, name, data_n, model, seed, a.ft_steps, init=run, lr=a.ft_lr)
-                        rows[f"{base}_{fam}_{n}"] = row_file(work, f"{base}_{fam}_{n}",
-                                                             lambda r=ft, d=data: judged(r, d, a.eval))
+                        rows[f"{base}_{fam}_{n}"] = row_file(
+                            work, f"{base}_{fam}_{n}", lambda r=ft, d=data: judged(r, d, a.eval)
+                        )
     found = {f.stem: json.loads(f.read_text()) for f in sorted((work / "rows").glob("*.json"))}
     summary = {k: (v if k.startswith("solver") else summarize(v)) for k, v in found.items()}
-    write_json(a.json, {
-        "command": "python benchmarks/transfer/run.py " + " ".join(
-            [f"--work {work}", f"--train-data {a.train_data}", *(f"--new {x}" for x in a.new),
-             *([f"--base {a.base}"] if a.base else [f"--models {' '.join(a.models)}", f"--steps {a.steps}"]),
-             f"--seeds {' '.join(map(str, a.seeds))}", f"--ft-steps {a.ft_steps}",
-             *([f"--ft-lr {a.ft_lr}"] if a.ft_lr is not None else []),
-             f"--shots {' '.join(map(str, a.shots))}", f"--eval {a.eval}"]),
-        "base": a.base, "ft_lr": a.ft_lr,
-        "device": f"cpu ({platform.processor() or platform.machine()}), {a.threads} thread per process, two "
-                  "processes (one per seed) side by side on the 2-core machine",
-        "train_families": sorted(set((read_meta(base_data).get("families") or {}).get("train") or ["mono"])),
-        "new_families": {k: str(v) for k, v in new.items()}, "rows": summary})
+    write_json(
+        a.json,
+        {
+            "command": "python benchmarks/transfer/run.py "
+            + " ".join(
+                [
+                    f"--work {work}",
+                    f"--train-data {a.train_data}",
+                    *(f"--new {x}" for x in a.new),
+                    *([f"--base {a.base}"] if a.base else [f"--models {' '.join(a.models)}", f"--steps {a.steps}"]),
+                    f"--seeds {' '.join(map(str, a.seeds))}",
+                    f"--ft-steps {a.ft_steps}",
+                    *([f"--ft-lr {a.ft_lr}"] if a.ft_lr is not None else []),
+                    f"--shots {' '.join(map(str, a.shots))}",
+                    f"--eval {a.eval}",
+                ]
+            ),
+            "base": a.base,
+            "ft_lr": a.ft_lr,
+            "device": f"cpu ({platform.processor() or platform.machine()}), {a.threads} thread per process, two "
+            "processes (one per seed) side by side on the 2-core machine",
+            "train_families": sorted(set((read_meta(base_data).get("families") or {}).get("train") or ["mono"])),
+            "new_families": {k: str(v) for k, v in new.items()},
+            "rows": summary,
+        },
+    )
     print(json.dumps({k: v for k, v in summary.items()}, indent=1)[:4000])
 
 

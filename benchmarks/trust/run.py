@@ -45,6 +45,7 @@ interrupted run continues where it stopped. Cost (the development machine, one t
 3 s of solver and 3 s of model per design at --batch 8, so the default 204 designs per seed x 3 seeds take about
 1-1.5 h, the fuzzer about 5 s per design (the model alone at batch 1, the solver where the call is undecided).
 """
+
 from __future__ import annotations
 
 import argparse
@@ -95,9 +96,13 @@ FACTORS = (0.8, 0.9, 0.95, 1.05, 1.1, 1.2)
 #: the calls measured: the calibrated interval alone, with the response surface, and the calls before it existed
 #: (no interval: the model ± MODEL_BAND, or the response surface widened to hold the model's answer; a design outside
 #: the training ranges undecided)
-CALLS = {"model": ("model", True), "union": ("union", True), "intersection": ("intersection", True),
-         "model_before": ("model", False),
-         "union_before": ("union", False)}
+CALLS = {
+    "model": ("model", True),
+    "union": ("union", True),
+    "intersection": ("intersection", True),
+    "model_before": ("model", False),
+    "union_before": ("union", False),
+}
 #: the requirement on the calibrated interval alone: no unsafe call, the solver on at most this share of points
 SOLVER_SHARE = 0.30
 #: the fuzzer: how far beyond a range (widths, log-uniform between the two), the yield stresses drawn (MPa), the
@@ -118,8 +123,10 @@ def parse_cell(text: str, keys: list[str]) -> list[tuple[str, str]]:
     for part in text.split(","):
         key, side = part.strip()[:-1], part.strip()[-1:]
         if side not in "+-" or not side or key not in keys:
-            raise SystemExit(f"--cells: {part!r} is not a varied parameter with its side (+ or -): "
-                             f"one of {', '.join(keys)}, e.g. thickness+")
+            raise SystemExit(
+                f"--cells: {part!r} is not a varied parameter with its side (+ or -): "
+                f"one of {', '.join(keys)}, e.g. thickness+"
+            )
         out.append((key, side))
     if len({k for k, _ in out}) != len(out):
         raise SystemExit(f"--cells: {text!r} names a parameter twice")
@@ -149,8 +156,9 @@ def beyond(ranges: dict, key: str, side: str, excess: float) -> float:
     return float(hi + excess if side == "+" else lo - excess)
 
 
-def group_designs(run, seed: int, sides: list[tuple[str, str]] | None, distance: float | None, count: int,
-                  skipped: dict) -> list[tuple[str, Design, str]]:
+def group_designs(
+    run, seed: int, sides: list[tuple[str, str]] | None, distance: float | None, count: int, skipped: dict
+) -> list[tuple[str, Design, str]]:
     """``count`` designs of a group: (name, design, cell); ``sides`` None: inside."""
     ranges, keys = run.ranges, varied(run.ranges)
     base = middle_design(run.meta, run.ranges)
@@ -174,8 +182,11 @@ def group_designs(run, seed: int, sides: list[tuple[str, str]] | None, distance:
             raise SystemExit(f"{group}: no valid design in {TRIES} draws")
         cell = cell_of(d, ranges)
         assert cell == group, f"{group}: drew a design of cell {cell}"
-        name = f"s{seed}_inside_{len(out):02d}" if sides is None else \
-            f"s{seed}_{cell_label(sides)}_{distance:.1f}_{len(out):02d}"
+        name = (
+            f"s{seed}_inside_{len(out):02d}"
+            if sides is None
+            else f"s{seed}_{cell_label(sides)}_{distance:.1f}_{len(out):02d}"
+        )
         out.append((name, d, cell))
     return out
 
@@ -233,9 +244,13 @@ class Runner:
         return got if got is not None and all(got.get(k) == v for k, v in key.items()) else None
 
     def save_solver(self, name: str, d: Design, summary, wall_s: float) -> dict:
-        rec = {**self.solver_key(d), PEAK: float(summary.peak_plate_stress_mpa),
-               "max_deflection_mm": float(summary.max_deflection_mm),
-               HISTORY: [float(v) for v in summary.plate_stress_history_mpa], "wall_s": float(wall_s)}
+        rec = {
+            **self.solver_key(d),
+            PEAK: float(summary.peak_plate_stress_mpa),
+            "max_deflection_mm": float(summary.max_deflection_mm),
+            HISTORY: [float(v) for v in summary.plate_stress_history_mpa],
+            "wall_s": float(wall_s),
+        }
         write(self.solver_path(name), rec)
         return rec
 
@@ -248,8 +263,11 @@ class Runner:
             out[n] = self.save_solver(n, d, t.summary, t.wall_s)
             self.solver_runs += 1
             if (i + 1) % 10 == 0 or i + 1 == len(todo):
-                print(f"  {say}: {i + 1} / {len(todo)} designs run ({len(designs) - len(todo)} cached), "
-                      f"{time.perf_counter() - t0:.0f} s", flush=True)
+                print(
+                    f"  {say}: {i + 1} / {len(todo)} designs run ({len(designs) - len(todo)} cached), "
+                    f"{time.perf_counter() - t0:.0f} s",
+                    flush=True,
+                )
         return out
 
     def model_key(self, d: Design) -> dict:
@@ -263,18 +281,26 @@ class Runner:
         todo = [(n, d) for n, d in designs if out[n] is None]
         t0 = time.perf_counter()
         for first in range(0, len(todo), self.batch):  # one batch at a time, each saved: a rerun resumes
-            chunk = todo[first:first + self.batch]
+            chunk = todo[first : first + self.batch]
             for p in predict(self.run, chunk, batch=self.batch, progress=False):
                 s = p.summary
-                rec = {**self.model_key(p.design), PEAK: float(s.peak_plate_stress_mpa),
-                       "max_deflection_mm": float(s.max_deflection_mm),
-                       HISTORY: [float(v) for v in s.plate_stress_history_mpa], "readout": s.readout,
-                       "wall_s": float(p.wall_s), "summary": s.to_json()}
+                rec = {
+                    **self.model_key(p.design),
+                    PEAK: float(s.peak_plate_stress_mpa),
+                    "max_deflection_mm": float(s.max_deflection_mm),
+                    HISTORY: [float(v) for v in s.plate_stress_history_mpa],
+                    "readout": s.readout,
+                    "wall_s": float(p.wall_s),
+                    "summary": s.to_json(),
+                }
                 write(self.model_path(p.name), rec)
                 out[p.name] = rec
                 self.model_runs += 1
-            print(f"  model: {min(first + self.batch, len(todo))} / {len(todo)} designs run "
-                  f"({len(designs) - len(todo)} cached), {time.perf_counter() - t0:.0f} s", flush=True)
+            print(
+                f"  model: {min(first + self.batch, len(todo))} / {len(todo)} designs run "
+                f"({len(designs) - len(todo)} cached), {time.perf_counter() - t0:.0f} s",
+                flush=True,
+            )
         return out
 
 
@@ -288,8 +314,19 @@ def rows_of(runner: Runner, designs: list, seed: int, gp) -> list[dict]:
         gps = [None if gp.cannot_take(d) else asdict(p[PEAK]) for (_, d), p in zip(pairs, preds)]
     else:
         gps = [None] * len(pairs)
-    return [{"name": n, "seed": seed, "design": d, "cell": cell, "direction": direction_of(cell),
-             "model": model[n], "solver": solver[n], "gp": g} for (n, d, cell), g in zip(designs, gps)]
+    return [
+        {
+            "name": n,
+            "seed": seed,
+            "design": d,
+            "cell": cell,
+            "direction": direction_of(cell),
+            "model": model[n],
+            "solver": solver[n],
+            "gp": g,
+        }
+        for (n, d, cell), g in zip(designs, gps)
+    ]
 
 
 def judge(rows: list[dict], cal: Calibration, ranges: dict) -> None:
@@ -322,15 +359,21 @@ def stats(rows: list[dict]) -> dict:
     """One group's coverage and widths (module docstring)."""
     with_iv = [r for r in rows if r["interval"] is not None]
     with_gp = [r for r in rows if r["gp"] is not None]
-    return {"designs": len(rows), "without_interval": len(rows) - len(with_iv),
-            "coverage": {k: share([r["covers"][k] for r in with_iv]) for k in (*ANSWERS, HISTORY)},
-            "median_rel_width_peak": median([r["width"] for r in with_iv]),
-            "median_history_band": median([r["band"] for r in with_iv]),
-            "median_abs_peak_error_pct": median([abs(r["error_pct"]) for r in rows]),
-            "worst_abs_peak_error_pct": float(max(abs(r["error_pct"]) for r in rows)) if rows else None,
-            "surrogate": {"designs": len(with_gp), "coverage": share([r["gp_covers"] for r in with_gp]),
-                          "median_rel_width": median([r["gp_width"] for r in with_gp])},
-            "model_band": {"coverage": share([r["band_covers"] for r in rows]), "rel_width": 2 * MODEL_BAND}}
+    return {
+        "designs": len(rows),
+        "without_interval": len(rows) - len(with_iv),
+        "coverage": {k: share([r["covers"][k] for r in with_iv]) for k in (*ANSWERS, HISTORY)},
+        "median_rel_width_peak": median([r["width"] for r in with_iv]),
+        "median_history_band": median([r["band"] for r in with_iv]),
+        "median_abs_peak_error_pct": median([abs(r["error_pct"]) for r in rows]),
+        "worst_abs_peak_error_pct": float(max(abs(r["error_pct"]) for r in rows)) if rows else None,
+        "surrogate": {
+            "designs": len(with_gp),
+            "coverage": share([r["gp_covers"] for r in with_gp]),
+            "median_rel_width": median([r["gp_width"] for r in with_gp]),
+        },
+        "model_band": {"coverage": share([r["band_covers"] for r in rows]), "rel_width": 2 * MODEL_BAND},
+    }
 
 
 def regions(rows: list[dict]) -> dict[str, list[dict]]:
@@ -344,8 +387,10 @@ def regions(rows: list[dict]) -> dict[str, list[dict]]:
 
 def coverage(rows: list[dict]) -> dict:
     cells = sorted({r["cell"] for r in rows}, key=lambda c: (c != "inside", c))
-    return {"by_cell": {c: stats([r for r in rows if r["cell"] == c]) for c in cells},
-            "by_region": {k: stats(v) for k, v in regions(rows).items()}}
+    return {
+        "by_cell": {c: stats([r for r in rows if r["cell"] == c]) for c in cells},
+        "by_region": {k: stats(v) for k, v in regions(rows).items()},
+    }
 
 
 def call_row(r: dict, ranges: dict, trust: str, calibrated: bool, yield_mpa: float) -> str:
@@ -355,8 +400,7 @@ def call_row(r: dict, ranges: dict, trust: str, calibrated: bool, yield_mpa: flo
     bounds = iv.bounds[PEAK] if iv is not None else None
     trust = trust_for(r["design"], ranges, trust)
     lo, hi, _ = trusted_bounds(r["model"][PEAK], r["gp"], trust, bounds)
-    p = SimpleNamespace(design=r["design"], summary=SimpleNamespace(model_interval=iv, readout="raw",
-                                                                     confidence=None))
+    p = SimpleNamespace(design=r["design"], summary=SimpleNamespace(model_interval=iv, readout="raw", confidence=None))
     return "undecided" if outside_reason(p, ranges, trust) else call_of(lo, hi, yield_mpa)
 
 
@@ -371,16 +415,23 @@ def tally(rows: list[dict], ranges: dict, trust: str, calibrated: bool, factors=
             unsafe += c == "pass" and not solver_passes
             wrong_fail += c == "fail" and solver_passes
             undecided += c == "undecided"
-    return {"points": points, "unsafe": unsafe, "wrong_fail": wrong_fail, "undecided": undecided,
-            "undecided_share": undecided / points if points else None}
+    return {
+        "points": points,
+        "unsafe": unsafe,
+        "wrong_fail": wrong_fail,
+        "undecided": undecided,
+        "undecided_share": undecided / points if points else None,
+    }
 
 
 def calls(rows: list[dict], ranges: dict) -> dict:
     out = {}
     for name, (trust, calibrated) in CALLS.items():
-        out[name] = {"all": tally(rows, ranges, trust, calibrated),
-                     "by_factor": {f"{f:g}": tally(rows, ranges, trust, calibrated, (f,)) for f in FACTORS},
-                     "by_region": {k: tally(v, ranges, trust, calibrated) for k, v in regions(rows).items()}}
+        out[name] = {
+            "all": tally(rows, ranges, trust, calibrated),
+            "by_factor": {f"{f:g}": tally(rows, ranges, trust, calibrated, (f,)) for f in FACTORS},
+            "by_region": {k: tally(v, ranges, trust, calibrated) for k, v in regions(rows).items()},
+        }
     return out
 
 
@@ -438,18 +489,40 @@ def fuzz(run, runner: Runner, cal: Calibration, n: int, seed: int) -> dict:
             print(f"  fuzz: {i + 1} / {len(made)} designs, {time.perf_counter() - t0:.0f} s", flush=True)
     ok = [r for r in records if "refused" not in r]
     passes = [r for r in ok if r["final_call"] == "pass"]
-    return {"seed": seed, "designs": n, "checked": len(ok), "refused_by_the_check": len(records) - len(ok),
-            "redrawn": refused, "too_costly": len(costly),
-            "too_costly_in_a_calibrated_cell": sum(c["calibrated"] for c in costly),
-            "in_a_calibrated_cell": sum(r["calibrated"] for r in ok),
-            "decided": sum(r["call"] != "undecided" for r in ok),
-            "final_passes": len(passes), "final_passes_verified": sum(r["verified"] for r in passes),
-            "final_passes_checked": sum(not r["verified"] for r in passes),
-            "unsafe": sum(r["unsafe"] for r in ok), "solver_runs_auto": sum(r["verified"] for r in ok),
-            "decided_designs": [{k: r[k] for k in ("name", "cell", "yield_mpa", "call", "model_peak_mpa",
-                                                   "call_interval_mpa", "solver_peak_mpa", "unsafe")}
-                                for r in ok if r["call"] != "undecided"],
-            "costly": costly}
+    return {
+        "seed": seed,
+        "designs": n,
+        "checked": len(ok),
+        "refused_by_the_check": len(records) - len(ok),
+        "redrawn": refused,
+        "too_costly": len(costly),
+        "too_costly_in_a_calibrated_cell": sum(c["calibrated"] for c in costly),
+        "in_a_calibrated_cell": sum(r["calibrated"] for r in ok),
+        "decided": sum(r["call"] != "undecided" for r in ok),
+        "final_passes": len(passes),
+        "final_passes_verified": sum(r["verified"] for r in passes),
+        "final_passes_checked": sum(not r["verified"] for r in passes),
+        "unsafe": sum(r["unsafe"] for r in ok),
+        "solver_runs_auto": sum(r["verified"] for r in ok),
+        "decided_designs": [
+            {
+                k: r[k]
+                for k in (
+                    "name",
+                    "cell",
+                    "yield_mpa",
+                    "call",
+                    "model_peak_mpa",
+                    "call_interval_mpa",
+                    "solver_peak_mpa",
+                    "unsafe",
+                )
+            }
+            for r in ok
+            if r["call"] != "undecided"
+        ],
+        "costly": costly,
+    }
 
 
 def fuzz_one(run, runner: Runner, cal: Calibration, name: str, d: Design, y: float) -> dict:
@@ -457,8 +530,9 @@ def fuzz_one(run, runner: Runner, cal: Calibration, name: str, d: Design, y: flo
     cell = cell_of(d, run.ranges)
     base = {"name": name, "cell": cell, "calibrated": cell in cal.cells, "yield_mpa": y}
     try:
-        check = check_designs(run, [(name, d)], batch=1, yield_mpa=y, verify="auto", surrogate=True,
-                              interval=cal, progress=False)
+        check = check_designs(
+            run, [(name, d)], batch=1, yield_mpa=y, verify="auto", surrogate=True, interval=cal, progress=False
+        )
     except InputError as e:
         return {**base, "refused": str(e)}
     s, t = check.preds[0].summary, check.truth[0]
@@ -468,55 +542,79 @@ def fuzz_one(run, runner: Runner, cal: Calibration, name: str, d: Design, y: flo
     elif s.final_call == "pass":  # a pass the solver did not verify: check it
         solver = runner.solver([(name, d)], "fuzz solver")[name]
     peak = solver[PEAK] if solver is not None else None
-    return {**base, "call": s.call, "final_call": s.final_call, "verified": bool(s.verified),
-            "model_peak_mpa": float(s.peak_plate_stress_mpa),
-            "call_interval_mpa": s.call_interval_mpa.to_json() if s.call_interval_mpa else None,
-            "model_interval": s.model_interval.to_json()["peak_plate_stress_mpa"] if s.model_interval else None,
-            "solver_peak_mpa": peak, "unsafe": bool(s.final_call == "pass" and peak is not None and peak >= y)}
+    return {
+        **base,
+        "call": s.call,
+        "final_call": s.final_call,
+        "verified": bool(s.verified),
+        "model_peak_mpa": float(s.peak_plate_stress_mpa),
+        "call_interval_mpa": s.call_interval_mpa.to_json() if s.call_interval_mpa else None,
+        "model_interval": s.model_interval.to_json()["peak_plate_stress_mpa"] if s.model_interval else None,
+        "solver_peak_mpa": peak,
+        "unsafe": bool(s.final_call == "pass" and peak is not None and peak >= y),
+    }
 
 
 # -- the run ---------------------------------------------------------------------------------------------------------
 def compact(cov: dict, call: dict) -> dict:
     """The ``measured`` block of the calibration file: pooled coverage per cell and region, the calls' totals."""
+
     def one(s):
-        return {"designs": s["designs"], "without_interval": s["without_interval"],
-                **{k: s["coverage"][k]["share"] for k in (*ANSWERS, HISTORY)},
-                "median_rel_width_peak": s["median_rel_width_peak"], "median_history_band": s["median_history_band"]}
-    return {"by_cell": {k: one(v) for k, v in cov["by_cell"].items()},
-            "by_region": {k: one(v) for k, v in cov["by_region"].items()},
-            "calls": {k: call[k]["all"] for k in ("model", "union")}}
+        return {
+            "designs": s["designs"],
+            "without_interval": s["without_interval"],
+            **{k: s["coverage"][k]["share"] for k in (*ANSWERS, HISTORY)},
+            "median_rel_width_peak": s["median_rel_width_peak"],
+            "median_history_band": s["median_history_band"],
+        }
+
+    return {
+        "by_cell": {k: one(v) for k, v in cov["by_cell"].items()},
+        "by_region": {k: one(v) for k, v in cov["by_region"].items()},
+        "calls": {k: call[k]["all"] for k in ("model", "union")},
+    }
 
 
 def print_table(cov: dict, call: dict, fz: dict | None) -> None:
-    head = (f"{'cell / region':<30} {'n':>4} {'no iv':>5} {'peak':>6} {'defl':>6} {'hist':>6} {'width':>6} "
-            f"{'band':>6} "
-            f"{'err%':>5} | {'GP cov':>6} {'GP w':>6} | {'±60%':>6}")
+    head = (
+        f"{'cell / region':<30} {'n':>4} {'no iv':>5} {'peak':>6} {'defl':>6} {'hist':>6} {'width':>6} "
+        f"{'band':>6} "
+        f"{'err%':>5} | {'GP cov':>6} {'GP w':>6} | {'±60%':>6}"
+    )
     print(head)
     print("-" * len(head))
 
     def pct(x):
         return "     -" if x is None else f"{100 * x:5.1f}%"
+
     for part in ("by_cell", "by_region"):
         for k, s in cov[part].items():
             c = s["coverage"]
-            print(f"{k:<30} {s['designs']:>4} {s['without_interval']:>5} {pct(c[PEAK]['share'])} "
-                  f"{pct(c['max_deflection_mm']['share'])} {pct(c[HISTORY]['share'])} "
-                  f"{pct(s['median_rel_width_peak'])} {pct(s['median_history_band'])} "
-                  f"{s['median_abs_peak_error_pct']:5.1f} | "
-                  f"{pct(s['surrogate']['coverage']['share'])} {pct(s['surrogate']['median_rel_width'])} | "
-                  f"{pct(s['model_band']['coverage']['share'])}")
+            print(
+                f"{k:<30} {s['designs']:>4} {s['without_interval']:>5} {pct(c[PEAK]['share'])} "
+                f"{pct(c['max_deflection_mm']['share'])} {pct(c[HISTORY]['share'])} "
+                f"{pct(s['median_rel_width_peak'])} {pct(s['median_history_band'])} "
+                f"{s['median_abs_peak_error_pct']:5.1f} | "
+                f"{pct(s['surrogate']['coverage']['share'])} {pct(s['surrogate']['median_rel_width'])} | "
+                f"{pct(s['model_band']['coverage']['share'])}"
+            )
         print("-" * len(head))
     print(f"calls at the solver's peak x {', '.join(f'{f:g}' for f in FACTORS)}:")
     for name, c in call.items():
         a = c["all"]
-        print(f"  {name:<13} points {a['points']:>5}  unsafe {a['unsafe']:>3}  wrong fail {a['wrong_fail']:>3}  "
-              f"undecided {100 * a['undecided_share']:5.1f}%  (by factor: "
-              + ", ".join(f"{f} {100 * v['undecided_share']:.0f}%" for f, v in c["by_factor"].items()) + ")")
+        print(
+            f"  {name:<13} points {a['points']:>5}  unsafe {a['unsafe']:>3}  wrong fail {a['wrong_fail']:>3}  "
+            f"undecided {100 * a['undecided_share']:5.1f}%  (by factor: "
+            + ", ".join(f"{f} {100 * v['undecided_share']:.0f}%" for f, v in c["by_factor"].items())
+            + ")"
+        )
     if fz is not None:
-        print(f"fuzz: {fz['designs']} designs ({fz['too_costly']} too costly, {fz['refused_by_the_check']} refused), "
-              f"{fz['in_a_calibrated_cell']} in a calibrated cell, {fz['decided']} decided, {fz['final_passes']} "
-              f"final passes ({fz['final_passes_verified']} verified, {fz['final_passes_checked']} checked), "
-              f"unsafe {fz['unsafe']}")
+        print(
+            f"fuzz: {fz['designs']} designs ({fz['too_costly']} too costly, {fz['refused_by_the_check']} refused), "
+            f"{fz['in_a_calibrated_cell']} in a calibrated cell, {fz['decided']} decided, {fz['final_passes']} "
+            f"final passes ({fz['final_passes_verified']} verified, {fz['final_passes_checked']} checked), "
+            f"unsafe {fz['unsafe']}"
+        )
 
 
 def result_path(arg: str) -> Path:
@@ -532,10 +630,19 @@ def design_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--eval-seeds", type=int, nargs="+", default=[5202, 5203])
     p.add_argument("--inside", type=int, default=60, help="designs inside the ranges, per seed")
     p.add_argument("--per-cell", type=int, default=24, help="designs per outside cell and distance, per seed")
-    p.add_argument("--cells", nargs="+", default=["thickness+", "drop_height+", "drop_height+,thickness+"],
-                   help="outside directions: parameters with their side, joined by ','")
-    p.add_argument("--distances", type=float, nargs="+", default=[0.2, 0.4],
-                   help=f"how far out, in multiples of {DISTANCE_STEP} of a range's width")
+    p.add_argument(
+        "--cells",
+        nargs="+",
+        default=["thickness+", "drop_height+", "drop_height+,thickness+"],
+        help="outside directions: parameters with their side, joined by ','",
+    )
+    p.add_argument(
+        "--distances",
+        type=float,
+        nargs="+",
+        default=[0.2, 0.4],
+        help=f"how far out, in multiples of {DISTANCE_STEP} of a range's width",
+    )
     p.add_argument("--batch", type=int, default=8)
     p.add_argument("--threads", type=int, default=1)
 
@@ -545,20 +652,32 @@ def main() -> None:
     p.add_argument("--model", default="pretrained:impact_plate_small")
     p.add_argument("--checkpoint", default="best", help="with a run folder as --model: best, checkpoint or step_N")
     design_arguments(p)
-    p.add_argument("--more-calibration-seeds", type=int, nargs="*", default=[], metavar="SEED",
-                   help="more seeds whose designs join the calibration (a cell's bound is an order statistic: more "
-                        "designs, less spread from one calibration set to the next)")
+    p.add_argument(
+        "--more-calibration-seeds",
+        type=int,
+        nargs="*",
+        default=[],
+        metavar="SEED",
+        help="more seeds whose designs join the calibration (a cell's bound is an order statistic: more "
+        "designs, less spread from one calibration set to the next)",
+    )
     p.add_argument("--fuzz", type=int, default=0, help="designs far outside the ranges through the design check")
     p.add_argument("--fuzz-seed", type=int, default=5299)
-    p.add_argument("--write", action="store_true", help="write the calibration, with its measured block, to the "
-                   "model's own file (hcmt.design.model_interval.interval_path)")
+    p.add_argument(
+        "--write",
+        action="store_true",
+        help="write the calibration, with its measured block, to the "
+        "model's own file (hcmt.design.model_interval.interval_path)",
+    )
     p.add_argument("--json", default="trust.json", help="result file: a name under benchmarks/results/, or a path")
     a = p.parse_args()
     calibration_seeds = [a.calibration_seed, *a.more_calibration_seeds]
     seeds = [*calibration_seeds, *a.eval_seeds, *([a.fuzz_seed] if a.fuzz else [])]
     if len(set(seeds)) != len(seeds):
-        p.error("--calibration-seed, --eval-seeds and --fuzz-seed must all differ: the calibration is measured on "
-                "designs it was not fitted on")
+        p.error(
+            "--calibration-seed, --eval-seeds and --fuzz-seed must all differ: the calibration is measured on "
+            "designs it was not fitted on"
+        )
     for d in a.distances:
         if not 0 < d or abs(d / DISTANCE_STEP - round(d / DISTANCE_STEP)) > 1e-9:
             p.error(f"--distances: {d} is not a positive multiple of {DISTANCE_STEP}")
@@ -583,9 +702,16 @@ def main() -> None:
     for seed in calibration_seeds:
         print(f"calibration: seed {seed}", flush=True)
         cal_rows += rows_of(runner, seed_designs(run, seed, a, cells, skipped), seed, gp)
-    cal = fit([(r["design"], as_summary(r["model"]), as_summary(r["solver"])) for r in cal_rows], run.ranges, name,
-              source={"seed": calibration_seeds if len(calibration_seeds) > 1 else a.calibration_seed,
-                      "designs": len(cal_rows), "command": command})
+    cal = fit(
+        [(r["design"], as_summary(r["model"]), as_summary(r["solver"])) for r in cal_rows],
+        run.ranges,
+        name,
+        source={
+            "seed": calibration_seeds if len(calibration_seeds) > 1 else a.calibration_seed,
+            "designs": len(cal_rows),
+            "command": command,
+        },
+    )
     print("  cells calibrated: " + ", ".join(f"{k} ({c.designs})" for k, c in sorted(cal.cells.items())))
     judge(cal_rows, cal, run.ranges)
     rows = {}
@@ -594,12 +720,19 @@ def main() -> None:
         rows[seed] = rows_of(runner, seed_designs(run, seed, a, cells, skipped), seed, gp)
         judge(rows[seed], cal, run.ranges)
     pooled = [r for seed in a.eval_seeds for r in rows[seed]]
-    cov = {**{f"seed {s}": coverage(rows[s]) for s in a.eval_seeds}, "pooled": coverage(pooled),
-           "calibration seed (in sample)": coverage(cal_rows)}
+    cov = {
+        **{f"seed {s}": coverage(rows[s]) for s in a.eval_seeds},
+        "pooled": coverage(pooled),
+        "calibration seed (in sample)": coverage(cal_rows),
+    }
     call = {**{f"seed {s}": calls(rows[s], run.ranges) for s in a.eval_seeds}, "pooled": calls(pooled, run.ranges)}
     m = call["pooled"]["model"]["all"]
-    requirement = {"unsafe": m["unsafe"], "solver_share": m["undecided_share"], "solver_share_at_most": SOLVER_SHARE,
-                   "met": bool(m["unsafe"] == 0 and m["undecided_share"] <= SOLVER_SHARE)}
+    requirement = {
+        "unsafe": m["unsafe"],
+        "solver_share": m["undecided_share"],
+        "solver_share_at_most": SOLVER_SHARE,
+        "met": bool(m["unsafe"] == 0 and m["undecided_share"] <= SOLVER_SHARE),
+    }
     fz = None
     if a.fuzz:
         print(f"fuzz: {a.fuzz} designs, seed {a.fuzz_seed}", flush=True)
@@ -607,31 +740,62 @@ def main() -> None:
 
     all_rows = cal_rows + pooled
     result = {
-        "command": command, "model": a.model, "model_label": label, "checkpoint_step": run.checkpoint_step,
-        "hcmt": VERSION, "torch": torch.__version__, "device": "cpu",
-        "machine": platform.processor() or platform.machine(), "cores": os.cpu_count(), "threads": a.threads,
-        "seeds": {"calibration": calibration_seeds if len(calibration_seeds) > 1 else a.calibration_seed,
-                  "evaluation": a.eval_seeds,
-                  "fuzz": a.fuzz_seed if a.fuzz else None},
-        "designs": {"inside": a.inside, "per_cell": a.per_cell, "cells": [cell_label(c) for c in cells],
-                    "distances": a.distances, "redrawn_invalid": skipped, "calibration": len(cal_rows),
-                    "evaluation": len(pooled)},
-        "level": LEVEL, "min_designs": MIN_DESIGNS, "model_band": MODEL_BAND, "factors": list(FACTORS),
+        "command": command,
+        "model": a.model,
+        "model_label": label,
+        "checkpoint_step": run.checkpoint_step,
+        "hcmt": VERSION,
+        "torch": torch.__version__,
+        "device": "cpu",
+        "machine": platform.processor() or platform.machine(),
+        "cores": os.cpu_count(),
+        "threads": a.threads,
+        "seeds": {
+            "calibration": calibration_seeds if len(calibration_seeds) > 1 else a.calibration_seed,
+            "evaluation": a.eval_seeds,
+            "fuzz": a.fuzz_seed if a.fuzz else None,
+        },
+        "designs": {
+            "inside": a.inside,
+            "per_cell": a.per_cell,
+            "cells": [cell_label(c) for c in cells],
+            "distances": a.distances,
+            "redrawn_invalid": skipped,
+            "calibration": len(cal_rows),
+            "evaluation": len(pooled),
+        },
+        "level": LEVEL,
+        "min_designs": MIN_DESIGNS,
+        "model_band": MODEL_BAND,
+        "factors": list(FACTORS),
         "surrogate": gp.label if gp is not None else None,
-        "calibration": cal.to_json(), "coverage": cov, "calls": call, "requirement": requirement, "fuzz": fz,
-        "seconds": {"solver_median_per_design": median([r["solver"]["wall_s"] for r in all_rows]),
-                    "model_median_per_design": median([r["model"]["wall_s"] for r in all_rows]),
-                    "solver_runs_here": runner.solver_runs, "model_runs_here": runner.model_runs,
-                    "wall_this_process": time.perf_counter() - t_start},
-        "wrote_calibration": None}
+        "calibration": cal.to_json(),
+        "coverage": cov,
+        "calls": call,
+        "requirement": requirement,
+        "fuzz": fz,
+        "seconds": {
+            "solver_median_per_design": median([r["solver"]["wall_s"] for r in all_rows]),
+            "model_median_per_design": median([r["model"]["wall_s"] for r in all_rows]),
+            "solver_runs_here": runner.solver_runs,
+            "model_runs_here": runner.model_runs,
+            "wall_this_process": time.perf_counter() - t_start,
+        },
+        "wrote_calibration": None,
+    }
     if a.write:
         target = interval_path(run)
         if target is None:
             p.error("--write: the model has no folder of its own to hold its calibration")
-        measured = {"seeds": a.eval_seeds, "designs": len(pooled), "command": command,
-                    **compact(cov["pooled"], call["pooled"]),
-                    "fuzz": None if fz is None else {k: fz[k] for k in ("designs", "checked", "decided",
-                                                                        "final_passes", "unsafe", "too_costly")}}
+        measured = {
+            "seeds": a.eval_seeds,
+            "designs": len(pooled),
+            "command": command,
+            **compact(cov["pooled"], call["pooled"]),
+            "fuzz": None
+            if fz is None
+            else {k: fz[k] for k in ("designs", "checked", "decided", "final_passes", "unsafe", "too_costly")},
+        }
         replace(cal, measured=portable(measured)).save(target)
         result["wrote_calibration"] = str(target)
         print(f"wrote {portable(target)}")
@@ -639,13 +803,17 @@ def main() -> None:
     path.parent.mkdir(parents=True, exist_ok=True)
     with atomic_path(path) as tmp:
         tmp.write_text(json.dumps(portable(result), indent=2))
-    print(f"\npooled over seeds {', '.join(map(str, a.eval_seeds))} (calibrated on seed(s) "
-          f"{', '.join(map(str, calibration_seeds))}; "
-          f"coverage: share of designs with an interval whose solver value it holds; width: median (hi - lo) / model):")
+    print(
+        f"\npooled over seeds {', '.join(map(str, a.eval_seeds))} (calibrated on seed(s) "
+        f"{', '.join(map(str, calibration_seeds))}; "
+        f"coverage: share of designs with an interval whose solver value it holds; width: median (hi - lo) / model):"
+    )
     print_table(cov["pooled"], call["pooled"], fz)
-    print(f"requirement (model interval alone): unsafe {requirement['unsafe']}, solver on "
-          f"{100 * requirement['solver_share']:.1f} % of points (at most {100 * SOLVER_SHARE:.0f} %): "
-          f"{'met' if requirement['met'] else 'not met'}")
+    print(
+        f"requirement (model interval alone): unsafe {requirement['unsafe']}, solver on "
+        f"{100 * requirement['solver_share']:.1f} % of points (at most {100 * SOLVER_SHARE:.0f} %): "
+        f"{'met' if requirement['met'] else 'not met'}"
+    )
     print(f"wrote {portable(path)}")
 
 

@@ -74,8 +74,12 @@ def load_pretrained(name: str, device: str | None = None) -> Run:
     if not isinstance(name, str) or not name.strip():
         from hcmt.errors import InputError, clip
         from hcmt.sim.params import a_type
-        raise InputError(f"expected a shipped model's name as text, e.g. 'impact_plate_small' (`hcmt models` lists "
-                         f"them), got {clip(repr(name))} ({a_type(name)})", param="name")
+
+        raise InputError(
+            f"expected a shipped model's name as text, e.g. 'impact_plate_small' (`hcmt models` lists "
+            f"them), got {clip(repr(name))} ({a_type(name)})",
+            param="name",
+        )
     name = name.strip().removeprefix("pretrained:")
     return __getattr__("Run").load(f"pretrained:{name}", device)
 
@@ -87,6 +91,26 @@ def __getattr__(name):
     raise AttributeError(f"module 'hcmt' has no attribute {name!r}")
 
 
-__all__ = ["Config", "GT", "HCMT", "MGN", "Design", "FrameDataset", "Run", "Settings", "Surrogate", "__version__",
-           "available_pretrained", "build_model", "design_for", "evaluate", "from_checkpoint", "generate_dataset",
-           "load_config", "load_dataset", "load_pretrained", "predict_designs", "train"]
+__all__ = [
+    "Config",
+    "GT",
+    "HCMT",
+    "MGN",
+    "Design",
+    "FrameDataset",
+    "Run",
+    "Settings",
+    "Surrogate",
+    "__version__",
+    "available_pretrained",
+    "build_model",
+    "design_for",
+    "evaluate",
+    "from_checkpoint",
+    "generate_dataset",
+    "load_config",
+    "load_dataset",
+    "load_pretrained",
+    "predict_designs",
+    "train",
+]

@@ -4,6 +4,7 @@ An :class:`InputError` is a mistake its caller can fix (a value, a file, a desig
 (``param``), so that ``hcmt`` can print the command-line flag of that parameter instead (``batch`` -> ``--batch``)
 and exit 2 with one line. Any other exception is a bug and keeps its traceback.
 """
+
 from __future__ import annotations
 
 import importlib

@@ -4,6 +4,7 @@ rename: nothing half-written), :func:`check_apart` (no output on an input, or in
 or study row), :func:`folder_lock` and :func:`lock_holder` (one ``hcmt generate`` per dataset folder, and whether
 one is writing it), :func:`ensure_space` (refuse a write the disk cannot hold, before HDF5 tries) and
 :func:`read_json` (a damaged file is one line)."""
+
 from __future__ import annotations
 
 import errno
@@ -26,8 +27,10 @@ def read_json(path: str | os.PathLike, written_by: str):
     try:
         return json.loads(Path(path).read_text(encoding="utf-8"))
     except (UnicodeDecodeError, json.JSONDecodeError) as exc:
-        raise InputError(f"{path}: damaged, not readable JSON ({exc.__class__.__name__}: {str(exc)[:80]}); it is "
-                         f"written by {written_by}") from None
+        raise InputError(
+            f"{path}: damaged, not readable JSON ({exc.__class__.__name__}: {str(exc)[:80]}); it is "
+            f"written by {written_by}"
+        ) from None
 
 
 @contextmanager
@@ -52,9 +55,11 @@ def atomic_path(path: str | os.PathLike) -> Iterator[Path]:
             tmp.unlink()
 
 
-def check_apart(outputs: dict[str, str | os.PathLike | None],
-                inputs: dict[str, str | os.PathLike | None] | list[tuple[str, str | os.PathLike | None]],
-                owned: tuple[str, ...] = ()) -> None:
+def check_apart(
+    outputs: dict[str, str | os.PathLike | None],
+    inputs: dict[str, str | os.PathLike | None] | list[tuple[str, str | os.PathLike | None]],
+    owned: tuple[str, ...] = (),
+) -> None:
     """The one rule of where a command may write: refuse (one line naming both, :class:`InputError`) an output that
     is one of the inputs or lies inside an input folder (a dataset, a run folder the command reads), and an output
     folder named in ``owned`` (one the command fills or may delete) that holds an input. Keys are what the message
@@ -65,20 +70,25 @@ def check_apart(outputs: dict[str, str | os.PathLike | None],
         if out is None or not str(out).strip():
             continue
         o = Path(os.path.realpath(out))
-        for in_name, inp in (inputs.items() if isinstance(inputs, dict) else inputs):
+        for in_name, inp in inputs.items() if isinstance(inputs, dict) else inputs:
             if inp is None or not str(inp).strip():
                 continue
             i = Path(os.path.realpath(inp))
             kind = "folder" if i.is_dir() else "file"
             if o == i or (o.exists() and i.exists() and os.path.samefile(o, i)):
-                raise InputError(f"{out_name} {out}: the same {kind} as {in_name} {inp}, which this command reads; "
-                                 "write the output elsewhere")
+                raise InputError(
+                    f"{out_name} {out}: the same {kind} as {in_name} {inp}, which this command reads; "
+                    "write the output elsewhere"
+                )
             if i.is_dir() and o.is_relative_to(i):
-                raise InputError(f"{out_name} {out}: inside {in_name} {inp}, a folder this command reads; write the "
-                                 "output outside it")
+                raise InputError(
+                    f"{out_name} {out}: inside {in_name} {inp}, a folder this command reads; write the "
+                    "output outside it"
+                )
             if out_name in owned and i.is_relative_to(o):
-                raise InputError(f"{out_name} {out}: holds {in_name} {inp}, which this command reads; choose another "
-                                 "folder")
+                raise InputError(
+                    f"{out_name} {out}: holds {in_name} {inp}, which this command reads; choose another folder"
+                )
 
 
 @contextmanager
@@ -140,8 +150,11 @@ def ensure_space(path: str | os.PathLike, nbytes: int, margin: int = 1 << 20) ->
     folder = Path(path).parent
     free = shutil.disk_usage(folder if folder.exists() else Path.cwd()).free
     if free < nbytes + margin:
-        raise OSError(errno.ENOSPC, f"No space left on device ({free / 1e6:.1f} MB free, about "
-                                    f"{(nbytes + margin) / 1e6:.1f} MB needed)", str(path))
+        raise OSError(
+            errno.ENOSPC,
+            f"No space left on device ({free / 1e6:.1f} MB free, about {(nbytes + margin) / 1e6:.1f} MB needed)",
+            str(path),
+        )
 
 
 def lock_holder(lock: str | os.PathLike) -> int | None:

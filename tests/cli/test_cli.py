@@ -1,4 +1,5 @@
 """The command surface: one registry, every documented subcommand listed with one line."""
+
 import argparse
 import subprocess
 import sys
@@ -10,8 +11,24 @@ import hcmt.errors
 from hcmt.cli import COMMANDS, THREADED, flag_of, main as cli
 from hcmt.inference.evaluate import check_options
 
-DOCUMENTED = ["generate", "simulate", "convert", "info", "hierarchy", "train", "rollout", "evaluate", "compare",
-              "predict", "sweep", "models", "surrogate", "plot", "export", "demo"]
+DOCUMENTED = [
+    "generate",
+    "simulate",
+    "convert",
+    "info",
+    "hierarchy",
+    "train",
+    "rollout",
+    "evaluate",
+    "compare",
+    "predict",
+    "sweep",
+    "models",
+    "surrogate",
+    "plot",
+    "export",
+    "demo",
+]
 
 
 def test_every_registered_command_is_documented_here():
@@ -58,8 +75,11 @@ def test_an_unexpected_exception_is_a_bug_and_keeps_its_traceback(monkeypatch, c
     monkeypatch.setattr(hcmt.cli.design, "main_models", broken)
     with pytest.raises(ValueError, match="internal invariant"):
         cli(["models"])
-    monkeypatch.setattr(hcmt.cli.design, "main_models", lambda args: (_ for _ in ()).throw(
-        hcmt.cli.CommandError("--json: an empty path; name a file")))
+    monkeypatch.setattr(
+        hcmt.cli.design,
+        "main_models",
+        lambda args: (_ for _ in ()).throw(hcmt.cli.CommandError("--json: an empty path; name a file")),
+    )
     assert cli(["models"]) == 2
     assert capsys.readouterr().err.strip() == "hcmt models: error: --json: an empty path; name a file"
 

@@ -1,4 +1,5 @@
 """Flags spelled and defaulted alike across commands, so a flag learnt on one command works on the next."""
+
 import argparse
 
 from hcmt.cli import parsers

@@ -1,5 +1,6 @@
 """The front door's flags spelled alike across commands: evaluate / rollout of a shipped model
 with --out, simulate's --design, one --batch default for predict and sweep."""
+
 from __future__ import annotations
 
 import json
@@ -15,7 +16,8 @@ def test_evaluate_of_a_shipped_model_without_out_is_refused_in_one_line(tmp_path
     assert cli(["evaluate", "pretrained:impact_plate_small", "--data", str(tmp_path / "d")]) == 2
     assert capsys.readouterr().err.strip().splitlines() == [
         "hcmt evaluate: error: RUN pretrained:impact_plate_small: a shipped model has no run folder; give --out DIR "
-        "for its rollouts and metrics"]
+        "for its rollouts and metrics"
+    ]
 
 
 def test_out_is_for_a_shipped_model_only(tmp_path, capsys):
@@ -32,8 +34,9 @@ def test_evaluate_a_shipped_model_writes_to_out(tmp_path, capsys):
     data = tmp_path / "d"
     assert cli(["simulate", "--out", str(data / "test.h5"), "--no-progress"]) == 0
     out = tmp_path / "ev"
-    assert cli(["evaluate", "pretrained:impact_plate_small", "--data", str(data), "--out", str(out),
-                "--no-progress"]) == 0
+    assert (
+        cli(["evaluate", "pretrained:impact_plate_small", "--data", str(data), "--out", str(out), "--no-progress"]) == 0
+    )
     metrics = json.loads((out / "metrics_test.json").read_text())
     assert metrics["trajectories"] == 1 and (out / "rollout_test.h5").is_file()
     assert metrics["physics"]["peak_plate_stress_error_pct"]["median"] < 50
@@ -44,6 +47,7 @@ def test_simulate_takes_the_design_as_predict_does():
 
     from hcmt.cli import CommandError
     from hcmt.cli.parsers import configure_simulate, simulate_inputs
+
     p = argparse.ArgumentParser()
     configure_simulate(p)
     design, _ = simulate_inputs(p.parse_args(["--design", "thickness=0.8", "drop_height=700"]))
@@ -62,6 +66,7 @@ def test_predict_and_sweep_share_one_batch_default():
     from hcmt.design.basics import DESIGN_BATCH
     from hcmt.design.check import check_designs
     from hcmt.design.sweep import sweep
+
     defaults = []
     for configure, args in ((configure_predict, []), (configure_sweep, ["--vary", "thickness=0.6:0.8:3"])):
         p = argparse.ArgumentParser()
@@ -72,7 +77,8 @@ def test_predict_and_sweep_share_one_batch_default():
     results = Path(__file__).resolve().parents[2] / "benchmarks" / "results"
     for name in ("design_speed_cpu.json", "design_speed_cpu_reversed.json"):
         rows = json.loads((results / name).read_text())["batches"]
-        assert max(rows.values(), key=lambda r: r["speedup_median_solver"])["speedup_measured"]["batch"] == \
-            DESIGN_BATCH, name
+        assert (
+            max(rows.values(), key=lambda r: r["speedup_median_solver"])["speedup_measured"]["batch"] == DESIGN_BATCH
+        ), name
     assert inspect.signature(check_designs).parameters["batch"].default == DESIGN_BATCH
     assert inspect.signature(sweep).parameters["batch"].default == DESIGN_BATCH

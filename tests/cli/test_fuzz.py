@@ -1,6 +1,7 @@
 """Fuzz: random byte flips and truncations of a small native split file and of a small TFRecord, given to `info`,
 `convert`, `train` and `evaluate`. Every run either succeeds with data equal to the original or exits 2 with one
 line on stderr: no traceback, no crash, no hang (each call bounded by an alarm)."""
+
 import shutil
 import signal
 
@@ -23,6 +24,7 @@ class Hang(Exception):
 
 def bounded(argv, capsys, seconds=60):
     """(exit status, stderr lines) of one CLI call; a call running past ``seconds`` fails the test."""
+
     def alarm(signum, frame):
         raise Hang(f"{argv[0]} hung")
 
@@ -73,9 +75,26 @@ def check(rc, err, what):
 def clean(tmp_path_factory):
     root = tmp_path_factory.mktemp("fuzz")
     data = write_impact_like(root / "data", n_train=1, n_valid=1, n_test=1, steps=4)
-    assert cli(["train", "--config", "impact_plate_cpu", "--data", str(data), "--model", "mgn", "--out",
-                str(root / "run"), "--no-progress", "--steps", "1"]
-               + [a for t in TINY + EXTRA for a in ("--set", t)]) == 0
+    assert (
+        cli(
+            [
+                "train",
+                "--config",
+                "impact_plate_cpu",
+                "--data",
+                str(data),
+                "--model",
+                "mgn",
+                "--out",
+                str(root / "run"),
+                "--no-progress",
+                "--steps",
+                "1",
+            ]
+            + [a for t in TINY + EXTRA for a in ("--set", t)]
+        )
+        == 0
+    )
     return root
 
 
@@ -94,9 +113,24 @@ def test_fuzz_native_split(clean, tmp_path, capsys):
         outcomes[rc] += 1
         # training reads train/valid only: make the corrupted file the training split
         shutil.copy(data / "test.h5", data / "train.h5")
-        rc, err = bounded(["train", "--config", "impact_plate_cpu", "--data", str(data), "--model", "mgn", "--out",
-                           str(tmp_path / f"run_{label}"), "--no-progress", "--steps", "1"]
-                          + [a for t in TINY + EXTRA for a in ("--set", t)], capsys)
+        rc, err = bounded(
+            [
+                "train",
+                "--config",
+                "impact_plate_cpu",
+                "--data",
+                str(data),
+                "--model",
+                "mgn",
+                "--out",
+                str(tmp_path / f"run_{label}"),
+                "--no-progress",
+                "--steps",
+                "1",
+            ]
+            + [a for t in TINY + EXTRA for a in ("--set", t)],
+            capsys,
+        )
         check(rc, err, f"train {label}")
         run = tmp_path / f"eval_{label}"
         shutil.copytree(clean / "run", run)

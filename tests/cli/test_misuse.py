@@ -1,6 +1,7 @@
 """Misuse of the design check, the run files and the other commands (no traceback, no memory blow-up,
 no file outside the output folder): each case gives one line and exit 2 (or works, documented), leaves nothing
 behind, and the run files are fuzzed."""
+
 import errno
 import json
 import os
@@ -42,15 +43,23 @@ def setup(tmp_path_factory, tiny_config, impact_data):
     best.pt (validation at step 2) and data.json."""
     root = tmp_path_factory.mktemp("misuse")
     shutil.copytree(impact_data, root / "data")
-    train(tiny_config("train.steps=2", "train.checkpoint_every=1", "train.valid_every=2",
-                      "train.valid_trajectories=1"), root / "data", "hcmt", root / "run", progress=False)
+    train(
+        tiny_config("train.steps=2", "train.checkpoint_every=1", "train.valid_every=2", "train.valid_trajectories=1"),
+        root / "data",
+        "hcmt",
+        root / "run",
+        progress=False,
+    )
     assert (root / "run" / "best.pt").is_file() and (root / "run" / "checkpoint.pt").is_file()
     return root
 
 
 def one_line(capsys, rc) -> str:
-    err = [line for line in capsys.readouterr().err.strip().splitlines()
-           if ": warning: " not in line and ": note: " not in line]
+    err = [
+        line
+        for line in capsys.readouterr().err.strip().splitlines()
+        if ": warning: " not in line and ": note: " not in line
+    ]
     assert rc == 2 and len(err) == 1 and "Traceback" not in err[0], err
     return err[0]
 
@@ -62,8 +71,9 @@ def run_capped(argv: list[str], gib: float = 6.0, seconds: float = 120.0) -> sub
     def cap():
         resource.setrlimit(resource.RLIMIT_AS, (limit, limit))
 
-    return subprocess.run([sys.executable, "-m", "hcmt", *argv], capture_output=True, text=True, timeout=seconds,
-                          preexec_fn=cap, cwd=ROOT)
+    return subprocess.run(
+        [sys.executable, "-m", "hcmt", *argv], capture_output=True, text=True, timeout=seconds, preexec_fn=cap, cwd=ROOT
+    )
 
 
 # -- 1. memory: the cost estimate comes from the design's numbers -------------------------------------------------
@@ -75,13 +85,16 @@ def test_the_estimate_needs_no_mesh_and_matches_it():
     assert huge["num_nodes"] == float("inf")  # a float estimate, not an OverflowError
 
 
-@pytest.mark.parametrize("argv", [
-    ["predict", "pretrained:impact_plate_small", "--design", "mesh_size=1e-4", "--no-progress"],
-    ["predict", "pretrained:impact_plate_small", "--design", "plate_half_length=1e308", "--no-progress"],
-    ["predict", "pretrained:impact_plate_small", "--design", "thickness=1e308", "--no-progress"],
-    ["simulate", "--mesh-size", "1e-4", "--no-progress"],
-    ["simulate", "--thickness", "1e308", "--no-progress"],
-])
+@pytest.mark.parametrize(
+    "argv",
+    [
+        ["predict", "pretrained:impact_plate_small", "--design", "mesh_size=1e-4", "--no-progress"],
+        ["predict", "pretrained:impact_plate_small", "--design", "plate_half_length=1e308", "--no-progress"],
+        ["predict", "pretrained:impact_plate_small", "--design", "thickness=1e308", "--no-progress"],
+        ["simulate", "--mesh-size", "1e-4", "--no-progress"],
+        ["simulate", "--thickness", "1e308", "--no-progress"],
+    ],
+)
 def test_a_huge_design_is_refused_before_any_array(argv):
     t0 = time.perf_counter()
     r = run_capped(argv)
@@ -98,14 +111,35 @@ def test_a_huge_design_in_a_csv_is_refused_naming_it(setup, tmp_path, capsys):
 
 
 # -- 2. names that would escape --out ------------------------------------------------------------------------------
-@pytest.mark.parametrize("name,message", [("../../escaped", "outside its own folder"), ("a/b", "outside its own"),
-                                          ("..", "outside its own"), ("", "is empty"), ("tab\tname", "control"),
-                                          ("/abs", "outside its own")])
+@pytest.mark.parametrize(
+    "name,message",
+    [
+        ("../../escaped", "outside its own folder"),
+        ("a/b", "outside its own"),
+        ("..", "outside its own"),
+        ("", "is empty"),
+        ("tab\tname", "control"),
+        ("/abs", "outside its own"),
+    ],
+)
 def test_a_design_name_that_is_a_path_is_refused(setup, tmp_path, capsys, name, message):
     path = tmp_path / "d.csv"
     path.write_text(f"name,thickness\n{name},0.8\n")
-    msg = one_line(capsys, cli(["predict", str(setup / "run"), "--designs", str(path), "--images", "--out",
-                                str(tmp_path / "imgs"), "--no-progress"]))
+    msg = one_line(
+        capsys,
+        cli(
+            [
+                "predict",
+                str(setup / "run"),
+                "--designs",
+                str(path),
+                "--images",
+                "--out",
+                str(tmp_path / "imgs"),
+                "--no-progress",
+            ]
+        ),
+    )
     assert str(path) in msg and "line 2" in msg and message in msg
     assert not (tmp_path / "imgs").exists() and not (tmp_path.parent / "escaped").exists()
 
@@ -118,19 +152,43 @@ def test_duplicate_names_are_refused(setup, tmp_path, capsys):
 
 
 # -- 3. damaged run files ------------------------------------------------------------------------------------------
-DAMAGE = {"truncated": lambda b: b[: len(b) // 3], "random bytes": lambda b: bytes(random.Random(0).randrange(256)
-                                                                                    for _ in range(2000)),
-          "empty": lambda b: b""}
+DAMAGE = {
+    "truncated": lambda b: b[: len(b) // 3],
+    "random bytes": lambda b: bytes(random.Random(0).randrange(256) for _ in range(2000)),
+    "empty": lambda b: b"",
+}
 
 
 def commands(run: Path, data: Path, out: Path) -> dict[str, list[str]]:
-    return {"predict": ["predict", str(run), "--design", "thickness=0.7", "--no-progress"],
-            "rollout": ["rollout", str(run), "--data", str(data), "--split", "test", "--no-progress"],
-            "evaluate": ["evaluate", str(run), "--data", str(data), "--split", "test", "--no-progress"],
-            "export": ["export", str(run), "--data", str(data), "--split", "test", "--out", str(out / "vtu"),
-                       "--no-progress"],
-            "plot": ["plot", str(run), "--data", str(data), "--split", "test", "--only", "contours", "--out",
-                     str(out / "pic"), "--no-progress"]}
+    return {
+        "predict": ["predict", str(run), "--design", "thickness=0.7", "--no-progress"],
+        "rollout": ["rollout", str(run), "--data", str(data), "--split", "test", "--no-progress"],
+        "evaluate": ["evaluate", str(run), "--data", str(data), "--split", "test", "--no-progress"],
+        "export": [
+            "export",
+            str(run),
+            "--data",
+            str(data),
+            "--split",
+            "test",
+            "--out",
+            str(out / "vtu"),
+            "--no-progress",
+        ],
+        "plot": [
+            "plot",
+            str(run),
+            "--data",
+            str(data),
+            "--split",
+            "test",
+            "--only",
+            "contours",
+            "--out",
+            str(out / "pic"),
+            "--no-progress",
+        ],
+    }
 
 
 @pytest.mark.parametrize("kind", sorted(DAMAGE))
@@ -189,8 +247,9 @@ def test_fuzz_run_files(setup, tmp_path, capsys):
             err = capsys.readouterr().err
             assert rc in (0, 2) and "Traceback" not in err, (file, k, err)
             if rc == 2:
-                assert len([l for l in err.strip().splitlines() if ": warning: " not in l and ": note: " not in l]) \
-                    == 1, err
+                assert (
+                    len([l for l in err.strip().splitlines() if ": warning: " not in l and ": note: " not in l]) == 1
+                ), err
             cases += 1
             shutil.rmtree(run)
     assert cases == 32
@@ -213,8 +272,9 @@ def test_fuzz_a_shipped_model_file(tmp_path, monkeypatch, capsys):
         path = tmp_path / "impact_plate_small.pt"
         path.write_bytes(damaged(original, rng, flips=4 if k < 4 else 0))
         monkeypatch.setattr(run_module, "available_pretrained", lambda: {"impact_plate_small": path})
-        rc = cli(["predict", "pretrained:impact_plate_small", "--design", "thickness=0.7", "--no-surrogate",
-                  "--no-progress"])
+        rc = cli(
+            ["predict", "pretrained:impact_plate_small", "--design", "thickness=0.7", "--no-surrogate", "--no-progress"]
+        )
         err = capsys.readouterr().err
         assert rc in (0, 2) and "Traceback" not in err, err
 
@@ -222,8 +282,21 @@ def test_fuzz_a_shipped_model_file(tmp_path, monkeypatch, capsys):
 # -- 4. the solver's warnings travel with --verify -----------------------------------------------------------------
 def test_verify_carries_the_solvers_warnings(setup, tmp_path, capsys):
     out = tmp_path / "v.json"
-    assert cli(["predict", str(setup / "run"), "--design", "plate_poisson=0.47", "--verify", "--json", str(out),
-                "--no-progress"]) == 0
+    assert (
+        cli(
+            [
+                "predict",
+                str(setup / "run"),
+                "--design",
+                "plate_poisson=0.47",
+                "--verify",
+                "--json",
+                str(out),
+                "--no-progress",
+            ]
+        )
+        == 0
+    )
     printed = capsys.readouterr().out
     d = json.loads(out.read_text())["designs"][0]
     assert any("validated" in w for w in d["verify"]["solver_warnings"])
@@ -231,12 +304,15 @@ def test_verify_carries_the_solvers_warnings(setup, tmp_path, capsys):
 
 
 # -- 5, 6. outputs checked before the first is written ------------------------------------------------------------
-@pytest.mark.parametrize("extra,message", [
-    (["--json", "{dir}", "--csv", "{tmp}/t.csv"], "is a folder"),
-    (["--json", "{tmp}/x", "--csv", "{tmp}/x"], "the same path as --json"),
-    (["--csv", ""], "an empty path"),
-    (["--images", "--out", "{tmp}/file.txt"], "is a file; name a folder"),
-])
+@pytest.mark.parametrize(
+    "extra,message",
+    [
+        (["--json", "{dir}", "--csv", "{tmp}/t.csv"], "is a folder"),
+        (["--json", "{tmp}/x", "--csv", "{tmp}/x"], "the same path as --json"),
+        (["--csv", ""], "an empty path"),
+        (["--images", "--out", "{tmp}/file.txt"], "is a file; name a folder"),
+    ],
+)
 def test_outputs_are_checked_before_any_is_written(setup, tmp_path, capsys, extra, message):
     (tmp_path / "a_dir").mkdir()
     (tmp_path / "file.txt").write_text("x")
@@ -263,8 +339,25 @@ def test_a_picture_on_a_full_disk_leaves_nothing_and_names_the_path(tmp_path, mo
 def test_plot_refused_for_bad_options_leaves_no_folder(setup, tmp_path, capsys):
     for extra in (["--cmap", "nosuchmap"], ["--frames", "0,999"], ["--frames", "x"]):
         out = tmp_path / "pics"
-        msg = one_line(capsys, cli(["plot", str(setup / "run"), "--data", str(setup / "data"), "--split", "test",
-                                    "--only", "contours", "--out", str(out), "--no-progress", *extra]))
+        msg = one_line(
+            capsys,
+            cli(
+                [
+                    "plot",
+                    str(setup / "run"),
+                    "--data",
+                    str(setup / "data"),
+                    "--split",
+                    "test",
+                    "--only",
+                    "contours",
+                    "--out",
+                    str(out),
+                    "--no-progress",
+                    *extra,
+                ]
+            ),
+        )
         assert not out.exists(), (extra, msg)
 
 
@@ -298,18 +391,29 @@ def test_a_run_folder_predicts_without_its_dataset(setup, tmp_path, capsys):
 
 
 # -- 10. silent acceptance ----------------------------------------------------------------------------------------
-@pytest.mark.parametrize("argv,message", [
-    (["predict", "{run}", "--design", "thickness=0.7", "thickness=0.8"], "thickness is given twice"),
-    (["sweep", "{run}", "--vary", "thickness=0.6:0.8:2", "--design", "thickness=0.7"], "the swept parameter"),
-    (["sweep", "{run}", "--vary", "thickness=0.6:0.8:2", "--batch", "0"], "argument --batch: expected a whole number"),
-    (["hierarchy", "{data}", "--levels", "1", "--trajectories", "-1"], "argument --trajectories: expected a whole"),
-    (["predict", "{run}", "--design", "thickness=0.7", "--csv", ""], "--csv: an empty path"),
-    (["rollout", "{run}", "--data", "{data}", "--split", "test", "--limit", "0"], "argument --limit: expected a whole"),
-    (["predict", "impact_plate_small", "--design", "thickness=0.7"], "pretrained:impact_plate_small"),
-    (["simulate", "--out", "{tmp}/x.txt", "--mesh-size", "0.5", "--thickness", "0.6", "--ball-radius", "3"],
-     "--out must name an .h5 file"),
-    (["predict", "{run}", "--design", "thickness=0.7", "--verify", "auto"], "--yield-mpa"),
-])
+@pytest.mark.parametrize(
+    "argv,message",
+    [
+        (["predict", "{run}", "--design", "thickness=0.7", "thickness=0.8"], "thickness is given twice"),
+        (["sweep", "{run}", "--vary", "thickness=0.6:0.8:2", "--design", "thickness=0.7"], "the swept parameter"),
+        (
+            ["sweep", "{run}", "--vary", "thickness=0.6:0.8:2", "--batch", "0"],
+            "argument --batch: expected a whole number",
+        ),
+        (["hierarchy", "{data}", "--levels", "1", "--trajectories", "-1"], "argument --trajectories: expected a whole"),
+        (["predict", "{run}", "--design", "thickness=0.7", "--csv", ""], "--csv: an empty path"),
+        (
+            ["rollout", "{run}", "--data", "{data}", "--split", "test", "--limit", "0"],
+            "argument --limit: expected a whole",
+        ),
+        (["predict", "impact_plate_small", "--design", "thickness=0.7"], "pretrained:impact_plate_small"),
+        (
+            ["simulate", "--out", "{tmp}/x.txt", "--mesh-size", "0.5", "--thickness", "0.6", "--ball-radius", "3"],
+            "--out must name an .h5 file",
+        ),
+        (["predict", "{run}", "--design", "thickness=0.7", "--verify", "auto"], "--yield-mpa"),
+    ],
+)
 def test_silent_acceptance_is_refused(setup, tmp_path, capsys, monkeypatch, argv, message):
     monkeypatch.chdir(tmp_path)
     t0 = time.perf_counter()
@@ -323,8 +427,22 @@ def test_design_before_the_model_and_design_with_designs(setup, tmp_path, capsys
     out = tmp_path / "p.json"
     path = tmp_path / "d.csv"
     path.write_text("name,thickness\nc,0.9\n")
-    assert cli(["predict", "--design", "thickness=0.7", str(setup / "run"), "--designs", str(path), "--json",
-                str(out), "--no-progress"]) == 0
+    assert (
+        cli(
+            [
+                "predict",
+                "--design",
+                "thickness=0.7",
+                str(setup / "run"),
+                "--designs",
+                str(path),
+                "--json",
+                str(out),
+                "--no-progress",
+            ]
+        )
+        == 0
+    )
     assert [d["name"] for d in json.loads(out.read_text())["designs"]] == ["design_1", "c"]  # merged, --design first
 
 
@@ -348,20 +466,60 @@ def test_messages_that_said_the_wrong_thing(setup, tmp_path, capsys):
     msg = one_line(capsys, cli(["evaluate", str(setup / "run"), "--data", str(data), "--split", "test"]))
     assert "incomplete dataset" in msg and ".parts" in msg
     seed = IMPACT_DATA["seed"]
-    msg = one_line(capsys, cli(["generate", "impact-plate", str(setup / "data"), "--preset", "small", "--train", "2",
-                                "--valid", "1", "--test", "1", "--seed", str(seed + 1), "--frames", str(FRAMES)]))
+    msg = one_line(
+        capsys,
+        cli(
+            [
+                "generate",
+                "impact-plate",
+                str(setup / "data"),
+                "--preset",
+                "small",
+                "--train",
+                "2",
+                "--valid",
+                "1",
+                "--test",
+                "1",
+                "--seed",
+                str(seed + 1),
+                "--frames",
+                str(FRAMES),
+            ]
+        ),
+    )
     assert f"seed {seed} there, {seed + 1} asked" in msg
 
 
 def test_a_closed_pipe_is_not_an_error():
-    r = subprocess.run(f"{sys.executable} -m hcmt models --json | head -3", shell=True, capture_output=True,
-                       text=True, cwd=ROOT, timeout=120)
+    r = subprocess.run(
+        f"{sys.executable} -m hcmt models --json | head -3",
+        shell=True,
+        capture_output=True,
+        text=True,
+        cwd=ROOT,
+        timeout=120,
+    )
     assert r.stdout.count("\n") == 3 and "error" not in r.stderr.lower() and "Traceback" not in r.stderr
 
 
 def test_sigterm_during_predict_says_what_happened():
-    p = subprocess.Popen([sys.executable, "-m", "hcmt", "predict", "pretrained:impact_plate_small", "--design",
-                          "thickness=0.7", "--verify", "--no-progress"], stderr=subprocess.PIPE, text=True, cwd=ROOT)
+    p = subprocess.Popen(
+        [
+            sys.executable,
+            "-m",
+            "hcmt",
+            "predict",
+            "pretrained:impact_plate_small",
+            "--design",
+            "thickness=0.7",
+            "--verify",
+            "--no-progress",
+        ],
+        stderr=subprocess.PIPE,
+        text=True,
+        cwd=ROOT,
+    )
     time.sleep(6)  # starting (imports) or rolling out: either way one line
     p.send_signal(signal.SIGTERM)
     _, err = p.communicate(timeout=60)
@@ -371,8 +529,21 @@ def test_sigterm_during_predict_says_what_happened():
 def test_sigterm_while_starting_exits_143():
     """SIGTERM during the imports (a busy machine: seconds): one line and 128 + 15, not a signal death at exit
     (KeyboardInterrupt raised inside an import re-raised at interpreter exit: exit -2 before)."""
-    p = subprocess.Popen([sys.executable, "-m", "hcmt", "predict", "pretrained:impact_plate_small", "--design",
-                          "thickness=0.7", "--no-progress"], stderr=subprocess.PIPE, text=True, cwd=ROOT)
+    p = subprocess.Popen(
+        [
+            sys.executable,
+            "-m",
+            "hcmt",
+            "predict",
+            "pretrained:impact_plate_small",
+            "--design",
+            "thickness=0.7",
+            "--no-progress",
+        ],
+        stderr=subprocess.PIPE,
+        text=True,
+        cwd=ROOT,
+    )
     time.sleep(0.5)
     p.send_signal(signal.SIGTERM)
     _, err = p.communicate(timeout=60)
@@ -420,7 +591,7 @@ def test_fuzz_designs_csv_bytes(setup, tmp_path, capsys):
             name = rng.choice(["../up", "a/b", "..", ".", "x\\y", "", "beta", "c\x07", "/abs", "ok name"])
             b = bytearray(good.replace(b"alpha", name.encode()))
         else:
-            b.insert(rng.randrange(len(b)), rng.choice(b",\n\"/\\.\x00"))
+            b.insert(rng.randrange(len(b)), rng.choice(b',\n"/\\.\x00'))
         path.write_bytes(bytes(b))
         try:
             designs = read_designs_csv(path, defaults)
@@ -434,27 +605,69 @@ def test_fuzz_designs_csv_bytes(setup, tmp_path, capsys):
     assert cases == 240
     for name in ("../../escaped", "a/b"):
         path.write_text(f"name,thickness\n{name},0.8\n")
-        assert cli(["predict", str(setup / "run"), "--designs", str(path), "--images", "--out", str(tmp_path / "img"),
-                    "--no-progress"]) == 2
+        assert (
+            cli(
+                [
+                    "predict",
+                    str(setup / "run"),
+                    "--designs",
+                    str(path),
+                    "--images",
+                    "--out",
+                    str(tmp_path / "img"),
+                    "--no-progress",
+                ]
+            )
+            == 2
+        )
     capsys.readouterr()
     assert not (tmp_path / "img").exists()
 
 
 def test_the_model_after_verify_and_names_across_design_and_designs(setup, tmp_path, capsys):
     out = tmp_path / "p.json"
-    assert cli(["predict", "--design", "thickness=0.8", "--verify", str(setup / "run"), "--json", str(out),
-                "--no-progress"]) == 0
+    assert (
+        cli(
+            [
+                "predict",
+                "--design",
+                "thickness=0.8",
+                "--verify",
+                str(setup / "run"),
+                "--json",
+                str(out),
+                "--no-progress",
+            ]
+        )
+        == 0
+    )
     assert "verify" in json.loads(out.read_text())["designs"][0]
     msg = one_line(capsys, cli(["predict", str(setup / "run"), "--verify", "sometimes", "--design", "thickness=0.8"]))
     assert "--verify 'sometimes'" in msg
     path = tmp_path / "d.csv"
     path.write_text("thickness\n0.9\n")  # unnamed rows continue the --design numbering
-    assert cli(["predict", str(setup / "run"), "--design", "thickness=0.7", "--designs", str(path), "--json",
-                str(out), "--no-progress"]) == 0
+    assert (
+        cli(
+            [
+                "predict",
+                str(setup / "run"),
+                "--design",
+                "thickness=0.7",
+                "--designs",
+                str(path),
+                "--json",
+                str(out),
+                "--no-progress",
+            ]
+        )
+        == 0
+    )
     assert [d["name"] for d in json.loads(out.read_text())["designs"]] == ["design_1", "design_2"]
     path.write_text("name,thickness\ndesign_1,0.9\n")
-    msg = one_line(capsys, cli(["predict", str(setup / "run"), "--design", "thickness=0.7", "--designs", str(path),
-                                "--no-progress"]))
+    msg = one_line(
+        capsys,
+        cli(["predict", str(setup / "run"), "--design", "thickness=0.7", "--designs", str(path), "--no-progress"]),
+    )
     assert "'design_1' already names --design" in msg
 
 
@@ -500,8 +713,9 @@ def test_a_diverging_rollout_is_one_line(setup, tmp_path, capsys, monkeypatch):
     """A model that diverges on an input is no bug of hcmt's: one line naming the trajectory and step."""
 
     def diverge(*args, **kwargs):
-        raise RolloutError("trajectory traj_00000: the predicted state became non-finite at step 3 (frame 3 of 8); "
-                           "the model diverged")
+        raise RolloutError(
+            "trajectory traj_00000: the predicted state became non-finite at step 3 (frame 3 of 8); the model diverged"
+        )
 
     monkeypatch.setattr(evaluate_module, "rollout_batch", diverge)
     msg = one_line(capsys, cli(["rollout", str(setup / "run"), "--data", str(setup / "data"), "--no-progress"]))

@@ -2,6 +2,7 @@
 unbounded counts, messages without the flag, SIGTERM's exit status, an API looser than the command and notes that
 ask for a solver run the command does not do. Each case: one line of at most 300 characters naming the flag or
 file and what was expected, exit 2, nothing written; the API raises InputError with the parameter's name."""
+
 import argparse
 import json
 import os
@@ -83,8 +84,10 @@ def cases(tmp: Path) -> list[tuple[list[str], str]]:
     return [
         (["predict", model, "--threads", "0"], "argument --threads: expected a whole number from 1 to"),
         (["predict", model, "--designs", str(tmp / "empty.csv")], "empty.csv: no designs"),
-        (["predict", model, "--designs", str(tmp / "dup.csv")],
-         "the column 'thickness' appears twice (columns 1 and 3)"),
+        (
+            ["predict", model, "--designs", str(tmp / "dup.csv")],
+            "the column 'thickness' appears twice (columns 1 and 3)",
+        ),
         (["predict", model, "--designs", str(tmp / "missing.csv")], "missing.csv: no such designs file"),
         (["predict", model, "--designs", str(tmp / "long.csv")], "'" + "n" * 59 + "…' is 5,000 characters long"),
         (["predict", model, "--design", LONG + "=1"], "unknown parameter '" + "n" * 59 + "…'"),
@@ -107,13 +110,21 @@ def cases(tmp: Path) -> list[tuple[list[str], str]]:
 def test_argument_errors_come_before_the_heavy_imports(tmp_path):
     """In a fresh interpreter: every case one line naming its flag or file, exit 2, a pointer to --help for
     argparse's, no torch / scipy / sklearn / matplotlib loaded, nothing written, in little CPU time."""
-    script = ("import json, sys, resource\nfrom hcmt.cli import main\nout = []\n"
-              f"for argv, _ in {cases(tmp_path)!r}:\n"
-              "    out.append(main(argv))\n"
-              f"print(json.dumps([out, [m for m in {HEAVY!r} if m in sys.modules]]))\n")
+    script = (
+        "import json, sys, resource\nfrom hcmt.cli import main\nout = []\n"
+        f"for argv, _ in {cases(tmp_path)!r}:\n"
+        "    out.append(main(argv))\n"
+        f"print(json.dumps([out, [m for m in {HEAVY!r} if m in sys.modules]]))\n"
+    )
     before = resource.getrusage(resource.RUSAGE_CHILDREN)
-    r = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, cwd=ROOT, timeout=120,
-                       env={**os.environ, "PYTHONPATH": str(ROOT / "src")})
+    r = subprocess.run(
+        [sys.executable, "-c", script],
+        capture_output=True,
+        text=True,
+        cwd=ROOT,
+        timeout=120,
+        env={**os.environ, "PYTHONPATH": str(ROOT / "src")},
+    )
     after = resource.getrusage(resource.RUSAGE_CHILDREN)
     codes, heavy = json.loads(r.stdout)
     lines = r.stderr.strip().splitlines()
@@ -130,19 +141,32 @@ def test_argument_errors_come_before_the_heavy_imports(tmp_path):
 @pytest.mark.slow  # a fresh interpreter, timed
 def test_a_bad_flag_is_refused_in_under_a_second_and_a_half_of_cpu():
     before = resource.getrusage(resource.RUSAGE_CHILDREN)
-    r = subprocess.run([sys.executable, "-m", "hcmt", "predict", "pretrained:impact_plate_small", "--threads", "0"],
-                       capture_output=True, text=True, cwd=ROOT, timeout=120)
+    r = subprocess.run(
+        [sys.executable, "-m", "hcmt", "predict", "pretrained:impact_plate_small", "--threads", "0"],
+        capture_output=True,
+        text=True,
+        cwd=ROOT,
+        timeout=120,
+    )
     after = resource.getrusage(resource.RUSAGE_CHILDREN)
     assert r.returncode == 2 and r.stderr.count("\n") == 1 and "usage:" not in r.stderr, r.stderr
     assert (after.ru_utime + after.ru_stime) - (before.ru_utime + before.ru_stime) < 1.5
 
 
 def test_building_any_command_parser_loads_no_heavy_module():
-    script = ("import sys\nfrom hcmt.cli import build_parser\n"
-              f"for name in {sorted(COMMANDS)!r}:\n    sys.argv = ['hcmt', name]\n    build_parser()\n"
-              f"print([m for m in {HEAVY!r} if m in sys.modules])\n")
-    r = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, cwd=ROOT, timeout=120,
-                       env={**os.environ, "PYTHONPATH": str(ROOT / "src")})
+    script = (
+        "import sys\nfrom hcmt.cli import build_parser\n"
+        f"for name in {sorted(COMMANDS)!r}:\n    sys.argv = ['hcmt', name]\n    build_parser()\n"
+        f"print([m for m in {HEAVY!r} if m in sys.modules])\n"
+    )
+    r = subprocess.run(
+        [sys.executable, "-c", script],
+        capture_output=True,
+        text=True,
+        cwd=ROOT,
+        timeout=120,
+        env={**os.environ, "PYTHONPATH": str(ROOT / "src")},
+    )
     assert r.returncode == 0 and r.stdout.strip() == "[]", r.stderr
 
 
@@ -168,8 +192,9 @@ def test_every_count_option_has_its_bound_in_its_help_and_is_refused_above_it(mo
             flag = max(a.option_strings, key=len) if a.option_strings else a.dest
             if a.type is int:
                 assert flag in NOT_COUNTS, f"{name} {flag}: a bare int; give it a bound (hcmt.cli.parsers.count)"
-            elif a.type is not None and getattr(a.type, "__qualname__", "").startswith(("count", "cores_count",
-                                                                                          "threads_arg")):
+            elif a.type is not None and getattr(a.type, "__qualname__", "").startswith(
+                ("count", "cores_count", "threads_arg")
+            ):
                 seen += 1
                 assert " to " in (a.help or ""), f"{name} {flag}: the help states no bound: {a.help}"
                 with pytest.raises(argparse.ArgumentTypeError, match="expected a whole number from"):
@@ -205,15 +230,18 @@ def test_run_load_of_a_missing_folder_or_model_is_an_input_error(tmp_path):
         assert exc.value.param == "path", exc.value
 
 
-@pytest.mark.parametrize("designs,message", [
-    (["a"], "item 0: expected a (name, Design) pair"),
-    ([], "expected a list of 1 to"),
-    ("thickness=0.7", "expected a list of 1 to"),
-    ([("../x", Design())], "would be a path outside its own folder"),
-    ([("a", Design()), ("a", Design())], "already names item 0"),
-    ([("a", Design(thickness=-1))], "item 0 ('a'): thickness must be > 0"),
-    ([(LONG, Design())], "5,000 characters long"),
-])
+@pytest.mark.parametrize(
+    "designs,message",
+    [
+        (["a"], "item 0: expected a (name, Design) pair"),
+        ([], "expected a list of 1 to"),
+        ("thickness=0.7", "expected a list of 1 to"),
+        ([("../x", Design())], "would be a path outside its own folder"),
+        ([("a", Design()), ("a", Design())], "already names item 0"),
+        ([("a", Design(thickness=-1))], "item 0 ('a'): thickness must be > 0"),
+        ([(LONG, Design())], "5,000 characters long"),
+    ],
+)
 def test_predict_designs_refuses_bad_designs_naming_the_parameter(shipped, designs, message):
     with pytest.raises(InputError) as exc:
         hcmt.predict_designs(shipped, designs, progress=False)
@@ -227,10 +255,15 @@ def test_predict_designs_refuses_a_batch_out_of_bounds(shipped):
         assert exc.value.param == "batch"
 
 
-@pytest.mark.parametrize("override,message", [("train.lrr=1", "train.lrr: unknown key; did you mean train.lr?"),
-                                              ("train.lr=[1", "the value '[1' is not a YAML value"),
-                                              ("nokey", "expected section.key=value"),
-                                              ("train.lr=-1", "train.lr must be")])
+@pytest.mark.parametrize(
+    "override,message",
+    [
+        ("train.lrr=1", "train.lrr: unknown key; did you mean train.lr?"),
+        ("train.lr=[1", "the value '[1' is not a YAML value"),
+        ("nokey", "expected section.key=value"),
+        ("train.lr=-1", "train.lr must be"),
+    ],
+)
 def test_load_config_errors_name_the_override_not_the_cli(override, message):
     with pytest.raises(InputError) as exc:
         load_config("impact_plate_cpu", [override])
@@ -258,11 +291,15 @@ def test_settings_and_generate_name_their_parameter(tmp_path):
 
 # -- 11. notes that ask for a solver run that does not come --------------------------------------------------------
 def note_of(call: str | None, verified: bool = False) -> str:
-    summary = fake_summary(confidence={"region": "outside"}, peak_plate_stress_mpa=500.0,
-                           verify=fake_verify() if verified else None)
+    summary = fake_summary(
+        confidence={"region": "outside"}, peak_plate_stress_mpa=500.0, verify=fake_verify() if verified else None
+    )
     if call is not None:
-        summary = replace(summary, call=call,
-                          call_interval_mpa=CallInterval(200.0, 800.0 if call != "pass" else 600.0, "model", "raw"))
+        summary = replace(
+            summary,
+            call=call,
+            call_interval_mpa=CallInterval(200.0, 800.0 if call != "pass" else 600.0, "model", "raw"),
+        )
     return " ".join(weak_reasons(SimpleNamespace(name="p", summary=summary)))
 
 
@@ -272,7 +309,6 @@ def test_a_decided_call_is_not_told_to_verify():
     assert "lies above the yield stress" in note_of("fail")
     assert "verify with the solver (--verify)" in note_of("undecided") and "verify with" in note_of(None)
     assert "verify" not in note_of("undecided", verified=True)
-
 
 
 def test_convert_of_a_missing_source_is_an_input_error(tmp_path):

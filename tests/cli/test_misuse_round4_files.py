@@ -2,6 +2,7 @@
 symlink or onto a dataset's file, refusals that left an empty folder, a generate in progress and a simulated file
 beside another run's meta.json. Each case: one line naming the file or flag and what was expected, exit 2,
 nothing changed; the API raises InputError (or DatasetError) with the parameter's name."""
+
 import hashlib
 import os
 import pickle
@@ -28,16 +29,24 @@ SHIPPED = "pretrained:impact_plate_small"
 
 def snapshot(folder: Path) -> dict:
     """Every file and folder under ``folder`` (hidden ones too) with its bytes' hash."""
-    return {str(p.relative_to(folder)): hashlib.sha256(p.read_bytes()).hexdigest() if p.is_file() else "dir"
-            for p in sorted(Path(folder).rglob("*"))}
+    return {
+        str(p.relative_to(folder)): hashlib.sha256(p.read_bytes()).hexdigest() if p.is_file() else "dir"
+        for p in sorted(Path(folder).rglob("*"))
+    }
 
 
 @pytest.fixture(scope="module")
 def data(tmp_path_factory):
     """A tiny generated dataset (1 train, 1 valid, 1 test trajectory of 4 frames)."""
     out = tmp_path_factory.mktemp("round4") / "data"
-    generate_dataset(out, preset="small", counts={"train": 1, "valid": 1, "test": 1}, seed=0,
-                     settings=hcmt.Settings(frames=4), progress=False)
+    generate_dataset(
+        out,
+        preset="small",
+        counts={"train": 1, "valid": 1, "test": 1},
+        seed=0,
+        settings=hcmt.Settings(frames=4),
+        progress=False,
+    )
     return out
 
 
@@ -72,11 +81,15 @@ def ggns_trajectory(steps: int = 3, seed: int = 0) -> dict:
     rng = np.random.default_rng(seed)
     grid = rng.random((4, 2)).astype(np.float32)
     collider = rng.random((3, 2)).astype(np.float32)
-    return {"nodes_grid": np.stack([grid + 0.01 * t for t in range(steps)]),
-            "triangles_grid": np.array([[0, 1, 2], [1, 2, 3]]),
-            "nodes_collider": np.stack([collider - 0.01 * t for t in range(steps)]),
-            "triangles_collider": np.array([[0, 1, 2]], dtype=np.int32),
-            "poisson_ratio": np.float64(0.3), "edge_index_grid": [np.arange(4)], "name": ("plate", 1)}
+    return {
+        "nodes_grid": np.stack([grid + 0.01 * t for t in range(steps)]),
+        "triangles_grid": np.array([[0, 1, 2], [1, 2, 3]]),
+        "nodes_collider": np.stack([collider - 0.01 * t for t in range(steps)]),
+        "triangles_collider": np.array([[0, 1, 2]], dtype=np.int32),
+        "poisson_ratio": np.float64(0.3),
+        "edge_index_grid": [np.arange(4)],
+        "name": ("plate", 1),
+    }
 
 
 @pytest.mark.parametrize("protocol", [2, 4, 5])
@@ -129,8 +142,11 @@ def test_an_output_that_is_a_symlink_or_a_file_of_a_dataset_is_refused(data, tmp
     monkeypatch.chdir(tmp_path)
     Path("other.json").write_text("{}")
     os.symlink("other.json", "link.json")
-    for value, word in (("link.json", "is a symlink (to other.json)"), (str(data / "train.h5"), "a file of the "
-                        "dataset"), (str(data / "meta.json"), "a file of the dataset")):
+    for value, word in (
+        ("link.json", "is a symlink (to other.json)"),
+        (str(data / "train.h5"), "a file of the dataset"),
+        (str(data / "meta.json"), "a file of the dataset"),
+    ):
         with pytest.raises(CommandError, match=word.replace("(", r"\(").replace(")", r"\)")):
             check_outputs({"--json": value})
     check_outputs({"--json": "new.json", "--csv": str(data / "new.h5")})  # new files, beside a dataset too
@@ -166,20 +182,24 @@ def test_a_refused_evaluate_leaves_no_out_folder(data, tmp_path, capsys, case):
     (corrupt / "meta.json").write_text((Path(data) / "meta.json").read_text())
     (corrupt / "test.h5").write_bytes(b"not an HDF5 file")
     argv = ["evaluate", SHIPPED, "--out", str(tmp_path / "new"), "--no-progress"]
-    argv += {"an empty --data folder": ["--data", str(tmp_path / "empty")],
-             "a missing --split": ["--data", str(data), "--split", "nosuch"],
-             "a corrupt split file": ["--data", str(corrupt)]}[case]
+    argv += {
+        "an empty --data folder": ["--data", str(tmp_path / "empty")],
+        "a missing --split": ["--data", str(data), "--split", "nosuch"],
+        "a corrupt split file": ["--data", str(corrupt)],
+    }[case]
     line = refused(capsys, argv)
-    expected = {"an empty --data folder": "no meta.json", "a missing --split": "has no nosuch.h5",
-                "a corrupt split file": "cannot be read as HDF5"}[case]
+    expected = {
+        "an empty --data folder": "no meta.json",
+        "a missing --split": "has no nosuch.h5",
+        "a corrupt split file": "cannot be read as HDF5",
+    }[case]
     assert expected in line, line
     assert not (tmp_path / "new").exists()
 
 
 def test_generate_refuses_a_fractional_frame_count_before_writing(tmp_path):
     with pytest.raises(InputError, match="frames") as exc:
-        generate_dataset(tmp_path / "g" / "d", counts={"train": 1}, settings=hcmt.Settings(frames=2.5),
-                         progress=False)
+        generate_dataset(tmp_path / "g" / "d", counts={"train": 1}, settings=hcmt.Settings(frames=2.5), progress=False)
     assert exc.value.param == "frames" and not (tmp_path / "g").exists()
     with pytest.raises(InputError, match="must be an hcmt.Settings"):
         generate_dataset(tmp_path / "g", counts={"train": 1}, settings={"frames": 4}, progress=False)
@@ -198,10 +218,28 @@ def test_a_second_generate_on_a_folder_being_generated_is_refused(data, tmp_path
     before = snapshot(out)
     with folder_lock(out / GENERATE_LOCK, busy):  # another generate holds the folder (flock: another open file)
         assert lock_holder(out / GENERATE_LOCK) == os.getpid()
-        line = refused(capsys, ["generate", "impact-plate", str(out), "--train", "1", "--valid", "1", "--test", "1",
-                                "--frames", "4", "--seed", "0", "--no-progress"])
-        assert line == f"hcmt generate: error: {out}: a generate is writing it (pid {os.getpid()}); wait for it or " \
-                       "stop it", line
+        line = refused(
+            capsys,
+            [
+                "generate",
+                "impact-plate",
+                str(out),
+                "--train",
+                "1",
+                "--valid",
+                "1",
+                "--test",
+                "1",
+                "--frames",
+                "4",
+                "--seed",
+                "0",
+                "--no-progress",
+            ],
+        )
+        assert (
+            line == f"hcmt generate: error: {out}: a generate is writing it (pid {os.getpid()}); wait for it or stop it"
+        ), line
         line = refused(capsys, ["info", str(out)])
         assert f"a `hcmt generate` is writing it (pid {os.getpid()})" in line and "rerun" not in line, line
         assert snapshot(out) == {**before, GENERATE_LOCK: snapshot(out)[GENERATE_LOCK]}
@@ -216,8 +254,11 @@ def test_a_split_not_yet_written_names_the_generate_writing_it(data, tmp_path):
     for name in ("meta.json", "train.h5"):  # train done, test still being simulated
         shutil.copy(data / name, out / name)
     with folder_lock(out / GENERATE_LOCK, busy):
-        with pytest.raises(DatasetError, match=f"split 'test' not found; available: \\['train'\\]; a `hcmt "
-                                               f"generate` is writing this dataset \\(pid {os.getpid()}\\)"):
+        with pytest.raises(
+            DatasetError,
+            match=f"split 'test' not found; available: \\['train'\\]; a `hcmt "
+            f"generate` is writing this dataset \\(pid {os.getpid()}\\)",
+        ):
             load_dataset(out)["test"]
     with pytest.raises(DatasetError, match=r"split 'test' not found; available: \['train'\]$"):
         load_dataset(out)["test"]
@@ -228,19 +269,20 @@ def test_a_lock_left_by_a_killed_generate_blocks_nothing(data, tmp_path):
     out.mkdir()
     (out / GENERATE_LOCK).write_text("999999")  # its process is gone: the kernel released its flock
     assert lock_holder(out / GENERATE_LOCK) is None
-    generate_dataset(out, preset="small", counts={"train": 1}, seed=0, settings=hcmt.Settings(frames=4),
-                     progress=False)
+    generate_dataset(out, preset="small", counts={"train": 1}, seed=0, settings=hcmt.Settings(frames=4), progress=False)
     assert read_meta(out)["trajectory_length"] == 4 and not (out / GENERATE_LOCK).exists()
     with folder_lock(out / GENERATE_LOCK, busy):
         with pytest.raises(InputError, match=f"a generate is writing it \\(pid {os.getpid()}\\)"):
-            generate_dataset(out, preset="small", counts={"train": 2}, seed=0, settings=hcmt.Settings(frames=4),
-                             progress=False)
+            generate_dataset(
+                out, preset="small", counts={"train": 2}, seed=0, settings=hcmt.Settings(frames=4), progress=False
+            )
     assert len(load_dataset(out)["train"]) == 1
 
 
 # -- 6. a simulated file's meta.json belongs to it -----------------------------------------------------------------
-def test_simulate_beside_another_run_s_meta_json_is_refused_and_beside_its_own_kept(data, tmp_path, monkeypatch,
-                                                                                      capsys):
+def test_simulate_beside_another_run_s_meta_json_is_refused_and_beside_its_own_kept(
+    data, tmp_path, monkeypatch, capsys
+):
     copy = tmp_path / "d"
     shutil.copytree(data, copy)
     before = snapshot(copy)
@@ -275,7 +317,6 @@ def test_evaluate_refuses_data_of_another_dataset_instead_of_printing_zeros(data
     meta = (other / "meta.json").read_text().replace('"dataset": "impact_plate"', '"dataset": "sphere_simple"')
     assert '"sphere_simple"' in meta
     (other / "meta.json").write_text(meta)
-    line = refused(capsys, ["evaluate", SHIPPED, "--data", str(other), "--out", str(tmp_path / "new"),
-                            "--no-progress"])
+    line = refused(capsys, ["evaluate", SHIPPED, "--data", str(other), "--out", str(tmp_path / "new"), "--no-progress"])
     assert "dataset impact_plate, but" in line and "holds dataset sphere_simple" in line, line
     assert not (tmp_path / "new").exists()

@@ -2,6 +2,7 @@
 range refused before torch loads, a second ``--vary``, an unknown option pointing to its command's --help; and what
 ``hcmt simulate`` and ``hcmt predict --verify`` now say: a ball that never reached the plate, a window that may cut
 the peak, the solver's total before a long verification starts."""
+
 import importlib
 import json
 import os
@@ -61,17 +62,29 @@ def cli_cases(tmp: Path) -> list[tuple[list[str], str]]:
     out = []
     for i, (text, message) in enumerate(CSV_CASES):
         (tmp / f"d{i}.csv").write_text(text)
-        out.append((["predict", MODEL, "--designs", str(tmp / f"d{i}.csv"), "--json", str(tmp / "o.json")],
-                    f"d{i}.csv {message}" if "line" in message else message))
+        out.append(
+            (
+                ["predict", MODEL, "--designs", str(tmp / f"d{i}.csv"), "--json", str(tmp / "o.json")],
+                f"d{i}.csv {message}" if "line" in message else message,
+            )
+        )
     return out + [
-        (["sweep", MODEL, "--vary", "thickness=-0.5:0.9:3", "--design", "drop_height=700", "--out", str(tmp / "sw")],
-         "--vary 'thickness=-0.5:0.9:3': the point thickness=-0.5 is impossible: thickness must be > 0 (mm)"),
-        (["sweep", MODEL, "--vary", "gap=0.01:0.5:3", "--out", str(tmp / "sw")],
-         "the point gap=0.5 is impossible: gap must be smaller than the contact radius 0.4 mm"),
-        (["sweep", MODEL, "--vary", "thickness=0.5:0.9:3", "--design", "ball_modulus=-2", "--out", str(tmp / "sw")],
-         "--design 'ball_modulus=-2': ball_modulus must be > 0 MPa"),
-        (["predict", MODEL, "--design", "thickness=0.8", "drop_height=-700"],
-         "--design 'drop_height=-700': drop_height must be > 0 (mm), got -700"),
+        (
+            ["sweep", MODEL, "--vary", "thickness=-0.5:0.9:3", "--design", "drop_height=700", "--out", str(tmp / "sw")],
+            "--vary 'thickness=-0.5:0.9:3': the point thickness=-0.5 is impossible: thickness must be > 0 (mm)",
+        ),
+        (
+            ["sweep", MODEL, "--vary", "gap=0.01:0.5:3", "--out", str(tmp / "sw")],
+            "the point gap=0.5 is impossible: gap must be smaller than the contact radius 0.4 mm",
+        ),
+        (
+            ["sweep", MODEL, "--vary", "thickness=0.5:0.9:3", "--design", "ball_modulus=-2", "--out", str(tmp / "sw")],
+            "--design 'ball_modulus=-2': ball_modulus must be > 0 MPa",
+        ),
+        (
+            ["predict", MODEL, "--design", "thickness=0.8", "drop_height=-700"],
+            "--design 'drop_height=-700': drop_height must be > 0 (mm), got -700",
+        ),
     ]
 
 
@@ -89,12 +102,20 @@ def test_value_errors_come_before_the_heavy_imports_in_little_time(tmp_path):
     them in less CPU than one torch import, and in little wall time (slack for a busy machine: a torch import
     took 3-24 s there)."""
     cases = cli_cases(tmp_path)
-    script = ("import json, sys\nfrom hcmt.cli import main\nout = []\n"
-              f"for argv, _ in {cases!r}:\n    out.append(main(argv))\n"
-              f"print(json.dumps([out, [m for m in {HEAVY!r} if m in sys.modules]]))\n")
+    script = (
+        "import json, sys\nfrom hcmt.cli import main\nout = []\n"
+        f"for argv, _ in {cases!r}:\n    out.append(main(argv))\n"
+        f"print(json.dumps([out, [m for m in {HEAVY!r} if m in sys.modules]]))\n"
+    )
     before, t0 = resource.getrusage(resource.RUSAGE_CHILDREN), time.perf_counter()
-    r = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, cwd=ROOT, timeout=120,
-                       env={**os.environ, "PYTHONPATH": str(ROOT / "src")})
+    r = subprocess.run(
+        [sys.executable, "-c", script],
+        capture_output=True,
+        text=True,
+        cwd=ROOT,
+        timeout=120,
+        env={**os.environ, "PYTHONPATH": str(ROOT / "src")},
+    )
     wall, after = time.perf_counter() - t0, resource.getrusage(resource.RUSAGE_CHILDREN)
     codes, heavy = json.loads(r.stdout)
     lines = r.stderr.strip().splitlines()
@@ -111,10 +132,24 @@ def test_value_problem_refuses_only_what_design_validate_refuses():
     design passes (no false refusal)."""
     base = preset_design("small")
     assert value_problem(asdict(base)) is None
-    bad = {"thickness": 0, "drop_height": -1, "ball_radius": -3, "mesh_size": 0, "plate_half_length": -1,
-           "gap": 0.4, "plate_density": 0, "plate_modulus": -5, "plate_poisson": 0.5, "ball_density": -1,
-           "ball_modulus": 0, "ball_poisson": -1, "layer2_thickness": -0.1, "support_radius": -1,
-           "backing_thickness": -2, "pen_tip_radius": -1}
+    bad = {
+        "thickness": 0,
+        "drop_height": -1,
+        "ball_radius": -3,
+        "mesh_size": 0,
+        "plate_half_length": -1,
+        "gap": 0.4,
+        "plate_density": 0,
+        "plate_modulus": -5,
+        "plate_poisson": 0.5,
+        "ball_density": -1,
+        "ball_modulus": 0,
+        "ball_poisson": -1,
+        "layer2_thickness": -0.1,
+        "support_radius": -1,
+        "backing_thickness": -2,
+        "pen_tip_radius": -1,
+    }
     for key, v in bad.items():
         problem = value_problem({key: v})
         assert problem is not None and problem[0] == key, (key, problem)
@@ -139,17 +174,22 @@ def test_check_values_counts_the_files_designs(tmp_path):
 # -- 2. a second --vary ------------------------------------------------------------------------------------------------
 def test_a_second_vary_is_refused_not_dropped(capsys, no_command_module):
     line = refused(capsys, ["sweep", MODEL, "--vary", "thickness=0.5:0.9:3", "--vary", "drop_height=500:900:3"])
-    assert line.startswith("hcmt sweep: error: --vary: given twice (thickness=0.5:0.9:3, drop_height=500:900:3); "
-                           "a sweep varies one parameter"), line
+    assert line.startswith(
+        "hcmt sweep: error: --vary: given twice (thickness=0.5:0.9:3, drop_height=500:900:3); "
+        "a sweep varies one parameter"
+    ), line
 
 
 # -- 6. an unknown option points to its command's --help ----------------------------------------------------------
-@pytest.mark.parametrize("argv, command", [
-    (["predict", MODEL, "--bogus", "1"], "hcmt predict"),
-    (["sweep", MODEL, "--vary", "thickness=0.5:0.9:3", "--bogus"], "hcmt sweep"),
-    (["surrogate", "fit", "data", "--out", "s.json", "--bogus"], "hcmt surrogate fit"),
-    (["--bogus"], "hcmt"),
-])
+@pytest.mark.parametrize(
+    "argv, command",
+    [
+        (["predict", MODEL, "--bogus", "1"], "hcmt predict"),
+        (["sweep", MODEL, "--vary", "thickness=0.5:0.9:3", "--bogus"], "hcmt sweep"),
+        (["surrogate", "fit", "data", "--out", "s.json", "--bogus"], "hcmt surrogate fit"),
+        (["--bogus"], "hcmt"),
+    ],
+)
 def test_an_unknown_option_points_to_its_commands_help(capsys, argv, command, no_command_module):
     line = refused(capsys, argv)
     assert line.startswith(f"{command}: error: unrecognized arguments: --bogus"), line
@@ -163,8 +203,9 @@ def warnings_of(capsys, argv: list[str]) -> list[str]:
 
 
 def test_simulate_says_the_ball_never_reached_the_plate(capsys):
-    lines = warnings_of(capsys, ["simulate", "--design", "drop_height=0.7", "--frames", "20", "--no-progress",
-                                 "--threads", "1"])
+    lines = warnings_of(
+        capsys, ["simulate", "--design", "drop_height=0.7", "--frames", "20", "--no-progress", "--threads", "1"]
+    )
     touch = [w for w in lines if "did not touch the plate" in w]
     assert len(touch) == 1 and len(touch[0]) <= LINE, lines
     assert "(20 frames x 0.002 ms = 0.038 ms)" in touch[0] and "drop_height 0.7 mm" in touch[0]
@@ -182,8 +223,9 @@ def test_fall_agrees_with_the_solver_on_when_the_ball_arrives():
 def test_simulate_warns_when_the_window_may_cut_the_peak(capsys):
     """A 0.5 mm plate dropped on from 500 mm peaks in the last of 52 frames (760 MPa; 809 MPa at frame 59 of 90):
     one line saying so and how to record more; a design that peaks early gets none."""
-    lines = warnings_of(capsys, ["simulate", "--design", "thickness=0.5", "drop_height=500", "--no-progress",
-                                 "--threads", "1"])
+    lines = warnings_of(
+        capsys, ["simulate", "--design", "thickness=0.5", "drop_height=500", "--no-progress", "--threads", "1"]
+    )
     cut = [w for w in lines if "the window may cut the peak" in w]
     assert len(cut) == 1 and len(cut[0]) <= LINE and "--frames 90" in cut[0] and "ending at frame 51" in cut[0]
 

@@ -2,6 +2,7 @@
 the path is spelled (hcmt.files.check_apart); a refused resume changes nothing; generate has the cost rule of
 simulate; a damaged checkpoint's advice names the other only when that one is readable; a failed predict leaves
 none of its outputs."""
+
 import errno
 import hashlib
 import os
@@ -44,8 +45,11 @@ def snapshot(folder: Path) -> dict:
 
 
 def one_line(capsys, rc) -> str:
-    err = [line for line in capsys.readouterr().err.strip().splitlines()
-           if ": warning: " not in line and ": note: " not in line]
+    err = [
+        line
+        for line in capsys.readouterr().err.strip().splitlines()
+        if ": warning: " not in line and ": note: " not in line
+    ]
     assert rc == 2 and len(err) == 1 and "Traceback" not in err[0] and len(err[0]) <= 300, err
     return err[0]
 
@@ -101,8 +105,13 @@ def setup(tmp_path_factory, tiny_config, impact_data):
     """A copy of the test run's dataset and a 2-step HCMT run trained on it (checkpoint.pt and best.pt)."""
     root = tmp_path_factory.mktemp("apart")
     shutil.copytree(impact_data, root / "data")
-    train(tiny_config("train.steps=2", "train.checkpoint_every=1", "train.valid_every=2",
-                      "train.valid_trajectories=1"), root / "data", "hcmt", root / "run", progress=False)
+    train(
+        tiny_config("train.steps=2", "train.checkpoint_every=1", "train.valid_every=2", "train.valid_trajectories=1"),
+        root / "data",
+        "hcmt",
+        root / "run",
+        progress=False,
+    )
     (root / "designs.csv").write_text("thickness\n0.7\n0.8\n")
     return root
 
@@ -110,13 +119,29 @@ def setup(tmp_path_factory, tiny_config, impact_data):
 #: command -> (argv with {out} where the output goes, the input it must not touch, relative to the setup root)
 COMMANDS = {
     "surrogate fit --out DATA/meta.json": (["surrogate", "fit", "data", "--out", "{out}"], "data/meta.json"),
-    "predict --json DATA/train.h5": (["predict", "run", "--design", "thickness=0.7", "--json", "{out}"],
-                                     "data/train.h5"),
+    "predict --json DATA/train.h5": (
+        ["predict", "run", "--design", "thickness=0.7", "--json", "{out}"],
+        "data/train.h5",
+    ),
     "predict --csv on --designs": (["predict", "run", "--designs", "designs.csv", "--csv", "{out}"], "designs.csv"),
     "predict --json in RUN": (["predict", "run", "--design", "thickness=0.7", "--json", "{out}"], "run/p.json"),
     "sweep --out DATA": (["sweep", "run", "--vary", "thickness=0.6:0.9:2"], "data"),
-    "train --out DATA": (["train", "--config", "impact_plate_cpu", "--data", "data", "--model", "hcmt", "--out",
-                          "{out}", "--steps", "2"], "data"),
+    "train --out DATA": (
+        [
+            "train",
+            "--config",
+            "impact_plate_cpu",
+            "--data",
+            "data",
+            "--model",
+            "hcmt",
+            "--out",
+            "{out}",
+            "--steps",
+            "2",
+        ],
+        "data",
+    ),
     "hierarchy --json DATA/meta.json": (["hierarchy", "data", "--levels", "1", "--json", "{out}"], "data/meta.json"),
     "compare --json RUN/run.yaml": (["compare", "run", "--json", "{out}"], "run/run.yaml"),
     "plot --out RUN": (["plot", "run", "--data", "data", "--only", "training"], "run"),
@@ -140,10 +165,15 @@ def test_no_command_writes_over_its_inputs(setup, monkeypatch, capsys, case, how
     argv = [a.replace("{out}", out) for a in argv]
     if "{out}" not in " ".join(COMMANDS[case][0]):
         argv += ["--out", out]
-    line = one_line(capsys, cli(argv + (["--no-progress"] if argv[0] in ("predict", "sweep", "plot", "export")
-                                        else [])))
-    assert line.startswith(f"hcmt {argv[0]}: error: ") and ("this command reads" in line or (  # or check_outputs'
-        argv[0] == "predict" and ("a file of the dataset" in line or "is a symlink" in line))), line
+    line = one_line(
+        capsys, cli(argv + (["--no-progress"] if argv[0] in ("predict", "sweep", "plot", "export") else []))
+    )
+    assert line.startswith(f"hcmt {argv[0]}: error: ") and (
+        "this command reads" in line
+        or (  # or check_outputs'
+            argv[0] == "predict" and ("a file of the dataset" in line or "is a symlink" in line)
+        )
+    ), line
     after = snapshot(setup)
     assert after == before or set(after) - set(before) <= {str(p) for p in setup.glob("link_*")}
     if case == "evaluate RUN in DATA":
@@ -168,8 +198,25 @@ def test_a_refused_resume_changes_nothing_and_advises_only_a_readable_checkpoint
 
 def test_generate_refuses_a_plan_over_its_cost_limit(tmp_path, capsys):
     out = tmp_path / "big"
-    line = one_line(capsys, cli(["generate", "impact-plate", str(out), "--train", "2", "--valid", "0", "--test",
-                                 "0", "--frames", "1000000", "--no-progress"]))
+    line = one_line(
+        capsys,
+        cli(
+            [
+                "generate",
+                "impact-plate",
+                str(out),
+                "--train",
+                "2",
+                "--valid",
+                "0",
+                "--test",
+                "0",
+                "--frames",
+                "1000000",
+                "--no-progress",
+            ]
+        ),
+    )
     assert "per trajectory exceeds 600 s" in line and "--force" in line and not out.exists()
     with pytest.raises(InputError, match="exceeds 600 s"):  # the library's rule, the API too
         generate_dataset(out, counts={"train": 1}, settings=Settings(frames=1000000), progress=False)
@@ -185,8 +232,23 @@ def test_a_full_disk_during_predict_leaves_none_of_its_outputs(setup, tmp_path, 
         raise OSError(errno.ENOSPC, "No space left on device", str(tmp_path / "p.json"))
 
     monkeypatch.setattr(design_cli, "to_json", full)  # the last output fails, after the images and the CSV
-    rc = cli(["predict", str(setup / "run"), "--design", "thickness=0.7", "--design", "thickness=0.8", "--images",
-              "--out", str(tmp_path / "img"), "--csv", str(tmp_path / "p.csv"), "--json", str(tmp_path / "p.json"),
-              "--no-progress"])
+    rc = cli(
+        [
+            "predict",
+            str(setup / "run"),
+            "--design",
+            "thickness=0.7",
+            "--design",
+            "thickness=0.8",
+            "--images",
+            "--out",
+            str(tmp_path / "img"),
+            "--csv",
+            str(tmp_path / "p.csv"),
+            "--json",
+            str(tmp_path / "p.json"),
+            "--no-progress",
+        ]
+    )
     line = one_line(capsys, rc)
     assert "No space left on device" in line and list(tmp_path.iterdir()) == []

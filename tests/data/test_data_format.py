@@ -1,5 +1,6 @@
 """The native dataset format: round trip, atomic writes, and every bad input it refuses (a missing, damaged or
 inconsistent file)."""
+
 import json
 
 import h5py
@@ -31,8 +32,13 @@ def trajectory(n=6, seed=0):
     node_type[0] = NodeType.HANDLE
     node_type[-1] = NodeType.SYMMETRIC
     world = pos[None] + rng.normal(size=(T, n, 2)).astype(np.float32) * 0.01
-    return {"mesh_pos": pos, "cells": cells, "node_type": node_type, "world_pos": world,
-            "stress": rng.random((T, n, 1)).astype(np.float32)}
+    return {
+        "mesh_pos": pos,
+        "cells": cells,
+        "node_type": node_type,
+        "world_pos": world,
+        "stress": rng.random((T, n, 1)).astype(np.float32),
+    }
 
 
 @pytest.fixture
@@ -43,8 +49,9 @@ def meta():
 def test_round_trip_keeps_fields_attrs_and_varying_node_counts(tmp_path, meta):
     trajs = [trajectory(6, 0), trajectory(9, 1)]
     write_meta(tmp_path, meta)
-    write_split(tmp_path / "train.h5", meta,
-                [(f"traj_{i:05d}", t, {"thickness": 0.5 + i}) for i, t in enumerate(trajs)])
+    write_split(
+        tmp_path / "train.h5", meta, [(f"traj_{i:05d}", t, {"thickness": 0.5 + i}) for i, t in enumerate(trajs)]
+    )
     assert read_meta(tmp_path)["node_types"]["SYMMETRIC"] == 7
     with open_split(tmp_path, "train") as split:
         assert len(split) == 2
@@ -75,8 +82,9 @@ def test_round_trip_keeps_fields_attrs_and_varying_node_counts(tmp_path, meta):
         (lambda t: t.__setitem__("stress", t["stress"][:, :-1]), "stress", "nodes"),
     ],
 )
-def test_bad_trajectory_is_refused_naming_file_trajectory_field_and_leaves_no_file(tmp_path, meta, mutate, field,
-                                                                                    words):
+def test_bad_trajectory_is_refused_naming_file_trajectory_field_and_leaves_no_file(
+    tmp_path, meta, mutate, field, words
+):
     good, bad = trajectory(6, 0), trajectory(6, 1)
     mutate(bad)
     path = tmp_path / "train.h5"
@@ -137,8 +145,11 @@ def test_bad_meta_is_refused(tmp_path):
 
 def test_info_reports_counts_nodes_types_and_parameter_ranges(tmp_path, meta, capsys):
     write_meta(tmp_path, meta)
-    write_split(tmp_path / "train.h5", meta,
-                [(f"traj_{i:05d}", trajectory(6 + 3 * i, i), {"drop_height": 500.0 + 100 * i}) for i in range(3)])
+    write_split(
+        tmp_path / "train.h5",
+        meta,
+        [(f"traj_{i:05d}", trajectory(6 + 3 * i, i), {"drop_height": 500.0 + 100 * i}) for i in range(3)],
+    )
     write_split(tmp_path / "test_thicker.h5", meta, [("traj_00000", trajectory(7), {})])
     assert cli(["info", str(tmp_path)]) == 0
     out = capsys.readouterr().out
@@ -150,9 +161,14 @@ def test_info_reports_counts_nodes_types_and_parameter_ranges(tmp_path, meta, ca
 
 def test_info_lists_the_varying_parameters_and_the_constants_in_one_line(tmp_path, meta, capsys):
     write_meta(tmp_path, meta)
-    write_split(tmp_path / "train.h5", meta, [(f"traj_{i:05d}", trajectory(6, i), {"drop_height": 500.0 + 100 * i,
-                                                                                  "ball_radius": 2.5, "gap": 0.1})
-                                              for i in range(2)])
+    write_split(
+        tmp_path / "train.h5",
+        meta,
+        [
+            (f"traj_{i:05d}", trajectory(6, i), {"drop_height": 500.0 + 100 * i, "ball_radius": 2.5, "gap": 0.1})
+            for i in range(2)
+        ],
+    )
     assert cli(["info", str(tmp_path)]) == 0
     out = capsys.readouterr().out
     assert "drop_height" in out and "500 .. 600" in out
@@ -185,13 +201,20 @@ def _edit(path, key, fn):
         f[key] = value
 
 
-@pytest.mark.parametrize("corrupt,message", [
-    (lambda p: _edit(p, "traj_00000/world_pos", lambda v: np.where(np.arange(v.size).reshape(v.shape) == 3, np.nan, v)),
-     "field world_pos"),
-    (lambda p: _edit(p, "traj_00000/cells", lambda v: v + 100), "cell index out of range"),
-    (lambda p: _edit(p, "traj_00000/node_type", lambda v: np.full_like(v, 42)), "unknown node type(s) [42]"),
-    (lambda p: _edit(p, "traj_00000/stress", lambda v: v[..., :0]), "field stress"),
-])
+@pytest.mark.parametrize(
+    "corrupt,message",
+    [
+        (
+            lambda p: _edit(
+                p, "traj_00000/world_pos", lambda v: np.where(np.arange(v.size).reshape(v.shape) == 3, np.nan, v)
+            ),
+            "field world_pos",
+        ),
+        (lambda p: _edit(p, "traj_00000/cells", lambda v: v + 100), "cell index out of range"),
+        (lambda p: _edit(p, "traj_00000/node_type", lambda v: np.full_like(v, 42)), "unknown node type(s) [42]"),
+        (lambda p: _edit(p, "traj_00000/stress", lambda v: v[..., :0]), "field stress"),
+    ],
+)
 def test_info_validates_as_training_does(tmp_path, meta, capsys, corrupt, message):
     write_meta(tmp_path, meta)
     path = write_split(tmp_path / "train.h5", meta, [("traj_00000", trajectory(), {})])
@@ -214,8 +237,12 @@ def test_dynamic_fields_are_chunked_by_frame_and_read_per_frame(tmp_path, meta):
     old.mkdir()
     with h5py.File(old / "train.h5", "w") as f:  # h5py's own chunks, several frames each
         for k, v in traj.items():
-            f.create_dataset(f"traj_00000/{k}", data=v, compression="gzip", chunks=(T, 100, 1)[:v.ndim]
-                             if k in ("world_pos", "stress") else None)
+            f.create_dataset(
+                f"traj_00000/{k}",
+                data=v,
+                compression="gzip",
+                chunks=(T, 100, 1)[: v.ndim] if k in ("world_pos", "stress") else None,
+            )
     write_meta(old, meta)
     write_meta(tmp_path, meta)
     for folder in (tmp_path, old):

@@ -1,4 +1,5 @@
 """Readers for the published datasets, on small files written in the exact official layouts."""
+
 import pickle
 
 import numpy as np
@@ -14,7 +15,10 @@ from layouts import sphere_simple_tfrecord, write_tf_dataset
 def deforming_plate(folder, steps=3, trajectories=2):
     """deforming_plate layout: tetrahedra, 3-D, static with a leading 1, stress dynamic."""
     meta = {
-        "simulator": "comsol", "dt": 0.0, "collision_radius": 0.03, "trajectory_length": steps,
+        "simulator": "comsol",
+        "dt": 0.0,
+        "collision_radius": 0.03,
+        "trajectory_length": steps,
         "field_names": ["cells", "node_type", "mesh_pos", "world_pos", "stress"],
         "features": {
             "cells": {"type": "static", "shape": [1, -1, 4], "dtype": "int32"},
@@ -29,13 +33,15 @@ def deforming_plate(folder, steps=3, trajectories=2):
     for t in range(trajectories):
         n = 8 + t
         pos = rng.random((1, n, 3)).astype(np.float32)
-        records.append({
-            "cells": np.array([[[0, 1, 2, 3], [4, 5, 6, 7]]], np.int32),
-            "node_type": np.where(np.arange(n) < 4, 1, 0).astype(np.int32).reshape(1, n, 1),
-            "mesh_pos": pos,
-            "world_pos": np.repeat(pos, steps, 0) + 0.01 * rng.random((steps, n, 3)).astype(np.float32),
-            "stress": rng.random((steps, n, 1)).astype(np.float32),
-        })
+        records.append(
+            {
+                "cells": np.array([[[0, 1, 2, 3], [4, 5, 6, 7]]], np.int32),
+                "node_type": np.where(np.arange(n) < 4, 1, 0).astype(np.int32).reshape(1, n, 1),
+                "mesh_pos": pos,
+                "world_pos": np.repeat(pos, steps, 0) + 0.01 * rng.random((steps, n, 3)).astype(np.float32),
+                "stress": rng.random((steps, n, 1)).astype(np.float32),
+            }
+        )
     write_tf_dataset(folder, meta, {"train": records, "valid": records[:1]})
     return meta, records
 
@@ -68,21 +74,27 @@ def test_sphere_simple_cloth_layout_2d_mesh_space_3d_world(tmp_path):
 def test_hcmt_impact_plate_static_varlen_row_splits(tmp_path):
     """The official HCMT Impact Plate layout: a static_varlen field cut by its length_<name> row splits."""
     steps, n = 3, 6
-    meta = {"trajectory_length": steps,
-            "field_names": ["mesh_pos", "cells", "node_type", "world_pos", "stress", "m_ids", "length_m_ids"],
-            "features": {"mesh_pos": {"type": "static", "shape": [1, -1, 2], "dtype": "float32"},
-                         "cells": {"type": "static", "shape": [1, -1, 3], "dtype": "int32"},
-                         "node_type": {"type": "static", "shape": [1, -1, 1], "dtype": "int32"},
-                         "world_pos": {"type": "dynamic", "shape": [steps, -1, 2], "dtype": "float32"},
-                         "stress": {"type": "dynamic", "shape": [steps, -1, 1], "dtype": "float32"},
-                         "m_ids": {"type": "static_varlen", "shape": [-1], "dtype": "int32"}}}
-    rec = {"mesh_pos": np.random.rand(1, n, 2).astype(np.float32),
-           "cells": np.array([[[0, 1, 2], [3, 4, 5]]], np.int32),
-           "node_type": np.array([7, 0, 0, 7, 1, 1], np.int32).reshape(1, n, 1),
-           "world_pos": np.random.rand(steps, n, 2).astype(np.float32),
-           "stress": np.random.rand(steps, n, 1).astype(np.float32),
-           "m_ids": np.array([0, 2, 4, 0, 2], np.int32),
-           "length_m_ids": np.array([0, 3, 5], np.int32)}
+    meta = {
+        "trajectory_length": steps,
+        "field_names": ["mesh_pos", "cells", "node_type", "world_pos", "stress", "m_ids", "length_m_ids"],
+        "features": {
+            "mesh_pos": {"type": "static", "shape": [1, -1, 2], "dtype": "float32"},
+            "cells": {"type": "static", "shape": [1, -1, 3], "dtype": "int32"},
+            "node_type": {"type": "static", "shape": [1, -1, 1], "dtype": "int32"},
+            "world_pos": {"type": "dynamic", "shape": [steps, -1, 2], "dtype": "float32"},
+            "stress": {"type": "dynamic", "shape": [steps, -1, 1], "dtype": "float32"},
+            "m_ids": {"type": "static_varlen", "shape": [-1], "dtype": "int32"},
+        },
+    }
+    rec = {
+        "mesh_pos": np.random.rand(1, n, 2).astype(np.float32),
+        "cells": np.array([[[0, 1, 2], [3, 4, 5]]], np.int32),
+        "node_type": np.array([7, 0, 0, 7, 1, 1], np.int32).reshape(1, n, 1),
+        "world_pos": np.random.rand(steps, n, 2).astype(np.float32),
+        "stress": np.random.rand(steps, n, 1).astype(np.float32),
+        "m_ids": np.array([0, 2, 4, 0, 2], np.int32),
+        "length_m_ids": np.array([0, 3, 5], np.int32),
+    }
     write_tf_dataset(tmp_path / "src", meta, {"train": [rec]})
     (traj,) = iter_tfrecord(tmp_path / "src", "train")
     assert [r.tolist() for r in traj["m_ids"]] == [[0, 2, 4], [0, 2]]
@@ -139,10 +151,15 @@ def test_tfrecord_disagreeing_with_meta_is_refused(tmp_path, capsys, case):
 def ggns_trajectory(steps=5, nu=0.3):
     grid = np.random.rand(steps, 4, 2).astype(np.float32)
     coll = np.random.rand(steps, 3, 2).astype(np.float32)
-    return {"nodes_grid": grid, "edge_index_grid": np.array([[0, 1], [1, 0]]),
-            "triangles_grid": np.array([[0, 1, 2], [1, 2, 3]]),
-            "nodes_collider": coll, "triangles_collider": np.array([[0, 1, 2]]), "poisson_ratio": nu,
-            "pcd_points": np.random.rand(10, 2)}
+    return {
+        "nodes_grid": grid,
+        "edge_index_grid": np.array([[0, 1], [1, 0]]),
+        "triangles_grid": np.array([[0, 1, 2], [1, 2, 3]]),
+        "nodes_collider": coll,
+        "triangles_collider": np.array([[0, 1, 2]]),
+        "poisson_ratio": nu,
+        "pcd_points": np.random.rand(10, 2),
+    }
 
 
 def test_ggns_deformable_plate_pickle(tmp_path):
@@ -175,8 +192,14 @@ def test_ggns_bad_pickle(tmp_path, capsys):
     assert "unpickled" in capsys.readouterr().err
 
 
-@pytest.mark.parametrize("field,value", [("nodes_grid", [[[0.0, 0.0]], [[0.0, 0.0], [1.0, 1.0]]]),
-                                         ("poisson_ratio", "abc"), ("triangles_grid", [[0, 1, "x"]])])
+@pytest.mark.parametrize(
+    "field,value",
+    [
+        ("nodes_grid", [[[0.0, 0.0]], [[0.0, 0.0], [1.0, 1.0]]]),
+        ("poisson_ratio", "abc"),
+        ("triangles_grid", [[0, 1, "x"]]),
+    ],
+)
 def test_ggns_ragged_or_non_numeric_arrays_name_the_field(tmp_path, capsys, field, value):
     bad = ggns_trajectory()
     bad[field] = np.array(value, dtype=object) if field == "nodes_grid" else value

@@ -1,6 +1,7 @@
 """The design check is as safe as training: strict --designs CSVs (with a fuzz test), results that carry
 their warnings and model, rollouts and metrics keyed by dataset, options checked before the cache, cost refusal,
 one-line interrupts, incomplete datasets, model cards with ranges, pictures, confidence notes."""
+
 import csv
 import io
 import json
@@ -32,14 +33,25 @@ FRAMES = IMPACT_DATA["frames"]
 @pytest.fixture(scope="module")
 def setup(tmp_path_factory, tiny_config, impact_data):
     root = tmp_path_factory.mktemp("safety")
-    gen = ["generate", "impact-plate", "--preset", "small", "--train", "2", "--valid", "0", "--test", "1",
-           "--no-progress"]
+    gen = [
+        "generate",
+        "impact-plate",
+        "--preset",
+        "small",
+        "--train",
+        "2",
+        "--valid",
+        "0",
+        "--test",
+        "1",
+        "--no-progress",
+    ]
     shutil.copytree(impact_data, root / "data")  # the test run's dataset (conftest), a copy this module may change
     assert cli([*gen[:2], str(root / "other"), *gen[2:], "--seed", "2", "--frames", str(FRAMES)]) == 0
-    assert cli([*gen[:2], str(root / "coarse_dt"), *gen[2:], "--seed", "1", "--frames", "4",
-                "--frame-dt", "0.004"]) == 0
-    train(tiny_config("train.steps=2", "train.checkpoint_every=2"), root / "data", "mgn", root / "run",
-          progress=False)
+    assert (
+        cli([*gen[:2], str(root / "coarse_dt"), *gen[2:], "--seed", "1", "--frames", "4", "--frame-dt", "0.004"]) == 0
+    )
+    train(tiny_config("train.steps=2", "train.checkpoint_every=2"), root / "data", "mgn", root / "run", progress=False)
     return root
 
 
@@ -50,17 +62,22 @@ def _one_line_error(capsys, rc):
 
 
 # -- 1. designs CSV --------------------------------------------------------------------------------------------
-@pytest.mark.parametrize("text,message", [
-    ("name,thickness,drop_height\na,0.8,900\nb,0.8,\n", "line 3, column 3 (drop_height): missing value"),
-    ("name,thickness,drop_height\na,0.8,900,5\n", "line 2: 4 values for 3 columns"),
-    ("name,thickness\na,0.8\nb,-0.8\n", "line 3, column 2 (thickness) must be > 0"),
-    ("name,thick\na,0.8\n", "line 1, column 2: unknown column 'thick'"),
-    ("name,thickness\na,inf\n", "line 2, column 2 (thickness) must be a finite number"),
-    ("name,thickness\na,thin\n", "line 2, column 2 (thickness) must be a number, got 'thin'"),
-    ("name,thickness,thickness\na,0.7,0.8\n",
-     "line 1, column 3: the column 'thickness' appears twice (columns 2 and 3)"),
-    ("name,thickness\n", "a header but no designs"),
-])
+@pytest.mark.parametrize(
+    "text,message",
+    [
+        ("name,thickness,drop_height\na,0.8,900\nb,0.8,\n", "line 3, column 3 (drop_height): missing value"),
+        ("name,thickness,drop_height\na,0.8,900,5\n", "line 2: 4 values for 3 columns"),
+        ("name,thickness\na,0.8\nb,-0.8\n", "line 3, column 2 (thickness) must be > 0"),
+        ("name,thick\na,0.8\n", "line 1, column 2: unknown column 'thick'"),
+        ("name,thickness\na,inf\n", "line 2, column 2 (thickness) must be a finite number"),
+        ("name,thickness\na,thin\n", "line 2, column 2 (thickness) must be a number, got 'thin'"),
+        (
+            "name,thickness,thickness\na,0.7,0.8\n",
+            "line 1, column 3: the column 'thickness' appears twice (columns 2 and 3)",
+        ),
+        ("name,thickness\n", "a header but no designs"),
+    ],
+)
 def test_bad_designs_csv_is_refused_naming_file_line_and_column(setup, tmp_path, capsys, text, message):
     path = tmp_path / "d.csv"
     path.write_text(text)
@@ -114,9 +131,23 @@ def test_fuzz_designs_csv(setup, tmp_path, capsys):
 
 # -- 2 / 9. results carry warnings and model; numeric CSV -------------------------------------------------------
 def test_json_and_csv_carry_warnings_model_and_full_precision(setup, tmp_path):
-    rc = cli(["predict", str(setup / "run"), "--design", "thickness=5", "--design", "thickness=0.7",
-              "--json", str(tmp_path / "o.json"), "--csv", str(tmp_path / "o.csv"), "--device", "cpu",
-              "--no-progress"])
+    rc = cli(
+        [
+            "predict",
+            str(setup / "run"),
+            "--design",
+            "thickness=5",
+            "--design",
+            "thickness=0.7",
+            "--json",
+            str(tmp_path / "o.json"),
+            "--csv",
+            str(tmp_path / "o.csv"),
+            "--device",
+            "cpu",
+            "--no-progress",
+        ]
+    )
     assert rc == 0
     res = json.loads((tmp_path / "o.json").read_text())
     first, second = res["designs"]
@@ -237,11 +268,11 @@ def test_pictures_name_r_and_stress_has_no_below_zero_arrow(setup):
 
 def test_contour_pair_shows_both_peaks(setup, monkeypatch):
     seen = {}
-    monkeypatch.setattr(viz_contours, "plot_contours",
-                        lambda case, out, frames: seen.setdefault("f", frames) or [out])
+    monkeypatch.setattr(viz_contours, "plot_contours", lambda case, out, frames: seen.setdefault("f", frames) or [out])
     run = Run.load(setup / "run", "cpu")
-    check = check_designs(run, [("d", parse_design(["thickness=0.7"], middle_design(run.meta)))],
-                             verify=True, progress=False)
+    check = check_designs(
+        run, [("d", parse_design(["thickness=0.7"], middle_design(run.meta)))], verify=True, progress=False
+    )
     p, t = check.preds[0], check.truth[0]
     contour_picture(p, t, run.meta, setup / "img", "MGN")
     want = sorted({max(p.summary.peak_plate_frame, 1), max(t.summary.peak_plate_frame, 1)})
@@ -258,10 +289,24 @@ def test_confidence_regions_and_the_weak_note():
     assert region_of(Design(thickness=2.0, drop_height=700), ranges) == "outside"
 
     class FakeRun:
-        card = {"confidence": [{"region": "thin", "label": "thin plates", "designs": 5,
-                                "peak_plate_stress_error_pct_median": 18.0, "peak_plate_stress_error_pct_worst": -40.0},
-                               {"region": "inside", "label": "inside", "designs": 20,
-                                "peak_plate_stress_error_pct_median": 4.0, "peak_plate_stress_error_pct_worst": 9.0}]}
+        card = {
+            "confidence": [
+                {
+                    "region": "thin",
+                    "label": "thin plates",
+                    "designs": 5,
+                    "peak_plate_stress_error_pct_median": 18.0,
+                    "peak_plate_stress_error_pct_worst": -40.0,
+                },
+                {
+                    "region": "inside",
+                    "label": "inside",
+                    "designs": 20,
+                    "peak_plate_stress_error_pct_median": 4.0,
+                    "peak_plate_stress_error_pct_worst": 9.0,
+                },
+            ]
+        }
 
     FakeRun.ranges = ranges
     thin = Prediction("t", Design(thickness=0.55, drop_height=700), *([np.zeros(1)] * 5), wall_s=1.0)

@@ -9,6 +9,7 @@ arguments of the wrong type in one line naming the parameter.
     gives it to the solver, whose call is the final one;
 (c) the API's arguments: a model given as text or None, a yield stress as text or a bool, a numpy integer batch,
     ``Settings(frames="8")``, ``settings=dict(...)``."""
+
 from __future__ import annotations
 
 import json
@@ -43,8 +44,10 @@ SCALES = (1e-6, 1e-3, 1e3, 1e6)
 @pytest.fixture
 def no_model(monkeypatch):
     """The command's own work (which loads torch and the model) is never reached: a refusal came first."""
+
     def reached(args):
         raise AssertionError("the command ran: its options were not refused before the model loads")
+
     monkeypatch.setattr(hcmt.cli.design, "main_predict", reached)
     monkeypatch.setattr(hcmt.cli.design, "main_sweep", reached)
 
@@ -74,6 +77,7 @@ def slipped_yields(rng: np.random.Generator) -> list[tuple[float, str | None]]:
 
 def test_a_yield_stress_in_the_wrong_unit_is_refused_before_the_model_loads(capsys, no_model):
     from hcmt.design.basics import YIELD_SPAN_MPA
+
     lo, hi = YIELD_SPAN_MPA
     for command in (["predict", MODEL, "--design", "thickness=0.7"], ["sweep", MODEL, "--vary", "thickness=0.6:0.9:3"]):
         for typed, unit in slipped_yields(np.random.default_rng(41)):
@@ -93,9 +97,11 @@ def test_the_issues_pa_for_mpa_is_refused_with_the_likely_value(capsys, no_model
 
 @pytest.mark.slow  # a fresh interpreter
 def test_a_slipped_yield_is_refused_before_torch_loads():
-    script = ("import json, sys\nfrom hcmt.cli import main\n"
-              f"rc = main(['predict', {MODEL!r}, '--design', 'thickness=0.7', '--yield-mpa', '7.5e8'])\n"
-              "print(json.dumps([rc, [m for m in ('torch', 'scipy', 'sklearn') if m in sys.modules]]))\n")
+    script = (
+        "import json, sys\nfrom hcmt.cli import main\n"
+        f"rc = main(['predict', {MODEL!r}, '--design', 'thickness=0.7', '--yield-mpa', '7.5e8'])\n"
+        "print(json.dumps([rc, [m for m in ('torch', 'scipy', 'sklearn') if m in sys.modules]]))\n"
+    )
     r = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=120)
     assert json.loads(r.stdout.splitlines()[-1]) == [2, []], r.stdout[-300:]  # refused, nothing heavy loaded
     assert "--yield-mpa" in r.stderr and len(r.stderr.splitlines()) == 1
@@ -103,14 +109,17 @@ def test_a_slipped_yield_is_refused_before_torch_loads():
 
 def test_the_api_refuses_a_slipped_yield_naming_it(shipped):
     from hcmt.design.basics import YIELD_SPAN_MPA
+
     lo, hi = YIELD_SPAN_MPA
     designs = [("a", design_for(shipped, thickness=0.7))]
     base = preset_design("small")
     for typed, _ in slipped_yields(np.random.default_rng(42)):
         if lo <= typed <= hi:
             continue
-        for run_it in (lambda: predict_designs(shipped, designs, yield_mpa=typed, progress=False),
-                       lambda: sweep(shipped, "thickness", 0.6, 0.9, 3, base, yield_mpa=typed, progress=False)):
+        for run_it in (
+            lambda: predict_designs(shipped, designs, yield_mpa=typed, progress=False),
+            lambda: sweep(shipped, "thickness", 0.6, 0.9, 3, base, yield_mpa=typed, progress=False),
+        ):
             with pytest.raises(InputError) as exc:
                 run_it()
             assert exc.value.param == "yield_mpa" and "MPa" in str(exc.value) and len(str(exc.value)) < 300
@@ -120,6 +129,7 @@ def test_a_slipped_yield_inside_the_span_never_passes():
     """A yield stress scaled down into the span (1,500 MPa typed as 1.5) is far below any peak: never a pass."""
     rng = np.random.default_rng(43)
     from hcmt.design.basics import YIELD_SPAN_MPA
+
     for typed, _ in slipped_yields(rng):
         if not YIELD_SPAN_MPA[0] <= typed <= YIELD_SPAN_MPA[1] or typed > 150:
             continue
@@ -162,8 +172,22 @@ def test_a_design_value_off_by_orders_of_magnitude_is_refused_or_warned_with_its
 def test_the_command_never_passes_a_slipped_design_value(tmp_path, capsys):
     out = tmp_path / "p.json"
     for item in ("drop_height=0.7", "drop_height=700000", "thickness=0.0008", "plate_modulus=70"):
-        rc = cli(["predict", MODEL, "--design", "thickness=0.6", item, "--yield-mpa", "5000", "--json", str(out),
-                  "--no-progress", "--device", "cpu"])
+        rc = cli(
+            [
+                "predict",
+                MODEL,
+                "--design",
+                "thickness=0.6",
+                item,
+                "--yield-mpa",
+                "5000",
+                "--json",
+                str(out),
+                "--no-progress",
+                "--device",
+                "cpu",
+            ]
+        )
         err = capsys.readouterr().err.strip().splitlines()
         if rc == 2:
             assert len(err) == 1 and not out.exists(), err
@@ -211,8 +235,14 @@ def test_a_far_out_design_is_never_decided_without_the_solver(monkeypatch):
         final_calls(preds, None, y)
         assert {p.summary.final_call for p in preds} == {"undecided"}
     solved, y = [], 1000.0
-    monkeypatch.setattr(check_module, "solve", lambda items, *a, **k: solved.extend(n for n, _ in items) or [
-        SimpleNamespace(summary=fake_summary(peak_plate_stress_mpa=2.0 * y)) for _ in items])  # the solver: all fail
+    monkeypatch.setattr(
+        check_module,
+        "solve",
+        lambda items, *a, **k: (
+            solved.extend(n for n, _ in items)
+            or [SimpleNamespace(summary=fake_summary(peak_plate_stress_mpa=2.0 * y)) for _ in items]
+        ),
+    )  # the solver: all fail
     add_calls(preds, y, ranges=TRAINED)
     named = [SimpleNamespace(name=f"d{i}", design=p.design, summary=p.summary) for i, p in enumerate(preds)]
     truth = solve_chunk(named, "auto", Settings(), "stress", SimpleNamespace(total=0, refresh=lambda: None))
@@ -225,8 +255,9 @@ def test_a_summary_that_records_an_outside_region_is_undecided_too():
     """Without the run's ranges the calls read the region the check recorded (``confidence``)."""
     for call_yield in (1.0, 1e5):
         p = stand_in(Design(), 500.0, (500.0, 450.0, 550.0))
-        p.summary = replace(p.summary, confidence={"region": "outside", "label": "outside the training ranges",
-                                                   "designs": 0})
+        p.summary = replace(
+            p.summary, confidence={"region": "outside", "label": "outside the training ranges", "designs": 0}
+        )
         add_calls([p], call_yield)
         assert p.summary.call == "undecided"
 
@@ -247,8 +278,9 @@ def test_a_sweep_never_passes_a_point_outside_the_ranges():
     thickness are undecided, never the limit, however low their interval."""
     lo, hi = RANGES["small"]["thickness"]
     values = np.linspace(lo, hi + 3 * (hi - lo), 8)
-    preds = [stand_in(replace(preset_design("small"), thickness=float(t)), 400.0, (400.0, 380.0, 420.0))
-             for t in values]
+    preds = [
+        stand_in(replace(preset_design("small"), thickness=float(t)), 400.0, (400.0, 380.0, 420.0)) for t in values
+    ]
     add_calls(preds, 1000.0, ranges=TRAINED)
     final_calls(preds, None, 1000.0)
     check = SimpleNamespace(preds=preds, truth=None, readout="raw", solver_runs=0)
@@ -262,8 +294,10 @@ def test_a_sweep_never_passes_a_point_outside_the_ranges():
 
 @pytest.mark.slow  # the shipped model and the solver on two designs
 def test_verify_auto_gives_far_out_designs_to_the_solver(shipped):
-    designs = [("high", design_for(shipped, thickness=0.4, drop_height=5000)),
-               ("thin", design_for(shipped, thickness=0.5, drop_height=2000))]
+    designs = [
+        ("high", design_for(shipped, thickness=0.4, drop_height=5000)),
+        ("thin", design_for(shipped, thickness=0.5, drop_height=2000)),
+    ]
     check = check_designs(shipped, designs, verify="auto", yield_mpa=1700, progress=False)
     for p, t in zip(check.preds, check.truth):
         assert p.summary.call == "undecided" and t is not None and p.summary.verified is True
@@ -291,8 +325,10 @@ def api_cases(shipped, tmp_path):
         (lambda: hcmt.Settings(frame_dt="0.002"), "frame_dt"),
         (lambda: hcmt.Settings(peak_stress="yes"), "peak_stress"),
         (lambda: hcmt.Settings(formulation=None), "formulation"),
-        (lambda: hcmt.generate_dataset(tmp_path / "d", counts={"train": 1}, settings=dict(frames=8),
-                                       progress=False), "settings"),
+        (
+            lambda: hcmt.generate_dataset(tmp_path / "d", counts={"train": 1}, settings=dict(frames=8), progress=False),
+            "settings",
+        ),
     ]
 
 
@@ -319,6 +355,11 @@ def test_numpy_numbers_are_numbers():
 
 @pytest.mark.slow  # one rollout of the shipped model
 def test_a_numpy_batch_and_yield_run(shipped):
-    (p,) = predict_designs(shipped, [("a", design_for(shipped, thickness=np.float64(0.7)))], batch=np.int64(1),
-                           yield_mpa=np.float32(5000), progress=False)
+    (p,) = predict_designs(
+        shipped,
+        [("a", design_for(shipped, thickness=np.float64(0.7)))],
+        batch=np.int64(1),
+        yield_mpa=np.float32(5000),
+        progress=False,
+    )
     assert p.summary.call in ("pass", "undecided") and set(DESIGN_KEYS) == set(asdict(p.design))

@@ -1,6 +1,7 @@
 """The mesh model's own interval (hcmt.design.model_interval): cells by distance from the training ranges, the
 split-conformal bound against its definition and its coverage on synthetic errors, the file, and the design check
 that attaches it and trusts it in the calls."""
+
 import math
 from dataclasses import replace
 from types import SimpleNamespace
@@ -30,17 +31,20 @@ RANGES = {"thickness": (0.5, 1.0), "drop_height": (500.0, 1000.0), "plate_half_l
 BASE = Design(thickness=0.75, drop_height=750.0, plate_half_length=12.0)
 
 
-@pytest.mark.parametrize("change,cell", [
-    ({}, "inside"),
-    ({"thickness": 1.0}, "inside"),
-    ({"thickness": 1.05}, "thickness+:0.2"),
-    ({"thickness": 1.1}, "thickness+:0.2"),
-    ({"thickness": 1.15}, "thickness+:0.4"),
-    ({"thickness": 0.45}, "thickness-:0.2"),
-    ({"drop_height": 1300.0}, "drop_height+:0.6"),
-    ({"thickness": 1.05, "drop_height": 1150.0}, "drop_height+,thickness+:0.4"),
-    ({"plate_half_length": 13.0}, "plate_half_length+:0.2"),
-])
+@pytest.mark.parametrize(
+    "change,cell",
+    [
+        ({}, "inside"),
+        ({"thickness": 1.0}, "inside"),
+        ({"thickness": 1.05}, "thickness+:0.2"),
+        ({"thickness": 1.1}, "thickness+:0.2"),
+        ({"thickness": 1.15}, "thickness+:0.4"),
+        ({"thickness": 0.45}, "thickness-:0.2"),
+        ({"drop_height": 1300.0}, "drop_height+:0.6"),
+        ({"thickness": 1.05, "drop_height": 1150.0}, "drop_height+,thickness+:0.4"),
+        ({"plate_half_length": 13.0}, "plate_half_length+:0.2"),
+    ],
+)
 def test_cell_names_the_sides_and_the_distance_out(change, cell):
     assert cell_of(replace(BASE, **change), RANGES) == cell
 
@@ -53,8 +57,9 @@ def test_conformal_bound_is_the_order_statistic_of_its_definition():
 
 
 def _summary(peak, deflection, history):
-    return SimpleNamespace(peak_plate_stress_mpa=peak, max_deflection_mm=deflection,
-                           plate_stress_history_mpa=list(history))
+    return SimpleNamespace(
+        peak_plate_stress_mpa=peak, max_deflection_mm=deflection, plate_stress_history_mpa=list(history)
+    )
 
 
 def _synthetic(rng, n, bias, spread):
@@ -66,8 +71,11 @@ def _synthetic(rng, n, bias, spread):
         shape = np.sin(np.pi * t) ** 2
         noise = rng.normal(0, spread, 3)
         model = _summary(peak, defl, peak * shape)
-        solver = _summary(peak * math.exp(bias + noise[0]), defl * math.exp(bias / 2 + noise[1]),
-                          peak * shape * math.exp(bias + noise[2]))
+        solver = _summary(
+            peak * math.exp(bias + noise[0]),
+            defl * math.exp(bias / 2 + noise[1]),
+            peak * shape * math.exp(bias + noise[2]),
+        )
         out.append((BASE, model, solver))
     return out
 
@@ -88,15 +96,25 @@ def test_fitted_interval_covers_95_percent_of_fresh_synthetic_errors_and_learns_
 
 
 def test_interval_is_the_model_times_exp_center_plus_minus_half_width():
-    cal = Calibration("m", 0.95, {"thickness+:0.2": Cell(24, {"peak_plate_stress_mpa": 0.1, "max_deflection_mm": 0.0},
-                                                         {"peak_plate_stress_mpa": 0.05, "max_deflection_mm": 0.2},
-                                                         0.1)}, {})
+    cal = Calibration(
+        "m",
+        0.95,
+        {
+            "thickness+:0.2": Cell(
+                24,
+                {"peak_plate_stress_mpa": 0.1, "max_deflection_mm": 0.0},
+                {"peak_plate_stress_mpa": 0.05, "max_deflection_mm": 0.2},
+                0.1,
+            )
+        },
+        {},
+    )
     d = replace(BASE, thickness=1.05)
     history = [0.0, 100.0, 200.0, 300.0, 500.0, 300.0, 100.0, 50.0]
     iv = cal.interval(d, RANGES, {"peak_plate_stress_mpa": 500.0, "max_deflection_mm": 0.1}, history)
     assert iv.bounds["peak_plate_stress_mpa"] == pytest.approx((500 * math.exp(0.05), 500 * math.exp(0.15)))
     assert iv.bounds["max_deflection_mm"] == pytest.approx((0.1 * math.exp(-0.2), 0.1 * math.exp(0.2)))
-    near = [history[max(t - BAND_FRAMES, 0):t + BAND_FRAMES + 1] for t in range(len(history))]  # the envelope
+    near = [history[max(t - BAND_FRAMES, 0) : t + BAND_FRAMES + 1] for t in range(len(history))]  # the envelope
     assert iv.history_lo_mpa == pytest.approx([max(min(w) - 50.0, 0.0) for w in near])  # band 0.1 x the peak 500
     assert iv.history_hi_mpa == pytest.approx([max(w) + 50.0 for w in near])
     assert cal.interval(BASE, RANGES, {"peak_plate_stress_mpa": 500.0, "max_deflection_mm": 0.1}, [1.0]) is None
@@ -147,17 +165,21 @@ def test_check_attaches_the_interval_and_calls_outside_only_in_calibrated_cells(
     although it lies outside the ranges; the inside one gets none and the old rules."""
     ranges = shipped.ranges
     thick = ranges["thickness"][1] + 0.1 * (ranges["thickness"][1] - ranges["thickness"][0])
-    designs = [("in", hcmt.design_for(shipped, thickness=0.7, drop_height=700)),
-               ("thick", hcmt.design_for(shipped, thickness=thick, drop_height=700))]
+    designs = [
+        ("in", hcmt.design_for(shipped, thickness=0.7, drop_height=700)),
+        ("thick", hcmt.design_for(shipped, thickness=thick, drop_height=700)),
+    ]
     cell = cell_of(designs[1][1], ranges)
-    cal = Calibration(shipped.source, 0.95, {cell: Cell(30, {a: 0.1 for a in ANSWERS}, {a: 0.05 for a in ANSWERS},
-                                                       0.2)}, {})
+    cal = Calibration(
+        shipped.source, 0.95, {cell: Cell(30, {a: 0.1 for a in ANSWERS}, {a: 0.05 for a in ANSWERS}, 0.2)}, {}
+    )
     check = check_designs(shipped, designs, yield_mpa=5000.0, surrogate=False, interval=cal, progress=False)
     inside, out = (p.summary for p in check.preds)
     assert inside.model_interval is None and out.model_interval is not None
     lo, hi = out.model_interval.bounds["peak_plate_stress_mpa"]
-    assert (lo, hi) == pytest.approx((out.peak_plate_stress_mpa * math.exp(0.05),
-                                      out.peak_plate_stress_mpa * math.exp(0.15)))
+    assert (lo, hi) == pytest.approx(
+        (out.peak_plate_stress_mpa * math.exp(0.05), out.peak_plate_stress_mpa * math.exp(0.15))
+    )
     assert out.call == "pass" and out.call_interval_mpa.source == "model interval"
     assert outside_reason(check.preds[1], ranges) is None
     assert outside_reason(check.preds[1], ranges, "surrogate")  # the surface alone was never calibrated out there
@@ -173,8 +195,15 @@ def test_fuzz_far_outside_the_ranges_no_decided_call_where_nothing_was_calibrate
     --verify auto). A small, fast version of benchmarks/trust/run.py --fuzz."""
     rng = np.random.default_rng(52)
     varied = [k for k, (lo, hi) in shipped.ranges.items() if hi > lo and k in DESIGN_KEYS]
-    cal = Calibration(shipped.source, 0.95, {c: Cell(30, {a: 0.0 for a in ANSWERS}, {a: 0.05 for a in ANSWERS}, 0.2)
-                                             for c in ("inside", "thickness+:0.2", "thickness+:0.4")}, {})
+    cal = Calibration(
+        shipped.source,
+        0.95,
+        {
+            c: Cell(30, {a: 0.0 for a in ANSWERS}, {a: 0.05 for a in ANSWERS}, 0.2)
+            for c in ("inside", "thickness+:0.2", "thickness+:0.4")
+        },
+        {},
+    )
     designs = []
     while len(designs) < 4:
         base = hcmt.design_for(shipped)
@@ -189,8 +218,9 @@ def test_fuzz_far_outside_the_ranges_no_decided_call_where_nothing_was_calibrate
             continue
         if d.thickness <= 1.8 and d.ball_radius <= 8:  # keep the meshes small: a fast test
             designs.append((f"far{len(designs)}", d))
-    check = check_designs(shipped, designs, yield_mpa=float(rng.uniform(300, 3000)), surrogate=True,
-                          interval=cal, progress=False, batch=4)
+    check = check_designs(
+        shipped, designs, yield_mpa=float(rng.uniform(300, 3000)), surrogate=True, interval=cal, progress=False, batch=4
+    )
     for p in check.preds:
         assert cell_of(p.design, shipped.ranges) not in cal.cells
         assert p.summary.call == "undecided" and p.summary.final_call == "undecided", (p.name, p.design)

@@ -12,10 +12,21 @@ class _Run:
 
 
 def test_models_lines_name_each_cell_its_designs_and_measured_coverage(tmp_path):
-    cells = {"inside": Cell(60, {a: 0.0 for a in ANSWERS}, {a: 0.05 for a in ANSWERS}, 0.1),
-             "thickness+:0.2": Cell(24, {a: 0.1 for a in ANSWERS}, {a: 0.08 for a in ANSWERS}, 0.2)}
-    measured = {"by_cell": {"inside": {"designs": 120, "peak_plate_stress_mpa": 0.958, "max_deflection_mm": 0.933,
-                                       "plate_stress_history_mpa": 0.9, "median_rel_width_peak": 0.11}}}
+    cells = {
+        "inside": Cell(60, {a: 0.0 for a in ANSWERS}, {a: 0.05 for a in ANSWERS}, 0.1),
+        "thickness+:0.2": Cell(24, {a: 0.1 for a in ANSWERS}, {a: 0.08 for a in ANSWERS}, 0.2),
+    }
+    measured = {
+        "by_cell": {
+            "inside": {
+                "designs": 120,
+                "peak_plate_stress_mpa": 0.958,
+                "max_deflection_mm": 0.933,
+                "plate_stress_history_mpa": 0.9,
+                "median_rel_width_peak": 0.11,
+            }
+        }
+    }
     Calibration("run", 0.95, cells, {}, measured).save(tmp_path / "interval.json")
     card = interval_card(_Run(tmp_path))
     assert card["cells"] == {"inside": 60, "thickness+:0.2": 24}

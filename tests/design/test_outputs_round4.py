@@ -2,6 +2,7 @@
 at the scale its file stores, plain rebound words, the sweep plot's unit, a --batch help that is true, the err %
 column of the chosen read-out, a note where --readout contact changes nothing, and one rule of a trend's agreement
 for the sweep, the judge and the model card."""
+
 from __future__ import annotations
 
 import copy
@@ -42,17 +43,40 @@ def test_the_shipped_surface_is_labelled_by_the_models_name_and_its_runs_not_a_p
 @pytest.mark.slow  # the shipped model loaded and one design rolled out in-process (~20 s on one thread)
 def test_predict_header_names_the_surface_without_a_path(capsys):
     """Needs hcmt.design.check.check_designs to record ``surrogate.label`` (not ``.source``) as Check.surrogate."""
-    assert cli(["predict", "pretrained:impact_plate_small", "--design", "thickness=0.8", "drop_height=700",
-                "--no-progress", "--threads", "1"]) == 0
+    assert (
+        cli(
+            [
+                "predict",
+                "pretrained:impact_plate_small",
+                "--design",
+                "thickness=0.8",
+                "drop_height=700",
+                "--no-progress",
+                "--threads",
+                "1",
+            ]
+        )
+        == 0
+    )
     header = capsys.readouterr().out.splitlines()[0]
     assert "response surface: pretrained:impact_plate_small's own, fitted on 480 solver runs" in header
     assert "/" not in header.split("response surface:")[1]
 
 
 # -- 2. evaluate's RMSE: the table at the file's scale, the file saying it ------------------------------------------
-METRICS = EvalMetrics(split="test", data="d", trajectories=2, scale=1000.0, rmse_units={}, warnings=[],
-                      units={"length": "mm", "stress": "MPa"}, position=Rmse(0.25, 1.5, 3.25),
-                      stress=Rmse(120.0, 900.0, 2100.0), inference_ms_per_step=10.0, train_ms_per_step=None)
+METRICS = EvalMetrics(
+    split="test",
+    data="d",
+    trajectories=2,
+    scale=1000.0,
+    rmse_units={},
+    warnings=[],
+    units={"length": "mm", "stress": "MPa"},
+    position=Rmse(0.25, 1.5, 3.25),
+    stress=Rmse(120.0, 900.0, 2100.0),
+    inference_ms_per_step=10.0,
+    train_ms_per_step=None,
+)
 
 
 def test_evaluate_prints_the_rmse_at_the_scale_its_file_stores_and_says_it():
@@ -69,8 +93,9 @@ def test_evaluate_prints_the_rmse_at_the_scale_its_file_stores_and_says_it():
 def test_evaluate_file_records_the_unit_of_its_rmse_and_the_table_prints_its_numbers(tmp_path, capsys):
     data, out = tmp_path / "d", tmp_path / "ev"
     assert cli(["simulate", "--out", str(data / "test.h5"), "--no-progress"]) == 0
-    assert cli(["evaluate", "pretrained:impact_plate_small", "--data", str(data), "--out", str(out),
-                "--no-progress"]) == 0
+    assert (
+        cli(["evaluate", "pretrained:impact_plate_small", "--data", str(data), "--out", str(out), "--no-progress"]) == 0
+    )
     m = json.loads((out / "metrics_test.json").read_text())
     assert m["scale"] == 1000 and m["rmse_units"] == {"position": "0.001 mm", "stress": "0.001 MPa"}
     row = next(line for line in capsys.readouterr().out.splitlines() if line.strip().startswith("position"))
@@ -79,11 +104,25 @@ def test_evaluate_file_records_the_unit_of_its_rmse_and_the_table_prints_its_num
 
 # -- 3. rebound words ----------------------------------------------------------------------------------------------
 def _physics(model_rebounds: list[bool], solver_rebounds: list[bool]) -> dict:
-    rows = [fake_metrics(rebound_agrees=a == b, model_rebounds=a, solver_rebounds=b,
-                         **dict.fromkeys(("peak_plate_stress_error_pct", "peak_ball_stress_error_pct",
-                                          "max_deflection_error_pct", "far_deflection_error_um",
-                                          "far_deflection_error_pct"), 1.0), peak_plate_frame_error=1)
-            for a, b in zip(model_rebounds, solver_rebounds)]
+    rows = [
+        fake_metrics(
+            rebound_agrees=a == b,
+            model_rebounds=a,
+            solver_rebounds=b,
+            **dict.fromkeys(
+                (
+                    "peak_plate_stress_error_pct",
+                    "peak_ball_stress_error_pct",
+                    "max_deflection_error_pct",
+                    "far_deflection_error_um",
+                    "far_deflection_error_pct",
+                ),
+                1.0,
+            ),
+            peak_plate_frame_error=1,
+        )
+        for a, b in zip(model_rebounds, solver_rebounds)
+    ]
     return summarize_impact(rows)
 
 
@@ -101,9 +140,10 @@ def test_the_sweep_plots_x_axis_names_the_parameters_unit(monkeypatch, tmp_path)
 
     saved = {}
     monkeypatch.setattr(meshplot, "save_figure", lambda fig, path, dpi=120: saved.setdefault("fig", fig) and path)
-    preds = [SimpleNamespace(design=Design(thickness=t), summary=fake_summary(peak_plate_stress_mpa=s,
-                                                                              max_deflection_mm=d))
-             for t, s, d in ((0.6, 800.0, 0.2), (0.9, 700.0, 0.1))]
+    preds = [
+        SimpleNamespace(design=Design(thickness=t), summary=fake_summary(peak_plate_stress_mpa=s, max_deflection_mm=d))
+        for t, s, d in ((0.6, 800.0, 0.2), (0.9, 700.0, 0.1))
+    ]
     check = SimpleNamespace(preds=preds, truth=None, readout="raw")
     plot_sweep(check, {"param": "drop_height", "values": [520.0, 990.0], "limit": None}, tmp_path, "HCMT")
     assert [ax.get_xlabel() for ax in saved["fig"].axes] == ["drop_height [mm]"] * 2
@@ -129,8 +169,17 @@ def _pred(name: str, stress_scale: float = 1.0, readout: str = "raw", ghost: boo
     f = fields()
     if not ghost:  # no stress after the ball has left: the peak comes in contact
         f["stress"][8:] = 0.0
-    p = Prediction(name, Design(), f["world_pos"], f["stress"] * stress_scale, f["mesh_pos"], f["cells"],
-                   f["node_type"], 1.0, modulus=f["modulus"])
+    p = Prediction(
+        name,
+        Design(),
+        f["world_pos"],
+        f["stress"] * stress_scale,
+        f["mesh_pos"],
+        f["cells"],
+        f["node_type"],
+        1.0,
+        modulus=f["modulus"],
+    )
     p.summary = ro.summarize_fields(p.fields(), DT, readout, 1.0, 3 * DT if ghost else None)
     return p
 
@@ -162,11 +211,17 @@ def test_contact_readout_says_when_it_changes_nothing():
 # -- 8. one rule of a trend's agreement ----------------------------------------------------------------------------
 def _check(model: list[float], solver: list[float]):
     def mk(v, s):
-        return SimpleNamespace(design=Design(drop_height=v), summary=fake_summary(
-            peak_plate_stress_mpa=s, max_deflection_mm=s / 1e4))
+        return SimpleNamespace(
+            design=Design(drop_height=v), summary=fake_summary(peak_plate_stress_mpa=s, max_deflection_mm=s / 1e4)
+        )
+
     heights = [520.0, 755.0, 990.0]
-    return SimpleNamespace(preds=[mk(v, s) for v, s in zip(heights, model)],
-                           truth=[mk(v, s) for v, s in zip(heights, solver)], readout="raw", solver_runs=3)
+    return SimpleNamespace(
+        preds=[mk(v, s) for v, s in zip(heights, model)],
+        truth=[mk(v, s) for v, s in zip(heights, solver)],
+        readout="raw",
+        solver_runs=3,
+    )
 
 
 def test_the_sweep_calls_a_trend_with_the_right_sign_but_40_percent_short_a_miss():

@@ -1,5 +1,6 @@
 """Design check (`hcmt predict`): initial state without a solver, batched prediction, verify, range warnings,
 refused designs, shipped models."""
+
 import json
 import shutil
 from dataclasses import replace
@@ -35,8 +36,7 @@ def tiny_run(tmp_path_factory, tiny_config, impact_data):
     attrs)."""
     root = tmp_path_factory.mktemp("predict")
     shutil.copytree(impact_data, root / "data")
-    train(tiny_config("train.steps=3", "train.checkpoint_every=3"), root / "data", "hcmt", root / "run",
-          progress=False)
+    train(tiny_config("train.steps=3", "train.checkpoint_every=3"), root / "data", "hcmt", root / "run", progress=False)
     return root / "run"
 
 
@@ -58,8 +58,10 @@ def test_ball_crossing_the_gap_in_one_frame_is_refused():
 
 def test_batch_equals_one_by_one(tiny_run):
     run = Run.load(tiny_run, "cpu")
-    designs = [(f"d{i}", parse_design([f"thickness={t}", f"drop_height={h}"], middle_design(run.meta)))
-               for i, (t, h) in enumerate([(0.6, 600), (0.9, 950), (0.75, 700)])]
+    designs = [
+        (f"d{i}", parse_design([f"thickness={t}", f"drop_height={h}"], middle_design(run.meta)))
+        for i, (t, h) in enumerate([(0.6, 600), (0.9, 950), (0.75, 700)])
+    ]
     together = predict(run, designs, batch=3, progress=False)
     alone = predict(run, designs, batch=1, progress=False)
     assert together[0].world_pos.shape[0] == FRAMES
@@ -91,16 +93,43 @@ def test_cli_designs_csv_json_and_range_warning(tiny_run, tmp_path, capsys):
     csv_file = tmp_path / "designs.csv"
     csv_file.write_text("name,thickness,drop_height\nthin,0.55,800\nthick,1.4,800\n")
     out = tmp_path / "res.json"
-    rc = cli(["predict", str(tiny_run), "--design", "thickness=0.7", "--designs", str(csv_file), "--json", str(out),
-              "--csv", str(tmp_path / "t.csv"), "--yield-mpa", "300", "--device", "cpu", "--no-progress"])
+    rc = cli(
+        [
+            "predict",
+            str(tiny_run),
+            "--design",
+            "thickness=0.7",
+            "--designs",
+            str(csv_file),
+            "--json",
+            str(out),
+            "--csv",
+            str(tmp_path / "t.csv"),
+            "--yield-mpa",
+            "300",
+            "--device",
+            "cpu",
+            "--no-progress",
+        ]
+    )
     captured = capsys.readouterr()
     assert rc == 0
     assert "warning: thick: thickness = 1.4 is outside the model's training data" in captured.err
     assert "design_1" in captured.out and "thin" in captured.out and "margin MPa" in captured.out
     res = json.loads(out.read_text())
     assert [d["name"] for d in res["designs"]] == ["design_1", "thin", "thick"]
-    keys = {"peak_plate_stress_mpa", "peak_plate_where_mm", "peak_plate_when_ms", "peak_ball_stress_mpa",
-            "peak_ball_where_mm", "peak_ball_when_ms", "max_deflection_mm", "yield_margin_mpa", "wall_s", "design"}
+    keys = {
+        "peak_plate_stress_mpa",
+        "peak_plate_where_mm",
+        "peak_plate_when_ms",
+        "peak_ball_stress_mpa",
+        "peak_ball_where_mm",
+        "peak_ball_when_ms",
+        "max_deflection_mm",
+        "yield_margin_mpa",
+        "wall_s",
+        "design",
+    }
     assert keys <= set(res["designs"][0])
     d = res["designs"][0]
     assert d["yield_margin_mpa"] == pytest.approx(300 - d["peak_plate_stress_mpa"])
@@ -108,13 +137,16 @@ def test_cli_designs_csv_json_and_range_warning(tiny_run, tmp_path, capsys):
     assert (tmp_path / "t.csv").read_text().count("\n") == 4
 
 
-@pytest.mark.parametrize("args,message", [
-    (["--design", "thickness=-1"], "thickness must be > 0"),
-    (["--design", "thicknes=0.5"], "unknown parameter 'thicknes'"),
-    (["--design", "thickness=thin"], "thickness must be a number"),
-    (["--device", "tpu", "--design", "thickness=0.5"], "--device 'tpu'"),
-    ([], "give designs"),
-])
+@pytest.mark.parametrize(
+    "args,message",
+    [
+        (["--design", "thickness=-1"], "thickness must be > 0"),
+        (["--design", "thicknes=0.5"], "unknown parameter 'thicknes'"),
+        (["--design", "thickness=thin"], "thickness must be a number"),
+        (["--device", "tpu", "--design", "thickness=0.5"], "--device 'tpu'"),
+        ([], "give designs"),
+    ],
+)
 def test_impossible_designs_are_refused(tiny_run, capsys, args, message):
     assert cli(["predict", str(tiny_run), *args, "--no-progress"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
@@ -123,16 +155,35 @@ def test_impossible_designs_are_refused(tiny_run, capsys, args, message):
 
 def test_verify_compares_with_the_solver(tiny_run, tmp_path, capsys):
     out = tmp_path / "v.json"
-    assert cli(["predict", str(tiny_run), "--design", "thickness=0.8", "--verify", "--images", "--out",
-                str(tmp_path / "img"), "--json", str(out), "--device", "cpu", "--no-progress"]) == 0
+    assert (
+        cli(
+            [
+                "predict",
+                str(tiny_run),
+                "--design",
+                "thickness=0.8",
+                "--verify",
+                "--images",
+                "--out",
+                str(tmp_path / "img"),
+                "--json",
+                str(out),
+                "--device",
+                "cpu",
+                "--no-progress",
+            ]
+        )
+        == 0
+    )
     res = json.loads(out.read_text())
     v = res["designs"][0]["verify"]
     solved = simulate(Design(**res["designs"][0]["design"]), Settings(frames=FRAMES)).fields
     plate = plate_mask(solved["cells"], solved["node_type"])
     assert v["solver_peak_plate_stress_mpa"] == pytest.approx(float(solved["stress"][:, plate].max()), rel=1e-6)
     pred = res["designs"][0]["peak_plate_stress_mpa"]
-    assert v["peak_plate_stress_error_pct"] == pytest.approx(100 * (pred - v["solver_peak_plate_stress_mpa"])
-                                                             / v["solver_peak_plate_stress_mpa"])
+    assert v["peak_plate_stress_error_pct"] == pytest.approx(
+        100 * (pred - v["solver_peak_plate_stress_mpa"]) / v["solver_peak_plate_stress_mpa"]
+    )
     assert v["speedup"] > 0 and res["verify"]["designs"] == 1
     assert (tmp_path / "img" / "design_1" / "stress_contours_zoom.png").is_file()
     assert "against the solver" in capsys.readouterr().out
@@ -163,17 +214,26 @@ def test_model_and_solver_alternate_per_chunk_and_the_note_says_so(tiny_run, mon
     order.clear()
     check = check_designs(run, designs, batch=2, verify=verify, yield_mpa=yield_mpa, progress=False, surrogate=False)
     assert [p.summary.call for p in check.preds] == ["undecided"] * 4
-    assert order == [("model", ["d0", "d1"]), ("solver", ["d0"]), ("solver", ["d1"]),
-                     ("model", ["d2", "d3"]), ("solver", ["d2"]), ("solver", ["d3"])]
+    assert order == [
+        ("model", ["d0", "d1"]),
+        ("solver", ["d0"]),
+        ("solver", ["d1"]),
+        ("model", ["d2", "d3"]),
+        ("solver", ["d2"]),
+        ("solver", ["d3"]),
+    ]
     measured = check.verified["speedup_measured"]
     assert measured["interleaved"] and measured["batch"] == 2 and measured["chunks"] == 2
     assert measured["threads"] == torch.get_num_threads() and measured["device"] == "cpu"
-    assert ("model and solver alternating per chunk of 2 designs (2 chunks" in check.verified["note"]
-            and measured["how"] in check.verified["note"])
+    assert (
+        "model and solver alternating per chunk of 2 designs (2 chunks" in check.verified["note"]
+        and measured["how"] in check.verified["note"]
+    )
     assert f"{torch.get_num_threads()} torch thread" in measured["how"]
     assert to_json(check.preds, check.verified, run.source, "cpu", check)["verify"]["speedup_measured"] == measured
     assert "speedup = solver ÷ model wall time per design, model and solver alternating" in format_table(
-        check.preds, check.verified)
+        check.preds, check.verified
+    )
     # one chunk holding every design cannot alternate, and says so
     one = check_designs(run, designs[:2], batch=2, verify=True, progress=False, surrogate=False)
     assert not one.verified["speedup_measured"]["interleaved"]
@@ -190,7 +250,7 @@ def test_every_shipped_model_loads_and_predicts(name):
     tr, _ = design_trajectory(run, "d", middle_design(run.meta), settings)
     r = rollout(run.model, run.adapter, tr, run.radius, steps=1)
     assert r["world_pos"].shape[0] == 3 and torch.isfinite(r["world_pos"]).all()
-    assert (tr.world_pos.shape[0] == settings.frames)
+    assert tr.world_pos.shape[0] == settings.frames
 
 
 def test_demo_predicts_three_designs_beside_the_solver(tmp_path, capsys):
@@ -218,8 +278,9 @@ def test_start_frames_solve_the_first_frame_only_when_the_ball_reaches_the_plate
     np.testing.assert_array_equal(s["fields"]["world_pos"], solved["world_pos"][:2])
     fine = start_frames(design, Settings(frames=3, frame_dt=0.002))
     assert fine["info"]["solver_frames"] == 0
-    np.testing.assert_array_equal(fine["fields"]["world_pos"],
-                                  initial_frames(design, Settings(frames=3, frame_dt=0.002))["fields"]["world_pos"])
+    np.testing.assert_array_equal(
+        fine["fields"]["world_pos"], initial_frames(design, Settings(frames=3, frame_dt=0.002))["fields"]["world_pos"]
+    )
 
 
 def test_auto_compile_counts_every_design_of_the_check(tiny_run, monkeypatch):

@@ -2,6 +2,7 @@
 only when chosen, the same default answer whatever the surrogate, ``readout`` recorded; each quantity printed
 once in ``predict --verify``; the sweep's trends compared by size (a trend of the right sign but the wrong size
 misleads)."""
+
 import json
 from dataclasses import replace
 from types import SimpleNamespace
@@ -23,10 +24,19 @@ from hcmt.sim.params import Design
 from impact_trajectory import DT, fields
 from summaries import fake_summary
 
-CONTACT_KEYS = {"contact_peak_plate_stress_mpa", "contact_peak_plate_where_mm", "contact_peak_plate_when_ms",
-                "contact_peak_plate_frame", "contact_peak_plate_node", "contact_peak_plate_t95_frame",
-                "contact_peak_plate_t95_ms", "contact_plate_stress_history_mpa", "contact_window_end_ms",
-                "contact_window_end_from", "contact_bending_k"}
+CONTACT_KEYS = {
+    "contact_peak_plate_stress_mpa",
+    "contact_peak_plate_where_mm",
+    "contact_peak_plate_when_ms",
+    "contact_peak_plate_frame",
+    "contact_peak_plate_node",
+    "contact_peak_plate_t95_frame",
+    "contact_peak_plate_t95_ms",
+    "contact_plate_stress_history_mpa",
+    "contact_window_end_ms",
+    "contact_window_end_from",
+    "contact_bending_k",
+}
 
 
 def test_the_default_is_the_models_own_output_and_a_bound_does_not_change_it():
@@ -71,8 +81,17 @@ def test_an_unknown_readout_is_refused_naming_it():
 
 def _pred(name: str, stress_scale: float = 1.0, readout: str = "raw") -> Prediction:
     f = fields()
-    p = Prediction(name, Design(), f["world_pos"], f["stress"] * stress_scale, f["mesh_pos"], f["cells"],
-                   f["node_type"], 1.0, modulus=f["modulus"])
+    p = Prediction(
+        name,
+        Design(),
+        f["world_pos"],
+        f["stress"] * stress_scale,
+        f["mesh_pos"],
+        f["cells"],
+        f["node_type"],
+        1.0,
+        modulus=f["modulus"],
+    )
     p.summary = ro.summarize_fields(p.fields(), DT, readout, 1.0, 3 * DT)
     return p
 
@@ -98,8 +117,10 @@ def test_verify_prints_each_quantity_once():
         assert text.count(name) == 1, (name, text)
     row = preds[0].summary.verify
     assert row.peak_plate_stress_error_pct == pytest.approx(100 * (1 / 1.2 - 1))
-    assert verified["peak_plate_stress_error_pct"]["median"] == verified["physics"]["peak_plate_stress_error_pct"][
-        "median_abs"]
+    assert (
+        verified["peak_plate_stress_error_pct"]["median"]
+        == verified["physics"]["peak_plate_stress_error_pct"]["median_abs"]
+    )
 
 
 def test_the_verify_block_is_typed_and_its_json_keys_are_the_ones_the_dict_wrote():
@@ -111,19 +132,48 @@ def test_the_verify_block_is_typed_and_its_json_keys_are_the_ones_the_dict_wrote
     assert isinstance(row, VerifyRow) and row.speedup == 1.0
     block = to_json(preds, None, "x", "cpu")["designs"][0]["verify"]
     assert list(block) == [
-        "solver_peak_plate_stress_mpa", "solver_max_deflection_mm", "peak_plate_stress_error_pct",
-        "max_deflection_error_pct", "model_rebounds", "solver_rebounds", "rebound_agrees", "peak_plate_frame_error",
-        "peak_ball_stress_error_pct", "far_deflection_error_um", "peak_plate_location_error_mm", "position_rmse_mm",
-        "solver_peak_plate_t95_ms", "peak_plate_t95_frame_error", "critical_node_history_correlation",
-        "solver_wall_s", "speedup", "solver_warnings", "contact_peak_plate_stress_error_pct"]
+        "solver_peak_plate_stress_mpa",
+        "solver_max_deflection_mm",
+        "peak_plate_stress_error_pct",
+        "max_deflection_error_pct",
+        "model_rebounds",
+        "solver_rebounds",
+        "rebound_agrees",
+        "peak_plate_frame_error",
+        "peak_ball_stress_error_pct",
+        "far_deflection_error_um",
+        "peak_plate_location_error_mm",
+        "position_rmse_mm",
+        "solver_peak_plate_t95_ms",
+        "peak_plate_t95_frame_error",
+        "critical_node_history_correlation",
+        "solver_wall_s",
+        "speedup",
+        "solver_warnings",
+        "contact_peak_plate_stress_error_pct",
+    ]
     assert block == row.to_json() and json.loads(json.dumps(block)) == block
 
 
-@pytest.mark.parametrize("model, solver, agree", [(-1.0, -24.0, False), (-20.0, -24.0, True), (-13.0, -24.0, False),
-                                                  (-10.0, -24.0, False), (5.0, -5.0, False), (1.0, -0.5, False),
-                                                  (3.0, 1.2, False), (7.3, 12.2, False), (9.0, 12.2, True),
-                                                  (15.8, 12.2, True), (16.0, 12.2, False), (0.0, 0.0, True),
-                                                  (0.1, 0.0, False), (None, 3.0, None)])
+@pytest.mark.parametrize(
+    "model, solver, agree",
+    [
+        (-1.0, -24.0, False),
+        (-20.0, -24.0, True),
+        (-13.0, -24.0, False),
+        (-10.0, -24.0, False),
+        (5.0, -5.0, False),
+        (1.0, -0.5, False),
+        (3.0, 1.2, False),
+        (7.3, 12.2, False),
+        (9.0, 12.2, True),
+        (15.8, 12.2, True),
+        (16.0, 12.2, False),
+        (0.0, 0.0, True),
+        (0.1, 0.0, False),
+        (None, 3.0, None),
+    ],
+)
 def test_trends_agree_by_size_not_only_sign(model, solver, agree):
     """The one rule (hcmt.design.sweep.trends_agree): the same sign and the size within 30 % of the solver's."""
     assert trends_agree(model, solver) is agree
@@ -133,11 +183,18 @@ def test_the_sweep_says_disagree_for_a_small_change_against_a_large_one():
     values = [0.5, 0.75, 1.0]
     model = [1000.0, 995.0, 990.0]  # -1 %
     solver = [1000.0, 850.0, 760.0]  # -24 %
+
     def mk(v, s):
-        return SimpleNamespace(design=Design(thickness=v), summary=fake_summary(
-            peak_plate_stress_mpa=s, max_deflection_mm=0.1 * s / 1000))
-    check = SimpleNamespace(preds=[mk(v, s) for v, s in zip(values, model)],
-                            truth=[mk(v, s) for v, s in zip(values, solver)], readout="raw", solver_runs=3)
+        return SimpleNamespace(
+            design=Design(thickness=v), summary=fake_summary(peak_plate_stress_mpa=s, max_deflection_mm=0.1 * s / 1000)
+        )
+
+    check = SimpleNamespace(
+        preds=[mk(v, s) for v, s in zip(values, model)],
+        truth=[mk(v, s) for v, s in zip(values, solver)],
+        readout="raw",
+        solver_runs=3,
+    )
     a = analyse(check, "thickness", None)
     row = a["trend"]["peak_plate_stress_mpa"]
     assert row["agree"] is False and row["model"]["sign"] == row["solver"]["sign"] == -1
@@ -149,8 +206,15 @@ def test_the_sweep_says_disagree_for_a_small_change_against_a_large_one():
 SHIPPED = PRETRAINED_DIR / "impact_plate_small.surrogate.json"
 #: a thin plate dropped from high: the shipped surrogate's bound of when the ball leaves falls inside the window
 DESIGN = ["thickness=0.55", "drop_height=950"]
-SURROGATE_FIELDS = ("surrogate", "disagreement", "disagreement_by_answer", "notes", "low_confidence", "warnings",
-                    "wall_s")
+SURROGATE_FIELDS = (
+    "surrogate",
+    "disagreement",
+    "disagreement_by_answer",
+    "notes",
+    "low_confidence",
+    "warnings",
+    "wall_s",
+)
 
 
 def _another_fitting_surrogate(tmp_path) -> str:
@@ -171,11 +235,29 @@ def test_the_default_answer_is_the_same_with_any_surrogate_or_none(tmp_path, cap
     """Before: the JSON's plate stress history after contact was a bending formula cut at the surrogate's bound,
     so the same design's answer changed with the surrogate file."""
     answers = {}
-    for name, extra in (("shipped", []), ("none", ["--no-surrogate"]),
-                        ("other", ["--surrogate", _another_fitting_surrogate(tmp_path)])):
+    for name, extra in (
+        ("shipped", []),
+        ("none", ["--no-surrogate"]),
+        ("other", ["--surrogate", _another_fitting_surrogate(tmp_path)]),
+    ):
         out = tmp_path / f"{name}.json"
-        assert cli(["predict", "pretrained:impact_plate_small", "--design", *DESIGN, "--json", str(out),
-                    "--no-progress", "--device", "cpu", *extra]) == 0
+        assert (
+            cli(
+                [
+                    "predict",
+                    "pretrained:impact_plate_small",
+                    "--design",
+                    *DESIGN,
+                    "--json",
+                    str(out),
+                    "--no-progress",
+                    "--device",
+                    "cpu",
+                    *extra,
+                ]
+            )
+            == 0
+        )
         design = json.loads(out.read_text())["designs"][0]
         answers[name] = {k: v for k, v in design.items() if k not in SURROGATE_FIELDS}
     capsys.readouterr()
@@ -186,14 +268,46 @@ def test_the_default_answer_is_the_same_with_any_surrogate_or_none(tmp_path, cap
 @pytest.mark.slow
 def test_predict_records_the_readout_and_reports_a_derived_one_under_its_own_names(tmp_path, capsys):
     out = tmp_path / "c.json"
-    assert cli(["predict", "pretrained:impact_plate_small", "--design", *DESIGN, "--json", str(out),
-                "--no-progress", "--device", "cpu", "--readout", "contact", "--yield-mpa", "900"]) == 0
+    assert (
+        cli(
+            [
+                "predict",
+                "pretrained:impact_plate_small",
+                "--design",
+                *DESIGN,
+                "--json",
+                str(out),
+                "--no-progress",
+                "--device",
+                "cpu",
+                "--readout",
+                "contact",
+                "--yield-mpa",
+                "900",
+            ]
+        )
+        == 0
+    )
     printed = capsys.readouterr().out
     doc = json.loads(out.read_text())
     d = doc["designs"][0]
     assert doc["readout"] == d["readout"] == "contact" and CONTACT_KEYS <= set(d)
     assert d["call_interval_mpa"]["model_readout"] == "contact" and "contact MPa" in printed
-    assert cli(["predict", "pretrained:impact_plate_small", "--design", *DESIGN, "--json", str(out),
-                "--no-progress", "--device", "cpu"]) == 0
+    assert (
+        cli(
+            [
+                "predict",
+                "pretrained:impact_plate_small",
+                "--design",
+                *DESIGN,
+                "--json",
+                str(out),
+                "--no-progress",
+                "--device",
+                "cpu",
+            ]
+        )
+        == 0
+    )
     d = json.loads(out.read_text())["designs"][0]
     assert d["readout"] == "raw" and not any(k.startswith(("contact_peak", "contact_plate")) for k in d)

@@ -4,6 +4,7 @@ the design check wrote as plain dicts: tests/design/summary_json_keys.json was r
 with the mesh model's own interval (``model_interval``) added after ``confidence`` since.
 Each field's declared type is checked against the values of a real run (:func:`summaries.type_errors`): the
 shipped model's check of one design, and a tiny solver run."""
+
 from __future__ import annotations
 
 import dataclasses
@@ -34,8 +35,13 @@ def test_a_summary_is_frozen_and_no_mapping():
 
 def test_the_json_writes_the_declared_order_derived_fields_under_their_names_and_leaves_unset_ones_out():
     derived = PlateReadout(580.0, [0.0, 1.0], 0.004, 2, 7, 2, 0.004, [1.0, 580.0], 0.01, "the ball's last touch", 5.0)
-    s = dataclasses.replace(fake_summary(peak_plate_stress_mpa=612.0, readout="contact", derived=derived),
-                            yield_margin_mpa=88.0, derived_yield_margin_mpa=120.0, call="pass", model="m")
+    s = dataclasses.replace(
+        fake_summary(peak_plate_stress_mpa=612.0, readout="contact", derived=derived),
+        yield_margin_mpa=88.0,
+        derived_yield_margin_mpa=120.0,
+        call="pass",
+        model="m",
+    )
     j = s.to_json()
     assert j["contact_peak_plate_stress_mpa"] == 580.0 and j["contact_bending_k"] == 5.0
     assert j["contact_yield_margin_mpa"] == 120.0 and "derived" not in j and "derived_yield_margin_mpa" not in j
@@ -45,8 +51,9 @@ def test_the_json_writes_the_declared_order_derived_fields_under_their_names_and
     assert keys.index("readout") < keys.index("contact_peak_plate_stress_mpa") < keys.index("wall_s")
     assert keys.index("yield_margin_mpa") + 1 == keys.index("contact_yield_margin_mpa") < keys.index("call")
     element = dataclasses.replace(derived, window_end_ms=None, window_end_from=None, bending_k=None)
-    assert not any(k.startswith("element_window") for k in dataclasses.replace(s, readout="element",
-                                                                               derived=element).to_json())
+    assert not any(
+        k.startswith("element_window") for k in dataclasses.replace(s, readout="element", derived=element).to_json()
+    )
 
 
 def test_every_recorded_key_is_a_declared_field_or_a_derived_read_outs():
@@ -71,11 +78,14 @@ def test_the_json_keys_and_every_fields_type_on_a_real_run():
     from hcmt.design.reports import to_json
     from hcmt.design.verification import verify_row
     from hcmt.inference.run import Run
+
     run = Run.load("pretrained:impact_plate_small", "cpu")
     designs = [("a", design_for(run, thickness=0.7))]
-    for tag, options in (("raw_yield", dict(yield_mpa=750.0)),
-                         ("contact_verify", dict(yield_mpa=750.0, verify=True, readout="contact")),
-                         ("plain", dict(surrogate=False))):
+    for tag, options in (
+        ("raw_yield", dict(yield_mpa=750.0)),
+        ("contact_verify", dict(yield_mpa=750.0, verify=True, readout="contact")),
+        ("plain", dict(surrogate=False)),
+    ):
         c = check_designs(run, designs, progress=False, **options)
         assert isinstance(c.preds[0].summary, Summary)
         assert type_errors(c.preds[0].summary) == [], tag
@@ -90,6 +100,7 @@ def test_a_tiny_simulate_is_typed_and_so_are_its_quantities():
     from hcmt.design.readout import summarize_fields
     from hcmt.sim.driver import SimResult, SolveInfo, simulate
     from hcmt.sim.params import Design, Settings
+
     r = simulate(Design(thickness=1.0, mesh_size=0.6, plate_half_length=8.0), Settings(frames=4))
     assert isinstance(r, SimResult) and isinstance(r.info, SolveInfo) and not isinstance(r, Mapping)
     assert type_errors(r) == []

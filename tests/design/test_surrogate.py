@@ -1,6 +1,7 @@
 """The response surface (hcmt.design.surrogate), the design check's read-outs (hcmt.design.readout) and the limit
 calls: a GP that recovers a known law, JSON storage without pickle, refused files, answers side by side, calls that
 pass only below the trusted interval, ``--verify auto``, no ghost peak."""
+
 import json
 import shutil
 from dataclasses import replace
@@ -30,17 +31,20 @@ FRAMES = IMPACT_DATA["frames"]
 
 def law(d: Design) -> dict:
     """A known power law in the design parameters (exact in log space) for the three stresses / deflection."""
-    return {"peak_plate_stress_mpa": 700 * (d.thickness / 0.75) ** -0.6 * (d.drop_height / 750) ** 0.45,
-            "peak_ball_stress_mpa": 800 * (d.ball_radius / 3.9) ** 0.3 * (d.drop_height / 750) ** 0.5,
-            "max_deflection_mm": 0.15 * (d.thickness / 0.75) ** -1.2 * (d.plate_modulus / 7e4) ** -0.5,
-            "peak_plate_t95_ms": 0.05 * (d.thickness / 0.75) ** 0.8}
+    return {
+        "peak_plate_stress_mpa": 700 * (d.thickness / 0.75) ** -0.6 * (d.drop_height / 750) ** 0.45,
+        "peak_ball_stress_mpa": 800 * (d.ball_radius / 3.9) ** 0.3 * (d.drop_height / 750) ** 0.5,
+        "max_deflection_mm": 0.15 * (d.thickness / 0.75) ** -1.2 * (d.plate_modulus / 7e4) ** -0.5,
+        "peak_plate_t95_ms": 0.05 * (d.thickness / 0.75) ** 0.8,
+    }
 
 
 def fitted(n: int = 40, seed: int = 0, noise: float = 0.0) -> tuple[Surrogate, list[Design]]:
     rng = np.random.default_rng(seed)
     designs = [sample_design(rng, "small") for _ in range(n)]
-    answers = {q: [v * (1 + noise * rng.standard_normal()) for v in (law(d)[q] for d in designs)]
-               for q in law(designs[0])}
+    answers = {
+        q: [v * (1 + noise * rng.standard_normal()) for v in (law(d)[q] for d in designs)] for q in law(designs[0])
+    }
     return Surrogate.fit(designs, answers, restarts=1), designs
 
 
@@ -57,8 +61,9 @@ def test_the_gp_recovers_a_known_law_and_its_interval_covers_it():
         assert covered >= 27, q  # a 95 % interval covers at least 90 % of 30
         assert all(o[q].lo < o[q].mean < o[q].hi for o in out)
     # far outside the training designs the band widens
-    far = s.predict([Design(thickness=1.2, drop_height=1200.0, mesh_size=0.3, plate_half_length=12.0,
-                            ball_radius=3.9)])[0]["peak_plate_stress_mpa"]
+    far = s.predict(
+        [Design(thickness=1.2, drop_height=1200.0, mesh_size=0.3, plate_half_length=12.0, ball_radius=3.9)]
+    )[0]["peak_plate_stress_mpa"]
     inside = out[0]["peak_plate_stress_mpa"]
     assert (far.hi - far.lo) / far.mean > (inside.hi - inside.lo) / inside.mean
 
@@ -112,8 +117,17 @@ def _damaged(tmp_path, kind: str):
     return path
 
 
-KINDS = ["missing", "empty", "truncated", "binary", "not a surrogate", "too few designs", "bad kernel", "a list",
-         "missing key"]
+KINDS = [
+    "missing",
+    "empty",
+    "truncated",
+    "binary",
+    "not a surrogate",
+    "too few designs",
+    "bad kernel",
+    "a list",
+    "missing key",
+]
 
 
 @pytest.mark.parametrize("kind", KINDS)
@@ -160,8 +174,17 @@ def test_fuzz_surrogate_files(tmp_path):
 def two_body(T: int = 12):
     """A hand-made plate (2 cells, clamped rim node) and ball on the axis; the ball touches during frames 2-5,
     then leaves; the learned stress keeps a 'ghost' larger than the contact peak after it has gone."""
-    mesh = np.array([[0.0, 0.0], [2.0, 0.0], [0.0, -0.5], [2.0, -0.5],  # plate: top axis node 0, rim 1 and 3
-                     [0.0, 0.02], [0.5, 0.5], [0.0, 1.0]])  # ball: lowest axis node 4
+    mesh = np.array(
+        [
+            [0.0, 0.0],
+            [2.0, 0.0],
+            [0.0, -0.5],
+            [2.0, -0.5],  # plate: top axis node 0, rim 1 and 3
+            [0.0, 0.02],
+            [0.5, 0.5],
+            [0.0, 1.0],
+        ]
+    )  # ball: lowest axis node 4
     cells = np.array([[0, 2, 3], [0, 3, 1], [4, 5, 6]])
     node_type = np.array([0, 3, 0, 3, 1, 1, 1])
     x = np.repeat(mesh[None], T, 0).copy()
@@ -173,8 +196,14 @@ def two_body(T: int = 12):
     stress[2:6, 0, 0] = [200.0, 400.0, 500.0, 300.0]
     stress[8:, 2, 0] = 650.0  # ghost: after the ball has gone
     modulus = np.array([7e4] * 4 + [2e5] * 3)
-    return {"world_pos": x, "stress": stress, "mesh_pos": mesh, "cells": cells, "node_type": node_type,
-            "modulus": modulus}
+    return {
+        "world_pos": x,
+        "stress": stress,
+        "mesh_pos": mesh,
+        "cells": cells,
+        "node_type": node_type,
+        "modulus": modulus,
+    }
 
 
 def test_a_bound_on_when_the_ball_leaves_ends_the_window_of_a_lingering_learned_ball():
@@ -243,8 +272,9 @@ def test_the_solvers_peak_lies_in_its_contact_window():
 def test_calls_pass_only_below_and_fail_only_above_the_trusted_interval():
     assert call_of(600, 690, 700) == "pass" and call_of(710, 800, 700) == "fail"
     assert call_of(650, 750, 700) == "undecided" and call_of(700, 720, 700) == "undecided"
-    summary = fake_summary(peak_plate_stress_mpa=760.0, surrogate={"peak_plate_stress_mpa": {"mean": 680, "lo": 660,
-                                                                                             "hi": 700}})
+    summary = fake_summary(
+        peak_plate_stress_mpa=760.0, surrogate={"peak_plate_stress_mpa": {"mean": 680, "lo": 660, "hi": 700}}
+    )
     assert trusted_interval(summary, "surrogate")[:2] == (660, 700)
     assert trusted_interval(summary, "union")[:2] == (660, 760)  # widened to hold the mesh model
     lo, hi, what = trusted_interval(fake_summary(peak_plate_stress_mpa=500.0), "union")  # no surrogate
@@ -259,8 +289,7 @@ def family(tmp_path_factory, tiny_config, impact_data):
     tiny HCMT run on them and its surrogate saved as RUN/surrogate.json by the command."""
     root = tmp_path_factory.mktemp("surrogate")
     shutil.copytree(impact_data, root / "data")
-    train(tiny_config("train.steps=2", "train.checkpoint_every=2"), root / "data", "hcmt", root / "run",
-          progress=False)
+    train(tiny_config("train.steps=2", "train.checkpoint_every=2"), root / "data", "hcmt", root / "run", progress=False)
     return root
 
 
@@ -271,8 +300,26 @@ def test_fit_command_writes_the_runs_surrogate_and_predict_reports_both(family, 
     assert cli(["surrogate", "fit", str(data), "--out", str(run / "surrogate.json"), "--restarts", "0"]) == 0
     assert "9 parameters" in capsys.readouterr().out
     out = tmp_path / "p.json"
-    assert cli(["predict", str(run), "--design", "thickness=0.7", "--design", "thickness=0.9", "--yield-mpa", "300",
-                "--json", str(out), "--csv", str(tmp_path / "p.csv"), "--no-progress"]) == 0
+    assert (
+        cli(
+            [
+                "predict",
+                str(run),
+                "--design",
+                "thickness=0.7",
+                "--design",
+                "thickness=0.9",
+                "--yield-mpa",
+                "300",
+                "--json",
+                str(out),
+                "--csv",
+                str(tmp_path / "p.csv"),
+                "--no-progress",
+            ]
+        )
+        == 0
+    )
     printed = capsys.readouterr().out
     assert "surrogate MPa [95 %]" in printed and "limit calls for a yield stress of 300 MPa" in printed
     res = json.loads(out.read_text())
@@ -287,14 +334,35 @@ def test_fit_command_writes_the_runs_surrogate_and_predict_reports_both(family, 
     lo, hi = d["call_interval_mpa"]["lo"], d["call_interval_mpa"]["hi"]
     assert lo <= min(iv["lo"], d["peak_plate_stress_mpa"]) + 1e-9 and hi >= d["peak_plate_stress_mpa"] - 1e-9
     head = (tmp_path / "p.csv").read_text().splitlines()[0].split(",")
-    assert {"surrogate_peak_plate_stress_mpa_mean", "surrogate_peak_plate_stress_mpa_lo", "call", "final_call",
-            "disagreement"} <= set(head) and "plate_stress_history_mpa" not in head
+    assert {
+        "surrogate_peak_plate_stress_mpa_mean",
+        "surrogate_peak_plate_stress_mpa_lo",
+        "call",
+        "final_call",
+        "disagreement",
+    } <= set(head) and "plate_stress_history_mpa" not in head
     # the same surrogate by file, then none
-    assert cli(["predict", str(run), "--design", "thickness=0.7", "--surrogate", str(run / "surrogate.json"),
-                "--json", str(out), "--no-progress"]) == 0
+    assert (
+        cli(
+            [
+                "predict",
+                str(run),
+                "--design",
+                "thickness=0.7",
+                "--surrogate",
+                str(run / "surrogate.json"),
+                "--json",
+                str(out),
+                "--no-progress",
+            ]
+        )
+        == 0
+    )
     assert "surrogate" in json.loads(out.read_text())["designs"][0]
-    assert cli(["predict", str(run), "--design", "thickness=0.7", "--no-surrogate", "--json", str(out),
-                "--no-progress"]) == 0
+    assert (
+        cli(["predict", str(run), "--design", "thickness=0.7", "--no-surrogate", "--json", str(out), "--no-progress"])
+        == 0
+    )
     assert "surrogate" not in json.loads(out.read_text())["designs"][0]
     # the Python API runs the same check
     (p,) = predict_designs(Run.load(run, "cpu"), [("x", Design(**d["design"]))], progress=False)
@@ -326,8 +394,26 @@ def test_verify_auto_runs_the_solver_on_the_undecided_designs_only(family, tmp_p
 
 def test_sweep_reports_the_final_minimum_and_the_solver_runs(family, tmp_path, capsys):
     out = tmp_path / "s.json"
-    assert cli(["sweep", str(family / "run"), "--vary", "thickness=0.6:0.9:3", "--yield-mpa", "400", "--verify",
-                "auto", "--out", str(tmp_path / "plot"), "--json", str(out), "--no-progress"]) == 0
+    assert (
+        cli(
+            [
+                "sweep",
+                str(family / "run"),
+                "--vary",
+                "thickness=0.6:0.9:3",
+                "--yield-mpa",
+                "400",
+                "--verify",
+                "auto",
+                "--out",
+                str(tmp_path / "plot"),
+                "--json",
+                str(out),
+                "--no-progress",
+            ]
+        )
+        == 0
+    )
     printed = capsys.readouterr().out
     assert "final calls" in printed and "limit calls for a yield stress of 400 MPa" in printed
     res = json.loads(out.read_text())
@@ -335,8 +421,21 @@ def test_sweep_reports_the_final_minimum_and_the_solver_runs(family, tmp_path, c
     assert final["solver_runs"] == res["solver_runs"] == sum(d["verified"] for d in res["designs"])
     assert final["calls"] == [d["final_call"] for d in res["designs"]]
     # ball_poisson was held fixed in training: a sweep over it says the trend is not learned
-    assert cli(["sweep", str(family / "run"), "--vary", "ball_poisson=0.2:0.4:2", "--out", str(tmp_path / "plot"),
-                "--no-surrogate", "--no-progress"]) == 0
+    assert (
+        cli(
+            [
+                "sweep",
+                str(family / "run"),
+                "--vary",
+                "ball_poisson=0.2:0.4:2",
+                "--out",
+                str(tmp_path / "plot"),
+                "--no-surrogate",
+                "--no-progress",
+            ]
+        )
+        == 0
+    )
     assert "held ball_poisson fixed" in capsys.readouterr().out
 
 
@@ -348,14 +447,30 @@ def test_a_surrogate_of_other_parameters_is_refused(family, tmp_path, capsys):
     for k in doc["kernels"].values():
         k["length_scales"] = k["length_scales"][:-1]
     (tmp_path / "other.json").write_text(json.dumps(doc))
-    assert cli(["predict", str(family / "run"), "--design", "thickness=0.7", "--surrogate",
-                str(tmp_path / "other.json"), "--no-progress"]) == 2
+    assert (
+        cli(
+            [
+                "predict",
+                str(family / "run"),
+                "--design",
+                "thickness=0.7",
+                "--surrogate",
+                str(tmp_path / "other.json"),
+                "--no-progress",
+            ]
+        )
+        == 2
+    )
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "other.json" in err[0] and "surrogate takes" in err[0]
     for kind in ("truncated", "not a surrogate"):
         path = _damaged(tmp_path, kind)
-        assert cli(["predict", str(family / "run"), "--design", "thickness=0.7", "--surrogate", str(path),
-                    "--no-progress"]) == 2
+        assert (
+            cli(
+                ["predict", str(family / "run"), "--design", "thickness=0.7", "--surrogate", str(path), "--no-progress"]
+            )
+            == 2
+        )
         err = capsys.readouterr().err.strip().splitlines()
         assert len(err) == 1 and str(path) in err[0] and "Traceback" not in err[0]
 
@@ -394,8 +509,7 @@ def test_numbers_no_float_holds_are_refused_too(tmp_path, damage):
 
 
 def test_json_output_is_standard_json():
-    assert finite({"a": float("nan"), "b": [1.0, float("inf")], "c": "x"}) == {"a": None, "b": [1.0, None],
-                                                                                  "c": "x"}
+    assert finite({"a": float("nan"), "b": [1.0, float("inf")], "c": "x"}) == {"a": None, "b": [1.0, None], "c": "x"}
 
 
 def test_zero_valued_family_parameters_enter_linearly_and_other_families_are_not_taken(tmp_path):
@@ -412,16 +526,19 @@ def test_zero_valued_family_parameters_enter_linearly_and_other_families_are_not
     s = Surrogate.fit(designs, answers, restarts=1)
     assert "support_radius" in s.linear and "thickness" not in s.linear
     held = [sample_design(rng, "small", family=f) for f in ("mono", "ring") * 5]
-    err = [abs(o["peak_plate_stress_mpa"].mean / ring_law(d)["peak_plate_stress_mpa"] - 1)
-           for o, d in zip(s.predict(held), held)]
+    err = [
+        abs(o["peak_plate_stress_mpa"].mean / ring_law(d)["peak_plate_stress_mpa"] - 1)
+        for o, d in zip(s.predict(held), held)
+    ]
     assert np.median(err) < 0.05
     pen = sample_design(rng, "small", family="pen")
     assert set(s.cannot_take(pen)) == {"pen_tip_radius", "pen_mass"}
     assert s.cannot_take(held[1]) == []
     back = Surrogate.load(s.save(tmp_path / "s.json"))
     assert back.linear == s.linear
-    np.testing.assert_allclose(back.predict(held)[3]["peak_plate_stress_mpa"].mean,
-                               s.predict(held)[3]["peak_plate_stress_mpa"].mean, rtol=1e-9)
+    np.testing.assert_allclose(
+        back.predict(held)[3]["peak_plate_stress_mpa"].mean, s.predict(held)[3]["peak_plate_stress_mpa"].mean, rtol=1e-9
+    )
 
 
 def test_a_surrogate_of_the_first_scene_cannot_take_family_parameters():

@@ -2,6 +2,7 @@
 training data (format 2), one that differs from the model (frame window, frame interval, family, stress field,
 units, parameter ranges, held values) is refused where they meet in one line naming it, one whose window is not
 known to be the model's never ends the model's read-out window, and format 1 files (the shipped one) still load."""
+
 import json
 import random
 import shutil
@@ -113,8 +114,18 @@ def test_fuzz_combinations_of_misfits_are_all_refused(run, tmp_path, seed):
     assert "\n" not in str(e.value) and len(e.value.worded("--surrogate")) <= 300, kinds
 
 
-@pytest.mark.parametrize("damage", [{"frames": "ten"}, {"frames": 1}, {"frame_dt_ms": -1}, {"censored": -2},
-                                    {"families": 3}, {"stress_field": None, "frames": None}, "drop frames"])
+@pytest.mark.parametrize(
+    "damage",
+    [
+        {"frames": "ten"},
+        {"frames": 1},
+        {"frame_dt_ms": -1},
+        {"censored": -2},
+        {"families": 3},
+        {"stress_field": None, "frames": None},
+        "drop frames",
+    ],
+)
 def test_a_damaged_dataset_block_is_one_line(run, tmp_path, damage):
     doc = fitting(run)
     if damage == "drop frames":
@@ -147,8 +158,9 @@ def test_a_window_that_never_saw_the_ball_leave_is_not_used(run, tmp_path, monke
         with pytest.raises(Stop):
             check_designs(run, designs, progress=False, surrogate=write(tmp_path, doc, name), readout="contact")
     with pytest.raises(Stop):  # format 1 as a file
-        check_designs(run, designs, progress=False, surrogate=write(tmp_path, format1(doc), "v1.json"),
-                      readout="contact")
+        check_designs(
+            run, designs, progress=False, surrogate=write(tmp_path, format1(doc), "v1.json"), readout="contact"
+        )
     lo = [iv["contact_end_ms"].lo for iv in Surrogate.load(SHIPPED).predict([d for _, d in designs])]
     assert seen[0] == pytest.approx(lo) and seen[1] is None and seen[2] is None
     assert "did the ball leave" in for_run(run, tmp_path / "never.json")[1]
@@ -161,8 +173,21 @@ def test_predict_refuses_a_short_window_surrogate_before_any_answer(run, tmp_pat
     doc = fitting(run)
     doc["dataset"].update(frames=10, censored=len(doc["designs"]))
     path, out = write(tmp_path, doc), tmp_path / "p.json"
-    rc = cli(["predict", "pretrained:impact_plate_small", "--design", "thickness=0.7", "--surrogate", str(path),
-              "--yield-mpa", "500", "--json", str(out), "--no-progress"])
+    rc = cli(
+        [
+            "predict",
+            "pretrained:impact_plate_small",
+            "--design",
+            "thickness=0.7",
+            "--surrogate",
+            str(path),
+            "--yield-mpa",
+            "500",
+            "--json",
+            str(out),
+            "--no-progress",
+        ]
+    )
     err = capsys.readouterr().err.strip().splitlines()
     assert rc == 2 and len(err) == 1 and err[0].startswith(f"hcmt predict: error: --surrogate {path}: "), err
     assert "10 frames" in err[0] and "90 frames" in err[0] and len(err[0]) <= 300 and not out.exists()

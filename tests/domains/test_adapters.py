@@ -1,5 +1,6 @@
 """The adapters are built with keywords, and the config becomes only the chosen model's
 constructor arguments (an MGN run gets no HCMT depth)."""
+
 from pathlib import Path
 
 import pytest
@@ -44,8 +45,18 @@ def test_runs_saved_with_every_models_keys_still_resume():
     cfg = load_config("impact_plate", TINY)
     for model in ("hcmt", "mgn"):
         now = model_args(cfg, model, META)
-        old = {**now, "ablation": None, "levels": 1, "L_C": 1, "L_H": None, "heads": 2, "clip": 2.0, "blocks": 2,
-               "attention": "paper", "ffn_bias": True}
+        old = {
+            **now,
+            "ablation": None,
+            "levels": 1,
+            "L_C": 1,
+            "L_H": None,
+            "heads": 2,
+            "clip": 2.0,
+            "blocks": 2,
+            "attention": "paper",
+            "ffn_bias": True,
+        }
         assert architecture(old) == now
         run = {"model": now, "config": cfg, "seed": 0, "world_size": 1}
         check_resume({**run, "model": old}, run, Path("run"))

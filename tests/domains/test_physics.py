@@ -1,5 +1,6 @@
 """Impact physics: the training formulation options (target, noise nodes, γ, pushforward), the physics
 metrics an engineer reads, design sweeps and --threads."""
+
 import json
 import shutil
 
@@ -67,9 +68,9 @@ def test_noise_nodes_predicted_reaches_the_ball_but_not_boundary_channels():
     nt = torch.tensor([NodeType.NORMAL, NodeType.OBSTACLE, NodeType.HANDLE, NodeType.SYMMETRIC])
     normal = noise_mask(adapter, nt, 2, "normal")
     predicted = noise_mask(adapter, nt, 2, "predicted")
-    torch.testing.assert_close(normal, torch.tensor([[1., 1.], [0., 0.], [0., 0.], [0., 0.]]))
+    torch.testing.assert_close(normal, torch.tensor([[1.0, 1.0], [0.0, 0.0], [0.0, 0.0], [0.0, 0.0]]))
     torch.testing.assert_close(predicted, position_mask(adapter, nt, 2))
-    torch.testing.assert_close(predicted, torch.tensor([[1., 1.], [1., 1.], [0., 0.], [0., 1.]]))
+    torch.testing.assert_close(predicted, torch.tensor([[1.0, 1.0], [1.0, 1.0], [0.0, 0.0], [0.0, 1.0]]))
     with pytest.raises(ValueError, match="noise_nodes.*normal, predicted"):
         noise_mask(adapter, nt, 2, "all")
 
@@ -79,7 +80,7 @@ def test_noise_on_predicted_nodes_moves_the_ball_in_training_samples(data):
     a = FrameDataset(data, "train", adapter, 0, True, 0.4, noise_std=1e-3, seed=1, noise_nodes="normal")
     b = FrameDataset(data, "train", adapter, 0, True, 0.4, noise_std=1e-3, seed=1, noise_nodes="predicted")
     tr = a.trajectory(0)
-    ball = (tr.static["node_type"].reshape(-1) == NodeType.OBSTACLE)
+    ball = tr.static["node_type"].reshape(-1) == NodeType.OBSTACLE
     ga, ta, _ = a[0]
     gb, tb, _ = b[0]
     # the velocity target x^{t+1} - x~^t (γ 1) carries the noise: zero on the ball with NORMAL-only noise
@@ -104,8 +105,7 @@ def test_pushforward_input_is_the_models_prediction_and_the_target_lands_on_the_
     graph, tgt, mask = ds.pushforward_item(key, run.model, 1.0)
     w = tr.world_pos
     with torch.no_grad():  # the model's own step from frame t-1
-        out = run.model.denormalize(run.model(input_graph(tr, w[t - 1], w[t - 2], w[t], run.radius),
-                                              accumulate=False))
+        out = run.model.denormalize(run.model(input_graph(tr, w[t - 1], w[t - 2], w[t], run.radius), accumulate=False))
     pred, _ = integrate(adapter, out, w[t - 1], w[t - 2], w[t], tr.static["node_type"])
     assert (pred - w[t]).abs().max() > 1e-6  # the model is not exact: the test is not vacuous
     # input velocity feature x^t - x^{t-1} is the predicted one; the target takes x^t_pred to the data's x^{t+1}
@@ -113,8 +113,13 @@ def test_pushforward_input_is_the_models_prediction_and_the_target_lands_on_the_
 
 
 def test_pushforward_training_resumes_exactly(data, tmp_path, tiny_config):
-    cfg = tiny_config(*EXTRA, "train.pushforward=0.5", "model.target=acceleration", "train.noise_nodes=predicted",
-                      "train.noise_std=1e-3")
+    cfg = tiny_config(
+        *EXTRA,
+        "train.pushforward=0.5",
+        "model.target=acceleration",
+        "train.noise_nodes=predicted",
+        "train.noise_std=1e-3",
+    )
     train(cfg, data, "mgn", tmp_path / "once", progress=False)
     train(cfg, data, "mgn", tmp_path / "twice", progress=False, stop_at=2)
     train(cfg, data, "mgn", tmp_path / "twice", progress=False, resume=True)
@@ -124,11 +129,26 @@ def test_pushforward_training_resumes_exactly(data, tmp_path, tiny_config):
         assert torch.equal(a[k], b[k]), k
 
 
-@pytest.mark.parametrize("key,value,allowed", [("model.target", "accel", "velocity, acceleration"),
-                                               ("train.noise_nodes", "ball", "normal, predicted")])
+@pytest.mark.parametrize(
+    "key,value,allowed",
+    [("model.target", "accel", "velocity, acceleration"), ("train.noise_nodes", "ball", "normal, predicted")],
+)
 def test_unknown_formulation_values_are_refused_before_data_is_read(tmp_path, capsys, key, value, allowed):
-    rc = cli(["train", "--config", "impact_plate_cpu", "--data", str(tmp_path / "nothing"), "--model", "hcmt",
-              "--out", str(tmp_path / "run"), "--set", f"{key}={value}"])
+    rc = cli(
+        [
+            "train",
+            "--config",
+            "impact_plate_cpu",
+            "--data",
+            str(tmp_path / "nothing"),
+            "--model",
+            "hcmt",
+            "--out",
+            str(tmp_path / "run"),
+            "--set",
+            f"{key}={value}",
+        ]
+    )
     err = capsys.readouterr().err.strip().splitlines()
     assert rc == 2 and len(err) == 1 and key in err[0] and repr(value) in err[0] and allowed in err[0]
     assert not (tmp_path / "run").exists()
@@ -146,7 +166,7 @@ def _impact(T=20, rebound=True, peak_frame=10, peak=100.0, defl=0.05):
     rest = np.concatenate([np.stack([r, np.zeros(5)], 1), [[0.0, 1.0], [0.5, 1.0]]])
     t = np.arange(T)[:, None]
     pos = np.repeat(rest[None], T, 0).astype(np.float64)
-    shape = np.exp(-((t - peak_frame) / 4.0) ** 2) * (t > 0)  # frame 0 at rest
+    shape = np.exp(-(((t - peak_frame) / 4.0) ** 2)) * (t > 0)  # frame 0 at rest
     pos[:, :5, 1] = -defl * shape * (1 - r / 5)[None]
     vy = -0.01 * np.ones(T)
     if rebound:
@@ -175,9 +195,18 @@ def test_impact_metrics_read_known_errors():
 
 
 def test_summarize_impact_medians_percentiles_and_the_signed_worst():
-    rows = [fake_metrics(rebound_agrees=a, model_rebounds=a, solver_rebounds=True, peak_plate_stress_error_pct=e,
-                         peak_plate_frame_error=f, far_deflection_error_um=1.0, far_deflection_error_pct=2.0)
-            for a, e, f in [(True, -30.0, 1), (True, 10.0, -2), (False, 5.0, 0), (True, -1.0, 4)]]
+    rows = [
+        fake_metrics(
+            rebound_agrees=a,
+            model_rebounds=a,
+            solver_rebounds=True,
+            peak_plate_stress_error_pct=e,
+            peak_plate_frame_error=f,
+            far_deflection_error_um=1.0,
+            far_deflection_error_pct=2.0,
+        )
+        for a, e, f in [(True, -30.0, 1), (True, 10.0, -2), (False, 5.0, 0), (True, -1.0, 4)]
+    ]
     s = summarize_impact(rows)
     assert s["rebound_agreement"] == 0.75 and s["model_rebounds"] == 3 and s["solver_rebounds"] == 4
     e = s["peak_plate_stress_error_pct"]
@@ -210,10 +239,16 @@ def test_trend_and_limit_call():
     assert sw.limit_call(x, np.full(5, 100.0), 703)["side"] == "all pass"
 
 
-@pytest.mark.parametrize("text,message", [("thickness=0.5:1.0", "PARAM=LO:HI:N"),
-                                          ("thick=0.5:1:3", "unknown parameter"),
-                                          ("thickness=1:0.5:3", "LO < HI"), ("thickness=0.5:1:1", "between 2"),
-                                          ("thickness=0.5:inf:3", "finite")])
+@pytest.mark.parametrize(
+    "text,message",
+    [
+        ("thickness=0.5:1.0", "PARAM=LO:HI:N"),
+        ("thick=0.5:1:3", "unknown parameter"),
+        ("thickness=1:0.5:3", "LO < HI"),
+        ("thickness=0.5:1:1", "between 2"),
+        ("thickness=0.5:inf:3", "finite"),
+    ],
+)
 def test_bad_vary_is_refused_in_one_line(text, message):
     with pytest.raises(ValueError, match=message):
         sw.parse_vary(text)
@@ -221,8 +256,18 @@ def test_bad_vary_is_refused_in_one_line(text, message):
 
 def test_sweep_with_an_impossible_point_is_refused_before_any_work(data, tmp_path, capsys, tiny_config):
     train(tiny_config(*EXTRA), data, "mgn", tmp_path / "run", progress=False)
-    rc = cli(["sweep", str(tmp_path / "run"), "--vary", "thickness=-0.5:1:3", "--device", "cpu", "--out",
-              str(tmp_path / "out")])
+    rc = cli(
+        [
+            "sweep",
+            str(tmp_path / "run"),
+            "--vary",
+            "thickness=-0.5:1:3",
+            "--device",
+            "cpu",
+            "--out",
+            str(tmp_path / "out"),
+        ]
+    )
     err = capsys.readouterr().err.strip().splitlines()
     assert rc == 2 and len(err) == 1 and "thickness=-0.5" in err[0] and "must be > 0" in err[0]
     assert not (tmp_path / "out").exists()
@@ -230,9 +275,30 @@ def test_sweep_with_an_impossible_point_is_refused_before_any_work(data, tmp_pat
 
 def test_sweep_cli_verifies_trends_and_the_limit(data, tmp_path, capsys, tiny_config):
     train(tiny_config(*EXTRA), data, "mgn", tmp_path / "run", progress=False)
-    rc = cli(["sweep", str(tmp_path / "run"), "--vary", "thickness=0.6:1.2:3", "--design", "drop_height=700",
-              "--verify", "--yield-mpa", "300", "--device", "cpu", "--no-progress", "--threads", "1",
-              "--out", str(tmp_path / "out"), "--json", str(tmp_path / "s.json"), "--csv", str(tmp_path / "s.csv")])
+    rc = cli(
+        [
+            "sweep",
+            str(tmp_path / "run"),
+            "--vary",
+            "thickness=0.6:1.2:3",
+            "--design",
+            "drop_height=700",
+            "--verify",
+            "--yield-mpa",
+            "300",
+            "--device",
+            "cpu",
+            "--no-progress",
+            "--threads",
+            "1",
+            "--out",
+            str(tmp_path / "out"),
+            "--json",
+            str(tmp_path / "s.json"),
+            "--csv",
+            str(tmp_path / "s.csv"),
+        ]
+    )
     captured = capsys.readouterr()
     assert rc == 0, captured.err
     assert "thickness = 1.2 is outside the model's training data" in captured.err  # range warning once
@@ -272,8 +338,8 @@ def test_keras_epsilon_hat_adam_equals_the_keras_update():
         opt.param_groups[0]["eps"] = keras_epsilon(eps_hat, b2, t)
         p.grad = grad.clone()
         opt.step()
-        m, v = b1 * m + (1 - b1) * grad, b2 * v + (1 - b2) * grad ** 2  # Keras (TF2 optimizer) update
-        theta = theta - lr * (1 - b2 ** t) ** 0.5 / (1 - b1 ** t) * m / (v.sqrt() + eps_hat)
+        m, v = b1 * m + (1 - b1) * grad, b2 * v + (1 - b2) * grad**2  # Keras (TF2 optimizer) update
+        theta = theta - lr * (1 - b2**t) ** 0.5 / (1 - b1**t) * m / (v.sqrt() + eps_hat)
     torch.testing.assert_close(p.detach(), theta, rtol=1e-12, atol=1e-15)
     plain = torch.nn.Parameter(theta0.clone())  # PyTorch's ε form differs visibly: the option is not vacuous
     opt2 = torch.optim.Adam([plain], lr=1e-3, eps=1e-7)
@@ -288,27 +354,31 @@ def _trainer(cfg, data, out, model="hcmt"):
 
 
 def test_official_loop_options_normalizers_and_loss(data, tmp_path, tiny_config):
-    warm = _trainer(tiny_config(*EXTRA, "train.normalizer_steps=2", "train.normalizer_warmup=nodes"), data,
-                    tmp_path / "a")
+    warm = _trainer(
+        tiny_config(*EXTRA, "train.normalizer_steps=2", "train.normalizer_warmup=nodes"), data, tmp_path / "a"
+    )
     batch = collate_samples([warm.frames[0]])
     warm.step(*batch)
     m = warm.model
     assert m.node_normalizer.count > 0 and m.mesh_normalizer.count == 0 and m.output_normalizer.count == 0
     # mesh edges twice: level 0's rows enter the mesh normalizer once more
     once = _trainer(tiny_config(*EXTRA, "train.normalizer_steps=0"), data, tmp_path / "b")
-    twice = _trainer(tiny_config(*EXTRA, "train.normalizer_steps=0", "train.mesh_edges_twice=true"), data,
-                     tmp_path / "c")
+    twice = _trainer(
+        tiny_config(*EXTRA, "train.normalizer_steps=0", "train.mesh_edges_twice=true"), data, tmp_path / "c"
+    )
     graph = batch[0]
     assert graph.level_edges  # HCMT with a hierarchy: the option applies
     l_once, _ = once.step(*batch)
     twice.step(*batch)
     extra = graph.mesh_features.shape[0]
     assert float(twice.model.mesh_normalizer.count - once.model.mesh_normalizer.count) == extra
-    torch.testing.assert_close(twice.model.mesh_normalizer.sum - once.model.mesh_normalizer.sum,
-                               graph.mesh_features.double().sum(0))
+    torch.testing.assert_close(
+        twice.model.mesh_normalizer.sum - once.model.mesh_normalizer.sum, graph.mesh_features.double().sum(0)
+    )
     # loss over N nodes (the authors') against over the unmasked entries (hcmt): same error, other denominator
-    nodes = _trainer(tiny_config(*EXTRA, "train.normalizer_steps=0", "train.loss_denominator=nodes"), data,
-                     tmp_path / "d")
+    nodes = _trainer(
+        tiny_config(*EXTRA, "train.normalizer_steps=0", "train.loss_denominator=nodes"), data, tmp_path / "d"
+    )
     l_nodes, _ = nodes.step(*batch)
     mask = batch[2]
     assert l_nodes == pytest.approx(l_once * float(mask.sum()) / graph.num_nodes, rel=1e-5)
@@ -330,7 +400,8 @@ def test_deformation_features_are_the_edges_strain_and_zero_at_rest(data):
     g = frame_graph(feats, mesh, moved, tr.hierarchy, 0.4, deformation=True)
     s, r = g.mesh_edges
     torch.testing.assert_close(g.mesh_features[:, 6:8], (moved[s] - moved[r]) - (mesh[s] - mesh[r]))
-    torch.testing.assert_close(g.mesh_features[:, 8],
-                               (moved[s] - moved[r]).norm(dim=1) - (mesh[s] - mesh[r]).norm(dim=1))
+    torch.testing.assert_close(
+        g.mesh_features[:, 8], (moved[s] - moved[r]).norm(dim=1) - (mesh[s] - mesh[r]).norm(dim=1)
+    )
     with pytest.raises(ValueError, match="deformation.*dimension"):
         config_adapter(Config.from_dict({"dataset": "sphere_simple", "model": {"deformation": True}}))

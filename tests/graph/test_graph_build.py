@@ -1,4 +1,5 @@
 """One frame -> Graph: features, levels and contacts as the models consume them."""
+
 import numpy as np
 import torch
 
@@ -14,8 +15,9 @@ def _frame(m, h, shift=0.0, **kw):
     n = len(m["mesh_pos"])
     world = m["mesh_pos"].copy()
     world[h.object_id == 1, 1] -= shift  # move the ball down
-    return frame_graph(torch.ones(n, 4), torch.from_numpy(m["mesh_pos"]).float(), torch.from_numpy(world).float(),
-                       h, 0.4, **kw)
+    return frame_graph(
+        torch.ones(n, 4), torch.from_numpy(m["mesh_pos"]).float(), torch.from_numpy(world).float(), h, 0.4, **kw
+    )
 
 
 def test_frame_graph_levels_and_features():
@@ -60,26 +62,36 @@ def test_contact_rule_and_batching():
     world[:n][torch.from_numpy(h.object_id == 1), 1] -= 0.1
     obj = torch.from_numpy(np.r_[h.object_id, h.object_id + 2])
     joint = contact_edges(world, obj, 0.4, batch=batch.batch)
-    assert torch.equal(joint, torch.cat([contact_edges(world[:n], obj[:n], 0.4),
-                                         contact_edges(world[n:], obj[n:], 0.4) + n], 1))
+    assert torch.equal(
+        joint, torch.cat([contact_edges(world[:n], obj[:n], 0.4), contact_edges(world[n:], obj[n:], 0.4) + n], 1)
+    )
 
 
 def test_cloth_frame_has_two_dimensional_mesh_space_and_self_contacts():
     mesh_pos, cells, world = cloth(16, fold=True)
     h = build_hierarchy(mesh_pos, cells, None, 2)
     excl = torch.from_numpy(near_pairs(h.edges[0], len(mesh_pos), 3))
-    g = frame_graph(torch.zeros(len(mesh_pos), 3), torch.from_numpy(mesh_pos), torch.from_numpy(world), h,
-                    0.06, self_contact=True, exclude=excl)
-    default = frame_graph(torch.zeros(len(mesh_pos), 3), torch.from_numpy(mesh_pos), torch.from_numpy(world),
-                          h, 0.06, self_contact=True)  # excludes pairs within 3 mesh hops by default
+    g = frame_graph(
+        torch.zeros(len(mesh_pos), 3),
+        torch.from_numpy(mesh_pos),
+        torch.from_numpy(world),
+        h,
+        0.06,
+        self_contact=True,
+        exclude=excl,
+    )
+    default = frame_graph(
+        torch.zeros(len(mesh_pos), 3), torch.from_numpy(mesh_pos), torch.from_numpy(world), h, 0.06, self_contact=True
+    )  # excludes pairs within 3 mesh hops by default
     assert torch.equal(default.contact_edges, g.contact_edges)
     mesh = set(map(tuple, h.edges[0].T.tolist()))
     assert not mesh & set(map(tuple, g.contact_edges.T.tolist()))
     assert g.mesh_features.shape[1] == 2 + 1 + 3 + 1
     assert all(f.shape[1] == 7 for f in g.level_features)
     assert g.contact_edges.shape[1] > 0 and g.contact_features.shape[1] == 4
-    none = frame_graph(torch.zeros(len(mesh_pos), 3), torch.from_numpy(mesh_pos), torch.from_numpy(world), h,
-                       0.06)  # without self-contact a single object touches nothing
+    none = frame_graph(
+        torch.zeros(len(mesh_pos), 3), torch.from_numpy(mesh_pos), torch.from_numpy(world), h, 0.06
+    )  # without self-contact a single object touches nothing
     assert none.contact_edges.shape == (2, 0) and none.contact_features.shape == (0, 4)
 
 

@@ -1,4 +1,5 @@
 """Contact edges against a brute-force O(N^2) search."""
+
 import numpy as np
 import pytest
 import torch
@@ -79,8 +80,14 @@ def test_self_contact_of_folded_cloth_excludes_mesh_neighbours(method):
     assert (obj == 0).all()
     excl = near_pairs(edges, n, hops=3)
     radius = 0.06
-    got = contact_edges(torch.from_numpy(world), torch.from_numpy(obj), radius, self_contact=True,
-                        exclude=torch.from_numpy(excl), method=method)
+    got = contact_edges(
+        torch.from_numpy(world),
+        torch.from_numpy(obj),
+        radius,
+        self_contact=True,
+        exclude=torch.from_numpy(excl),
+        method=method,
+    )
     excluded = {(int(k // n), int(k % n)) for k in excl}
     want = brute_force(world, obj, radius, self_contact=True, excluded=excluded)
     assert as_set(got) == want and want
@@ -106,8 +113,7 @@ def test_batched_world_positions_never_cross_graphs(method):
     x = rng.uniform(0, 1, (60, 3))
     obj = rng.integers(0, 3, 60)
     batch = np.repeat([0, 1, 2], 20)
-    got = contact_edges(torch.from_numpy(x), torch.from_numpy(obj), 0.3, batch=torch.from_numpy(batch),
-                        method=method)
+    got = contact_edges(torch.from_numpy(x), torch.from_numpy(obj), 0.3, batch=torch.from_numpy(batch), method=method)
     want = brute_force(x, obj, 0.3, batch=batch)
     assert as_set(got) == want and want
     # same positions without the batch vector would connect graphs: the batch really separates them

@@ -1,4 +1,5 @@
 """Mesh edges from cells and the raw edge features (paper appendix, Table 9)."""
+
 import itertools
 
 import numpy as np

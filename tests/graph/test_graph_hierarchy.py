@@ -1,4 +1,5 @@
 """The mesh hierarchy: halving, connectivity, remeshing quality, unpooling, caching, bad input."""
+
 import warnings
 from itertools import combinations
 
@@ -25,8 +26,9 @@ def objects_connected(h: Hierarchy) -> list[bool]:
         n, e = h.num_nodes(level), h.edges[level]
         label = connected_components(sp.coo_matrix((np.ones(e.shape[1]), (e[0], e[1])), shape=(n, n)))[1]
         obj = h.object_id[h.nodes[level]]
-        out.append(len(np.unique(obj * n + label)) == len(np.unique(obj)) and len(np.unique(label)) == len(
-            np.unique(obj)))
+        out.append(
+            len(np.unique(obj * n + label)) == len(np.unique(obj)) and len(np.unique(label)) == len(np.unique(obj))
+        )
     return out
 
 
@@ -70,8 +72,10 @@ def test_remeshing_improves_quality_on_impact_plate():
         hop = two_hop_edges(h.edges[level - 1], h.num_nodes(level - 1), h.pool[level - 1])
         before.append(quality_summary(pos, clique_cells(hop, h.num_nodes(level), 3)))
         after.append(quality_summary(pos, h.cells[level]))
+
     def mean(rows, k):
         return np.mean([r[k] for r in rows])
+
     # paper Table 7 (Impact Plate): Jacobian 0.32 -> 0.51, min angle 16.7 -> 27.2, max angle 120.4 -> 99.4
     assert mean(after, "jacobian") > mean(before, "jacobian") + 0.02
     assert mean(after, "min_angle") > mean(before, "min_angle")
@@ -189,8 +193,12 @@ def test_deterministic_and_cached(tmp_path):
     # a changed mesh or setting is a different key
     moved = m["mesh_pos"].copy()
     moved[0, 0] += 1e-6
-    keys = {hierarchy_key(*args, True), hierarchy_key(*args, False), hierarchy_key(moved, *args[1:], True),
-            hierarchy_key(*args[:3], 4, True)}
+    keys = {
+        hierarchy_key(*args, True),
+        hierarchy_key(*args, False),
+        hierarchy_key(moved, *args[1:], True),
+        hierarchy_key(*args[:3], 4, True),
+    }
     assert len(keys) == 4
     # a damaged cache file is rebuilt
     mod._MEMORY.clear()

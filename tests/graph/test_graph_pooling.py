@@ -1,4 +1,5 @@
 """Bi-stride pooling against a plain breadth-first search, and its halving."""
+
 from collections import deque
 
 import numpy as np

@@ -1,4 +1,5 @@
 """Scaled Jacobian and angles against closed-form values."""
+
 import numpy as np
 
 from hcmt.graph.quality import cell_angles, quality_summary, scaled_jacobian, signed_measure
@@ -11,8 +12,9 @@ def test_equilateral_triangle_and_regular_tetrahedron_score_one():
     assert np.isclose(scaled_jacobian(EQUILATERAL, np.array([[0, 1, 2]]))[0], 1.0)
     np.testing.assert_allclose(cell_angles(EQUILATERAL, np.array([[0, 1, 2]]))[0], 60.0)
     assert np.isclose(scaled_jacobian(REGULAR_TET, np.array([[0, 1, 2, 3]]))[0], 1.0)
-    np.testing.assert_allclose(cell_angles(REGULAR_TET, np.array([[0, 1, 2, 3]]))[0],
-                               np.degrees(np.arccos(1 / 3)))  # 70.53 degrees
+    np.testing.assert_allclose(
+        cell_angles(REGULAR_TET, np.array([[0, 1, 2, 3]]))[0], np.degrees(np.arccos(1 / 3))
+    )  # 70.53 degrees
 
 
 def test_right_triangle_and_corner_tetrahedron():

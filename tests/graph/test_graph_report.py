@@ -1,4 +1,5 @@
 """`hcmt hierarchy DATASET --levels L --json FILE` on a small native dataset."""
+
 import json
 
 import numpy as np
@@ -11,17 +12,32 @@ from hcmt.graph.report import KEYS, level_quality
 
 
 def make_dataset(path, sizes=(0.1, 0.12)):
-    meta = make_meta({"mesh_pos": {"type": "static", "shape": [-1, 2], "dtype": "float32"},
-                      "cells": {"type": "static", "shape": [-1, 3], "dtype": "int32"},
-                      "node_type": {"type": "static", "shape": [-1, 1], "dtype": "int32"},
-                      "world_pos": {"type": "dynamic", "shape": [2, -1, 2], "dtype": "float32"}},
-                     trajectory_length=2, dimension=2, dt=1.0)
+    meta = make_meta(
+        {
+            "mesh_pos": {"type": "static", "shape": [-1, 2], "dtype": "float32"},
+            "cells": {"type": "static", "shape": [-1, 3], "dtype": "int32"},
+            "node_type": {"type": "static", "shape": [-1, 1], "dtype": "int32"},
+            "world_pos": {"type": "dynamic", "shape": [2, -1, 2], "dtype": "float32"},
+        },
+        trajectory_length=2,
+        dimension=2,
+        dt=1.0,
+    )
     write_meta(path, meta)
     meshes = [plate_and_ball(h=h, length=3.0, radius=0.8) for h in sizes]
-    trajs = [(f"traj_{i:05d}", {"mesh_pos": m["mesh_pos"].astype(np.float32), "cells": m["cells"].astype(np.int32),
-                                "node_type": m["node_type"][:, None].astype(np.int32),
-                                "world_pos": np.stack([m["mesh_pos"]] * 2).astype(np.float32)}, {})
-             for i, m in enumerate(meshes)]
+    trajs = [
+        (
+            f"traj_{i:05d}",
+            {
+                "mesh_pos": m["mesh_pos"].astype(np.float32),
+                "cells": m["cells"].astype(np.int32),
+                "node_type": m["node_type"][:, None].astype(np.int32),
+                "world_pos": np.stack([m["mesh_pos"]] * 2).astype(np.float32),
+            },
+            {},
+        )
+        for i, m in enumerate(meshes)
+    ]
     write_split(path / "train.h5", meta, trajs)
     return meshes
 
@@ -36,8 +52,13 @@ def test_hierarchy_command_writes_the_table_as_json(tmp_path, capsys):
     assert [r["level"] for r in rows] == [0, 1, 2, 3]
     assert all(set(r) == set(KEYS) for r in rows)
     # the averages are those of the two trajectories' own hierarchies
-    per = [level_quality(build_hierarchy(m["mesh_pos"].astype(np.float32), m["cells"], m["node_type"], 3),
-                         m["mesh_pos"].astype(np.float32)) for m in meshes]
+    per = [
+        level_quality(
+            build_hierarchy(m["mesh_pos"].astype(np.float32), m["cells"], m["node_type"], 3),
+            m["mesh_pos"].astype(np.float32),
+        )
+        for m in meshes
+    ]
     for level in range(4):
         assert rows[level]["nodes"] == np.mean([p[level]["nodes"] for p in per])
         assert np.isclose(rows[level]["jacobian_after"], np.mean([p[level]["jacobian_after"] for p in per]))

@@ -1,5 +1,6 @@
 """Padded graphs (static shapes for compiled steps, ``train.compile``): dummy rows change no output, no gradient,
 no normalizer statistic, for every model and both attention modes, on single and batched graphs."""
+
 from __future__ import annotations
 
 import pytest
@@ -40,8 +41,10 @@ def loss_and_grads(model, graph, target, real: int):
 
 @pytest.mark.parametrize("name,kw", CONFIGS, ids=IDS)
 def test_padding_changes_no_output_gradient_or_statistic(name, kw):
-    graphs = [grid_graph(7, 8, levels=2, node_in=NODE_IN, contacts=9, seed=1),
-              grid_graph(6, 9, levels=2, node_in=NODE_IN, contacts=5, seed=2)]
+    graphs = [
+        grid_graph(7, 8, levels=2, node_in=NODE_IN, contacts=9, seed=1),
+        grid_graph(6, 9, levels=2, node_in=NODE_IN, contacts=5, seed=2),
+    ]
     g = collate(graphs)
     sizes = PadSizes.of(graphs, batch=2)
     padded = pad_graph(g, sizes)
@@ -52,8 +55,9 @@ def test_padding_changes_no_output_gradient_or_statistic(name, kw):
 
     a, b = make(name, **kw), make(name, **kw)
     # the target normalizer of the padded model sees the padded target with the node mask
-    b.normalize_target = (lambda t, accumulate=None, f=b.normalize_target:
-                          f(target_padded, accumulate, padded.node_mask)[: g.num_nodes])
+    b.normalize_target = lambda t, accumulate=None, f=b.normalize_target: f(
+        target_padded, accumulate, padded.node_mask
+    )[: g.num_nodes]
     out_a, grads_a = loss_and_grads(a, g, target, g.num_nodes)
     out_b, grads_b = loss_and_grads(b, padded, target, g.num_nodes)
     assert out_a.abs().max() > 1e-3  # not vacuous
@@ -80,7 +84,7 @@ def test_dummy_rows_touch_only_dummy_nodes():
     counts = [n] + [int(q.shape[0]) for q in g.pool]
     for l in range(g.num_levels):
         kept = p.pool[l]
-        assert (kept[: counts[l + 1]] == g.pool[l]).all() and (kept[counts[l + 1]:] == counts[l]).all()
+        assert (kept[: counts[l + 1]] == g.pool[l]).all() and (kept[counts[l + 1] :] == counts[l]).all()
         assert (p.level_edges[l][:, p.level_masks[l] == 0] == counts[l + 1]).all()
 
 
@@ -96,8 +100,9 @@ def test_bucket_sizes_and_refusals():
         pad_graph(pad_graph(g, PadSizes.of([g])), PadSizes.of([g]))
 
 
-@pytest.mark.parametrize("name,kw", CONFIGS + [("hcmt", dict(levels=2, L_C=1, ablation="only-hmt"))],
-                         ids=IDS + ["hcmt-only-hmt"])
+@pytest.mark.parametrize(
+    "name,kw", CONFIGS + [("hcmt", dict(levels=2, L_C=1, ablation="only-hmt"))], ids=IDS + ["hcmt-only-hmt"]
+)
 @pytest.mark.parametrize("padded", [False, True], ids=["plain", "padded"])
 def test_eager_accumulate_equals_accumulating_forward(name, kw, padded):
     """What a compiled step does (``model.accumulate`` then ``forward`` without accumulation) leaves the same
@@ -165,8 +170,10 @@ def test_auto_compile_compiles_only_long_runs_where_a_compiler_exists(monkeypatc
     assert resolve_compile("auto", steps=10**6, device=cpu) == "none"
 
 
-@pytest.mark.skipif(resolve_compile("auto", steps=10**9, device=torch.device("cpu")) == "none",
-                    reason="Inductor has no C++ compiler here")
+@pytest.mark.skipif(
+    resolve_compile("auto", steps=10**9, device=torch.device("cpu")) == "none",
+    reason="Inductor has no C++ compiler here",
+)
 def test_dynamic_compile_serves_every_mesh_and_agrees_with_eager():
     """Rollouts compile with symbolic sizes (``dynamic=True``, real Inductor): meshes of other sizes and contact
     counts (none included) reuse the compiled code, and every output agrees with the eager forward to 1e-5."""
@@ -184,8 +191,10 @@ def test_dynamic_compile_serves_every_mesh_and_agrees_with_eager():
     assert 1 <= torch._dynamo.utils.counters["stats"]["unique_graphs"] <= 2
 
 
-@pytest.mark.skipif(resolve_compile("auto", steps=10**9, device=torch.device("cpu")) == "none",
-                    reason="Inductor has no C++ compiler here")
+@pytest.mark.skipif(
+    resolve_compile("auto", steps=10**9, device=torch.device("cpu")) == "none",
+    reason="Inductor has no C++ compiler here",
+)
 def test_compiled_training_on_two_cpu_threads_writes_no_atomic_adds():
     """On several CPU threads, mode ``default`` keeps Inductor's own kernels on one thread (the matmuls use all):
     otherwise it writes the backward of every gather, a scatter-add, with atomic adds, which made the compiled

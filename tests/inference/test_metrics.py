@@ -1,4 +1,5 @@
 """Metrics against values computed by hand."""
+
 import numpy as np
 import pytest
 

@@ -1,5 +1,6 @@
 """Each Impact Plate quantity (hcmt.inference.quantities) on a hand-made trajectory whose answers are known, and
 the metrics that compare model and solver reading them the same way."""
+
 import numpy as np
 import pytest
 

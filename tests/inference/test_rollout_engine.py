@@ -3,6 +3,7 @@ step's graph built for all designs at once, the rollout on the model's device) a
 (``old_rollout_batch`` of benchmarks/micro/rollout_engine.py: each design's graph built on the host and collated,
 each design integrated in a Python loop): the same graphs field by field, the same rollouts, the diverging design
 named."""
+
 import sys
 from dataclasses import fields
 from pathlib import Path
@@ -39,8 +40,10 @@ def shipped():
     plate from the first frame)."""
     run = Run.load("pretrained:impact_plate_small", "cpu")
     rng = np.random.default_rng(4)
-    trajs = [design_trajectory(run, f"d{i}", sample_design(rng, run.meta["generator"]["preset"]),
-                               settings_of(run.meta))[0] for i in range(3)]
+    trajs = [
+        design_trajectory(run, f"d{i}", sample_design(rng, run.meta["generator"]["preset"]), settings_of(run.meta))[0]
+        for i in range(3)
+    ]
     assert len({tr.num_nodes for tr in trajs}) == 3
     return run, trajs
 
@@ -104,8 +107,10 @@ def test_merged_graph_equals_the_collated_graphs_of_the_designs(shipped):
         moved = x + 0.3 * torch.randn(x.shape, generator=torch.Generator().manual_seed(1))
         for pos in (x, moved):
             got = batch_input(fb, pos, prev, nxt, run.radius)
-            parts = [input_graph(tr, p, q, r, run.radius) for tr, p, q, r in
-                     zip(batch, pos.split(fb.sizes), prev.split(fb.sizes), nxt.split(fb.sizes))]
+            parts = [
+                input_graph(tr, p, q, r, run.radius)
+                for tr, p, q, r in zip(batch, pos.split(fb.sizes), prev.split(fb.sizes), nxt.split(fb.sizes))
+            ]
             want = collate(parts)
             assert want.contact_edges.shape[1] > 0 and got.num_levels == 4
             assert_same_graph(got, want)
@@ -144,14 +149,21 @@ def test_merged_self_contact_equals_the_collated_graphs(method):
     feats = [torch.randn(len(m), 3) for m in mesh]
     static = merge_static(hs, mesh, types, "cpu", self_contact=True)
     got = merged_graph(static, torch.cat(feats), torch.cat(world), 0.06, True, contact_method=method)
-    want = collate([frame_graph(f, m, w, h, 0.06, True, node_type=t, contact_method=method)
-                    for f, m, w, h, t in zip(feats, mesh, world, hs, types)])
+    want = collate(
+        [
+            frame_graph(f, m, w, h, 0.06, True, node_type=t, contact_method=method)
+            for f, m, w, h, t in zip(feats, mesh, world, hs, types)
+        ]
+    )
     assert want.contact_edges.shape[1] > 0
     assert_same_graph(got, want)
 
 
-@pytest.mark.parametrize("name,kw", [("hcmt", {}), ("mgn", {}), ("gt", {}), ("hcmt", {"ablation": "lpe"})],
-                         ids=["hcmt", "mgn", "gt", "hcmt-lpe"])
+@pytest.mark.parametrize(
+    "name,kw",
+    [("hcmt", {}), ("mgn", {}), ("gt", {}), ("hcmt", {"ablation": "lpe"})],
+    ids=["hcmt", "mgn", "gt", "hcmt-lpe"],
+)
 def test_rollouts_equal_the_old_loop(shipped, name, kw):
     """Three designs of different meshes in contact, batched and one at a time: the old loop's positions and
     stress (the batched loops bit for bit on the CPU)."""
@@ -205,14 +217,26 @@ def test_other_datasets_equal_the_old_loop(dataset):
     """Cloth (self-contact, 2-D mesh in 3-D, second order, no stress) and Deformable Plate (no history, a
     prescribed obstacle, the data's stress kept where the model has no stress output)."""
     if dataset == "sphere_simple":
-        trajs = [synthetic(dataset, dict(mesh_pos=m, cells=c, node_type=np.zeros(len(m), np.int64), world=w), 5,
-                           f"c{n}", {}, False) for n, (m, c, w) in ((n, cloth(n)) for n in (12, 15))]
+        trajs = [
+            synthetic(
+                dataset, dict(mesh_pos=m, cells=c, node_type=np.zeros(len(m), np.int64), world=w), 5, f"c{n}", {}, False
+            )
+            for n, (m, c, w) in ((n, cloth(n)) for n in (12, 15))
+        ]
         radius = 0.06
     else:
         meshes = [plate_and_ball(h=h, length=2.0, radius=0.5) for h in (0.1, 0.125)]
-        trajs = [synthetic(dataset, dict(m, world=m["mesh_pos"]), 5, f"p{k}",
-                           {"poisson_ratio": np.full(len(m["mesh_pos"]), 0.3, np.float32)}, True)
-                 for k, m in enumerate(meshes)]
+        trajs = [
+            synthetic(
+                dataset,
+                dict(m, world=m["mesh_pos"]),
+                5,
+                f"p{k}",
+                {"poisson_ratio": np.full(len(m["mesh_pos"]), 0.3, np.float32)},
+                True,
+            )
+            for k, m in enumerate(meshes)
+        ]
         radius = 0.1
     adapter = trajs[0].adapter
     torch.manual_seed(0)
@@ -249,8 +273,14 @@ def test_trained_runs_on_generated_data_equal_the_old_loop(impact_data, tmp_path
     plate) rolled out by the engine, four at a time and one at a time, equal the old loop's."""
     from hcmt.training import train
 
-    train(tiny_config("train.steps=2", "train.contact_radius=0.4"), impact_data, name, tmp_path / "run",
-          progress=False, device="cpu")
+    train(
+        tiny_config("train.steps=2", "train.contact_radius=0.4"),
+        impact_data,
+        name,
+        tmp_path / "run",
+        progress=False,
+        device="cpu",
+    )
     run = Run.load(tmp_path / "run", "cpu")
     levels, remesh = run.hierarchy_spec
     trajs = load_split(impact_data, "train", run.adapter, levels, remesh, limit=4)
@@ -261,5 +291,6 @@ def test_trained_runs_on_generated_data_equal_the_old_loop(impact_data, tmp_path
     assert_same_rollouts(new, old_rollout_batch(run.model, run.adapter, trajs, run.radius), rel=0.0)
     singles = [rollout(run.model, run.adapter, tr, run.radius) for tr in trajs]
     assert_same_rollouts(new, singles)
-    assert_same_rollouts(singles, [old_rollout_batch(run.model, run.adapter, [tr], run.radius)[0] for tr in trajs],
-                         rel=0.0)
+    assert_same_rollouts(
+        singles, [old_rollout_batch(run.model, run.adapter, [tr], run.radius)[0] for tr in trajs], rel=0.0
+    )

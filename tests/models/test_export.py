@@ -1,6 +1,7 @@
 """The ahead-of-time compiled forward (:mod:`hcmt.models.export`): the dummy node and contact edges change no real
 node's output, for every model; the AOTInductor package agrees with eager on meshes of other sizes and contact counts
 (none included), and a second process-like call loads it from the cache instead of exporting again."""
+
 from __future__ import annotations
 
 import pytest
@@ -13,8 +14,12 @@ from hcmt.models.export import exported_forward, with_dummies
 from models_grid import grid_graph
 
 NODE_IN, MESH_IN, CONTACT_IN, OUT = 5, 6, 3, 3
-CONFIGS = [("hcmt", dict(levels=2, L_C=1)), ("hcmt", dict(levels=2, L_C=1, attention="official", ffn_bias=False)),
-           ("mgn", dict(blocks=2)), ("gt", dict(blocks=2))]
+CONFIGS = [
+    ("hcmt", dict(levels=2, L_C=1)),
+    ("hcmt", dict(levels=2, L_C=1, attention="official", ffn_bias=False)),
+    ("mgn", dict(blocks=2)),
+    ("gt", dict(blocks=2)),
+]
 
 
 def make(name, **kw):
@@ -31,18 +36,23 @@ def test_dummy_node_and_contact_edges_change_no_real_output(name, kw, contacts):
     padded = with_dummies(graph)
     assert padded.num_nodes == graph.num_nodes + 1 and padded.contact_edges.shape[1] == graph.contact_edges.shape[1] + 2
     with torch.no_grad():
-        torch.testing.assert_close(model(padded, accumulate=False)[: graph.num_nodes], model(graph, accumulate=False),
-                                   rtol=1e-6, atol=1e-6)
+        torch.testing.assert_close(
+            model(padded, accumulate=False)[: graph.num_nodes], model(graph, accumulate=False), rtol=1e-6, atol=1e-6
+        )
 
 
 @pytest.mark.slow
-@pytest.mark.skipif(resolve_compile("auto", steps=10**9, device=torch.device("cpu")) == "none",
-                    reason="Inductor has no C++ compiler here")
+@pytest.mark.skipif(
+    resolve_compile("auto", steps=10**9, device=torch.device("cpu")) == "none",
+    reason="Inductor has no C++ compiler here",
+)
 def test_exported_forward_agrees_with_eager_and_is_built_once(tmp_path, monkeypatch):
     monkeypatch.setenv("TORCHINDUCTOR_CACHE_DIR", str(tmp_path))
     model = make("mgn", blocks=1)  # the mechanism, at the least compile time (the shipped HCMT: forward_modes.py)
-    graphs = [collate([grid_graph(n, n + 1, levels=0, node_in=NODE_IN, contacts=c, seed=n)])
-              for n, c in ((7, 6), (9, 9), (8, 0), (6, 1))]
+    graphs = [
+        collate([grid_graph(n, n + 1, levels=0, node_in=NODE_IN, contacts=c, seed=n)])
+        for n, c in ((7, 6), (9, 9), (8, 0), (6, 1))
+    ]
     forward = exported_forward(model, graphs[0])
     assert len(list((tmp_path / "aoti").glob("*.pt2"))) == 1
     with torch.no_grad():
@@ -80,10 +90,14 @@ def test_aot_falls_back_to_torch_compile_with_a_warning_where_the_export_fails(m
     import hcmt.inference.rollout as rollout_module
 
     compiled = []
-    monkeypatch.setattr(rollout_module, "exported_forward",
-                        lambda model, example: (_ for _ in ()).throw(RuntimeError("unsupported op\nmore")))
-    monkeypatch.setattr(rollout_module, "compile_simulator",
-                        lambda model, mode, dynamic: compiled.append((mode, dynamic)) or model)
+    monkeypatch.setattr(
+        rollout_module,
+        "exported_forward",
+        lambda model, example: (_ for _ in ()).throw(RuntimeError("unsupported op\nmore")),
+    )
+    monkeypatch.setattr(
+        rollout_module, "compile_simulator", lambda model, mode, dynamic: compiled.append((mode, dynamic)) or model
+    )
     model = make("mgn", blocks=1)
     graph = collate([grid_graph(5, 6, levels=0, node_in=NODE_IN, contacts=2, seed=3)])
     with caplog.at_level("WARNING", logger="hcmt.inference.rollout"):

@@ -1,4 +1,5 @@
 """Model invariants: permutation equivariance, per-receiver softmax, gradients, batching, empty edge sets."""
+
 from __future__ import annotations
 
 import numpy as np
@@ -27,8 +28,9 @@ CONFIGS = [
 ]
 # the authors' attention (model.attention: official) and bias-free FFNs, in HCMT and every ablation
 CONFIGS += [("hcmt", dict(kw, attention="official", ffn_bias=False)) for n, kw in CONFIGS if n == "hcmt"]
-IDS = [f"{n}-{kw.get('ablation') or kw.get('levels', '')}{'-official' if kw.get('attention') else ''}"
-       for n, kw in CONFIGS]
+IDS = [
+    f"{n}-{kw.get('ablation') or kw.get('levels', '')}{'-official' if kw.get('attention') else ''}" for n, kw in CONFIGS
+]
 BATCHED = [CONFIGS[0], CONFIGS[7], CONFIGS[8], CONFIGS[9]]  # HCMT, MGN, GT, HCMT official
 
 
@@ -45,8 +47,11 @@ def warm(model, graph):
     return model.eval()
 
 
-@pytest.mark.parametrize("name,kw", [c for c in CONFIGS if c[1].get("ablation") != "lpe"], ids=[
-    i for i, c in zip(IDS, CONFIGS) if c[1].get("ablation") != "lpe"])
+@pytest.mark.parametrize(
+    "name,kw",
+    [c for c in CONFIGS if c[1].get("ablation") != "lpe"],
+    ids=[i for i, c in zip(IDS, CONFIGS) if c[1].get("ablation") != "lpe"],
+)
 def test_permutation_equivariance(name, kw):
     g = grid_graph(9, 9, levels=2, node_in=NODE_IN, contacts=12)
     model = warm(make(name, **kw), g)
@@ -134,8 +139,16 @@ def test_official_propagate_matches_dense_reference():
     assert (out[4:] == 0).all()
     assert w.min() >= torch.exp(torch.tensor(-clip)) - 1e-6 and w.max() <= torch.exp(torch.tensor(clip)) + 1e-6
     # unlike a softmax, the sum grows with the number of senders: duplicate node 0's edges
-    out2, _ = propagate(q, k, v, torch.cat([et, et[:3]]), torch.cat([gate, gate[:3]]),
-                        torch.cat([edges, edges[:, :3]], 1), clip, mode="official")
+    out2, _ = propagate(
+        q,
+        k,
+        v,
+        torch.cat([et, et[:3]]),
+        torch.cat([gate, gate[:3]]),
+        torch.cat([edges, edges[:, :3]], 1),
+        clip,
+        mode="official",
+    )
     torch.testing.assert_close(out2[0], 2 * out[0])
     torch.testing.assert_close(out2[1:], out[1:])
 
@@ -260,9 +273,14 @@ def test_attention_maps_are_recorded_by_hooks_and_forward_returns_the_output_onl
     """hcmt.models.attention.recording: one map per block and branch, named, leveled and with its own edges, for
     HCMT (its single-branch ablation too) and GT; outside the context no hook stays and forward is the output."""
     g = grid_graph(9, 9, levels=2, node_in=NODE_IN, contacts=12)
-    for name, kw, names in (("gt", dict(blocks=2), ["gt0", "gt1"]),
-                            ("hcmt", dict(levels=1, L_C=1, ablation="single-branch"),
-                             ["cmt0.mesh+contact", "hmt.down0", "hmt.bottom1", "hmt.up0"])):
+    for name, kw, names in (
+        ("gt", dict(blocks=2), ["gt0", "gt1"]),
+        (
+            "hcmt",
+            dict(levels=1, L_C=1, ablation="single-branch"),
+            ["cmt0.mesh+contact", "hmt.down0", "hmt.bottom1", "hmt.up0"],
+        ),
+    ):
         model = warm(make(name, **kw), g)
         with torch.no_grad(), recording(model) as maps:
             out = model(g)

@@ -1,4 +1,5 @@
 """The hierarchy's shortcut (paper Fig. 2) and a forward/backward pass on a paper-size Impact Plate sample."""
+
 from __future__ import annotations
 
 from dataclasses import replace
@@ -35,8 +36,13 @@ def test_hierarchy_reaches_beyond_the_blocks_receptive_field(sample):
     In float64: the dependence is structural, but at initialization a perturbation shrinks roughly tenfold per
     hop, below float32 resolution after ~15 hops."""
     g = replace(sample, contact_edges=sample.contact_edges[:, :0], contact_features=sample.contact_features[:0])
-    g = replace(g, node_features=g.node_features.double(), mesh_features=g.mesh_features.double(),
-                contact_features=g.contact_features.double(), level_features=[f.double() for f in g.level_features])
+    g = replace(
+        g,
+        node_features=g.node_features.double(),
+        mesh_features=g.mesh_features.double(),
+        contact_features=g.contact_features.double(),
+        level_features=[f.double() for f in g.level_features],
+    )
     spec = dataset_spec("impact_plate")
     blocks = spec["L_C"] + spec["L_H"]
     assert blocks == 15

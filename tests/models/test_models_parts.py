@@ -1,4 +1,5 @@
 """Shared parts: online normalizer, Laplacian PE, updater, factory and the paper's per-dataset table."""
+
 from __future__ import annotations
 
 import io
@@ -184,7 +185,8 @@ def test_mgn_edge_update_equals_the_mlp_of_the_concatenation():
     plain = block.mesh_edge(torch.cat([e, z[edges[0]], z[edges[1]]], dim=-1))
     torch.testing.assert_close(split, plain, rtol=1e-12, atol=1e-12)
     weights = torch.randn_like(plain)
-    grads = [torch.autograd.grad((out * weights).sum(), [z, e, *block.mesh_edge.parameters()])
-             for out in (split, plain)]
+    grads = [
+        torch.autograd.grad((out * weights).sum(), [z, e, *block.mesh_edge.parameters()]) for out in (split, plain)
+    ]
     for a, b in zip(*grads):
         torch.testing.assert_close(a, b, rtol=1e-12, atol=1e-12)

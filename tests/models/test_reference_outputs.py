@@ -1,5 +1,6 @@
 """The safety net of refactors: every model's output and one training step's gradients equal the stored reference
 (tests/reference_outputs.py) to float64 round-off."""
+
 import pytest
 import torch
 

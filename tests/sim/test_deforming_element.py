@@ -1,5 +1,6 @@
 """The neo-Hookean tetrahedron of the Deforming Plate generator against exact results: the patch test, the
 tangent against the forces' finite differences, uniaxial stretch at large strain against the closed form."""
+
 import numpy as np
 import pytest
 from scipy.optimize import brentq
@@ -50,9 +51,11 @@ def test_patch_uniform_deformation_is_exact():
     solved, log = newton(fixed_body, start, [], Newton(rtol=1e-12))
     np.testing.assert_allclose(solved, x, atol=1e-10)
     assert log.iterations <= 6
-    print(f"patch test: interior force {np.abs(f[inner]).max() / scale:.1e} of the boundary's, stress spread "
-          f"{np.ptp(sigma, axis=0).max() / np.abs(sigma).max():.1e}, interior nodes recovered to "
-          f"{np.abs(solved - x).max():.1e} in {log.iterations} Newton iterations")
+    print(
+        f"patch test: interior force {np.abs(f[inner]).max() / scale:.1e} of the boundary's, stress spread "
+        f"{np.ptp(sigma, axis=0).max() / np.abs(sigma).max():.1e}, interior nodes recovered to "
+        f"{np.abs(solved - x).max():.1e} in {log.iterations} Newton iterations"
+    )
 
 
 def test_tangent_is_the_derivative_of_the_forces():
@@ -76,8 +79,9 @@ def test_uniaxial_stretch_matches_the_closed_form():
     pos, tets = box_tets(np.linspace(0, 2, 4), np.linspace(0, 1, 3), np.linspace(0, 1, 3))
     x0, y0, z0 = (np.flatnonzero(pos[:, k] == 0) for k in range(3))
     end = np.flatnonzero(pos[:, 0] == 2)
-    body = NeoHookean(pos, tets, E, NU, fixed=np.concatenate([dofs(x0, [0]), dofs(y0, [1]), dofs(z0, [2]),
-                                                              dofs(end, [0])]))
+    body = NeoHookean(
+        pos, tets, E, NU, fixed=np.concatenate([dofs(x0, [0]), dofs(y0, [1]), dofs(z0, [2]), dofs(end, [0])])
+    )
     stretch = 1.5
 
     def load(s, y):
@@ -91,9 +95,11 @@ def test_uniaxial_stretch_matches_the_closed_form():
     force = body.forces(x)[end, 0].sum()  # over the 1 x 1 end face
     np.testing.assert_allclose(x[:, 1], pos[:, 1] * lt, atol=1e-10)
     np.testing.assert_allclose(force, nominal * 1.0, rtol=1e-9)
-    print(f"uniaxial stretch 1.5: lateral stretch {lt:.6f} (error {np.abs(x[:, 1] - pos[:, 1] * lt).max():.1e}), "
-          f"nominal stress {nominal:.6f} MPa (relative error {abs(force / nominal - 1):.1e}), "
-          f"Newton iterations {log.iterations}")
+    print(
+        f"uniaxial stretch 1.5: lateral stretch {lt:.6f} (error {np.abs(x[:, 1] - pos[:, 1] * lt).max():.1e}), "
+        f"nominal stress {nominal:.6f} MPa (relative error {abs(force / nominal - 1):.1e}), "
+        f"Newton iterations {log.iterations}"
+    )
 
 
 @pytest.mark.parametrize("poisson", [-1.0, 0.5])

@@ -1,5 +1,6 @@
 """A rigid sphere pressed into a thick neo-Hookean block (the penalty contact of the Deforming Plate generator)
 against Hertz: ``F = 4/3 E* sqrt(R) d^1.5``, ``E* = E / (1 - ν²)`` for a rigid indenter."""
+
 import numpy as np
 
 from hcmt.sim.actuator import Sphere
@@ -22,8 +23,13 @@ def test_rigid_sphere_force_against_hertz():
     fine = np.linspace(0, 2.0, 6)
     xs = np.concatenate([fine, 2.0 * (W / 2.0) ** (np.arange(1, 7) / 6)])
     pos, tets = box_tets(xs, xs, -xs[::-1])
-    fixed = np.concatenate([dofs(np.flatnonzero(pos[:, 0] == 0), 0), dofs(np.flatnonzero(pos[:, 1] == 0), 1),
-                            dofs(np.flatnonzero(pos[:, 2] == -W), 2)])
+    fixed = np.concatenate(
+        [
+            dofs(np.flatnonzero(pos[:, 0] == 0), 0),
+            dofs(np.flatnonzero(pos[:, 1] == 0), 1),
+            dofs(np.flatnonzero(pos[:, 2] == -W), 2),
+        ]
+    )
     body = NeoHookean(pos, tets, E, NU, fixed=fixed)
     top = np.flatnonzero(pos[:, 2] == 0)
     x, ratios = pos.copy(), []
@@ -33,7 +39,7 @@ def test_rigid_sphere_force_against_hertz():
         force = 4 * contact.force_on_obstacle(x)[2]  # the quarter model's force, times 4
         penetration = -contact.obstacle.distance(x[top])[0].min()
         assert penetration < 0.005 * d  # the penalty's own compliance is negligible against d
-        ratios.append(force / (4 / 3 * E / (1 - NU ** 2) * np.sqrt(R) * d ** 1.5))
+        ratios.append(force / (4 / 3 * E / (1 - NU**2) * np.sqrt(R) * d**1.5))
         print(f"Hertz d = {d}: force / Hertz {ratios[-1]:.4f}, Newton iterations {log.iterations}")
     assert all(abs(r - 1) < 0.15 for r in ratios)
     exponent = 1.5 + np.log(ratios[1] / ratios[0]) / np.log(2)

@@ -1,5 +1,6 @@
 """The Deforming Plate scene and dataset: equilibrium at every step, every actuator shape and path, Newton's record,
 and a generated file read by the same adapter as a file of the public layout."""
+
 import json
 import sys
 from pathlib import Path
@@ -34,8 +35,10 @@ def test_every_step_is_an_equilibrium(shape, path):
     assert r["actuator_force"][-1, 2] > 0.01 * np.abs(r["actuator_force"]).max() > 0  # pushed up by the plate
     assert r["world"][-1, :, 2].min() < -design.thickness - 0.5  # the plate bends down
     assert r["iterations"].shape == (SMALL.frames - 1,) and r["iterations"].mean() <= 12  # 8 big steps
-    print(f"{shape}/{path}: reaction - actuator force max {np.abs(r['reaction'] - r['actuator_force']).max():.2e} "
-          f"N of {np.abs(r['actuator_force']).max():.3f} N; Newton iterations per step {r['iterations'].tolist()}")
+    print(
+        f"{shape}/{path}: reaction - actuator force max {np.abs(r['reaction'] - r['actuator_force']).max():.2e} "
+        f"N of {np.abs(r['actuator_force']).max():.3f} N; Newton iterations per step {r['iterations'].tolist()}"
+    )
 
 
 def test_trajectory_layout_node_types_and_stress():
@@ -47,21 +50,24 @@ def test_trajectory_layout_node_types_and_stress():
     types = f["node_type"][:, 0]
     assert set(np.unique(types)) == {NodeType.NORMAL, NodeType.OBSTACLE, NodeType.HANDLE}
     handle, obstacle = types == NodeType.HANDLE, types == NodeType.OBSTACLE
-    np.testing.assert_array_equal(f["world_pos"][:, handle], np.broadcast_to(f["mesh_pos"][handle],
-                                                                             f["world_pos"][:, handle].shape))
+    np.testing.assert_array_equal(
+        f["world_pos"][:, handle], np.broadcast_to(f["mesh_pos"][handle], f["world_pos"][:, handle].shape)
+    )
     moved = f["world_pos"][:, obstacle] - f["mesh_pos"][obstacle]
     np.testing.assert_allclose(moved, np.broadcast_to(moved[:, :1], moved.shape), atol=1e-5)  # rigid translation
     assert np.all(f["stress"][0] == 0) and f["stress"][-1].max() > 0 and np.all(f["stress"][:, obstacle] == 0)
     # SI fields, as the public dataset (the design is in mm and MPa)
-    np.testing.assert_allclose(f["mesh_pos"][~obstacle].max(0), 1e-3 * np.array(
-        [PlateDesign().plate_length, PlateDesign().plate_width, 0.0]), atol=1e-7)
+    np.testing.assert_allclose(
+        f["mesh_pos"][~obstacle].max(0),
+        1e-3 * np.array([PlateDesign().plate_length, PlateDesign().plate_width, 0.0]),
+        atol=1e-7,
+    )
     assert PlateDesign().modulus * 1e6 > f["stress"].max() > 1e-3 * PlateDesign().modulus * 1e6  # in Pa
     assert len(json.loads(attrs["newton_iterations"])) == SMALL.frames - 1 and attrs["shape"] == "sphere"
 
 
 def test_generated_and_public_layout_read_by_the_same_adapter(tmp_path):
-    generate_deforming_plate(tmp_path / "gen", counts=dict(train=2, valid=1), seed=3, settings=SMALL,
-                             progress=False)
+    generate_deforming_plate(tmp_path / "gen", counts=dict(train=2, valid=1), seed=3, settings=SMALL, progress=False)
     deforming_plate_tfrecord(tmp_path / "src", steps=4)
     convert(tmp_path / "src", tmp_path / "public")
     gen_meta, pub_meta = read_meta(tmp_path / "gen"), read_meta(tmp_path / "public")
@@ -69,8 +75,12 @@ def test_generated_and_public_layout_read_by_the_same_adapter(tmp_path):
     assert set(gen_meta["field_names"]) == set(pub_meta["field_names"])
     for name in gen_meta["field_names"]:
         g, p = gen_meta["features"][name], pub_meta["features"][name]
-        assert (g["type"], g["dtype"], g["shape"][-1], len(g["shape"])) == \
-            (p["type"], p["dtype"], p["shape"][-1], len(p["shape"])), name
+        assert (g["type"], g["dtype"], g["shape"][-1], len(g["shape"])) == (
+            p["type"],
+            p["dtype"],
+            p["shape"][-1],
+            len(p["shape"]),
+        ), name
     adapter = get_adapter("deforming_plate")
     gen, pub = (load_split(tmp_path / d, "train", adapter, levels=1)[0] for d in ("gen", "public"))
     assert set(gen.static) == set(pub.static)
@@ -96,8 +106,10 @@ def test_generate_resumes_and_refuses_bad_input(tmp_path):
     assert not (tmp_path / "y").exists()
 
 
-@pytest.mark.parametrize("extra,flag", [(["--variants"], "--variants"), (["--family", "stack2"], "--family"),
-                                        (["--frames", "1"], "--frames")])
+@pytest.mark.parametrize(
+    "extra,flag",
+    [(["--variants"], "--variants"), (["--family", "stack2"], "--family"), (["--frames", "1"], "--frames")],
+)
 def test_command_refuses_impact_options_and_bad_frames(tmp_path, capsys, extra, flag):
     from hcmt.cli import main
 

@@ -1,6 +1,7 @@
 """Each design parameter's unit and help are declared once (:data:`hcmt.sim.units.PARAMETERS`): ``hcmt
 simulate``'s options, the unit the designs CSV's messages and the response surface's file use, and the first
 checks' messages all read that declaration."""
+
 from __future__ import annotations
 
 import argparse

@@ -1,6 +1,7 @@
 """``generate_dataset(ranges=)`` (``hcmt generate impact-plate --range NAME=LO:HI``): a sampled parameter's range
 replaced in the train, valid and test splits, the same draws mapped onto it; the variant splits keep their own
 ranges; meta.json records the override; a dataset is only resumed with the same ranges."""
+
 from __future__ import annotations
 
 import json
@@ -31,7 +32,8 @@ def test_an_override_maps_the_same_draw_onto_its_range_and_leaves_the_rest(seed)
     assert lo <= over.thickness <= hi and not lo <= base.thickness <= hi
     # the same uniform draw, mapped onto the new range
     assert fraction(over.thickness, NARROW["thickness"]) == pytest.approx(
-        fraction(base.thickness, RANGES["small"]["thickness"]), abs=1e-9)
+        fraction(base.thickness, RANGES["small"]["thickness"]), abs=1e-9
+    )
     changed = {k for k, v in asdict(over).items() if v != asdict(base)[k]}
     assert changed == {"thickness"}  # every other parameter: the same stream, the same values
 
@@ -39,10 +41,12 @@ def test_an_override_maps_the_same_draw_onto_its_range_and_leaves_the_rest(seed)
 def test_an_override_of_the_edge_parameter_moves_the_edge_draws_with_it():
     """edge_fraction's thin plates lie in the lowest fifth of the overridden thickness range, not the preset's."""
     lo, hi = NARROW["thickness"]
-    designs = [sample_design(np.random.default_rng(s), "small", edge_fraction=1.0, override=NARROW)
-               for s in range(40)]
-    thin = [d.thickness for d in designs if d.drop_height < RANGES["small"]["drop_height"][0]
-            + 0.8 * np.diff(RANGES["small"]["drop_height"])[0]]
+    designs = [sample_design(np.random.default_rng(s), "small", edge_fraction=1.0, override=NARROW) for s in range(40)]
+    thin = [
+        d.thickness
+        for d in designs
+        if d.drop_height < RANGES["small"]["drop_height"][0] + 0.8 * np.diff(RANGES["small"]["drop_height"])[0]
+    ]
     assert thin and all(lo <= t <= lo + 0.2 * (hi - lo) + 1e-12 for t in thin)
     assert all(lo <= d.thickness <= hi for d in designs)
 
@@ -77,20 +81,24 @@ def test_family_parameters_can_be_overridden_only_where_every_family_samples_the
     assert e.value.param == "range"
 
 
-@pytest.mark.parametrize("ranges, words", [
-    ({"foo": (1.0, 2.0)}, "foo is not a sampled parameter"),
-    ({"thickness": (1.0, 0.5)}, "low <= high"),
-    ({"thickness": (float("nan"), 1.0)}, "finite"),
-    ({"drop_height": (500.0, float("inf"))}, "finite"),
-    ({"thickness": (0.5,)}, "expected \\(low, high\\)"),
-    ({"thickness": (0.01, 1.0)}, "mesh_size .* must not exceed thickness"),
-    ({"plate_half_length": (2.0, 12.0)}, "plate_half_length .* must exceed the ball_radius"),
-])
+@pytest.mark.parametrize(
+    "ranges, words",
+    [
+        ({"foo": (1.0, 2.0)}, "foo is not a sampled parameter"),
+        ({"thickness": (1.0, 0.5)}, "low <= high"),
+        ({"thickness": (float("nan"), 1.0)}, "finite"),
+        ({"drop_height": (500.0, float("inf"))}, "finite"),
+        ({"thickness": (0.5,)}, "expected \\(low, high\\)"),
+        ({"thickness": (0.01, 1.0)}, "mesh_size .* must not exceed thickness"),
+        ({"plate_half_length": (2.0, 12.0)}, "plate_half_length .* must exceed the ball_radius"),
+    ],
+)
 def test_bad_ranges_are_refused_before_anything_is_written(tmp_path, ranges, words, monkeypatch):
     monkeypatch.setattr(gen, "_run_one", lambda task: pytest.fail("work started"))
     with pytest.raises(InputError, match=words) as e:
-        gen.generate_dataset(tmp_path / "d", preset="small", counts={"train": 1}, settings=TINY, progress=False,
-                             ranges=ranges)
+        gen.generate_dataset(
+            tmp_path / "d", preset="small", counts={"train": 1}, settings=TINY, progress=False, ranges=ranges
+        )
     assert e.value.param == "range" and "\n" not in str(e.value)
     assert not (tmp_path / "d").exists()
 
@@ -105,8 +113,7 @@ def test_a_dataset_without_overrides_keeps_its_meta():
 
 def test_generated_data_lies_in_the_overridden_range_and_meta_records_it(tmp_path):
     out, counts, seed = tmp_path / "d", {"train": 2, "test": 1, "test_thicker": 1}, 5
-    gen.generate_dataset(out, preset="small", counts=counts, seed=seed, settings=TINY, progress=False,
-                         ranges=NARROW)
+    gen.generate_dataset(out, preset="small", counts=counts, seed=seed, settings=TINY, progress=False, ranges=NARROW)
     generator = json.loads((out / "meta.json").read_text())["generator"]
     assert generator["range_overrides"] == {k: list(v) for k, v in NARROW.items()}
     assert generator["ranges"] == {k: list(NARROW.get(k, v)) for k, v in RANGES["small"].items()}
@@ -124,12 +131,22 @@ def test_generated_data_lies_in_the_overridden_range_and_meta_records_it(tmp_pat
 
     # resuming the folder: the same ranges reuse everything; other ranges (or none) are refused, nothing changed
     files = {p.name: p.read_bytes() for p in out.iterdir() if p.is_file()}
-    assert gen.generate_dataset(out, preset="small", counts=counts, seed=seed, settings=TINY, progress=False,
-                                ranges=NARROW)["simulated"] == 0
-    for other, words in (({"thickness": (1.2, 1.3)}, r"range_overrides.thickness \[1.2, 1.25\] there, "
-                                                     r"\[1.2, 1.3\] asked"),
-                         (None, r"range_overrides \{'thickness': \[1.2, 1.25\]\} there, None asked")):
+    assert (
+        gen.generate_dataset(
+            out, preset="small", counts=counts, seed=seed, settings=TINY, progress=False, ranges=NARROW
+        )["simulated"]
+        == 0
+    )
+    for other, words in (
+        (
+            {"thickness": (1.2, 1.3)},
+            r"range_overrides.thickness \[1.2, 1.25\] there, "
+            r"\[1.2, 1.3\] asked",
+        ),
+        (None, r"range_overrides \{'thickness': \[1.2, 1.25\]\} there, None asked"),
+    ):
         with pytest.raises(InputError, match=words):
-            gen.generate_dataset(out, preset="small", counts=counts, seed=seed, settings=TINY, progress=False,
-                                 ranges=other)
+            gen.generate_dataset(
+                out, preset="small", counts=counts, seed=seed, settings=TINY, progress=False, ranges=other
+            )
     assert {p.name: p.read_bytes() for p in out.iterdir() if p.is_file()} == files

@@ -2,6 +2,7 @@
 results: laminated-plate theory, Timoshenko's simply supported plate, Hertz for the pen, energy conservation, and
 a stack of one material that must equal the plate it is cut from. Expected values are formulas, never numbers the
 code produced."""
+
 from __future__ import annotations
 
 from dataclasses import replace
@@ -123,15 +124,18 @@ def test_stack_of_one_material_equals_the_plate():
       the nodal peak under the ball is not mesh-converged at the small preset's 0.3 mm (docs/solver.md, "Panel
       families": 680, 757, 941 MPa at 0.3, 0.2, 0.15 mm), so another row layout moves it by that much."""
     base = Design(thickness=0.9, mesh_size=0.3, ball_radius=3.75, plate_half_length=12.0)
-    glass = dict(layer2_density=base.plate_density, layer2_modulus=base.plate_modulus,
-                 layer2_poisson=base.plate_poisson)
+    glass = dict(
+        layer2_density=base.plate_density, layer2_modulus=base.plate_modulus, layer2_poisson=base.plate_poisson
+    )
     same = replace(base, thickness=0.45, layer2_thickness=0.45, **glass)
     other = replace(base, thickness=0.6, layer2_thickness=0.3, **glass)
     assert layer_rows([0.45, 0.45], 0.3) == [2, 2] and layer_rows([0.6, 0.3], 0.3) == [3, 1]
     assert layer_rows([0.9], 0.3) == [4] and same.family == "stack2" and base.family == "mono"
     plate, a, b = impact_answers(base), impact_answers(same), impact_answers(other)
-    print(f"\none material: plate {plate}, same rows {a}, other rows {b}: peak {a[0] / plate[0] - 1:+.2%} / "
-          f"{b[0] / plate[0] - 1:+.2%}, deflection {a[1] / plate[1] - 1:+.2%} / {b[1] / plate[1] - 1:+.2%}")
+    print(
+        f"\none material: plate {plate}, same rows {a}, other rows {b}: peak {a[0] / plate[0] - 1:+.2%} / "
+        f"{b[0] / plate[0] - 1:+.2%}, deflection {a[1] / plate[1] - 1:+.2%} / {b[1] / plate[1] - 1:+.2%}"
+    )
     assert a[0] == pytest.approx(plate[0], rel=0.02) and a[1] == pytest.approx(plate[1], rel=0.02)
     assert b[1] == pytest.approx(plate[1], rel=0.02) and b[0] == pytest.approx(plate[0], rel=0.08)
 
@@ -141,8 +145,17 @@ def test_pen_tip_force_and_duration_match_hertz():
     """A pen (rigid rod of 20 g, steel tip R = 3 mm) at 2 m/s on a thick glass block: with the rod's mass in
     Hertz's m, d = (15 m v^2 / (16 E* sqrt R))^(2/5), F = 4/3 E* sqrt(R) d^(3/2), t_c = 2.94 d / v, within 10 %."""
     R, M, v, depth = 3.0, 20.0, 2.0, 6.0
-    mesh = impact_plate_mesh(depth, R, 0.08, plate_half_length=6.0, gap=1e-3, plate_growth=1.15, plate_h_max=0.8,
-                             plate_y_growth=1.15, impactor="pen")
+    mesh = impact_plate_mesh(
+        depth,
+        R,
+        0.08,
+        plate_half_length=6.0,
+        gap=1e-3,
+        plate_growth=1.15,
+        plate_h_max=0.8,
+        plate_y_growth=1.15,
+        impactor="pen",
+    )
     X, body = mesh["mesh_pos"], mesh["body"]
     rho = np.where(mesh["cell_body"] == 1, STEEL[0], 2.5e-3)
     E = np.where(mesh["cell_body"] == 1, STEEL[1], 70e3)
@@ -186,8 +199,11 @@ def test_energy_conserved_per_family(family):
         e = sim.energies()
         totals.append(sum(e.values()))
         strain.append(e["strain"])
-    kinetic0 = 0.5 * (sim.model.mass[mesh["body"] == 1].sum() + (design.pen_mass if family == "pen" else 0.0)) \
+    kinetic0 = (
+        0.5
+        * (sim.model.mass[mesh["body"] == 1].sum() + (design.pen_mass if family == "pen" else 0.0))
         * design.impact_speed**2
+    )
     drift = np.max(np.abs(np.array(totals) - e0)) / kinetic0
     print(f"\nenergy {family}: drift {drift:.2e} of the impact energy, strain peak {max(strain) / kinetic0:.0%}")
     assert max(strain) > 0.2 * kinetic0
@@ -242,19 +258,22 @@ def test_stack_spec_parses_presets_and_overrides():
     assert d.family == "stack3" and d.total_thickness == pytest.approx(0.8)
 
 
-@pytest.mark.parametrize("args, expected", [
-    (["--stack", "glass:0.5,glue:0.1"], "layer 2 'glue:0.1': expected MATERIAL:THICKNESS"),
-    (["--stack", "glass:abc"], "layer 1 thickness must be a number"),
-    (["--stack", "glass:0.5,film:-0.1"], "layer 2 thickness must be > 0 mm"),
-    (["--stack", "glass:0.3,film:0.1,film:0.1,film:0.1,film:0.1"], "5 layers; a stack has 1-4 layers"),
-    (["--stack", "glass:0.5,adhesive:0.1:poisson=0.5"], "layer2_poisson must be in [0, 0.45]"),
-    (["--stack", "glass:0.5,adhesive:0.1:poisson=0.47"], "layer2_poisson must be in [0, 0.45]"),
-    (["--support-radius", "20"], "support_radius (20.0 mm) must lie inside the plate"),
-    (["--pen-tip-radius", "9"], "pen_tip_radius (9.0 mm) must lie between mesh_size"),
-    (["--pen-tip-radius", "0.1"], "pen_tip_radius (0.1 mm) must lie between mesh_size"),
-    (["--family", "wobbly"], "family 'wobbly' does not exist; the families are mono, stack2"),
-    (["--support-radius", "8", "--backing-thickness", "1"], "choose one support"),
-])
+@pytest.mark.parametrize(
+    "args, expected",
+    [
+        (["--stack", "glass:0.5,glue:0.1"], "layer 2 'glue:0.1': expected MATERIAL:THICKNESS"),
+        (["--stack", "glass:abc"], "layer 1 thickness must be a number"),
+        (["--stack", "glass:0.5,film:-0.1"], "layer 2 thickness must be > 0 mm"),
+        (["--stack", "glass:0.3,film:0.1,film:0.1,film:0.1,film:0.1"], "5 layers; a stack has 1-4 layers"),
+        (["--stack", "glass:0.5,adhesive:0.1:poisson=0.5"], "layer2_poisson must be in [0, 0.45]"),
+        (["--stack", "glass:0.5,adhesive:0.1:poisson=0.47"], "layer2_poisson must be in [0, 0.45]"),
+        (["--support-radius", "20"], "support_radius (20.0 mm) must lie inside the plate"),
+        (["--pen-tip-radius", "9"], "pen_tip_radius (9.0 mm) must lie between mesh_size"),
+        (["--pen-tip-radius", "0.1"], "pen_tip_radius (0.1 mm) must lie between mesh_size"),
+        (["--family", "wobbly"], "family 'wobbly' does not exist; the families are mono, stack2"),
+        (["--support-radius", "8", "--backing-thickness", "1"], "choose one support"),
+    ],
+)
 def test_bad_family_input_is_one_line_exit_2(args, expected, capsys):
     """Refused before any work (no solve starts: the plan's line is not printed), one line, exit 2."""
     rc = cli(["simulate", "--preset", "small", "--frames", "3", "--no-progress", *args])
@@ -265,8 +284,21 @@ def test_bad_family_input_is_one_line_exit_2(args, expected, capsys):
 
 
 def test_generate_unknown_family_is_refused_listing_families(tmp_path, capsys):
-    rc = cli(["generate", "impact-plate", str(tmp_path / "d"), "--family", "mono,pencil", "--train", "1", "--valid",
-              "0", "--test", "0"])
+    rc = cli(
+        [
+            "generate",
+            "impact-plate",
+            str(tmp_path / "d"),
+            "--family",
+            "mono,pencil",
+            "--train",
+            "1",
+            "--valid",
+            "0",
+            "--test",
+            "0",
+        ]
+    )
     err = capsys.readouterr().err
     assert rc == 2 and "family 'pencil' does not exist; the families are " + ", ".join(FAMILIES) in err
     assert not (tmp_path / "d").exists()
@@ -302,8 +334,13 @@ def test_learned_models_hold_a_ring_node_axially_and_find_the_plate_without_a_cl
 def test_generated_families_are_recorded_and_listed(tmp_path):
     """``generate --family`` takes the families in turn; meta.json records each trajectory's; info counts them."""
     out = tmp_path / "d"
-    generate_dataset(out, counts={"train": 3, "valid": 1}, families=("mono", "ring", "pen"), settings=Settings(
-        frames=3), progress=False)
+    generate_dataset(
+        out,
+        counts={"train": 3, "valid": 1},
+        families=("mono", "ring", "pen"),
+        settings=Settings(frames=3),
+        progress=False,
+    )
     meta = read_meta(out)
     assert meta["families"] == {"train": ["mono", "ring", "pen"], "valid": ["mono"]}
     with Split(out, "train") as s:

@@ -1,5 +1,6 @@
 """The Impact Plate generator: constraints and initial speed in the written data, determinism across worker
 counts, resuming after an interruption, variant ranges, and refusal of impossible input."""
+
 from __future__ import annotations
 
 import shutil
@@ -51,10 +52,12 @@ def test_generated_data_obeys_constraints_and_initial_speed(tmp_path):
 
 def test_same_seed_same_output_whatever_the_worker_count(tmp_path):
     counts = dict(train=2, valid=1)
-    gen.generate_dataset(tmp_path / "one", preset="small", counts=counts, seed=7, workers=1, settings=SHORT,
-                         progress=False)
-    gen.generate_dataset(tmp_path / "two", preset="small", counts=counts, seed=7, workers=2, settings=SHORT,
-                         progress=False)
+    gen.generate_dataset(
+        tmp_path / "one", preset="small", counts=counts, seed=7, workers=1, settings=SHORT, progress=False
+    )
+    gen.generate_dataset(
+        tmp_path / "two", preset="small", counts=counts, seed=7, workers=2, settings=SHORT, progress=False
+    )
     for split in counts:
         a, b = read_all(tmp_path / "one", split), read_all(tmp_path / "two", split)
         assert len(a) == len(b) == counts[split]
@@ -89,14 +92,17 @@ def test_resume_after_interruption(tmp_path, monkeypatch):
     assert not (out / ".parts").exists()
     assert list_splits(out) == ["train"] and not list(out.glob("*.tmp")) and not list(out.glob(".*.tmp"))
     # identical to an uninterrupted run
-    gen.generate_dataset(tmp_path / "ref", preset="small", counts=dict(train=3), seed=1, settings=SHORT,
-                         progress=False)
+    gen.generate_dataset(tmp_path / "ref", preset="small", counts=dict(train=3), seed=1, settings=SHORT, progress=False)
     for (fa, aa), (fb, ab) in zip(read_all(out, "train"), read_all(tmp_path / "ref", "train")):
         assert aa == ab
         np.testing.assert_array_equal(fa["world_pos"], fb["world_pos"])
     # a finished dataset is not redone; other settings in the same folder are refused
-    assert gen.generate_dataset(out, preset="small", counts=dict(train=3), seed=1, settings=SHORT,
-                                progress=False)["simulated"] == 0
+    assert (
+        gen.generate_dataset(out, preset="small", counts=dict(train=3), seed=1, settings=SHORT, progress=False)[
+            "simulated"
+        ]
+        == 0
+    )
     with pytest.raises(DatasetError, match="other settings"):
         gen.generate_dataset(out, preset="small", counts=dict(train=3), seed=2, settings=SHORT, progress=False)
 
@@ -105,8 +111,9 @@ def test_growing_a_dataset_adds_only_the_missing_trajectories(tmp_path):
     grown, fresh = tmp_path / "grown", tmp_path / "fresh"
     gen.generate_dataset(grown, preset="small", counts=dict(train=2, test=1), seed=4, settings=SHORT, progress=False)
     before = read_all(grown, "train")
-    result = gen.generate_dataset(grown, preset="small", counts=dict(train=3, test=1), seed=4, settings=SHORT,
-                                  progress=False)
+    result = gen.generate_dataset(
+        grown, preset="small", counts=dict(train=3, test=1), seed=4, settings=SHORT, progress=False
+    )
     assert result["simulated"] == 1 and result["skipped"] == 3
     gen.generate_dataset(fresh, preset="small", counts=dict(train=3, test=1), seed=4, settings=SHORT, progress=False)
     after, ref = read_all(grown, "train"), read_all(fresh, "train")
@@ -117,16 +124,25 @@ def test_growing_a_dataset_adds_only_the_missing_trajectories(tmp_path):
     for (fa, _), (fb, _) in zip(before, after):  # existing trajectories unchanged
         np.testing.assert_array_equal(fa["stress"], fb["stress"])
     with pytest.raises(DatasetError, match="would drop"):
-        gen.generate_dataset(grown, preset="small", counts=dict(train=2, test=1), seed=4, settings=SHORT,
-                             progress=False)
+        gen.generate_dataset(
+            grown, preset="small", counts=dict(train=2, test=1), seed=4, settings=SHORT, progress=False
+        )
     with pytest.raises(ValueError, match="nothing to generate"):
-        gen.generate_dataset(tmp_path / "none", preset="small", counts=dict(train=0, valid=0, test=0), seed=4,
-                             settings=SHORT, progress=False)
+        gen.generate_dataset(
+            tmp_path / "none",
+            preset="small",
+            counts=dict(train=0, valid=0, test=0),
+            seed=4,
+            settings=SHORT,
+            progress=False,
+        )
     assert not (tmp_path / "none").exists()
 
 
-@pytest.mark.parametrize("variant, thick, high", [("test_thicker", True, False), ("test_higher", False, True),
-                                                  ("test_thicker_higher", True, True)])
+@pytest.mark.parametrize(
+    "variant, thick, high",
+    [("test_thicker", True, False), ("test_higher", False, True), ("test_thicker_higher", True, True)],
+)
 def test_variant_ranges(variant, thick, high):
     rng = np.random.default_rng(0)
     designs = [sample_design(rng, "paper", variant) for _ in range(200)]
@@ -138,20 +154,53 @@ def test_variant_ranges(variant, thick, high):
 
 def test_cli_generate_writes_all_splits_with_variants(tmp_path, capsys):
     out = tmp_path / "cli"
-    code = main(["generate", "impact-plate", str(out), "--preset", "small", "--train", "1", "--valid", "1",
-                 "--test", "1", "--variants", "--variant-count", "1", "--seed", "0", "--workers", "2",
-                 "--frames", "3", "--no-progress"])
+    code = main(
+        [
+            "generate",
+            "impact-plate",
+            str(out),
+            "--preset",
+            "small",
+            "--train",
+            "1",
+            "--valid",
+            "1",
+            "--test",
+            "1",
+            "--variants",
+            "--variant-count",
+            "1",
+            "--seed",
+            "0",
+            "--workers",
+            "2",
+            "--frames",
+            "3",
+            "--no-progress",
+        ]
+    )
     assert code == 0
     assert list_splits(out) == ["train", "valid", "test", "test_higher", "test_thicker", "test_thicker_higher"]
     assert 1.0 <= open_split(out, "test_thicker").attrs(0)["thickness"] <= 1.2
 
 
-@pytest.mark.parametrize("change, word", [
-    (dict(thickness=0.0), "thickness"), (dict(thickness=-1.0), "thickness"), (dict(ball_radius=0.0), "ball_radius"),
-    (dict(plate_modulus=-5.0), "modulus"), (dict(ball_modulus=0.0), "modulus"), (dict(plate_poisson=0.5), "Poisson"),
-    (dict(ball_poisson=-1.2), "Poisson"), (dict(gap=0.4), "contact radius"), (dict(gap=0.0), "gap"),
-    (dict(plate_density=0.0), "density"), (dict(drop_height=0.0), "drop_height"), (dict(mesh_size=2.0), "mesh_size"),
-])
+@pytest.mark.parametrize(
+    "change, word",
+    [
+        (dict(thickness=0.0), "thickness"),
+        (dict(thickness=-1.0), "thickness"),
+        (dict(ball_radius=0.0), "ball_radius"),
+        (dict(plate_modulus=-5.0), "modulus"),
+        (dict(ball_modulus=0.0), "modulus"),
+        (dict(plate_poisson=0.5), "Poisson"),
+        (dict(ball_poisson=-1.2), "Poisson"),
+        (dict(gap=0.4), "contact radius"),
+        (dict(gap=0.0), "gap"),
+        (dict(plate_density=0.0), "density"),
+        (dict(drop_height=0.0), "drop_height"),
+        (dict(mesh_size=2.0), "mesh_size"),
+    ],
+)
 def test_impossible_designs_are_refused_before_work(change, word, monkeypatch):
     monkeypatch.setattr("hcmt.sim.driver.design_mesh", lambda d: pytest.fail("work started"))
     with pytest.raises(ValueError, match=word):
@@ -194,8 +243,9 @@ def test_simulate_states_its_cost_and_refuses_an_absurd_one(capsys):
 def test_inverted_element_stops_the_solve_naming_the_frame(capsys):
     assert main(["simulate", "--preset", "small", "--plate-modulus", "0.001", "--no-progress"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
-    assert err[0].startswith("hcmt simulate: warning: plate_modulus = 0.001 is outside the range the solver is "
-                             "validated for (1000 .. 1e+06")
+    assert err[0].startswith(
+        "hcmt simulate: warning: plate_modulus = 0.001 is outside the range the solver is validated for (1000 .. 1e+06"
+    )
     assert len(err) == 2 and "solve stopped at frame" in err[1] and "inverted" in err[1]
 
 
@@ -210,14 +260,48 @@ def test_disk_full_is_one_line_and_a_rerun_resumes(tmp_path, monkeypatch, capsys
     usage = namedtuple("usage", "total used free")
     monkeypatch.setattr(shutil, "disk_usage", lambda p: usage(1 << 30, 1 << 30, 1000))  # 1 kB free
     out = tmp_path / "ds"
-    assert main(["generate", "impact-plate", str(out), "--train", "1", "--valid", "0", "--test", "0",
-                 "--frames", "3", "--no-progress"]) == 2
+    assert (
+        main(
+            [
+                "generate",
+                "impact-plate",
+                str(out),
+                "--train",
+                "1",
+                "--valid",
+                "0",
+                "--test",
+                "0",
+                "--frames",
+                "3",
+                "--no-progress",
+            ]
+        )
+        == 2
+    )
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "No space left on device" in err[0] and str(out) in err[0]
     assert not list(out.rglob("*.h5")) and not list(out.rglob("*.tmp"))  # nothing half-written
     monkeypatch.setattr(shutil, "disk_usage", real)
-    assert main(["generate", "impact-plate", str(out), "--train", "1", "--valid", "0", "--test", "0",
-                 "--frames", "3", "--no-progress"]) == 0
+    assert (
+        main(
+            [
+                "generate",
+                "impact-plate",
+                str(out),
+                "--train",
+                "1",
+                "--valid",
+                "0",
+                "--test",
+                "0",
+                "--frames",
+                "3",
+                "--no-progress",
+            ]
+        )
+        == 0
+    )
     assert list_splits(out) == ["train"]
 
 
@@ -233,8 +317,20 @@ def test_interrupted_generate_is_one_line_and_keeps_finished_work(tmp_path, monk
 
     monkeypatch.setattr(gen, "_run_one", stop_on_second)
     out = tmp_path / "ds"
-    args = ["generate", "impact-plate", str(out), "--train", "2", "--valid", "0", "--test", "0", "--frames", "3",
-            "--no-progress"]
+    args = [
+        "generate",
+        "impact-plate",
+        str(out),
+        "--train",
+        "2",
+        "--valid",
+        "0",
+        "--test",
+        "0",
+        "--frames",
+        "3",
+        "--no-progress",
+    ]
     assert main(args) == 130
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "finished trajectories are kept" in err[0] and "hcmt generate" in err[0]
@@ -254,14 +350,36 @@ def test_peak_stress_is_the_largest_stress_between_frames():
     want = fine.fields["stress"][..., 0]
     np.testing.assert_allclose(stress, want[::n], rtol=1e-5, atol=1e-4)  # the same trajectory
     for k in range(1, coarse.frames):
-        np.testing.assert_allclose(got[k], want[(k - 1) * n + 1:k * n + 1].max(0), rtol=1e-5, atol=1e-4)
+        np.testing.assert_allclose(got[k], want[(k - 1) * n + 1 : k * n + 1].max(0), rtol=1e-5, atol=1e-4)
     assert (got >= stress - 1e-4).all() and got.max() > stress.max()  # a coarse frame steps over the true peak
 
 
 def test_generate_peak_stress_writes_the_field_and_a_model_trains_on_it(tmp_path, tiny_config):
     out = tmp_path / "ip"
-    assert main(["generate", "impact-plate", str(out), "--preset", "small", "--train", "1", "--valid", "1",
-                 "--test", "1", "--frames", "5", "--frame-dt", "0.004", "--peak-stress", "--no-progress"]) == 0
+    assert (
+        main(
+            [
+                "generate",
+                "impact-plate",
+                str(out),
+                "--preset",
+                "small",
+                "--train",
+                "1",
+                "--valid",
+                "1",
+                "--test",
+                "1",
+                "--frames",
+                "5",
+                "--frame-dt",
+                "0.004",
+                "--peak-stress",
+                "--no-progress",
+            ]
+        )
+        == 0
+    )
     with open_split(out, "test") as s:
         t = s[0]
         assert t["stress_max"].shape == t["stress"].shape and (t["stress_max"] >= t["stress"] - 1e-4).all()

@@ -2,6 +2,7 @@
 
 Every expected value is an analytic formula (Hertz, Euler-Bernoulli, L/c), never a number produced by the code.
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -29,8 +30,15 @@ GLASS = dict(density=2.5e-3, modulus=70e3, poisson=0.22)
 def two_body_model(mesh, ball, plate, formulation="axisymmetric", bulk_viscosity=0.0):
     cb = mesh["cell_body"]
     props = {k: np.where(cb == 1, ball[k], plate[k]) for k in ("density", "modulus", "poisson")}
-    return build_model(mesh["mesh_pos"], mesh["cells"], props["density"], props["modulus"], props["poisson"],
-                       formulation=formulation, bulk_viscosity=bulk_viscosity)
+    return build_model(
+        mesh["mesh_pos"],
+        mesh["cells"],
+        props["density"],
+        props["modulus"],
+        props["poisson"],
+        formulation=formulation,
+        bulk_viscosity=bulk_viscosity,
+    )
 
 
 def test_hertz_sphere_on_thick_block():
@@ -38,8 +46,18 @@ def test_hertz_sphere_on_thick_block():
     10% of Hertz: 1/E* = (1-nu1^2)/E1 + (1-nu2^2)/E2, d = (15 m v^2 / (16 E* sqrt R))^(2/5),
     F = 4/3 E* sqrt(R) d^(3/2), t_c = 2.94 d / v."""
     R, v, depth = 10.0, 5.0, 10.0
-    mesh = impact_plate_mesh(depth, R, 0.15, plate_half_length=12.0, gap=1e-3, plate_growth=1.15, plate_h_max=1.0,
-                             plate_y_growth=1.15, ball_growth=1.15, ball_h_max=1.0)
+    mesh = impact_plate_mesh(
+        depth,
+        R,
+        0.15,
+        plate_half_length=12.0,
+        gap=1e-3,
+        plate_growth=1.15,
+        plate_h_max=1.0,
+        plate_y_growth=1.15,
+        ball_growth=1.15,
+        ball_h_max=1.0,
+    )
     model = two_body_model(mesh, STEEL, GLASS)
     X, body = mesh["mesh_pos"], mesh["body"]
     fixed = np.zeros_like(X, dtype=bool)
@@ -115,8 +133,9 @@ def test_cantilever_static_deflection_matches_beam_theory():
     model = build_model(X, cells, GLASS["density"], GLASS["modulus"], GLASS["poisson"], formulation="plane_strain")
     K = linear_stiffness(model)
     u = np.random.default_rng(0).normal(size=X.shape) * 1e-7
-    np.testing.assert_allclose(internal_force(model, X + u).ravel(), K @ u.ravel(), rtol=0,
-                               atol=1e-4 * np.abs(K @ u.ravel()).max())
+    np.testing.assert_allclose(
+        internal_force(model, X + u).ravel(), K @ u.ravel(), rtol=0, atol=1e-4 * np.abs(K @ u.ravel()).max()
+    )
     free = np.ones_like(X, dtype=bool)
     free[X[:, 0] < 1e-9] = False
     tip = np.flatnonzero(X[:, 0] > L - 1e-9)
@@ -158,8 +177,9 @@ def test_time_step_inside_stability_limit(formulation):
     model = two_body_model(mesh, STEEL, GLASS, formulation)
     s = 1 / np.sqrt(np.repeat(model.mass, 2))
     K = linear_stiffness(model)
-    w2 = eigsh(K.multiply(s[:, None]).multiply(s[None, :]).tocsr(), k=1, which="LA", tol=1e-6,
-               return_eigenvectors=False)[0]
+    w2 = eigsh(
+        K.multiply(s[:, None]).multiply(s[None, :]).tocsr(), k=1, which="LA", tol=1e-6, return_eigenvectors=False
+    )[0]
     assert np.sqrt(w2) * stable_time_step(model, 0.8) < 2.0 * 0.9
 
 

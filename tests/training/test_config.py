@@ -50,8 +50,12 @@ def test_base_and_overrides(tmp_path):
 
 
 # Table 9 by hand: (node_in, mesh_in, contact_in, out, integration order)
-TABLE9 = {"impact_plate": (9 + 2 + 1 + 1, 2 + 1 + 2 + 1, 3, 3, 1), "deforming_plate": (9 + 3, 3 + 1 + 3 + 1, 4, 4, 1),
-          "sphere_simple": (9 + 3, 2 + 1 + 3 + 1, 4, 3, 2), "deformable_plate": (9 + 1, 2 + 1 + 2 + 1, 3, 2, 1)}
+TABLE9 = {
+    "impact_plate": (9 + 2 + 1 + 1, 2 + 1 + 2 + 1, 3, 3, 1),
+    "deforming_plate": (9 + 3, 3 + 1 + 3 + 1, 4, 4, 1),
+    "sphere_simple": (9 + 3, 2 + 1 + 3 + 1, 4, 3, 2),
+    "deformable_plate": (9 + 1, 2 + 1 + 2 + 1, 3, 2, 1),
+}
 
 
 @pytest.mark.parametrize("name", TABLE8)
@@ -59,19 +63,32 @@ def test_dataset_spec_holds_tables_8_and_9(name):
     """One source per dataset: Table 8 from its config, Table 9 from its adapter; both against the paper."""
     spec = dataset_spec(name)
     assert (spec["node_in"], spec["mesh_in"], spec["contact_in"], spec["out"], spec["integration"]) == TABLE9[name]
-    assert (spec["L_C"], spec["L_H"], spec["levels"], spec["noise_std"], spec["radius"],
-            spec["training_steps"]) == TABLE8[name]
+    assert (
+        spec["L_C"],
+        spec["L_H"],
+        spec["levels"],
+        spec["noise_std"],
+        spec["radius"],
+        spec["training_steps"],
+    ) == TABLE8[name]
 
 
-@pytest.mark.parametrize("overrides,yaml_text,message", [
-    (["train.lrr=1"], None, "overrides 'train.lrr=1': train.lrr: unknown key; did you mean train.lr?"),
-    (["train.lr=fast"], None, "train.lr: got 'fast'; expected a number"),
-    (["train.steps=20.5"], None, "train.steps: got 20.5; expected a whole number"),
-    (["model.attention=softmax"], None, "model.attention: unknown value 'softmax'; expected one of paper, official"),
-    ([], "base: impact_plate\ntrian:\n  steps: 3\n", "trian: unknown key; did you mean train?"),
-    ([], "base: impact_plate\ntrain:\n  steps: [3\n", "line 4, column 1: not valid YAML"),
-    ([], "base: impact_plate\nmodel:\n  hiden: 64\n", "model.hiden: unknown key; did you mean model.hidden?"),
-])
+@pytest.mark.parametrize(
+    "overrides,yaml_text,message",
+    [
+        (["train.lrr=1"], None, "overrides 'train.lrr=1': train.lrr: unknown key; did you mean train.lr?"),
+        (["train.lr=fast"], None, "train.lr: got 'fast'; expected a number"),
+        (["train.steps=20.5"], None, "train.steps: got 20.5; expected a whole number"),
+        (
+            ["model.attention=softmax"],
+            None,
+            "model.attention: unknown value 'softmax'; expected one of paper, official",
+        ),
+        ([], "base: impact_plate\ntrian:\n  steps: 3\n", "trian: unknown key; did you mean train?"),
+        ([], "base: impact_plate\ntrain:\n  steps: [3\n", "line 4, column 1: not valid YAML"),
+        ([], "base: impact_plate\nmodel:\n  hiden: 64\n", "model.hiden: unknown key; did you mean model.hidden?"),
+    ],
+)
 def test_schema_refuses_unknown_keys_and_wrong_types(tmp_path, overrides, yaml_text, message):
     name = "impact_plate"
     if yaml_text is not None:
@@ -90,8 +107,13 @@ def test_every_builtin_config_passes_the_schema():
 
 
 def test_a_config_is_frozen_complete_and_typed():
-    c = Config.from_dict({"dataset": "impact_plate", "train": {"lr": 1, "steps": 10.0, "contact_radius": 2},
-                          "data": {"exclude_trajectories": [3]}})
+    c = Config.from_dict(
+        {
+            "dataset": "impact_plate",
+            "train": {"lr": 1, "steps": 10.0, "contact_radius": 2},
+            "data": {"exclude_trajectories": [3]},
+        }
+    )
     assert c.train.lr == 1.0 and isinstance(c.train.lr, float)  # a YAML 1 for a number is a float
     assert c.train.steps == 10 and isinstance(c.train.steps, int)  # a whole float for a count is an int
     assert c.train.noise_std == 0.0 and c.model.hidden == 128  # what the mapping left out: the defaults
@@ -101,12 +123,15 @@ def test_a_config_is_frozen_complete_and_typed():
     assert c.with_overrides(["train.lr=3e-4"]).train.lr == 3e-4 and c.train.lr == 1.0  # a new object
 
 
-@pytest.mark.parametrize("overrides,message", [
-    (["train.steps=0"], "train.steps must be a whole number >= 1, got 0"),
-    (["train.lr=0"], "train.lr must be a number > 0, got 0"),
-    (["train.batch_size=-2"], "train.batch_size must be a whole number >= 1, got -2"),
-    (["train.pushforward=1.5"], "train.pushforward must be a probability in [0, 1], got 1.5"),
-])
+@pytest.mark.parametrize(
+    "overrides,message",
+    [
+        (["train.steps=0"], "train.steps must be a whole number >= 1, got 0"),
+        (["train.lr=0"], "train.lr must be a number > 0, got 0"),
+        (["train.batch_size=-2"], "train.batch_size must be a whole number >= 1, got -2"),
+        (["train.pushforward=1.5"], "train.pushforward must be a probability in [0, 1], got 1.5"),
+    ],
+)
 def test_the_schema_holds_the_bounds(overrides, message):
     with pytest.raises(ValueError) as exc:
         load_config("impact_plate_cpu", overrides)
@@ -136,8 +161,10 @@ def test_run_yaml_is_read_back_as_a_config(tmp_path):
 def test_L_H_is_derived_and_cannot_be_set(tmp_path):
     """L_H = 2λ + 1 (paper §3.2) is no setting: a config or --set naming it is refused in one line; a run.yaml of
     an older run holding it (null, or 2·levels + 1) still reads, any other value is refused."""
-    for source in (lambda: load_config("impact_plate_cpu", ["model.L_H=9"]),
-                   lambda: Config.from_dict({"dataset": "impact_plate", "model": {"levels": 4, "L_H": 7}})):
+    for source in (
+        lambda: load_config("impact_plate_cpu", ["model.L_H=9"]),
+        lambda: Config.from_dict({"dataset": "impact_plate", "model": {"levels": 4, "L_H": 7}}),
+    ):
         with pytest.raises(InputError, match=r"model\.L_H: derived, L_H = 2·model\.levels \+ 1 .*set model\.levels"):
             source()
     path = tmp_path / "old.yaml"
@@ -157,6 +184,7 @@ def test_ablation_is_a_model_setting():
 
 def test_the_shipped_models_recipe_is_the_named_config_impact_plate_shipped():
     from hcmt.inference.run import Run
+
     shipped = Run.load("pretrained:impact_plate_small", "cpu").config
     assert load_config("impact_plate_shipped").to_dict() == shipped.to_dict()
 

@@ -1,5 +1,6 @@
 """Each config choice list is declared once, in :mod:`hcmt.config.choices`, and the module that acts on the values
 reads it or is keyed by exactly its values: a value added to one and not the other fails here."""
+
 from __future__ import annotations
 
 import hcmt.config as config
@@ -12,8 +13,12 @@ from hcmt.training import policy
 def test_every_allowed_list_of_the_schema_is_a_named_choice_list():
     named = {v: k for k, v in vars(choices).items() if k.isupper() and isinstance(v, tuple)}
     named[choices.ABLATIONS + choices.ABLATION_ALIASES] = "ABLATIONS + ABLATION_ALIASES"
-    loose = [f"{section}.{key}" for section, specs in SCHEMA.items() for key, spec in specs.items()
-             if spec.allowed and spec.allowed not in named]
+    loose = [
+        f"{section}.{key}"
+        for section, specs in SCHEMA.items()
+        for key, spec in specs.items()
+        if spec.allowed and spec.allowed not in named
+    ]
     assert loose == [], f"allowed values written in the schema, not in hcmt.config.choices: {loose}"
     assert TOP["dataset"][1] is choices.DATASET_NAMES
 

@@ -2,6 +2,7 @@
 three files, a key given twice at any depth, a config of another dataset than the data's, YAML 1.1's number
 strings (``1e-3``), a relative ``base``, wrong types, and the Python API's loose arguments. Each refusal: one line
 naming the file and the key and what was expected (``InputError``; ``hcmt train``: exit 2, nothing written)."""
+
 import random
 from pathlib import Path
 
@@ -23,8 +24,14 @@ ONE_LINE = 300  # the project's bound on a refusal, paths aside
 def impact(tmp_path_factory) -> Path:
     """An Impact Plate dataset (meta.json says ``dataset: impact_plate``), 1/1/1 trajectories of 4 frames."""
     out = tmp_path_factory.mktemp("fuzz") / "data"
-    generate_dataset(out, preset="small", counts={"train": 1, "valid": 1, "test": 1}, seed=0,
-                     settings=Settings(frames=4), progress=False)
+    generate_dataset(
+        out,
+        preset="small",
+        counts={"train": 1, "valid": 1, "test": 1},
+        seed=0,
+        settings=Settings(frames=4),
+        progress=False,
+    )
     return out
 
 
@@ -37,8 +44,24 @@ def refused(text: str, *paths: Path) -> None:
 def refused_by_train(capsys, tmp_path: Path, config: str, data: Path, *paths: Path) -> str:
     """``hcmt train`` of ``config``: exit 2, one line, no run folder left."""
     out = tmp_path / "run"
-    rc = cli(["train", "--config", config, "--data", str(data), "--model", "mgn", "--out", str(out), "--steps", "1",
-              "--threads", "1", "--no-progress"])
+    rc = cli(
+        [
+            "train",
+            "--config",
+            config,
+            "--data",
+            str(data),
+            "--model",
+            "mgn",
+            "--out",
+            str(out),
+            "--steps",
+            "1",
+            "--threads",
+            "1",
+            "--no-progress",
+        ]
+    )
     err = capsys.readouterr().err.strip().splitlines()
     assert rc == 2 and len(err) == 1 and len(err[0]) <= GUARD, err
     refused(err[0], *paths)
@@ -72,16 +95,22 @@ def test_a_loop_below_the_first_file_names_the_loop_only(tmp_path):
 
 
 # -- keys given twice ----------------------------------------------------------------------------------------------
-@pytest.mark.parametrize("text,key,lines", [
-    ("base: impact_plate_cpu\ntrain:\n  steps: 2\n  steps: 5\n", "train.steps", (3, 4)),
-    ("base: impact_plate_cpu\ntrain:\n  steps: 2\nmodel:\n  hidden: 8\ntrain:\n  lr: 1.0\n", "train", (2, 6)),
-    ("dataset: impact_plate\nbase: impact_plate_cpu\ndataset: sphere_simple\n", "dataset", (1, 3)),
-    ("base: impact_plate_cpu\nbase: sphere_simple_cpu\n", "base", (1, 2)),
-    ("base: impact_plate_cpu\nmodel:\n  extra:\n    a: 1\n    b: 2\n    a: 3\n", "model.extra.a", (4, 6)),
-    ("base: impact_plate_cpu\ndata:\n  exclude_trajectories:\n    - {x: 1, x: 2}\n",
-     "data.exclude_trajectories[0].x", (4, 4)),
-    ("base: impact_plate_cpu\ntrain: {lr: 1.0e-3, steps: 3, lr: 2.0e-3}\n", "train.lr", (2, 2)),
-])
+@pytest.mark.parametrize(
+    "text,key,lines",
+    [
+        ("base: impact_plate_cpu\ntrain:\n  steps: 2\n  steps: 5\n", "train.steps", (3, 4)),
+        ("base: impact_plate_cpu\ntrain:\n  steps: 2\nmodel:\n  hidden: 8\ntrain:\n  lr: 1.0\n", "train", (2, 6)),
+        ("dataset: impact_plate\nbase: impact_plate_cpu\ndataset: sphere_simple\n", "dataset", (1, 3)),
+        ("base: impact_plate_cpu\nbase: sphere_simple_cpu\n", "base", (1, 2)),
+        ("base: impact_plate_cpu\nmodel:\n  extra:\n    a: 1\n    b: 2\n    a: 3\n", "model.extra.a", (4, 6)),
+        (
+            "base: impact_plate_cpu\ndata:\n  exclude_trajectories:\n    - {x: 1, x: 2}\n",
+            "data.exclude_trajectories[0].x",
+            (4, 4),
+        ),
+        ("base: impact_plate_cpu\ntrain: {lr: 1.0e-3, steps: 3, lr: 2.0e-3}\n", "train.lr", (2, 2)),
+    ],
+)
 def test_a_key_given_twice_is_refused_with_both_lines(tmp_path, text, key, lines):
     path = tmp_path / "twice.yaml"
     path.write_text(text)
@@ -107,17 +136,20 @@ def test_an_override_mapping_with_a_key_twice_is_refused():
 # -- a config of another dataset than the data's -------------------------------------------------------------------
 def test_a_config_of_another_dataset_is_refused_before_anything_is_written(tmp_path, capsys, impact):
     line = refused_by_train(capsys, tmp_path, "sphere_simple_cpu", impact, impact / "meta.json")
-    assert line == ("hcmt train: error: config sphere_simple_cpu: dataset sphere_simple (set by its base "
-                    f"sphere_simple), but {impact / 'meta.json'} holds dataset impact_plate; expected data of dataset "
-                    "sphere_simple, or a config of dataset impact_plate (built-in: impact_plate, impact_plate_cpu, "
-                    "impact_plate_official)")
+    assert line == (
+        "hcmt train: error: config sphere_simple_cpu: dataset sphere_simple (set by its base "
+        f"sphere_simple), but {impact / 'meta.json'} holds dataset impact_plate; expected data of dataset "
+        "sphere_simple, or a config of dataset impact_plate (built-in: impact_plate, impact_plate_cpu, "
+        "impact_plate_official)"
+    )
     mine = tmp_path / "mine.yaml"
     mine.write_text("base: impact_plate_cpu\ndataset: deforming_plate\n")
     line = refused_by_train(capsys, tmp_path, str(mine), impact, mine, impact / "meta.json")
     assert f"config {mine}: dataset deforming_plate, but {impact / 'meta.json'} holds dataset impact_plate;" in line
     (tmp_path / "child.yaml").write_text("base: mine.yaml\n")
-    line = refused_by_train(capsys, tmp_path, str(tmp_path / "child.yaml"), impact, tmp_path / "child.yaml", mine,
-                            impact / "meta.json")
+    line = refused_by_train(
+        capsys, tmp_path, str(tmp_path / "child.yaml"), impact, tmp_path / "child.yaml", mine, impact / "meta.json"
+    )
     assert f"dataset deforming_plate (set by its base {mine}), but" in line
 
 
@@ -126,8 +158,9 @@ def test_the_api_refuses_another_dataset_and_keeps_the_run_it_would_overwrite(tm
     out.mkdir()
     (out / "run.yaml").write_text("kept: true\n")  # a run overwrite=True would delete
     with pytest.raises(InputError) as exc:
-        hcmt.train(load_config("sphere_simple_cpu", ["train.steps=1"]), impact, "mgn", out, overwrite=True,
-                   progress=False)
+        hcmt.train(
+            load_config("sphere_simple_cpu", ["train.steps=1"]), impact, "mgn", out, overwrite=True, progress=False
+        )
     assert str(exc.value).startswith("config: dataset sphere_simple, but ") and exc.value.param is None
     assert (out / "run.yaml").read_text() == "kept: true\n"
 
@@ -136,20 +169,31 @@ def test_the_dataset_check_passes_matching_and_unnamed_data():
     check_same_dataset("impact_plate", {"dataset": "impact_plate"}, "d", "config x")
     check_same_dataset("sphere_simple", {"field_names": []}, "d", "config x")  # converted data names none
     check_same_dataset(None, {"dataset": "impact_plate"}, "d", "config x")
-    with pytest.raises(InputError, match=r"^run r: dataset sphere_simple, but d/meta.json holds dataset "
-                                         r"impact_plate; expected data of dataset sphere_simple$"):
+    with pytest.raises(
+        InputError,
+        match=r"^run r: dataset sphere_simple, but d/meta.json holds dataset "
+        r"impact_plate; expected data of dataset sphere_simple$",
+    ):
         check_same_dataset("sphere_simple", {"dataset": "impact_plate"}, "d", "run r")
 
 
 # -- numbers, relative bases ---------------------------------------------------------------------------------------
 def test_number_strings_read_as_numbers(tmp_path):
     path = tmp_path / "numbers.yaml"
-    path.write_text("base: impact_plate_cpu\ntrain:\n  lr: 1e-3\n  lr_final: 1E-5\n  pushforward: .5\n"
-                    "  steps: 1_000\n  noise_std: 3e-4\n  contact_radius: 4E-1\n  keep_every: 2e3\n"
-                    "model:\n  clip: -.5\n")
+    path.write_text(
+        "base: impact_plate_cpu\ntrain:\n  lr: 1e-3\n  lr_final: 1E-5\n  pushforward: .5\n"
+        "  steps: 1_000\n  noise_std: 3e-4\n  contact_radius: 4E-1\n  keep_every: 2e3\n"
+        "model:\n  clip: -.5\n"
+    )
     t, m = load_config(str(path)).train, load_config(str(path)).model
-    assert (t.lr, t.lr_final, t.pushforward, t.steps, t.noise_std, t.contact_radius) == (1e-3, 1e-5, .5, 1000,
-                                                                                           3e-4, 0.4)
+    assert (t.lr, t.lr_final, t.pushforward, t.steps, t.noise_std, t.contact_radius) == (
+        1e-3,
+        1e-5,
+        0.5,
+        1000,
+        3e-4,
+        0.4,
+    )
     assert t.keep_every == 2000 and isinstance(t.keep_every, int) and m.clip == -0.5
     path.write_text("base: impact_plate_cpu\ntrain:\n  lr: '1e-3'\n")  # quoted: a string, as the user wrote it
     with pytest.raises(InputError, match=r"train.lr: got '1e-3'; expected a number"):
@@ -170,8 +214,7 @@ def test_a_relative_base_is_read_from_the_configs_folder(tmp_path, monkeypatch):
     (tmp_path / "cfgs" / "lost.yaml").write_text("base: nowhere.yaml\n")
     with pytest.raises(InputError) as exc:
         load_config("../cfgs/lost.yaml")
-    assert "'nowhere.yaml' (the base of ../cfgs/lost.yaml, looked for in ../cfgs): neither a file nor" in str(
-        exc.value)
+    assert "'nowhere.yaml' (the base of ../cfgs/lost.yaml, looked for in ../cfgs): neither a file nor" in str(exc.value)
 
 
 # -- wrong types -----------------------------------------------------------------------------------------------------
@@ -183,19 +226,23 @@ def test_a_base_of_the_wrong_type_is_refused(tmp_path, base):
         load_config(str(path))
     refused(str(exc.value), path)
     assert str(exc.value).startswith(f"config {path}: base: got ") and "expected a built-in config's name" in str(
-        exc.value)
+        exc.value
+    )
 
 
-@pytest.mark.parametrize("call,param,expected", [
-    (lambda: load_config(None), "name_or_path", "expected a built-in config's name or a YAML path, got None"),
-    (lambda: load_config(5), "name_or_path", "got 5"),
-    (lambda: load_config("impact_plate_cpu", 5), "overrides", "expected a list of section.key=value strings"),
-    (lambda: load_config("impact_plate_cpu", {"train.steps": 3}), "overrides", "got dict"),
-    (lambda: hcmt.train("impact_plate_cpu", None, "mgn", "out"), "data", "expected a path, the native dataset"),
-    (lambda: hcmt.train("impact_plate_cpu", "data", "mgn", None), "out", "expected a path, the run folder"),
-    (lambda: hcmt.train(3.5, "data", "mgn", "out"), "config", "expected a Config, a config mapping"),
-    (lambda: hcmt.train("impact_plate_cpu", "data", "mgn", "out", overrides=7), "overrides", "got int 7"),
-])
+@pytest.mark.parametrize(
+    "call,param,expected",
+    [
+        (lambda: load_config(None), "name_or_path", "expected a built-in config's name or a YAML path, got None"),
+        (lambda: load_config(5), "name_or_path", "got 5"),
+        (lambda: load_config("impact_plate_cpu", 5), "overrides", "expected a list of section.key=value strings"),
+        (lambda: load_config("impact_plate_cpu", {"train.steps": 3}), "overrides", "got dict"),
+        (lambda: hcmt.train("impact_plate_cpu", None, "mgn", "out"), "data", "expected a path, the native dataset"),
+        (lambda: hcmt.train("impact_plate_cpu", "data", "mgn", None), "out", "expected a path, the run folder"),
+        (lambda: hcmt.train(3.5, "data", "mgn", "out"), "config", "expected a Config, a config mapping"),
+        (lambda: hcmt.train("impact_plate_cpu", "data", "mgn", "out", overrides=7), "overrides", "got int 7"),
+    ],
+)
 def test_the_api_names_the_parameter(tmp_path, monkeypatch, call, param, expected):
     monkeypatch.chdir(tmp_path)
     with pytest.raises(InputError) as exc:
@@ -220,10 +267,33 @@ def test_a_config_nested_too_deeply_is_one_line(tmp_path):
 
 
 # -- the fuzzer ------------------------------------------------------------------------------------------------------
-KEYS = [("train", "lr"), ("train", "steps"), ("model", "hidden"), ("train", "pushforward"), ("data", "remesh"),
-        ("model", "attention"), ("train", "noise_std")]
-VALUES = ["1e-3", "1E-3", ".5", "1_000", "-.5", "3", "0", "-2", "true", "abc", "[1, 2]", "{a: 1}", "null", "''",
-          "1e", "paper"]
+KEYS = [
+    ("train", "lr"),
+    ("train", "steps"),
+    ("model", "hidden"),
+    ("train", "pushforward"),
+    ("data", "remesh"),
+    ("model", "attention"),
+    ("train", "noise_std"),
+]
+VALUES = [
+    "1e-3",
+    "1E-3",
+    ".5",
+    "1_000",
+    "-.5",
+    "3",
+    "0",
+    "-2",
+    "true",
+    "abc",
+    "[1, 2]",
+    "{a: 1}",
+    "null",
+    "''",
+    "1e",
+    "paper",
+]
 
 
 def _mutant(rng: random.Random, folder: Path, i: int) -> tuple[Path, set[str]]:
@@ -237,9 +307,11 @@ def _mutant(rng: random.Random, folder: Path, i: int) -> tuple[Path, set[str]]:
         return path, {f"{section}.{key}"}
     if kind == "twice":
         depth = rng.choice([0, 1, 2])
-        body = {0: f"{section}:\n  {key}: 1\n{section}:\n  {key}: 2\n",
-                1: f"{section}:\n  {key}: {value}\n  {key}: {value}\n",
-                2: f"{section}:\n  {key}:\n    x: 1\n    x: 2\n"}[depth]
+        body = {
+            0: f"{section}:\n  {key}: 1\n{section}:\n  {key}: 2\n",
+            1: f"{section}:\n  {key}: {value}\n  {key}: {value}\n",
+            2: f"{section}:\n  {key}:\n    x: 1\n    x: 2\n",
+        }[depth]
         path.write_text("base: impact_plate_cpu\n" + body)
         return path, {f"key {section}" + ("" if depth == 0 else f".{key}") + ("" if depth < 2 else ".x")}
     if kind == "loop":
@@ -248,8 +320,12 @@ def _mutant(rng: random.Random, folder: Path, i: int) -> tuple[Path, set[str]]:
         for j, name in enumerate(names):
             (folder / name).write_text(f"base: {names[(j + 1) % n]}\n{section}:\n  {key}: {value}\n")
         # a bad value is found in the first file, before its base is read
-        return path, {f"base chain is a loop, {path} -> " + " -> ".join([*names[1:], names[0]]) if n > 1 else
-                      f"base chain is a loop, {path} -> {path.name};", f"{section}.{key}"}
+        return path, {
+            f"base chain is a loop, {path} -> " + " -> ".join([*names[1:], names[0]])
+            if n > 1
+            else f"base chain is a loop, {path} -> {path.name};",
+            f"{section}.{key}",
+        }
     path.write_text(f"base: {rng.choice(['5', '[x]', 'nowhere.yaml', 'impact_plate_cpu'])}\n")
     return path, {"base"}
 
@@ -304,6 +380,5 @@ def test_the_api_takes_the_commands_thread_default_unless_the_caller_chose(threa
 
 @pytest.mark.slow  # trains one step
 def test_hcmt_train_applies_the_thread_default(threads, tmp_path, impact, tiny_config):
-    hcmt.train(tiny_config("train.steps=1", base="impact_plate_cpu"), impact, "mgn", tmp_path / "run",
-               progress=False)
+    hcmt.train(tiny_config("train.steps=1", base="impact_plate_cpu"), impact, "mgn", tmp_path / "run", progress=False)
     assert torch.get_num_threads() == 1

@@ -1,5 +1,6 @@
 """``train.policy``: the training loop's conventions, hcmt's or the authors' code's, chosen by one key
 (:mod:`hcmt.training.policy`); each of its fields a key that, set, wins over the policy."""
+
 from dataclasses import replace
 
 import pytest
@@ -14,9 +15,14 @@ from hcmt.training.trainer import Trainer
 from layouts import write_impact_like
 
 #: what the authors' code does otherwise than hcmt (configs/impact_plate_official.yaml, docs/architecture.md)
-AUTHORS = {"normalizer_warmup": ("all", "nodes"), "mesh_edges_twice": (False, True),
-           "loss_denominator": ("masked", "nodes"), "adam_epsilon": (1e-8, 1e-7), "adam_epsilon_hat": (False, True),
-           "lr_decay_steps": (None, 1_000_000)}
+AUTHORS = {
+    "normalizer_warmup": ("all", "nodes"),
+    "mesh_edges_twice": (False, True),
+    "loss_denominator": ("masked", "nodes"),
+    "adam_epsilon": (1e-8, 1e-7),
+    "adam_epsilon_hat": (False, True),
+    "lr_decay_steps": (None, 1_000_000),
+}
 
 
 def test_the_two_policies_differ_in_the_documented_choices_only():
@@ -39,8 +45,9 @@ def test_a_key_set_wins_over_its_policy_and_bad_values_are_refused():
 
 def test_a_run_yaml_spelling_the_keys_out_resumes_under_the_policy_and_a_change_is_refused(tmp_path):
     """Runs written before ``train.policy`` hold every key; they resume as the policy naming the same choices."""
-    spelled = load_config("impact_plate_official", [f"train.{k}={v[1]}" for k, v in AUTHORS.items()] +
-                          ["train.policy=hcmt"])
+    spelled = load_config(
+        "impact_plate_official", [f"train.{k}={v[1]}" for k, v in AUTHORS.items()] + ["train.policy=hcmt"]
+    )
     run = {"model": {"name": "hcmt"}, "seed": 0, "world_size": 1}
     check_resume(dict(run, config=spelled), dict(run, config=load_config("impact_plate_official")), tmp_path)
     with pytest.raises(ValueError, match=r"config\.train\.loss_denominator: 'nodes' \(run\) vs 'masked' \(now\)"):
@@ -55,8 +62,7 @@ def test_the_official_policys_step_against_hcmts(tmp_path, tiny_config):
 
     def trainer(name, *extra):
         cfg = tiny_config("train.steps=4", "train.normalizer_steps=0", "train.lr_final=1e-5", *extra)
-        return Trainer(cfg, data, "hcmt", tmp_path / name, seed=0, resume=False, device="cpu",
-                       progress=False)
+        return Trainer(cfg, data, "hcmt", tmp_path / name, seed=0, resume=False, device="cpu", progress=False)
 
     ours, theirs = trainer("hcmt"), trainer("official", "train.policy=official")
     graph, tgt, mask = batch = collate_samples([ours.frames[0]])

@@ -1,6 +1,7 @@
 """The training engine's speed options agree with the reference step: the fused Adam the trainer uses
 (one kernel for every parameter, on the CPU too) ends a short run within float32 rounding of PyTorch's per-tensor
 Adam, the reference implementation."""
+
 import pytest
 import torch
 
@@ -10,8 +11,16 @@ from layouts import write_impact_like
 
 pytestmark = pytest.mark.slow  # trains real (tiny) runs
 
-EXTRA = ["model.blocks=2", "train.log_every=1", "train.checkpoint_every=100", "train.valid_every=0",
-         "train.contact_radius=0.3", "train.steps=6", "train.noise_std=0.01", "train.normalizer_steps=1"]
+EXTRA = [
+    "model.blocks=2",
+    "train.log_every=1",
+    "train.checkpoint_every=100",
+    "train.valid_every=0",
+    "train.contact_radius=0.3",
+    "train.steps=6",
+    "train.noise_std=0.01",
+    "train.normalizer_steps=1",
+]
 
 
 @pytest.fixture(scope="module")
@@ -34,6 +43,7 @@ def test_fused_adam_agrees_with_the_per_tensor_reference(impact, tmp_path, tiny_
             if reference:  # the per-tensor loop, whatever the trainer asks for
                 kw.update(fused=None, foreach=False)
             return adam(params, **kw)
+
         return make
 
     monkeypatch.setattr(trainer_module.torch.optim, "Adam", spy(False))

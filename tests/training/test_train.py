@@ -1,4 +1,5 @@
 """Training, rollout and evaluation end to end on small data; resume equality; DDP; adapters; guards."""
+
 import functools
 import json
 import os
@@ -42,8 +43,14 @@ pytestmark = pytest.mark.slow  # trains and rolls out real runs (DDP in a subpro
 
 # this file's runs: conftest's TINY, then these (MGN/GT at 2 blocks, a log line every step, a checkpoint every 2,
 # validation on one trajectory every 3, contact radius 0.3)
-EXTRA = ["model.blocks=2", "train.log_every=1", "train.checkpoint_every=2", "train.valid_every=3",
-         "train.valid_trajectories=1", "train.contact_radius=0.3"]
+EXTRA = [
+    "model.blocks=2",
+    "train.log_every=1",
+    "train.checkpoint_every=2",
+    "train.valid_every=3",
+    "train.valid_trajectories=1",
+    "train.contact_radius=0.3",
+]
 
 
 @pytest.fixture(scope="module")
@@ -118,8 +125,15 @@ def test_resume_ends_with_the_same_parameters(impact, tmp_path, tiny_config):
     with pytest.raises(ValueError, match="already holds a run; pass resume=True"):
         train(cfg, impact, "hcmt", tmp_path / "straight", seed=3, progress=False)
     with pytest.raises(ValueError, match=r"config\.train\.noise_std: 0\.01 \(run\) vs"):
-        train(tiny_config(*EXTRA, "train.steps=9"), impact, "hcmt", tmp_path / "straight",
-              seed=3, progress=False, resume=True)
+        train(
+            tiny_config(*EXTRA, "train.steps=9"),
+            impact,
+            "hcmt",
+            tmp_path / "straight",
+            seed=3,
+            progress=False,
+            resume=True,
+        )
 
 
 def free_port() -> int:
@@ -130,9 +144,27 @@ def free_port() -> int:
 
 
 def test_two_process_ddp(impact, tmp_path):
-    cmd = [sys.executable, "-m", "torch.distributed.run", "--nproc_per_node=2", f"--master_port={free_port()}",
-           "-m", "hcmt", "train", "--config", "impact_plate_cpu", "--data", str(impact), "--model", "hcmt",
-           "--steps", "3", "--out", str(tmp_path / "ddp"), "--no-progress"]
+    cmd = [
+        sys.executable,
+        "-m",
+        "torch.distributed.run",
+        "--nproc_per_node=2",
+        f"--master_port={free_port()}",
+        "-m",
+        "hcmt",
+        "train",
+        "--config",
+        "impact_plate_cpu",
+        "--data",
+        str(impact),
+        "--model",
+        "hcmt",
+        "--steps",
+        "3",
+        "--out",
+        str(tmp_path / "ddp"),
+        "--no-progress",
+    ]
     cmd += sum((["--set", s] for s in TINY + EXTRA), [])
     r = subprocess.run(cmd, capture_output=True, text=True, timeout=300)
     assert r.returncode == 0, r.stderr[-3000:]
@@ -143,13 +175,17 @@ def test_two_process_ddp(impact, tmp_path):
 @pytest.mark.parametrize("kind", ["deforming_plate", "sphere_simple", "deformable_plate"])
 def test_adapters_on_official_layouts(tmp_path, kind, tiny_config):
     src = tmp_path / "src"
-    {"deforming_plate": deforming_plate_tfrecord, "sphere_simple": sphere_simple_tfrecord,
-     "deformable_plate": ggns_pickles}[kind](src)
+    {
+        "deforming_plate": deforming_plate_tfrecord,
+        "sphere_simple": sphere_simple_tfrecord,
+        "deformable_plate": ggns_pickles,
+    }[kind](src)
     assert cli(["convert", str(src), str(tmp_path / "data")]) == 0
     radius = {"deforming_plate": 0.03, "sphere_simple": 0.05, "deformable_plate": 0.08}[kind]
     # the paper's excluded Deforming Plate trajectories 173 and 233 do not exist in a 2-trajectory file
-    cfg = tiny_config(*EXTRA, "train.steps=2", f"train.contact_radius={radius}", "data.exclude_trajectories=[]",
-                      base=f"{kind}_cpu")
+    cfg = tiny_config(
+        *EXTRA, "train.steps=2", f"train.contact_radius={radius}", "data.exclude_trajectories=[]", base=f"{kind}_cpu"
+    )
     train(cfg, tmp_path / "data", "hcmt", tmp_path / "run", progress=False)
     m = evaluate(Run.load(tmp_path / "run", "cpu"), tmp_path / "data", "test")
     assert np.isfinite(m.position.rmse_all)
@@ -165,8 +201,22 @@ def test_cli_train_rollout_evaluate_compare(impact, tmp_path, capsys):
     runs = []
     for model, seed in (("hcmt", 0), ("hcmt", 1), ("mgn", 0)):
         run = tmp_path / f"{model}{seed}"
-        args = ["train", "--config", "impact_plate_cpu", "--data", str(impact), "--model", model, "--steps", "2",
-                "--seed", str(seed), "--out", str(run), "--no-progress"] + sum((["--set", s] for s in TINY + EXTRA), [])
+        args = [
+            "train",
+            "--config",
+            "impact_plate_cpu",
+            "--data",
+            str(impact),
+            "--model",
+            model,
+            "--steps",
+            "2",
+            "--seed",
+            str(seed),
+            "--out",
+            str(run),
+            "--no-progress",
+        ] + sum((["--set", s] for s in TINY + EXTRA), [])
         assert cli(args) == 0
         assert cli(["rollout", str(run), "--data", str(impact), "--split", "test"]) == 0
         assert (run / "rollout_test.h5").is_file()
@@ -218,8 +268,13 @@ def test_dataset_without_the_adapters_fields_is_refused(tmp_path, tiny_config):
     with pytest.raises(DatasetError, match=r"impact_plate adapter .* needs fields \['density', 'modulus', 'stress'\]"):
         train(cfg, tmp_path / "data", "mgn", tmp_path / "run", progress=False)
     with pytest.raises(ValueError, match="out of range"):
-        train(tiny_config(*EXTRA, "train.steps=1", "data.exclude_trajectories=[5]", base="sphere_simple_cpu"),
-              tmp_path / "data", "mgn", tmp_path / "run2", progress=False)
+        train(
+            tiny_config(*EXTRA, "train.steps=1", "data.exclude_trajectories=[5]", base="sphere_simple_cpu"),
+            tmp_path / "data",
+            "mgn",
+            tmp_path / "run2",
+            progress=False,
+        )
 
 
 def test_error_curves_roll_out_the_trajectories_an_old_rollout_lacks(tmp_path, tiny_config):
@@ -245,8 +300,10 @@ def test_official_contact_pairs_join_obstacle_and_normal_nodes_only(impact):
         adapter = config_adapter(Config.from_dict({"dataset": "impact_plate", "train": {"contact_pairs": pairs}}))
         (traj,) = load_split(impact, "test", adapter, 0)
         x = traj.world_pos[2]
-        graphs[pairs] = (build_graph(traj, x, node_features(adapter, traj.static, x, traj.world_pos[1], x), radius),
-                         traj.static["node_type"])
+        graphs[pairs] = (
+            build_graph(traj, x, node_features(adapter, traj.static, x, traj.world_pos[1], x), radius),
+            traj.static["node_type"],
+        )
     g, nt = graphs["official"]
     types = {tuple(sorted(p)) for p in nt[g.contact_edges].T.tolist()}
     assert types == {(int(NodeType.NORMAL), int(NodeType.OBSTACLE))}
@@ -254,16 +311,37 @@ def test_official_contact_pairs_join_obstacle_and_normal_nodes_only(impact):
     assert g_all.contact_edges.shape[1] > g.contact_edges.shape[1]
 
 
-@pytest.mark.parametrize("args,message", [
-    (["--set", "model.attention=softmax"], "model.attention: unknown value 'softmax'; expected one of paper, official"),
-    (["--set", "train.contact_pairs=some"], "train.contact_pairs: unknown value 'some'; expected one of all, official"),
-    (["--steps", "0"], "argument --steps: expected a whole number from 1 to 1,000,000,000, got '0'"),
-    (["--steps", "-5"], "argument --steps: expected a whole number from 1 to 1,000,000,000, got '-5'"),
-    (["--set", "train.steps=0"], "--set 'train.steps=0': train.steps must be a whole number >= 1, got 0"),
-])
+@pytest.mark.parametrize(
+    "args,message",
+    [
+        (
+            ["--set", "model.attention=softmax"],
+            "model.attention: unknown value 'softmax'; expected one of paper, official",
+        ),
+        (
+            ["--set", "train.contact_pairs=some"],
+            "train.contact_pairs: unknown value 'some'; expected one of all, official",
+        ),
+        (["--steps", "0"], "argument --steps: expected a whole number from 1 to 1,000,000,000, got '0'"),
+        (["--steps", "-5"], "argument --steps: expected a whole number from 1 to 1,000,000,000, got '-5'"),
+        (["--set", "train.steps=0"], "--set 'train.steps=0': train.steps must be a whole number >= 1, got 0"),
+    ],
+)
 def test_bad_settings_are_refused_before_any_work(impact, tmp_path, capsys, args, message):
-    rc = cli(["train", "--config", "impact_plate_cpu", "--data", str(impact), "--model", "hcmt", "--out",
-              str(tmp_path / "run"), *args])
+    rc = cli(
+        [
+            "train",
+            "--config",
+            "impact_plate_cpu",
+            "--data",
+            str(impact),
+            "--model",
+            "hcmt",
+            "--out",
+            str(tmp_path / "run"),
+            *args,
+        ]
+    )
     err = capsys.readouterr().err.strip().splitlines()
     assert rc == 2 and len(err) == 1 and message in err[0]
     assert not (tmp_path / "run").exists()
@@ -273,11 +351,27 @@ def test_interrupted_training_saves_and_says_how_to_resume(impact, tmp_path):
     """SIGINT in the middle of training: one line naming the saved step and the resume command; resuming
     finishes the run."""
     run = tmp_path / "run"
-    cmd = [sys.executable, "-m", "hcmt", "train", "--config", "impact_plate_cpu", "--data", str(impact), "--model",
-           "mgn", "--out", str(run), "--no-progress", "--steps", "400"]
+    cmd = [
+        sys.executable,
+        "-m",
+        "hcmt",
+        "train",
+        "--config",
+        "impact_plate_cpu",
+        "--data",
+        str(impact),
+        "--model",
+        "mgn",
+        "--out",
+        str(run),
+        "--no-progress",
+        "--steps",
+        "400",
+    ]
     cmd += [a for t in TINY + EXTRA for a in ("--set", t)]
-    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                            env={**os.environ, "OMP_NUM_THREADS": "1"})
+    proc = subprocess.Popen(
+        cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env={**os.environ, "OMP_NUM_THREADS": "1"}
+    )
     deadline = time.time() + 120
     log = run / "log.jsonl"
     while time.time() < deadline and not (log.is_file() and log.read_text().count("\n") >= 3):
@@ -290,8 +384,27 @@ def test_interrupted_training_saves_and_says_how_to_resume(impact, tmp_path):
     assert "checkpoint of step" in lines[0] and "--resume" in lines[0]
     saved = torch.load(run / "checkpoint.pt", weights_only=True)["step"]
     assert 0 < saved < 400 and f"step {saved} of 400" in lines[0]
-    assert cli(["train", "--config", "impact_plate_cpu", "--data", str(impact), "--model", "mgn", "--out", str(run),
-                "--no-progress", "--steps", "400", "--resume"] + [a for t in TINY + EXTRA for a in ("--set", t)]) == 0
+    assert (
+        cli(
+            [
+                "train",
+                "--config",
+                "impact_plate_cpu",
+                "--data",
+                str(impact),
+                "--model",
+                "mgn",
+                "--out",
+                str(run),
+                "--no-progress",
+                "--steps",
+                "400",
+                "--resume",
+            ]
+            + [a for t in TINY + EXTRA for a in ("--set", t)]
+        )
+        == 0
+    )
     assert torch.load(run / "checkpoint.pt", weights_only=True)["step"] == 400
 
 
@@ -317,18 +430,43 @@ def test_compiled_rollouts_equal_plain(impact, tmp_path, monkeypatch, tiny_confi
     cfg = tiny_config(*EXTRA, "train.steps=2")
     train(cfg, impact, "gt", tmp_path / "run", progress=False, device="cpu")
     compile_, calls = torch.compile, []
-    monkeypatch.setattr(torch, "compile", lambda model, **kw: calls.append(kw) or compile_(model, backend="eager",
-                                                                                           dynamic=kw["dynamic"]))
+    monkeypatch.setattr(
+        torch,
+        "compile",
+        lambda model, **kw: calls.append(kw) or compile_(model, backend="eager", dynamic=kw["dynamic"]),
+    )
     import hcmt.inference.rollout as rollout_module
     from hcmt.models.export import with_dummies
 
     exports = []  # aot: the package's forward stood in by the model on the same dummy-extended graph (no compiler)
-    monkeypatch.setattr(rollout_module, "exported_forward", lambda model, example: exports.append(example) or (
-        lambda g: model(with_dummies(g), accumulate=False)[: g.num_nodes]))
+    monkeypatch.setattr(
+        rollout_module,
+        "exported_forward",
+        lambda model, example: (
+            exports.append(example) or (lambda g: model(with_dummies(g), accumulate=False)[: g.num_nodes])
+        ),
+    )
     out = {}
     for mode in ("none", "default", "max-autotune", "auto", "aot"):
-        assert cli(["rollout", str(tmp_path / "run"), "--data", str(impact), "--split", "train", "--batch", "2",
-                    "--device", "cpu", "--compile", mode]) == 0
+        assert (
+            cli(
+                [
+                    "rollout",
+                    str(tmp_path / "run"),
+                    "--data",
+                    str(impact),
+                    "--split",
+                    "train",
+                    "--batch",
+                    "2",
+                    "--device",
+                    "cpu",
+                    "--compile",
+                    mode,
+                ]
+            )
+            == 0
+        )
         with h5py.File(tmp_path / "run" / "rollout_train.h5") as f:
             out[mode] = {k: f[k]["world_pos"][()] for k in f}
     assert [c["dynamic"] for c in calls] == [True, False]  # default: symbolic sizes; max-autotune: padded
@@ -344,8 +482,11 @@ def test_unknown_or_unavailable_device_is_one_line(impact, tmp_path, capsys, tin
     train(cfg, impact, "mgn", tmp_path / "run", progress=False)
     run, data, out = str(tmp_path / "run"), str(impact), str(tmp_path / "out")
     for device in ("tpu", "cuda:7" if torch.cuda.is_available() else "cuda"):
-        for cmd in (["evaluate", run, "--data", data], ["plot", run, "--data", data, "--out", out, "--only", "errors"],
-                    ["export", run, "--data", data, "--out", out]):
+        for cmd in (
+            ["evaluate", run, "--data", data],
+            ["plot", run, "--data", data, "--out", out, "--only", "errors"],
+            ["export", run, "--data", data, "--out", out],
+        ):
             assert cli(cmd + ["--device", device]) == 2, cmd
             err = capsys.readouterr().err.strip().splitlines()
             assert len(err) == 1 and f"--device {device}" in err[0].replace("'", ""), (cmd, err)
@@ -358,13 +499,22 @@ def test_run_folder_rules(impact, tmp_path, capsys):
     """Resume alone with the saved settings, fewer steps refused, no duplicate log steps, a lock against a second
     writer, nothing left behind by a run that fails before its first checkpoint."""
     run = tmp_path / "run"
-    base = ["train", "--config", "impact_plate_cpu", "--data", str(impact), "--model", "mgn", "--out", str(run),
-            "--no-progress"] + [a for t in TINY + EXTRA for a in ("--set", t)]
+    base = [
+        "train",
+        "--config",
+        "impact_plate_cpu",
+        "--data",
+        str(impact),
+        "--model",
+        "mgn",
+        "--out",
+        str(run),
+        "--no-progress",
+    ] + [a for t in TINY + EXTRA for a in ("--set", t)]
     assert cli(base + ["--steps", "3"]) == 0
     assert cli(["train", "--resume", "--out", str(run), "--steps", "5", "--no-progress"]) == 0
     assert torch.load(run / "checkpoint.pt", weights_only=True)["step"] == 5
-    steps = [json.loads(l)["step"] for l in (run / "log.jsonl").read_text().splitlines()
-             if "loss" in json.loads(l)]
+    steps = [json.loads(l)["step"] for l in (run / "log.jsonl").read_text().splitlines() if "loss" in json.loads(l)]
     assert steps == [1, 2, 3, 4, 5]
     capsys.readouterr()
     assert cli(["train", "--resume", "--out", str(run), "--steps", "2", "--no-progress"]) == 2
@@ -376,8 +526,23 @@ def test_run_folder_rules(impact, tmp_path, capsys):
     assert "being written by another training process" in capsys.readouterr().err
     (run / ".lock").unlink()
     bad = tmp_path / "bad"
-    assert cli(["train", "--config", "impact_plate_cpu", "--data", str(tmp_path / "nowhere"), "--model", "mgn",
-                "--out", str(bad), "--no-progress"]) == 2
+    assert (
+        cli(
+            [
+                "train",
+                "--config",
+                "impact_plate_cpu",
+                "--data",
+                str(tmp_path / "nowhere"),
+                "--model",
+                "mgn",
+                "--out",
+                str(bad),
+                "--no-progress",
+            ]
+        )
+        == 2
+    )
     assert not bad.exists()
 
 
@@ -392,8 +557,9 @@ def test_dataloader_workers_change_no_result(impact, tmp_path, tiny_config):
     (noise and data order are functions of the step, not of the process)."""
     params = []
     for workers in (0, 2):
-        cfg = tiny_config(*EXTRA, "train.steps=4", "train.noise_std=0.01", "train.batch_size=2",
-                          f"train.workers={workers}")
+        cfg = tiny_config(
+            *EXTRA, "train.steps=4", "train.noise_std=0.01", "train.batch_size=2", f"train.workers={workers}"
+        )
         train(cfg, impact, "hcmt", tmp_path / f"w{workers}", seed=2, progress=False)
         params.append(torch.load(tmp_path / f"w{workers}" / "checkpoint.pt", weights_only=True)["model"])
     assert all(torch.equal(params[0][k], params[1][k]) for k in params[0])
@@ -406,8 +572,9 @@ def test_frame_dataset_pickles_without_its_trajectories(impact):
     assert clone.source._split is None and not clone.source._static  # reopened lazily in the worker
     g2, t2, m2 = clone[0]
     assert torch.equal(target, t2) and torch.equal(graph.node_features, g2.node_features) and len(ds) == len(clone)
-    eager = FrameDataset(impact, "train", get_adapter("impact_plate"), 1, True, 0.3, noise_std=0.01, seed=1,
-                         in_memory=True)
+    eager = FrameDataset(
+        impact, "train", get_adapter("impact_plate"), 1, True, 0.3, noise_std=0.01, seed=1, in_memory=True
+    )
     assert pickle.loads(pickle.dumps(eager)).source._trajs is None
 
 
@@ -418,8 +585,10 @@ def test_contact_free_weight_scales_the_loss_of_frames_where_nothing_touches(imp
     (every pair, the touching ones among them) give frames of both kinds."""
     adapter, policy, free = get_adapter("impact_plate"), TrainingPolicy(), []
     for radius in (1e-9, 1e3):
-        plain, heavy = (FrameDataset(impact, "train", adapter, 1, True, radius, noise_std=0.01, seed=1,
-                                     contact_free_weight=w) for w in (1.0, 3.0))
+        plain, heavy = (
+            FrameDataset(impact, "train", adapter, 1, True, radius, noise_std=0.01, seed=1, contact_free_weight=w)
+            for w in (1.0, 3.0)
+        )
         for i in range(len(plain)):
             (graph, target, mask), (_, target3, mask3) = plain[i], heavy[i]
             free.append(not bool((graph.contact_features[:, -1] <= CONTACT_TOL).any()))
@@ -478,8 +647,13 @@ def test_a_rank_reads_only_the_frames_of_its_own_keys(tmp_path, monkeypatch):
     data = write_impact_like(tmp_path / "data", n_train=6, steps=6)
     reads = []
     read = Split.read
-    monkeypatch.setattr(Split, "read", lambda self, i, fields, frames=None, num_nodes=None: reads.append(
-        (self.names[i], frames)) or read(self, i, fields, frames, num_nodes))
+    monkeypatch.setattr(
+        Split,
+        "read",
+        lambda self, i, fields, frames=None, num_nodes=None: (
+            reads.append((self.names[i], frames)) or read(self, i, fields, frames, num_nodes)
+        ),
+    )
     monkeypatch.setattr(Split, "__getitem__", lambda self, i: pytest.fail("a whole trajectory was read"))
     for rank in (0, 1):
         ds = FrameDataset(data, "train", get_adapter("impact_plate"), 1, True, 0.3, keep=1)
@@ -503,15 +677,30 @@ def test_compiled_training_matches_eager(impact, tmp_path, monkeypatch, tiny_con
     eager normalizer accumulation and the tracing."""
     compile_ = torch.compile
     calls = []
-    monkeypatch.setattr(torch, "compile", lambda model, **kw: calls.append(kw) or compile_(
-        model, backend="eager", dynamic=kw["dynamic"]))
+    monkeypatch.setattr(
+        torch,
+        "compile",
+        lambda model, **kw: calls.append(kw) or compile_(model, backend="eager", dynamic=kw["dynamic"]),
+    )
     made, predictions = trainer_module.padded_forward, []
-    monkeypatch.setattr(trainer_module, "padded_forward", lambda net, sizes: (
-        lambda graph, forward=made(net, sizes): predictions.append(graph.num_nodes) or forward(graph)))
+    monkeypatch.setattr(
+        trainer_module,
+        "padded_forward",
+        lambda net, sizes: (
+            lambda graph, forward=made(net, sizes): predictions.append(graph.num_nodes) or forward(graph)
+        ),
+    )
     params = {}
     for m in ("none", mode):
-        cfg = tiny_config(*EXTRA, "train.steps=6", "train.noise_std=0.01", "train.batch_size=2",
-                          "train.pushforward=0.5", "train.pushforward_start=0", f"train.compile={m}")
+        cfg = tiny_config(
+            *EXTRA,
+            "train.steps=6",
+            "train.noise_std=0.01",
+            "train.batch_size=2",
+            "train.pushforward=0.5",
+            "train.pushforward_start=0",
+            f"train.compile={m}",
+        )
         train(cfg, impact, "hcmt", tmp_path / m, seed=2, progress=False, device="cpu")
         params[m] = torch.load(tmp_path / m / "checkpoint.pt", weights_only=True)["model"]
     assert [(kw["mode"], kw["dynamic"]) for kw in calls] == [(None if mode == "default" else mode, not padded)]
@@ -531,8 +720,10 @@ def test_compile_refuses_lpe_and_deterministic_is_scoped(impact, tmp_path, tiny_
         train(cfg, impact, "hcmt", tmp_path / "lpe", ablation="lpe", progress=False, device="cpu")
     seen = []
     step = trainer_module.Trainer.step
+
     def tr_step(self, *a):
         return seen.append(torch.are_deterministic_algorithms_enabled()) or step(self, *a)
+
     cfg = tiny_config(*EXTRA, "train.steps=2", "train.deterministic=true")
     try:
         trainer_module.Trainer.step = tr_step
@@ -547,8 +738,9 @@ def test_compile_refuses_lpe_and_deterministic_is_scoped(impact, tmp_path, tiny_
 def test_resume_on_cuda(impact, tmp_path, deterministic, tiny_config):
     """On CUDA, scatter sums are not reproducible by default: a resumed run matches within a tolerance;
     with train.deterministic it matches bit for bit."""
-    cfg = tiny_config(*EXTRA, "train.steps=6", "train.noise_std=0.01",
-                      f"train.deterministic={str(deterministic).lower()}")
+    cfg = tiny_config(
+        *EXTRA, "train.steps=6", "train.noise_std=0.01", f"train.deterministic={str(deterministic).lower()}"
+    )
     train(cfg, impact, "hcmt", tmp_path / "straight", seed=3, progress=False, device="cuda")
     train(cfg, impact, "hcmt", tmp_path / "resumed", seed=3, progress=False, device="cuda", stop_at=3)
     train(cfg, impact, "hcmt", tmp_path / "resumed", seed=3, progress=False, device="cuda", resume=True)
@@ -574,8 +766,12 @@ def test_pad_sizes_from_the_hierarchies_equal_those_of_the_frames_graphs(impact)
 
 # -- fine-tuning: train --init ---------------------------------------------------------------------------------------
 def _normalizer_buffers(model) -> dict:
-    return {f"{n}.{b}": t.clone() for n, m in model.named_modules() if isinstance(m, Normalizer)
-            for b, t in m.named_buffers()}
+    return {
+        f"{n}.{b}": t.clone()
+        for n, m in model.named_modules()
+        if isinstance(m, Normalizer)
+        for b, t in m.named_buffers()
+    }
 
 
 def test_init_starts_from_the_source_weights_and_keeps_or_reaccumulates_normalizers(impact, tmp_path, tiny_config):
@@ -586,26 +782,60 @@ def test_init_starts_from_the_source_weights_and_keeps_or_reaccumulates_normaliz
     train(tiny_config(*EXTRA, "train.steps=4"), impact, "hcmt", src, seed=1, progress=False)
     source = Run.load(src, "cpu").model
     frozen = tmp_path / "frozen"
-    train(tiny_config(*EXTRA, "train.steps=3", "train.lr=1e-30", "train.lr_final=1e-30", "train.pushforward=0"), impact,
-          "hcmt", frozen, seed=2, progress=False, init=str(src))
+    train(
+        tiny_config(*EXTRA, "train.steps=3", "train.lr=1e-30", "train.lr_final=1e-30", "train.pushforward=0"),
+        impact,
+        "hcmt",
+        frozen,
+        seed=2,
+        progress=False,
+        init=str(src),
+    )
     tuned = load_run(frozen, "checkpoint")[0]
     for (k, a), b in zip(source.state_dict().items(), tuned.state_dict().values()):
         torch.testing.assert_close(a, b, rtol=0, atol=0, msg=k)  # no step and frozen statistics: nothing moved
     assert load_run(frozen, "checkpoint")[1].init == {"from": str(src), "normalizers": "keep", "step": 3}
     fresh = tmp_path / "fresh"
-    train(tiny_config(*EXTRA, "train.steps=3"), impact, "hcmt", fresh, seed=2, progress=False, init=str(src),
-          init_normalizers="reaccumulate")
+    train(
+        tiny_config(*EXTRA, "train.steps=3"),
+        impact,
+        "hcmt",
+        fresh,
+        seed=2,
+        progress=False,
+        init=str(src),
+        init_normalizers="reaccumulate",
+    )
     counts_src = {k: float(v) for k, v in _normalizer_buffers(source).items() if k.endswith("num_accumulations")}
-    counts_new = {k: float(v) for k, v in _normalizer_buffers(load_run(fresh, "checkpoint")[0]).items()
-                  if k.endswith("num_accumulations")}
+    counts_new = {
+        k: float(v)
+        for k, v in _normalizer_buffers(load_run(fresh, "checkpoint")[0]).items()
+        if k.endswith("num_accumulations")
+    }
     assert all(counts_new[k] < counts_src[k] for k in counts_src if counts_src[k] > 3)  # started again from zero
 
 
 def test_init_with_another_architecture_is_one_line_listing_the_differences(impact, tmp_path, tiny_config, capsys):
     train(tiny_config(*EXTRA, "train.steps=2"), impact, "hcmt", tmp_path / "src", seed=1, progress=False)
-    rc = cli(["train", "--config", "impact_plate_cpu", "--data", str(impact), "--model", "hcmt", "--out",
-              str(tmp_path / "b"), "--steps", "2", "--init", str(tmp_path / "src"), "--no-progress",
-              *(a for kv in TINY + EXTRA + ["model.hidden=24"] for a in ("--set", kv))])
+    rc = cli(
+        [
+            "train",
+            "--config",
+            "impact_plate_cpu",
+            "--data",
+            str(impact),
+            "--model",
+            "hcmt",
+            "--out",
+            str(tmp_path / "b"),
+            "--steps",
+            "2",
+            "--init",
+            str(tmp_path / "src"),
+            "--no-progress",
+            *(a for kv in TINY + EXTRA + ["model.hidden=24"] for a in ("--set", kv)),
+        ]
+    )
     err = capsys.readouterr().err.strip()
     assert rc == 2 and len(err.splitlines()) == 1
     assert "its model differs from this run's: hidden 16 there, 24 here" in err
@@ -619,8 +849,28 @@ def test_init_with_another_architecture_is_one_line_listing_the_differences(impa
 def test_ablation_flag_is_the_model_ablation_key_and_resume_keeps_it(impact, tmp_path, capsys):
     out = tmp_path / "abl"
     sets = [a for kv in TINY + EXTRA for a in ("--set", kv)]
-    assert cli(["train", "--config", "impact_plate_cpu", "--data", str(impact), "--model", "hcmt", "--out", str(out),
-                "--steps", "1", "--ablation", "only-hmt", "--no-progress", *sets]) == 0
+    assert (
+        cli(
+            [
+                "train",
+                "--config",
+                "impact_plate_cpu",
+                "--data",
+                str(impact),
+                "--model",
+                "hcmt",
+                "--out",
+                str(out),
+                "--steps",
+                "1",
+                "--ablation",
+                "only-hmt",
+                "--no-progress",
+                *sets,
+            ]
+        )
+        == 0
+    )
     info = Run.load(out, "cpu").info
     assert info.config.model.ablation == info.model["ablation"] == "only-hmt"
     assert cli(["train", "--out", str(out), "--resume", "--steps", "2", "--no-progress"]) == 0
@@ -633,8 +883,28 @@ def test_ablation_no_remesh_is_an_alias_of_data_remesh_false(impact, tmp_path, c
     holds the graph setting, the run builds the 2-hop hierarchy, and resuming keeps it."""
     out = tmp_path / "nr"
     sets = [a for kv in TINY + EXTRA for a in ("--set", kv)]
-    assert cli(["train", "--config", "impact_plate_cpu", "--data", str(impact), "--model", "hcmt", "--out", str(out),
-                "--steps", "1", "--ablation", "no-remesh", "--no-progress", *sets]) == 0
+    assert (
+        cli(
+            [
+                "train",
+                "--config",
+                "impact_plate_cpu",
+                "--data",
+                str(impact),
+                "--model",
+                "hcmt",
+                "--out",
+                str(out),
+                "--steps",
+                "1",
+                "--ablation",
+                "no-remesh",
+                "--no-progress",
+                *sets,
+            ]
+        )
+        == 0
+    )
     saved = yaml.safe_load((out / "run.yaml").read_text())
     assert saved["config"]["data"]["remesh"] is False and saved["config"]["model"]["ablation"] is None
     assert saved["model"]["ablation"] is None
@@ -650,24 +920,87 @@ def test_init_inherits_the_sources_model_settings_and_mgn_saves_only_its_own(imp
     ``--config`` / ``--model``, its config and model: fine-tuning the shipped model needs no ``--set``."""
     shipped = Run.load("pretrained:impact_plate_small", "cpu")
     ft = tmp_path / "ft"
-    assert cli(["train", "--init", "pretrained:impact_plate_small", "--data", str(impact), "--out", str(ft),
-                "--steps", "1", "--no-progress", "--set", "train.valid_every=0"]) == 0
+    assert (
+        cli(
+            [
+                "train",
+                "--init",
+                "pretrained:impact_plate_small",
+                "--data",
+                str(impact),
+                "--out",
+                str(ft),
+                "--steps",
+                "1",
+                "--no-progress",
+                "--set",
+                "train.valid_every=0",
+            ]
+        )
+        == 0
+    )
     info = Run.load(ft, "cpu").info
     assert architecture(info.model) == architecture(shipped.info.model)
     assert info.config.model == shipped.config.model and info.config.model.deformation
     src = tmp_path / "src"
-    train(tiny_config(*EXTRA, "train.steps=1", "model.deformation=true", "model.attention=official"), impact, "hcmt",
-          src, seed=1, progress=False)
-    assert cli(["train", "--config", "impact_plate_cpu", "--data", str(impact), "--out", str(tmp_path / "b"),
-                "--steps", "1", "--init", str(src), "--no-progress", *(a for kv in EXTRA for a in ("--set", kv))]) == 0
+    train(
+        tiny_config(*EXTRA, "train.steps=1", "model.deformation=true", "model.attention=official"),
+        impact,
+        "hcmt",
+        src,
+        seed=1,
+        progress=False,
+    )
+    assert (
+        cli(
+            [
+                "train",
+                "--config",
+                "impact_plate_cpu",
+                "--data",
+                str(impact),
+                "--out",
+                str(tmp_path / "b"),
+                "--steps",
+                "1",
+                "--init",
+                str(src),
+                "--no-progress",
+                *(a for kv in EXTRA for a in ("--set", kv)),
+            ]
+        )
+        == 0
+    )
     model = Run.load(tmp_path / "b", "cpu").info.config.model
     assert (model.deformation, model.attention, model.hidden) == (True, "official", 16)  # none of them given
     mgn = tmp_path / "mgn"
     train(tiny_config(*EXTRA, "train.steps=1"), impact, "mgn", mgn, seed=1, progress=False)
-    assert set(Run.load(mgn, "cpu").info.model) == {"name", "node_in", "mesh_in", "contact_in", "out", "hidden",
-                                                       "blocks"}
-    assert cli(["train", "--data", str(impact), "--out", str(tmp_path / "mgn2"), "--steps", "1", "--init", str(mgn),
-                "--no-progress"]) == 0
+    assert set(Run.load(mgn, "cpu").info.model) == {
+        "name",
+        "node_in",
+        "mesh_in",
+        "contact_in",
+        "out",
+        "hidden",
+        "blocks",
+    }
+    assert (
+        cli(
+            [
+                "train",
+                "--data",
+                str(impact),
+                "--out",
+                str(tmp_path / "mgn2"),
+                "--steps",
+                "1",
+                "--init",
+                str(mgn),
+                "--no-progress",
+            ]
+        )
+        == 0
+    )
     with pytest.raises(ValueError, match="model.ablation only-hmt: an ablation of HCMT; model mgn has none"):
         train(tiny_config(*EXTRA, "train.steps=1", "model.ablation=only-hmt"), impact, "mgn", tmp_path / "x")
     capsys.readouterr()

@@ -1,4 +1,5 @@
 """ParaView export: the files meshio and ParaView read, holding exactly the rollout's arrays."""
+
 import xml.etree.ElementTree as ET
 
 import h5py
@@ -80,8 +81,25 @@ def test_xdmf_series_reads_back(setup, tmp_path):
 
 def test_export_command_all_trajectories_with_stride(setup, tmp_path):
     data, run = setup
-    assert cli(["export", str(run), "--data", str(data), "--format", "vtu", "--out", str(tmp_path),
-                "--trajectory", "all", "--stride", "2"]) == 0
+    assert (
+        cli(
+            [
+                "export",
+                str(run),
+                "--data",
+                str(data),
+                "--format",
+                "vtu",
+                "--out",
+                str(tmp_path),
+                "--trajectory",
+                "all",
+                "--stride",
+                "2",
+            ]
+        )
+        == 0
+    )
     pvds = sorted(p.name for p in tmp_path.glob("*.pvd"))
     assert pvds == ["traj_00000_mgn.pvd", "traj_00000_truth.pvd", "traj_00001_mgn.pvd", "traj_00001_truth.pvd"]
     frames = [p.name for _, p in read_pvd(tmp_path / "traj_00001_mgn.pvd")]
@@ -92,8 +110,15 @@ def test_export_tetrahedra(tmp_path):
     pos, tets = box_tetrahedra(2, 1, 1, h=0.5)
     world = np.stack([pos, pos + [0, 0, -0.1], pos + [0, 0, -0.2]]).astype(np.float32)
     stress = np.random.default_rng(0).random((3, len(pos), 1)).astype(np.float32)
-    case = Case("traj_00000", pos, tets, np.zeros(len(pos), np.int64), Series("Ground truth", world, stress),
-                [Series("HCMT", world + 0.01, stress * 2, start=1)], meta={"dt": None})
+    case = Case(
+        "traj_00000",
+        pos,
+        tets,
+        np.zeros(len(pos), np.int64),
+        Series("Ground truth", world, stress),
+        [Series("HCMT", world + 0.01, stress * 2, start=1)],
+        meta={"dt": None},
+    )
     paths = export_case(case, tmp_path, "vtu")
     t, last = read_pvd(paths[1])[-1]
     assert t == 2.0  # no dt: time is the frame number

@@ -1,5 +1,6 @@
 """Pictures: what they show is checked (scales, units, frames, errors, edges, attention rows), not just that a file
 appears."""
+
 import json
 
 import numpy as np
@@ -34,8 +35,15 @@ def data(tmp_path_factory):
 @pytest.fixture(scope="module")
 def hcmt_run(data, tmp_path_factory, tiny_config):
     run = tmp_path_factory.mktemp("runs") / "hcmt"
-    cfg = tiny_config("model.blocks=2", "train.log_every=1", "train.checkpoint_every=2", "train.valid_every=2",
-                      "train.valid_trajectories=1", "train.contact_radius=0.3", "train.steps=2")
+    cfg = tiny_config(
+        "model.blocks=2",
+        "train.log_every=1",
+        "train.checkpoint_every=2",
+        "train.valid_every=2",
+        "train.valid_trajectories=1",
+        "train.contact_radius=0.3",
+        "train.steps=2",
+    )
     train(cfg, data, "hcmt", run, seed=0, progress=False)
     return run
 
@@ -77,7 +85,7 @@ def _panel_mean(fig, ax):
     img = np.asarray(fig.canvas.buffer_rgba())[..., :3].astype(float)
     bb = ax.get_window_extent()
     h = img.shape[0]
-    return img[int(h - bb.y1) + 2:int(h - bb.y0) - 2, int(bb.x0) + 2:int(bb.x1) - 2].mean((0, 1))
+    return img[int(h - bb.y1) + 2 : int(h - bb.y0) - 2, int(bb.x0) + 2 : int(bb.x1) - 2].mean((0, 1))
 
 
 def test_contours_share_one_scale_per_row_with_units(data, tmp_path):
@@ -99,7 +107,6 @@ def test_contours_share_one_scale_per_row_with_units(data, tmp_path):
     fig.canvas.draw()
     a, b = panels(fig)
     assert np.allclose(_panel_mean(fig, a), _panel_mean(fig, b), atol=1.0)  # an exact prediction looks the same
-
 
     # a prediction with ten times the stress: the shared scale saturates it and the colour bar says so
     case.predictions[0] = Series("MGN", case.truth.world_pos, case.truth.stress * 10, 2)
@@ -128,8 +135,15 @@ def test_contours_of_a_3d_mesh(tmp_path):
     pos, tets = box_tetrahedra(3, 2, 1, h=0.5)
     world = np.stack([pos, pos * [1, 1, 0.9]])
     stress = np.stack([np.zeros((len(pos), 1)), pos[:, :1]])
-    case = Case("t", pos, tets, np.zeros(len(pos), np.int64), Series("Ground truth", world, stress),
-                [Series("HCMT", world, stress, 1)], meta={})
+    case = Case(
+        "t",
+        pos,
+        tets,
+        np.zeros(len(pos), np.int64),
+        Series("Ground truth", world, stress),
+        [Series("HCMT", world, stress, 1)],
+        meta={},
+    )
     fig = contour_figure(case, [1])
     fig.savefig(tmp_path / "c.png", dpi=100)
     assert_nontrivial(tmp_path / "c.png")
@@ -174,8 +188,10 @@ def test_training_curves_read_the_log(tmp_path):
     run = tmp_path / "run"
     run.mkdir()
     lines = [{"step": s, "loss": 1.0 / s, "lr": 1e-3, "ms_per_step": 5.0} for s in (1, 2, 3)]
-    lines += [{"step": 2, "loss": 0.25, "lr": 1e-3, "ms_per_step": 5.0},  # resumed: step 2 logged again
-              {"step": 3, "valid/position_rmse_all": 40.0, "valid/stress_rmse_all": 9e3}]
+    lines += [
+        {"step": 2, "loss": 0.25, "lr": 1e-3, "ms_per_step": 5.0},  # resumed: step 2 logged again
+        {"step": 3, "valid/position_rmse_all": 40.0, "valid/stress_rmse_all": 9e3},
+    ]
     (run / "log.jsonl").write_text("\n".join(json.dumps(l) for l in lines) + "\n")
     (run / "run.yaml").write_text("model: {name: hcmt}\n")
     train_cols, valid = read_log(run)
@@ -254,9 +270,18 @@ def test_plot_command_writes_every_picture(data, hcmt_run, tmp_path, capsys):
     assert not (hcmt_run / "rollout_test.h5").exists()
     assert cli(["plot", str(hcmt_run), str(other), "--data", str(data), "--out", str(out), "--frames", "2,5"]) == 0
     assert (hcmt_run / "rollout_test.h5").is_file()  # rolled out on demand
-    names = {"stress_contours.png", "stress_contours_zoom.png", "rollout.gif", "rollout_error.png",
-             "training_curves.png", "hierarchy_levels.png", "hierarchy_levels_zoom.png", "hierarchy_remeshing.png",
-             "hierarchy_remeshing_zoom.png", "attention_hcmt.png"}
+    names = {
+        "stress_contours.png",
+        "stress_contours_zoom.png",
+        "rollout.gif",
+        "rollout_error.png",
+        "training_curves.png",
+        "hierarchy_levels.png",
+        "hierarchy_levels_zoom.png",
+        "hierarchy_remeshing.png",
+        "hierarchy_remeshing_zoom.png",
+        "attention_hcmt.png",
+    }
     assert {p.name for p in out.iterdir()} == names
     for name in names - {"rollout.gif"}:
         assert_nontrivial(out / name)

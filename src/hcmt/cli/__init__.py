@@ -13,6 +13,7 @@ is a bug and shows its traceback. A value a user gave is echoed cut to 60 charac
 under :data:`LINE` characters but for its paths, and no line exceeds :data:`GUARD`. Ctrl-C exits 130, SIGTERM 143
 (128 + the signal's number).
 """
+
 from __future__ import annotations
 
 import argparse
@@ -29,32 +30,61 @@ from hcmt.errors import InputError, RolloutError
 COMMANDS: dict[str, tuple[str, str]] = {
     "generate": ("hcmt.cli.data", "generate a dataset with the built-in FEM solvers (impact-plate, deforming-plate)"),
     "simulate": ("hcmt.cli.data", "simulate one Impact Plate design with explicit parameters (solver baseline)"),
-    "convert": ("hcmt.cli.data",
-                "convert a MeshGraphNets/HCMT TFRecord or Deformable Plate pickle dataset to native HDF5"),
+    "convert": (
+        "hcmt.cli.data",
+        "convert a MeshGraphNets/HCMT TFRecord or Deformable Plate pickle dataset to native HDF5",
+    ),
     "info": ("hcmt.cli.data", "summarize a native dataset: splits, trajectories, nodes, fields, design parameters"),
     "hierarchy": ("hcmt.cli.data", "build the HCMT mesh hierarchy of a dataset and report its quality per level"),
     "train": ("hcmt.cli.train", "train HCMT, MeshGraphNets or Graph Transformer on a dataset"),
     "rollout": ("hcmt.cli.train", "roll a trained model out over a dataset split (writes HDF5 predictions)"),
-    "evaluate": ("hcmt.cli.train",
-                 "compute the paper's RMSE metrics of a run on a split (writes RUN/metrics_<split>.json)"),
+    "evaluate": (
+        "hcmt.cli.train",
+        "compute the paper's RMSE metrics of a run on a split (writes RUN/metrics_<split>.json)",
+    ),
     "compare": ("hcmt.cli.train", "aggregate several runs into the paper's Table 2 layout (mean +- std)"),
-    "predict": ("hcmt.cli.design", "peak stress and deflection of new Impact Plate designs from a trained model, "
-                "no solver run (--verify compares with the solver)"),
-    "sweep": ("hcmt.cli.design", "one design parameter varied over a range, predicted in batches of --batch points: "
-              "trend, limit for a yield stress, and with --verify the solver's"),
+    "predict": (
+        "hcmt.cli.design",
+        "peak stress and deflection of new Impact Plate designs from a trained model, "
+        "no solver run (--verify compares with the solver)",
+    ),
+    "sweep": (
+        "hcmt.cli.design",
+        "one design parameter varied over a range, predicted in batches of --batch points: "
+        "trend, limit for a yield stress, and with --verify the solver's",
+    ),
     "models": ("hcmt.cli.design", "list the trained models shipped with hcmt (pretrained:NAME)"),
-    "surrogate": ("hcmt.cli.surrogate", "fit a Gaussian-process response surface on a dataset's solver runs "
-                  "(the scalar answers an engineer would fit instead of a mesh model)"),
+    "surrogate": (
+        "hcmt.cli.surrogate",
+        "fit a Gaussian-process response surface on a dataset's solver runs "
+        "(the scalar answers an engineer would fit instead of a mesh model)",
+    ),
     "plot": ("hcmt.cli.viz", "draw stress contours, animations, error curves and training curves of a run"),
     "export": ("hcmt.cli.viz", "export a rollout to ParaView (VTU or XDMF time series)"),
-    "demo": ("hcmt.cli.demo", "quickstart: the shipped HCMT model beside the solver on three new designs "
-             "(--train: the whole pipeline)"),
+    "demo": (
+        "hcmt.cli.demo",
+        "quickstart: the shipped HCMT model beside the solver on three new designs (--train: the whole pipeline)",
+    ),
 }
 
 
 #: commands that compute with torch: they take ``--threads``
-THREADED = ("generate", "simulate", "convert", "info", "hierarchy", "train", "rollout", "evaluate", "compare",
-            "predict", "sweep", "plot", "export", "demo")
+THREADED = (
+    "generate",
+    "simulate",
+    "convert",
+    "info",
+    "hierarchy",
+    "train",
+    "rollout",
+    "evaluate",
+    "compare",
+    "predict",
+    "sweep",
+    "plot",
+    "export",
+    "demo",
+)
 #: the longest error line with its values cut (``hcmt.errors.clip``), paths aside; and the longest any may print
 LINE, GUARD = 300, 600
 
@@ -79,13 +109,21 @@ def check_outputs(files: dict[str, str | None], folders: dict[str, str | None] |
             if kind == "file" and path.is_dir():
                 raise CommandError(f"{option} {value}: is a folder; name a file")
             if kind == "file" and path.is_symlink():  # the output would replace the link, not what it points to
-                raise CommandError(f"{option} {value}: is a symlink (to {os.readlink(path)}); name the file itself "
-                                   "or a new path")
-            if kind == "file" and path.is_file() and (
+                raise CommandError(
+                    f"{option} {value}: is a symlink (to {os.readlink(path)}); name the file itself or a new path"
+                )
+            if (
+                kind == "file"
+                and path.is_file()
+                and (
                     (path.suffix == ".h5" and (path.parent / "meta.json").is_file())
-                    or (path.name == "meta.json" and any(path.parent.glob("*.h5")))):  # part of a dataset
-                raise CommandError(f"{option} {value}: a file of the dataset {path.parent} (meta.json and its split "
-                                   "files); write the output elsewhere")
+                    or (path.name == "meta.json" and any(path.parent.glob("*.h5")))
+                )
+            ):  # part of a dataset
+                raise CommandError(
+                    f"{option} {value}: a file of the dataset {path.parent} (meta.json and its split "
+                    "files); write the output elsewhere"
+                )
             if kind == "folder" and path.exists() and not path.is_dir():
                 raise CommandError(f"{option} {value}: is a file; name a folder")
             parent = path.parent if kind == "file" else path
@@ -122,15 +160,17 @@ def one_line(text: str, tail: str = "") -> str:
     room = GUARD - len(tail)
     if len(text) > room:
         head = room * 2 // 3
-        text = text[:head - 1] + "…" + text[len(text) - (room - head):]
+        text = text[: head - 1] + "…" + text[len(text) - (room - head) :]
     return text + tail
 
 
 def build_parser() -> argparse.ArgumentParser:
     parser = Parser(
-        prog="hcmt", description="Learned simulation of flexible bodies in contact: the Hierarchical Contact Mesh "
+        prog="hcmt",
+        description="Learned simulation of flexible bodies in contact: the Hierarchical Contact Mesh "
         "Transformer (ICLR 2024), its baselines, and a built-in FEM generator of ground truth.",
-        epilog="`hcmt COMMAND --help` gives each command's options.")
+        epilog="`hcmt COMMAND --help` gives each command's options.",
+    )
     parser.add_argument("--version", action="version", version=f"hcmt {VERSION}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", title="commands")
     requested = _requested_command(sys.argv[1:])
@@ -142,10 +182,15 @@ def build_parser() -> argparse.ArgumentParser:
                 p.add_argument("--no-progress", action="store_true", help="no progress bars")
             if name in THREADED:
                 threads_arg = importlib.import_module("hcmt.cli.parsers").threads_arg
-                p.add_argument("--threads", type=threads_arg, default="auto", metavar="N",
-                               help=f"CPU threads for torch, 1 to this machine's cores ({machine_cores()}), or auto "
-                                    "(default: the cores not busy with other work, from the 1-minute load average, "
-                                    "at least 1)")
+                p.add_argument(
+                    "--threads",
+                    type=threads_arg,
+                    default="auto",
+                    metavar="N",
+                    help=f"CPU threads for torch, 1 to this machine's cores ({machine_cores()}), or auto "
+                    "(default: the cores not busy with other work, from the 1-minute load average, "
+                    "at least 1)",
+                )
             p.set_defaults(_module=module)
             parser.command_parser = p
     return parser

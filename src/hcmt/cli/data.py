@@ -2,6 +2,7 @@
 first checks: :mod:`hcmt.cli.parsers`); the library functions live in :mod:`hcmt.sim.generate`,
 :mod:`hcmt.sim.driver`, :mod:`hcmt.sim.cost`, :mod:`hcmt.data.convert`, :mod:`hcmt.data.info`
 and :mod:`hcmt.graph.report`."""
+
 from __future__ import annotations
 
 import argparse
@@ -40,17 +41,30 @@ def main_generate(args) -> int:
     families = parse_families(args.family)
     if total:
         _, cost = generation_cost(args.preset, families, settings_of_args(args))
-        print(f"{plural(total, 'trajectory', 'trajectories')} of about {cost['num_nodes']} nodes and "
-              f"{cost['substeps']} substeps each: about "
-              f"{cost['estimated_s']:.1f} s per trajectory on one core, {total * cost['estimated_s'] / 60:.1f} "
-              f"core-minutes in all (finished trajectories are reused on a rerun)", flush=True)
-    result = generate_dataset(args.out, preset=args.preset, counts=counts, seed=args.seed, workers=args.workers,
-                              settings=settings_of_args(args), progress=not args.no_progress,
-                              edge_fraction=args.edge_fraction, families=families, force=args.force,
-                              ranges=range_overrides(args))
-    print(f"{args.out}: simulated {plural(result['simulated'], 'trajectory', 'trajectories')}, reused "
-          f"{result['skipped']}; splits: "
-          + ", ".join(f"{k} ({counts[k]})" for k in result["splits"]))
+        print(
+            f"{plural(total, 'trajectory', 'trajectories')} of about {cost['num_nodes']} nodes and "
+            f"{cost['substeps']} substeps each: about "
+            f"{cost['estimated_s']:.1f} s per trajectory on one core, {total * cost['estimated_s'] / 60:.1f} "
+            f"core-minutes in all (finished trajectories are reused on a rerun)",
+            flush=True,
+        )
+    result = generate_dataset(
+        args.out,
+        preset=args.preset,
+        counts=counts,
+        seed=args.seed,
+        workers=args.workers,
+        settings=settings_of_args(args),
+        progress=not args.no_progress,
+        edge_fraction=args.edge_fraction,
+        families=families,
+        force=args.force,
+        ranges=range_overrides(args),
+    )
+    print(
+        f"{args.out}: simulated {plural(result['simulated'], 'trajectory', 'trajectories')}, reused "
+        f"{result['skipped']}; splits: " + ", ".join(f"{k} ({counts[k]})" for k in result["splits"])
+    )
     return 0
 
 
@@ -59,13 +73,25 @@ def _generate_deforming(args, counts: dict[str, int]) -> int:
     total = sum(max(int(v), 0) for v in counts.values())
     if total:
         each = estimate_seconds(settings)
-        print(f"{plural(total, 'trajectory', 'trajectories')} of about {settings.plate_nodes} plate nodes and "
-              f"{settings.frames - 1} quasi-static steps each: about {each:.0f} s per trajectory on one core, "
-              f"{total * each / 60:.1f} core-minutes in all (finished trajectories are reused on a rerun)", flush=True)
-    result = generate_deforming_plate(args.out, counts=counts, seed=args.seed, workers=args.workers,
-                                      settings=settings, progress=not args.no_progress, force=args.force)
-    print(f"{args.out}: simulated {plural(result['simulated'], 'trajectory', 'trajectories')}, reused "
-          f"{result['skipped']}; splits: " + ", ".join(f"{k} ({counts[k]})" for k in result["splits"]))
+        print(
+            f"{plural(total, 'trajectory', 'trajectories')} of about {settings.plate_nodes} plate nodes and "
+            f"{settings.frames - 1} quasi-static steps each: about {each:.0f} s per trajectory on one core, "
+            f"{total * each / 60:.1f} core-minutes in all (finished trajectories are reused on a rerun)",
+            flush=True,
+        )
+    result = generate_deforming_plate(
+        args.out,
+        counts=counts,
+        seed=args.seed,
+        workers=args.workers,
+        settings=settings,
+        progress=not args.no_progress,
+        force=args.force,
+    )
+    print(
+        f"{args.out}: simulated {plural(result['simulated'], 'trajectory', 'trajectories')}, reused "
+        f"{result['skipped']}; splits: " + ", ".join(f"{k} ({counts[k]})" for k in result["splits"])
+    )
     return 0
 
 
@@ -96,13 +122,17 @@ def simulate_target(out: str | None, preset: str, settings) -> dict | None:
     if (folder / "meta.json").is_file():
         differs = _meta_differences(read_meta(folder), meta)
         if differs:
-            raise CommandError(f"--out {out}: {folder / 'meta.json'} describes other data ({differs}); write the "
-                               "trajectory into a new folder, or one whose meta.json matches it")
+            raise CommandError(
+                f"--out {out}: {folder / 'meta.json'} describes other data ({differs}); write the "
+                "trajectory into a new folder, or one whose meta.json matches it"
+            )
         return dict(meta=meta, write=False)
     if folder.is_dir() and any(not p.name.startswith(".") for p in folder.iterdir()):
-        raise CommandError(f"--out {out}: {folder} holds other files and no meta.json; the trajectory is written as "
-                           f"a one-split dataset (FILE.h5 + meta.json): name a file in a new or empty folder, e.g. "
-                           f"--out {path.stem}/{path.name}")
+        raise CommandError(
+            f"--out {out}: {folder} holds other files and no meta.json; the trajectory is written as "
+            f"a one-split dataset (FILE.h5 + meta.json): name a file in a new or empty folder, e.g. "
+            f"--out {path.stem}/{path.name}"
+        )
     return dict(meta=meta, write=True)
 
 
@@ -111,7 +141,8 @@ def _meta_differences(old: dict, new: dict) -> str:
     keys = ("trajectory_length", "dimension", "dt")
     out = [f"{k} {old.get(k)} there, {new.get(k)} here" for k in keys if old.get(k) != new.get(k)]
     fields = sorted(set(old.get("features") or {}) ^ set(new["features"])) or [
-        k for k in new["features"] if old["features"][k] != new["features"][k]]
+        k for k in new["features"] if old["features"][k] != new["features"][k]
+    ]
     if not out and fields:
         out.append(f"fields {', '.join(fields)} differ")
     old_settings = (old.get("generator") or {}).get("settings")
@@ -126,22 +157,32 @@ def main_simulate(args) -> int:
     for w in validated_warnings(design):
         print(f"hcmt simulate: warning: {w}", file=sys.stderr)
     cost = plan(design, settings)
-    print(f"{cost['num_nodes']} nodes, {cost['num_cells']} triangles, {cost['substeps']} substeps of "
-          f"{cost['dt']:.3e} ms: estimated {cost['estimated_s']:.1f} s on one core", flush=True)
+    print(
+        f"{cost['num_nodes']} nodes, {cost['num_cells']} triangles, {cost['substeps']} substeps of "
+        f"{cost['dt']:.3e} ms: estimated {cost['estimated_s']:.1f} s on one core",
+        flush=True,
+    )
     check_cost(cost["estimated_s"], cost["num_nodes"], design, args.force, what=f" ({cost['substeps']} substeps)")
-    bar = tqdm(total=settings.frames, desc="simulate", unit="frame",
-               disable=args.no_progress or cost["estimated_s"] < 5.0)
+    bar = tqdm(
+        total=settings.frames, desc="simulate", unit="frame", disable=args.no_progress or cost["estimated_s"] < 5.0
+    )
     result = simulate(design, settings, progress=lambda k: bar.update(1))
     bar.close()
     info, f = result.info, result.fields
-    print(f"simulated {settings.frames} frames ({(settings.frames - 1) * settings.frame_dt:.3f} ms) of "
-          f"{info.num_nodes} nodes / {info.num_cells} triangles in {info.substeps} substeps "
-          f"(dt {info.dt:.3e} ms): wall-clock {info.wall_time:.2f} s "
-          f"({1e3 * info.wall_time / (settings.frames - 1):.1f} ms per frame)")
+    print(
+        f"simulated {settings.frames} frames ({(settings.frames - 1) * settings.frame_dt:.3f} ms) of "
+        f"{info.num_nodes} nodes / {info.num_cells} triangles in {info.substeps} substeps "
+        f"(dt {info.dt:.3e} ms): wall-clock {info.wall_time:.2f} s "
+        f"({1e3 * info.wall_time / (settings.frames - 1):.1f} ms per frame)"
+    )
     print(peak_line(f, settings.frame_dt))
     plate = quantities.plate_mask(f["cells"], f["node_type"])  # the ball never came, or the window cut the peak
-    for w in window_warnings(design, settings, quantities.body_history(f["stress"], plate),
-                             quantities.contact_gap(f["world_pos"], f["mesh_pos"], plate)):
+    for w in window_warnings(
+        design,
+        settings,
+        quantities.body_history(f["stress"], plate),
+        quantities.contact_gap(f["world_pos"], f["mesh_pos"], plate),
+    ):
         print(f"hcmt simulate: warning: {w}", file=sys.stderr)
     if target is not None:
         path = Path(args.out)
@@ -171,8 +212,9 @@ def main_info(args: argparse.Namespace) -> int:
 def main_hierarchy(args: argparse.Namespace) -> int:
     check_apart({"--json": args.json}, {"DATASET": args.dataset})
     check_outputs({"--json": args.json})
-    count, rows = dataset_quality(args.dataset, args.split, args.levels, trajectories=args.trajectories,
-                                  cache=not args.no_cache)
+    count, rows = dataset_quality(
+        args.dataset, args.split, args.levels, trajectories=args.trajectories, cache=not args.no_cache
+    )
     print(f"{args.dataset} [{args.split}]: {plural(count, 'trajectory', 'trajectories')}, {args.levels} levels")
     print(format_table(rows))
     if args.json:

@@ -10,6 +10,7 @@ position RMSE and the speedup, plus a stress-contour picture at the peak.
 CPU, roll it out on the test trajectories and evaluate it. Run again, it reuses the dataset and the trained model
 (``--steps N`` beyond what the run has done trains the missing steps).
 """
+
 from __future__ import annotations
 
 import argparse
@@ -30,8 +31,11 @@ from hcmt.sim.params import middle_design, parse_design
 from hcmt.training import train
 
 #: three designs inside the shipped model's training ranges, chosen by hand (not sampled from its data)
-DEMO_DESIGNS = [{"thickness": 0.6, "drop_height": 600.0}, {"thickness": 0.8, "drop_height": 850.0},
-                {"thickness": 0.95, "drop_height": 950.0}]
+DEMO_DESIGNS = [
+    {"thickness": 0.6, "drop_height": 600.0},
+    {"thickness": 0.8, "drop_height": 850.0},
+    {"thickness": 0.95, "drop_height": 950.0},
+]
 
 
 def main(args: argparse.Namespace) -> int:
@@ -44,22 +48,34 @@ def design_demo(args: argparse.Namespace) -> int:
     card = run.card
     print(f"[1/3] {run.label} model {run.source}: {card.get('summary', 'trained run')}")
     defaults = middle_design(run.meta, run.ranges)
-    designs = [(f"design_{i + 1}", parse_design([f"{k}={v}" for k, v in d.items()], defaults))
-               for i, d in enumerate(DEMO_DESIGNS)]
+    designs = [
+        (f"design_{i + 1}", parse_design([f"{k}={v}" for k, v in d.items()], defaults))
+        for i, d in enumerate(DEMO_DESIGNS)
+    ]
     settings = settings_of(run.meta)
-    print(f"[2/3] predicting {len(designs)} new designs on {run.device} (thickness mm, drop height mm: "
-          + ", ".join(f"{d.thickness:g}/{d.drop_height:g}" for _, d in designs) + ")")
-    print(f"[3/3] simulating the same designs with the built-in FEM solver ({settings.frames} frames of "
-          f"{settings.frame_dt} ms each)")
+    print(
+        f"[2/3] predicting {len(designs)} new designs on {run.device} (thickness mm, drop height mm: "
+        + ", ".join(f"{d.thickness:g}/{d.drop_height:g}" for _, d in designs)
+        + ")"
+    )
+    print(
+        f"[3/3] simulating the same designs with the built-in FEM solver ({settings.frames} frames of "
+        f"{settings.frame_dt} ms each)"
+    )
     # predict's default batch (one design on a CPU): the model and the solver alternate per design, so the speedup's
     # two wall times see the same load
     check = check_designs(run, designs, batch=DESIGN_BATCH, verify=True, progress=not args.no_progress)
     preds, truth, verified = check.preds, check.truth, check.verified
     for note in check.notes:
         print(f"note: {note}")
-    print("\nvon Mises stresses in MPa, lengths in mm; 'err' columns compare the model with the solver"
-          + ("; 'surrogate' is the response surface (a Gaussian process) fitted on the model's own training "
-             "designs" if check.surrogate else ""))
+    print(
+        "\nvon Mises stresses in MPa, lengths in mm; 'err' columns compare the model with the solver"
+        + (
+            "; 'surrogate' is the response surface (a Gaussian process) fitted on the model's own training designs"
+            if check.surrogate
+            else ""
+        )
+    )
     print(format_table(preds, verified))
     missing = missing_extra("viz", "matplotlib")
     if missing is None:
@@ -67,10 +83,13 @@ def design_demo(args: argparse.Namespace) -> int:
         print(f"\ncontours at the peak frame, solver beside prediction: {picture}")
     else:
         print(f"\nno contour picture: {missing}")
-    print("your own designs:  hcmt predict pretrained:impact_plate_small --design thickness=0.8 drop_height=700 "
-          "--verify")
-    print("a sweep:           hcmt sweep pretrained:impact_plate_small --vary thickness=0.55:0.95:9 --design "
-          "drop_height=600 --yield-mpa 750 --verify auto")
+    print(
+        "your own designs:  hcmt predict pretrained:impact_plate_small --design thickness=0.8 drop_height=700 --verify"
+    )
+    print(
+        "a sweep:           hcmt sweep pretrained:impact_plate_small --vary thickness=0.55:0.95:9 --design "
+        "drop_height=600 --yield-mpa 750 --verify auto"
+    )
     print("where the model is weak: `hcmt models` (measured error by region) and docs/MODELS.md")
     print(f"took {time.perf_counter() - t0:.0f} s")
     return 0
@@ -82,8 +101,14 @@ def train_demo(args: argparse.Namespace) -> int:
     t0 = time.perf_counter()
     if not (data / "test.h5").is_file() or (data / ".parts").exists():  # the generator resumes where it stopped
         print(f"[1/3] generating the small Impact Plate dataset in {data}")
-        generate_dataset(data, preset="small", counts=dict(train=args.train_trajectories, valid=1, test=args.test),
-                         seed=args.seed, workers=args.workers, progress=not args.no_progress)
+        generate_dataset(
+            data,
+            preset="small",
+            counts=dict(train=args.train_trajectories, valid=1, test=args.test),
+            seed=args.seed,
+            workers=args.workers,
+            progress=not args.no_progress,
+        )
     else:
         print(f"[1/3] reusing the dataset in {data}")
     cfg = load_config("demo", [f"train.steps={args.steps}"] if args.steps else [])

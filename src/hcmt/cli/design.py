@@ -1,5 +1,6 @@
 """``hcmt predict / sweep / models``: printing only (their arguments and first checks: :mod:`hcmt.cli.parsers`); the
 library functions live in :mod:`hcmt.design.check` and :mod:`hcmt.design.sweep`."""
+
 from __future__ import annotations
 
 import argparse
@@ -39,32 +40,40 @@ def print_notes(command: str, check) -> None:
 def main_predict(args: argparse.Namespace) -> int:
     options = check_options(args)  # check_predict has refused bad options before the model loads
     run = _design_run(args)
-    check_apart({"--json": args.json, "--csv": args.csv, "--out": args.out if args.images else None},
-                {**read_paths(args, run), "--designs": args.designs})
+    check_apart(
+        {"--json": args.json, "--csv": args.csv, "--out": args.out if args.images else None},
+        {**read_paths(args, run), "--designs": args.designs},
+    )
     defaults = middle_design(run.meta, run.ranges)
     designs = [(f"design_{i + 1}", parse_design(items, defaults)) for i, items in enumerate(args.design)]
     if args.designs:
-        designs += read_designs_csv(args.designs, defaults, first=len(designs) + 1,
-                                       taken={n: "--design" for n, _ in designs})
+        designs += read_designs_csv(
+            args.designs, defaults, first=len(designs) + 1, taken={n: "--design" for n, _ in designs}
+        )
     for name, d in designs:
         for w in range_warnings(d, run.ranges):
             print(f"hcmt predict: warning: {name}: {w}", file=sys.stderr)
     seconds = solver_seconds([d for _, d in designs], settings_of(run.meta)) if options["verify"] else None
     if seconds is not None:  # the solver's total before it starts: 10,000 designs are hours
         n, every = len(designs), options["verify"] is True
-        print(f"--verify: the solver runs on {'each' if every else 'the undecided ones'} of the {n:,} "
-              f"design{'s' if n != 1 else ''} after the model: {'' if every else 'up to '}{duration(seconds)} on one "
-              f"core by its estimate (about {seconds / n:.1f} s a design, on the high side for small meshes)",
-              flush=True)
-    check = check_designs(run, designs, batch=args.batch, compile=args.compile, progress=not args.no_progress,
-                             force=args.force, **options)
+        print(
+            f"--verify: the solver runs on {'each' if every else 'the undecided ones'} of the {n:,} "
+            f"design{'s' if n != 1 else ''} after the model: {'' if every else 'up to '}{duration(seconds)} on one "
+            f"core by its estimate (about {seconds / n:.1f} s a design, on the high side for small meshes)",
+            flush=True,
+        )
+    check = check_designs(
+        run, designs, batch=args.batch, compile=args.compile, progress=not args.no_progress, force=args.force, **options
+    )
     print_notes("predict", check)
     preds, truth = check.preds, check.truth
-    print(f"{run.label} ({run.source}) on {run.device}: {plural(len(preds), 'design')}, "
-          f"{check.settings.frames} frames of "
-          f"{check.settings.frame_dt} ms, {check.wall_s:.2f} s in all; stresses are von Mises [MPa], lengths [mm]; "
-          f"read-out: {readout_words(check.readout)}"
-          + (f"; response surface: {check.surrogate}" if check.surrogate else ""))
+    print(
+        f"{run.label} ({run.source}) on {run.device}: {plural(len(preds), 'design')}, "
+        f"{check.settings.frames} frames of "
+        f"{check.settings.frame_dt} ms, {check.wall_s:.2f} s in all; stresses are von Mises [MPa], lengths [mm]; "
+        f"read-out: {readout_words(check.readout)}"
+        + (f"; response surface: {check.surrogate}" if check.surrogate else "")
+    )
     print(format_table(preds, check.verified))
     if args.yield_mpa is not None:
         print(format_calls(preds, args.yield_mpa))
@@ -77,8 +86,7 @@ def main_predict(args: argparse.Namespace) -> int:
             print(f"wrote {write_csv(preds, args.csv)}")
         if args.json:
             with atomic_path(Path(args.json)) as tmp:
-                tmp.write_text(json.dumps(to_json(preds, check.verified, run.source, str(run.device), check),
-                                          indent=2))
+                tmp.write_text(json.dumps(to_json(preds, check.verified, run.source, str(run.device), check), indent=2))
             print(f"wrote {args.json}")
     return 0
 
@@ -87,21 +95,26 @@ def read_paths(args, run) -> dict[str, str | Path | None]:
     """What predict and sweep read, for :func:`hcmt.files.check_apart`: the model (its run folder, or the shipped
     models' folder), the model's training data and the --surrogate file."""
     folder = run.folder
-    return {"MODEL": folder.path if folder is not None else PRETRAINED_DIR,
-            "the model's training data": folder.train_data if folder is not None else None,
-            "--surrogate": args.surrogate}
+    return {
+        "MODEL": folder.path if folder is not None else PRETRAINED_DIR,
+        "the model's training data": folder.train_data if folder is not None else None,
+        "--surrogate": args.surrogate,
+    }
 
 
 def _design_run(args):
     """The Impact Plate model of ``predict`` / ``sweep``."""
     run = Run.load(args.model, args.device)
     if run.config.dataset != "impact_plate":
-        raise CommandError(f"{args.model}: predict is for Impact Plate models; this one was trained on "
-                           f"{run.config.dataset!r}")
+        raise CommandError(
+            f"{args.model}: predict is for Impact Plate models; this one was trained on {run.config.dataset!r}"
+        )
     if run.meta is None and run.folder is not None:
-        raise CommandError(f"{args.model}: its training data ({run.info.data}) is gone and the run holds no "
-                           f"{run.folder.data_facts_path.name} (by `hcmt train`) with the generator's settings, design "
-                           "ranges and keys that predict needs; restore the dataset, or retrain")
+        raise CommandError(
+            f"{args.model}: its training data ({run.info.data}) is gone and the run holds no "
+            f"{run.folder.data_facts_path.name} (by `hcmt train`) with the generator's settings, design "
+            "ranges and keys that predict needs; restore the dataset, or retrain"
+        )
     return run
 
 
@@ -115,21 +128,35 @@ def main_sweep(args: argparse.Namespace) -> int:
     designs = sw.sweep_designs(base, param, lo, hi, n)
     for w in sorted({w for _, d in designs for w in range_warnings(d, run.ranges)}):  # each distinct one once
         print(f"hcmt sweep: warning: {w}", file=sys.stderr)
-    check, analysis = sw.sweep(run, param, lo, hi, n, base, batch=args.batch, progress=not args.no_progress,
-                               compile=args.compile, force=args.force, **options)
+    check, analysis = sw.sweep(
+        run,
+        param,
+        lo,
+        hi,
+        n,
+        base,
+        batch=args.batch,
+        progress=not args.no_progress,
+        compile=args.compile,
+        force=args.force,
+        **options,
+    )
     print_notes("sweep", check)
-    print(f"{run.label} ({run.source}) on {run.device}: {param} from {lo:g} to {hi:g} in {n} points, "
-          f"{check.wall_s:.2f} s in all; stresses are von Mises [MPa], lengths [mm]; "
-          f"read-out: {readout_words(check.readout)}"
-          + (f"; response surface: {check.surrogate}" if check.surrogate else ""))
+    print(
+        f"{run.label} ({run.source}) on {run.device}: {param} from {lo:g} to {hi:g} in {n} points, "
+        f"{check.wall_s:.2f} s in all; stresses are von Mises [MPa], lengths [mm]; "
+        f"read-out: {readout_words(check.readout)}"
+        + (f"; response surface: {check.surrogate}" if check.surrogate else "")
+    )
     print(format_table(check.preds, check.verified))
     if args.yield_mpa is not None:
         print(format_calls(check.preds, args.yield_mpa, param, lambda p: f"{getattr(p.design, param):.6g}"))
     print(sw.format_analysis(analysis))
     with undo_on_error(args.out, args.csv, args.json):  # all outputs or none
         missing = missing_extra("viz", "matplotlib")
-        print(f"plot: {sw.plot_sweep(check, analysis, args.out, run.label)}" if missing is None
-              else f"no plot: {missing}")
+        print(
+            f"plot: {sw.plot_sweep(check, analysis, args.out, run.label)}" if missing is None else f"no plot: {missing}"
+        )
         if args.csv:
             print(f"wrote {write_csv(check.preds, args.csv)}")
         if args.json:
@@ -158,37 +185,56 @@ def main_models(args: argparse.Namespace) -> int:
         defaults = middle_design(run.meta, run.ranges)
         settings = settings_of(run.meta)
         surrogate = run_surrogate_path(run)
-        cards[name] = {"file": str(path), "size_mb": path.stat().st_size / 1e6, **run.card,
-                       "window": {"frames": settings.frames, "frame_dt_ms": settings.frame_dt},
-                       "surrogate": str(surrogate) if surrogate is not None and surrogate.is_file() else None,
-                       "families": trained_families(run.meta),
-                       "model_interval": interval_card(run),
-                       "design_parameters": {k: {"training_range": list(run.ranges[k]) if k in run.ranges else None,
-                                                 "default": getattr(defaults, k), "unit": DESIGN_UNITS[k]}
-                                             for k in DESIGN_KEYS}}
+        cards[name] = {
+            "file": str(path),
+            "size_mb": path.stat().st_size / 1e6,
+            **run.card,
+            "window": {"frames": settings.frames, "frame_dt_ms": settings.frame_dt},
+            "surrogate": str(surrogate) if surrogate is not None and surrogate.is_file() else None,
+            "families": trained_families(run.meta),
+            "model_interval": interval_card(run),
+            "design_parameters": {
+                k: {
+                    "training_range": list(run.ranges[k]) if k in run.ranges else None,
+                    "default": getattr(defaults, k),
+                    "unit": DESIGN_UNITS[k],
+                }
+                for k in DESIGN_KEYS
+            },
+        }
     if args.json:
         print(json.dumps(cards, indent=2))
         return 0
     for name, c in cards.items():
         print(f"pretrained:{name}  {c.get('summary', '')}  ({c['size_mb']:.1f} MB; docs/MODELS.md)")
         w = c["window"]
-        print(f"  window: {w['frames']} frames of {w['frame_dt_ms']} ms; design parameters (a --designs CSV's "
-              "columns; unset ones take the default):")
+        print(
+            f"  window: {w['frames']} frames of {w['frame_dt_ms']} ms; design parameters (a --designs CSV's "
+            "columns; unset ones take the default):"
+        )
         for k, d in c["design_parameters"].items():
             rng = d["training_range"]
-            trained = ("not varied in training" if rng is None or rng[0] == rng[1]
-                       else f"trained {rng[0]:.6g} .. {rng[1]:.6g}")
+            trained = (
+                "not varied in training" if rng is None or rng[0] == rng[1] else f"trained {rng[0]:.6g} .. {rng[1]:.6g}"
+            )
             print(f"    {k:<18} {d['unit']:<7} default {d['default']:<10.6g} {trained}")
-        print("  trained on the families " + ", ".join(f"{k} ({n})" for k, n in c["families"].items())
-              + f"; the generator's families (hcmt generate --family): {', '.join(FAMILIES)}; a design of another "
-              "family is outside its training and warned as such")
+        print(
+            "  trained on the families "
+            + ", ".join(f"{k} ({n})" for k, n in c["families"].items())
+            + f"; the generator's families (hcmt generate --family): {', '.join(FAMILIES)}; a design of another "
+            "family is outside its training and warned as such"
+        )
         print(f"  response surface beside it: {c['surrogate'] or 'none'}")
         print("  " + interval_lines(c["model_interval"]))
         if c.get("confidence"):
-            print("  measured error by region (docs/MODELS.md): "
-                  + "; ".join(f"{r['label']}: peak plate stress median {r['peak_plate_stress_error_pct_median']:.1f} %"
-                              for r in c["confidence"]))
-    print("panel families (hcmt generate --family; docs/solver.md, \"Panel families\", has the validated ranges):")
+            print(
+                "  measured error by region (docs/MODELS.md): "
+                + "; ".join(
+                    f"{r['label']}: peak plate stress median {r['peak_plate_stress_error_pct_median']:.1f} %"
+                    for r in c["confidence"]
+                )
+            )
+    print('panel families (hcmt generate --family; docs/solver.md, "Panel families", has the validated ranges):')
     for k in FAMILIES:
         print(f"  {k:<8} {describe_family(k)}")
     return 0
@@ -201,8 +247,12 @@ def interval_card(run) -> dict | None:
     if path is None or not path.is_file():
         return None
     cal = Calibration.load(path)
-    return {"file": str(path), "level": cal.level, "cells": {k: c.designs for k, c in cal.cells.items()},
-            "measured": cal.measured}
+    return {
+        "file": str(path),
+        "level": cal.level,
+        "cells": {k: c.designs for k, c in cal.cells.items()},
+        "measured": cal.measured,
+    }
 
 
 def interval_lines(card: dict | None) -> str:
@@ -211,16 +261,22 @@ def interval_lines(card: dict | None) -> str:
     if card is None:
         return "the mesh model's own interval: none calibrated (outside the ranges its calls stay undecided)"
     measured = (card.get("measured") or {}).get("by_cell", {})
-    lines = [f"the mesh model's own {100 * card['level']:.0f} % interval, by cell (held-out designs it was "
-             "calibrated on; coverage of the solver measured on designs of other seeds: peak, deflection, whole "
-             "history; the peak interval's median width):"]
+    lines = [
+        f"the mesh model's own {100 * card['level']:.0f} % interval, by cell (held-out designs it was "
+        "calibrated on; coverage of the solver measured on designs of other seeds: peak, deflection, whole "
+        "history; the peak interval's median width):"
+    ]
     for cell, n in card["cells"].items():
         m = measured.get(cell)
-        got = "not measured" if not m else (
-            f"covers {100 * m['peak_plate_stress_mpa']:.0f} / {100 * m['max_deflection_mm']:.0f} / "
-            f"{100 * m['plate_stress_history_mpa']:.0f} % of {m['designs']}, width "
-            f"{100 * m['median_rel_width_peak']:.0f} %")
+        got = (
+            "not measured"
+            if not m
+            else (
+                f"covers {100 * m['peak_plate_stress_mpa']:.0f} / {100 * m['max_deflection_mm']:.0f} / "
+                f"{100 * m['plate_stress_history_mpa']:.0f} % of {m['designs']}, width "
+                f"{100 * m['median_rel_width_peak']:.0f} %"
+            )
+        )
         lines.append(f"    {cell:<28} {n:>3} designs; {got}")
     lines.append("    any other cell outside the ranges: no interval, the call stays undecided")
     return "\n".join(lines)
-

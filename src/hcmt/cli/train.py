@@ -1,5 +1,6 @@
 """``hcmt train / rollout / evaluate / compare``: printing only (their arguments and first checks:
 :mod:`hcmt.cli.parsers`); the library functions live in :mod:`hcmt.training` and :mod:`hcmt.inference.evaluate`."""
+
 from __future__ import annotations
 
 import argparse
@@ -37,19 +38,34 @@ def main_train(args: argparse.Namespace) -> int:
         model = args.model or saved["model"]["name"]
         seed = args.seed if args.seed is not None else saved.get("seed", 0)
     else:
-        missing = [f"--{k}" for k in ("config", "data", "model") if getattr(args, k) is None
-                   and not (args.init and k != "data")]
+        missing = [
+            f"--{k}"
+            for k in ("config", "data", "model")
+            if getattr(args, k) is None and not (args.init and k != "data")
+        ]
         if missing:
-            raise CommandError(f"{', '.join(missing)} required (only `--resume --out RUN` of an existing run may leave "
-                               "them out, and --init its source's config and model)")
+            raise CommandError(
+                f"{', '.join(missing)} required (only `--resume --out RUN` of an existing run may leave "
+                "them out, and --init its source's config and model)"
+            )
         ablation = [f"model.ablation={args.ablation}"] if args.ablation else []  # --ablation: model.ablation
         cfg, data, model = args.config, args.data, args.model
         overrides = ablation + overrides
         seed = args.seed if args.seed is not None else 0
     check_apart({"--out": args.out}, {"--data": data, "--init": _folder(args.init)}, owned=("--out",))
-    summary = train(cfg, data, model, args.out, overrides=overrides, seed=seed,
-                    resume=args.resume, device=args.device, progress=not args.no_progress, init=args.init,
-                    init_normalizers=args.init_normalizers)
+    summary = train(
+        cfg,
+        data,
+        model,
+        args.out,
+        overrides=overrides,
+        seed=seed,
+        resume=args.resume,
+        device=args.device,
+        progress=not args.no_progress,
+        init=args.init,
+        init_normalizers=args.init_normalizers,
+    )
     print(json.dumps(summary, indent=2))
     return 0
 
@@ -82,8 +98,15 @@ def main_rollout(args: argparse.Namespace) -> int:
     with undo_on_error(args.out):  # a refusal after --out was made leaves no empty folder
         run = _load(args)
         _print_warnings(args, dataset_warnings(run, args.data, args.split))
-        path = run_rollouts(run, args.data, args.split, limit=args.limit, batch=args.batch, compile=args.compile,
-                            progress=not args.no_progress)
+        path = run_rollouts(
+            run,
+            args.data,
+            args.split,
+            limit=args.limit,
+            batch=args.batch,
+            compile=args.compile,
+            progress=not args.no_progress,
+        )
     print(f"wrote {path}")
     return 0
 
@@ -92,8 +115,15 @@ def main_rollout(args: argparse.Namespace) -> int:
 def main_evaluate(args: argparse.Namespace) -> int:
     with undo_on_error(args.out):  # a refusal after --out was made leaves no empty folder
         run = _load(args)
-        m = evaluate(run, args.data, args.split, limit=args.limit, batch=args.batch, compile=args.compile,
-                     progress=not args.no_progress)
+        m = evaluate(
+            run,
+            args.data,
+            args.split,
+            limit=args.limit,
+            batch=args.batch,
+            compile=args.compile,
+            progress=not args.no_progress,
+        )
     _print_warnings(args, m.warnings)
     print(format_metrics(m))
     print(f"wrote {run.folder.metrics_path(args.split, args.data)}")

@@ -15,6 +15,7 @@ run has no rollout of it yet):
 ``hcmt export RUN [RUN ...] --data DATASET --format vtu|xdmf --out DIR`` writes the ground truth and every run's
 rollout as ParaView time series (:mod:`hcmt.viz.export`).
 """
+
 from __future__ import annotations
 
 import argparse
@@ -74,8 +75,9 @@ def _plot_hierarchy(args, runs, case, out: Path, notes: list[str]) -> list[Path]
     if not levels:
         notes.append("hierarchy: no run uses a mesh hierarchy; pass --levels N to draw one")
         return []
-    h = cached_hierarchy(case.mesh_pos, case.cells, case.node_type, levels, remesh,
-                         cache_dir=hierarchy_cache_dir(args.data))
+    h = cached_hierarchy(
+        case.mesh_pos, case.cells, case.node_type, levels, remesh, cache_dir=hierarchy_cache_dir(args.data)
+    )
     return plot_hierarchy(case.mesh_pos, h, out, length_unit=case.unit("length"), node_type=case.node_type)
 
 
@@ -122,8 +124,14 @@ def main_plot(args: argparse.Namespace) -> int:
         folders = [r.folder if isinstance(r, Run) else r for r in runs]
         logged = [(f, lab) for f, lab in zip(folders, labels) if f is not None and f.log.is_file()]
         if logged:
-            written.append(plot_training_curves([r for r, _ in logged], read_meta(args.data),
-                                                out / "training_curves.png", [lab for _, lab in logged]))
+            written.append(
+                plot_training_curves(
+                    [r for r, _ in logged],
+                    read_meta(args.data),
+                    out / "training_curves.png",
+                    [lab for _, lab in logged],
+                )
+            )
         else:
             notes.append("training curves: no run has a log.jsonl")
     if "hierarchy" in only:

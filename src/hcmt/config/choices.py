@@ -2,6 +2,7 @@
 (:mod:`hcmt.config.sections`), the command's parsers and the modules that act on each value read these tuples, so a
 value added here and not handled there (or the reverse) fails ``tests/training/test_config_choices.py``. Light (no
 torch): the command's parsers read them before torch loads, and every layer above may import them."""
+
 from __future__ import annotations
 
 #: the datasets hcmt knows (a config's ``dataset``; each has an adapter in :mod:`hcmt.domains.adapters`)

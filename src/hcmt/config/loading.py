@@ -2,6 +2,7 @@
 or a file path. A config may name a ``base`` config whose values it overrides: a built-in config's name, or a path
 read from the folder of the file naming it; a chain that returns to a file is refused. Also the shipped models'
 folder and the check that a config's data is of its dataset."""
+
 from __future__ import annotations
 
 import os
@@ -22,7 +23,6 @@ def builtin_configs() -> list[str]:
     return sorted(p.stem for p in CONFIG_DIR.glob("*.yaml"))
 
 
-
 def available_pretrained() -> dict[str, Path]:
     """Shipped models by name (``impact_plate_small``, ...)."""
     return {p.stem: p for p in sorted(PRETRAINED_DIR.glob("*.pt"))}
@@ -33,10 +33,13 @@ def _locate(name_or_path, within: Path | None) -> Path:
     ``within``), else a built-in config's name."""
     if not isinstance(name_or_path, (str, os.PathLike)) or not str(name_or_path).strip():
         if within is not None:
-            raise InputError(f"config {within}: base: got {clip(repr(name_or_path))}; expected a built-in config's "
-                             "name or a YAML path (from this file's folder)")
-        raise InputError(f"expected a built-in config's name or a YAML path, got {clip(repr(name_or_path))}",
-                         param="name_or_path")
+            raise InputError(
+                f"config {within}: base: got {clip(repr(name_or_path))}; expected a built-in config's "
+                "name or a YAML path (from this file's folder)"
+            )
+        raise InputError(
+            f"expected a built-in config's name or a YAML path, got {clip(repr(name_or_path))}", param="name_or_path"
+        )
     path = Path(name_or_path)
     if within is not None and not path.is_absolute():
         path = within.parent / path
@@ -45,8 +48,10 @@ def _locate(name_or_path, within: Path | None) -> Path:
     if str(name_or_path) in builtin_configs():
         return CONFIG_DIR / f"{name_or_path}.yaml"
     where = f" (the base of {within}, looked for in {within.parent})" if within else ""
-    raise InputError(f"{clip(str(name_or_path))!r}{where}: neither a file nor a built-in config "
-                     f"({', '.join(builtin_configs())})", param=None if within else "name_or_path")
+    raise InputError(
+        f"{clip(str(name_or_path))!r}{where}: neither a file nor a built-in config ({', '.join(builtin_configs())})",
+        param=None if within else "name_or_path",
+    )
 
 
 def _read(name_or_path, within: Path | None = None, chain: tuple = ()) -> dict:
@@ -62,8 +67,7 @@ def _read(name_or_path, within: Path | None = None, chain: tuple = ()) -> dict:
     except UnicodeDecodeError:
         raise InputError(f"config {path}: not a text file (not UTF-8)") from None
     except RecursionError:  # YAML's reader recurses per level
-        raise InputError(f"config {path}: nested too deeply for a config (its sections hold keys, one level)") \
-            from None
+        raise InputError(f"config {path}: nested too deeply for a config (its sections hold keys, one level)") from None
     except yaml.YAMLError as exc:
         mark = getattr(exc, "problem_mark", None)
         where = f" line {mark.line + 1}, column {mark.column + 1}" if mark else ""
@@ -86,8 +90,10 @@ def _loop(chain: list) -> str:
         return str(p.resolve().relative_to(home)) if p.resolve().is_relative_to(home) else str(p)
 
     names = " -> ".join([str(loop[0]), *(short(p) for p in loop[1:])])
-    return (f"config {loop[0]}: its base chain is a loop, {names}; each file names the next as its `base`: remove "
-            "or change one of them")
+    return (
+        f"config {loop[0]}: its base chain is a loop, {names}; each file names the next as its `base`: remove "
+        "or change one of them"
+    )
 
 
 def set_in(name_or_path, key: str) -> str | None:
@@ -103,7 +109,6 @@ def set_in(name_or_path, key: str) -> str | None:
         path = _locate(data["base"], path)
 
 
-
 def load_config(name_or_path: str | os.PathLike, overrides: list[str] | str | None = None) -> "Config":
     """A config by name or path, its ``base`` chain merged, then ``section.key=value`` overrides
     (:func:`apply_overrides`), as a complete :class:`Config`; every key and value checked against the schema (one
@@ -111,7 +116,6 @@ def load_config(name_or_path: str | os.PathLike, overrides: list[str] | str | No
     of the parameter ``overrides``, which ``hcmt train`` words as its ``--set``). A ``base`` path is read from the
     folder of the file naming it; one string of overrides is one item (``"train.steps=20"``)."""
     return Config.from_dict(apply_overrides(_read(name_or_path), overrides), str(name_or_path))
-
 
 
 def as_config(config, overrides: list[str] | None = None) -> Config:
@@ -122,8 +126,10 @@ def as_config(config, overrides: list[str] | None = None) -> Config:
     if isinstance(config, dict):
         return Config.from_dict(apply_overrides(config, overrides))
     if not isinstance(config, (str, os.PathLike)):
-        raise InputError(f"expected a Config, a config mapping, a built-in config's name or a YAML path, got "
-                         f"{clip(repr(config))}", param="config")
+        raise InputError(
+            f"expected a Config, a config mapping, a built-in config's name or a YAML path, got {clip(repr(config))}",
+            param="config",
+        )
     return load_config(config, overrides)
 
 
@@ -138,7 +144,8 @@ def check_same_dataset(dataset: str | None, meta: dict, data, source: str, origi
     fits = [n for n in builtin_configs() if n.startswith(str(theirs))]
     hint = f" (built-in: {', '.join(fits[:3])})" if source.startswith("config") and fits else ""
     where = f" (set by {origin})" if origin else ""
-    raise InputError(f"{source}: dataset {dataset}{where}, but {Path(data) / 'meta.json'} holds dataset "
-                     f"{clip(str(theirs))}; expected data of dataset {dataset}"
-                     + (f", or a config of dataset {theirs}{hint}" if source.startswith("config") else ""))
-
+    raise InputError(
+        f"{source}: dataset {dataset}{where}, but {Path(data) / 'meta.json'} holds dataset "
+        f"{clip(str(theirs))}; expected data of dataset {dataset}"
+        + (f", or a config of dataset {theirs}{hint}" if source.startswith("config") else "")
+    )

@@ -2,6 +2,7 @@
 (:mod:`hcmt.config.sections`), :func:`check_schema` (unknown keys with the closest known one, types, allowed values,
 bounds, each refused in one line), ``section.key=value`` overrides (:func:`apply_overrides`) and :class:`Config`,
 the frozen, complete config (``L_H = 2λ + 1`` derived, never set)."""
+
 from __future__ import annotations
 
 import copy
@@ -14,8 +15,13 @@ from hcmt.config.sections import SECTIONS, DataConfig, ModelConfig, TrainConfig
 from hcmt.config.yamlread import parse_value
 from hcmt.errors import InputError, clip
 
-_KIND = {int: "a whole number", float: "a number", bool: "true or false", str: "a string",
-         tuple: "a list of trajectory indices"}
+_KIND = {
+    int: "a whole number",
+    float: "a number",
+    bool: "true or false",
+    str: "a string",
+    tuple: "a list of trajectory indices",
+}
 _CAST = {"a whole number": int, "a number": float, "a list of trajectory indices": tuple}
 
 
@@ -41,9 +47,16 @@ def _spec(cls) -> dict[str, Spec]:
         args = [a for a in get_args(t) if a is not type(None)]
         base = args[0] if args else t
         m = f.metadata  # sections._field's; a field declared without it has none: required False, no bounds
-        out[f.name] = Spec(_KIND[get_origin(base) or base], tuple(m.get("allowed", ())), type(None) in get_args(t),
-                           bool(m.get("required", False)), m.get("minimum"), m.get("maximum"), m.get("above"),
-                           m.get("says"))
+        out[f.name] = Spec(
+            _KIND[get_origin(base) or base],
+            tuple(m.get("allowed", ())),
+            type(None) in get_args(t),
+            bool(m.get("required", False)),
+            m.get("minimum"),
+            m.get("maximum"),
+            m.get("above"),
+            m.get("says"),
+        )
     return out
 
 
@@ -73,8 +86,9 @@ class Config:
             raise InputError(f"config {source}: expected a mapping of sections, got {type(cfg).__name__}")
         cfg = _without_derived(cfg)
         check_schema(cfg, source)
-        return cls(dataset=cfg.get("dataset"),
-                   **{name: cls_(**(cfg.get(name) or {})) for name, cls_ in SECTIONS.items()})
+        return cls(
+            dataset=cfg.get("dataset"), **{name: cls_(**(cfg.get(name) or {})) for name, cls_ in SECTIONS.items()}
+        )
 
     def __post_init__(self):
         """However the Config was made (:meth:`from_dict`, or by hand from the section classes), every value is
@@ -84,9 +98,16 @@ class Config:
         if plain["model"]["ablation"] == NO_REMESH:  # the old spelling of data.remesh=false (NO_REMESH): read once
             plain["model"]["ablation"], plain["data"]["remesh"] = None, False
         for name, cls_ in SECTIONS.items():
-            object.__setattr__(self, name, cls_(**{
-                k: v if v is None or SCHEMA[name][k].kind not in _CAST else _CAST[SCHEMA[name][k].kind](v)
-                for k, v in plain[name].items()}))
+            object.__setattr__(
+                self,
+                name,
+                cls_(
+                    **{
+                        k: v if v is None or SCHEMA[name][k].kind not in _CAST else _CAST[SCHEMA[name][k].kind](v)
+                        for k, v in plain[name].items()
+                    }
+                ),
+            )
 
     def to_dict(self) -> dict:
         """Plain types (lists, not tuples) for YAML and ``torch.load(weights_only=True)``."""
@@ -107,10 +128,10 @@ class Config:
         for name, specs in SCHEMA.items():
             for key, spec in specs.items():
                 if spec.required and getattr(getattr(self, name), key) is None:
-                    raise InputError(f"config: {name}.{key} is missing (see configs/impact_plate.yaml for a "
-                                     "complete config)")
+                    raise InputError(
+                        f"config: {name}.{key} is missing (see configs/impact_plate.yaml for a complete config)"
+                    )
         return self
-
 
 
 def current_model_args(args: dict) -> dict:
@@ -118,7 +139,6 @@ def current_model_args(args: dict) -> dict:
     the old ``no-remesh`` ablation, which never changed the model, dropped (the run's config, read through
     :class:`Config`, holds it as ``data.remesh: false``)."""
     return dict(args, ablation=None) if args.get("ablation") == NO_REMESH else args
-
 
 
 def apply_overrides(cfg: dict, overrides: list[str] | str | None) -> dict:
@@ -151,8 +171,10 @@ def override_list(overrides) -> list:
         return [overrides]
     if isinstance(overrides, (list, tuple)):
         return list(overrides)
-    raise InputError(f"expected a list of section.key=value strings, got {type(overrides).__name__} "
-                     f"{clip(repr(overrides))}", param="overrides")
+    raise InputError(
+        f"expected a list of section.key=value strings, got {type(overrides).__name__} {clip(repr(overrides))}",
+        param="overrides",
+    )
 
 
 def _nest(keys: list[str], value):
@@ -162,7 +184,8 @@ def _nest(keys: list[str], value):
 def _ok(kind: str, value) -> bool:
     if kind == "a whole number":
         return (isinstance(value, int) and not isinstance(value, bool)) or (
-            isinstance(value, float) and value.is_integer())
+            isinstance(value, float) and value.is_integer()
+        )
     if kind == "a number":
         return isinstance(value, (int, float)) and not isinstance(value, bool)
     if kind == "true or false":
@@ -174,8 +197,11 @@ def _ok(kind: str, value) -> bool:
 
 def _bounds(spec: Spec, value) -> str | None:
     """What ``value`` breaks of ``spec``'s bounds, as ``a whole number >= 1``, or None."""
-    for bound, op, holds in (("minimum", ">=", lambda b: value >= b), ("above", ">", lambda b: value > b),
-                             ("maximum", "<=", lambda b: value <= b)):
+    for bound, op, holds in (
+        ("minimum", ">=", lambda b: value >= b),
+        ("above", ">", lambda b: value > b),
+        ("maximum", "<=", lambda b: value <= b),
+    ):
         b = getattr(spec, bound)
         if b is not None and not holds(b):
             return spec.says or f"{spec.kind} {op} {b:g}"
@@ -225,20 +251,26 @@ def check_schema(cfg: dict, source: str | None = "config") -> None:
             raise InputError(f"{_head(source)}{top}: expected a section of keys, got {clip(repr(value))}")
         for key, v in value.items():
             if top == "model" and key == "L_H":
-                raise InputError(f"{_head(source)}model.L_H: derived, L_H = 2·model.levels + 1 (paper §3.2), not a "
-                                 "setting; set model.levels")
+                raise InputError(
+                    f"{_head(source)}model.L_H: derived, L_H = 2·model.levels + 1 (paper §3.2), not a "
+                    "setting; set model.levels"
+                )
             if key not in SCHEMA[top]:
-                raise _unknown(f"{top}.{key}", [f"{top}.{k}" for k in SCHEMA[top]]
-                               + [f"{s}.{k}" for s in SCHEMA for k in SCHEMA[s] if s != top], source)
+                raise _unknown(
+                    f"{top}.{key}",
+                    [f"{top}.{k}" for k in SCHEMA[top]] + [f"{s}.{k}" for s in SCHEMA for k in SCHEMA[s] if s != top],
+                    source,
+                )
             spec = SCHEMA[top][key]
             if v is None and spec.nullable:
                 continue
             if not _ok(spec.kind, v):
                 raise InputError(f"{_head(source)}{top}.{key}: got {clip(repr(v))}; expected {spec.kind}")
             if spec.allowed and v not in spec.allowed:
-                raise InputError(f"{_head(source)}{top}.{key}: unknown value {clip(repr(v))}; expected one of "
-                                 f"{', '.join(spec.allowed)}")
+                raise InputError(
+                    f"{_head(source)}{top}.{key}: unknown value {clip(repr(v))}; expected one of "
+                    f"{', '.join(spec.allowed)}"
+                )
             broken = _bounds(spec, v) if isinstance(v, (int, float)) else None
             if broken:
                 raise InputError(f"{_head(source)}{top}.{key} must be {broken}, got {clip(repr(v))}")
-

@@ -1,6 +1,7 @@
 """The config's schema: one frozen dataclass per section (``model:``, ``train:``, ``data:``), its fields' defaults
 the defaults (build_model's and HCMT's too), their allowed values (:mod:`hcmt.config.choices`) and bounds the
 validation (:mod:`hcmt.config.schema`)."""
+
 from __future__ import annotations
 
 from dataclasses import dataclass, field
@@ -27,8 +28,17 @@ from hcmt.config.choices import (
 def _field(default, *allowed, required: bool = False, minimum=None, maximum=None, above=None, says=None):
     """A schema field: ``allowed`` values, ``required`` to train, and bounds (``minimum <= v <= maximum``,
     ``v > above``) that :func:`check_schema` enforces; ``says``: how its message names the bounds."""
-    return field(default=default, metadata={"allowed": allowed, "required": required, "minimum": minimum,
-                                            "maximum": maximum, "above": above, "says": says})
+    return field(
+        default=default,
+        metadata={
+            "allowed": allowed,
+            "required": required,
+            "minimum": minimum,
+            "maximum": maximum,
+            "above": above,
+            "says": says,
+        },
+    )
 
 
 @dataclass(frozen=True)

@@ -1,6 +1,7 @@
 """Torch's CPU threads: the machine's cores (the bound of ``--threads`` and ``--workers``), ``auto`` (the cores not
 busy with other work), a command's ``--threads`` and the Python API's default. Light: torch is imported only inside
 the functions that set it, so the command's parsers stay fast."""
+
 from __future__ import annotations
 
 import os
@@ -50,7 +51,8 @@ def default_threads() -> int:
 
     now = torch.get_num_threads()
     if now in (_THREADS.get("chosen"), _THREADS.get("auto")) or any(
-            os.environ.get(v) for v in ("OMP_NUM_THREADS", "MKL_NUM_THREADS")):
+        os.environ.get(v) for v in ("OMP_NUM_THREADS", "MKL_NUM_THREADS")
+    ):
         return now  # a command's --threads, this default chosen before, or the environment's
     if now not in _torch_start_counts():
         return now  # the caller's torch.set_num_threads
@@ -73,4 +75,3 @@ def _torch_start_counts() -> set[int]:
         except OSError:
             cores.add(("", str(cpu)))  # no topology: counted as a core of its own
     return {len(cpus), len(cores), os.cpu_count() or 1}
-

@@ -1,5 +1,6 @@
 """Config files read as YAML 1.1 with YAML 1.2's floats (``lr: 1e-3`` is a number) and without duplicate keys
 (refused, both lines named); a command-line value read as a number or YAML (:func:`parse_value`)."""
+
 from __future__ import annotations
 
 import copy
@@ -18,7 +19,8 @@ class _Loader(yaml.SafeLoader):
 _Loader.add_implicit_resolver(
     "tag:yaml.org,2002:float",
     re.compile(r"^[-+]?(?:[0-9][0-9_]*(?:\.[0-9_]*)?[eE][-+]?[0-9]+|\.[0-9][0-9_]*(?:[eE][-+]?[0-9]+)?)$"),
-    list("-+0123456789."))
+    list("-+0123456789."),
+)
 
 
 def load_yaml(text: str, where: str):
@@ -50,11 +52,12 @@ def _no_twice(node, path: tuple, where: str, seen: set) -> None:
         if name is not None and key.tag != "tag:yaml.org,2002:merge":
             if (key.tag, name) in lines:
                 dotted = ".".join((*path, str(name))).replace(".[", "[")
-                raise InputError(f"{where}: key {clip(dotted)} given twice, lines {lines[key.tag, name]} and "
-                                 f"{key.start_mark.line + 1}; keep one")
+                raise InputError(
+                    f"{where}: key {clip(dotted)} given twice, lines {lines[key.tag, name]} and "
+                    f"{key.start_mark.line + 1}; keep one"
+                )
             lines[key.tag, name] = key.start_mark.line + 1
         _no_twice(value, (*path, str(name)), where, seen)
-
 
 
 def merge(base: dict, over: dict) -> dict:
@@ -74,6 +77,6 @@ def parse_value(raw: str):
     try:
         return load_yaml(raw, f"the value {clip(raw)!r}")
     except yaml.YAMLError as exc:
-        raise InputError(f"the value {clip(raw)!r} is not a YAML value ({getattr(exc, 'problem', None) or exc})") \
-            from None
-
+        raise InputError(
+            f"the value {clip(raw)!r} is not a YAML value ({getattr(exc, 'problem', None) or exc})"
+        ) from None

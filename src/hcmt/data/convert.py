@@ -7,6 +7,7 @@ converted; each output file is written atomically and the output's ``meta.json``
 conversion leaves no dataset that looks complete. ``static_varlen`` fields (the official Impact Plate data's
 precomputed hierarchy) are not copied: hcmt builds its own hierarchy (``hcmt hierarchy``).
 """
+
 from __future__ import annotations
 
 import shutil
@@ -33,10 +34,13 @@ def convert_tfrecord(src: Path, out: Path) -> dict:
             features[name] = dict(spec)
     world = features.get("world_pos") or features.get("mesh_pos")
     length = tf_meta.get("trajectory_length") or next(
-        (v["shape"][0] for v in features.values() if v["type"] == "dynamic" and v["shape"][0] > 0), None)
+        (v["shape"][0] for v in features.values() if v["type"] == "dynamic" and v["shape"][0] > 0), None
+    )
     if not length:
-        raise DatasetError("has no trajectory_length and no dynamic field with a fixed time axis; add "
-                           "\"trajectory_length\": T", file=src / "meta.json")
+        raise DatasetError(
+            'has no trajectory_length and no dynamic field with a fixed time axis; add "trajectory_length": T',
+            file=src / "meta.json",
+        )
     extra = {k: tf_meta[k] for k in ("collision_radius", "simulator") if k in tf_meta}
     meta = make_meta(
         features,
@@ -44,8 +48,11 @@ def convert_tfrecord(src: Path, out: Path) -> dict:
         dimension=int(world["shape"][-1]) if world else 0,
         dt=tf_meta.get("dt"),
         units=tf_meta.get("units", {}),
-        generator={"converted_from": str(src), "source_format": "tfrecord",
-                   "skipped_fields": [k for k, v in tf_meta["features"].items() if v["type"] == "static_varlen"]},
+        generator={
+            "converted_from": str(src),
+            "source_format": "tfrecord",
+            "skipped_fields": [k for k, v in tf_meta["features"].items() if v["type"] == "static_varlen"],
+        },
         **extra,
     )
     for split in splits:
@@ -69,8 +76,11 @@ def convert_ggns(src: Path, out: Path) -> dict:
     files = [src] if src.is_file() else sorted(p for p in src.iterdir() if p.suffix in _PICKLE_SUFFIXES)
     if not files:
         if src.is_dir() and any(src.glob("*.tfrecord")):
-            raise DatasetError("holds .tfrecord files but no meta.json beside them: a TFRecord dataset needs the "
-                               "meta.json of its download (MeshGraphNets / HCMT)", file=src)
+            raise DatasetError(
+                "holds .tfrecord files but no meta.json beside them: a TFRecord dataset needs the "
+                "meta.json of its download (MeshGraphNets / HCMT)",
+                file=src,
+            )
         raise DatasetError("no pickle files (*.pkl) and no TFRecord dataset (meta.json + *.tfrecord) found", file=src)
     meta = None
     for path in files:
@@ -79,11 +89,18 @@ def convert_ggns(src: Path, out: Path) -> dict:
             raise DatasetError("holds no trajectories", file=path)
         steps = ggns_to_native(trajs[0], file=path, trajectory=0)[0]["world_pos"].shape[0]
         if meta is not None and steps != meta["trajectory_length"]:
-            raise DatasetError(f"trajectories have different lengths {sorted({steps, meta['trajectory_length']})}",
-                               file=path)
+            raise DatasetError(
+                f"trajectories have different lengths {sorted({steps, meta['trajectory_length']})}", file=path
+            )
         if meta is None:
-            meta = make_meta(ggns_features(steps), trajectory_length=steps, dimension=2, dt=None, units={},
-                             generator={"converted_from": str(src), "source_format": "ggns-pickle"})
+            meta = make_meta(
+                ggns_features(steps),
+                trajectory_length=steps,
+                dimension=2,
+                dt=None,
+                units={},
+                generator={"converted_from": str(src), "source_format": "ggns-pickle"},
+            )
         write_split(out / f"{path.stem}.h5", meta, _ggns_trajectories(trajs, steps, path))
     write_meta(out, meta)
     return meta
@@ -96,8 +113,9 @@ def _ggns_trajectories(trajs: list[dict], steps: int, path: Path):
         fields, attrs = ggns_to_native(trajs[i], file=path, trajectory=i)
         trajs[i] = None
         if fields["world_pos"].shape[0] != steps:
-            raise DatasetError(f"trajectories have different lengths {sorted({steps, fields['world_pos'].shape[0]})}",
-                               file=path)
+            raise DatasetError(
+                f"trajectories have different lengths {sorted({steps, fields['world_pos'].shape[0]})}", file=path
+            )
         yield f"traj_{i:05d}", fields, attrs
 
 
@@ -105,8 +123,9 @@ def convert(src: str | Path, out: str | Path) -> dict:
     """Convert SRC into a native dataset at OUT; on any error nothing new is left at OUT."""
     src, out = Path(src), Path(out)
     if not src.exists():
-        raise InputError(f"{src}: no such file or folder; expected a TFRecord dataset folder or GGNS pickle(s)",
-                         param="src")
+        raise InputError(
+            f"{src}: no such file or folder; expected a TFRecord dataset folder or GGNS pickle(s)", param="src"
+        )
     if (out / "meta.json").exists():
         raise DatasetError("already holds a dataset; choose another output folder or delete it", file=out)
     existed = out.exists()

@@ -17,6 +17,7 @@ never leaves a file that looks complete. Split files carry checksums (HDF5 ``lib
 a Fletcher-32 checksum per dataset chunk): a corrupted byte makes reading fail with one clear line instead of
 yielding different data (tests/cli/test_fuzz.py).
 """
+
 from __future__ import annotations
 
 import json
@@ -55,8 +56,11 @@ def write_meta(dataset_dir: str | os.PathLike, meta: Mapping) -> Path:
 def read_meta(dataset_dir: str | os.PathLike) -> dict:
     path = Path(dataset_dir) / "meta.json"
     if not path.is_file():
-        raise DatasetError("not found; a dataset is a folder with meta.json and <split>.h5 files "
-                           "(make one with `hcmt generate` or `hcmt convert`)", file=path)
+        raise DatasetError(
+            "not found; a dataset is a folder with meta.json and <split>.h5 files "
+            "(make one with `hcmt generate` or `hcmt convert`)",
+            file=path,
+        )
     try:
         meta = json.loads(path.read_text(encoding="utf-8"))
     except (UnicodeDecodeError, json.JSONDecodeError) as exc:
@@ -79,11 +83,14 @@ def incomplete(dataset_dir: str | os.PathLike) -> str:
     writing it, or rerun the one that was interrupted."""
     pid = generating(dataset_dir)
     if pid is not None:
-        return (f"a `hcmt generate` is writing it (pid {pid}): meta.json but no split files yet; wait for it to "
-                "finish, or stop it")
+        return (
+            f"a `hcmt generate` is writing it (pid {pid}): meta.json but no split files yet; wait for it to "
+            "finish, or stop it"
+        )
     parts = " (an interrupted `hcmt generate` left .parts/)" if (Path(dataset_dir) / ".parts").is_dir() else ""
-    return (f"incomplete dataset: meta.json but no split files{parts}; "
-            "rerun the same `hcmt generate` command to finish it")
+    return (
+        f"incomplete dataset: meta.json but no split files{parts}; rerun the same `hcmt generate` command to finish it"
+    )
 
 
 def list_splits(dataset_dir: str | os.PathLike) -> list[str]:
@@ -118,9 +125,14 @@ def write_split(
                 g = f.create_group(name)
                 for key, value in arrays.items():
                     big = value.size > 4096
-                    g.create_dataset(key, data=value, compression=compression if big else None,
-                                     shuffle=bool(compression and big), fletcher32=value.size > 0,
-                                     chunks=frame_chunks(meta, key, value.shape))
+                    g.create_dataset(
+                        key,
+                        data=value,
+                        compression=compression if big else None,
+                        shuffle=bool(compression and big),
+                        fletcher32=value.size > 0,
+                        chunks=frame_chunks(meta, key, value.shape),
+                    )
                 for key, value in (attrs or {}).items():
                     g.attrs[key] = value
                 count += 1
@@ -171,8 +183,9 @@ class Split:
             group = self._file[name]
             fields = {k: group[k][()] for k in group.keys()}
         except (OSError, KeyError, RuntimeError) as exc:
-            raise DatasetError(f"cannot be read (truncated or corrupt file?): {exc}", file=self.path,
-                               trajectory=name) from None
+            raise DatasetError(
+                f"cannot be read (truncated or corrupt file?): {exc}", file=self.path, trajectory=name
+            ) from None
         return validate_trajectory(self.meta, fields, file=self.path, trajectory=name)
 
     def __iter__(self):
@@ -186,13 +199,15 @@ class Split:
             group = self._file[name]
             shapes = {k: (group[k].shape, group[k].dtype) for k in group.keys()}
         except (OSError, KeyError, RuntimeError) as exc:
-            raise DatasetError(f"cannot be read (truncated or corrupt file?): {exc}", file=self.path,
-                               trajectory=name) from None
+            raise DatasetError(
+                f"cannot be read (truncated or corrupt file?): {exc}", file=self.path, trajectory=name
+            ) from None
         check_layout(self.meta, shapes, file=self.path, trajectory=name)
         return {k: tuple(shape) for k, (shape, _) in shapes.items()}
 
-    def read(self, i: int, fields: Iterable[str], frames: slice | None = None,
-             num_nodes: int | None = None) -> dict[str, np.ndarray]:
+    def read(
+        self, i: int, fields: Iterable[str], frames: slice | None = None, num_nodes: int | None = None
+    ) -> dict[str, np.ndarray]:
         """Some fields of trajectory ``i``, value-checked (:func:`check_values`; ``num_nodes`` from
         :meth:`layout` for the cell indices' range), dynamic ones only at ``frames`` (an HDF5 hyperslab: only
         those frames' chunks are read)."""
@@ -203,8 +218,9 @@ class Split:
                 data = self._file[name][key]
                 out[key] = data[frames] if dynamic and frames is not None else data[()]
             except (OSError, KeyError, RuntimeError, ValueError) as exc:
-                raise DatasetError(f"cannot be read (truncated or corrupt file?): {exc}", file=self.path,
-                                   trajectory=name, field=key) from None
+                raise DatasetError(
+                    f"cannot be read (truncated or corrupt file?): {exc}", file=self.path, trajectory=name, field=key
+                ) from None
         return check_values(self.meta, out, file=self.path, trajectory=name, num_nodes=num_nodes)
 
     def attrs(self, i: int) -> dict:
@@ -212,15 +228,17 @@ class Split:
             items = self._file[self.names[i]].attrs.items()
             return {k: (v.item() if hasattr(v, "item") else v) for k, v in items}
         except (OSError, KeyError, RuntimeError) as exc:
-            raise DatasetError(f"attributes cannot be read (corrupt file?): {exc}", file=self.path,
-                               trajectory=self.names[i]) from None
+            raise DatasetError(
+                f"attributes cannot be read (corrupt file?): {exc}", file=self.path, trajectory=self.names[i]
+            ) from None
 
     def num_nodes(self, i: int) -> int:
         try:
             return int(self._file[self.names[i]]["mesh_pos"].shape[0])
         except (OSError, KeyError, RuntimeError) as exc:
-            raise DatasetError(f"cannot be read (corrupt file?): {exc}", file=self.path, trajectory=self.names[i],
-                               field="mesh_pos") from None
+            raise DatasetError(
+                f"cannot be read (corrupt file?): {exc}", file=self.path, trajectory=self.names[i], field="mesh_pos"
+            ) from None
 
     def close(self) -> None:
         self._file.close()

@@ -11,6 +11,7 @@ plus fields hcmt does not use (``edge_index_grid``, ``pcd_points``, ...). Each i
 plate nodes NORMAL, collider nodes OBSTACLE, ``mesh_pos`` the rest shape, ``world_pos`` [T, N+M, 2], per-node
 ``poisson_ratio`` [N+M, 1] (the paper's Table 9 input ν_i) and the scalar as a design-parameter attribute.
 """
+
 from __future__ import annotations
 
 import os
@@ -32,7 +33,9 @@ REQUIRED = ("nodes_grid", "triangles_grid", "nodes_collider", "triangles_collide
 SAFE_GLOBALS = {
     **{(m, n): None for m in ("numpy.core.multiarray", "numpy._core.multiarray") for n in ("_reconstruct", "scalar")},
     **{(m, "_frombuffer"): None for m in ("numpy.core.numeric", "numpy._core.numeric")},
-    ("numpy", "ndarray"): None, ("numpy", "dtype"): None, ("_codecs", "encode"): None,
+    ("numpy", "ndarray"): None,
+    ("numpy", "dtype"): None,
+    ("_codecs", "encode"): None,
     **{("builtins", n): None for n in ("list", "dict", "tuple", "set", "frozenset", "bytearray", "complex", "slice")},
 }
 
@@ -47,9 +50,12 @@ class _SafeUnpickler(pickle.Unpickler):
     def find_class(self, module: str, name: str):
         if (module, name) in SAFE_GLOBALS or (module == "numpy.dtypes" and name.endswith("DType")):
             return super().find_class(module, name)
-        raise DatasetError(f"refused: the pickle names the global {module[:60]}.{name[:60]}, not a numpy array or a "
-                           "plain container; hcmt runs no code from a data file (a GGNS pickle holds only arrays, "
-                           "numbers, strings, lists and dicts)", file=self.path)
+        raise DatasetError(
+            f"refused: the pickle names the global {module[:60]}.{name[:60]}, not a numpy array or a "
+            "plain container; hcmt runs no code from a data file (a GGNS pickle holds only arrays, "
+            "numbers, strings, lists and dicts)",
+            file=self.path,
+        )
 
 
 def load_ggns_pickle(path: str | os.PathLike) -> list[dict]:
@@ -74,33 +80,45 @@ def _array(traj: dict, key: str, dtype, file, trajectory) -> np.ndarray:
     try:
         return np.asarray(traj[key], dtype=dtype)
     except (ValueError, TypeError) as exc:
-        raise DatasetError(f"not a numeric array ({str(exc).splitlines()[0][:80]})", file=file,
-                           trajectory=trajectory, field=key) from None
+        raise DatasetError(
+            f"not a numeric array ({str(exc).splitlines()[0][:80]})", file=file, trajectory=trajectory, field=key
+        ) from None
 
 
 def ggns_to_native(traj: dict, *, file=None, trajectory=None) -> tuple[dict, dict]:
     """Map one GGNS trajectory dict to native fields and design-parameter attributes."""
     for key in REQUIRED:
         if key not in traj:
-            raise DatasetError(f"missing; a GGNS trajectory needs {list(REQUIRED)}", file=file,
-                               trajectory=trajectory, field=key)
+            raise DatasetError(
+                f"missing; a GGNS trajectory needs {list(REQUIRED)}", file=file, trajectory=trajectory, field=key
+            )
     grid, collider = (_array(traj, k, np.float32, file, trajectory) for k in ("nodes_grid", "nodes_collider"))
     for name, arr in (("nodes_grid", grid), ("nodes_collider", collider)):
         if arr.ndim != 3 or arr.shape[-1] != 2:
-            raise DatasetError(f"shape {list(arr.shape)}; expected [T, N, 2]", file=file, trajectory=trajectory,
-                               field=name)
+            raise DatasetError(
+                f"shape {list(arr.shape)}; expected [T, N, 2]", file=file, trajectory=trajectory, field=name
+            )
     if grid.shape[0] != collider.shape[0]:
-        raise DatasetError(f"{collider.shape[0]} steps but nodes_grid has {grid.shape[0]}", file=file,
-                           trajectory=trajectory, field="nodes_collider")
+        raise DatasetError(
+            f"{collider.shape[0]} steps but nodes_grid has {grid.shape[0]}",
+            file=file,
+            trajectory=trajectory,
+            field="nodes_collider",
+        )
     n = grid.shape[1]
     tri_grid, tri_coll = (_array(traj, k, np.int64, file, trajectory) for k in ("triangles_grid", "triangles_collider"))
     for name, tri, count in (("triangles_grid", tri_grid, n), ("triangles_collider", tri_coll, collider.shape[1])):
         if tri.ndim != 2 or tri.shape[1] != 3:
-            raise DatasetError(f"shape {list(tri.shape)}; expected [C, 3]", file=file, trajectory=trajectory,
-                               field=name)
+            raise DatasetError(
+                f"shape {list(tri.shape)}; expected [C, 3]", file=file, trajectory=trajectory, field=name
+            )
         if tri.size and (tri.min() < 0 or tri.max() >= count):
-            raise DatasetError(f"index out of range [{tri.min()}, {tri.max()}] for {count} nodes", file=file,
-                               trajectory=trajectory, field=name)
+            raise DatasetError(
+                f"index out of range [{tri.min()}, {tri.max()}] for {count} nodes",
+                file=file,
+                trajectory=trajectory,
+                field=name,
+            )
     nu = _array(traj, "poisson_ratio", np.float64, file, trajectory).reshape(-1)
     if nu.size == 0:
         raise DatasetError("empty; expected one number", file=file, trajectory=trajectory, field="poisson_ratio")

@@ -1,4 +1,5 @@
 """``hcmt info DATASET``: what a native dataset holds."""
+
 from __future__ import annotations
 
 from pathlib import Path
@@ -20,8 +21,11 @@ def summarize(dataset_dir: str | Path, all_params: bool = False) -> str:
         raise DatasetError(incomplete(dataset_dir), file=dataset_dir)
     dt = meta.get("dt")
     time_unit = meta.get("units", {}).get("time", "")
-    lines = [f"dataset {dataset_dir}", f"  dimension {meta.get('dimension')}, steps {meta['trajectory_length']}, "
-             + (f"dt {dt} {time_unit}".rstrip() if dt is not None else "dt not recorded")]
+    lines = [
+        f"dataset {dataset_dir}",
+        f"  dimension {meta.get('dimension')}, steps {meta['trajectory_length']}, "
+        + (f"dt {dt} {time_unit}".rstrip() if dt is not None else "dt not recorded"),
+    ]
     if meta.get("units"):
         lines.append("  units " + ", ".join(f"{k}={v}" for k, v in meta["units"].items()))
     lines.append("  fields:")
@@ -50,10 +54,14 @@ def summarize(dataset_dir: str | Path, all_params: bool = False) -> str:
                     for t in np.unique(nt):
                         steps.setdefault(field, {}).setdefault(NodeType(int(t)).name, []).append(d[:, nt == t].ravel())
             nodes = np.array(nodes)
-            lines.append(f"  split {split}: {len(s)} trajectories, nodes min/mean/max "
-                         f"{nodes.min()}/{nodes.mean():.1f}/{nodes.max()}")
-            lines.append("    node types (total over trajectories): "
-                         + ", ".join(f"{t.name} {types[t]}" for t in NodeType if types[t]))
+            lines.append(
+                f"  split {split}: {len(s)} trajectories, nodes min/mean/max "
+                f"{nodes.min()}/{nodes.mean():.1f}/{nodes.max()}"
+            )
+            lines.append(
+                "    node types (total over trajectories): "
+                + ", ".join(f"{t.name} {types[t]}" for t in NodeType if types[t])
+            )
             if families:
                 lines.append("    families: " + ", ".join(f"{k} {n}" for k, n in sorted(families.items())))
             lines += param_lines(params, all_params)
@@ -75,8 +83,13 @@ def param_lines(params: dict[str, list[float]], all_params: bool = False) -> lis
 def position_fields(meta: dict) -> list[str]:
     """Dynamic fields holding positions: ``*_pos`` with the dataset's dimension as last axis (e.g. ``world_pos``)."""
     d = meta.get("dimension")
-    return [n for n in meta["field_names"] if meta["features"][n]["type"] == "dynamic" and n.endswith("pos")
-            and (d is None or meta["features"][n]["shape"][-1] == d)]
+    return [
+        n
+        for n in meta["field_names"]
+        if meta["features"][n]["type"] == "dynamic"
+        and n.endswith("pos")
+        and (d is None or meta["features"][n]["shape"][-1] == d)
+    ]
 
 
 def displacement_lines(steps: dict[str, dict[str, list[np.ndarray]]], unit: str) -> list[str]:
@@ -84,8 +97,10 @@ def displacement_lines(steps: dict[str, dict[str, list[np.ndarray]]], unit: str)
     per node type, over every node and frame of a split: what the training noise σ should be compared with."""
     lines = []
     for field, per_type in steps.items():
-        lines.append(f"    per-frame displacement |{field}(t+1) - {field}(t)| [{unit or 'length unit'}], "
-                     "median / 90th percentile / max:")
+        lines.append(
+            f"    per-frame displacement |{field}(t+1) - {field}(t)| [{unit or 'length unit'}], "
+            "median / 90th percentile / max:"
+        )
         for name, parts in per_type.items():
             v = np.concatenate(parts)
             lines.append(f"      {name:<10} {np.median(v):.3g} / {np.percentile(v, 90):.3g} / {v.max():.3g}")

@@ -4,6 +4,7 @@ the rule of when a folder may start or resume a run, and where the shipped model
 Below both training (which writes a run folder) and inference (which reads one), so that neither goes through the
 other to reach its files.
 """
+
 from __future__ import annotations
 
 import json
@@ -49,8 +50,7 @@ class RunFolder:
                 self.damaged = str(exc)
         elif must_exist:
             hint = f"; the shipped model is pretrained:{self.path}" if str(self.path) in available_pretrained() else ""
-            raise InputError(f"{self.path / 'run.yaml'}: not a run folder (made by `hcmt train --out RUN`)"
-                                    f"{hint}")
+            raise InputError(f"{self.path / 'run.yaml'}: not a run folder (made by `hcmt train --out RUN`){hint}")
 
     def __repr__(self) -> str:
         return f"RunFolder({str(self.path)!r})"
@@ -123,16 +123,22 @@ class RunFolder:
                 rec = json.loads(line)
                 rec["step"] = int(rec["step"])
             except (ValueError, TypeError, KeyError) as exc:
-                raise InputError(f"{self.log}, line {number}: not a log record ({exc.__class__.__name__}: "
-                                 f"{line[:60]!r}); it is written by `hcmt train`") from None
+                raise InputError(
+                    f"{self.log}, line {number}: not a log record ({exc.__class__.__name__}: "
+                    f"{line[:60]!r}); it is written by `hcmt train`"
+                ) from None
             out.append(rec)
         return out
 
     def write_stats(self, summary: dict) -> None:
         """``train_stats.json`` (standard JSON: non-finite numbers become null), atomically."""
         with atomic_path(self.stats_path) as tmp:
-            tmp.write_text(json.dumps({k: (None if isinstance(v, float) and not math.isfinite(v) else v)
-                                       for k, v in summary.items()}, indent=2))
+            tmp.write_text(
+                json.dumps(
+                    {k: (None if isinstance(v, float) and not math.isfinite(v) else v) for k, v in summary.items()},
+                    indent=2,
+                )
+            )
 
     def write_info(self, info: dict) -> None:
         """``run.yaml`` (its :class:`hcmt.config.Config` as plain YAML, :meth:`~hcmt.config.Config.to_dict`),
@@ -151,8 +157,7 @@ class RunFolder:
         meta, ranges = _data_facts(data)
         if meta is not None:
             with atomic_path(self.data_facts_path) as tmp:
-                tmp.write_text(json.dumps({"meta": meta, "ranges": {k: list(v) for k, v in ranges.items()}},
-                                          indent=1))
+                tmp.write_text(json.dumps({"meta": meta, "ranges": {k: list(v) for k, v in ranges.items()}}, indent=1))
 
     def data_facts(self) -> tuple[dict | None, dict[str, tuple[float, float]]]:
         """(meta.json, design ranges) of the training data: from the dataset while it is there, else from the
@@ -167,8 +172,10 @@ class RunFolder:
                 if not isinstance(generator, dict) or not isinstance(generator.get("settings", {}), dict):
                     raise TypeError("no generator block")
             except (ValueError, KeyError, TypeError, IndexError, AttributeError, OverflowError) as exc:
-                raise InputError(f"{self.data_facts_path}: damaged ({exc.__class__.__name__}); it is written by "
-                                 "`hcmt train` from the training data's meta.json") from None
+                raise InputError(
+                    f"{self.data_facts_path}: damaged ({exc.__class__.__name__}); it is written by "
+                    "`hcmt train` from the training data's meta.json"
+                ) from None
         return meta, ranges
 
     # -- files of its use
@@ -208,20 +215,32 @@ def read_run_yaml(path: Path) -> dict:
     try:
         info = yaml.safe_load(path.read_text(encoding="utf-8"))
     except (yaml.YAMLError, UnicodeDecodeError) as exc:
-        raise InputError(f"{path}: not readable YAML ({str(exc).splitlines()[0]}); it is written by `hcmt train` "
-                         "(restore it, or train the run again)") from None
-    if not isinstance(info, dict) or not isinstance(info.get("model"), dict) or (
-            "config" in info and not isinstance(info["config"], dict)):
-        what = "empty" if not info else "no model section (the model's constructor arguments)" \
-            if not isinstance(info, dict) or not isinstance(info.get("model"), dict) else "a config that is no mapping"
+        raise InputError(
+            f"{path}: not readable YAML ({str(exc).splitlines()[0]}); it is written by `hcmt train` "
+            "(restore it, or train the run again)"
+        ) from None
+    if (
+        not isinstance(info, dict)
+        or not isinstance(info.get("model"), dict)
+        or ("config" in info and not isinstance(info["config"], dict))
+    ):
+        what = (
+            "empty"
+            if not info
+            else "no model section (the model's constructor arguments)"
+            if not isinstance(info, dict) or not isinstance(info.get("model"), dict)
+            else "a config that is no mapping"
+        )
         raise InputError(f"{path}: {what}; run.yaml is written by `hcmt train` (restore it, or train the run again)")
     info["model"] = current_model_args(info["model"])  # an old no-remesh run: its config says data.remesh false
     if "config" in info:
         try:
             info["config"] = Config.from_dict(info["config"], str(path))
         except (TypeError, ValueError) as exc:
-            raise InputError(f"{path}: its settings do not load ({str(exc).splitlines()[0][:200]}); restore it or "
-                             "train the run again") from None
+            raise InputError(
+                f"{path}: its settings do not load ({str(exc).splitlines()[0][:200]}); restore it or "
+                "train the run again"
+            ) from None
     return info
 
 
@@ -236,8 +255,10 @@ def read_checkpoint(path: Path, device="cpu", earlier: Path | None = None) -> di
     except (FileNotFoundError, InputError):
         raise
     except Exception as exc:  # torch raises RuntimeError, EOFError, UnpicklingError, ...: all mean "damaged"
-        raise InputError(f"{path}: not a readable checkpoint (truncated or corrupt: {exc.__class__.__name__})"
-                         f"{_other_checkpoint(path, earlier)}") from None
+        raise InputError(
+            f"{path}: not a readable checkpoint (truncated or corrupt: {exc.__class__.__name__})"
+            f"{_other_checkpoint(path, earlier)}"
+        ) from None
     if isinstance(state.get("model_args"), dict):  # an old no-remesh checkpoint: the model is HCMT's own
         state["model_args"] = current_model_args(state["model_args"])
     return state
@@ -273,8 +294,6 @@ def _data_facts(data: str | None) -> tuple[dict | None, dict[str, tuple[float, f
     return json.loads(json.dumps(meta)), {k: (min(v), max(v)) for k, v in ranges.items()}
 
 
-
-
 def check_start(folder: RunFolder, resume: bool, *, flags: bool = False) -> None:
     """The one rule of a run folder's start: ``resume`` needs a readable run with a checkpoint, a new run needs a
     folder that holds none. One line each, in the command line's words with ``flags`` (``--resume``, ``--out``),
@@ -282,12 +301,18 @@ def check_start(folder: RunFolder, resume: bool, *, flags: bool = False) -> None
     if resume and folder.damaged:
         raise InputError(folder.damaged)
     if resume and folder.info is not None and "config" not in folder.info:
-        raise InputError(f"{folder.run_yaml}: no config section, so the run cannot be resumed; it is written by "
-                         "`hcmt train` (restore it, or train the run again)")
+        raise InputError(
+            f"{folder.run_yaml}: no config section, so the run cannot be resumed; it is written by "
+            "`hcmt train` (restore it, or train the run again)"
+        )
     if resume and not folder.latest.is_file():
-        raise FileNotFoundError(f"{folder.latest}: nothing to resume; start without "
-                                f"{'--resume' if flags else 'resume=True'}")
+        raise FileNotFoundError(
+            f"{folder.latest}: nothing to resume; start without {'--resume' if flags else 'resume=True'}"
+        )
     if not resume and folder.holds_run():
-        raise InputError(f"{folder.path} already holds a run; pass --resume to continue it or choose another --out"
-                         if flags else f"hcmt.train: {folder.path} already holds a run; pass resume=True to continue "
-                         "it, overwrite=True to delete it and start afresh, or another out folder")
+        raise InputError(
+            f"{folder.path} already holds a run; pass --resume to continue it or choose another --out"
+            if flags
+            else f"hcmt.train: {folder.path} already holds a run; pass resume=True to continue "
+            "it, overwrite=True to delete it and start afresh, or another out folder"
+        )

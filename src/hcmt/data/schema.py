@@ -8,6 +8,7 @@ without a time axis (``mesh_pos`` [N,d], ``cells`` [C,3|4], ``node_type`` [N,1])
 No file is read or written here: the checks are shared by reading and writing (:mod:`hcmt.data.format`, which
 re-exports every name of this module), so one definition of a valid dataset serves both.
 """
+
 from __future__ import annotations
 
 import enum
@@ -57,8 +58,9 @@ def make_meta(
         "format": FORMAT_NAME,
         "version": FORMAT_VERSION,
         "field_names": list(features),
-        "features": {k: {"type": v["type"], "shape": list(v["shape"]), "dtype": str(v["dtype"])}
-                     for k, v in features.items()},
+        "features": {
+            k: {"type": v["type"], "shape": list(v["shape"]), "dtype": str(v["dtype"])} for k, v in features.items()
+        },
         "trajectory_length": int(trajectory_length),
         "dimension": int(dimension),
         "dt": dt,
@@ -76,8 +78,10 @@ def check_meta(meta: Mapping, where: str | os.PathLike) -> None:
     """Refuse a schema that cannot describe a trajectory."""
     for key in ("field_names", "features", "trajectory_length"):
         if key not in meta:
-            raise DatasetError(f"missing key {key!r}; a dataset's meta.json needs field_names, features and "
-                               "trajectory_length", file=where)
+            raise DatasetError(
+                f"missing key {key!r}; a dataset's meta.json needs field_names, features and trajectory_length",
+                file=where,
+            )
     for name in meta["field_names"]:
         spec = meta["features"].get(name)
         if spec is None:
@@ -85,11 +89,13 @@ def check_meta(meta: Mapping, where: str | os.PathLike) -> None:
         if spec.get("type") not in ("static", "dynamic", "static_varlen", "dynamic_varlen"):
             raise DatasetError(f"type {spec.get('type')!r}; expected static or dynamic", file=where, field=name)
         if str(spec.get("dtype")) not in _DTYPES:
-            raise DatasetError(f"dtype {spec.get('dtype')!r}; expected one of {sorted(_DTYPES)}", file=where,
-                               field=name)
+            raise DatasetError(
+                f"dtype {spec.get('dtype')!r}; expected one of {sorted(_DTYPES)}", file=where, field=name
+            )
     if "dt" not in meta:
-        raise DatasetError("missing key 'dt' (time between frames; null when the source does not record it)",
-                           file=where)
+        raise DatasetError(
+            "missing key 'dt' (time between frames; null when the source does not record it)", file=where
+        )
     dt = meta["dt"]
     if dt is not None and (not isinstance(dt, (int, float)) or isinstance(dt, bool) or not np.isfinite(dt) or dt < 0):
         raise DatasetError(f"dt {dt!r}: expected a non-negative number (or null when unknown)", file=where)
@@ -113,12 +119,17 @@ def check_layout(meta: Mapping, shapes: Mapping[str, tuple], *, file=None, traje
     specs = meta["features"]
     missing = [k for k in meta["field_names"] if k not in shapes]
     if missing:
-        raise DatasetError(f"missing; meta.json declares {meta['field_names']}", file=file, trajectory=trajectory,
-                           field=missing[0])
+        raise DatasetError(
+            f"missing; meta.json declares {meta['field_names']}", file=file, trajectory=trajectory, field=missing[0]
+        )
     extra = [k for k in shapes if k not in specs]
     if extra:
-        raise DatasetError(f"unexpected field; meta.json declares only {meta['field_names']}", file=file,
-                           trajectory=trajectory, field=extra[0])
+        raise DatasetError(
+            f"unexpected field; meta.json declares only {meta['field_names']}",
+            file=file,
+            trajectory=trajectory,
+            field=extra[0],
+        )
     num_nodes = None
     for name in meta["field_names"]:
         where = dict(file=file, trajectory=trajectory, field=name)
@@ -141,8 +152,9 @@ def check_layout(meta: Mapping, shapes: Mapping[str, tuple], *, file=None, traje
     return num_nodes
 
 
-def check_values(meta: Mapping, arrays: Mapping[str, np.ndarray], *, file=None, trajectory=None,
-                 num_nodes: int | None = None) -> dict:
+def check_values(
+    meta: Mapping, arrays: Mapping[str, np.ndarray], *, file=None, trajectory=None, num_nodes: int | None = None
+) -> dict:
     """The value checks of :func:`validate_trajectory` on some fields of a trajectory whose layout passed
     :func:`check_layout` (a dynamic field may be a few frames of it): finite values, cell indices within the node
     count, node types within the enum; returns them as arrays of the declared dtypes."""
@@ -150,20 +162,28 @@ def check_values(meta: Mapping, arrays: Mapping[str, np.ndarray], *, file=None, 
     for name, value in arrays.items():
         if value.dtype.kind == "f" and not np.isfinite(value).all():
             bad = np.argwhere(~np.isfinite(value))[0].tolist()
-            raise DatasetError(f"non-finite value (NaN or Inf) at index {bad}", file=file, trajectory=trajectory,
-                               field=name)
+            raise DatasetError(
+                f"non-finite value (NaN or Inf) at index {bad}", file=file, trajectory=trajectory, field=name
+            )
         spec = meta["features"][name]
         if num_nodes is None and name != "cells" and value.ndim:
             num_nodes = value.shape[1] if spec["type"] == "dynamic" else value.shape[0]
         out[name] = value.astype(np.dtype(spec["dtype"]), copy=False)
     cells = out.get("cells")
     if cells is not None and num_nodes is not None and cells.size and (cells.min() < 0 or cells.max() >= num_nodes):
-        raise DatasetError(f"cell index out of range [{int(cells.min())}, {int(cells.max())}]; the trajectory has "
-                           f"{num_nodes} nodes", file=file, trajectory=trajectory, field="cells")
+        raise DatasetError(
+            f"cell index out of range [{int(cells.min())}, {int(cells.max())}]; the trajectory has {num_nodes} nodes",
+            file=file,
+            trajectory=trajectory,
+            field="cells",
+        )
     if "node_type" in out:
         unknown = np.setdiff1d(np.unique(out["node_type"]), [int(t) for t in NodeType])
         if unknown.size:
-            raise DatasetError(f"unknown node type(s) {unknown.tolist()}; expected "
-                               f"{[f'{t.name}={int(t)}' for t in NodeType]}", file=file, trajectory=trajectory,
-                               field="node_type")
+            raise DatasetError(
+                f"unknown node type(s) {unknown.tolist()}; expected {[f'{t.name}={int(t)}' for t in NodeType]}",
+                file=file,
+                trajectory=trajectory,
+                field="node_type",
+            )
     return out

@@ -13,6 +13,7 @@ rather than by the ``tfrecord`` package so that truncation and checksum errors n
 protobuf message itself is parsed with ``tfrecord.example_pb2``. Both packages (``tfrecord``, ``crc32c``) come with
 the ``tfrecord`` extra (``pip install 'hcmt[tfrecord]'``) and are imported on first use.
 """
+
 from __future__ import annotations
 
 import json
@@ -46,8 +47,9 @@ def read_tf_meta(dataset_dir: str | os.PathLike) -> dict:
             raise DatasetError(f"missing key {key!r} expected in a MeshGraphNets meta.json", file=path)
     for name, spec in meta["features"].items():
         if spec.get("type") not in ("static", "dynamic", "static_varlen"):
-            raise DatasetError(f"type {spec.get('type')!r}; expected static, dynamic or static_varlen", file=path,
-                               field=name)
+            raise DatasetError(
+                f"type {spec.get('type')!r}; expected static, dynamic or static_varlen", file=path, field=name
+            )
     return meta
 
 
@@ -60,8 +62,9 @@ def iter_records(path: str | os.PathLike) -> Iterator[bytes]:
         while f.tell() < size:
             header = f.read(12)
             if len(header) < 12:
-                raise DatasetError(f"truncated: record {index} header has {len(header)} of 12 bytes", file=path,
-                                   trajectory=index)
+                raise DatasetError(
+                    f"truncated: record {index} header has {len(header)} of 12 bytes", file=path, trajectory=index
+                )
             length_bytes, length_crc = header[:8], struct.unpack("<I", header[8:])[0]
             if _masked_crc(length_bytes) != length_crc:
                 raise DatasetError("corrupt record length (checksum mismatch)", file=path, trajectory=index)
@@ -69,8 +72,11 @@ def iter_records(path: str | os.PathLike) -> Iterator[bytes]:
             payload = f.read(length)
             footer = f.read(4)
             if len(payload) < length or len(footer) < 4:
-                raise DatasetError(f"truncated: record {index} should hold {length} bytes, the file ends first",
-                                   file=path, trajectory=index)
+                raise DatasetError(
+                    f"truncated: record {index} should hold {length} bytes, the file ends first",
+                    file=path,
+                    trajectory=index,
+                )
             if _masked_crc(payload) != struct.unpack("<I", footer)[0]:
                 raise DatasetError("corrupt record payload (checksum mismatch)", file=path, trajectory=index)
             yield payload
@@ -80,14 +86,19 @@ def iter_records(path: str | os.PathLike) -> Iterator[bytes]:
 def _decode(raw: bytes, dtype: str, shape, *, file, trajectory, field) -> np.ndarray:
     dt = np.dtype(dtype)
     if len(raw) % dt.itemsize:
-        raise DatasetError(f"{len(raw)} bytes is not a whole number of {dtype} values", file=file,
-                           trajectory=trajectory, field=field)
+        raise DatasetError(
+            f"{len(raw)} bytes is not a whole number of {dtype} values", file=file, trajectory=trajectory, field=field
+        )
     flat = np.frombuffer(raw, dtype=dt)
     try:
         return flat.reshape(shape)
     except ValueError:
-        raise DatasetError(f"{flat.size} {dtype} values cannot take meta.json shape {list(shape)}", file=file,
-                           trajectory=trajectory, field=field) from None
+        raise DatasetError(
+            f"{flat.size} {dtype} values cannot take meta.json shape {list(shape)}",
+            file=file,
+            trajectory=trajectory,
+            field=field,
+        ) from None
 
 
 def parse_example(payload: bytes, meta: dict, *, file=None, trajectory=None) -> dict:
@@ -101,27 +112,43 @@ def parse_example(payload: bytes, meta: dict, *, file=None, trajectory=None) -> 
     out = {}
     for name, spec in meta["features"].items():
         if name not in feats:
-            raise DatasetError(f"missing from the record; meta.json declares {list(meta['features'])}", file=file,
-                               trajectory=trajectory, field=name)
+            raise DatasetError(
+                f"missing from the record; meta.json declares {list(meta['features'])}",
+                file=file,
+                trajectory=trajectory,
+                field=name,
+            )
         raw = b"".join(feats[name].bytes_list.value)
         kind = spec["type"]
         if kind == "static_varlen":
             splits_name = f"length_{name}"
             if splits_name not in feats:
-                raise DatasetError(f"static_varlen field needs its row splits in feature {splits_name!r}", file=file,
-                                   trajectory=trajectory, field=name)
+                raise DatasetError(
+                    f"static_varlen field needs its row splits in feature {splits_name!r}",
+                    file=file,
+                    trajectory=trajectory,
+                    field=name,
+                )
             flat = _decode(raw, spec["dtype"], [-1], file=file, trajectory=trajectory, field=name)
             splits = np.frombuffer(b"".join(feats[splits_name].bytes_list.value), dtype=np.int32)
             if splits.size == 0 or splits[0] != 0 or splits[-1] != flat.size or np.any(np.diff(splits) < 0):
-                raise DatasetError(f"row splits {splits.tolist()[:8]}... do not partition {flat.size} values",
-                                   file=file, trajectory=trajectory, field=splits_name)
+                raise DatasetError(
+                    f"row splits {splits.tolist()[:8]}... do not partition {flat.size} values",
+                    file=file,
+                    trajectory=trajectory,
+                    field=splits_name,
+                )
             out[name] = [flat[a:b] for a, b in zip(splits[:-1], splits[1:])]
             continue
         value = _decode(raw, spec["dtype"], spec["shape"], file=file, trajectory=trajectory, field=name)
         if kind == "static":
             if value.shape[0] != 1:
-                raise DatasetError(f"static field should have a leading axis of 1, has shape {list(value.shape)}",
-                                   file=file, trajectory=trajectory, field=name)
+                raise DatasetError(
+                    f"static field should have a leading axis of 1, has shape {list(value.shape)}",
+                    file=file,
+                    trajectory=trajectory,
+                    field=name,
+                )
             value = value[0]
         out[name] = value
     return out

@@ -1,6 +1,7 @@
 """The design check's light pieces: what the command's parsers and its first checks need before torch, scikit-learn
 or the solver load (a refused ``--designs`` file or ``--vary`` in a fraction of a second): the surrogate's answers
 and restarts, the read-outs' names, design names, the table of a designs CSV and a sweep's range."""
+
 from __future__ import annotations
 
 import csv
@@ -23,8 +24,13 @@ from hcmt.sim.params import (
 )
 
 #: the scalar answers a surrogate predicts (keys of a design's summary)
-QUANTITIES = ("peak_plate_stress_mpa", "peak_ball_stress_mpa", "max_deflection_mm", "peak_plate_t95_ms",
-              "contact_end_ms")
+QUANTITIES = (
+    "peak_plate_stress_mpa",
+    "peak_ball_stress_mpa",
+    "max_deflection_mm",
+    "peak_plate_t95_ms",
+    "contact_end_ms",
+)
 RESTARTS = 3  # optimizer restarts of the marginal likelihood (3: the comparison with the mesh model was made with 3)
 #: the design check's read-outs (:mod:`hcmt.design.readout`): ``raw``, the model's own outputs alone (the default);
 #: the others add a derived read-out under their own names
@@ -50,8 +56,9 @@ def check_yield(yield_mpa, param: str = "yield_mpa") -> float | None:
     lo, hi = YIELD_SPAN_MPA
     expected = f"a yield stress in MPa from {lo:g} to {hi:,.0f}"
     if not is_number(yield_mpa):
-        raise InputError(f"must be {expected} (a number), got {clip(repr(yield_mpa))} ({a_type(yield_mpa)})",
-                         param=param)
+        raise InputError(
+            f"must be {expected} (a number), got {clip(repr(yield_mpa))} ({a_type(yield_mpa)})", param=param
+        )
     y = float(yield_mpa)
     if not (math.isfinite(y) and lo <= y <= hi):
         slip = unit_slip(y, "MPa", lo, hi, factor=1.0) if y > 0 else None
@@ -102,11 +109,15 @@ def read_table(path: Path) -> tuple[int, list[str], list[tuple[int, list[str]]]]
     seen: dict[str, int] = {}
     for col, h in enumerate(header, start=1):
         if h != "name" and h not in DESIGN_KEYS:
-            raise InputError(f"{path} line {head_line}, column {col}: unknown column {clip(h)!r} in the header; "
-                             "expected `name` or a design parameter (`hcmt models` lists them)")
+            raise InputError(
+                f"{path} line {head_line}, column {col}: unknown column {clip(h)!r} in the header; "
+                "expected `name` or a design parameter (`hcmt models` lists them)"
+            )
         if h in seen:
-            raise InputError(f"{path} line {head_line}, column {col}: the column {h!r} appears twice (columns "
-                             f"{seen[h]} and {col}) in the header; give each parameter once")
+            raise InputError(
+                f"{path} line {head_line}, column {col}: the column {h!r} appears twice (columns "
+                f"{seen[h]} and {col}) in the header; give each parameter once"
+            )
         seen[h] = col
     if "name" in header:  # names checked here, before any model loads (read_designs_csv: distinct ones)
         col = header.index("name")
@@ -127,15 +138,16 @@ def parse_vary(text: str) -> tuple[str, float, float, int]:
     if not sep or len(parts) != 3:
         raise InputError(f"{shown!r}: expected PARAM=LO:HI:N, e.g. thickness=0.5:1.0:6", param="vary")
     if key not in DESIGN_KEYS:
-        raise InputError(f"{shown!r}: unknown parameter {clip(key)!r}; expected a design parameter (`hcmt models` "
-                         "lists them)", param="vary")
+        raise InputError(
+            f"{shown!r}: unknown parameter {clip(key)!r}; expected a design parameter (`hcmt models` lists them)",
+            param="vary",
+        )
     try:
         lo, hi = float(parts[0]), float(parts[1])
     except ValueError:
         raise InputError(f"{shown!r}: LO and HI must be numbers", param="vary") from None
     if not (math.isfinite(lo) and math.isfinite(hi)) or not lo < hi:
-        raise InputError(f"{shown!r}: expected finite LO < HI, got {clip(parts[0])} and {clip(parts[1])}",
-                         param="vary")
+        raise InputError(f"{shown!r}: expected finite LO < HI, got {clip(parts[0])} and {clip(parts[1])}", param="vary")
     try:
         n = int(parts[2])
     except ValueError:
@@ -152,20 +164,37 @@ def _rules(values: dict[str, float]) -> list[tuple[str, object, str]]:
     itself sets that layer's, the backing's or the pen's size."""
     positive, zero_or_more = lambda v: v > 0, lambda v: v >= 0
     unit = DESIGN_UNITS  # each parameter's unit, declared once (hcmt.sim.units)
-    rules = [(k, positive, f"> 0 ({unit[k]})") for k in ("thickness", "drop_height", "ball_radius", "mesh_size",
-                                                          "plate_half_length", "gap")]
-    rules += [(k, zero_or_more, f">= 0 {unit[k]} (0: none)") for k in ("layer2_thickness", "layer3_thickness",
-                                                                       "layer4_thickness", "support_radius",
-                                                                       "backing_thickness", "pen_tip_radius")]
-    rules.append(("gap", lambda v: v < CONTACT_RADIUS,
-                  f"smaller than the contact radius {CONTACT_RADIUS} {unit['gap']}"))
+    rules = [
+        (k, positive, f"> 0 ({unit[k]})")
+        for k in ("thickness", "drop_height", "ball_radius", "mesh_size", "plate_half_length", "gap")
+    ]
+    rules += [
+        (k, zero_or_more, f">= 0 {unit[k]} (0: none)")
+        for k in (
+            "layer2_thickness",
+            "layer3_thickness",
+            "layer4_thickness",
+            "support_radius",
+            "backing_thickness",
+            "pen_tip_radius",
+        )
+    ]
+    rules.append(
+        ("gap", lambda v: v < CONTACT_RADIUS, f"smaller than the contact radius {CONTACT_RADIUS} {unit['gap']}")
+    )
     materials = ["plate", "ball"] + [f"layer{k}" for k in (2, 3, 4) if values.get(f"layer{k}_thickness", 0) > 0]
     for m in materials:
-        rules += [(f"{m}_density", positive, f"> 0 {unit[f'{m}_density']}"),
-                  (f"{m}_modulus", positive, f"> 0 {unit[f'{m}_modulus']} (Young's modulus)"),
-                  (f"{m}_poisson", lambda v: -1 < v < 0.5, "in (-1, 0.5) (Poisson ratio)") if m in ("plate", "ball")
-                  else (f"{m}_poisson", lambda v: 0 <= v <= MAX_LAYER_POISSON, f"in [0, {MAX_LAYER_POISSON}] (near "
-                        "0.5 the linear triangles lock volumetrically)")]
+        rules += [
+            (f"{m}_density", positive, f"> 0 {unit[f'{m}_density']}"),
+            (f"{m}_modulus", positive, f"> 0 {unit[f'{m}_modulus']} (Young's modulus)"),
+            (f"{m}_poisson", lambda v: -1 < v < 0.5, "in (-1, 0.5) (Poisson ratio)")
+            if m in ("plate", "ball")
+            else (
+                f"{m}_poisson",
+                lambda v: 0 <= v <= MAX_LAYER_POISSON,
+                f"in [0, {MAX_LAYER_POISSON}] (near 0.5 the linear triangles lock volumetrically)",
+            ),
+        ]
     if values.get("backing_thickness", 0) > 0:
         rules.append(("backing_modulus", positive, f"> 0 {unit['backing_modulus']} (Young's modulus)"))
     if values.get("pen_tip_radius", 0) > 0:
@@ -202,8 +231,10 @@ def check_designs_file(path: str | Path | None) -> int:
         for col, (h, v) in enumerate(zip(header, row), start=1):
             if h == "name":
                 if v.strip() in names:
-                    raise InputError(f"{path} line {n}, column {col} (name): {clip(v.strip())!r} already names line "
-                                     f"{names[v.strip()]}; every design needs its own name")
+                    raise InputError(
+                        f"{path} line {n}, column {col} (name): {clip(v.strip())!r} already names line "
+                        f"{names[v.strip()]}; every design needs its own name"
+                    )
                 names[v.strip()] = n
                 continue
             where = f"{path} line {n}, column {col} ({h})"
@@ -232,6 +263,8 @@ def check_values(design_lists: list[list[str]], designs: str | Path | None = Non
             for v in (lo, hi):  # every rule is an interval: the ends hold, the points between them hold
                 problem = value_problem({**values, key: v})
                 if problem:
-                    raise InputError(f"{clip(vary)!r}: the point {key}={v:.6g} is impossible: {problem[0]} "
-                                     f"{problem[1]}", param="vary")
+                    raise InputError(
+                        f"{clip(vary)!r}: the point {key}={v:.6g} is impossible: {problem[0]} {problem[1]}",
+                        param="vary",
+                    )
     return check_designs_file(designs)

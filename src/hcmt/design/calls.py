@@ -1,6 +1,7 @@
 """Design check, the limit calls: each design's ``call`` (pass / fail / undecided) for a yield stress from the
 peak plate stress interval it trusts (:func:`trusted_interval`), the yield margin, and the final call once the
 solver ran (:func:`final_calls`)."""
+
 from __future__ import annotations
 
 from dataclasses import replace
@@ -26,8 +27,12 @@ def trusted_interval(summary: Summary, trust: str = TRUST) -> tuple[float, float
     """(lo, hi, what) of the peak plate stress a call trusts (:func:`trusted_bounds`): the mesh model's answer as
     the summary's chosen read-out reports it (:attr:`hcmt.design.summary.Summary.chosen`), the surrogate's
     interval of it where the summary has one."""
-    return trusted_bounds(summary.chosen.peak_plate_stress_mpa,
-                          (summary.surrogate or {}).get("peak_plate_stress_mpa"), trust, model_bounds(summary))
+    return trusted_bounds(
+        summary.chosen.peak_plate_stress_mpa,
+        (summary.surrogate or {}).get("peak_plate_stress_mpa"),
+        trust,
+        model_bounds(summary),
+    )
 
 
 def model_bounds(summary: Summary) -> tuple[float, float] | None:
@@ -39,8 +44,9 @@ def model_bounds(summary: Summary) -> tuple[float, float] | None:
     return summary.model_interval.bounds["peak_plate_stress_mpa"]
 
 
-def trusted_bounds(model: float, surrogate: dict | None, trust: str = TRUST,
-                   interval: tuple[float, float] | None = None) -> tuple[float, float, str]:
+def trusted_bounds(
+    model: float, surrogate: dict | None, trust: str = TRUST, interval: tuple[float, float] | None = None
+) -> tuple[float, float, str]:
     """(lo, hi, what) of the peak plate stress a call trusts, from the mesh model's answer ``model``, its own
     calibrated ``interval`` (None: none) and the surrogate's ``{mean, lo, hi}`` (None: no surrogate):
     ``surrogate``, the surrogate's 95 % interval; ``union``, that interval widened to hold the mesh model's
@@ -85,8 +91,10 @@ def outside_reason(p: Prediction, ranges: dict[str, tuple[float, float]] | None,
         where = ""
     else:
         return None
-    return (f"outside the model's training ranges{where}: no interval was calibrated there, so neither the model "
-            "nor the response surface decides pass or fail; the solver does (--verify)")
+    return (
+        f"outside the model's training ranges{where}: no interval was calibrated there, so neither the model "
+        "nor the response surface decides pass or fail; the solver does (--verify)"
+    )
 
 
 def trust_for(design, ranges: dict[str, tuple[float, float]] | None, trust: str) -> str:
@@ -95,8 +103,12 @@ def trust_for(design, ranges: dict[str, tuple[float, float]] | None, trust: str)
     return "model" if trust == "intersection" and ranges is not None and outside(design, ranges) else trust
 
 
-def add_calls(preds: list[Prediction], yield_mpa: float | None, trust: str = TRUST,
-              ranges: dict[str, tuple[float, float]] | None = None) -> None:
+def add_calls(
+    preds: list[Prediction],
+    yield_mpa: float | None,
+    trust: str = TRUST,
+    ranges: dict[str, tuple[float, float]] | None = None,
+) -> None:
     """Each design's ``call`` for ``yield_mpa`` from the trusted interval (:func:`trusted_interval`): ``undecided``
     for a design outside the model's training ranges whatever the interval (:func:`outside_reason`; the interval
     is recorded, with ``trusted`` False and the ``reason``), so ``verify="auto"`` runs the solver on it."""
@@ -106,9 +118,11 @@ def add_calls(preds: list[Prediction], yield_mpa: float | None, trust: str = TRU
         used = trust_for(p.design, ranges, trust)
         lo, hi, what = trusted_interval(p.summary, used)
         reason = outside_reason(p, ranges, used)
-        p.summary = replace(p.summary, call="undecided" if reason else call_of(lo, hi, yield_mpa),
-                            call_interval_mpa=CallInterval(float(lo), float(hi), what, p.summary.readout,
-                                                           reason is None, reason))
+        p.summary = replace(
+            p.summary,
+            call="undecided" if reason else call_of(lo, hi, yield_mpa),
+            call_interval_mpa=CallInterval(float(lo), float(hi), what, p.summary.readout, reason is None, reason),
+        )
 
 
 def final_calls(preds: list[Prediction], truth: list[Prediction | None] | None, yield_mpa: float | None) -> None:
@@ -134,6 +148,8 @@ def add_margin(preds: list[Prediction], yield_mpa: float | None) -> None:
         raise InputError(f"must be > 0, got {yield_mpa}", param="yield_mpa")
     for p in preds:
         s = p.summary
-        p.summary = replace(s, yield_margin_mpa=float(yield_mpa - s.peak_plate_stress_mpa),
-                            derived_yield_margin_mpa=None if s.derived is None else
-                            float(yield_mpa - s.derived.peak_plate_stress_mpa))
+        p.summary = replace(
+            s,
+            yield_margin_mpa=float(yield_mpa - s.peak_plate_stress_mpa),
+            derived_yield_margin_mpa=None if s.derived is None else float(yield_mpa - s.derived.peak_plate_stress_mpa),
+        )

@@ -17,6 +17,7 @@ verification) that ``hcmt predict``, ``hcmt sweep`` and ``hcmt demo`` share; its
 :mod:`hcmt.design.verification` (against the solver, statistics) and :mod:`hcmt.design.notes` (low-confidence
 notes), their public names importable from here as before.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
@@ -96,9 +97,11 @@ def cost_check(run, designs: list[tuple[str, Design]], settings: Settings, verif
     for name, d in designs:
         cost = check_size(d, settings, where=f"{name}: ")
         seconds = MODEL_SECONDS_PER_NODE_STEP * cost["num_nodes"] * (settings.frames - 2) + (
-            cost["estimated_s"] if verify else 0.0)
-        check_cost(seconds, cost["num_nodes"], d, force, f"{name}: ",
-                   " (model and solver)" if verify else " (model rollout)")
+            cost["estimated_s"] if verify else 0.0
+        )
+        check_cost(
+            seconds, cost["num_nodes"], d, force, f"{name}: ", " (model and solver)" if verify else " (model rollout)"
+        )
 
 
 def summary_of(p: Prediction) -> Summary:
@@ -115,15 +118,19 @@ def beside_model(p: Prediction, run, surrogate: Surrogate | None, interval: dict
     if cannot:
         warnings.append(
             f"the response surface cannot take {', '.join(cannot)} (held fixed over its training designs: "
-            "another design family); no surrogate answer for this design, the call trusts the model's band")
+            "another design family); no surrogate answer for this design, the call trusts the model's band"
+        )
     answers = {}
     if interval is not None:
         assert surrogate is not None, "an interval is the surrogate's answer"
         answers = side_by_side(summary, interval)
         # a user's own surrogate has its own training ranges: warn for a parameter outside them too
         own = set(outside(p.design, run.ranges))
-        warnings += range_warnings(p.design, {k: r for k, r in surrogate.ranges().items() if k not in own},
-                                   "the response surface's training designs")
+        warnings += range_warnings(
+            p.design,
+            {k: r for k, r in surrogate.ranges().items() if k not in own},
+            "the response surface's training designs",
+        )
     p.summary = replace(summary, warnings=warnings, **answers)
 
 
@@ -136,8 +143,11 @@ def check_options(designs, verify, yield_mpa: float | None, batch: int, readout:
         raise InputError(f"must be True, False or 'auto', got {verify!r}", param="verify")
     yield_mpa = check_yield(yield_mpa)
     if verify == "auto" and yield_mpa is None:
-        raise InputError("auto runs the solver on the designs whose call is undecided: it needs a yield stress "
-                         "(yield_mpa; --yield-mpa Y in hcmt predict and sweep)", param="verify")
+        raise InputError(
+            "auto runs the solver on the designs whose call is undecided: it needs a yield stress "
+            "(yield_mpa; --yield-mpa Y in hcmt predict and sweep)",
+            param="verify",
+        )
     check_design_list(designs, batch)
     return yield_mpa
 
@@ -148,23 +158,34 @@ def own_interval(p: Prediction, run, calibration: Calibration | None) -> ModelIn
     if calibration is None:
         return None
     s = summary_of(p)
-    return calibration.interval(p.design, run.ranges, {a: getattr(s, a) for a in ANSWERS},
-                                s.plate_stress_history_mpa)
+    return calibration.interval(p.design, run.ranges, {a: getattr(s, a) for a in ANSWERS}, s.plate_stress_history_mpa)
 
 
-def annotate(p: Prediction, run, surrogate: Surrogate | None, interval: dict | None, cannot: list[str],
-             calibration: Calibration | None = None) -> None:
+def annotate(
+    p: Prediction,
+    run,
+    surrogate: Surrogate | None,
+    interval: dict | None,
+    cannot: list[str],
+    calibration: Calibration | None = None,
+) -> None:
     """A prediction's summary as the check reports it: the model's name, range warnings, confidence, its own
     calibrated interval (:func:`own_interval`), the surrogate's answer beside the model's (:func:`beside_model`)
     and whether its confidence is low."""
-    p.summary = replace(summary_of(p), model=run.source, warnings=range_warnings(p.design, run.ranges),
-                        confidence=confidence(p.design, run), model_interval=own_interval(p, run, calibration))
+    p.summary = replace(
+        summary_of(p),
+        model=run.source,
+        warnings=range_warnings(p.design, run.ranges),
+        confidence=confidence(p.design, run),
+        model_interval=own_interval(p, run, calibration),
+    )
     beside_model(p, run, surrogate, interval, cannot)
     p.summary = replace(summary_of(p), low_confidence=bool(weak_reasons(p)))
 
 
-def solve_chunk(chunk: list[Prediction], verify: bool | str, settings: Settings, field_: str,
-                bar: tqdm) -> list[Prediction | None]:
+def solve_chunk(
+    chunk: list[Prediction], verify: bool | str, settings: Settings, field_: str, bar: tqdm
+) -> list[Prediction | None]:
     """The solver's runs of one predicted chunk, as :attr:`Check.truth` holds them: every design
     (``verify=True``), the undecided ones (``"auto"``: their calls made) or none (None where not run)."""
     if not verify:
@@ -177,11 +198,21 @@ def solve_chunk(chunk: list[Prediction], verify: bool | str, settings: Settings,
     return [ran.get(i) for i in range(len(chunk))]
 
 
-def check_designs(run, designs: list[tuple[str, Design]], *, batch: int = DESIGN_BATCH, verify: bool | str = False,
-                  yield_mpa: float | None = None, compile: str = "auto", progress: bool = True,
-                  force: bool = False, surrogate: Surrogate | str | Path | bool | None = True,
-                  readout: str = DEFAULT_READOUT, trust: str = TRUST,
-                  interval: Calibration | str | Path | bool | None = True) -> Check:
+def check_designs(
+    run,
+    designs: list[tuple[str, Design]],
+    *,
+    batch: int = DESIGN_BATCH,
+    verify: bool | str = False,
+    yield_mpa: float | None = None,
+    compile: str = "auto",
+    progress: bool = True,
+    force: bool = False,
+    surrogate: Surrogate | str | Path | bool | None = True,
+    readout: str = DEFAULT_READOUT,
+    trust: str = TRUST,
+    interval: Calibration | str | Path | bool | None = True,
+) -> Check:
     """The design check, the one sequence behind ``hcmt predict``, ``hcmt sweep``, ``hcmt demo`` and
     :func:`predict_designs`: cost check, prediction (range warnings, the model's name and the confidence recorded
     in each summary), the surrogate's answers beside the model's (``surrogate``: True, the run's own; a path or a
@@ -206,13 +237,20 @@ def check_designs(run, designs: list[tuple[str, Design]], *, batch: int = DESIGN
     notes = [n for n in (interval_note, note) if n]
     cost_check(run, designs, settings, bool(verify), force)
     intervals: list[dict[str, Interval] | None] | None = (
-        list(surrogate.predict([d for _, d in designs])) if surrogate is not None else None)
+        list(surrogate.predict([d for _, d in designs])) if surrogate is not None else None
+    )
     # a design with a parameter the surrogate's training designs held fixed (another family): no surrogate answer
     cannot = [surrogate.cannot_take(d) if surrogate is not None else [] for _, d in designs]
     if intervals is not None:
         intervals = [None if c else iv for iv, c in zip(intervals, cannot)]
-    ends = [getattr(iv["contact_end_ms"], CONTACT_END_BOUND) if iv and "contact_end_ms" in iv else None
-            for iv in intervals] if intervals and ends_window and readout == "contact" else None
+    ends = (
+        [
+            getattr(iv["contact_end_ms"], CONTACT_END_BOUND) if iv and "contact_end_ms" in iv else None
+            for iv in intervals
+        ]
+        if intervals and ends_window and readout == "contact"
+        else None
+    )
     field_ = run.adapter.stress_field  # stress_max: the solver records it as the model learned it
     solver_settings = replace(settings, peak_stress=True) if field_ == "stress_max" else settings
     # The speedup compares the solver's wall time with the model's, so both are measured under the same load: the
@@ -223,15 +261,22 @@ def check_designs(run, designs: list[tuple[str, Design]], *, batch: int = DESIGN
     # Only the final calls and the comparison wait for the end.
     preds: list[Prediction] = []
     truth: list[Prediction | None] = []
-    with predict_bar(run, designs, progress) as bar, tqdm(
-            total=len(designs) if verify is True else 0, desc="solver", unit="design",
-            disable=not progress or not verify, dynamic_ncols=True) as solver_bar:
-        for chunk in predict_chunks(run, designs, batch=batch, bar=bar, compile=compile, readout=readout,
-                                    contact_end_ms=ends):
+    with (
+        predict_bar(run, designs, progress) as bar,
+        tqdm(
+            total=len(designs) if verify is True else 0,
+            desc="solver",
+            unit="design",
+            disable=not progress or not verify,
+            dynamic_ncols=True,
+        ) as solver_bar,
+    ):
+        for chunk in predict_chunks(
+            run, designs, batch=batch, bar=bar, compile=compile, readout=readout, contact_end_ms=ends
+        ):
             for p in chunk:
                 i = len(preds)
-                annotate(p, run, surrogate, intervals[i] if intervals is not None else None, cannot[i],
-                         calibration)
+                annotate(p, run, surrogate, intervals[i] if intervals is not None else None, cannot[i], calibration)
                 preds.append(p)
             add_margin(chunk, yield_mpa)
             add_calls(chunk, yield_mpa, trust, run.ranges)
@@ -240,12 +285,21 @@ def check_designs(run, designs: list[tuple[str, Design]], *, batch: int = DESIGN
     measured = speedup_measured(batch, len(designs), verify, str(run.device), torch.get_num_threads())
     verified = verify_designs([p for p, _ in solved], [t for _, t in solved], measured) if solved else None
     final_calls(preds, truth if verify else None, yield_mpa)
-    return Check(preds, truth if verify else None, verified, settings, sum(p.wall_s for p in preds),
-                 surrogate.label if surrogate is not None else None, notes, readout)
+    return Check(
+        preds,
+        truth if verify else None,
+        verified,
+        settings,
+        sum(p.wall_s for p in preds),
+        surrogate.label if surrogate is not None else None,
+        notes,
+        readout,
+    )
 
 
-def predict_designs(run, designs: list[tuple[str, Design]], *, surrogate: Surrogate | str | bool | None = True,
-                    **options) -> list[Prediction]:
+def predict_designs(
+    run, designs: list[tuple[str, Design]], *, surrogate: Surrogate | str | bool | None = True, **options
+) -> list[Prediction]:
     """The design check of :func:`check_designs` for Python users (``hcmt.predict_designs``): the same cost
     check, range warnings, confidence notes and, with ``surrogate=True`` (default), the run's own response surface
     beside the model (:func:`hcmt.design.surrogate.for_run`; a path: that file; False or None: none)."""

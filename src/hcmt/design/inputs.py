@@ -1,6 +1,7 @@
 """Design check, its inputs: the designs a user gives (``--design K=V``, a ``--designs`` CSV, :func:`design_for`),
 their names, and where they lie against a model's training data (ranges, regions, the model card's measured
 confidence, the recorded window's settings)."""
+
 from __future__ import annotations
 
 from dataclasses import asdict, fields
@@ -25,8 +26,9 @@ from hcmt.sim.params import (
 
 
 # -- designs -----------------------------------------------------------------------------------------------------
-def read_designs_csv(path: str | Path, defaults: Design, first: int = 1,
-                     taken: dict[str, str] | None = None) -> list[tuple[str, Design]]:
+def read_designs_csv(
+    path: str | Path, defaults: Design, first: int = 1, taken: dict[str, str] | None = None
+) -> list[tuple[str, Design]]:
     """Designs from a CSV file: a header of parameter names (optionally a ``name`` column), one design per row,
     every column present and numeric in every row (blank lines are skipped; a UTF-8 BOM and CRLF line ends are
     fine). Anything else is refused naming the file, the line and the column. Unnamed rows are ``design_<first>``,
@@ -38,24 +40,27 @@ def read_designs_csv(path: str | Path, defaults: Design, first: int = 1,
     out, seen = [], dict(taken or {})
     for n, row in body:
         if len(row) != len(header):
-            raise InputError(f"{path} line {n}: {len(row)} values for {len(header)} columns "
-                             f"({', '.join(header)})")
+            raise InputError(f"{path} line {n}: {len(row)} values for {len(header)} columns ({', '.join(header)})")
         name, items = f"design_{len(out) + first}", []
         for col, (h, v) in enumerate(zip(header, row), start=1):
             if h == "name":
                 name = v.strip()  # a safe name: read_table checked it
                 if name in seen:
                     where = seen[name] if isinstance(seen[name], str) else f"line {seen[name]}"
-                    raise InputError(f"{path} line {n}, column {col} (name): {clip(name)!r} already names {where}; "
-                                     "every design needs its own name")
+                    raise InputError(
+                        f"{path} line {n}, column {col} (name): {clip(name)!r} already names {where}; "
+                        "every design needs its own name"
+                    )
                 seen[name] = n
                 continue
             if not v.strip():
                 raise InputError(f"{path} line {n}, column {col} ({h}): missing value")
             items.append(f"{h}={parse_number(v, f'{path} line {n}, column {col} ({h})')}")
         if name in seen and seen[name] != n:
-            raise InputError(f"{path} line {n}: the default name {name!r} is already taken ({seen[name]}); give the "
-                             "CSV a name column")
+            raise InputError(
+                f"{path} line {n}: the default name {name!r} is already taken ({seen[name]}); give the "
+                "CSV a name column"
+            )
         out.append((name, parse_design(items, defaults, where=f"{path} line {n}:")))
     return out
 
@@ -81,8 +86,9 @@ def outside(design: Design, ranges: dict[str, tuple[float, float]]) -> list[str]
     return out
 
 
-def range_warnings(design: Design, ranges: dict[str, tuple[float, float]],
-                   what: str = "the model's training data") -> list[str]:
+def range_warnings(
+    design: Design, ranges: dict[str, tuple[float, float]], what: str = "the model's training data"
+) -> list[str]:
     """One line per parameter outside the training data's range (:func:`outside`), naming its unit; a value more
     than ten times beyond it says so and the unit it looks typed in (:func:`hcmt.sim.params.unit_slip`: ``drop_height
     = 0.7 ... it looks like m: 700 mm?``). Such a design gets no decided call (:func:`hcmt.design.calls.add_calls`)."""
@@ -129,8 +135,10 @@ def settings_of(meta: dict | None) -> Settings:
     """The generator settings (frames, frame_dt, formulation, ...) the training data was made with."""
     saved = ((meta or {}).get("generator") or {}).get("settings")
     if not saved:
-        raise InputError("the model's training data is not an hcmt-generated Impact Plate dataset (no generator "
-                         "settings in its meta.json): predict needs the recorded window it was trained on")
+        raise InputError(
+            "the model's training data is not an hcmt-generated Impact Plate dataset (no generator "
+            "settings in its meta.json): predict needs the recorded window it was trained on"
+        )
     return Settings(**{k: v for k, v in saved.items() if k in {f.name for f in fields(Settings)}})
 
 
@@ -138,8 +146,11 @@ def check_run(run, param: str = "run"):
     """``run`` if it is a loaded model (a :class:`hcmt.Run`: its ``meta`` and ``ranges``), else one line naming
     ``param`` and how to load one (a path or ``pretrained:NAME`` given as text is not loaded here)."""
     if isinstance(run, (str, bytes, Path)) or not (hasattr(run, "meta") and hasattr(run, "ranges")):
-        raise InputError(f"expected a loaded model, hcmt.load_pretrained(NAME) or hcmt.Run.load(PATH_OR_"
-                         f"'pretrained:NAME'), got {clip(repr(run))} ({a_type(run)})", param=param)
+        raise InputError(
+            f"expected a loaded model, hcmt.load_pretrained(NAME) or hcmt.Run.load(PATH_OR_"
+            f"'pretrained:NAME'), got {clip(repr(run))} ({a_type(run)})",
+            param=param,
+        )
     return run
 
 
@@ -151,5 +162,4 @@ def design_for(run, **params) -> Design:
     for k, v in params.items():
         if not is_number(v):
             raise InputError(f"must be a number, got {clip(repr(v))} ({a_type(v)})", param=k)
-    return parse_design([f"{k}={v}" for k, v in params.items()], middle_design(run.meta, run.ranges),
-                        where="design")
+    return parse_design([f"{k}={v}" for k, v in params.items()], middle_design(run.meta, run.ranges), where="design")

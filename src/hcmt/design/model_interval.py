@@ -22,6 +22,7 @@ calibrated cell, gets no interval: its pass / fail call stays undecided (:mod:`h
 :func:`fit` makes a calibration from (design, model summary, solver summary) triples;
 ``benchmarks/trust/run.py`` fits the shipped model's and measures its coverage on designs of other seeds.
 """
+
 from __future__ import annotations
 
 import json
@@ -105,9 +106,13 @@ class ModelInterval:
     history_hi_mpa: list[float]
 
     def to_json(self) -> dict:
-        return {"cell": self.cell, "held_out_designs": self.designs, "level": self.level,
-                **{k: {"lo": lo, "hi": hi} for k, (lo, hi) in self.bounds.items()},
-                "plate_stress_history_band_mpa": {"lo": self.history_lo_mpa, "hi": self.history_hi_mpa}}
+        return {
+            "cell": self.cell,
+            "held_out_designs": self.designs,
+            "level": self.level,
+            **{k: {"lo": lo, "hi": hi} for k, (lo, hi) in self.bounds.items()},
+            "plate_stress_history_band_mpa": {"lo": self.history_lo_mpa, "hi": self.history_hi_mpa},
+        }
 
 
 @dataclass(frozen=True)
@@ -121,30 +126,49 @@ class Calibration:
     source: dict
     measured: dict | None = None
 
-    def interval(self, design: Design, ranges: dict[str, tuple[float, float]], answers: dict[str, float],
-                 history: list[float]) -> ModelInterval | None:
+    def interval(
+        self, design: Design, ranges: dict[str, tuple[float, float]], answers: dict[str, float], history: list[float]
+    ) -> ModelInterval | None:
         """The interval of a design whose model answers are ``answers`` (:data:`ANSWERS`) and plate stress history
         ``history``, or None when its cell is not calibrated."""
         key = cell_of(design, ranges)
         cell = self.cells.get(key)
         if cell is None or not answers["peak_plate_stress_mpa"] > 0:  # no bound of a ratio to a zero answer
             return None
-        bounds = {a: (float(answers[a] * math.exp(cell.center[a] - cell.half_width[a])),
-                      float(answers[a] * math.exp(cell.center[a] + cell.half_width[a]))) for a in ANSWERS}
+        bounds = {
+            a: (
+                float(answers[a] * math.exp(cell.center[a] - cell.half_width[a])),
+                float(answers[a] * math.exp(cell.center[a] + cell.half_width[a])),
+            )
+            for a in ANSWERS
+        }
         low, high = envelope(history)
         half = cell.band * float(answers["peak_plate_stress_mpa"])
-        return ModelInterval(key, cell.designs, self.level, bounds, [float(v) for v in np.maximum(low - half, 0.0)],
-                             [float(v) for v in high + half])
+        return ModelInterval(
+            key,
+            cell.designs,
+            self.level,
+            bounds,
+            [float(v) for v in np.maximum(low - half, 0.0)],
+            [float(v) for v in high + half],
+        )
 
     def reason(self, design: Design, ranges: dict[str, tuple[float, float]]) -> str:
         """Why a design has no interval (its cell, the cells calibrated)."""
-        return (f"no interval: its cell {cell_of(design, ranges)} was not calibrated (calibrated: "
-                f"{', '.join(sorted(self.cells))}); the call stays undecided")
+        return (
+            f"no interval: its cell {cell_of(design, ranges)} was not calibrated (calibrated: "
+            f"{', '.join(sorted(self.cells))}); the call stays undecided"
+        )
 
     def to_json(self) -> dict:
-        return {"format": "hcmt model interval 1", "model": self.model, "level": self.level,
-                "cells": {k: asdict(c) for k, c in sorted(self.cells.items())}, "source": self.source,
-                **({"measured": self.measured} if self.measured is not None else {})}
+        return {
+            "format": "hcmt model interval 1",
+            "model": self.model,
+            "level": self.level,
+            "cells": {k: asdict(c) for k, c in sorted(self.cells.items())},
+            "source": self.source,
+            **({"measured": self.measured} if self.measured is not None else {}),
+        }
 
     def save(self, path: str | Path) -> Path:
         path = Path(path)
@@ -160,17 +184,29 @@ class Calibration:
             raw = json.loads(path.read_text())
             if raw.get("format") != "hcmt model interval 1":
                 raise ValueError("not an hcmt model interval file (format)")
-            cells = {str(k): Cell(int(c["designs"]), {a: float(c["center"][a]) for a in ANSWERS},
-                                  {a: float(c["half_width"][a]) for a in ANSWERS}, float(c["band"]))
-                     for k, c in raw["cells"].items()}
-            return cls(str(raw["model"]), float(raw["level"]), cells, dict(raw.get("source") or {}),
-                       raw.get("measured"))
+            cells = {
+                str(k): Cell(
+                    int(c["designs"]),
+                    {a: float(c["center"][a]) for a in ANSWERS},
+                    {a: float(c["half_width"][a]) for a in ANSWERS},
+                    float(c["band"]),
+                )
+                for k, c in raw["cells"].items()
+            }
+            return cls(
+                str(raw["model"]), float(raw["level"]), cells, dict(raw.get("source") or {}), raw.get("measured")
+            )
         except (OSError, ValueError, KeyError, TypeError, AttributeError) as e:
             raise InputError(f"{path}: not a model interval calibration ({type(e).__name__}: {e})") from None
 
 
-def fit(triples: list[tuple[Design, object, object]], ranges: dict[str, tuple[float, float]], model: str,
-        source: dict | None = None, level: float = LEVEL) -> Calibration:
+def fit(
+    triples: list[tuple[Design, object, object]],
+    ranges: dict[str, tuple[float, float]],
+    model: str,
+    source: dict | None = None,
+    level: float = LEVEL,
+) -> Calibration:
     """A calibration from held-out designs: ``(design, model summary, solver summary)`` triples (summaries with
     :data:`ANSWERS` and ``plate_stress_history_mpa``), grouped by :func:`cell_of`; cells with fewer than
     :func:`min_designs` designs at ``level`` are left out, as are designs whose model answer is not positive (no
@@ -217,7 +253,8 @@ def covers(iv: ModelInterval, solver) -> dict[str, bool]:
     out = {a: bool(iv.bounds[a][0] <= float(getattr(solver, a)) <= iv.bounds[a][1]) for a in ANSWERS}
     s = np.asarray(solver.plate_stress_history_mpa, float)
     out["plate_stress_history_mpa"] = len(s) == len(iv.history_lo_mpa) and bool(
-        np.all((np.asarray(iv.history_lo_mpa) <= s) & (s <= np.asarray(iv.history_hi_mpa))))
+        np.all((np.asarray(iv.history_lo_mpa) <= s) & (s <= np.asarray(iv.history_hi_mpa)))
+    )
     return out
 
 
@@ -238,11 +275,13 @@ def for_run(run, choice: "Calibration | str | Path | bool | None" = True) -> tup
         path = interval_path(run)
         if path is None or not path.is_file():
             where = path.name if path is not None else "no run folder"
-            return None, (f"{run.source} has no calibrated interval of its own ({where}): its calls fall back to "
-                          "its answer and the response surface; benchmarks/trust/run.py calibrates one")
+            return None, (
+                f"{run.source} has no calibrated interval of its own ({where}): its calls fall back to "
+                "its answer and the response surface; benchmarks/trust/run.py calibrates one"
+            )
         return Calibration.load(path), None
     if isinstance(choice, (str, Path)):
         return Calibration.load(choice), None
-    raise InputError(f"expected True, False, a path or an hcmt Calibration, got {type(choice).__name__}",
-                     param="interval")
-
+    raise InputError(
+        f"expected True, False, a path or an hcmt Calibration, got {type(choice).__name__}", param="interval"
+    )

@@ -26,6 +26,7 @@ under its own name, prefixed by the read-out's (:func:`readout_key`), never unde
 
 docs/MODELS.md, "Ghost stress", has the comparison.
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -45,8 +46,16 @@ BENDING_K = 5.0
 #: ``lo``, the frames where the solver's ball has surely not left yet (docs/RESULTS.md "Ghost stress")
 CONTACT_END_BOUND = "lo"
 #: the keys a derived read-out reports under its own name (:func:`readout_key`)
-DERIVED_KEYS = ("peak_plate_stress_mpa", "peak_plate_where_mm", "peak_plate_when_ms", "peak_plate_frame",
-                "peak_plate_node", "peak_plate_t95_frame", "peak_plate_t95_ms", "plate_stress_history_mpa")
+DERIVED_KEYS = (
+    "peak_plate_stress_mpa",
+    "peak_plate_where_mm",
+    "peak_plate_when_ms",
+    "peak_plate_frame",
+    "peak_plate_node",
+    "peak_plate_t95_frame",
+    "peak_plate_t95_ms",
+    "plate_stress_history_mpa",
+)
 
 
 def check_readout(readout: str) -> str:
@@ -68,8 +77,9 @@ def chosen(summary: Summary, key: str) -> float:
     return getattr(summary.chosen if key in DERIVED_KEYS else summary, key)
 
 
-def bending_stress(world_pos: np.ndarray, mesh_pos: np.ndarray, plate: np.ndarray, modulus: np.ndarray,
-                   k: float = BENDING_K) -> np.ndarray:
+def bending_stress(
+    world_pos: np.ndarray, mesh_pos: np.ndarray, plate: np.ndarray, modulus: np.ndarray, k: float = BENDING_K
+) -> np.ndarray:
     """[T] the free plate's bending stress ``k E t w_max(t) / R²`` (MPa) from its deflection."""
     E = float(np.median(np.asarray(modulus).reshape(-1)[plate]))
     y, r = mesh_pos[plate, 1], mesh_pos[plate, 0]
@@ -78,8 +88,9 @@ def bending_stress(world_pos: np.ndarray, mesh_pos: np.ndarray, plate: np.ndarra
     return k * E * t * w / R**2
 
 
-def element_stress(world_pos: np.ndarray, fields: dict, formulation: str = "axisymmetric",
-                   poisson: tuple[float, float] = (0.22, 0.3)) -> np.ndarray:
+def element_stress(
+    world_pos: np.ndarray, fields: dict, formulation: str = "axisymmetric", poisson: tuple[float, float] = (0.22, 0.3)
+) -> np.ndarray:
     """[T, N] nodal von Mises of the solver's element law on given positions (``poisson``: plate, ball)."""
     plate = plate_mask(fields["cells"], fields["node_type"])
     cells = np.asarray(fields["cells"])
@@ -96,13 +107,22 @@ def _plate_readout(stress, plate, x, frame_dt: float, frames=None, history=None,
     value, where, when, frame, node = q.peak_values(stress, plate, x, frame_dt, frames)
     history = q.body_history(stress, plate) if history is None else history
     first = q.rise_frame(history, value, frames)
-    return PlateReadout(value, where, when, frame, node, peak_plate_t95_frame=first,
-                        peak_plate_t95_ms=float(max(first, 1) * frame_dt),
-                        plate_stress_history_mpa=[float(v) for v in history], **contact)
+    return PlateReadout(
+        value,
+        where,
+        when,
+        frame,
+        node,
+        peak_plate_t95_frame=first,
+        peak_plate_t95_ms=float(max(first, 1) * frame_dt),
+        plate_stress_history_mpa=[float(v) for v in history],
+        **contact,
+    )
 
 
-def contact_readout(fields: dict, frame_dt: float, contact_end_ms: float | None = None,
-                    k: float = BENDING_K) -> PlateReadout:
+def contact_readout(
+    fields: dict, frame_dt: float, contact_end_ms: float | None = None, k: float = BENDING_K
+) -> PlateReadout:
     """The ``contact`` read-out (module docstring): the JSON writes each field prefixed ``contact_``."""
     x, X = np.asarray(fields["world_pos"]), np.asarray(fields["mesh_pos"])
     plate = plate_mask(fields["cells"], fields["node_type"])
@@ -111,15 +131,24 @@ def contact_readout(fields: dict, frame_dt: float, contact_end_ms: float | None 
         window, source = np.ones(len(x), bool), "the ball never touches: every frame"
     elif contact_end_ms is not None and np.isfinite(contact_end_ms):
         cut = max(int(np.floor(contact_end_ms / frame_dt)), int(np.flatnonzero(window)[0]))
-        if window[cut + 1:].any():
-            window[cut + 1:] = False
+        if window[cut + 1 :].any():
+            window[cut + 1 :] = False
             source = f"the response surface's {CONTACT_END_BOUND} bound of when the solver's ball leaves"
     last = int(np.flatnonzero(window)[-1])
     history = q.body_history(fields["stress"], plate)
     after = np.arange(len(history)) > last
     history = np.where(after, bending_stress(x, X, plate, fields["modulus"], k), history)
-    return _plate_readout(fields["stress"], plate, x, frame_dt, window, history,
-                          window_end_ms=float((last + 1) * frame_dt), window_end_from=source, bending_k=float(k))
+    return _plate_readout(
+        fields["stress"],
+        plate,
+        x,
+        frame_dt,
+        window,
+        history,
+        window_end_ms=float((last + 1) * frame_dt),
+        window_end_from=source,
+        bending_k=float(k),
+    )
 
 
 def contact_note(summaries: list[Summary]) -> str | None:
@@ -132,9 +161,11 @@ def contact_note(summaries: list[Summary]) -> str | None:
         return None
     if any(s.derived.peak_plate_frame != s.peak_plate_frame for s in summaries):
         return None
-    return ("--readout contact changes nothing here: on every design the model's own peak comes before the ball "
-            "leaves the plate, so contact_* repeats its peak and the calls are the raw ones (the read-out differs "
-            "only where a model's peak comes after the ball has left: docs/MODELS.md, \"The contact read-out\")")
+    return (
+        "--readout contact changes nothing here: on every design the model's own peak comes before the ball "
+        "leaves the plate, so contact_* repeats its peak and the calls are the raw ones (the read-out differs "
+        'only where a model\'s peak comes after the ball has left: docs/MODELS.md, "The contact read-out")'
+    )
 
 
 def element_readout(fields: dict, frame_dt: float) -> PlateReadout:
@@ -144,8 +175,13 @@ def element_readout(fields: dict, frame_dt: float) -> PlateReadout:
     return _plate_readout(element_stress(x, fields), plate, x, frame_dt)
 
 
-def summarize_fields(fields: dict, frame_dt: float, readout: str = DEFAULT_READOUT, wall_s: float = 0.0,
-                     contact_end_ms: float | None = None) -> Summary:
+def summarize_fields(
+    fields: dict,
+    frame_dt: float,
+    readout: str = DEFAULT_READOUT,
+    wall_s: float = 0.0,
+    contact_end_ms: float | None = None,
+) -> Summary:
     """The design check's numbers of one trajectory (module docstring): its own quantities, and with a derived
     ``readout`` that read-out's block (``derived``); ``contact_end_ms``: the ``contact`` read-out's bound on when
     the ball leaves (ignored by the others)."""
@@ -153,8 +189,13 @@ def summarize_fields(fields: dict, frame_dt: float, readout: str = DEFAULT_READO
     x, X = np.asarray(fields["world_pos"]), np.asarray(fields["mesh_pos"])
     plate = plate_mask(fields["cells"], fields["node_type"])
     own = q.impact_summary(x, fields["stress"], X, plate, frame_dt)
-    derived = (contact_readout(fields, frame_dt, contact_end_ms) if readout == "contact" else
-               element_readout(fields, frame_dt) if readout == "element" else None)
+    derived = (
+        contact_readout(fields, frame_dt, contact_end_ms)
+        if readout == "contact"
+        else element_readout(fields, frame_dt)
+        if readout == "element"
+        else None
+    )
     return Summary(**vars(own), readout=readout, derived=derived, wall_s=float(wall_s))
 
 

@@ -1,5 +1,6 @@
 """Design check, its reports: the table and the calls as text, the CSV, the JSON (standard JSON: non-finite numbers
 become null) and the contour pictures of a checked design."""
+
 from __future__ import annotations
 
 import csv
@@ -18,17 +19,26 @@ from hcmt.inference.metrics import format_physics
 from hcmt.sim.params import DESIGN_KEYS
 
 # -- output --------------------------------------------------------------------------------------------------------
-COLUMNS = [("design", "{}", "name"), ("plate MPa", "{:.1f}", "peak_plate_stress_mpa"),
-           ("at r,y mm", "{}", "peak_plate_where_mm"), ("t ms", "{:.3f}", "peak_plate_when_ms"),
-           ("ball MPa", "{:.1f}", "peak_ball_stress_mpa"), ("defl. mm", "{:.4f}", "max_deflection_mm"),
-           ("margin MPa", "{:.1f}", "yield_margin_mpa"), ("wall s", "{:.2f}", "wall_s")]
+COLUMNS = [
+    ("design", "{}", "name"),
+    ("plate MPa", "{:.1f}", "peak_plate_stress_mpa"),
+    ("at r,y mm", "{}", "peak_plate_where_mm"),
+    ("t ms", "{:.3f}", "peak_plate_when_ms"),
+    ("ball MPa", "{:.1f}", "peak_ball_stress_mpa"),
+    ("defl. mm", "{:.4f}", "max_deflection_mm"),
+    ("margin MPa", "{:.1f}", "yield_margin_mpa"),
+    ("wall s", "{:.2f}", "wall_s"),
+]
 
 
-VERIFY_COLUMNS = [("solver MPa", "{:.1f}", "solver_peak_plate_stress_mpa"),
-                  ("err %", "{:+.1f}", "peak_plate_stress_error_pct"),
-                  ("loc. err mm", "{:.2f}", "peak_plate_location_error_mm"),
-                  ("defl. err %", "{:+.1f}", "max_deflection_error_pct"),
-                  ("pos RMSE mm", "{:.4f}", "position_rmse_mm"), ("speedup", "{:.1f}x", "speedup")]
+VERIFY_COLUMNS = [
+    ("solver MPa", "{:.1f}", "solver_peak_plate_stress_mpa"),
+    ("err %", "{:+.1f}", "peak_plate_stress_error_pct"),
+    ("loc. err mm", "{:.2f}", "peak_plate_location_error_mm"),
+    ("defl. err %", "{:+.1f}", "max_deflection_error_pct"),
+    ("pos RMSE mm", "{:.4f}", "position_rmse_mm"),
+    ("speedup", "{:.1f}x", "speedup"),
+]
 
 
 def _interval(block: dict | None, fmt: str = "{:.0f}") -> str:
@@ -49,8 +59,10 @@ def verify_columns(readout: str) -> list[tuple[str, str, str]]:
     answer for that read-out (``<readout>_peak_plate_stress_error_pct`` for a derived one, headed so)."""
     if readout_key("peak_plate_stress_mpa", readout) == "peak_plate_stress_mpa":
         return VERIFY_COLUMNS
-    return [(f"{readout} err %", fmt, f"{readout}_{key}") if key == "peak_plate_stress_error_pct" else (h, fmt, key)
-            for h, fmt, key in VERIFY_COLUMNS]
+    return [
+        (f"{readout} err %", fmt, f"{readout}_{key}") if key == "peak_plate_stress_error_pct" else (h, fmt, key)
+        for h, fmt, key in VERIFY_COLUMNS
+    ]
 
 
 def table_rows(preds: list[Prediction]) -> tuple[list[str], list[list[str]]]:
@@ -62,8 +74,12 @@ def table_rows(preds: list[Prediction]) -> tuple[list[str], list[list[str]]]:
     with_surrogate = any(p.summary.surrogate is not None for p in preds)
     with_interval = any(p.summary.model_interval is not None for p in preds)
     vcols = verify_columns(first.readout) if any(p.summary.verify is not None for p in preds) else []
-    head = [c[0] for c in cols[:2]] + (["model's own [95 %]"] if with_interval else []) + \
-        (["surrogate MPa [95 %]"] if with_surrogate else []) + [c[0] for c in cols[2:] + vcols]
+    head = (
+        [c[0] for c in cols[:2]]
+        + (["model's own [95 %]"] if with_interval else [])
+        + (["surrogate MPa [95 %]"] if with_surrogate else [])
+        + [c[0] for c in cols[2:] + vcols]
+    )
     rows = []
     for p in preds:
         s = {**p.summary.to_json(), "name": p.name, **verify_block(p.summary)}
@@ -89,18 +105,26 @@ def format_table(preds: list[Prediction], verified: dict | None = None) -> str:
         v = verified
         lines.append(
             f"against the solver over {plural(v['designs'], 'design')}: location of the plate's peak median "
-            f"{v['peak_plate_location_error_mm']['median']:.2f} mm off, speedup median {v['speedup']['median']:.1f}x")
-        lines.append(f"  rise time (first frame at 95 % of the plate's peak): median "
-                     f"{v['peak_plate_t95_frame_error']['median']:.1f} frames off; the critical node's stress history, "
-                     f"model against solver: correlation median {v['critical_node_history_correlation']['median']:.2f} "
-                     f"(lowest {v['critical_node_history_correlation']['min']:.2f})")
+            f"{v['peak_plate_location_error_mm']['median']:.2f} mm off, speedup median {v['speedup']['median']:.1f}x"
+        )
+        lines.append(
+            f"  rise time (first frame at 95 % of the plate's peak): median "
+            f"{v['peak_plate_t95_frame_error']['median']:.1f} frames off; the critical node's stress history, "
+            f"model against solver: correlation median {v['critical_node_history_correlation']['median']:.2f} "
+            f"(lowest {v['critical_node_history_correlation']['min']:.2f})"
+        )
         if "speedup_measured" in v:
             lines.append(f"  speedup = solver ÷ model wall time per design, {v['speedup_measured']['how']}")
-        lines += [f"  {k.split('_peak')[0]} read-out's peak plate stress error median {e['median']:.1f} % (worst "
-                  f"{e['max']:.1f} %)" for k, e in v.items() if k.endswith("_peak_plate_stress_error_pct")]
+        lines += [
+            f"  {k.split('_peak')[0]} read-out's peak plate stress error median {e['median']:.1f} % (worst "
+            f"{e['max']:.1f} %)"
+            for k, e in v.items()
+            if k.endswith("_peak_plate_stress_error_pct")
+        ]
         lines += [line[2:] for line in format_physics(v["physics"])]
-    lines += [f"solver warning: {p.name}: {w}" for p in preds for w in verify_block(p.summary).get(
-        "solver_warnings", [])]
+    lines += [
+        f"solver warning: {p.name}: {w}" for p in preds for w in verify_block(p.summary).get("solver_warnings", [])
+    ]
     lines += [f"note: {w}" for p in preds for w in weak_reasons(p)]
     unchanged = contact_note([p.summary for p in preds])
     return "\n".join(lines + ([f"note: {unchanged}"] if unchanged else []))
@@ -117,26 +141,47 @@ def format_calls(preds: list[Prediction], yield_mpa: float, label: str = "design
     for p in preds:
         s, iv = p.summary, p.summary.call_interval_mpa
         solver = s.verify.solver_peak_plate_stress_mpa if s.verify is not None else None
-        rows.append([str(value(p)), f"{s.chosen.peak_plate_stress_mpa:.0f}",
-                     _interval((s.surrogate or {}).get("peak_plate_stress_mpa")),
-                     f"{iv.source} [{iv.lo:.0f}, {iv.hi:.0f}]", s.call,
-                     "-" if solver is None else f"{solver:.0f}", s.final_call or s.call])
+        rows.append(
+            [
+                str(value(p)),
+                f"{s.chosen.peak_plate_stress_mpa:.0f}",
+                _interval((s.surrogate or {}).get("peak_plate_stress_mpa")),
+                f"{iv.source} [{iv.lo:.0f}, {iv.hi:.0f}]",
+                s.call,
+                "-" if solver is None else f"{solver:.0f}",
+                s.final_call or s.call,
+            ]
+        )
     width = [max(len(h), *(len(r[i]) for r in rows)) for i, h in enumerate(head)]
-    lines = [f"limit calls for a yield stress of {yield_mpa:g} MPa (pass: the trusted interval lies below it, fail: "
-             "above it, undecided: it straddles it, or the design lies outside the training ranges where no interval "
-             "of the mesh model was calibrated)"]
+    lines = [
+        f"limit calls for a yield stress of {yield_mpa:g} MPa (pass: the trusted interval lies below it, fail: "
+        "above it, undecided: it straddles it, or the design lies outside the training ranges where no interval "
+        "of the mesh model was calibrated)"
+    ]
     lines += ["  " + "  ".join(h.rjust(w) for h, w in zip(head, width))]
     lines += ["  " + "  ".join(c.rjust(w) for c, w in zip(r, width)) for r in rows]
     undecided = sum(p.summary.call == "undecided" for p in preds)
     ran = sum(bool(p.summary.verified) for p in preds)
-    lines.append(f"  {undecided} of {len(preds)} undecided; the solver ran on {ran}"
-                 + ("" if ran >= undecided else " (--verify auto runs it on the undecided ones)"))
+    lines.append(
+        f"  {undecided} of {len(preds)} undecided; the solver ran on {ran}"
+        + ("" if ran >= undecided else " (--verify auto runs it on the undecided ones)")
+    )
     return "\n".join(lines)
 
 
 #: summary keys that are not CSV columns: lists over frames, nested blocks (flattened below) and text
-_NOT_COLUMNS = ("verify", "warnings", "model", "confidence", "surrogate", "disagreement_by_answer",
-                "call_interval_mpa", "contact_frames", "readout", "contact_window_end_from")
+_NOT_COLUMNS = (
+    "verify",
+    "warnings",
+    "model",
+    "confidence",
+    "surrogate",
+    "disagreement_by_answer",
+    "call_interval_mpa",
+    "contact_frames",
+    "readout",
+    "contact_window_end_from",
+)
 
 
 def csv_rows(preds: list[Prediction]) -> tuple[list[str], list[list]]:
@@ -184,17 +229,22 @@ def write_csv(preds: list[Prediction], path: str | Path) -> Path:
     return path
 
 
-def to_json(preds: list[Prediction], verified: dict | None, run_source: str, device: str,
-            check: "Check | None" = None) -> dict:
+def to_json(
+    preds: list[Prediction], verified: dict | None, run_source: str, device: str, check: "Check | None" = None
+) -> dict:
     """The design check as JSON: per design its parameters and summary (the model's own answer, a derived
     read-out's fields under their own names, the surrogate's answers, ``disagreement``, the calls, the plate's
     stress history and the notes), the verify summary, the read-out used, the surrogate's source and the solver
     runs."""
-    out = {"model": run_source, "device": device, "units": {"stress": "MPa", "length": "mm", "time": "ms"},
-           "designs": [{"name": p.name, "design": asdict(p.design), **p.summary.to_json(),
-                        "notes": weak_reasons(p)}
-                       for p in preds],
-           **({"verify": verified} if verified else {})}
+    out = {
+        "model": run_source,
+        "device": device,
+        "units": {"stress": "MPa", "length": "mm", "time": "ms"},
+        "designs": [
+            {"name": p.name, "design": asdict(p.design), **p.summary.to_json(), "notes": weak_reasons(p)} for p in preds
+        ],
+        **({"verify": verified} if verified else {}),
+    }
     if check is not None:
         out["readout"] = check.readout
         out["surrogate"] = check.surrogate
@@ -219,10 +269,12 @@ def contour_picture(p: Prediction, truth: Prediction | None, meta: dict, out_dir
     at the solver's own peak frame too (one row each, the earlier first, one row when they coincide)."""
     from hcmt.viz.contours import plot_contours  # here: matplotlib only when a picture is asked for
     from hcmt.viz.rollouts import Case, Series
+
     pred = Series(f"{label} prediction", p.world_pos, p.stress, start=2)
     if truth is not None:
-        case = Case(p.name, p.mesh_pos, p.cells, p.node_type, Series("Solver", truth.world_pos, truth.stress),
-                    [pred], meta)
+        case = Case(
+            p.name, p.mesh_pos, p.cells, p.node_type, Series("Solver", truth.world_pos, truth.stress), [pred], meta
+        )
     else:
         case = Case(p.name, p.mesh_pos, p.cells, p.node_type, pred, [], meta)
     frames = {max(int(p.summary.peak_plate_frame), 1)}

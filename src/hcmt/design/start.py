@@ -1,6 +1,7 @@
 """The frames a learned model's rollout of a new design starts from (``hcmt predict``, ``sweep``, the design
 check): frames 0 and 1 built from the design's scene without a solver run when the ball cannot reach the plate
 within the first frame, else the solver's first frame."""
+
 from __future__ import annotations
 
 from dataclasses import asdict, replace
@@ -28,19 +29,28 @@ def initial_frames(design: Design, settings: Settings = Settings()) -> dict:
     dt, g = settings.frame_dt, settings.gravity
     fall = first_frame_fall(design, settings)
     if fall >= design.gap:
-        raise InputError(f"drop_height {design.drop_height} mm: the ball ({design.impact_speed:.3g} mm/ms) would "
-                         f"cross the {design.gap} mm gap within the first frame ({dt} ms); lower drop_height or "
-                         "raise gap")
+        raise InputError(
+            f"drop_height {design.drop_height} mm: the ball ({design.impact_speed:.3g} mm/ms) would "
+            f"cross the {design.gap} mm gap within the first frame ({dt} ms); lower drop_height or "
+            "raise gap"
+        )
     mesh = design_mesh(design)
     x0 = mesh["mesh_pos"].astype(np.float64)
     x1 = x0.copy()
     ball = mesh["body"] == 1
     x1[ball, 1] -= fall
     x1[~ball & ~fixed_dofs(mesh["node_type"])[:, 1], 1] -= 0.5 * g * dt * dt
-    fields_ = dict(static_fields(design, mesh, settings.formulation), world_pos=np.stack([x0, x1]).astype(np.float32),
-                   stress=np.zeros((2, len(x0), 1), np.float32))
-    attrs = {**asdict(design), "impact_speed": design.impact_speed, "formulation": settings.formulation,
-             "family": design.family}
+    fields_ = dict(
+        static_fields(design, mesh, settings.formulation),
+        world_pos=np.stack([x0, x1]).astype(np.float32),
+        stress=np.zeros((2, len(x0), 1), np.float32),
+    )
+    attrs = {
+        **asdict(design),
+        "impact_speed": design.impact_speed,
+        "formulation": settings.formulation,
+        "family": design.family,
+    }
     return dict(fields=fields_, attrs=attrs)
 
 

@@ -13,6 +13,7 @@ order, a derived read-out's fields under its own names (``contact_peak_plate_str
 check did not set (None) absent rather than null; only the trajectory's own quantities, ``readout`` and
 ``wall_s`` are always written, and ``confidence`` whenever the check annotated the design (``model`` set).
 """
+
 from __future__ import annotations
 
 from dataclasses import asdict, dataclass, field, fields
@@ -94,8 +95,13 @@ class CallInterval:
     reason: str | None = None
 
     def to_json(self) -> dict:
-        return {"lo": self.lo, "hi": self.hi, "from": self.source, "model_readout": self.model_readout,
-                **({"trusted": False, "reason": self.reason} if not self.trusted else {})}
+        return {
+            "lo": self.lo,
+            "hi": self.hi,
+            "from": self.source,
+            "model_readout": self.model_readout,
+            **({"trusted": False, "reason": self.reason} if not self.trusted else {}),
+        }
 
 
 @dataclass(frozen=True)

@@ -22,6 +22,7 @@ records of it, :mod:`hcmt.design.surrogate_data`.
 A surrogate meets a model in :func:`for_run`: one that does not fit it (:meth:`Surrogate.check_model`) is refused,
 and one whose window is not known to be the model's never ends the model's read-out window.
 """
+
 from __future__ import annotations
 
 import json
@@ -64,9 +65,21 @@ class Surrogate:
         dataset: what the training data was (:func:`dataset_facts`; None: not known, as in a version 1 file).
     """
 
-    def __init__(self, parameters: list[str], fixed: dict[str, float], X, Y: dict[str, np.ndarray],
-                 kernels: dict | None = None, *, source: str = "", restarts: int = RESTARTS, seed: int = 0,
-                 linear: list[str] | None = None, strict: bool = True, dataset: dict | None = None):
+    def __init__(
+        self,
+        parameters: list[str],
+        fixed: dict[str, float],
+        X,
+        Y: dict[str, np.ndarray],
+        kernels: dict | None = None,
+        *,
+        source: str = "",
+        restarts: int = RESTARTS,
+        seed: int = 0,
+        linear: list[str] | None = None,
+        strict: bool = True,
+        dataset: dict | None = None,
+    ):
         self.parameters, self.fixed, self.source = list(parameters), dict(fixed), source
         self.name = ""  # what the header calls it (:attr:`label`): set by :func:`for_run`, never a path
         self.dataset = dict(dataset) if dataset is not None else None
@@ -77,15 +90,18 @@ class Surrogate:
         n, d = self.X.shape
         self.underdetermined = n < d + 2  # allowed with strict=False (a benchmark's few runs of a new family)
         if n < 3 or (strict and self.underdetermined):
-            raise InputError(f"{n} training designs for {d} parameters: a surrogate needs at least parameters + 2 "
-                             f"({d + 2}) designs")
+            raise InputError(
+                f"{n} training designs for {d} parameters: a surrogate needs at least parameters + 2 ({d + 2}) designs"
+            )
         # log inputs, but a parameter that is 0 in some design (an absent layer, support, pen) stays linear
-        self.linear = [k for j, k in enumerate(self.parameters) if np.any(self.X[:, j] <= 0)] if linear is None \
-            else list(linear)
+        self.linear = (
+            [k for j, k in enumerate(self.parameters) if np.any(self.X[:, j] <= 0)] if linear is None else list(linear)
+        )
         self._log = np.array([k not in self.linear for k in self.parameters])
         if not (np.all(np.isfinite(self.X)) and np.all(self.X[:, self._log] > 0) and np.all(self.X >= 0)):
-            raise InputError("training designs must be finite and non-negative, positive where the surrogate takes "
-                             "their log")
+            raise InputError(
+                "training designs must be finite and non-negative, positive where the surrogate takes their log"
+            )
         for q, v in self.Y.items():
             if v.shape != (n,) or not (np.all(np.isfinite(v)) and np.all(v > 0)):
                 raise InputError(f"answer {q!r}: expected {n} finite positive values (log outputs)")
@@ -102,19 +118,40 @@ class Surrogate:
 
     # -- fitting ---------------------------------------------------------------------------------------------------
     @classmethod
-    def fit_dataset(cls, data: str | Path, split: str = "train", *, limit: int | None = None,
-                    restarts: int = RESTARTS, seed: int = 0, stress_field: str = "stress") -> "Surrogate":
+    def fit_dataset(
+        cls,
+        data: str | Path,
+        split: str = "train",
+        *,
+        limit: int | None = None,
+        restarts: int = RESTARTS,
+        seed: int = 0,
+        stress_field: str = "stress",
+    ) -> "Surrogate":
         """Fit on the solver trajectories of an hcmt-generated Impact Plate dataset's ``split`` (the first
         ``limit`` when given): :func:`dataset_answers`."""
         designs, answers = dataset_answers(data, split, limit, stress_field)
-        s = cls.fit(designs, answers, source=f"{Path(data)} ({split}, {len(designs)} trajectories)",
-                    restarts=restarts, seed=seed)
+        s = cls.fit(
+            designs,
+            answers,
+            source=f"{Path(data)} ({split}, {len(designs)} trajectories)",
+            restarts=restarts,
+            seed=seed,
+        )
         s.dataset = dataset_facts(read_meta(data), split, stress_field, answers)
         return s
 
     @classmethod
-    def fit(cls, designs: list[Design], answers: dict[str, list[float]], *, source: str = "",
-            restarts: int = RESTARTS, seed: int = 0, strict: bool = True) -> "Surrogate":
+    def fit(
+        cls,
+        designs: list[Design],
+        answers: dict[str, list[float]],
+        *,
+        source: str = "",
+        restarts: int = RESTARTS,
+        seed: int = 0,
+        strict: bool = True,
+    ) -> "Surrogate":
         """Fit on designs and their solver answers; the parameters that vary over ``designs`` are the inputs
         (``strict=False`` fits fewer designs than parameters + 2 too, at least 3: most length scales then stay
         at their bound and the surfaces predict near the mean)."""
@@ -124,8 +161,9 @@ class Surrogate:
         spread = values.max(0) - values.min(0) > 1e-9 * np.maximum(np.abs(values).max(0), 1e-300)
         params = [k for k, s in zip(DESIGN_KEYS, spread) if s]
         fixed = {k: float(values[0, j]) for j, (k, s) in enumerate(zip(DESIGN_KEYS, spread)) if not s}
-        return cls(params, fixed, values[:, spread], answers, source=source, restarts=restarts, seed=seed,
-                   strict=strict)
+        return cls(
+            params, fixed, values[:, spread], answers, source=source, restarts=restarts, seed=seed, strict=strict
+        )
 
     @property
     def censored(self) -> int:
@@ -144,13 +182,16 @@ class Surrogate:
         """The parameters of ``design`` the surfaces cannot take at all: held fixed over every training design
         but different here (a layer, support or impactor the training family never had)."""
         default = Design()  # a surrogate fitted before the panel families: their parameters held at the default
-        held = {**{k: getattr(default, k) for k in DESIGN_KEYS if k not in self.fixed and k not in self.parameters},
-                **self.fixed}
+        held = {
+            **{k: getattr(default, k) for k in DESIGN_KEYS if k not in self.fixed and k not in self.parameters},
+            **self.fixed,
+        }
         return [k for k, v in held.items() if not np.isclose(getattr(design, k), v, rtol=1e-9, atol=1e-12)]
 
     def matrix(self, designs: list[Design]) -> np.ndarray:
         return np.array([[getattr(d, k) for k in self.parameters] for d in designs], np.float64).reshape(
-            len(designs), len(self.parameters))
+            len(designs), len(self.parameters)
+        )
 
     def predict(self, designs: list[Design]) -> list[dict[str, Interval]]:
         """Per design, each answer's :class:`Interval` (central estimate and 95 % interval, in the answer's unit)."""
@@ -181,8 +222,11 @@ class Surrogate:
         return f"{self.name}, {runs}" if self.name else f"a Gaussian process {runs}"
 
     def __repr__(self) -> str:
-        return (f"Surrogate({len(self)} designs, parameters {self.parameters}, answers {list(self.Y)}"
-                + (f", from {self.source}" if self.source else "") + ")")
+        return (
+            f"Surrogate({len(self)} designs, parameters {self.parameters}, answers {list(self.Y)}"
+            + (f", from {self.source}" if self.source else "")
+            + ")"
+        )
 
     # -- storing (the format: hcmt.design.surrogate_file) -------------------------------------------------------------
     def to_dict(self) -> dict:
@@ -213,13 +257,23 @@ class Surrogate:
         varied = sorted(k for k, (lo, hi) in ranges.items() if k in DESIGN_KEYS and hi > lo)
         if varied and sorted(self.parameters) != varied:
             missing, extra = sorted(set(varied) - set(self.parameters)), sorted(set(self.parameters) - set(varied))
-            differ = "; ".join(f"{w}: {', '.join(ks)}" for w, ks in (("not taken", missing), ("not varied by the "
-                               "model", extra)) if ks)
-            raise SurrogateError(f"{where}: the surrogate takes other parameters than the model's training designs "
-                                 f"vary ({differ}); fit it on the model's own data (`hcmt surrogate fit`)", param=param)
+            differ = "; ".join(
+                f"{w}: {', '.join(ks)}" for w, ks in (("not taken", missing), ("not varied by the model", extra)) if ks
+            )
+            raise SurrogateError(
+                f"{where}: the surrogate takes other parameters than the model's training designs "
+                f"vary ({differ}); fit it on the model's own data (`hcmt surrogate fit`)",
+                param=param,
+            )
 
-    def check_model(self, ranges: dict[str, tuple[float, float]], meta: dict | None, stress_field: str, where: str,
-                    param: str | None = None) -> None:
+    def check_model(
+        self,
+        ranges: dict[str, tuple[float, float]],
+        meta: dict | None,
+        stress_field: str,
+        where: str,
+        param: str | None = None,
+    ) -> None:
         """Refuse, in one line naming ``where`` and what differs, a surrogate that does not fit the model: other
         parameters, training ranges that do not cover the model's, a parameter held at another value, and (when
         the file records its data, format 2) another frame window or interval, stress field, family or unit."""
@@ -228,12 +282,16 @@ class Surrogate:
         narrow = range_differences(self.ranges(), ranges)
         if narrow:
             others = [n.split(" ", 1)[0] for n in narrow[1:]]
-            differ.append(f"its training ranges do not cover the model's: {narrow[0]}"
-                          + (f" (also {', '.join(others[:2])}{', ...' if len(others) > 2 else ''})" if others else ""))
+            differ.append(
+                f"its training ranges do not cover the model's: {narrow[0]}"
+                + (f" (also {', '.join(others[:2])}{', ...' if len(others) > 2 else ''})" if others else "")
+            )
         if differ:
             more = f" (and {len(differ) - 1} more)" if len(differ) > 1 else ""
-            raise SurrogateError(f"{where}: does not fit the model: {differ[0]}{more}; fit it on the model's own "
-                                 "training data", param=param)
+            raise SurrogateError(
+                f"{where}: does not fit the model: {differ[0]}{more}; fit it on the model's own training data",
+                param=param,
+            )
 
 
 def side_by_side(summary, interval: dict[str, Interval]) -> dict:
@@ -242,10 +300,16 @@ def side_by_side(summary, interval: dict[str, Interval]) -> dict:
     stress."""
     block = {q: asdict(v) for q, v in interval.items()}
     model = {q: getattr(summary, q, None) for q in interval}  # the model's own answers (a Summary's fields)
-    outside = {q: not v.covers(model[q]) for q, v in interval.items()
-               if isinstance(model[q], (int, float)) and math.isfinite(model[q])}
-    return {"surrogate": block, "disagreement": bool(outside.get("peak_plate_stress_mpa", False)),
-            "disagreement_by_answer": outside}
+    outside = {
+        q: not v.covers(model[q])
+        for q, v in interval.items()
+        if isinstance(model[q], (int, float)) and math.isfinite(model[q])
+    }
+    return {
+        "surrogate": block,
+        "disagreement": bool(outside.get("peak_plate_stress_mpa", False)),
+        "disagreement_by_answer": outside,
+    }
 
 
 def run_surrogate_path(run) -> Path | None:
@@ -260,8 +324,7 @@ def run_name(run) -> str:
     return source if source.startswith("pretrained:") else Path(source).name
 
 
-def for_run(run, choice: "Surrogate | str | Path | bool | None" = True
-            ) -> tuple["Surrogate | None", str | None, bool]:
+def for_run(run, choice: "Surrogate | str | Path | bool | None" = True) -> tuple["Surrogate | None", str | None, bool]:
     """(surrogate, note, ends_window) for a run: ``True``, the run's own (:func:`run_surrogate_path`; note when it
     has none); a path, that file; a :class:`Surrogate`, itself; ``False`` / ``None``, none. A surrogate that does
     not fit the model is refused (:meth:`Surrogate.check_model`; ``param`` surrogate when it was given).
@@ -277,8 +340,14 @@ def for_run(run, choice: "Surrogate | str | Path | bool | None" = True
     elif own:
         path = run_surrogate_path(run)
         if path is None or not path.is_file():
-            return None, (f"{run.source} has no response surface ({path or 'no run folder'}); fit one with "
-                          "`hcmt surrogate fit DATA --out FILE` and pass --surrogate FILE"), False
+            return (
+                None,
+                (
+                    f"{run.source} has no response surface ({path or 'no run folder'}); fit one with "
+                    "`hcmt surrogate fit DATA --out FILE` and pass --surrogate FILE"
+                ),
+                False,
+            )
         s, where = Surrogate.load(path), str(path)
         s.name = f"{run_name(run)}'s own"
     else:
@@ -288,9 +357,21 @@ def for_run(run, choice: "Surrogate | str | Path | bool | None" = True
     if getattr(run, "ranges", None):
         s.check_model(run.ranges, getattr(run, "meta", None), stress_field, where, None if own else "surrogate")
     if s.censored >= len(s):
-        return s, (f"{where}: in none of its {len(s)} training runs did the ball leave the plate within the window; "
-                   "its bound of when the ball leaves is not used (the model's window stands)"), False
+        return (
+            s,
+            (
+                f"{where}: in none of its {len(s)} training runs did the ball leave the plate within the window; "
+                "its bound of when the ball leaves is not used (the model's window stands)"
+            ),
+            False,
+        )
     if s.dataset is None and not own:
-        return s, (f"{where}: records no training window (written before format 2, or fitted without a dataset); "
-                   "its bound of when the ball leaves is not used (the model's window stands)"), False
+        return (
+            s,
+            (
+                f"{where}: records no training window (written before format 2, or fitted without a dataset); "
+                "its bound of when the ball leaves is not used (the model's window stands)"
+            ),
+            False,
+        )
     return s, None, True

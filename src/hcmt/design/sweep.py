@@ -14,6 +14,7 @@ solver on the same points, and says whether the two agree:
   values lie above failing ones (thickness), the largest when below (drop height); the model's call agrees when it
   is within one sweep step of the solver's.
 """
+
 from __future__ import annotations
 
 from dataclasses import replace
@@ -44,8 +45,9 @@ def sweep_designs(base: Design, param: str, lo: float, hi: float, n: int) -> lis
         try:
             out.append((f"{param}={v:.6g}", replace(base, **{param: float(v)}).validate()))
         except ValueError as exc:
-            raise InputError(f"{param}={lo:g}:{hi:g}:{n}: the point {param}={v:.6g} is impossible: {exc}",
-                             param="vary") from None
+            raise InputError(
+                f"{param}={lo:g}:{hi:g}:{n}: the point {param}={v:.6g} is impossible: {exc}", param="vary"
+            ) from None
     return out
 
 
@@ -56,8 +58,11 @@ def trend(values: np.ndarray) -> dict:
     steps = np.diff(v)
     steps = steps[np.abs(steps) > TREND_TOL * span]
     sign = int(np.sign(v[-1] - v[0])) if abs(v[-1] - v[0]) > TREND_TOL * span else 0
-    return {"sign": sign, "monotonic": bool(np.all(steps > 0) or np.all(steps < 0)),
-            "change_pct": float(100.0 * (v[-1] - v[0]) / v[0]) if v[0] else None}
+    return {
+        "sign": sign,
+        "monotonic": bool(np.all(steps > 0) or np.all(steps < 0)),
+        "change_pct": float(100.0 * (v[-1] - v[0]) / v[0]) if v[0] else None,
+    }
 
 
 def trends_agree(model: float | None, solver: float | None) -> bool | None:
@@ -134,9 +139,12 @@ def analyse(check: Check, param: str, yield_mpa: float | None) -> dict:
             calls["unsafe"] = _unsafe(a, b)
         # the final calls: pass only where the trusted interval (or, where it ran, the solver) says so
         final = [p.summary.final_call for p in check.preds]
-        calls["final"] = {**limit_of(params, [c == "pass" for c in final]), "calls": final,
-                          "undecided": [float(v) for v, c in zip(params, final) if c == "undecided"],
-                          "solver_runs": check.solver_runs}
+        calls["final"] = {
+            **limit_of(params, [c == "pass" for c in final]),
+            "calls": final,
+            "undecided": [float(v) for v, c in zip(params, final) if c == "undecided"],
+            "solver_runs": check.solver_runs,
+        }
         if "solver" in calls:
             calls["final"]["unsafe"] = _unsafe(calls["final"], calls["solver"])
         out["limit"] = {"yield_mpa": yield_mpa, **calls}
@@ -148,8 +156,9 @@ def _unsafe(model: dict, solver: dict) -> bool:
     return bool(set(model["passing"]) - set(solver["passing"]))
 
 
-def sweep(run, param: str, lo: float, hi: float, n: int, base: Design, *, batch: int = DESIGN_BATCH,
-          **options) -> tuple[Check, dict]:
+def sweep(
+    run, param: str, lo: float, hi: float, n: int, base: Design, *, batch: int = DESIGN_BATCH, **options
+) -> tuple[Check, dict]:
     """Predict a one-parameter sweep (``batch`` designs per model call, default
     :data:`hcmt.design.basics.DESIGN_BATCH`; None: the whole sweep in one) and analyse it; ``options`` as
     :func:`hcmt.design.check.check_designs` (verify, yield_mpa, surrogate, ...)."""
@@ -158,8 +167,9 @@ def sweep(run, param: str, lo: float, hi: float, n: int, base: Design, *, batch:
     analysis = analyse(check, param, options.get("yield_mpa"))
     lo_t, hi_t = run.ranges.get(param, (None, None))
     if lo_t is not None and lo_t == hi_t:
-        analysis["not_learned"] = (f"the model's training designs held {param} fixed at {lo_t:g}: the trend "
-                                   "against it is not learned")
+        analysis["not_learned"] = (
+            f"the model's training designs held {param} fixed at {lo_t:g}: the trend against it is not learned"
+        )
     return check, analysis
 
 
@@ -186,17 +196,22 @@ def format_analysis(a: dict) -> str:
         for who in ("model", "final", "solver"):
             if who in lim:
                 c = lim[who]
-                text = (f"{c['side']} {a['param']} {c['call']:.6g}" if c["call"] is not None else c["side"])
+                text = f"{c['side']} {a['param']} {c['call']:.6g}" if c["call"] is not None else c["side"]
                 extra = ""
                 if who == "final":
-                    extra = (f" (the solver decided {plural(c['solver_runs'], 'point')} of {len(a['values'])}"
-                             + (f"; {plural(len(c['undecided']), 'point')} still undecided" if c["undecided"] else "")
-                             + ("; UNSAFE: a final pass the solver fails" if c.get("unsafe") else "") + ")")
+                    extra = (
+                        f" (the solver decided {plural(c['solver_runs'], 'point')} of {len(a['values'])}"
+                        + (f"; {plural(len(c['undecided']), 'point')} still undecided" if c["undecided"] else "")
+                        + ("; UNSAFE: a final pass the solver fails" if c.get("unsafe") else "")
+                        + ")"
+                    )
                 lines.append(f"below {lim['yield_mpa']:g} MPa, {names[who]}: {text}{extra}")
         if "within_one_step" in lim:
-            lines.append("limit calls " + ("agree within one sweep step" if lim["within_one_step"] else
-                                           "DIFFER by more than one sweep step")
-                         + ("; the model passes a value the solver fails (UNSAFE)" if lim["unsafe"] else ""))
+            lines.append(
+                "limit calls "
+                + ("agree within one sweep step" if lim["within_one_step"] else "DIFFER by more than one sweep step")
+                + ("; the model passes a value the solver fails (UNSAFE)" if lim["unsafe"] else "")
+            )
     return "\n".join(lines)
 
 
@@ -213,6 +228,7 @@ def axis_label(param: str) -> str:
 def plot_sweep(check: Check, analysis: dict, out_dir: str | Path, label: str) -> Path:
     """Peak plate stress and maximum deflection against the swept parameter: model, and the solver with verify."""
     from hcmt.viz.meshplot import new_figure, save_figure  # here: matplotlib only for the plot
+
     x = np.array(analysis["values"])
     fig = new_figure(10, 4)
     axes = fig.subplots(1, 2)
@@ -227,8 +243,9 @@ def plot_sweep(check: Check, analysis: dict, out_dir: str | Path, label: str) ->
         band = [(v, p.summary.surrogate[q]) for v, p in zip(x, check.preds) if q in (p.summary.surrogate or {})]
         if band:
             xs, bs = zip(*band)
-            ax.fill_between(xs, [b["lo"] for b in bs], [b["hi"] for b in bs], color="C1", alpha=0.25,
-                            label="surrogate 95 %")
+            ax.fill_between(
+                xs, [b["lo"] for b in bs], [b["hi"] for b in bs], color="C1", alpha=0.25, label="surrogate 95 %"
+            )
             ax.plot(xs, [b["mean"] for b in bs], "-", color="C1", lw=1)
         if q == "peak_plate_stress_mpa" and analysis["limit"]:
             ax.axhline(analysis["limit"]["yield_mpa"], color="r", lw=1, label=f"Y = {analysis['limit']['yield_mpa']:g}")

@@ -1,5 +1,6 @@
 """Design check, the verification: the built-in solver on the same designs (:func:`solve`) and the model against
 it, per design (:func:`verify_row`, a :class:`VerifyRow`) and summarized over designs (:func:`verify_designs`)."""
+
 from __future__ import annotations
 
 from dataclasses import replace
@@ -18,22 +19,37 @@ from hcmt.sim.driver import simulate
 from hcmt.sim.params import Design, Settings
 
 
-def solve(designs: list[tuple[str, Design]], settings: Settings, stress_field: str = "stress",
-          progress: bool = False, bar: tqdm | None = None) -> list[Prediction]:
+def solve(
+    designs: list[tuple[str, Design]],
+    settings: Settings,
+    stress_field: str = "stress",
+    progress: bool = False,
+    bar: tqdm | None = None,
+) -> list[Prediction]:
     """The built-in FEM solver on the same designs (the reference for :func:`verify`); ``stress_field``: the field
     the model learned (``stress_max``: the largest stress between frames). Each summary carries the solver's own
     warnings (``solver_warnings``: a design outside its validated ranges). ``bar``: a "solver" progress bar the
     caller keeps open over several calls (:func:`hcmt.design.check.check_designs`); else one of its own."""
     own = bar is None
     if own:
-        bar = tqdm(total=len(designs), desc="solver", unit="design", disable=not progress or not designs,
-                   dynamic_ncols=True)
+        bar = tqdm(
+            total=len(designs), desc="solver", unit="design", disable=not progress or not designs, dynamic_ncols=True
+        )
     out = []
     for name, design in designs:
         r = simulate(design, settings)
         f = r.fields
-        p = Prediction(name, design, f["world_pos"], f[stress_field], f["mesh_pos"], f["cells"],
-                       f["node_type"].reshape(-1), r.info.wall_time, modulus=f["modulus"].reshape(-1))
+        p = Prediction(
+            name,
+            design,
+            f["world_pos"],
+            f[stress_field],
+            f["mesh_pos"],
+            f["cells"],
+            f["node_type"].reshape(-1),
+            r.info.wall_time,
+            modulus=f["modulus"].reshape(-1),
+        )
         # the solver's own quantities: the truth
         p.summary = replace(summarize(p, settings.frame_dt), solver_warnings=validated_warnings(design))
         out.append(p)
@@ -44,8 +60,16 @@ def solve(designs: list[tuple[str, Design]], settings: Settings, stress_field: s
 
 
 #: the physics block's keys a verify row holds
-_PHYSICS = ("peak_plate_stress_error_pct", "max_deflection_error_pct", "model_rebounds", "solver_rebounds",
-            "rebound_agrees", "peak_plate_frame_error", "peak_ball_stress_error_pct", "far_deflection_error_um")
+_PHYSICS = (
+    "peak_plate_stress_error_pct",
+    "max_deflection_error_pct",
+    "model_rebounds",
+    "solver_rebounds",
+    "rebound_agrees",
+    "peak_plate_frame_error",
+    "peak_ball_stress_error_pct",
+    "far_deflection_error_um",
+)
 
 
 def verify_row(p: Prediction, t: Prediction) -> tuple[VerifyRow, dict]:
@@ -57,7 +81,8 @@ def verify_row(p: Prediction, t: Prediction) -> tuple[VerifyRow, dict]:
     derived = {}
     if a.derived is not None:  # a derived read-out: its own error, under its own name
         derived[f"{a.readout}_peak_plate_stress_error_pct"] = float(
-            100.0 * (a.derived.peak_plate_stress_mpa - b.peak_plate_stress_mpa) / b.peak_plate_stress_mpa)
+            100.0 * (a.derived.peak_plate_stress_mpa - b.peak_plate_stress_mpa) / b.peak_plate_stress_mpa
+        )
     row = VerifyRow(
         solver_peak_plate_stress_mpa=b.peak_plate_stress_mpa,
         solver_max_deflection_mm=b.max_deflection_mm,
@@ -86,8 +111,7 @@ def verify_designs(preds: list[Prediction], truth: list[Prediction], measured: d
     for p, t in zip(preds, truth):
         row, phys = verify_row(p, t)
         physics.append(phys)
-        p.summary = replace(p.summary, verify=row,
-                            solver_plate_stress_history_mpa=t.summary.plate_stress_history_mpa)
+        p.summary = replace(p.summary, verify=row, solver_plate_stress_history_mpa=t.summary.plate_stress_history_mpa)
         rows.append(row.to_json())
 
     def stats(key):
@@ -96,13 +120,25 @@ def verify_designs(preds: list[Prediction], truth: list[Prediction], measured: d
         v = v[np.isfinite(v)] if np.isfinite(v).any() else v
         return {"median": float(np.median(v)), "max": float(v.max()), "min": float(v.min()), "mean": float(v.mean())}
 
-    keys = ("peak_plate_stress_error_pct", "peak_plate_location_error_mm", "max_deflection_error_pct",
-            "position_rmse_mm", "peak_plate_t95_frame_error", "critical_node_history_correlation", "speedup")
+    keys = (
+        "peak_plate_stress_error_pct",
+        "peak_plate_location_error_mm",
+        "max_deflection_error_pct",
+        "position_rmse_mm",
+        "peak_plate_t95_frame_error",
+        "critical_node_history_correlation",
+        "speedup",
+    )
     keys += tuple(k for k in rows[0] if k.endswith("_peak_plate_stress_error_pct"))
     how = measured["how"] if measured else "on this machine"
-    return {"designs": len(rows), **{k: stats(k) for k in keys}, "physics": summarize_impact(physics),
-            "note": "errors summarized as absolute values (median, max, mean); speedup = solver wall time / "
-                    f"prediction wall time per design, {how}", **({"speedup_measured": measured} if measured else {})}
+    return {
+        "designs": len(rows),
+        **{k: stats(k) for k in keys},
+        "physics": summarize_impact(physics),
+        "note": "errors summarized as absolute values (median, max, mean); speedup = solver wall time / "
+        f"prediction wall time per design, {how}",
+        **({"speedup_measured": measured} if measured else {}),
+    }
 
 
 def speedup_measured(batch: int, designs: int, verify: bool | str, device: str, threads: int) -> dict:
@@ -115,8 +151,17 @@ def speedup_measured(batch: int, designs: int, verify: bool | str, device: str, 
     chunks = -(-designs // size)
     interleaved = chunks > 1 or size == 1
     solved = "undecided designs" if verify == "auto" else "designs"
-    order = (f"model and solver alternating per chunk of {plural(size, 'design')} ({plural(chunks, 'chunk')}, the "
-             f"solver on the chunk's {solved} right after the model's chunk)" if interleaved else
-             f"not alternating: the model's one batch of {designs} designs, then the solver on its {solved}")
-    return {"how": f"{order}, in one process, the model on {device} with {plural(threads, 'torch thread')}",
-            "interleaved": interleaved, "batch": batch, "chunks": chunks, "device": device, "threads": threads}
+    order = (
+        f"model and solver alternating per chunk of {plural(size, 'design')} ({plural(chunks, 'chunk')}, the "
+        f"solver on the chunk's {solved} right after the model's chunk)"
+        if interleaved
+        else f"not alternating: the model's one batch of {designs} designs, then the solver on its {solved}"
+    )
+    return {
+        "how": f"{order}, in one process, the model on {device} with {plural(threads, 'torch thread')}",
+        "interleaved": interleaved,
+        "batch": batch,
+        "chunks": chunks,
+        "device": device,
+        "threads": threads,
+    }

@@ -18,6 +18,7 @@ Choices where the paper is silent: Deforming Plate's obstacle velocity input fol
 next-step displacement, zero elsewhere); Deformable Plate's collider is prescribed as in GGNS, and per Table 9 gets no
 velocity input; inputs of the Impact Plate's density and modulus are taken per node from the dataset.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
@@ -37,6 +38,7 @@ from hcmt.models import REGISTRY, Simulator, build_model
 @dataclass(frozen=True, kw_only=True)
 class Adapter:
     """One dataset's row of Table 9 and its boundary conditions; built with keywords (:data:`ADAPTERS`)."""
+
     name: str
     dim: int  # world dimension d
     mesh_dim: int  # mesh-space dimension (2 for cloth in 3-D)
@@ -71,29 +73,72 @@ class Adapter:
         return {"node_in": self.node_in(d), "mesh_in": mesh_in, "contact_in": d + 1, "out": self.out(d)}
 
 
-
 def _pairs(*names: tuple[str, str]) -> tuple[tuple[int, int], ...]:
     return tuple((int(NodeType[a]), int(NodeType[b])) for a, b in names)
 
 
-ADAPTERS = {a.name: a for a in (
-    Adapter(name="impact_plate", dim=2, mesh_dim=2, node_fields=("density", "modulus"), velocity_input=True,
-            obstacle_velocity_input=False, stress_output=True, order=1, prescribed=(), self_contact=False,
+ADAPTERS = {
+    a.name: a
+    for a in (
+        Adapter(
+            name="impact_plate",
+            dim=2,
+            mesh_dim=2,
+            node_fields=("density", "modulus"),
+            velocity_input=True,
+            obstacle_velocity_input=False,
+            stress_output=True,
+            order=1,
+            prescribed=(),
+            self_contact=False,
             # ball <-> plate between different objects. The official code links OBSTACLE -> NORMAL only; here
             # SYMMETRIC nodes (on both bodies' symmetry line) take part too, so the contact at x = 0 -- where the
             # ball first touches -- is seen (hcmt's choice)
-            contact_types=_pairs(("OBSTACLE", "NORMAL"), ("OBSTACLE", "SYMMETRIC"), ("SYMMETRIC", "NORMAL"),
-                                 ("SYMMETRIC", "SYMMETRIC"))),
-    Adapter(name="deforming_plate", dim=3, mesh_dim=3, node_fields=(), velocity_input=False,
-            obstacle_velocity_input=True, stress_output=True, order=1, prescribed=(int(NodeType.OBSTACLE),),
-            self_contact=False, contact_types=None),
-    Adapter(name="sphere_simple", dim=3, mesh_dim=2, node_fields=(), velocity_input=True,
-            obstacle_velocity_input=False, stress_output=False, order=2, prescribed=(), self_contact=True,
-            contact_types=None),
-    Adapter(name="deformable_plate", dim=2, mesh_dim=2, node_fields=("poisson_ratio",), velocity_input=False,
-            obstacle_velocity_input=False, stress_output=False, order=1, prescribed=(int(NodeType.OBSTACLE),),
-            self_contact=False, contact_types=None),
-)}
+            contact_types=_pairs(
+                ("OBSTACLE", "NORMAL"), ("OBSTACLE", "SYMMETRIC"), ("SYMMETRIC", "NORMAL"), ("SYMMETRIC", "SYMMETRIC")
+            ),
+        ),
+        Adapter(
+            name="deforming_plate",
+            dim=3,
+            mesh_dim=3,
+            node_fields=(),
+            velocity_input=False,
+            obstacle_velocity_input=True,
+            stress_output=True,
+            order=1,
+            prescribed=(int(NodeType.OBSTACLE),),
+            self_contact=False,
+            contact_types=None,
+        ),
+        Adapter(
+            name="sphere_simple",
+            dim=3,
+            mesh_dim=2,
+            node_fields=(),
+            velocity_input=True,
+            obstacle_velocity_input=False,
+            stress_output=False,
+            order=2,
+            prescribed=(),
+            self_contact=True,
+            contact_types=None,
+        ),
+        Adapter(
+            name="deformable_plate",
+            dim=2,
+            mesh_dim=2,
+            node_fields=("poisson_ratio",),
+            velocity_input=False,
+            obstacle_velocity_input=False,
+            stress_output=False,
+            order=1,
+            prescribed=(int(NodeType.OBSTACLE),),
+            self_contact=False,
+            contact_types=None,
+        ),
+    )
+}
 
 
 # ``train.contact_pairs``: which node types may form contact edges, for every model alike.
@@ -107,8 +152,9 @@ def get_adapter(name: str, contact_pairs: str = "all") -> Adapter:
     if name not in ADAPTERS:
         raise InputError(f"unknown dataset adapter {name!r}; expected one of {', '.join(ADAPTERS)}")
     if contact_pairs not in CONTACT_PAIRS:
-        raise InputError(f"train.contact_pairs: unknown value {contact_pairs!r}; expected one of "
-                         f"{', '.join(CONTACT_PAIRS)}")
+        raise InputError(
+            f"train.contact_pairs: unknown value {contact_pairs!r}; expected one of {', '.join(CONTACT_PAIRS)}"
+        )
     adapter = ADAPTERS[name]
     if CONTACT_PAIRS[contact_pairs] is not None:
         adapter = replace(adapter, contact_types=CONTACT_PAIRS[contact_pairs])
@@ -135,8 +181,10 @@ def config_adapter(cfg: Config) -> Adapter:
     adapter = replace(get_adapter(cfg.dataset, cfg.train.contact_pairs), stress_field=cfg.data.stress_field)
     if mc.deformation:
         if adapter.mesh_dim != adapter.dim:
-            raise InputError(f"model.deformation: {adapter.name} has a {adapter.mesh_dim}-D mesh space in a "
-                             f"{adapter.dim}-D world; edge deformation needs both of one dimension")
+            raise InputError(
+                f"model.deformation: {adapter.name} has a {adapter.mesh_dim}-D mesh space in a "
+                f"{adapter.dim}-D world; edge deformation needs both of one dimension"
+            )
         adapter = replace(adapter, deformation=True)
     if mc.target is None:
         return adapter
@@ -172,8 +220,9 @@ def output_mask(adapter: Adapter, node_type: Tensor, dim: int) -> Tensor:
     return mask
 
 
-def node_features(adapter: Adapter, static: dict[str, Tensor], pos: Tensor, prev: Tensor | None,
-                  next_prescribed: Tensor | None) -> Tensor:
+def node_features(
+    adapter: Adapter, static: dict[str, Tensor], pos: Tensor, prev: Tensor | None, next_prescribed: Tensor | None
+) -> Tensor:
     """Raw node inputs f_i [N, node_in] (Table 9)."""
     nt = static["node_type"].reshape(-1)
     parts = [torch.nn.functional.one_hot(nt.long(), NODE_TYPE_SIZE).to(pos.dtype)]
@@ -195,8 +244,9 @@ def target(adapter: Adapter, pos: Tensor, prev: Tensor, nxt: Tensor, stress_next
     return kin
 
 
-def integrate(adapter: Adapter, output: Tensor, pos: Tensor, prev: Tensor, true_next: Tensor,
-              node_type: Tensor) -> tuple[Tensor, Tensor | None]:
+def integrate(
+    adapter: Adapter, output: Tensor, pos: Tensor, prev: Tensor, true_next: Tensor, node_type: Tensor
+) -> tuple[Tensor, Tensor | None]:
     """The updater plus boundary conditions: physical output -> (x^{t+1}, σ^{t+1} or None).
 
     Positions set by boundary conditions are copied from ``true_next`` (the data's next frame)."""
@@ -222,9 +272,11 @@ def exclude_trajectories(names: list[str], excluded: list[int] | None) -> np.nda
     excluded = [int(i) for i in excluded or []]
     bad = [i for i in excluded if not 0 <= i < len(names)]
     if bad:
-        raise InputError(f"data.exclude_trajectories {bad}: out of range for a split of {len(names)} trajectories "
-                         "(the deforming_plate configs leave out the public data's bad trajectories 173 and 233; "
-                         "for other data set data.exclude_trajectories=[])")
+        raise InputError(
+            f"data.exclude_trajectories {bad}: out of range for a split of {len(names)} trajectories "
+            "(the deforming_plate configs leave out the public data's bad trajectories 173 and 233; "
+            "for other data set data.exclude_trajectories=[])"
+        )
     keep = np.ones(len(names), bool)
     keep[excluded] = False
     return np.flatnonzero(keep)
@@ -238,8 +290,10 @@ def model_args(cfg: Config, model_name: str, meta: dict) -> dict:
     if cfg.model.ablation and "ablation" not in REGISTRY[model_name].settings:
         raise InputError(f"model.ablation {cfg.model.ablation}: an ablation of HCMT; model {model_name} has none")
     if not cfg.data.remesh and not REGISTRY[model_name].needs_hierarchy:
-        raise InputError(f"data.remesh false: it changes the coarse levels of HCMT's hierarchy; model {model_name} "
-                         "has no hierarchy (leave data.remesh at true)")
+        raise InputError(
+            f"data.remesh false: it changes the coarse levels of HCMT's hierarchy; model {model_name} "
+            "has no hierarchy (leave data.remesh at true)"
+        )
     return {"name": model_name, **widths, **{k: getattr(cfg.model, k) for k in REGISTRY[model_name].settings}}
 
 
@@ -254,9 +308,18 @@ def dataset_spec(name: str) -> dict:
         raise InputError(f"unknown dataset {name!r}; expected one of {', '.join(DATASET_NAMES)}")
     cfg, adapter = load_config(key), get_adapter(key)
     m, t = cfg.model, cfg.train
-    return dict(L_C=m.L_C, levels=m.levels, L_H=2 * m.levels + 1, noise_std=t.noise_std,
-                radius=t.contact_radius, training_steps=t.steps, dim=adapter.dim, mesh_dim=adapter.mesh_dim,
-                integration=adapter.order, **adapter.widths())
+    return dict(
+        L_C=m.L_C,
+        levels=m.levels,
+        L_H=2 * m.levels + 1,
+        noise_std=t.noise_std,
+        radius=t.contact_radius,
+        training_steps=t.steps,
+        dim=adapter.dim,
+        mesh_dim=adapter.mesh_dim,
+        integration=adapter.order,
+        **adapter.widths(),
+    )
 
 
 def build_for_dataset(name: str, dataset: str, **overrides) -> Simulator:

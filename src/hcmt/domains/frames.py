@@ -12,6 +12,7 @@ loss mask, for training, rollout and attention maps alike.
 
 The training frames of a split as a ``Dataset`` are :class:`hcmt.training.dataset.FrameDataset`.
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -30,8 +31,15 @@ def input_graph(traj: Trajectory, pos: Tensor, prev: Tensor, next_prescribed: Te
     return build_graph(traj, pos, feats, radius)
 
 
-def training_sample(traj: Trajectory, t: int, noise: Tensor, gamma: float, radius: float, drift: Tensor | None = None,
-                    prev: Tensor | None = None) -> tuple[Graph, Tensor, Tensor]:
+def training_sample(
+    traj: Trajectory,
+    t: int,
+    noise: Tensor,
+    gamma: float,
+    radius: float,
+    drift: Tensor | None = None,
+    prev: Tensor | None = None,
+) -> tuple[Graph, Tensor, Tensor]:
     """``(graph, target [N, out], loss mask [N, out])`` of frame ``t`` with ``noise`` ``[N, d]`` added to ``x^t``.
 
     ``drift`` (pushforward) is a further offset of ``x^t`` that the target corrects entirely, ``prev`` replaces the
@@ -49,8 +57,9 @@ def training_sample(traj: Trajectory, t: int, noise: Tensor, gamma: float, radiu
 
 
 @torch.no_grad()
-def pushforward_sample(model, traj: Trajectory, t: int, noise: Tensor, prev_noise: Tensor, gamma: float,
-                       radius: float, forward=None) -> tuple[Graph, Tensor, Tensor]:
+def pushforward_sample(
+    model, traj: Trajectory, t: int, noise: Tensor, prev_noise: Tensor, gamma: float, radius: float, forward=None
+) -> tuple[Graph, Tensor, Tensor]:
     """:func:`training_sample` of frame ``t`` (``t − 1 >= history``) whose ``x^t`` is the model's prediction from
     frame ``t − 1`` with ``prev_noise``, plus ``noise``; ``x^{t−1}`` is that noised input (as in a rollout). The
     prediction carries no gradient; boundary-condition nodes take the data's values. ``forward`` (``graph ->``

@@ -8,6 +8,7 @@ positions of every frame (the history frames and the positions boundary conditio
 concatenated positions ``[N, d]``: node features and integration are node-local, so they run on concatenated
 tensors as they are.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -25,6 +26,7 @@ from hcmt.graph.build import MergedStatic, merge_static, merged_graph
 @dataclass
 class FrameBatch:
     """Trajectories rolled out together, merged on one device (:func:`frame_batch`)."""
+
     adapter: Adapter  # the trajectories' own: node inputs and contact rules (:func:`batch_input`)
     names: list[str]
     sizes: list[int]  # nodes of each trajectory
@@ -57,16 +59,27 @@ def frame_batch(trajs: list[Trajectory], frames: int, device) -> FrameBatch:
     keys = ["node_type", "mesh_pos", *adapter.node_fields]
     static = {k: torch.cat([tr.static[k] for tr in trajs]).to(device) for k in keys}
     world = torch.cat([frames_of(tr.world_pos, frames) for tr in trajs], dim=1).to(device)
-    graph = merge_static([tr.hierarchy for tr in trajs], [tr.static["mesh_pos"] for tr in trajs],
-                         [tr.static["node_type"] for tr in trajs], device, world.dtype, adapter.self_contact)
+    graph = merge_static(
+        [tr.hierarchy for tr in trajs],
+        [tr.static["mesh_pos"] for tr in trajs],
+        [tr.static["node_type"] for tr in trajs],
+        device,
+        world.dtype,
+        adapter.self_contact,
+    )
     has = [tr.stress is not None for tr in trajs]
     stress = None
     if any(has):
-        parts = [frames_of(tr.stress, frames) if tr.stress is not None
-                 else torch.zeros((frames, tr.num_nodes, 1), dtype=world.dtype) for tr in trajs]
+        parts = [
+            frames_of(tr.stress, frames)
+            if tr.stress is not None
+            else torch.zeros((frames, tr.num_nodes, 1), dtype=world.dtype)
+            for tr in trajs
+        ]
         stress = torch.cat(parts, dim=1).to(device)
-    return FrameBatch(adapter, [tr.name for tr in trajs], [tr.num_nodes for tr in trajs], static, graph, world,
-                      stress, has)
+    return FrameBatch(
+        adapter, [tr.name for tr in trajs], [tr.num_nodes for tr in trajs], static, graph, world, stress, has
+    )
 
 
 def batch_input(fb: FrameBatch, pos: Tensor, prev: Tensor, next_prescribed: Tensor, radius: float) -> Graph:
@@ -74,5 +87,6 @@ def batch_input(fb: FrameBatch, pos: Tensor, prev: Tensor, next_prescribed: Tens
     ``next_prescribed``: the data's ``x^{t+1}``), collated: :func:`hcmt.domains.frames.input_graph` of each."""
     a = fb.adapter
     feats = node_features(a, fb.static, pos, prev, next_prescribed)
-    return merged_graph(fb.graph, feats, pos, radius, a.self_contact, type_pairs=a.contact_types,
-                        deformation=a.deformation)
+    return merged_graph(
+        fb.graph, feats, pos, radius, a.self_contact, type_pairs=a.contact_types, deformation=a.deformation
+    )

@@ -6,6 +6,7 @@ it holds the split's index (names, frame and node counts, from the file's shapes
 of a few trajectories (an LRU; hierarchies memoized on disk) and reads the frames an item needs per item
 (:class:`FrameWindow`), so a process's memory does not grow with the split.
 """
+
 from __future__ import annotations
 
 import os
@@ -62,31 +63,59 @@ class Trajectory:
         return int(self.world_pos.shape[1])
 
 
-def prepare_static(fields: dict, adapter: Adapter, levels: int, remesh: bool = True,
-                   cache_dir: str | Path | None = None, memory: bool = True) -> tuple[dict[str, Tensor], Hierarchy]:
+def prepare_static(
+    fields: dict,
+    adapter: Adapter,
+    levels: int,
+    remesh: bool = True,
+    cache_dir: str | Path | None = None,
+    memory: bool = True,
+) -> tuple[dict[str, Tensor], Hierarchy]:
     """The static tensors of one trajectory (node_type, mesh_pos, the adapter's node fields) and its
     ``levels``-level hierarchy (:func:`cached_hierarchy`; ``memory=False`` leaves it out of the in-process memo)."""
     node_type = np.asarray(fields["node_type"]).reshape(-1).astype(np.int64)
     n = node_type.shape[0]
-    static = {"node_type": torch.from_numpy(node_type),
-              "mesh_pos": torch.from_numpy(np.asarray(fields["mesh_pos"], np.float32))}
+    static = {
+        "node_type": torch.from_numpy(node_type),
+        "mesh_pos": torch.from_numpy(np.asarray(fields["mesh_pos"], np.float32)),
+    }
     for key in adapter.node_fields:
         static[key] = torch.from_numpy(np.asarray(fields[key], np.float32).reshape(n, -1))
-    hierarchy = cached_hierarchy(np.asarray(fields["mesh_pos"]), np.asarray(fields["cells"]), node_type, levels,
-                                 remesh=remesh, cache_dir=cache_dir, memory=memory)
+    hierarchy = cached_hierarchy(
+        np.asarray(fields["mesh_pos"]),
+        np.asarray(fields["cells"]),
+        node_type,
+        levels,
+        remesh=remesh,
+        cache_dir=cache_dir,
+        memory=memory,
+    )
     return static, hierarchy
 
 
-def prepare_trajectory(fields: dict, name: str, adapter: Adapter, levels: int, remesh: bool = True,
-                       cache_dir: str | Path | None = None, attrs: dict | None = None) -> Trajectory:
+def prepare_trajectory(
+    fields: dict,
+    name: str,
+    adapter: Adapter,
+    levels: int,
+    remesh: bool = True,
+    cache_dir: str | Path | None = None,
+    attrs: dict | None = None,
+) -> Trajectory:
     """Tensors of one trajectory plus its ``levels``-level hierarchy (0: the mesh alone)."""
     static, hierarchy = prepare_static(fields, adapter, levels, remesh, cache_dir)
     return Trajectory(
-        name=name, static=static,
+        name=name,
+        static=static,
         world_pos=torch.from_numpy(np.asarray(fields["world_pos"], np.float32)),
-        stress=(torch.from_numpy(np.asarray(fields[adapter.stress_field], np.float32))
-                if adapter.stress_field in fields else None),
-        hierarchy=hierarchy, adapter=adapter, attrs=dict(attrs or {}),
+        stress=(
+            torch.from_numpy(np.asarray(fields[adapter.stress_field], np.float32))
+            if adapter.stress_field in fields
+            else None
+        ),
+        hierarchy=hierarchy,
+        adapter=adapter,
+        attrs=dict(attrs or {}),
     )
 
 
@@ -96,11 +125,18 @@ def check_split(s: Split, adapter: Adapter) -> None:
     needed += [adapter.stress_field] if adapter.stress_output else []
     missing = [f for f in needed if f not in s.meta["features"]]
     if missing:
-        raise DatasetError(f"the {adapter.name} adapter (the config's `dataset`) needs fields {missing} that this "
-                           f"dataset lacks; it has {s.meta['field_names']}", file=s.path, field=missing[0])
+        raise DatasetError(
+            f"the {adapter.name} adapter (the config's `dataset`) needs fields {missing} that this "
+            f"dataset lacks; it has {s.meta['field_names']}",
+            file=s.path,
+            field=missing[0],
+        )
     if s.meta["trajectory_length"] and int(s.meta["trajectory_length"]) < adapter.history + 2:
-        raise DatasetError(f"trajectories of {s.meta['trajectory_length']} frames are too short: training and "
-                           f"rollout need at least {adapter.history + 2}", file=s.path)
+        raise DatasetError(
+            f"trajectories of {s.meta['trajectory_length']} frames are too short: training and "
+            f"rollout need at least {adapter.history + 2}",
+            file=s.path,
+        )
 
 
 def split_indices(s: Split, exclude: list[int] | None, limit: int | None = None) -> np.ndarray:
@@ -113,8 +149,15 @@ def split_indices(s: Split, exclude: list[int] | None, limit: int | None = None)
     return idx
 
 
-def load_split(dataset: str | Path, split: str, adapter: Adapter, levels: int, remesh: bool = True,
-               limit: int | None = None, exclude: list[int] | None = None) -> list[Trajectory]:
+def load_split(
+    dataset: str | Path,
+    split: str,
+    adapter: Adapter,
+    levels: int,
+    remesh: bool = True,
+    limit: int | None = None,
+    exclude: list[int] | None = None,
+) -> list[Trajectory]:
     """Every (or the first ``limit``) trajectory of a split, prepared. The hierarchy cache lives beside the data."""
     cache = hierarchy_cache_dir(dataset)
     with Split(dataset, split) as s:
@@ -132,8 +175,16 @@ class SplitReader:
     file is opened lazily in each process (a ``DataLoader`` worker, a DDP rank) and never pickled.
     """
 
-    def __init__(self, dataset: str | Path, split: str, adapter: Adapter, levels: int, remesh: bool = True,
-                 exclude: list[int] | None = None, keep: int = 4):
+    def __init__(
+        self,
+        dataset: str | Path,
+        split: str,
+        adapter: Adapter,
+        levels: int,
+        remesh: bool = True,
+        exclude: list[int] | None = None,
+        keep: int = 4,
+    ):
         self.dataset, self.split, self.adapter = Path(dataset), split, adapter
         self.levels, self.remesh, self.keep = levels, remesh, max(int(keep), 1)
         with Split(dataset, split) as s:
@@ -168,8 +219,9 @@ class SplitReader:
         s = self._file()
         i = int(self.index[ti])
         fields = s.read(i, ["mesh_pos", "cells", "node_type", *self.adapter.node_fields], num_nodes=int(self.nodes[ti]))
-        static, hierarchy = prepare_static(fields, self.adapter, self.levels, self.remesh,
-                                           hierarchy_cache_dir(self.dataset), memory=False)
+        static, hierarchy = prepare_static(
+            fields, self.adapter, self.levels, self.remesh, hierarchy_cache_dir(self.dataset), memory=False
+        )
         empty = FrameWindow(torch.zeros((0, int(self.nodes[ti]), 0)), 0, int(self.steps[ti]))
         # no attributes: training reads none, and 30 HDF5 attributes cost more than the item (trajectory() reads them)
         tr = Trajectory(self.names[ti], static, empty, empty if self.stress_field else None, hierarchy, self.adapter)
@@ -184,10 +236,18 @@ class SplitReader:
         lo, hi = max(int(lo), 0), min(int(hi), int(self.steps[ti]))
         names = ["world_pos"] + ([self.stress_field] if self.stress_field else [])
         got = self._file().read(int(self.index[ti]), names, slice(lo, hi))
-        frames = {k: FrameWindow(torch.from_numpy(np.asarray(v, np.float32)), lo, int(self.steps[ti]))
-                  for k, v in got.items()}
-        return Trajectory(base.name, base.static, frames["world_pos"], frames.get(self.stress_field), base.hierarchy,
-                          self.adapter, base.attrs)
+        frames = {
+            k: FrameWindow(torch.from_numpy(np.asarray(v, np.float32)), lo, int(self.steps[ti])) for k, v in got.items()
+        }
+        return Trajectory(
+            base.name,
+            base.static,
+            frames["world_pos"],
+            frames.get(self.stress_field),
+            base.hierarchy,
+            self.adapter,
+            base.attrs,
+        )
 
     def close(self) -> None:
         """Close this process's file handle and drop the LRU (the next read opens the file again)."""
@@ -198,13 +258,28 @@ class SplitReader:
     def trajectory(self, ti: int) -> Trajectory:
         """Trajectory ``ti`` with all its frames (as :func:`load_split` gives it)."""
         tr = self.window(ti, 0, int(self.steps[ti]))
-        return Trajectory(tr.name, tr.static, tr.world_pos.data, tr.stress.data if tr.stress is not None else None,
-                          tr.hierarchy, self.adapter, self._file().attrs(int(self.index[ti])))
+        return Trajectory(
+            tr.name,
+            tr.static,
+            tr.world_pos.data,
+            tr.stress.data if tr.stress is not None else None,
+            tr.hierarchy,
+            self.adapter,
+            self._file().attrs(int(self.index[ti])),
+        )
 
 
 def build_graph(traj: Trajectory, pos: Tensor, node_feats: Tensor, radius: float) -> Graph:
     """The model input for one frame at world positions ``pos`` [N, d] (contact edges found anew)."""
     a = traj.adapter
-    return frame_graph(node_feats, traj.static["mesh_pos"], pos.detach() if pos.requires_grad else pos,
-                       traj.hierarchy, radius, a.self_contact, node_type=traj.static["node_type"],
-                       type_pairs=a.contact_types, deformation=a.deformation)
+    return frame_graph(
+        node_feats,
+        traj.static["mesh_pos"],
+        pos.detach() if pos.requires_grad else pos,
+        traj.hierarchy,
+        radius,
+        a.self_contact,
+        node_type=traj.static["node_type"],
+        type_pairs=a.contact_types,
+        deformation=a.deformation,
+    )

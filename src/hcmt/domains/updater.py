@@ -9,6 +9,7 @@ r"""The updater (paper "Decoder and Updater"): integrate the decoded, un-normali
 The kinematic quantity is the first ``dim`` channels of the output; further channels (stress) are returned as
 they are.
 """
+
 from __future__ import annotations
 
 from torch import Tensor
@@ -16,13 +17,16 @@ from torch import Tensor
 from hcmt.errors import InputError
 
 
-def update_positions(output: Tensor, position: Tensor, previous_position: Tensor | None = None, *,
-                     order: int = 1) -> tuple[Tensor, Tensor]:
+def update_positions(
+    output: Tensor, position: Tensor, previous_position: Tensor | None = None, *, order: int = 1
+) -> tuple[Tensor, Tensor]:
     """``(next_position [N, dim], remaining output channels [N, out - dim])`` from an un-normalized output."""
     dim = position.shape[-1]
     if output.shape[-1] < dim or output.shape[:-1] != position.shape[:-1]:
-        raise InputError(f"output {tuple(output.shape)} must start with {dim} kinematic channels for positions "
-                         f"{tuple(position.shape)}")
+        raise InputError(
+            f"output {tuple(output.shape)} must start with {dim} kinematic channels for positions "
+            f"{tuple(position.shape)}"
+        )
     kin, rest = output[..., :dim], output[..., dim:]
     if order == 1:
         return position + kin, rest

@@ -15,6 +15,7 @@ Conventions shared by every model and every graph builder:
   padding; ``node_mask``, ``mesh_mask``, ``contact_mask`` and ``level_masks`` (1 real, 0 dummy) keep the dummy rows
   out of the normalizers' statistics and the loss.
 """
+
 from __future__ import annotations
 
 import math
@@ -85,9 +86,7 @@ def collate(graphs: list[Graph]) -> Graph:
         mesh_features=torch.cat([g.mesh_features for g in graphs]),
         contact_edges=cat_edges(lambda g: g.contact_edges, 0),
         contact_features=torch.cat([g.contact_features for g in graphs]),
-        pool=[
-            torch.cat([g.pool[l] + int(offsets[b, l]) for b, g in enumerate(graphs)]) for l in range(num_levels)
-        ],
+        pool=[torch.cat([g.pool[l] + int(offsets[b, l]) for b, g in enumerate(graphs)]) for l in range(num_levels)],
         level_edges=[cat_edges(lambda g, l=l: g.level_edges[l], l + 1) for l in range(num_levels)],
         level_features=[torch.cat([g.level_features[l] for g in graphs]) for l in range(num_levels)],
         batch=torch.cat([torch.full((g.num_nodes,), b, dtype=torch.long) for b, g in enumerate(graphs)]),
@@ -111,6 +110,7 @@ def bucket(n: int, smallest: int = 64) -> int:
 class PadSizes:
     """Static sizes a padded graph is brought to: nodes and mesh edges of level 0, ``levels[l] = (nodes, edges)``
     of level ``l+1``; contact edges, which change every frame, go to :func:`bucket` sizes."""
+
     nodes: int
     mesh: int
     levels: tuple[tuple[int, int], ...] = ()
@@ -118,9 +118,17 @@ class PadSizes:
     @staticmethod
     def of(graphs: list[Graph], batch: int = 1) -> "PadSizes":
         """Sizes that hold a batch of ``batch`` of the largest of ``graphs``."""
-        return PadSizes.fit([(g.num_nodes, int(g.mesh_edges.shape[1]),
-                              [(int(p.shape[0]), int(e.shape[1])) for p, e in zip(g.pool, g.level_edges)])
-                             for g in graphs], batch)
+        return PadSizes.fit(
+            [
+                (
+                    g.num_nodes,
+                    int(g.mesh_edges.shape[1]),
+                    [(int(p.shape[0]), int(e.shape[1])) for p, e in zip(g.pool, g.level_edges)],
+                )
+                for g in graphs
+            ],
+            batch,
+        )
 
     @staticmethod
     def fit(counts: list[tuple[int, int, list[tuple[int, int]]]], batch: int = 1) -> "PadSizes":
@@ -128,10 +136,14 @@ class PadSizes:
         mesh edges, [(level nodes, level edges), ...])`` (each size its own maximum), with one dummy node per level
         to spare, rounded up to :func:`bucket` sizes so that batches of other meshes (other designs, the last
         smaller batch of a rollout) mostly land on shapes already compiled."""
+
         def most(values):
             return bucket(batch * max(values) + 1)
-        levels = tuple((most([c[2][l][0] for c in counts]), most([c[2][l][1] for c in counts]))
-                       for l in range(min(len(c[2]) for c in counts)))
+
+        levels = tuple(
+            (most([c[2][l][0] for c in counts]), most([c[2][l][1] for c in counts]))
+            for l in range(min(len(c[2]) for c in counts))
+        )
         return PadSizes(most([c[0] for c in counts]), most([c[1] for c in counts]), levels)
 
 
@@ -175,8 +187,25 @@ def pad_graph(g: Graph, sizes: PadSizes) -> Graph:
         f, m = pad_rows(g.level_features[l], e_pad, f"level {l + 1} edges")
         level_features.append(f)
         level_masks.append(m)
-    batch = None if g.batch is None else torch.cat(
-        [g.batch, g.batch.new_full((sizes.nodes - g.num_nodes,), int(g.batch.max()) + 1 if g.num_nodes else 0)])
-    return Graph(node_features, edges(g.mesh_edges, sizes.mesh, g.num_nodes, "mesh edges"), mesh_features,
-                 edges(g.contact_edges, c, g.num_nodes, "contact edges"), contact_features, pool, level_edges,
-                 level_features, batch, node_mask, mesh_mask, contact_mask, level_masks)
+    batch = (
+        None
+        if g.batch is None
+        else torch.cat(
+            [g.batch, g.batch.new_full((sizes.nodes - g.num_nodes,), int(g.batch.max()) + 1 if g.num_nodes else 0)]
+        )
+    )
+    return Graph(
+        node_features,
+        edges(g.mesh_edges, sizes.mesh, g.num_nodes, "mesh edges"),
+        mesh_features,
+        edges(g.contact_edges, c, g.num_nodes, "contact edges"),
+        contact_features,
+        pool,
+        level_edges,
+        level_features,
+        batch,
+        node_mask,
+        mesh_mask,
+        contact_mask,
+        level_masks,
+    )

@@ -13,6 +13,7 @@ designs before, objects kept apart, a ``batch`` vector), and :func:`merged_graph
 designs at once from their concatenated positions, on their device: the graph :func:`~hcmt.graph.batch.collate`
 makes of the designs' :func:`frame_graph` graphs (tests/inference/test_rollout_engine.py).
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -35,20 +36,34 @@ def hierarchy_tensors(hierarchy: Hierarchy, device) -> dict:
     key = str(torch.device(device))
     cached = hierarchy._tensors.get(key)
     if cached is None:
-        cached = {name: [torch.as_tensor(a, dtype=torch.long).to(device) for a in getattr(hierarchy, name)]
-                  for name in ("pool", "edges", "nodes")}
+        cached = {
+            name: [torch.as_tensor(a, dtype=torch.long).to(device) for a in getattr(hierarchy, name)]
+            for name in ("pool", "edges", "nodes")
+        }
         cached["object_id"] = torch.as_tensor(hierarchy.object_id, dtype=torch.long).to(device)
         # every level's edges in level-0 node numbers: features gather level-0 positions directly
-        cached["edges_level0"] = [torch.as_tensor(n[e], dtype=torch.long).to(device)
-                                  for n, e in zip(hierarchy.nodes, hierarchy.edges)]
+        cached["edges_level0"] = [
+            torch.as_tensor(n[e], dtype=torch.long).to(device) for n, e in zip(hierarchy.nodes, hierarchy.edges)
+        ]
         hierarchy._tensors[key] = cached
     return cached
 
 
-def frame_graph(node_features: Tensor, mesh_pos: Tensor, world_pos: Tensor, hierarchy: Hierarchy, radius: float,
-                self_contact: bool = False, *, node_type: Tensor | None = None,
-                type_pairs: Iterable[tuple[int, int]] | None = None, self_contact_hops: int = 3,
-                exclude: Tensor | None = None, contact_method: str = "auto", deformation: bool = False) -> Graph:
+def frame_graph(
+    node_features: Tensor,
+    mesh_pos: Tensor,
+    world_pos: Tensor,
+    hierarchy: Hierarchy,
+    radius: float,
+    self_contact: bool = False,
+    *,
+    node_type: Tensor | None = None,
+    type_pairs: Iterable[tuple[int, int]] | None = None,
+    self_contact_hops: int = 3,
+    exclude: Tensor | None = None,
+    contact_method: str = "auto",
+    deformation: bool = False,
+) -> Graph:
     """The graph of one frame: the hierarchy's mesh edges and objects, contact edges found at ``world_pos``.
 
     ``node_features`` ``[N, F]`` (raw), ``mesh_pos`` ``[N, d_mesh]``, ``world_pos`` ``[N, d_world]``;
@@ -64,11 +79,20 @@ def frame_graph(node_features: Tensor, mesh_pos: Tensor, world_pos: Tensor, hier
     if self_contact and exclude is None:
         key = f"near_{self_contact_hops}"
         if key not in h:  # static: computed once per hierarchy and device
-            h[key] = torch.from_numpy(near_pairs(hierarchy.edges[0], hierarchy.num_nodes(0),
-                                                 self_contact_hops)).to(device)
+            h[key] = torch.from_numpy(near_pairs(hierarchy.edges[0], hierarchy.num_nodes(0), self_contact_hops)).to(
+                device
+            )
         exclude = h[key]
-    contacts = contact_edges(world_pos, object_id, radius, node_type=node_type, type_pairs=type_pairs,
-                             self_contact=self_contact, exclude=exclude, method=contact_method)
+    contacts = contact_edges(
+        world_pos,
+        object_id,
+        radius,
+        node_type=node_type,
+        type_pairs=type_pairs,
+        self_contact=self_contact,
+        exclude=exclude,
+        method=contact_method,
+    )
     mesh_part = _mesh_space_features(h, mesh_pos)
     world_part = [relative(world_pos, e) for e in h["edges_level0"][1:]]
     mesh_features = _edge_features(mesh_part[0], relative(world_pos, mesh_edges), deformation)
@@ -113,6 +137,7 @@ def _mesh_space_features(h: dict, mesh_pos: Tensor) -> list[Tensor]:
 class MergedStatic:
     """What never changes along a rollout of a batch of designs, merged as :func:`~hcmt.graph.batch.collate` merges
     their graphs (level-``l`` indices offset by the level-``l`` nodes of the designs before), on one device."""
+
     sizes: list[int]  # level-0 nodes of each design
     batch: Tensor  # [N] the design of every node
     object_id: Tensor  # [N] objects, numbered apart across designs
@@ -127,13 +152,22 @@ class MergedStatic:
     def counts(self) -> tuple[int, int, list[tuple[int, int]]]:
         """``(nodes, mesh edges, [(level nodes, level edges), ...])`` of the merged graph, as
         :meth:`hcmt.graph.batch.PadSizes.fit` takes them."""
-        return (sum(self.sizes), int(self.mesh_edges.shape[1]),
-                [(int(p.shape[0]), int(e.shape[1])) for p, e in zip(self.pool, self.level_edges)])
+        return (
+            sum(self.sizes),
+            int(self.mesh_edges.shape[1]),
+            [(int(p.shape[0]), int(e.shape[1])) for p, e in zip(self.pool, self.level_edges)],
+        )
 
 
-def merge_static(hierarchies: list[Hierarchy], mesh_pos: list[Tensor], node_type: list[Tensor], device,
-                 dtype: torch.dtype = torch.float32, self_contact: bool = False,
-                 self_contact_hops: int = 3) -> MergedStatic:
+def merge_static(
+    hierarchies: list[Hierarchy],
+    mesh_pos: list[Tensor],
+    node_type: list[Tensor],
+    device,
+    dtype: torch.dtype = torch.float32,
+    self_contact: bool = False,
+    self_contact_hops: int = 3,
+) -> MergedStatic:
     """The static graph of several designs (their hierarchies, mesh positions ``[N_b, d_mesh]`` and node types),
     merged once on ``device``; mesh-space features in ``dtype`` (the world positions')."""
     levels = {h.levels for h in hierarchies}
@@ -148,8 +182,7 @@ def merge_static(hierarchies: list[Hierarchy], mesh_pos: list[Tensor], node_type
 
     objects = np.cumsum([0] + [int(h.object_id.max()) + 1 if len(h.object_id) else 0 for h in hierarchies])
     (lam,) = levels
-    edges0 = [cat([h.nodes[l][h.edges[l]] + offsets[b, 0] for b, h in enumerate(hierarchies)])
-              for l in range(lam + 1)]
+    edges0 = [cat([h.nodes[l][h.edges[l]] + offsets[b, 0] for b, h in enumerate(hierarchies)]) for l in range(lam + 1)]
     pos = torch.cat([m.to(dtype) for m in mesh_pos]).to(device)
     exclude = None
     if self_contact:  # each design's near pairs, keyed in the merged numbering
@@ -167,22 +200,48 @@ def merge_static(hierarchies: list[Hierarchy], mesh_pos: list[Tensor], node_type
         mesh_edges=edges0[0],
         pool=[cat([h.pool[l] + offsets[b, l] for b, h in enumerate(hierarchies)]) for l in range(lam)],
         level_edges=[cat([h.edges[l + 1] + offsets[b, l + 1] for b, h in enumerate(hierarchies)]) for l in range(lam)],
-        edges_level0=edges0, mesh_part=[relative(pos, e) for e in edges0], exclude=exclude)
+        edges_level0=edges0,
+        mesh_part=[relative(pos, e) for e in edges0],
+        exclude=exclude,
+    )
 
 
-def merged_graph(static: MergedStatic, node_features: Tensor, world_pos: Tensor, radius: float,
-                 self_contact: bool = False, *, type_pairs: Iterable[tuple[int, int]] | None = None,
-                 contact_method: str = "auto", deformation: bool = False) -> Graph:
+def merged_graph(
+    static: MergedStatic,
+    node_features: Tensor,
+    world_pos: Tensor,
+    radius: float,
+    self_contact: bool = False,
+    *,
+    type_pairs: Iterable[tuple[int, int]] | None = None,
+    contact_method: str = "auto",
+    deformation: bool = False,
+) -> Graph:
     """The graph of every design of ``static`` at their concatenated world positions ``[N, d]`` (node features
     ``[N, F]``): :func:`frame_graph` of each design, collated, in one pass on ``world_pos``'s device. Contact edges
     never join two designs (``batch``)."""
     several = len(static.sizes) > 1
-    contacts = contact_edges(world_pos, static.object_id, radius, node_type=static.node_type, type_pairs=type_pairs,
-                             self_contact=self_contact, exclude=static.exclude, method=contact_method,
-                             batch=static.batch if several else None)
+    contacts = contact_edges(
+        world_pos,
+        static.object_id,
+        radius,
+        node_type=static.node_type,
+        type_pairs=type_pairs,
+        self_contact=self_contact,
+        exclude=static.exclude,
+        method=contact_method,
+        batch=static.batch if several else None,
+    )
     world = [relative(world_pos, e) for e in static.edges_level0]
     features = [_edge_features(u, x, deformation) for u, x in zip(static.mesh_part, world)]
-    return Graph(node_features=node_features, mesh_edges=static.mesh_edges, mesh_features=features[0],
-                 contact_edges=contacts, contact_features=contact_edge_features(world_pos, contacts),
-                 pool=list(static.pool), level_edges=list(static.level_edges), level_features=features[1:],
-                 batch=static.batch)
+    return Graph(
+        node_features=node_features,
+        mesh_edges=static.mesh_edges,
+        mesh_features=features[0],
+        contact_edges=contacts,
+        contact_features=contact_edge_features(world_pos, contacts),
+        pool=list(static.pool),
+        level_edges=list(static.level_edges),
+        level_features=features[1:],
+        batch=static.batch,
+    )

@@ -20,6 +20,7 @@ torch for GPU tensors (``method="auto"`` picks by device). They give identical e
 in float64 there); on a GPU the final distance test runs in the tensors' dtype, so a pair within float32
 rounding of gamma may fall either way.
 """
+
 from __future__ import annotations
 
 from typing import Iterable
@@ -65,9 +66,18 @@ def near_pairs(edges: np.ndarray, num_nodes: int, hops: int) -> np.ndarray:
     return np.unique(reach.row[keep].astype(np.int64) * num_nodes + reach.col[keep])
 
 
-def contact_edges(world_pos, object_id, radius: float, *, node_type=None,
-                  type_pairs: Iterable[tuple[int, int]] | None = None, self_contact: bool = False,
-                  exclude=None, batch=None, method: str = "auto"):
+def contact_edges(
+    world_pos,
+    object_id,
+    radius: float,
+    *,
+    node_type=None,
+    type_pairs: Iterable[tuple[int, int]] | None = None,
+    self_contact: bool = False,
+    exclude=None,
+    batch=None,
+    method: str = "auto",
+):
     """Contact edges ``[2, C]`` (both directions) of all pairs ``|x_i - x_q| < radius`` allowed by the rules in
     the module docstring.
 
@@ -82,8 +92,10 @@ def contact_edges(world_pos, object_id, radius: float, *, node_type=None,
     if type_pairs is not None and node_type is None:
         raise InputError("type_pairs needs node_type")
     if self_contact and exclude is None:
-        raise InputError("self_contact=True needs exclude: the keys of the pairs close on the mesh "
-                         "(hcmt.graph.contact.near_pairs of the mesh edges), at least the mesh edges themselves")
+        raise InputError(
+            "self_contact=True needs exclude: the keys of the pairs close on the mesh "
+            "(hcmt.graph.contact.near_pairs of the mesh edges), at least the mesh edges themselves"
+        )
     is_torch = isinstance(world_pos, Tensor)
     device = world_pos.device if is_torch else None
     if method == "auto":
@@ -92,12 +104,16 @@ def contact_edges(world_pos, object_id, radius: float, *, node_type=None,
         raise InputError(f"method must be 'auto', 'kdtree' or 'dense', got {method!r}")
     allowed = _type_table(type_pairs)
     if method == "kdtree":
-        args = [None if a is None else (a.detach().cpu().numpy() if isinstance(a, Tensor) else np.asarray(a))
-                for a in (world_pos, object_id, node_type, exclude, batch)]
+        args = [
+            None if a is None else (a.detach().cpu().numpy() if isinstance(a, Tensor) else np.asarray(a))
+            for a in (world_pos, object_id, node_type, exclude, batch)
+        ]
         edges = _kdtree_contacts(*args[:3], radius, allowed, self_contact, args[3], args[4])
         return torch.from_numpy(edges).to(device) if is_torch else edges
-    args = [None if a is None else torch.as_tensor(a, device=device) for a in (world_pos, object_id, node_type,
-                                                                              exclude, batch)]
+    args = [
+        None if a is None else torch.as_tensor(a, device=device)
+        for a in (world_pos, object_id, node_type, exclude, batch)
+    ]
     edges = _dense_contacts(*args[:3], radius, allowed, self_contact, args[3], args[4])
     return edges if is_torch else edges.numpy()
 

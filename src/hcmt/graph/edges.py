@@ -11,6 +11,7 @@ receiver ``i`` (row 1). Relative vectors are **sender minus receiver**, as in th
 The order ``[u, |u|, x, |x|]`` follows the paper's Table 9 (the official code stores world first; the models only
 see normalized features, so the order matters only for consistency, which this module owns).
 """
+
 from __future__ import annotations
 
 from itertools import combinations

@@ -13,6 +13,7 @@ Pooling and unpooling (:func:`pool`, :func:`unpool`) -- the semantics the models
   nodes' rows **replaced** by the coarse features, as the official HCMT code (``tensor_scatter_nd_update``); the
   dropped nodes keep their saved features. ``unpool(pool(h, i), h, i)`` is ``h`` exactly.
 """
+
 from __future__ import annotations
 
 import hashlib
@@ -91,7 +92,7 @@ class Hierarchy:
         pos, shapes = 4, []
         for _ in range(count if count == 1 + n + 3 * (n + 1) else 0):
             ndim = int(flat[pos]) if pos < flat.shape[0] else -1
-            shapes.append(tuple(int(v) for v in flat[pos + 1:pos + 1 + max(ndim, 0)]))
+            shapes.append(tuple(int(v) for v in flat[pos + 1 : pos + 1 + max(ndim, 0)]))
             pos += 1 + ndim
             if ndim < 1 or len(shapes[-1]) != ndim or min(shapes[-1]) < 0:
                 shapes = []
@@ -101,10 +102,10 @@ class Hierarchy:
             raise InputError(f"{path}: a damaged hierarchy file (its header does not match its length)")
         arrays = []
         for shape, size in zip(shapes, sizes):
-            arrays.append(flat[pos:pos + size].reshape(shape))
+            arrays.append(flat[pos : pos + size].reshape(shape))
             pos += size
-        pool, rest = arrays[1:1 + n], arrays[1 + n:]
-        return cls(pool, rest[:n + 1], rest[n + 1:2 * n + 2], rest[2 * n + 2:], arrays[0], bool(remesh))
+        pool, rest = arrays[1 : 1 + n], arrays[1 + n :]
+        return cls(pool, rest[: n + 1], rest[n + 1 : 2 * n + 2], rest[2 * n + 2 :], arrays[0], bool(remesh))
 
 
 def pool(x, index):
@@ -146,8 +147,10 @@ def build_hierarchy(mesh_pos, cells, node_type=None, levels: int = 1, remesh: bo
         n = len(nodes[-1])
         kept = bistride_pool(edges[-1], n, pos[nodes[-1]])
         if len(kept) == n:
-            raise InputError(f"levels={levels} is more than this mesh can be pooled: at level {level} every object "
-                             f"is down to a single node ({n} nodes); use levels <= {level}")
+            raise InputError(
+                f"levels={levels} is more than this mesh can be pooled: at level {level} every object "
+                f"is down to a single node ({n} nodes); use levels <= {level}"
+            )
         coarse = nodes[-1][kept]
         if remesh:
             level_cells, pairs = _remesh_level(pos, coarse, obj, domains, edges[-1], n, kept, k)
@@ -214,8 +217,12 @@ def _warn_single(obj: np.ndarray, nodes: list[np.ndarray], levels: int) -> None:
         size = np.bincount(obj[idx], minlength=len(size0))
         single = np.flatnonzero((size == 1) & (size0 > 1))
         if len(single):
-            warnings.warn(f"object(s) {single[:5].tolist()} are a single node from level {level} on; levels "
-                          f"{level + 1}..{levels} cannot pool them further", MeshWarning, stacklevel=3)
+            warnings.warn(
+                f"object(s) {single[:5].tolist()} are a single node from level {level} on; levels "
+                f"{level + 1}..{levels} cannot pool them further",
+                MeshWarning,
+                stacklevel=3,
+            )
             return
 
 
@@ -238,8 +245,15 @@ def hierarchy_cache_dir(dataset_dir: str | os.PathLike) -> Path:
     return Path(dataset_dir) / ".cache" / "hierarchy"
 
 
-def cached_hierarchy(mesh_pos, cells, node_type=None, levels: int = 1, remesh: bool = True,
-                     cache_dir: str | os.PathLike | None = None, memory: bool = True) -> Hierarchy:
+def cached_hierarchy(
+    mesh_pos,
+    cells,
+    node_type=None,
+    levels: int = 1,
+    remesh: bool = True,
+    cache_dir: str | os.PathLike | None = None,
+    memory: bool = True,
+) -> Hierarchy:
     """:func:`build_hierarchy`, memoized in memory and (with ``cache_dir``) on disk as ``<key>.npy``.
 
     The key hashes the mesh and the settings, so a changed mesh or setting builds anew; an unreadable cache

@@ -13,6 +13,7 @@ level then halves: Impact Plate 2208 -> 1108 -> 559 -> 285 -> 148 -> 78 -> 42 in
 All components are searched at once: a virtual source node is joined to every seed and one unweighted
 shortest-path search (``scipy.sparse.csgraph.dijkstra``) from it gives each node's hop distance + 1.
 """
+
 from __future__ import annotations
 
 import numpy as np

@@ -14,6 +14,7 @@ Triangles may live in 2-D or 3-D space (surfaces). Degenerate cells (a repeated 
 NaN and are left out of the means of :func:`quality_summary`. :func:`check_mesh` validates a mesh before a
 hierarchy is built from it (:mod:`hcmt.graph.hierarchy`), warning of the defects it handles.
 """
+
 from __future__ import annotations
 
 import warnings
@@ -94,8 +95,12 @@ def quality_summary(pos: np.ndarray, cells: np.ndarray) -> dict[str, float]:
     ok = np.isfinite(sj) & np.isfinite(ang).all(1)
     if not ok.any():
         return dict(jacobian=float("nan"), min_angle=float("nan"), max_angle=float("nan"), cells=0)
-    return dict(jacobian=float(sj[ok].mean()), min_angle=float(ang[ok].min(1).mean()),
-                max_angle=float(ang[ok].max(1).mean()), cells=int(ok.sum()))
+    return dict(
+        jacobian=float(sj[ok].mean()),
+        min_angle=float(ang[ok].min(1).mean()),
+        max_angle=float(ang[ok].max(1).mean()),
+        cells=int(ok.sum()),
+    )
 
 
 # -- the mesh a hierarchy is built from: refused or warned defects ---------------------------------------------
@@ -122,13 +127,16 @@ def check_mesh(mesh_pos, cells, node_type=None, *, warn: bool = True) -> tuple[n
         raise DatasetError(f"node {bad} has a non-finite coordinate", field="mesh_pos")
     c = np.asarray(cells)
     if c.ndim != 2 or c.shape[1] not in (3, 4) or (c.size and not np.issubdtype(c.dtype, np.integer)):
-        raise DatasetError(f"shape {list(c.shape)} dtype {c.dtype}; expected integer [C, 3] triangles or "
-                           "[C, 4] tetrahedra", field="cells")
+        raise DatasetError(
+            f"shape {list(c.shape)} dtype {c.dtype}; expected integer [C, 3] triangles or [C, 4] tetrahedra",
+            field="cells",
+        )
     c = c.astype(np.int64)
     n = len(pos)
     if c.size and (c.min() < 0 or c.max() >= n):
-        raise DatasetError(f"cell index out of range [{int(c.min())}, {int(c.max())}]; the mesh has {n} nodes",
-                           field="cells")
+        raise DatasetError(
+            f"cell index out of range [{int(c.min())}, {int(c.max())}]; the mesh has {n} nodes", field="cells"
+        )
     if c.shape[1] - 1 > pos.shape[1]:
         raise DatasetError(f"{c.shape[1]}-vertex cells in a {pos.shape[1]}-D mesh space", field="cells")
     if node_type is not None:
@@ -157,11 +165,22 @@ def warn_defects(pos: np.ndarray, cells: np.ndarray, object_id: np.ndarray) -> N
         sign = np.sign(vol)
         majority = np.sign(np.bincount(obj, sign, obj.max() + 1))[obj]
         inverted = (sign != 0) & (majority != 0) & (sign != majority) & ~degenerate
-    for count, what in ((degenerate.sum(), "degenerate cells (repeated vertex or zero measure), e.g. cell "
-                         f"{np.flatnonzero(degenerate)[:3].tolist()}; they give edges but no area"),
-                        (inverted.sum(), "inverted cells (orientation opposite to the rest of their object), e.g. "
-                         f"cell {np.flatnonzero(inverted)[:3].tolist()}; used as they are"),
-                        (len(unreferenced), "nodes referenced by no cell, e.g. node "
-                         f"{unreferenced[:3].tolist()}; each is an object of its own, kept at every level")):
+    for count, what in (
+        (
+            degenerate.sum(),
+            "degenerate cells (repeated vertex or zero measure), e.g. cell "
+            f"{np.flatnonzero(degenerate)[:3].tolist()}; they give edges but no area",
+        ),
+        (
+            inverted.sum(),
+            "inverted cells (orientation opposite to the rest of their object), e.g. "
+            f"cell {np.flatnonzero(inverted)[:3].tolist()}; used as they are",
+        ),
+        (
+            len(unreferenced),
+            "nodes referenced by no cell, e.g. node "
+            f"{unreferenced[:3].tolist()}; each is an object of its own, kept at every level",
+        ),
+    ):
         if count:
             warnings.warn(f"mesh has {int(count)} {what}", MeshWarning, stacklevel=3)

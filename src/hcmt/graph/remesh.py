@@ -25,6 +25,7 @@ Every object therefore stays connected at every level.
 **No remeshing** (:func:`two_hop_edges`, the BSMS ablation): level ``l+1``'s edges join the kept nodes that are
 at most two hops apart in level ``l``.
 """
+
 from __future__ import annotations
 
 import math
@@ -151,7 +152,7 @@ def delaunay_remesh(points: np.ndarray, domain: Domain, connect: bool = True) ->
     keep = domain.contains(verts.mean(1))
     # slivers of (nearly) collinear boundary points, made by rounding: no area, only bad edges
     longest = np.linalg.norm(verts[:, 1:] - verts[:, :1], axis=-1).max(1)
-    keep &= np.abs(signed_measure(p, simplices)) > _SLIVER * longest ** d
+    keep &= np.abs(signed_measure(p, simplices)) > _SLIVER * longest**d
     cells = _orient(p, simplices[keep])
     pairs = _cell_pairs(cells, m)
     if not connect or (not len(tri.coplanar) and _connected(pairs, m)):

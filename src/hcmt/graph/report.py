@@ -11,6 +11,7 @@ Values are averaged over the trajectories of the split (the paper: "average valu
 training data"): each trajectory's per-level means, then their mean. ``edges`` counts undirected edges (the
 model's graph holds each twice). Hierarchies are cached in ``DATASET/.cache/hierarchy``.
 """
+
 from __future__ import annotations
 
 import math
@@ -24,8 +25,17 @@ from hcmt.graph.hierarchy import Hierarchy, cached_hierarchy, hierarchy_cache_di
 from hcmt.graph.quality import quality_summary
 from hcmt.graph.remesh import clique_cells, two_hop_edges
 
-KEYS = ("level", "nodes", "edges", "jacobian_before", "jacobian_after", "min_angle_before", "min_angle_after",
-        "max_angle_before", "max_angle_after")
+KEYS = (
+    "level",
+    "nodes",
+    "edges",
+    "jacobian_before",
+    "jacobian_after",
+    "min_angle_before",
+    "min_angle_after",
+    "max_angle_before",
+    "max_angle_after",
+)
 
 
 def level_quality(hierarchy: Hierarchy, mesh_pos: np.ndarray) -> list[dict]:
@@ -42,10 +52,19 @@ def level_quality(hierarchy: Hierarchy, mesh_pos: np.ndarray) -> list[dict]:
             n_fine = hierarchy.num_nodes(level - 1)
             hop = two_hop_edges(hierarchy.edges[level - 1], n_fine, hierarchy.pool[level - 1])
             before = quality_summary(pos, clique_cells(hop, hierarchy.num_nodes(level), k))
-        rows.append(dict(level=level, nodes=hierarchy.num_nodes(level), edges=hierarchy.edges[level].shape[1] // 2,
-                         jacobian_before=before["jacobian"], jacobian_after=after["jacobian"],
-                         min_angle_before=before["min_angle"], min_angle_after=after["min_angle"],
-                         max_angle_before=before["max_angle"], max_angle_after=after["max_angle"]))
+        rows.append(
+            dict(
+                level=level,
+                nodes=hierarchy.num_nodes(level),
+                edges=hierarchy.edges[level].shape[1] // 2,
+                jacobian_before=before["jacobian"],
+                jacobian_after=after["jacobian"],
+                min_angle_before=before["min_angle"],
+                min_angle_after=after["min_angle"],
+                max_angle_before=before["max_angle"],
+                max_angle_after=after["max_angle"],
+            )
+        )
     return rows
 
 
@@ -69,24 +88,31 @@ def format_table(rows: list[dict]) -> str:
             return "   -  "
         return format(v, "8.1f" if spec == "8g" and isinstance(v, float) else spec)
 
-    lines = [f"{'level':>5} {'nodes':>8} {'edges':>8} | {'jacobian':>15} | {'min angle':>15} | {'max angle':>15}",
-             f"{'':>5} {'':>8} {'':>8} | {'before  after':>15} | {'before  after':>15} | {'before  after':>15}"]
+    lines = [
+        f"{'level':>5} {'nodes':>8} {'edges':>8} | {'jacobian':>15} | {'min angle':>15} | {'max angle':>15}",
+        f"{'':>5} {'':>8} {'':>8} | {'before  after':>15} | {'before  after':>15} | {'before  after':>15}",
+    ]
     for r in rows:
-        lines.append(f"{r['level']:>5} {f(r['nodes'], '8g')} {f(r['edges'], '8g')} | "
-                     f"{f(r['jacobian_before'], '6.3f')}  {f(r['jacobian_after'], '6.3f')} | "
-                     f"{f(r['min_angle_before'], '6.1f')}  {f(r['min_angle_after'], '6.1f')} | "
-                     f"{f(r['max_angle_before'], '6.1f')}  {f(r['max_angle_after'], '6.1f')}")
+        lines.append(
+            f"{r['level']:>5} {f(r['nodes'], '8g')} {f(r['edges'], '8g')} | "
+            f"{f(r['jacobian_before'], '6.3f')}  {f(r['jacobian_after'], '6.3f')} | "
+            f"{f(r['min_angle_before'], '6.1f')}  {f(r['min_angle_after'], '6.1f')} | "
+            f"{f(r['max_angle_before'], '6.1f')}  {f(r['max_angle_after'], '6.1f')}"
+        )
     if len(rows) > 1:  # the paper's Table 7 averages the pooled levels
         mean = {k: float(np.nanmean([r[k] for r in rows[1:]])) for k in KEYS[3:]}
-        lines.append(f"{'1..' + str(rows[-1]['level']):>5} {'':>8} {'':>8} | "
-                     f"{mean['jacobian_before']:6.3f}  {mean['jacobian_after']:6.3f} | "
-                     f"{mean['min_angle_before']:6.1f}  {mean['min_angle_after']:6.1f} | "
-                     f"{mean['max_angle_before']:6.1f}  {mean['max_angle_after']:6.1f}")
+        lines.append(
+            f"{'1..' + str(rows[-1]['level']):>5} {'':>8} {'':>8} | "
+            f"{mean['jacobian_before']:6.3f}  {mean['jacobian_after']:6.3f} | "
+            f"{mean['min_angle_before']:6.1f}  {mean['min_angle_after']:6.1f} | "
+            f"{mean['max_angle_before']:6.1f}  {mean['max_angle_after']:6.1f}"
+        )
     return "\n".join(lines)
 
 
-def dataset_quality(dataset, split: str, levels: int, *, trajectories: int = 0, cache: bool = True
-                    ) -> tuple[int, list[dict]]:
+def dataset_quality(
+    dataset, split: str, levels: int, *, trajectories: int = 0, cache: bool = True
+) -> tuple[int, list[dict]]:
     """(trajectories read, per-level rows averaged over them: :func:`level_quality`, :func:`average_rows`) of the
     first ``trajectories`` of a split (0: all); hierarchies cached in ``DATASET/.cache/hierarchy`` with ``cache``."""
     if levels < 0:
@@ -102,8 +128,9 @@ def dataset_quality(dataset, split: str, levels: int, *, trajectories: int = 0, 
     for i in tqdm(range(count), desc="hierarchy", unit="traj", disable=count < 20):  # one mesh per trajectory
         traj = reader[i]
         try:
-            h = cached_hierarchy(traj["mesh_pos"], traj["cells"], traj["node_type"].reshape(-1), levels,
-                                 remesh=True, cache_dir=cache_dir)
+            h = cached_hierarchy(
+                traj["mesh_pos"], traj["cells"], traj["node_type"].reshape(-1), levels, remesh=True, cache_dir=cache_dir
+            )
         except ValueError as exc:  # DatasetError included: say which trajectory
             raise DatasetError(str(exc), file=reader.path, trajectory=reader.names[i]) from None
         per_trajectory.append(level_quality(h, traj["mesh_pos"]))

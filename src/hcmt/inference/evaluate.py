@@ -3,6 +3,7 @@
 Every function takes a :class:`hcmt.inference.run.Run` (checkpoint and device chosen when it was loaded) and
 keyword-only options. One cache rule (:func:`rollout_for`) decides when a run's rollout file is reused.
 """
+
 from __future__ import annotations
 
 import json
@@ -57,8 +58,11 @@ def check_results_folder(path, source: str) -> None:
     folder = RunFolder(path, must_exist=False)
     if folder.holds_run() or folder.damaged:
         held = folder.run_yaml.name if folder.run_yaml.is_file() else folder.latest.name
-        raise InputError(f"{path}: a run folder of another model ({held}); {clip(source)}'s rollouts and metrics "
-                         "would replace its own: choose another folder", param="out")
+        raise InputError(
+            f"{path}: a run folder of another model ({held}); {clip(source)}'s rollouts and metrics "
+            "would replace its own: choose another folder",
+            param="out",
+        )
     shipped = available_pretrained().get(str(source).split(":", 1)[1])
     for p in sorted(folder.path.glob("rollout_*.h5")):
         try:
@@ -68,8 +72,11 @@ def check_results_folder(path, source: str) -> None:
             continue  # a damaged rollout file is rolled out again (rollout_for)
         made_by = made_by.decode() if isinstance(made_by, bytes) else made_by
         if made_by is not None and shipped is not None and str(made_by) != Path(shipped).name:
-            raise InputError(f"{path}: holds {p.name} of another model ({clip(str(made_by))}); {clip(source)}'s "
-                             "rollouts and metrics would replace it: choose another folder", param="out")
+            raise InputError(
+                f"{path}: holds {p.name} of another model ({clip(str(made_by))}); {clip(source)}'s "
+                "rollouts and metrics would replace it: choose another folder",
+                param="out",
+            )
 
 
 def results_folder(run: Run) -> RunFolder:
@@ -82,12 +89,24 @@ def results_folder(run: Run) -> RunFolder:
 
 def rollout_key(data, split: str, run: Run) -> dict:
     """What a rollout file was made from: dataset, split and checkpoint (file and step)."""
-    return {"data": str(Path(data).resolve()), "split": split, "checkpoint": run.info.checkpoint.file,
-            "checkpoint_step": run.checkpoint_step}
+    return {
+        "data": str(Path(data).resolve()),
+        "split": split,
+        "checkpoint": run.info.checkpoint.file,
+        "checkpoint_step": run.checkpoint_step,
+    }
 
 
-def run_rollouts(run: Run, data, split: str, *, limit: int | None = None, batch: int = 1, compile: str = "auto",
-                 progress: bool = True) -> Path:
+def run_rollouts(
+    run: Run,
+    data,
+    split: str,
+    *,
+    limit: int | None = None,
+    batch: int = 1,
+    compile: str = "auto",
+    progress: bool = True,
+) -> Path:
     """Roll the run's model out over a split; predictions go to ``RUN/rollout_<split>.h5`` (``rollout_<split>@<data
     name>.h5`` for a dataset other than the run's own), atomically. ``batch`` trajectories of equal length step
     together as one batched graph. The progress bar counts model steps over the whole split (with an ETA)."""
@@ -109,9 +128,15 @@ def run_rollouts(run: Run, data, split: str, *, limit: int | None = None, batch:
             by_length[tr.num_steps].append(tr)
         for group in by_length.values():
             for first in range(0, len(group), batch):
-                chunk = group[first:first + batch]
-                results = rollout_batch(run.model, run.adapter, chunk, run.radius, compile=compile,
-                                        progress=lambda n, k=len(chunk): bar.update(n * k))
+                chunk = group[first : first + batch]
+                results = rollout_batch(
+                    run.model,
+                    run.adapter,
+                    chunk,
+                    run.radius,
+                    compile=compile,
+                    progress=lambda n, k=len(chunk): bar.update(n * k),
+                )
                 for tr, res in zip(chunk, results):
                     ensure_space(path, res["world_pos"].numel() * 4 * 2)
                     g = f.create_group(tr.name)
@@ -124,8 +149,9 @@ def run_rollouts(run: Run, data, split: str, *, limit: int | None = None, batch:
     return path
 
 
-def rollout_for(run: Run, data, split: str, *, need: int | None = None, batch: int = 1, compile: str = "auto",
-                progress: bool = True) -> Path:
+def rollout_for(
+    run: Run, data, split: str, *, need: int | None = None, batch: int = 1, compile: str = "auto", progress: bool = True
+) -> Path:
     """The one rollout-cache rule, used by evaluation and every picture: ``RUN/rollout_<split>.h5`` is reused when
     it was made from this dataset, split and checkpoint (same step) and holds the first ``need`` trajectories of
     the split (all when ``need`` is None); otherwise it is rolled out again, never with fewer trajectories than the
@@ -145,8 +171,9 @@ def rollout_for(run: Run, data, split: str, *, need: int | None = None, batch: i
                 if set(names[:want]) <= set(f.keys()):
                     return path
     limit = max(want, have)
-    return run_rollouts(run, data, split, limit=limit if limit < len(names) else None, batch=batch, compile=compile,
-                        progress=progress)
+    return run_rollouts(
+        run, data, split, limit=limit if limit < len(names) else None, batch=batch, compile=compile, progress=progress
+    )
 
 
 def rollout_file(run: Run | RunFolder, data, split: str, *, need: int | None = None, progress: bool = True) -> Path:
@@ -163,13 +190,23 @@ def rollout_file(run: Run | RunFolder, data, split: str, *, need: int | None = N
         with h5py.File(path, "r") as f:
             held = set(f.keys())
     if not set(names) <= held:
-        raise FileNotFoundError(f"{path}: holds {len(held & set(names))} of the {len(names)} trajectories asked for, "
-                                f"and {run.path} has no checkpoint to roll them out")
+        raise FileNotFoundError(
+            f"{path}: holds {len(held & set(names))} of the {len(names)} trajectories asked for, "
+            f"and {run.path} has no checkpoint to roll them out"
+        )
     return path
 
 
-def evaluate(run: Run, data, split: str = "test", *, limit: int | None = None, batch: int = 1,
-             compile: str = "auto", progress: bool = True) -> EvalMetrics:
+def evaluate(
+    run: Run,
+    data,
+    split: str = "test",
+    *,
+    limit: int | None = None,
+    batch: int = 1,
+    compile: str = "auto",
+    progress: bool = True,
+) -> EvalMetrics:
     """Paper metrics (and for Impact Plate the physics metrics) of a run on a split, written to
     ``RUN/metrics_<split>.json`` (``metrics_<split>@<data name>.json`` for a dataset other than the run's own);
     rolls out first if the rollout file is missing or stale. A dataset of another frame interval is refused;
@@ -204,17 +241,27 @@ def evaluate(run: Run, data, split: str = "test", *, limit: int | None = None, b
     for row, phys in zip(per_traj, physics):
         row["physics"] = phys.to_json()
     units = meta.get("units") or {}
-    rmse = {q: Rmse(*(means[f"{q}_{k}"] for k in ("rmse_1", "rmse_50", "rmse_all")))
-            for q in ("position", "stress") if f"{q}_rmse_all" in means}
+    rmse = {
+        q: Rmse(*(means[f"{q}_{k}"] for k in ("rmse_1", "rmse_50", "rmse_all")))
+        for q in ("position", "stress")
+        if f"{q}_rmse_all" in means
+    }
     metrics = EvalMetrics(
-        split=split, data=str(Path(data).resolve()), trajectories=len(per_traj), scale=SCALE,
+        split=split,
+        data=str(Path(data).resolve()),
+        trajectories=len(per_traj),
+        scale=SCALE,
         rmse_units=rmse_units(units),  # every RMSE (and error_by_step) is ×scale: in these units
-        units={k: units[k] for k in ("length", "stress") if k in units}, warnings=warnings,
-        position=rmse.get("position"), stress=rmse.get("stress"), inference_ms_per_step=float(np.median(ms)),
+        units={k: units[k] for k in ("length", "stress") if k in units},
+        warnings=warnings,
+        position=rmse.get("position"),
+        stress=rmse.get("stress"),
+        inference_ms_per_step=float(np.median(ms)),
         train_ms_per_step=(folder.train_stats() or {}).get("train_ms_per_step"),
         physics=summarize_impact(physics) if physics else None,
         error_by_step={k: np.mean(v, 0).tolist() for k, v in by_step.items()} if physics else None,
-        per_trajectory=per_traj)
+        per_trajectory=per_traj,
+    )
     with atomic_path(folder.metrics_path(split, data)) as tmp:  # one file per split: never overwrites another's
         tmp.write_text(json.dumps(metrics.to_json(), indent=2))
     return metrics
@@ -255,15 +302,19 @@ def impact_physics(pos, stress, truth: dict, start: int) -> tuple[ImpactMetrics,
 def format_metrics(m: EvalMetrics) -> str:
     """The RMSE table at the scale metrics_<split>.json stores it (the paper's ×10³, in :func:`rmse_units`)."""
     units = rmse_units(m.units or {})
-    lines = [f"split {m.split}: {plural(m.trajectories, 'trajectory', 'trajectories')}, "
-             f"RMSE ×{SCALE:g} over the rollout's steps 1, 1-50 and all (as metrics_{m.split}.json stores it)",
-             f"  {'':<20}{'rmse_1':>12}{'rmse_50':>12}{'rmse_all':>12}"]
+    lines = [
+        f"split {m.split}: {plural(m.trajectories, 'trajectory', 'trajectories')}, "
+        f"RMSE ×{SCALE:g} over the rollout's steps 1, 1-50 and all (as metrics_{m.split}.json stores it)",
+        f"  {'':<20}{'rmse_1':>12}{'rmse_50':>12}{'rmse_all':>12}",
+    ]
     for q, r in (("position", m.position), ("stress", m.stress)):
         if r is not None:
             name = f"{q} [{units[q]}]"
             lines.append(f"  {name:<20}" + "".join(f"{v:>12.4g}" for v in (r.rmse_1, r.rmse_50, r.rmse_all)))
-    lines.append(f"  inference {m.inference_ms_per_step:.2f} ms/step"
-                 + (f", training {m.train_ms_per_step:.2f} ms/step" if m.train_ms_per_step else ""))
+    lines.append(
+        f"  inference {m.inference_ms_per_step:.2f} ms/step"
+        + (f", training {m.train_ms_per_step:.2f} ms/step" if m.train_ms_per_step else "")
+    )
     if m.physics is not None:
         lines += format_physics(m.physics)
     return "\n".join(lines)
@@ -281,24 +332,35 @@ def compare(runs: list[str | Path | RunFolder | Run], split: str = "test") -> di
             raise FileNotFoundError(f"{mpath}: run `hcmt evaluate {folder.path} --data ... --split {split}` first")
         m = read_json(mpath, f"`hcmt evaluate {folder.path} --split {split}`")
         if folder.info is None:  # a shipped model's results folder (Run.writing_to) has no run.yaml
-            raise InputError(f"{folder.path}: no run.yaml (a shipped model's results, or a damaged run folder); "
-                             "hcmt compare takes run folders made by `hcmt train`")
+            raise InputError(
+                f"{folder.path}: no run.yaml (a shipped model's results, or a damaged run folder); "
+                "hcmt compare takes run folders made by `hcmt train`"
+            )
         groups[(model_label(folder.info["model"], folder.info.get("config")), m.get("data", "?"))].append(m)
     datasets = {d for _, d in groups}
-    return {(label if len(datasets) == 1 else f"{label} [{Path(d).name}]"): summarize_runs(ms)
-            for (label, d), ms in groups.items()}
+    return {
+        (label if len(datasets) == 1 else f"{label} [{Path(d).name}]"): summarize_runs(ms)
+        for (label, d), ms in groups.items()
+    }
 
 
 def format_compare(table: dict) -> str:
     head = f"{'Model':<24}{'Position RMSE-all':>24}{'Stress RMSE-all':>24}{'Position RMSE-1':>20}  seeds"
-    lines = ["RMSE x1e3 in the data's units (Impact Plate: position 1e-3 mm = µm, stress 1e-3 MPa = kPa), "
-             "mean ± std over seeds (paper Table 2 layout)", head]
+    lines = [
+        "RMSE x1e3 in the data's units (Impact Plate: position 1e-3 mm = µm, stress 1e-3 MPa = kPa), "
+        "mean ± std over seeds (paper Table 2 layout)",
+        head,
+    ]
     for label, row in table.items():
+
         def cell(q, k, w):
             if q not in row:
                 return f"{'-':>{w}}"
             return f"{row[q][k]['mean']:>{w - 10}.4g} ± {row[q][k]['std']:<7.3g}"
+
         n = row["inference_ms_per_step"]["n"]
-        lines.append(f"{label:<24}{cell('position', 'rmse_all', 24)}{cell('stress', 'rmse_all', 24)}"
-                     f"{cell('position', 'rmse_1', 20)}  {n}")
+        lines.append(
+            f"{label:<24}{cell('position', 'rmse_all', 24)}{cell('stress', 'rmse_all', 24)}"
+            f"{cell('position', 'rmse_1', 20)}  {n}"
+        )
     return "\n".join(lines)

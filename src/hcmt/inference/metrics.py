@@ -16,6 +16,7 @@ deflection error (plate nodes beyond half the plate's radius: mean |u_y error| o
 µm and in % of the solver's largest far-field deflection); and the error by step split into the ball, the contact
 zone (plate nodes within half the radius) and the far plate (:func:`impact_groups`).
 """
+
 from __future__ import annotations
 
 from dataclasses import asdict, dataclass, field, fields
@@ -35,8 +36,10 @@ def rmse_units(units: dict) -> dict[str, str]:
     """The unit of every RMSE a metrics file stores (×:data:`SCALE` of the data's units, as the paper reports them):
     ``{"position": "0.001 mm", "stress": "0.001 MPa"}`` for the data's ``units`` ``{"length": "mm", "stress":
     "MPa"}`` ("data units" where the data names none)."""
-    return {q: f"{1 / SCALE:g} {units.get(key) or 'data units'}"
-            for q, key in (("position", "length"), ("stress", "stress"))}
+    return {
+        q: f"{1 / SCALE:g} {units.get(key) or 'data units'}"
+        for q, key in (("position", "length"), ("stress", "stress"))
+    }
 
 
 @dataclass(frozen=True)
@@ -180,37 +183,55 @@ def impact_metrics(pred_pos, pred_stress, true_pos, true_stress, plate: np.ndarr
     err = np.abs(q.deflection(pp, rest, far) - q.deflection(tp, rest, far))[start:]
     model_rebounds, solver_rebounds = q.rebounds(pp, plate), q.rebounds(tp, plate)
     return ImpactMetrics(
-        model_ball_vy_end=q.ball_vy_end(pp, plate), model_rebounds=model_rebounds,
-        solver_ball_vy_end=q.ball_vy_end(tp, plate), solver_rebounds=solver_rebounds,
+        model_ball_vy_end=q.ball_vy_end(pp, plate),
+        model_rebounds=model_rebounds,
+        solver_ball_vy_end=q.ball_vy_end(tp, plate),
+        solver_rebounds=solver_rebounds,
         rebound_agrees=model_rebounds == solver_rebounds,
-        peak_plate_stress_mpa=peaks["plate"][0], solver_peak_plate_stress_mpa=peaks["plate"][1],
-        peak_plate_stress_error_pct=peaks["plate"][2], peak_plate_frame_error=peaks["plate"][3],
-        peak_ball_stress_mpa=peaks["ball"][0], solver_peak_ball_stress_mpa=peaks["ball"][1],
+        peak_plate_stress_mpa=peaks["plate"][0],
+        solver_peak_plate_stress_mpa=peaks["plate"][1],
+        peak_plate_stress_error_pct=peaks["plate"][2],
+        peak_plate_frame_error=peaks["plate"][3],
+        peak_ball_stress_mpa=peaks["ball"][0],
+        solver_peak_ball_stress_mpa=peaks["ball"][1],
         peak_ball_stress_error_pct=peaks["ball"][2],
-        max_deflection_mm=a, solver_max_deflection_mm=b, max_deflection_error_pct=float(100.0 * (a - b) / b),
+        max_deflection_mm=a,
+        solver_max_deflection_mm=b,
+        max_deflection_error_pct=float(100.0 * (a - b) / b),
         far_deflection_error_um=float(err.mean() * 1e3),
         far_deflection_error_pct=float(100.0 * err.mean() / max(q.far_deflection(tp, rest, plate), 1e-12)),
         model_ghost_ratio=q.ghost_ratio(q.body_history(pred_stress, plate), q.peak(pred_stress, plate)[0]),
-        solver_ghost_ratio=q.ghost_ratio(q.body_history(true_stress, plate), q.peak(true_stress, plate)[0]))
+        solver_ghost_ratio=q.ghost_ratio(q.body_history(true_stress, plate), q.peak(true_stress, plate)[0]),
+    )
 
 
 #: per-trajectory signed errors summarized by :func:`summarize_impact`
-SIGNED = ("peak_plate_stress_error_pct", "peak_ball_stress_error_pct", "peak_plate_frame_error",
-          "max_deflection_error_pct")
+SIGNED = (
+    "peak_plate_stress_error_pct",
+    "peak_ball_stress_error_pct",
+    "peak_plate_frame_error",
+    "max_deflection_error_pct",
+)
 
 
 def summarize_impact(rows: list[ImpactMetrics]) -> dict:
     """Over trajectories: rebound agreement (fraction, and how many rebound in model and solver); for each signed
     error the median of |error|, the median signed error, the 90th percentile of |error| and the worst (the signed
     error of largest magnitude); the far-field deflection error's median and worst."""
-    out = {"trajectories": len(rows),
-           "rebound_agreement": float(np.mean([r.rebound_agrees for r in rows])),
-           "model_rebounds": int(sum(r.model_rebounds for r in rows)),
-           "solver_rebounds": int(sum(r.solver_rebounds for r in rows))}
+    out = {
+        "trajectories": len(rows),
+        "rebound_agreement": float(np.mean([r.rebound_agrees for r in rows])),
+        "model_rebounds": int(sum(r.model_rebounds for r in rows)),
+        "solver_rebounds": int(sum(r.solver_rebounds for r in rows)),
+    }
     for key in SIGNED:
         v = np.asarray([getattr(r, key) for r in rows], np.float64)
-        out[key] = {"median_abs": float(np.median(np.abs(v))), "median": float(np.median(v)),
-                    "p90_abs": float(np.percentile(np.abs(v), 90)), "worst": float(v[np.argmax(np.abs(v))])}
+        out[key] = {
+            "median_abs": float(np.median(np.abs(v))),
+            "median": float(np.median(v)),
+            "p90_abs": float(np.percentile(np.abs(v), 90)),
+            "worst": float(v[np.argmax(np.abs(v))]),
+        }
     for key in ("far_deflection_error_um", "far_deflection_error_pct"):
         v = np.asarray([getattr(r, key) for r in rows], np.float64)
         out[key] = {"median": float(np.median(v)), "worst": float(v.max())}
@@ -223,22 +244,30 @@ def rebound_words(p: dict) -> str:
     n = p["trajectories"]
     if p["model_rebounds"] == 0 and p["solver_rebounds"] == 0:
         return f"rebound: neither the model nor the solver rebounds in {n}/{n}"
-    return (f"rebound agreement {p['rebound_agreement'] * n:.0f}/{n} (the ball rebounds in "
-            f"{plural(p['model_rebounds'], 'prediction')}, {plural(p['solver_rebounds'], 'solver run')})")
+    return (
+        f"rebound agreement {p['rebound_agreement'] * n:.0f}/{n} (the ball rebounds in "
+        f"{plural(p['model_rebounds'], 'prediction')}, {plural(p['solver_rebounds'], 'solver run')})"
+    )
 
 
 def format_physics(p: dict) -> list[str]:
     """The lines of :func:`summarize_impact` for a terminal."""
+
     def err(key, unit=" %"):
         e = p[key]
-        return (f"median {e['median_abs']:.1f}{unit} (signed {e['median']:+.1f}{unit}, p90 {e['p90_abs']:.1f}{unit}, "
-                f"worst {e['worst']:+.1f}{unit})")
+        return (
+            f"median {e['median_abs']:.1f}{unit} (signed {e['median']:+.1f}{unit}, p90 {e['p90_abs']:.1f}{unit}, "
+            f"worst {e['worst']:+.1f}{unit})"
+        )
+
     n = p["trajectories"]
-    return [f"  physics over {plural(n, 'trajectory', 'trajectories')}: {rebound_words(p)}",
-            f"    peak plate stress error {err('peak_plate_stress_error_pct')}",
-            f"    time of the plate's peak, frames off: {err('peak_plate_frame_error', '')}",
-            f"    max deflection error {err('max_deflection_error_pct')}",
-            f"    far-field deflection error median {p['far_deflection_error_um']['median']:.1f} µm "
-            f"({p['far_deflection_error_pct']['median']:.0f} % of the solver's far-field peak), worst "
-            f"{p['far_deflection_error_um']['worst']:.1f} µm",
-            f"    ball peak stress error {err('peak_ball_stress_error_pct')}"]
+    return [
+        f"  physics over {plural(n, 'trajectory', 'trajectories')}: {rebound_words(p)}",
+        f"    peak plate stress error {err('peak_plate_stress_error_pct')}",
+        f"    time of the plate's peak, frames off: {err('peak_plate_frame_error', '')}",
+        f"    max deflection error {err('max_deflection_error_pct')}",
+        f"    far-field deflection error median {p['far_deflection_error_um']['median']:.1f} µm "
+        f"({p['far_deflection_error_pct']['median']:.0f} % of the solver's far-field peak), worst "
+        f"{p['far_deflection_error_um']['worst']:.1f} µm",
+        f"    ball peak stress error {err('peak_ball_stress_error_pct')}",
+    ]

@@ -21,6 +21,7 @@ Every command that reports these (``hcmt evaluate``, ``hcmt predict`` / ``sweep`
   :data:`CONTACT_TOL`; **contact end** (:func:`contact_end_frame`): the frame after the last touch;
 * **rebound** (:func:`rebounds`): the ball's mean vertical velocity over the window's last step is upward.
 """
+
 from __future__ import annotations
 
 from dataclasses import asdict, dataclass
@@ -56,8 +57,9 @@ def plate_mask(cells: np.ndarray, node_type: np.ndarray) -> np.ndarray:
         held = obj[node_type == kind]
         if len(held):
             return obj == held[0]
-    raise InputError("no clamped (HANDLE), supported (WALL_BOUNDARY) or NORMAL nodes: cannot tell the plate from "
-                     "the impactor")
+    raise InputError(
+        "no clamped (HANDLE), supported (WALL_BOUNDARY) or NORMAL nodes: cannot tell the plate from the impactor"
+    )
 
 
 def impact_groups(rest: np.ndarray, plate: np.ndarray) -> dict[str, np.ndarray]:
@@ -95,12 +97,18 @@ def peak_fields(stress, mask, world_pos, frame_dt: float, body: str, frames=None
     """``peak_<body>_stress_mpa``, ``_where_mm`` (the node's position then), ``_when_ms``, ``_frame`` and
     ``_node`` of :func:`peak`."""
     value, t, node = peak(stress, mask, frames)
-    return {f"peak_{body}_stress_mpa": value, f"peak_{body}_where_mm": [float(v) for v in world_pos[t, node]],
-            f"peak_{body}_when_ms": float(t * frame_dt), f"peak_{body}_frame": t, f"peak_{body}_node": node}
+    return {
+        f"peak_{body}_stress_mpa": value,
+        f"peak_{body}_where_mm": [float(v) for v in world_pos[t, node]],
+        f"peak_{body}_when_ms": float(t * frame_dt),
+        f"peak_{body}_frame": t,
+        f"peak_{body}_node": node,
+    }
 
 
-def rise_frame(history: np.ndarray, peak_value: float, frames: np.ndarray | None = None,
-               share: float = RISE_SHARE) -> int:
+def rise_frame(
+    history: np.ndarray, peak_value: float, frames: np.ndarray | None = None, share: float = RISE_SHARE
+) -> int:
     """The first frame (of ``frames``, default all) whose ``history`` reaches ``share`` of ``peak_value``; the
     history's argmax when none does."""
     h = np.asarray(history, np.float64)
@@ -160,7 +168,7 @@ def contact_window(gap: np.ndarray, tol: float = CONTACT_TOL, grace: int = CONTA
     out = np.zeros(len(gap), bool)
     touch = contact_frames(gap, tol)
     if touch:
-        out[touch[0]:min(len(gap), touch[1] + grace + 1)] = True
+        out[touch[0] : min(len(gap), touch[1] + grace + 1)] = True
     return out
 
 
@@ -219,8 +227,9 @@ def peak_values(stress, mask, world_pos, frame_dt: float, frames=None) -> tuple[
     return value, [float(v) for v in world_pos[t, node]], float(t * frame_dt), t, node
 
 
-def impact_summary(world_pos: np.ndarray, stress: np.ndarray, rest: np.ndarray, plate: np.ndarray,
-                   frame_dt: float) -> ImpactQuantities:
+def impact_summary(
+    world_pos: np.ndarray, stress: np.ndarray, rest: np.ndarray, plate: np.ndarray, frame_dt: float
+) -> ImpactQuantities:
     """Every quantity above of one trajectory, as :class:`ImpactQuantities`."""
     x = np.asarray(world_pos)
     plate_peak, ball_peak = peak_values(stress, plate, x, frame_dt), peak_values(stress, ~plate, x, frame_dt)
@@ -228,8 +237,15 @@ def impact_summary(world_pos: np.ndarray, stress: np.ndarray, rest: np.ndarray, 
     first = rise_frame(history, plate_peak[0])
     gap = contact_gap(x, rest, plate)
     return ImpactQuantities(
-        *plate_peak, *ball_peak, peak_plate_t95_frame=first, peak_plate_t95_ms=float(max(first, 1) * frame_dt),
-        max_deflection_mm=max_deflection(x, rest, plate), far_deflection_mm=far_deflection(x, rest, plate),
-        contact_frames=contact_frames(gap), contact_end_ms=float(contact_end_frame(gap) * frame_dt),
-        ghost_ratio=ghost_ratio(history, plate_peak[0]), rebounds=rebounds(x, plate),
-        plate_stress_history_mpa=[float(v) for v in history])
+        *plate_peak,
+        *ball_peak,
+        peak_plate_t95_frame=first,
+        peak_plate_t95_ms=float(max(first, 1) * frame_dt),
+        max_deflection_mm=max_deflection(x, rest, plate),
+        far_deflection_mm=far_deflection(x, rest, plate),
+        contact_frames=contact_frames(gap),
+        contact_end_ms=float(contact_end_frame(gap) * frame_dt),
+        ghost_ratio=ghost_ratio(history, plate_peak[0]),
+        rebounds=rebounds(x, plate),
+        plate_stress_history_mpa=[float(v) for v in history],
+    )

@@ -27,6 +27,7 @@ warning. ``auto`` on the CPU is ``aot`` where the model's package is already bui
 the rollouts are long enough to compile (:data:`hcmt.models.base.AUTO_COMPILE_ROLLOUT_STEPS`); elsewhere it is
 :func:`hcmt.models.base.resolve_compile`'s choice.
 """
+
 from __future__ import annotations
 
 import logging
@@ -76,8 +77,11 @@ def exported(model, graph):
             forward = exported_forward(model, graph)
             cache["aot"] = lambda g, accumulate=False: forward(g)
         except Exception as exc:  # noqa: BLE001 -- export and AOTInductor raise many types; every one falls back
-            logger.warning("--compile aot: the ahead-of-time export failed (%s: %s); torch.compile (default) instead",
-                           type(exc).__name__, str(exc).splitlines()[0][:200] if str(exc) else "")
+            logger.warning(
+                "--compile aot: the ahead-of-time export failed (%s: %s); torch.compile (default) instead",
+                type(exc).__name__,
+                str(exc).splitlines()[0][:200] if str(exc) else "",
+            )
             cache["aot"] = compiled(model, "default", dynamic=True)
     return cache["aot"]
 
@@ -151,8 +155,10 @@ class Block:
         """Each trajectory's ``(world_pos [T, N, d], stress [T, N, 1] or None)`` on the CPU: one copy per block."""
         fb, pos = self.fb, self.pos.cpu()
         stress = self.stress.cpu().split(fb.sizes, dim=1) if self.stress is not None else [None] * len(fb.sizes)
-        return [(p.contiguous(), s.contiguous() if s is not None and has else None)
-                for p, s, has in zip(pos.split(fb.sizes, dim=1), stress, fb.has_stress)]
+        return [
+            (p.contiguous(), s.contiguous() if s is not None and has else None)
+            for p, s, has in zip(pos.split(fb.sizes, dim=1), stress, fb.has_stress)
+        ]
 
 
 def check_finite(fb: FrameBatch, nxt: Tensor, stress: Tensor | None, t: int, frames: int) -> None:
@@ -163,13 +169,16 @@ def check_finite(fb: FrameBatch, nxt: Tensor, stress: Tensor | None, t: int, fra
         ok &= torch.isfinite(stress).all(1)
     if not bool(ok.all()):
         name = fb.names[int(fb.batch[~ok].min())]
-        raise RolloutError(f"trajectory {name}: the predicted state became non-finite at step {t + 1} "
-                           f"(frame {t + 1} of {frames}); the model diverged")
+        raise RolloutError(
+            f"trajectory {name}: the predicted state became non-finite at step {t + 1} "
+            f"(frame {t + 1} of {frames}); the model diverged"
+        )
 
 
 @torch.no_grad()
-def rollout(model, adapter: Adapter, traj: Trajectory, radius: float, steps: int | None = None,
-            compile: str = "none") -> dict:
+def rollout(
+    model, adapter: Adapter, traj: Trajectory, radius: float, steps: int | None = None, compile: str = "none"
+) -> dict:
     """Roll ``model`` out over ``traj``. Returns ``world_pos`` [T, N, d] and ``stress`` [T, N, 1] (or None) as
     tensors whose first ``adapter.history + 1`` frames are the data's, ``ms_per_step`` and ``start`` (the first
     predicted frame)."""
@@ -186,8 +195,15 @@ def rollout_frames(trajs: list[Trajectory], adapter: Adapter, steps: int | None)
 
 
 @torch.no_grad()
-def rollout_batch(model, adapter: Adapter, trajs: list[Trajectory], radius: float, steps: int | None = None,
-                  progress=None, compile: str = "none") -> list[dict]:
+def rollout_batch(
+    model,
+    adapter: Adapter,
+    trajs: list[Trajectory],
+    radius: float,
+    steps: int | None = None,
+    progress=None,
+    compile: str = "none",
+) -> list[dict]:
     """Roll out several trajectories with the same number of frames together, one batched model call per step
     (on the CPU one per block of :data:`CPU_BLOCK_NODES` nodes), on the model's device.
 
@@ -199,8 +215,7 @@ def rollout_batch(model, adapter: Adapter, trajs: list[Trajectory], radius: floa
     batch's setup and the copy back included)."""
     model.eval()
     device = next(model.parameters()).device
-    compile = rollout_compile(compile, model, len(trajs) * (trajs[0].num_steps - 1 - adapter.history)
-                              if trajs else 0)
+    compile = rollout_compile(compile, model, len(trajs) * (trajs[0].num_steps - 1 - adapter.history) if trajs else 0)
     h, T = adapter.history, rollout_frames(trajs, adapter, steps)
     elapsed, start = 0.0, time.perf_counter()  # the progress callback's time left out
     parts = [Block(b, T, device) for b in blocks(trajs, model, device)]

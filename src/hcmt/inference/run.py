@@ -10,6 +10,7 @@ A shipped model is one file: ``{"model_args", "model" (state dict, fp16 where th
 "config", "meta" (the training data's meta.json), "ranges" (min/max of every design parameter over the training
 trajectories), "card" (how it was made)}``; it loads with ``torch.load(weights_only=True)``, offline.
 """
+
 from __future__ import annotations
 
 import json
@@ -67,8 +68,15 @@ class RunInfo:
     def from_record(cls, record: dict, checkpoint: CheckpointInfo) -> "RunInfo":
         """From ``run.yaml``'s record (:attr:`hcmt.data.runs.RunFolder.info`); a KeyError when it has no model or
         config."""
-        return cls(model=record["model"], config=record["config"], data=record.get("data"), checkpoint=checkpoint,
-                   seed=record.get("seed"), world_size=record.get("world_size"), init=record.get("init"))
+        return cls(
+            model=record["model"],
+            config=record["config"],
+            data=record.get("data"),
+            checkpoint=checkpoint,
+            seed=record.get("seed"),
+            world_size=record.get("world_size"),
+            init=record.get("init"),
+        )
 
 
 def load_run(run: str | Path | RunFolder, which: str = "best", device: str = "cpu") -> tuple[torch.nn.Module, RunInfo]:
@@ -77,14 +85,19 @@ def load_run(run: str | Path | RunFolder, which: str = "best", device: str = "cp
     folder = run if isinstance(run, RunFolder) else RunFolder(run)
     path = folder.checkpoint(which)
     if not path.is_file():
-        raise InputError(f"{path}: no such checkpoint" if which.startswith(NAMED_CHECKPOINTS)
-                         else f"{folder.path}: no checkpoint yet (best.pt / checkpoint.pt)")
+        raise InputError(
+            f"{path}: no such checkpoint"
+            if which.startswith(NAMED_CHECKPOINTS)
+            else f"{folder.path}: no checkpoint yet (best.pt / checkpoint.pt)"
+        )
     state = read_checkpoint(path, device, earlier=folder.latest if path == folder.best else folder.best)
     try:
         model = from_checkpoint(state)
     except (KeyError, TypeError, RuntimeError, ValueError) as exc:
-        raise InputError(f"{path}: the checkpoint does not hold the model run.yaml describes ({exc.__class__.__name__}:"
-                         f" {str(exc).splitlines()[0][:200]})") from None
+        raise InputError(
+            f"{path}: the checkpoint does not hold the model run.yaml describes ({exc.__class__.__name__}:"
+            f" {str(exc).splitlines()[0][:200]})"
+        ) from None
     if folder.info is None:  # a RunFolder(must_exist=False) whose run.yaml is missing or damaged
         raise InputError(folder.damaged or f"{folder.run_yaml}: missing; restore it or train the run again")
     try:  # a hand-edited or damaged run.yaml: its settings must still make the run's adapter and graph
@@ -92,9 +105,10 @@ def load_run(run: str | Path | RunFolder, which: str = "best", device: str = "cp
         config_adapter(info.config.for_training())  # a KeyError when run.yaml has no config
         uses_hierarchy(info.model, info.config.data.remesh)
     except (TypeError, ValueError, KeyError, AttributeError) as exc:
-        raise InputError(f"{folder.run_yaml}: its settings do not load ({exc.__class__.__name__}: "
-                         f"{str(exc).splitlines()[0][:160] if str(exc) else '-'}); restore it or train the run again") \
-            from None
+        raise InputError(
+            f"{folder.run_yaml}: its settings do not load ({exc.__class__.__name__}: "
+            f"{str(exc).splitlines()[0][:160] if str(exc) else '-'}); restore it or train the run again"
+        ) from None
     return model, info
 
 
@@ -124,9 +138,13 @@ class Run:
         if not isinstance(path, RunFolder) and str(path).startswith("pretrained:"):
             return cls._pretrained(str(path).split(":", 1)[1], dev)
         if not isinstance(path, RunFolder) and not (Path(path) / "run.yaml").is_file():
-            raise InputError(f"{clip(path)!r}: " + ("no such folder" if not Path(path).exists() else "no run.yaml")
-                             + "; expected a run folder made by `hcmt train`, or pretrained:NAME "
-                             "(hcmt.available_pretrained())", param="path")
+            raise InputError(
+                f"{clip(path)!r}: "
+                + ("no such folder" if not Path(path).exists() else "no run.yaml")
+                + "; expected a run folder made by `hcmt train`, or pretrained:NAME "
+                "(hcmt.available_pretrained())",
+                param="path",
+            )
         folder = path if isinstance(path, RunFolder) else RunFolder(path)  # run.yaml parsed once
         model, info = load_run(folder, which, device="cpu")
         meta, ranges = folder.data_facts()
@@ -136,18 +154,26 @@ class Run:
     def _pretrained(cls, name: str, device: torch.device) -> "Run":
         shipped = available_pretrained()
         if name not in shipped:
-            raise InputError(f"'pretrained:{clip(name)}': no such shipped model; available: "
-                             f"{', '.join(shipped) or 'none'} (`hcmt models` lists them)", param="path")
+            raise InputError(
+                f"'pretrained:{clip(name)}': no such shipped model; available: "
+                f"{', '.join(shipped) or 'none'} (`hcmt models` lists them)",
+                param="path",
+            )
         pack = read_checkpoint(shipped[name])
         try:
             model = from_checkpoint(pack)
         except (KeyError, TypeError, RuntimeError, ValueError) as exc:
-            raise InputError(f"{shipped[name]}: a damaged shipped model ({exc.__class__.__name__}); reinstall hcmt") \
-                from None
+            raise InputError(
+                f"{shipped[name]}: a damaged shipped model ({exc.__class__.__name__}); reinstall hcmt"
+            ) from None
         card = pack["card"]  # the step of the weights shipped (a kept checkpoint), else the schedule's (older packs)
         step = int(card.get("checkpoint", {}).get("step", card.get("steps", 0)))
-        info = RunInfo(model=pack["model_args"], config=Config.from_dict(pack["config"], str(shipped[name])),
-                       data=None, checkpoint=CheckpointInfo(shipped[name].name, step))
+        info = RunInfo(
+            model=pack["model_args"],
+            config=Config.from_dict(pack["config"], str(shipped[name])),
+            data=None,
+            checkpoint=CheckpointInfo(shipped[name].name, step),
+        )
         ranges = {k: (float(v[0]), float(v[1])) for k, v in pack["ranges"].items()}
         return cls(model.to(device), info, f"pretrained:{name}", pack["meta"], ranges, pack["card"])
 
@@ -168,8 +194,10 @@ class Run:
     def radius(self) -> float:
         radius = self.config.train.contact_radius
         if radius is None:  # Run.load's configs are complete for training; a Run made by hand may not be
-            raise InputError(f"{self.source}: its config has no train.contact_radius (the contact search radius "
-                             "its model was trained with)")
+            raise InputError(
+                f"{self.source}: its config has no train.contact_radius (the contact search radius "
+                "its model was trained with)"
+            )
         return radius
 
     @property
@@ -189,8 +217,10 @@ class Run:
         """The run folder (rollouts and metrics are written there); a shipped model has none unless given one
         (:meth:`writing_to`)."""
         if self.folder is None:
-            raise InputError(f"{self.source}: a shipped model has no run folder to write rollouts to; give it one "
-                             "(run.writing_to(DIR); hcmt evaluate --out DIR), or use hcmt.predict_designs for designs")
+            raise InputError(
+                f"{self.source}: a shipped model has no run folder to write rollouts to; give it one "
+                "(run.writing_to(DIR); hcmt evaluate --out DIR), or use hcmt.predict_designs for designs"
+            )
         return self.folder
 
     def writing_to(self, path: str | Path) -> "Run":
@@ -206,13 +236,21 @@ class Run:
     def save_pretrained(self, path: str | Path, card: dict, half: bool = True) -> Path:
         """Write this run as one shipped-model file (fp16 weights with ``half``), atomically."""
         if self.meta is None or not self.ranges:
-            raise InputError(f"{self.source}: its training dataset ({self.info.data}) is needed to record "
-                             "the design ranges; keep it next to the run")
-        state = {k: (v.half() if half and v.dtype == torch.float32 else v).cpu()
-                 for k, v in self.model.state_dict().items()}
-        pack = {"model_args": self.info.model, "model": state, "config": self.config.to_dict(), "meta": self.meta,
-                "ranges": {k: [float(a), float(b)] for k, (a, b) in self.ranges.items()},
-                "card": json.loads(json.dumps(card, default=str))}  # plain types: loads with weights_only=True
+            raise InputError(
+                f"{self.source}: its training dataset ({self.info.data}) is needed to record "
+                "the design ranges; keep it next to the run"
+            )
+        state = {
+            k: (v.half() if half and v.dtype == torch.float32 else v).cpu() for k, v in self.model.state_dict().items()
+        }
+        pack = {
+            "model_args": self.info.model,
+            "model": state,
+            "config": self.config.to_dict(),
+            "meta": self.meta,
+            "ranges": {k: [float(a), float(b)] for k, (a, b) in self.ranges.items()},
+            "card": json.loads(json.dumps(card, default=str)),
+        }  # plain types: loads with weights_only=True
         path = Path(path)
         path.parent.mkdir(parents=True, exist_ok=True)
         with atomic_path(path) as tmp:
@@ -230,8 +268,10 @@ def check_dataset(train_meta: dict | None, data, train_data=None, split: str | N
     meta = read_meta(data)
     a, b = train_meta.get("dt"), meta.get("dt")
     if a is not None and b is not None and not np.isclose(float(a), float(b), rtol=1e-6, atol=0):
-        raise InputError(f"{data}: frames {b} apart (dt), but the model was trained on frames {a} apart; a model "
-                         f"steps one training interval at a time: use data recorded at dt {a}")
+        raise InputError(
+            f"{data}: frames {b} apart (dt), but the model was trained on frames {a} apart; a model "
+            f"steps one training interval at a time: use data recorded at dt {a}"
+        )
     out = []
     pa, pb = ((m.get("generator") or {}).get("preset") for m in (train_meta, meta))
     if pa and pb and pa != pb:
@@ -242,8 +282,10 @@ def check_dataset(train_meta: dict | None, data, train_data=None, split: str | N
         with Split(data, split) as s:
             now = [s.num_nodes(i) for i in range(len(s))]
         if now and trained and (min(now) < 0.9 * min(trained) or max(now) > 1.1 * max(trained)):
-            out.append(f"{data} {split}: {min(now)}-{max(now)} nodes per trajectory, the training data "
-                       f"{min(trained)}-{max(trained)}: expect larger errors")
+            out.append(
+                f"{data} {split}: {min(now)}-{max(now)} nodes per trajectory, the training data "
+                f"{min(trained)}-{max(trained)}: expect larger errors"
+            )
     return out
 
 

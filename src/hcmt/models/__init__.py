@@ -7,6 +7,7 @@ display label, whether it needs the mesh hierarchy and whether it returns attent
 model maps a :class:`hcmt.graph.batch.Graph` to a normalized output ``[N, out]`` and owns its normalizers
 (``normalize_target``, ``denormalize``).
 """
+
 from __future__ import annotations
 
 from hcmt.config import MODELS, ModelConfig
@@ -37,10 +38,24 @@ def architecture(args: dict) -> dict:
 _M = ModelConfig  # the schema's defaults are the defaults (hcmt.config)
 
 
-def build_model(name: str, node_in: int, mesh_in: int, contact_in: int, out: int, *, ablation: str | None = None,
-                levels: int = _M.levels, L_C: int = _M.L_C, hidden: int = _M.hidden, heads: int = _M.heads,
-                clip: float = _M.clip, blocks: int = _M.blocks, lpe_k: int = 8, attention: str = _M.attention,
-                ffn_bias: bool = _M.ffn_bias) -> Simulator:
+def build_model(
+    name: str,
+    node_in: int,
+    mesh_in: int,
+    contact_in: int,
+    out: int,
+    *,
+    ablation: str | None = None,
+    levels: int = _M.levels,
+    L_C: int = _M.L_C,
+    hidden: int = _M.hidden,
+    heads: int = _M.heads,
+    clip: float = _M.clip,
+    blocks: int = _M.blocks,
+    lpe_k: int = 8,
+    attention: str = _M.attention,
+    ffn_bias: bool = _M.ffn_bias,
+) -> Simulator:
     """HCMT uses ``levels`` (λ; its HMT has ``L_H = 2λ + 1`` blocks) and ``L_C``; MGN and GT use ``blocks``; GT and
     HCMT use ``heads`` and ``clip``; ``ablation``, ``attention`` (``paper`` | ``official``) and ``ffn_bias`` are
     HCMT's (the authors' code: ``official``, no FFN bias). The defaults are :class:`hcmt.config.ModelConfig`'s;
@@ -52,16 +67,27 @@ def build_model(name: str, node_in: int, mesh_in: int, contact_in: int, out: int
         raise InputError(f"unknown model {name!r}; expected one of {', '.join(REGISTRY)}")
     if "ablation" not in info.arguments and ablation not in (None, "", "none"):
         raise InputError(f"ablations apply to HCMT only, got ablation={ablation!r} for model {name!r}")
-    given = dict(ablation=ablation, levels=levels, L_C=L_C, hidden=hidden, heads=heads, clip=clip, blocks=blocks,
-                 lpe_k=lpe_k, attention=attention, ffn_bias=ffn_bias)
+    given = dict(
+        ablation=ablation,
+        levels=levels,
+        L_C=L_C,
+        hidden=hidden,
+        heads=heads,
+        clip=clip,
+        blocks=blocks,
+        lpe_k=lpe_k,
+        attention=attention,
+        ffn_bias=ffn_bias,
+    )
     return info.builder(node_in, mesh_in, contact_in, out, **{k: given[k] for k in info.arguments})
 
 
 def make_model(args: dict) -> Simulator:
     """A model from its saved constructor arguments (``run.yaml``'s ``model``, a checkpoint's ``model_args``)."""
     args = architecture(args)  # older runs hold other models' settings and L_H (null or 2λ + 1)
-    return build_model(args.pop("name"), args.pop("node_in"), args.pop("mesh_in"), args.pop("contact_in"),
-                       args.pop("out"), **args)
+    return build_model(
+        args.pop("name"), args.pop("node_in"), args.pop("mesh_in"), args.pop("contact_in"), args.pop("out"), **args
+    )
 
 
 def from_checkpoint(state: dict) -> Simulator:
@@ -86,6 +112,22 @@ def uses_hierarchy(args: dict, remesh: bool = True) -> tuple[int, bool]:
     return int(args["levels"]), bool(remesh)
 
 
-__all__ = ["ABLATIONS", "ATTENTION_MODES", "GT", "HCMT", "MGN", "MODELS", "REGISTRY", "ModelInfo", "Normalizer",
-           "Simulator", "architecture", "build_model", "checkpoint_state", "from_checkpoint", "make_model",
-           "resolve_device", "uses_hierarchy"]
+__all__ = [
+    "ABLATIONS",
+    "ATTENTION_MODES",
+    "GT",
+    "HCMT",
+    "MGN",
+    "MODELS",
+    "REGISTRY",
+    "ModelInfo",
+    "Normalizer",
+    "Simulator",
+    "architecture",
+    "build_model",
+    "checkpoint_state",
+    "from_checkpoint",
+    "make_model",
+    "resolve_device",
+    "uses_hierarchy",
+]

@@ -42,6 +42,7 @@ Choices where the paper is ambiguous (documented here once for CMT, HMT and the 
   No normalization: the edge term sits *inside* the clip, and a sum keeps how many neighbours (e.g. contact edges)
   contribute, which a softmax removes. Every weight lies in :math:`[e^{-c}, e^{c}]`.
 """
+
 from __future__ import annotations
 
 import contextlib
@@ -107,8 +108,10 @@ def declared_taps(model: nn.Module) -> list[TapSite]:
     declared = {id(s.tap) for s in sites}
     missing = [path for path, m in model.named_modules() if isinstance(m, AttentionTap) and id(m) not in declared]
     if missing:
-        raise RuntimeError(f"{type(model).__name__} has attention taps it does not declare in attention_taps(): "
-                           f"{', '.join(missing[:4])}")
+        raise RuntimeError(
+            f"{type(model).__name__} has attention taps it does not declare in attention_taps(): "
+            f"{', '.join(missing[:4])}"
+        )
     return sites
 
 
@@ -123,8 +126,19 @@ def recording(model: nn.Module):
     def hook_for(site: TapSite):
         def hook(tap, args, weights):
             edges, branch, normalized = args[1:]
-            maps.append(AttentionMap(site.name.format(branch=branch), site.level, edges, weights, normalized,
-                                     site.stage, site.block, branch))
+            maps.append(
+                AttentionMap(
+                    site.name.format(branch=branch),
+                    site.level,
+                    edges,
+                    weights,
+                    normalized,
+                    site.stage,
+                    site.block,
+                    branch,
+                )
+            )
+
         return hook
 
     for site in declared_taps(model):
@@ -143,7 +157,13 @@ def check_mode(mode: str) -> str:
 
 
 def propagate(
-    q: Tensor, k: Tensor, v: Tensor, edge_term: Tensor, gate: Tensor, edges: Tensor, clip: float,
+    q: Tensor,
+    k: Tensor,
+    v: Tensor,
+    edge_term: Tensor,
+    gate: Tensor,
+    edges: Tensor,
+    clip: float,
     mode: str = "paper",
 ) -> tuple[Tensor, Tensor]:
     """One attention branch, vectorized over edges.

@@ -7,6 +7,7 @@ Layer", "Decoder and Updater"; MeshGraphNets' encode-process-decode).
 * normalizers (:class:`~hcmt.models.normalizer.Normalizer`) for node, mesh-edge and contact-edge inputs and for the
   targets. They accumulate when ``accumulate`` is true; ``accumulate=None`` means "while ``self.training``".
 """
+
 from __future__ import annotations
 
 import importlib.util
@@ -37,8 +38,10 @@ def resolve_device(device: str | None = None) -> torch.device:
         raise InputError(f"{device!r}: not a device; expected cpu, cuda or cuda:N", param="device") from None
     if dev.type == "cuda":
         if not torch.cuda.is_available():
-            raise InputError(f"{device}: this torch has no usable CUDA device (torch {torch.__version__}); use "
-                             "the CPU (cpu)", param="device")
+            raise InputError(
+                f"{device}: this torch has no usable CUDA device (torch {torch.__version__}); use the CPU (cpu)",
+                param="device",
+            )
         if dev.index is not None and dev.index >= torch.cuda.device_count():
             raise InputError(f"{device}: only {torch.cuda.device_count()} CUDA device(s) here", param="device")
     elif dev.type != "cpu":
@@ -80,8 +83,9 @@ AUTO_COMPILE_STEPS = 5000
 AUTO_COMPILE_ROLLOUT_STEPS = 2000
 
 
-def resolve_compile(mode: str, *, steps: int, device: torch.device, lpe: bool = False,
-                    threshold: int = AUTO_COMPILE_STEPS) -> str:
+def resolve_compile(
+    mode: str, *, steps: int, device: torch.device, lpe: bool = False, threshold: int = AUTO_COMPILE_STEPS
+) -> str:
     """The ``torch.compile`` mode a run uses: ``auto`` is ``default`` for at least ``threshold`` steps
     (:data:`AUTO_COMPILE_STEPS` for training, :data:`AUTO_COMPILE_ROLLOUT_STEPS` for rollouts) where Inductor has
     its compiler (a C++ compiler on the CPU, Triton on CUDA) and the model is compilable (not the ``lpe``
@@ -138,8 +142,13 @@ class Simulator(nn.Module):
 
     def __init__(self, node_in: int, mesh_in: int, contact_in: int, out: int, *, hidden: int = 128):
         super().__init__()
-        for name, size in (("node_in", node_in), ("mesh_in", mesh_in), ("contact_in", contact_in), ("out", out),
-                           ("hidden", hidden)):
+        for name, size in (
+            ("node_in", node_in),
+            ("mesh_in", mesh_in),
+            ("contact_in", contact_in),
+            ("out", out),
+            ("hidden", hidden),
+        ):
             if int(size) < 1:
                 raise InputError(f"{name} must be a positive size, got {size}")
         self.node_in, self.mesh_in, self.contact_in, self.out, self.hidden = node_in, mesh_in, contact_in, out, hidden

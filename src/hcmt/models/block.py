@@ -14,6 +14,7 @@ updated (paper: "the edge network remains unaltered").
 * ``attention`` picks the weights (:mod:`hcmt.models.attention`: ``paper`` softmax or the authors' ``official``
   unnormalized sum); ``ffn_bias=False`` drops the FFN's biases as the authors' code does.
 """
+
 from __future__ import annotations
 
 import torch
@@ -26,8 +27,17 @@ from .mlp import ffn
 
 
 class TransformerBlock(nn.Module):
-    def __init__(self, hidden: int = 128, heads: int = 4, clip: float = 2.0, *, edge_types: int = 1,
-                 merge_branches: bool = False, attention: str = "paper", ffn_bias: bool = True):
+    def __init__(
+        self,
+        hidden: int = 128,
+        heads: int = 4,
+        clip: float = 2.0,
+        *,
+        edge_types: int = 1,
+        merge_branches: bool = False,
+        attention: str = "paper",
+        ffn_bias: bool = True,
+    ):
         super().__init__()
         if edge_types < 1:
             raise InputError(f"a block needs at least one edge type, got {edge_types}")

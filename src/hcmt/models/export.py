@@ -11,6 +11,7 @@ from the plate), so every graph gets one dummy node and two dummy contact edges 
 (:func:`with_dummies`); messages along them reach only the dummy node, whose output row is dropped, so a real
 node's output is what the model gives without them (tests/models/test_export.py).
 """
+
 from __future__ import annotations
 
 import hashlib
@@ -27,8 +28,17 @@ from hcmt.graph.batch import Graph
 from .base import compile_cache_dir
 
 #: the Graph fields an exported forward takes, in order (lists become tuples); masks are never passed (inference)
-FIELDS = ("node_features", "mesh_edges", "mesh_features", "contact_edges", "contact_features", "pool",
-          "level_edges", "level_features", "batch")
+FIELDS = (
+    "node_features",
+    "mesh_edges",
+    "mesh_features",
+    "contact_edges",
+    "contact_features",
+    "pool",
+    "level_edges",
+    "level_features",
+    "batch",
+)
 
 
 class _Forward(nn.Module):
@@ -39,10 +49,32 @@ class _Forward(nn.Module):
         super().__init__()
         self.model = model
 
-    def forward(self, node_features, mesh_edges, mesh_features, contact_edges, contact_features, pool, level_edges,
-                level_features, batch):
-        return self.model(Graph(node_features, mesh_edges, mesh_features, contact_edges, contact_features,
-                                list(pool), list(level_edges), list(level_features), batch), accumulate=False)
+    def forward(
+        self,
+        node_features,
+        mesh_edges,
+        mesh_features,
+        contact_edges,
+        contact_features,
+        pool,
+        level_edges,
+        level_features,
+        batch,
+    ):
+        return self.model(
+            Graph(
+                node_features,
+                mesh_edges,
+                mesh_features,
+                contact_edges,
+                contact_features,
+                list(pool),
+                list(level_edges),
+                list(level_features),
+                batch,
+            ),
+            accumulate=False,
+        )
 
 
 def with_dummies(graph: Graph) -> Graph:
@@ -51,10 +83,13 @@ def with_dummies(graph: Graph) -> Graph:
     n = graph.num_nodes
     nf, cf = graph.node_features, graph.contact_features
     batch = graph.batch if graph.batch is not None else torch.zeros(n, dtype=torch.long, device=nf.device)
-    return replace(graph, node_features=torch.cat([nf, nf.new_zeros(1, nf.shape[1])]),
-                   contact_edges=torch.cat([graph.contact_edges, graph.contact_edges.new_full((2, 2), n)], dim=1),
-                   contact_features=torch.cat([cf, cf.new_zeros(2, cf.shape[1])]),
-                   batch=torch.cat([batch, batch.new_full((1,), int(batch.max()) + 1 if n else 0)]))
+    return replace(
+        graph,
+        node_features=torch.cat([nf, nf.new_zeros(1, nf.shape[1])]),
+        contact_edges=torch.cat([graph.contact_edges, graph.contact_edges.new_full((2, 2), n)], dim=1),
+        contact_features=torch.cat([cf, cf.new_zeros(2, cf.shape[1])]),
+        batch=torch.cat([batch, batch.new_full((1,), int(batch.max()) + 1 if n else 0)]),
+    )
 
 
 def _inputs(graph: Graph) -> tuple:
@@ -68,8 +103,10 @@ def package_key(model: nn.Module) -> str:
     device = next(model.parameters()).device
     gpu = torch.cuda.get_device_name(device) if device.type == "cuda" else ""
     h = hashlib.sha256()
-    h.update(f"{type(model).__qualname__} {torch.__version__} {platform.machine()} {cpu_name()} "
-             f"{torch.get_num_threads()} {device.type} {gpu}".encode())
+    h.update(
+        f"{type(model).__qualname__} {torch.__version__} {platform.machine()} {cpu_name()} "
+        f"{torch.get_num_threads()} {device.type} {gpu}".encode()
+    )
     for name, t in model.state_dict().items():
         h.update(name.encode())
         h.update(t.detach().cpu().contiguous().numpy().tobytes())
@@ -119,4 +156,5 @@ def exported_forward(model: nn.Module, example: Graph):
 
     def forward(graph: Graph) -> Tensor:
         return compiled(*_inputs(with_dummies(graph)))[: graph.num_nodes]
+
     return forward

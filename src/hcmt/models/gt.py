@@ -16,6 +16,7 @@ size 1), with the paper's changes (HCMT's three-layer FFN; clip range [−2, 2])
 Unlike HCMT, the score is one scalar per head (summed over the head's channels) and the edge features are
 updated, as in Dwivedi & Bresson.
 """
+
 from __future__ import annotations
 
 import math
@@ -43,13 +44,21 @@ class GTLayer(nn.Module):
         self.heads, self.d_k, self.clip = heads, hidden // heads, float(clip)
         self.qkv = nn.Linear(hidden, 3 * hidden, bias=False)
         self.E = nn.Linear(hidden, hidden, bias=False)
-        self.O_h, self.norm1_h, self.norm2_h, self.ffn_h = nn.Linear(hidden, hidden), nn.LayerNorm(hidden), \
-            nn.LayerNorm(hidden), ffn(hidden)
+        self.O_h, self.norm1_h, self.norm2_h, self.ffn_h = (
+            nn.Linear(hidden, hidden),
+            nn.LayerNorm(hidden),
+            nn.LayerNorm(hidden),
+            ffn(hidden),
+        )
         self.update_edges = update_edges
         self.tap = AttentionTap()  # the weights, for hcmt.models.attention.recording
         if update_edges:  # the last layer's edge update would feed nothing: it has none (no dead parameters)
-            self.O_e, self.norm1_e, self.norm2_e, self.ffn_e = nn.Linear(hidden, hidden), nn.LayerNorm(hidden), \
-                nn.LayerNorm(hidden), ffn(hidden)
+            self.O_e, self.norm1_e, self.norm2_e, self.ffn_e = (
+                nn.Linear(hidden, hidden),
+                nn.LayerNorm(hidden),
+                nn.LayerNorm(hidden),
+                ffn(hidden),
+            )
 
     def forward(self, h: Tensor, e: Tensor, edges: Tensor) -> tuple[Tensor, Tensor]:
         n, hidden = h.shape
@@ -57,8 +66,9 @@ class GTLayer(nn.Module):
         q, k, v = self.qkv(h).view(n, 3, self.heads, self.d_k).unbind(1)
         w_hat = q.index_select(0, i) * k.index_select(0, j) / math.sqrt(self.d_k)
         w_hat = w_hat * self.E(e).view(-1, self.heads, self.d_k)  # [E, H, d_k]
-        weights = self.tap(softmax(w_hat.sum(-1).clamp(-self.clip, self.clip), i, num_nodes=n, dim=0), edges,
-                           "mesh+contact", True)  # [E, H]
+        weights = self.tap(
+            softmax(w_hat.sum(-1).clamp(-self.clip, self.clip), i, num_nodes=n, dim=0), edges, "mesh+contact", True
+        )  # [E, H]
         agg = scatter(weights.unsqueeze(-1) * v.index_select(0, j), i, dim=0, dim_size=n, reduce="sum")
         h = self.norm1_h(h + self.O_h(agg.reshape(n, hidden)))
         h = self.norm2_h(h + self.ffn_h(h))
@@ -68,8 +78,12 @@ class GTLayer(nn.Module):
         return h, e
 
 
-@register("gt", "GT (Graph Transformer)", has_attention=True,  # the label: not "ground truth"
-          settings=("hidden", "blocks", "heads", "clip"))
+@register(
+    "gt",
+    "GT (Graph Transformer)",
+    has_attention=True,  # the label: not "ground truth"
+    settings=("hidden", "blocks", "heads", "clip"),
+)
 class GT(Simulator):
     r"""Graph Transformer (Dwivedi & Bresson 2021), the paper's attention baseline: encode, ``blocks`` layers of
     clipped edge-gated attention over mesh and contact edges together (one softmax per receiver), edges updated
@@ -87,8 +101,19 @@ class GT(Simulator):
     output ``[N, out]``, ``denormalize`` the physical one. Save with :func:`hcmt.models.checkpoint_state`, load with
     :func:`hcmt.models.from_checkpoint` (the constructor arguments travel with the weights).
     """
-    def __init__(self, node_in: int, mesh_in: int, contact_in: int, out: int, *, blocks: int = 15, heads: int = 4,
-                 hidden: int = 128, clip: float = 2.0):
+
+    def __init__(
+        self,
+        node_in: int,
+        mesh_in: int,
+        contact_in: int,
+        out: int,
+        *,
+        blocks: int = 15,
+        heads: int = 4,
+        hidden: int = 128,
+        clip: float = 2.0,
+    ):
         super().__init__(node_in, mesh_in, contact_in, out, hidden=hidden)
         if blocks < 1:
             raise InputError(f"GT needs at least one layer, got {blocks}")

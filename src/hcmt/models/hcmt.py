@@ -32,6 +32,7 @@ r"""Hierarchical Contact Mesh Transformer (paper §3.2): encoder → CMT → HMT
   bias-free FFNs (:mod:`hcmt.models.attention`), in every CMT and HMT block and every ablation; config
   ``impact_plate_official``.
 """
+
 from __future__ import annotations
 
 import torch
@@ -52,20 +53,31 @@ from .registry import register
 class HMT(nn.Module):
     """The hierarchical mesh Transformer layer: ``2λ + 1`` one-branch blocks over the levels' mesh edges."""
 
-    def __init__(self, levels: int, hidden: int = 128, heads: int = 4, clip: float = 2.0, *,
-                 attention: str = "paper", ffn_bias: bool = True):
+    def __init__(
+        self,
+        levels: int,
+        hidden: int = 128,
+        heads: int = 4,
+        clip: float = 2.0,
+        *,
+        attention: str = "paper",
+        ffn_bias: bool = True,
+    ):
         super().__init__()
         if levels < 0:
             raise InputError(f"number of levels λ must be >= 0, got {levels}")
         self.levels = levels
+
         def make():
             return TransformerBlock(hidden, heads, clip, edge_types=1, attention=attention, ffn_bias=ffn_bias)
+
         self.down = nn.ModuleList(make() for _ in range(levels))
         self.bottom = make()
         self.up = nn.ModuleList(make() for _ in range(levels))
 
-    def forward(self, h: Tensor, latents: list[Tensor], edges: list[Tensor], pool: list[Tensor],
-                run_block=None) -> Tensor:
+    def forward(
+        self, h: Tensor, latents: list[Tensor], edges: list[Tensor], pool: list[Tensor], run_block=None
+    ) -> Tensor:
         """latents/edges: level 0..λ encoded mesh-edge features and edges; pool: λ kept-index tensors."""
         saved = []
         call = run_block or (lambda block, *args: block(*args))  # the model's (maybe checkpointed) block call
@@ -84,8 +96,14 @@ class HMT(nn.Module):
         return h
 
 
-@register("hcmt", "HCMT", needs_hierarchy=True, has_attention=True, extra=("lpe_k",),
-          settings=("ablation", "levels", "L_C", "hidden", "heads", "clip", "attention", "ffn_bias"))
+@register(
+    "hcmt",
+    "HCMT",
+    needs_hierarchy=True,
+    has_attention=True,
+    extra=("lpe_k",),
+    settings=("ablation", "levels", "L_C", "hidden", "heads", "clip", "attention", "ffn_bias"),
+)
 class HCMT(Simulator):
     r"""The Hierarchical Contact Mesh Transformer (paper §3.2, module docstring): encode, :math:`L_C` CMT blocks over
     level-0 mesh and contact edges (eqs. 1–4), an HMT U over :math:`\lambda` pooled levels,
@@ -110,17 +128,36 @@ class HCMT(Simulator):
     ``denormalize`` the physical one. Save with :func:`hcmt.models.checkpoint_state`, load with
     :func:`hcmt.models.from_checkpoint` (the constructor arguments travel with the weights).
     """
-    def __init__(self, node_in: int, mesh_in: int, contact_in: int, out: int, *, L_C: int = _M.L_C,
-                 levels: int = _M.levels, hidden: int = _M.hidden, heads: int = _M.heads, clip: float = _M.clip,
-                 ablation: str | None = None, lpe_k: int = 8, attention: str = _M.attention,
-                 ffn_bias: bool = _M.ffn_bias):
+
+    def __init__(
+        self,
+        node_in: int,
+        mesh_in: int,
+        contact_in: int,
+        out: int,
+        *,
+        L_C: int = _M.L_C,
+        levels: int = _M.levels,
+        hidden: int = _M.hidden,
+        heads: int = _M.heads,
+        clip: float = _M.clip,
+        ablation: str | None = None,
+        lpe_k: int = 8,
+        attention: str = _M.attention,
+        ffn_bias: bool = _M.ffn_bias,
+    ):
         super().__init__(node_in, mesh_in, contact_in, out, hidden=hidden)
         if ablation in ("", "none"):
             ablation = None
         if ablation is not None and ablation not in ABLATIONS:
-            raise InputError(f"unknown ablation {ablation!r}; expected one of {', '.join(ABLATIONS)} or None"
-                             + ("; no remeshing is a graph setting: data.remesh=false (hcmt.models.uses_hierarchy)"
-                                if ablation == NO_REMESH else ""))
+            raise InputError(
+                f"unknown ablation {ablation!r}; expected one of {', '.join(ABLATIONS)} or None"
+                + (
+                    "; no remeshing is a graph setting: data.remesh=false (hcmt.models.uses_hierarchy)"
+                    if ablation == NO_REMESH
+                    else ""
+                )
+            )
         if L_C < 0 or levels < 0:
             raise InputError(f"L_C and λ must be >= 0, got L_C={L_C}, levels={levels}")
         self.ablation, self.L_C, self.levels, self.clip = ablation, L_C, levels, float(clip)
@@ -128,12 +165,20 @@ class HCMT(Simulator):
         self.L_H = 2 * levels + 1
         cmt_blocks = {"only-cmt": L_C + self.L_H, "only-hmt": 0}.get(ablation, L_C)
         self.cmt = nn.ModuleList(
-            TransformerBlock(hidden, heads, clip, edge_types=2, merge_branches=ablation == "single-branch",
-                             attention=attention, ffn_bias=ffn_bias)
+            TransformerBlock(
+                hidden,
+                heads,
+                clip,
+                edge_types=2,
+                merge_branches=ablation == "single-branch",
+                attention=attention,
+                ffn_bias=ffn_bias,
+            )
             for _ in range(cmt_blocks)
         )
-        self.hmt = (None if ablation == "only-cmt"
-                    else HMT(levels, hidden, heads, clip, attention=attention, ffn_bias=ffn_bias))
+        self.hmt = (
+            None if ablation == "only-cmt" else HMT(levels, hidden, heads, clip, attention=attention, ffn_bias=ffn_bias)
+        )
         self.lpe = LaplacianPE(hidden, lpe_k) if ablation == "lpe" else None
         if not self.cmt:  # only-hmt never sees contact edges: no unused parameters
             self.contact_encoder = None
@@ -144,8 +189,11 @@ class HCMT(Simulator):
         sites = [TapSite(b.tap, f"cmt{n}.{{branch}}", "cmt", n, 0) for n, b in enumerate(self.cmt)]
         if self.hmt is not None:
             lam = self.levels
-            sites += [TapSite(b.tap, f"hmt.{stage}{n}", stage, n, n)
-                      for stage in ("down", "up") for n, b in enumerate(getattr(self.hmt, stage))]
+            sites += [
+                TapSite(b.tap, f"hmt.{stage}{n}", stage, n, n)
+                for stage in ("down", "up")
+                for n, b in enumerate(getattr(self.hmt, stage))
+            ]
             sites.append(TapSite(self.hmt.bottom.tap, f"hmt.bottom{lam}", "bottom", lam, lam))
         return sites
 
@@ -157,14 +205,20 @@ class HCMT(Simulator):
         if not self.uses_hierarchy:
             return [], [], []
         if graph.num_levels < self.levels:
-            raise DatasetError(f"graph has {graph.num_levels} pooled levels, the model needs λ={self.levels}",
-                               field="pool")
-        pool, edges, feats = (graph.pool[: self.levels], graph.level_edges[: self.levels],
-                              graph.level_features[: self.levels])
+            raise DatasetError(
+                f"graph has {graph.num_levels} pooled levels, the model needs λ={self.levels}", field="pool"
+            )
+        pool, edges, feats = (
+            graph.pool[: self.levels],
+            graph.level_edges[: self.levels],
+            graph.level_features[: self.levels],
+        )
         for l, f in enumerate(feats):
             if f.dim() != 2 or f.shape[1] != self.mesh_in or f.shape[0] != edges[l].shape[1]:
-                raise DatasetError(f"level {l + 1}: expected [{edges[l].shape[1]}, {self.mesh_in}], "
-                                   f"got {tuple(f.shape)}", field="level_features")
+                raise DatasetError(
+                    f"level {l + 1}: expected [{edges[l].shape[1]}, {self.mesh_in}], got {tuple(f.shape)}",
+                    field="level_features",
+                )
         return pool, edges, feats
 
     def mesh_inputs(self, graph: Graph) -> tuple[Tensor, Tensor | None]:

@@ -9,6 +9,7 @@ of the ``k`` signs at random (per graph, per forward pass); the encoding enters 
 Eigenvectors depend only on the mesh connectivity, which is static along a trajectory: they are computed on the
 CPU with SciPy (shift-invert ``eigsh``, dense ``eigh`` for small graphs) and cached per connectivity.
 """
+
 from __future__ import annotations
 
 import hashlib

@@ -11,6 +11,7 @@ where the sums take the *updated* messages (before the edge residual, as DeepMin
 output is aggregated and the residual added afterwards). Every f is :func:`~hcmt.models.mlp.mlp` (two hidden
 layers, LayerNorm). Aggregation is a scatter-sum over receivers (row 1 of the edges).
 """
+
 from __future__ import annotations
 
 import torch
@@ -40,8 +41,11 @@ class MGNBlock(nn.Module):
         same parameters, equal up to float rounding: tests/models/test_models_parts.py)."""
         first, *rest = f
         w_e, w_s, w_r = first.weight.split(e.shape[-1], dim=1)
-        h = (nn.functional.linear(e, w_e, first.bias) + nn.functional.linear(z, w_s).index_select(0, edges[0])
-             + nn.functional.linear(z, w_r).index_select(0, edges[1]))
+        h = (
+            nn.functional.linear(e, w_e, first.bias)
+            + nn.functional.linear(z, w_s).index_select(0, edges[0])
+            + nn.functional.linear(z, w_r).index_select(0, edges[1])
+        )
         for layer in rest:
             h = layer(h)
         return h
@@ -72,8 +76,8 @@ class MGN(Simulator):
     output ``[N, out]``, ``denormalize`` the physical one. Save with :func:`hcmt.models.checkpoint_state`, load with
     :func:`hcmt.models.from_checkpoint` (the constructor arguments travel with the weights).
     """
-    def __init__(self, node_in: int, mesh_in: int, contact_in: int, out: int, *, blocks: int = 15,
-                 hidden: int = 128):
+
+    def __init__(self, node_in: int, mesh_in: int, contact_in: int, out: int, *, blocks: int = 15, hidden: int = 128):
         super().__init__(node_in, mesh_in, contact_in, out, hidden=hidden)
         if blocks < 1:
             raise InputError(f"MGN needs at least one message-passing block, got {blocks}")

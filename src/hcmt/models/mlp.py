@@ -4,6 +4,7 @@
 (DeepMind's ``widths = [hidden] * layers + [out]``, ``activate_final=False``), followed by a ``LayerNorm`` on the
 output unless ``layer_norm=False`` (the decoder has none, paper "Decoder and Updater").
 """
+
 from __future__ import annotations
 
 from torch import nn
@@ -28,6 +29,8 @@ def mlp(in_size: int, hidden: int, out_size: int, *, layers: int = 2, layer_norm
 def ffn(size: int, bias: bool = True) -> nn.Sequential:
     """The Transformer FFN of HCMT (and of the GT baseline, paper appendix): three linear layers, two ReLUs.
     ``bias=False`` is the authors' code (``core_model.FFN``: ``snt.Linear(with_bias=False)``)."""
+
     def lin():
         return nn.Linear(size, size, bias=bias)
+
     return nn.Sequential(lin(), nn.ReLU(), lin(), nn.ReLU(), lin())

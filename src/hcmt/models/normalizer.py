@@ -6,6 +6,7 @@ buffers, so they are saved in the model's ``state_dict`` and move with ``.to(dev
 (float32 sums of 10⁶ batches lose the variance to cancellation). Before anything was accumulated the normalizer is
 the identity (mean 0, std 1) rather than MGN's division by ε, so an untrained model in eval mode stays finite.
 """
+
 from __future__ import annotations
 
 import torch

@@ -2,6 +2,7 @@
 whether it has attention with :func:`register`, and lists its attention taps (:meth:`Simulator.attention_taps`), so
 adding a model touches its own module, the import in :mod:`hcmt.models` and :data:`hcmt.config.MODELS` only
 (docs/extending.md). Light: no torch import, so the table can be read without building anything."""
+
 from __future__ import annotations
 
 from dataclasses import dataclass, field
@@ -28,14 +29,23 @@ class ModelInfo:
 REGISTRY: dict[str, ModelInfo] = {}
 
 
-def register(name: str, label: str, *, settings: tuple[str, ...], needs_hierarchy: bool = False,
-             has_attention: bool = False, extra: tuple[str, ...] = ()):
+def register(
+    name: str,
+    label: str,
+    *,
+    settings: tuple[str, ...],
+    needs_hierarchy: bool = False,
+    has_attention: bool = False,
+    extra: tuple[str, ...] = (),
+):
     """Class decorator: enter the model under ``name`` (lower case, as ``model.name`` in a config and run.yaml's
     ``model.name``) with its builder, the class itself; a name registered twice is a bug."""
+
     def decorate(cls):
         if name in REGISTRY:
             raise RuntimeError(f"model {name!r} is registered twice")
         REGISTRY[name] = ModelInfo(label, needs_hierarchy, has_attention, tuple(settings), cls, tuple(extra))
         cls.model_name = name
         return cls
+
     return decorate

@@ -1,6 +1,7 @@
 """The Deforming Plate's rigid actuators: a sphere, a cylinder (axis along y) and a box, each with its exact signed
 distance (for the contact, :class:`hcmt.sim.quasistatic.Contact`) and a tetrahedral mesh whose nodes are the
 dataset's OBSTACLE nodes; and the paths they follow."""
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -32,6 +33,7 @@ class Sphere:
 @dataclass(frozen=True)
 class Cylinder:
     """Infinite along y (its mesh is longer than the plate is wide, so the two agree where the plate is)."""
+
     center: np.ndarray
     radius: float
     length: float
@@ -51,6 +53,7 @@ class Cylinder:
 class Box:
     """A box with edges and corners rounded by ``round`` (its signed distance is then smooth outside the inner box
     and near the surface): half edges ``half``."""
+
     center: np.ndarray
     half: np.ndarray
     round: float

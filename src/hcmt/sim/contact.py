@@ -15,6 +15,7 @@ Candidates: each slave keeps its ``K`` nearest master segments (by midpoint, fro
 ``n`` substeps with ``n`` chosen so that no node can move more than a quarter of the shortest segment in between
 (so the nearest segment cannot be missed).
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -35,8 +36,18 @@ def boundary_edges(cells: np.ndarray) -> np.ndarray:
 class PenaltyContact:
     """Two-pass node-to-segment penalty contact between body 0 and body 1 (``body`` [N] in {0, 1})."""
 
-    def __init__(self, X: np.ndarray, cells: np.ndarray, body: np.ndarray, mass: np.ndarray, dt: float, *,
-                 alpha: float = 0.2, exclude_axis: bool = True, k_nearest: int = 4):
+    def __init__(
+        self,
+        X: np.ndarray,
+        cells: np.ndarray,
+        body: np.ndarray,
+        mass: np.ndarray,
+        dt: float,
+        *,
+        alpha: float = 0.2,
+        exclude_axis: bool = True,
+        k_nearest: int = 4,
+    ):
         if not 0 < alpha <= 0.5:
             raise InputError(f"penalty factor alpha must be in (0, 0.5] to stay inside the stable step, got {alpha}")
         self.mass, self.dt, self.alpha, self.K = mass, dt, alpha, k_nearest
@@ -82,7 +93,7 @@ class PenaltyContact:
         """Active contacts: for every candidate slave the valid segment of least penetration."""
         S, K = self.seg.shape[:2]
         p = x[self.gather]  # one gather: slaves, then segment starts, then segment ends
-        xs, xa, xb = p[:S, None], p[S:S + S * K].reshape(S, K, 2), p[S + S * K:].reshape(S, K, 2)
+        xs, xa, xb = p[:S, None], p[S : S + S * K].reshape(S, K, 2), p[S + S * K :].reshape(S, K, 2)
         t, r = xb - xa, xs - xa
         tx, ty, rx, ry = t[..., 0], t[..., 1], r[..., 0], r[..., 1]
         L2 = tx * tx + ty * ty
@@ -109,8 +120,9 @@ class PenaltyContact:
         pn = (-k * g)[:, None] * n
         idx = np.concatenate([s, seg[:, 0], seg[:, 1]])
         w = np.concatenate([pn, -pn * (1 - xi)[:, None], -pn * xi[:, None]])
-        return np.stack([np.bincount(idx, weights=w[:, 0], minlength=N),
-                         np.bincount(idx, weights=w[:, 1], minlength=N)], 1)
+        return np.stack(
+            [np.bincount(idx, weights=w[:, 0], minlength=N), np.bincount(idx, weights=w[:, 1], minlength=N)], 1
+        )
 
     def energy(self, x: np.ndarray) -> float:
         """Penalty energy ``sum k g^2 / 2`` over both passes (mJ)."""

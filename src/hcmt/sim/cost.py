@@ -2,6 +2,7 @@
 estimate from the design's numbers (:func:`estimate`), the size and time limits every command applies
 (:func:`check_size`, :func:`check_cost`), the plan from the built mesh (:func:`plan`) and the validated ranges
 (:func:`validated_warnings`)."""
+
 from __future__ import annotations
 
 import numpy as np
@@ -18,9 +19,15 @@ from hcmt.sim.solver import stable_time_step
 #: overhead-bound, so their estimate stays conservative)
 SECONDS_PER_SUBSTEP, SECONDS_PER_NODE_SUBSTEP = 4e-4, 3e-7
 #: the ranges the solver is validated for (docs/solver.md): outside them, results are not trusted
-VALIDATED = {"impact_speed": (0.0, 10.0), "plate_modulus": (1e3, 1e6), "ball_modulus": (1e3, 1e6),
-             "plate_poisson": (0.0, 0.45), "ball_poisson": (0.0, 0.45), "plate_density": (5e-4, 2e-2),
-             "ball_density": (5e-4, 2e-2)}
+VALIDATED = {
+    "impact_speed": (0.0, 10.0),
+    "plate_modulus": (1e3, 1e6),
+    "ball_modulus": (1e3, 1e6),
+    "plate_poisson": (0.0, 0.45),
+    "ball_poisson": (0.0, 0.45),
+    "plate_density": (5e-4, 2e-2),
+    "ball_density": (5e-4, 2e-2),
+}
 
 
 def validated_warnings(design: Design) -> list[str]:
@@ -30,8 +37,10 @@ def validated_warnings(design: Design) -> list[str]:
         v = getattr(design, key)
         if not lo <= v <= hi:
             unit = " mm/ms (= m/s)" if key == "impact_speed" else ""
-            out.append(f"{key} = {v:.6g}{unit} is outside the range the solver is validated for ({lo:g} .. {hi:g}; "
-                       "docs/solver.md): do not trust the result")
+            out.append(
+                f"{key} = {v:.6g}{unit} is outside the range the solver is validated for ({lo:g} .. {hi:g}; "
+                "docs/solver.md): do not trust the result"
+            )
     return out
 
 
@@ -53,13 +62,16 @@ def estimate(design: Design, settings: Settings = Settings()) -> dict:
         under = [layer for f in features(design) for layer in f.under(design)]  # a backing's rows
         layers = [(float(t), rho, E, nu) for t, rho, E, nu in [*design.layers, *under]]
         rows = [max(1.0, t / h) for t, *_ in layers]
-        rows[0] += max(0.0, 4.0 - sum(rows[:len(design.layers)]))  # at least 4 rows through the panel
+        rows[0] += max(0.0, 4.0 - sum(rows[: len(design.layers)]))  # at least 4 rows through the panel
         own = [c for c in (f.cost(design, h) for f in features(design)) if c is not None]  # the pen's tip
         hb, impactor = own[0] if own else (h, np.pi * r * r / (2.0 * h * h) + 2.0 * r / h + 1.0)
         nodes = (L / h + 1.0) * (sum(rows) + 1.0) + impactor
         speeds = [np.sqrt(E * (1 - nu) / (rho * (1 + nu) * (1 - 2 * nu))) for _, rho, E, nu in layers]
-        ball = np.sqrt(design.ball_modulus * (1 - design.ball_poisson) / (
-            design.ball_density * (1 + design.ball_poisson) * (1 - 2 * design.ball_poisson)))
+        ball = np.sqrt(
+            design.ball_modulus
+            * (1 - design.ball_poisson)
+            / (design.ball_density * (1 + design.ball_poisson) * (1 - 2 * design.ball_poisson))
+        )
         b1 = settings.bulk_viscosity
         # the Courant step of the fastest element: its half height over its material's wave speed
         h_over_c = min([0.5 * min(h, t / n) / c for (t, *_), n, c in zip(layers, rows, speeds)] + [0.5 * hb / ball])
@@ -75,21 +87,26 @@ def check_size(design: Design, settings: Settings = Settings(), where: str = "")
     e = estimate(design, settings)
     if not e["num_nodes"] <= MAX_NODES:
         n = f"{e['num_nodes']:.3g}" if np.isfinite(e["num_nodes"]) else "an unbounded number of"
-        raise InputError(f"{where}the design's mesh would have {n} nodes (plate {design.plate_half_length:g} x "
-                         f"{design.thickness:g} mm, ball radius {design.ball_radius:g} mm at mesh_size "
-                         f"{design.mesh_size:g} mm), more than the {MAX_NODES:,} any command builds; coarsen the "
-                         "mesh or shrink the design")
+        raise InputError(
+            f"{where}the design's mesh would have {n} nodes (plate {design.plate_half_length:g} x "
+            f"{design.thickness:g} mm, ball radius {design.ball_radius:g} mm at mesh_size "
+            f"{design.mesh_size:g} mm), more than the {MAX_NODES:,} any command builds; coarsen the "
+            "mesh or shrink the design"
+        )
     return e
 
 
-def check_cost(seconds: float, nodes: float, design: Design, force: bool = False, where: str = "",
-               what: str = "") -> None:
+def check_cost(
+    seconds: float, nodes: float, design: Design, force: bool = False, where: str = "", what: str = ""
+) -> None:
     """The one cost rule of simulate, generate, predict and sweep: refuse, unless ``force``, a plan estimated at
     over :data:`MAX_ESTIMATED_SECONDS` (one line: the estimate, ``what`` it covers, the mesh, how to go on)."""
     if seconds > MAX_ESTIMATED_SECONDS and not force:
-        raise InputError(f"{where}about {nodes:.0f} nodes at mesh_size {design.mesh_size:g} mm: estimated "
-                         f"{seconds:.0f} s{what} exceeds {MAX_ESTIMATED_SECONDS:.0f} s; coarsen the mesh, record fewer "
-                         "frames or force it (force=True, --force)")
+        raise InputError(
+            f"{where}about {nodes:.0f} nodes at mesh_size {design.mesh_size:g} mm: estimated "
+            f"{seconds:.0f} s{what} exceeds {MAX_ESTIMATED_SECONDS:.0f} s; coarsen the mesh, record fewer "
+            "frames or force it (force=True, --force)"
+        )
 
 
 def plan(design: Design, settings: Settings = Settings()) -> dict:
@@ -101,9 +118,13 @@ def plan(design: Design, settings: Settings = Settings()) -> dict:
     mesh = design_mesh(design)
     per_frame = int(np.ceil(settings.frame_dt / stable_time_step(fem_model(design, settings, mesh), settings.safety)))
     n, substeps = len(mesh["mesh_pos"]), per_frame * (settings.frames - 1)
-    return {"num_nodes": n, "num_cells": len(mesh["cells"]), "substeps": substeps,
-            "dt": settings.frame_dt / per_frame,
-            "estimated_s": substeps * (SECONDS_PER_SUBSTEP + SECONDS_PER_NODE_SUBSTEP * n)}
+    return {
+        "num_nodes": n,
+        "num_cells": len(mesh["cells"]),
+        "substeps": substeps,
+        "dt": settings.frame_dt / per_frame,
+        "estimated_s": substeps * (SECONDS_PER_SUBSTEP + SECONDS_PER_NODE_SUBSTEP * n),
+    }
 
 
 # -- the recorded window: did it hold the impact? --------------------------------------------------------------------
@@ -121,9 +142,12 @@ def fall(design: Design, settings: Settings = Settings()) -> dict:
     window = (settings.frames - 1) * settings.frame_dt
     touch = (np.sqrt(v0 * v0 + 2 * g * gap) - v0) / g if g > 0 else gap / max(v0, 1e-300)
     least = max(0.0, (gap - 0.5 * g * window * window) / window)  # the impact speed that closes the gap in time
-    return {"window_ms": window, "fallen_mm": v0 * window + 0.5 * g * window * window,
-            "touch_frame": int(np.ceil(touch / settings.frame_dt - 1e-9)),
-            "touch_height_mm": least * least / (2 * g) if g > 0 else float("inf")}
+    return {
+        "window_ms": window,
+        "fallen_mm": v0 * window + 0.5 * g * window * window,
+        "touch_frame": int(np.ceil(touch / settings.frame_dt - 1e-9)),
+        "touch_height_mm": least * least / (2 * g) if g > 0 else float("inf"),
+    }
 
 
 def window_warnings(design: Design, settings: Settings, plate_history: np.ndarray, gap: np.ndarray) -> list[str]:
@@ -136,17 +160,21 @@ def window_warnings(design: Design, settings: Settings, plate_history: np.ndarra
     if float(np.min(gap)) > 0:
         f = fall(design, settings)
         unit = f" (mm: {design.drop_height:g} m is {design.drop_height * 1e3:g})" if design.drop_height < 10 else ""
-        return [f"the {design.impactor} did not touch the plate in the simulated window ({window}): from drop_height "
-                f"{design.drop_height:g} mm it falls {f['fallen_mm']:.2g} of its {design.gap:g} mm gap; raise "
-                f"drop_height{unit} above {f['touch_height_mm']:.3g} mm, or record more frames (--frames; it reaches "
-                f"the plate at frame {f['touch_frame']})"]
+        return [
+            f"the {design.impactor} did not touch the plate in the simulated window ({window}): from drop_height "
+            f"{design.drop_height:g} mm it falls {f['fallen_mm']:.2g} of its {design.gap:g} mm gap; raise "
+            f"drop_height{unit} above {f['touch_height_mm']:.3g} mm, or record more frames (--frames; it reaches "
+            f"the plate at frame {f['touch_frame']})"
+        ]
     history = np.asarray(plate_history, float).reshape(-1)
     peak, at = float(history.max()), int(history.argmax())
     if peak > 0 and (at >= frames - CUT_FRAMES or history[-1] >= CUT_SHARE * peak):
         more = max(90, 3 * frames // 2)  # 90: at least the shipped model's window (`hcmt models`)
-        return [f"the peak plate stress ({peak:.1f} MPa) is at frame {at} ({at * dt:.3g} ms) of a window ending at "
-                f"frame {frames - 1} ({(frames - 1) * dt:.3g} ms), which still holds {100 * history[-1] / peak:.0f} % "
-                f"of it: the window may cut the peak; record more frames, e.g. --frames {more}"]
+        return [
+            f"the peak plate stress ({peak:.1f} MPa) is at frame {at} ({at * dt:.3g} ms) of a window ending at "
+            f"frame {frames - 1} ({(frames - 1) * dt:.3g} ms), which still holds {100 * history[-1] / peak:.0f} % "
+            f"of it: the window may cut the peak; record more frames, e.g. --frames {more}"
+        ]
     return []
 
 
@@ -171,5 +199,10 @@ def solver_seconds(designs: list[Design], settings: Settings = Settings(), sampl
 
 def duration(seconds: float) -> str:
     """``42 s``, ``12.5 min``, ``7.5 h``."""
-    return f"{seconds:.0f} s" if seconds < 120 else f"{seconds / 60:.1f} min" if seconds < 7200 else \
-        f"{seconds / 3600:.1f} h"
+    return (
+        f"{seconds:.0f} s"
+        if seconds < 120
+        else f"{seconds / 60:.1f} min"
+        if seconds < 7200
+        else f"{seconds / 3600:.1f} h"
+    )

@@ -6,6 +6,7 @@ Each frame is an equilibrium (:func:`hcmt.sim.quasistatic.advance`); ``stress`` 
 the plate (volume-averaged from its elements; 0 on the actuator). Design parameters, their units and ranges are
 declared once, in :data:`hcmt.sim.plate_params.RANGES`.
 """
+
 from __future__ import annotations
 
 import json
@@ -27,20 +28,23 @@ def plate_grid(design: PlateDesign, settings: PlateSettings):
     per_layer = settings.plate_nodes / (settings.layers + 1)
     nx = max(1, round(np.sqrt(per_layer * design.plate_length / design.plate_width)) - 1)
     ny = max(1, round(per_layer / (nx + 1)) - 1)
-    return (np.linspace(0, design.plate_length, nx + 1), np.linspace(0, design.plate_width, ny + 1),
-            np.linspace(-design.thickness, 0, settings.layers + 1))
+    return (
+        np.linspace(0, design.plate_length, nx + 1),
+        np.linspace(0, design.plate_width, ny + 1),
+        np.linspace(-design.thickness, 0, settings.layers + 1),
+    )
 
 
 @dataclass
 class PlateScene:
     body: NeoHookean
-    shape: object          # the actuator at rest (hcmt.sim.actuator)
+    shape: object  # the actuator at rest (hcmt.sim.actuator)
     contact_nodes: np.ndarray
     k: float
     delta: float
     actuator_pos: np.ndarray
     actuator_tets: np.ndarray
-    handle: np.ndarray     # clamped plate nodes
+    handle: np.ndarray  # clamped plate nodes
     spacing: float
 
 
@@ -50,17 +54,28 @@ def build_scene(design: PlateDesign, settings: PlateSettings = PlateSettings()) 
     xs, ys, zs = plate_grid(design, settings)
     pos, tets = box_tets(xs, ys, zs)
     handle = np.flatnonzero(pos[:, 0] == 0.0)
-    body = NeoHookean(pos, tets, design.modulus, design.poisson,
-                      fixed=(3 * handle[:, None] + np.arange(3)).ravel())
+    body = NeoHookean(pos, tets, design.modulus, design.poisson, fixed=(3 * handle[:, None] + np.arange(3)).ravel())
     size = design.actuator_size
     lift = size if design.shape != "box" else BOX_HEIGHT * size  # the actuator's bottom GAP x t above the plate
-    center = (design.actuator_x * design.plate_length, design.actuator_y * design.plate_width,
-              lift + GAP * design.thickness)
+    center = (
+        design.actuator_x * design.plate_length,
+        design.actuator_y * design.plate_width,
+        lift + GAP * design.thickness,
+    )
     shape = make_shape(design.shape, center, size, 1.2 * design.plate_width)
     apos, atets = shape.mesh(settings.actuator_cells)
     h = float(np.mean([xs[1] - xs[0], ys[1] - ys[0]]))
-    return PlateScene(body, shape, surface_nodes(tets), settings.penalty * design.modulus * h, settings.reach * h,
-                      apos, atets, handle, h)
+    return PlateScene(
+        body,
+        shape,
+        surface_nodes(tets),
+        settings.penalty * design.modulus * h,
+        settings.reach * h,
+        apos,
+        atets,
+        handle,
+        h,
+    )
 
 
 def actuator_offsets(design: PlateDesign, frames: int) -> np.ndarray:
@@ -72,9 +87,11 @@ def actuator_offsets(design: PlateDesign, frames: int) -> np.ndarray:
 def _step_load(scene: PlateScene, settings: PlateSettings, start: np.ndarray, end: np.ndarray):
     """The load of one step for :func:`hcmt.sim.quasistatic.advance`: at ``s``, the actuator at
     ``start + s (end - start)`` (the clamp holds its own values)."""
+
     def load(s: float, x: np.ndarray) -> list[Contact]:
         shape = moved(scene.shape, start + s * (end - start))
         return [Contact(shape, scene.contact_nodes, scene.k, scene.delta, settings.curved)]
+
     return load
 
 
@@ -100,8 +117,17 @@ def solve_plate(design: PlateDesign, settings: PlateSettings = PlateSettings(), 
         force[t] = contact(1.0, x)[0].force_on_obstacle(x)
         if progress is not None:
             progress(t)
-    return dict(scene=scene, world=world, von_mises=vm, iterations=its, substeps=subs, residuals=histories,
-                reaction=reaction, actuator_force=force, offsets=offsets)
+    return dict(
+        scene=scene,
+        world=world,
+        von_mises=vm,
+        iterations=its,
+        substeps=subs,
+        residuals=histories,
+        reaction=reaction,
+        actuator_force=force,
+        offsets=offsets,
+    )
 
 
 def simulate_plate(design: PlateDesign, settings: PlateSettings = PlateSettings(), progress=None) -> dict:
@@ -117,26 +143,37 @@ def simulate_plate(design: PlateDesign, settings: PlateSettings = PlateSettings(
     node_type[scene.handle] = NodeType.HANDLE
     node_type[n_plate:] = NodeType.OBSTACLE
     actuator = apos[None] + r["offsets"][:, None, :]
-    fields = {"mesh_pos": (mesh_pos * TO_METRES).astype(np.float32),
-              "cells": np.concatenate([scene.body.tets, scene.actuator_tets + n_plate]).astype(np.int32),
-              "node_type": node_type,
-              "world_pos": (np.concatenate([r["world"], actuator], 1) * TO_METRES).astype(np.float32),
-              "stress": (np.concatenate([r["von_mises"], np.zeros((settings.frames, len(apos)))], 1)[..., None]
-                         * TO_PASCALS).astype(np.float32)}
+    fields = {
+        "mesh_pos": (mesh_pos * TO_METRES).astype(np.float32),
+        "cells": np.concatenate([scene.body.tets, scene.actuator_tets + n_plate]).astype(np.int32),
+        "node_type": node_type,
+        "world_pos": (np.concatenate([r["world"], actuator], 1) * TO_METRES).astype(np.float32),
+        "stress": (
+            np.concatenate([r["von_mises"], np.zeros((settings.frames, len(apos)))], 1)[..., None] * TO_PASCALS
+        ).astype(np.float32),
+    }
     # per-step records as JSON text: the dataset's attributes are scalars (hcmt.data.format.Split.attrs)
-    attrs = {**asdict(design), "newton_iterations": json.dumps(r["iterations"].tolist()),
-             "substeps": json.dumps(r["substeps"].tolist()),
-             "actuator_force": json.dumps(np.round(r["actuator_force"], 9).tolist()),
-             "newton_iterations_max": int(r["iterations"].max(initial=0))}
+    attrs = {
+        **asdict(design),
+        "newton_iterations": json.dumps(r["iterations"].tolist()),
+        "substeps": json.dumps(r["substeps"].tolist()),
+        "actuator_force": json.dumps(np.round(r["actuator_force"], 9).tolist()),
+        "newton_iterations_max": int(r["iterations"].max(initial=0)),
+    }
     wall = time.perf_counter() - start
-    return dict(fields=fields, attrs=attrs, info=dict(wall_time=wall, num_nodes=len(mesh_pos),
-                                                       iterations=int(r["iterations"].sum())))
+    return dict(
+        fields=fields,
+        attrs=attrs,
+        info=dict(wall_time=wall, num_nodes=len(mesh_pos), iterations=int(r["iterations"].sum())),
+    )
 
 
 def feature_spec(frames: int) -> dict:
     """meta.json's features: the public deforming_plate fields (static fields without their leading 1)."""
-    return {"mesh_pos": {"type": "static", "shape": [-1, 3], "dtype": "float32"},
-            "cells": {"type": "static", "shape": [-1, 4], "dtype": "int32"},
-            "node_type": {"type": "static", "shape": [-1, 1], "dtype": "int32"},
-            "world_pos": {"type": "dynamic", "shape": [frames, -1, 3], "dtype": "float32"},
-            "stress": {"type": "dynamic", "shape": [frames, -1, 1], "dtype": "float32"}}
+    return {
+        "mesh_pos": {"type": "static", "shape": [-1, 3], "dtype": "float32"},
+        "cells": {"type": "static", "shape": [-1, 4], "dtype": "int32"},
+        "node_type": {"type": "static", "shape": [-1, 1], "dtype": "int32"},
+        "world_pos": {"type": "dynamic", "shape": [frames, -1, 3], "dtype": "float32"},
+        "stress": {"type": "dynamic", "shape": [frames, -1, 1], "dtype": "float32"},
+    }

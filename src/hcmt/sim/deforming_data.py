@@ -1,6 +1,7 @@
 """``hcmt generate deforming-plate``: a native Deforming Plate dataset (meta.json ``dataset: deforming_plate``, the
 public MeshGraphNets fields and node types), written by :func:`hcmt.sim.generate.write_dataset` (parallel,
 resumable, locked: the Impact Plate generator's machinery)."""
+
 from __future__ import annotations
 
 from dataclasses import asdict
@@ -27,11 +28,24 @@ def estimate_seconds(settings: PlateSettings) -> float:
 
 
 def deforming_meta(seed: int, counts: dict[str, int], settings: PlateSettings) -> dict:
-    generator = dict(name="hcmt deforming-plate", seed=int(seed), counts=dict(counts), settings=asdict(settings),
-                     ranges={k: [lo, hi, unit] for k, (lo, hi, unit) in RANGES.items()},
-                     shapes=list(SHAPES), paths=list(PATHS))
-    return make_meta(feature_spec(settings.frames), trajectory_length=settings.frames, dimension=3, dt=None,
-                     units=UNITS, generator=generator, dataset="deforming_plate")
+    generator = dict(
+        name="hcmt deforming-plate",
+        seed=int(seed),
+        counts=dict(counts),
+        settings=asdict(settings),
+        ranges={k: [lo, hi, unit] for k, (lo, hi, unit) in RANGES.items()},
+        shapes=list(SHAPES),
+        paths=list(PATHS),
+    )
+    return make_meta(
+        feature_spec(settings.frames),
+        trajectory_length=settings.frames,
+        dimension=3,
+        dt=None,
+        units=UNITS,
+        generator=generator,
+        dataset="deforming_plate",
+    )
 
 
 def deforming_trajectory(meta: dict, preset: str, seed: int, split: str, index: int, settings: dict) -> tuple:
@@ -50,9 +64,16 @@ def deforming_trajectory(meta: dict, preset: str, seed: int, split: str, index: 
     raise NotConverged(f"{split} trajectory {index}: none of {MAX_DRAWS} designs drawn converged")
 
 
-def generate_deforming_plate(out, *, counts: dict[str, int], seed: int = 0, workers: int = 1,
-                             settings: PlateSettings = PlateSettings(), progress: bool = True,
-                             force: bool = False) -> dict:
+def generate_deforming_plate(
+    out,
+    *,
+    counts: dict[str, int],
+    seed: int = 0,
+    workers: int = 1,
+    settings: PlateSettings = PlateSettings(),
+    progress: bool = True,
+    force: bool = False,
+) -> dict:
     """Generate (or finish) a Deforming Plate dataset in ``out``; ``counts`` maps train/valid/test to trajectory
     counts. A trajectory estimated at over :data:`hcmt.sim.params.MAX_ESTIMATED_SECONDS` is refused before anything
     is written, unless ``force``. Returns ``{"simulated": n, "skipped": n, "splits": {split: path}}``."""
@@ -62,9 +83,18 @@ def generate_deforming_plate(out, *, counts: dict[str, int], seed: int = 0, work
     counts = checked_counts(counts, workers, SPLITS)
     seconds = estimate_seconds(settings)
     if seconds > MAX_ESTIMATED_SECONDS and not force:
-        raise InputError(f"about {settings.plate_nodes} plate nodes and {settings.frames} frames: estimated "
-                         f"{seconds:.0f} s per trajectory exceeds {MAX_ESTIMATED_SECONDS:.0f} s; coarsen the mesh, "
-                         "record fewer frames or force it (force=True, --force)")
+        raise InputError(
+            f"about {settings.plate_nodes} plate nodes and {settings.frames} frames: estimated "
+            f"{seconds:.0f} s per trajectory exceeds {MAX_ESTIMATED_SECONDS:.0f} s; coarsen the mesh, "
+            "record fewer frames or force it (force=True, --force)"
+        )
     meta = deforming_meta(seed, counts, settings)
-    return write_dataset(out, meta, counts, ("deforming", int(seed), asdict(settings), deforming_trajectory),
-                         workers, progress, "deforming-plate")
+    return write_dataset(
+        out,
+        meta,
+        counts,
+        ("deforming", int(seed), asdict(settings), deforming_trajectory),
+        workers,
+        progress,
+        "deforming-plate",
+    )

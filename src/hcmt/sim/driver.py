@@ -1,5 +1,6 @@
 """The solver driver: a design's scene (:mod:`hcmt.sim.scene`) started in the explicit solver
 (:mod:`hcmt.sim.solver`, :mod:`hcmt.sim.contact`) and run frame by frame into one trajectory."""
+
 from __future__ import annotations
 
 import time
@@ -54,8 +55,14 @@ def solver(design: Design, settings: Settings = Settings()) -> tuple[CentralDiff
     substeps = int(np.ceil(settings.frame_dt / stable_time_step(model, settings.safety)))
     dt = settings.frame_dt / substeps  # frames land exactly on substeps
     contact = PenaltyContact(X, cells, body, model.mass, dt, alpha=settings.penalty)
-    sim = CentralDifference(model, fixed_dofs(mesh["node_type"]), dt, contact=contact, gravity=settings.gravity,
-                            rigid=(mesh["rigid"], design.pen_mass))
+    sim = CentralDifference(
+        model,
+        fixed_dofs(mesh["node_type"]),
+        dt,
+        contact=contact,
+        gravity=settings.gravity,
+        rigid=(mesh["rigid"], design.pen_mass),
+    )
     v0 = np.zeros_like(X)
     v0[body == 1, 1] = -design.impact_speed
     sim.start(X, v0)
@@ -97,9 +104,11 @@ def simulate(design: Design, settings: Settings = Settings(), *, progress=None) 
         inverted = np.flatnonzero((F11 * F22 - F12 * F21) * F33 <= 0)
         if len(inverted) or not np.isfinite(sim.x).all():
             what = f"element {int(inverted[0])} inverted" if len(inverted) else "positions became non-finite"
-            raise SolverError(f"solve stopped at frame {k} (t = {k * settings.frame_dt:.4g} ms): {what}; the design "
-                              "is outside what the explicit solver handles (see the validated ranges in "
-                              "docs/solver.md)")
+            raise SolverError(
+                f"solve stopped at frame {k} (t = {k * settings.frame_dt:.4g} ms): {what}; the design "
+                "is outside what the explicit solver handles (see the validated ranges in "
+                "docs/solver.md)"
+            )
         stress[k, :, 0] = nodal_von_mises(model, sim.x)
         if peak is not None and k == 0:
             peak[0] = stress[0]
@@ -108,9 +117,19 @@ def simulate(design: Design, settings: Settings = Settings(), *, progress=None) 
     fields_ = dict(static_fields(design, mesh, settings.formulation), world_pos=world_pos, stress=stress)
     if peak is not None:
         fields_["stress_max"] = peak
-    attrs = {**asdict(design), "impact_speed": design.impact_speed, "formulation": settings.formulation,
-             "family": design.family}
-    info = SolveInfo(wall_time=time.perf_counter() - start, cpu_time=time.process_time() - cpu_start,
-                     substeps=substeps * (T - 1), dt=float(dt), num_nodes=N, num_cells=len(cells),
-                     energy={k: float(v) for k, v in sim.energies().items()})
+    attrs = {
+        **asdict(design),
+        "impact_speed": design.impact_speed,
+        "formulation": settings.formulation,
+        "family": design.family,
+    }
+    info = SolveInfo(
+        wall_time=time.perf_counter() - start,
+        cpu_time=time.process_time() - cpu_start,
+        substeps=substeps * (T - 1),
+        dt=float(dt),
+        num_nodes=N,
+        num_cells=len(cells),
+        energy={k: float(v) for k, v in sim.energies().items()},
+    )
     return SimResult(fields_, attrs, info)

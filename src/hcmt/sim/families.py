@@ -12,6 +12,7 @@ families a dataset is drawn from, is built from their ``families``. Adding one: 
 
 Light (numpy only): the command's parsers read :data:`FAMILIES` before torch loads.
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -101,10 +102,16 @@ class Stack(Feature):
     fields = tuple(f"layer{k}_{m}" for k in (2, 3, 4) for m in ("thickness", "density", "modulus", "poisson"))
     families = {
         "stack2": dict(thickness=(0.4, 0.8), **_HALF_LENGTH, **_layer(2, (0.1, 0.3), _FILM)),
-        "stack3": dict(thickness=(0.4, 0.7), **_HALF_LENGTH, **_layer(2, (0.05, 0.15), _ADHESIVE),
-                       **_layer(3, (0.1, 0.3), _FILM)),
-        "stack4": dict(thickness=(0.4, 0.7), **_HALF_LENGTH, **_layer(2, (0.05, 0.15), _ADHESIVE),
-                       **_layer(3, (0.1, 0.3), _FILM), **_layer(4, (0.05, 0.15), _ADHESIVE)),
+        "stack3": dict(
+            thickness=(0.4, 0.7), **_HALF_LENGTH, **_layer(2, (0.05, 0.15), _ADHESIVE), **_layer(3, (0.1, 0.3), _FILM)
+        ),
+        "stack4": dict(
+            thickness=(0.4, 0.7),
+            **_HALF_LENGTH,
+            **_layer(2, (0.05, 0.15), _ADHESIVE),
+            **_layer(3, (0.1, 0.3), _FILM),
+            **_layer(4, (0.05, 0.15), _ADHESIVE),
+        ),
     }
 
     def present(self, design) -> bool:
@@ -125,14 +132,19 @@ class Stack(Feature):
         for k in (2, 3, 4):
             if getattr(design, f"layer{k}_thickness") > 0:
                 if k > 2 and not getattr(design, f"layer{k - 1}_thickness") > 0:
-                    raise InputError(f"layer{k}_thickness is set but layer{k - 1}_thickness is 0: layers stack "
-                                     "from the top without gaps")
+                    raise InputError(
+                        f"layer{k}_thickness is set but layer{k - 1}_thickness is 0: layers stack "
+                        "from the top without gaps"
+                    )
                 nu = getattr(design, f"layer{k}_poisson")
                 if not 0 <= nu <= MAX_LAYER_POISSON:
-                    raise InputError(f"layer{k}_poisson must be in [0, {MAX_LAYER_POISSON}] (near 0.5 the linear "
-                                     f"triangles lock volumetrically), got {nu}")
-                check_material(f"layer{k}", *(getattr(design, f"layer{k}_{m}")
-                                              for m in ("density", "modulus", "poisson")))
+                    raise InputError(
+                        f"layer{k}_poisson must be in [0, {MAX_LAYER_POISSON}] (near 0.5 the linear "
+                        f"triangles lock volumetrically), got {nu}"
+                    )
+                check_material(
+                    f"layer{k}", *(getattr(design, f"layer{k}_{m}") for m in ("density", "modulus", "poisson"))
+                )
 
     def mesh(self, design) -> dict:
         return {}  # its layers reach the mesher with the panel's (Design.layers)
@@ -153,8 +165,10 @@ class Ring(Feature):
     def check(self, design) -> None:
         r, h, L = design.support_radius, design.mesh_size, design.plate_half_length
         if not h <= r <= L - h:
-            raise InputError(f"support_radius ({r} mm) must lie inside the plate: between mesh_size ({h:g}) and "
-                             f"plate_half_length - mesh_size ({L - h:g} mm)")
+            raise InputError(
+                f"support_radius ({r} mm) must lie inside the plate: between mesh_size ({h:g}) and "
+                f"plate_half_length - mesh_size ({L - h:g} mm)"
+            )
 
     def mesh(self, design) -> dict:
         return {"support_radius": design.support_radius}
@@ -176,8 +190,9 @@ class Backing(Feature):
 
     def check(self, design) -> None:
         if design.support_radius > 0:
-            raise InputError("support_radius and backing_thickness are both set: choose one support (a ring, "
-                             "or a backing)")
+            raise InputError(
+                "support_radius and backing_thickness are both set: choose one support (a ring, or a backing)"
+            )
         check_material("backing", BACKING_DENSITY, design.backing_modulus, BACKING_POISSON)
 
     def under(self, design) -> list[tuple[float, float, float, float]]:
@@ -207,8 +222,10 @@ class Pen(Feature):
     def check(self, design) -> None:
         r, h, t = design.pen_tip_radius, design.mesh_size, design.total_thickness
         if not h <= r <= 10 * t:
-            raise InputError(f"pen_tip_radius ({r} mm) must lie between mesh_size ({h:g} mm) and 10 x the panel's "
-                             f"thickness ({10 * t:g} mm)")
+            raise InputError(
+                f"pen_tip_radius ({r} mm) must lie between mesh_size ({h:g} mm) and 10 x the panel's "
+                f"thickness ({10 * t:g} mm)"
+            )
         if not (np.isfinite(design.pen_mass) and design.pen_mass > 0):
             raise InputError(f"must be > 0 g, got {design.pen_mass}", param="pen_mass")
 
@@ -220,8 +237,10 @@ class Pen(Feature):
         learned model sees the rod only through it."""
         cells = mesh["cells"]
         p = mesh["mesh_pos"][cells[mesh["cell_body"] == 1]]
-        area = 0.5 * np.abs((p[:, 1, 0] - p[:, 0, 0]) * (p[:, 2, 1] - p[:, 0, 1])
-                            - (p[:, 1, 1] - p[:, 0, 1]) * (p[:, 2, 0] - p[:, 0, 0]))
+        area = 0.5 * np.abs(
+            (p[:, 1, 0] - p[:, 0, 0]) * (p[:, 2, 1] - p[:, 0, 1])
+            - (p[:, 1, 1] - p[:, 0, 1]) * (p[:, 2, 0] - p[:, 0, 0])
+        )
         weight = 2 * np.pi * p[:, :, 0].mean(1) if formulation == "axisymmetric" else 1.0  # revolved, or per mm
         volume = float(np.sum(weight * area))
         return np.where(mesh["body"] == 1, design.ball_density + design.pen_mass / volume, density)
@@ -239,8 +258,10 @@ FEATURES: tuple[Feature, ...] = (STACK, RING, BACKING, PEN)
 #: Named design families: ranges replacing or adding to the preset's (:data:`hcmt.sim.params.RANGES`), so that a
 #: split can hold a family out. ``mono`` is the first scene unchanged; the others vary the plate's outer radius too.
 #: A range of ``support_radius`` is a fraction of the drawn ``plate_half_length`` (:data:`RELATIVE`).
-FAMILIES: dict[str, dict[str, tuple[float, float]]] = {"mono": {}, **{name: ranges for f in FEATURES
-                                                                      for name, ranges in f.families.items()}}
+FAMILIES: dict[str, dict[str, tuple[float, float]]] = {
+    "mono": {},
+    **{name: ranges for f in FEATURES for name, ranges in f.families.items()},
+}
 #: family ranges given as a fraction of another drawn parameter
 RELATIVE = {"support_radius": "plate_half_length"}
 
@@ -267,16 +288,22 @@ def parse_stack(stack: str) -> dict[str, float]:
     items = [i.strip() for i in stack.split(",") if i.strip()]
     where = repr(clip(stack))  # param "stack": the command prints --stack
     if not items:
-        raise InputError(f"{where}: expected 1-4 layers MATERIAL:THICKNESS separated by commas, e.g. "
-                         "glass:0.55,adhesive:0.05,film:0.2", param="stack")
+        raise InputError(
+            f"{where}: expected 1-4 layers MATERIAL:THICKNESS separated by commas, e.g. "
+            "glass:0.55,adhesive:0.05,film:0.2",
+            param="stack",
+        )
     if len(items) > 4:
         raise InputError(f"{where}: {len(items)} layers; a stack has 1-4 layers", param="stack")
     out = {}
     for k, item in enumerate(items, 1):
         parts = item.split(":")
         if len(parts) < 2 or parts[0] not in MATERIALS:
-            raise InputError(f"{where}: layer {k} {clip(item)!r}: expected MATERIAL:THICKNESS with MATERIAL one of "
-                             f"{', '.join(MATERIALS)}", param="stack")
+            raise InputError(
+                f"{where}: layer {k} {clip(item)!r}: expected MATERIAL:THICKNESS with MATERIAL one of "
+                f"{', '.join(MATERIALS)}",
+                param="stack",
+            )
         material = dict(zip(("density", "modulus", "poisson"), MATERIALS[parts[0]]))
         thickness = parse_number(parts[1], f"{where}: layer {k} thickness", "stack")
         if thickness <= 0:
@@ -284,12 +311,17 @@ def parse_stack(stack: str) -> dict[str, float]:
         for extra in parts[2:]:
             key, sep, raw = extra.partition("=")
             if not sep or key not in material:
-                raise InputError(f"{where}: layer {k} {clip(extra)!r}: expected density=, modulus= or poisson=",
-                                 param="stack")
+                raise InputError(
+                    f"{where}: layer {k} {clip(extra)!r}: expected density=, modulus= or poisson=", param="stack"
+                )
             material[key] = parse_number(raw, f"{where}: layer {k} {key}", "stack")
         if k == 1:
-            out.update(thickness=thickness, plate_density=material["density"], plate_modulus=material["modulus"],
-                       plate_poisson=material["poisson"])
+            out.update(
+                thickness=thickness,
+                plate_density=material["density"],
+                plate_modulus=material["modulus"],
+                plate_poisson=material["poisson"],
+            )
         else:
             out.update({f"layer{k}_thickness": thickness, **{f"layer{k}_{m}": v for m, v in material.items()}})
     for k in range(len(items) + 1, 5):

@@ -11,6 +11,7 @@ Dataset writing is parallel and resumable:
   killed); a second one is refused naming the first one's pid, and a reader of the unfinished dataset is told that a
   generate is writing it (else, that an interrupted one can be rerun).
 """
+
 from __future__ import annotations
 
 import multiprocessing as mp
@@ -64,22 +65,43 @@ def trajectory_family(meta: dict, index: int) -> str:
     return families[index % len(families)]
 
 
-def dataset_meta(preset: str, seed: int, counts: dict[str, int], settings: Settings, edge_fraction: float = 0.0,
-                 families: tuple[str, ...] = ("mono",), ranges: dict[str, tuple[float, float]] | None = None) -> dict:
+def dataset_meta(
+    preset: str,
+    seed: int,
+    counts: dict[str, int],
+    settings: Settings,
+    edge_fraction: float = 0.0,
+    families: tuple[str, ...] = ("mono",),
+    ranges: dict[str, tuple[float, float]] | None = None,
+) -> dict:
     # edge_fraction, range_overrides absent: datasets made before them (or made without)
     extra: dict[str, object] = {"edge_fraction": float(edge_fraction)} if edge_fraction else {}
     if ranges:
         extra["range_overrides"] = {k: [float(lo), float(hi)] for k, (lo, hi) in ranges.items()}
     if tuple(families) != ("mono",):  # absent: one family, the first scene (datasets made before families)
-        extra.update(families=list(families),
-                     family_ranges={f: {k: list(v) for k, v in FAMILIES[f].items()} for f in families})
-    generator = dict(name="hcmt impact-plate", preset=preset, seed=int(seed), counts=dict(counts), **extra,
-                     settings=asdict(settings),
-                     ranges={k: list(v) for k, v in {**RANGES[preset], **(ranges or {})}.items()},
-                     variants={k: {p: list(r) for p, r in v.items()} for k, v in VARIANTS.items()},
-                     contact_radius=CONTACT_RADIUS)
-    return make_meta(feature_spec(settings), trajectory_length=settings.frames, dimension=2, dt=settings.frame_dt,
-                     units=UNITS, generator=generator, dataset="impact_plate")
+        extra.update(
+            families=list(families), family_ranges={f: {k: list(v) for k, v in FAMILIES[f].items()} for f in families}
+        )
+    generator = dict(
+        name="hcmt impact-plate",
+        preset=preset,
+        seed=int(seed),
+        counts=dict(counts),
+        **extra,
+        settings=asdict(settings),
+        ranges={k: list(v) for k, v in {**RANGES[preset], **(ranges or {})}.items()},
+        variants={k: {p: list(r) for p, r in v.items()} for k, v in VARIANTS.items()},
+        contact_radius=CONTACT_RADIUS,
+    )
+    return make_meta(
+        feature_spec(settings),
+        trajectory_length=settings.frames,
+        dimension=2,
+        dt=settings.frame_dt,
+        units=UNITS,
+        generator=generator,
+        dataset="impact_plate",
+    )
 
 
 def impact_trajectory(meta: dict, preset: str, seed: int, split: str, index: int, settings: dict) -> tuple:
@@ -87,8 +109,14 @@ def impact_trajectory(meta: dict, preset: str, seed: int, split: str, index: int
     variant = split if split in VARIANTS else None
     edges = float(meta["generator"].get("edge_fraction", 0.0)) if split == "train" else 0.0
     override = {k: (lo, hi) for k, (lo, hi) in (meta["generator"].get("range_overrides") or {}).items()}
-    design = sample_design(trajectory_rng(seed, split, index), preset, variant, edges,
-                           family=trajectory_family(meta, index), override=override)
+    design = sample_design(
+        trajectory_rng(seed, split, index),
+        preset,
+        variant,
+        edges,
+        family=trajectory_family(meta, index),
+        override=override,
+    )
     result = simulate(design, Settings(**settings))
     return result.fields, result.attrs
 
@@ -163,10 +191,20 @@ def _differences(old: dict, new: dict, prefix: str = "") -> str:
     return "; ".join(out)
 
 
-def generate_dataset(out, *, preset: str = "small", counts: dict[str, int], seed: int = 0, workers: int = 1,
-                     settings: Settings = Settings(), progress: bool = True, edge_fraction: float = 0.0,
-                     families: tuple[str, ...] = ("mono",), force: bool = False,
-                     ranges: dict[str, tuple[float, float]] | None = None) -> dict:
+def generate_dataset(
+    out,
+    *,
+    preset: str = "small",
+    counts: dict[str, int],
+    seed: int = 0,
+    workers: int = 1,
+    settings: Settings = Settings(),
+    progress: bool = True,
+    edge_fraction: float = 0.0,
+    families: tuple[str, ...] = ("mono",),
+    force: bool = False,
+    ranges: dict[str, tuple[float, float]] | None = None,
+) -> dict:
     """Generate (or finish) an Impact Plate dataset in ``out``. ``counts`` maps split names (of :data:`SPLITS`) to
     trajectory counts; ``edge_fraction`` of the training designs are drawn at the ranges' edges (thin plates, high
     drops: :data:`hcmt.sim.params.EDGES`); ``families`` (:data:`hcmt.sim.params.FAMILIES`) take the trajectories of
@@ -182,12 +220,18 @@ def generate_dataset(out, *, preset: str = "small", counts: dict[str, int], seed
     check_cost(cost["estimated_s"], cost["num_nodes"], design, force, what=" per trajectory")
     meta = dataset_meta(preset, seed, counts, settings, edge_fraction, families, ranges)
     meta["families"] = {split: [trajectory_family(meta, i) for i in range(n)] for split, n in counts.items()}
-    return write_dataset(out, meta, counts, (preset, int(seed), asdict(settings), impact_trajectory), workers,
-                         progress, f"impact-plate {preset}")
+    return write_dataset(
+        out,
+        meta,
+        counts,
+        (preset, int(seed), asdict(settings), impact_trajectory),
+        workers,
+        progress,
+        f"impact-plate {preset}",
+    )
 
 
-def write_dataset(out, meta: dict, counts: dict[str, int], job: tuple, workers: int, progress: bool,
-                  desc: str) -> dict:
+def write_dataset(out, meta: dict, counts: dict[str, int], job: tuple, workers: int, progress: bool, desc: str) -> dict:
     """Write (or finish) the dataset ``meta`` describes in ``out``, one part file per trajectory: ``job`` is
     ``(preset, seed, settings dict, trajectory function)`` (:func:`_run_one`). Any problem's generator: resumable,
     parallel, locked, grown only with the same generator settings."""
@@ -232,8 +276,14 @@ def _locked(out: Path) -> Iterator[None]:
         raise
 
 
-def _checked_arguments(preset: str, counts: dict[str, int], workers: int, edge_fraction: float,
-                       families: tuple[str, ...], settings: Settings) -> tuple[tuple[str, ...], dict[str, int]]:
+def _checked_arguments(
+    preset: str,
+    counts: dict[str, int],
+    workers: int,
+    edge_fraction: float,
+    families: tuple[str, ...],
+    settings: Settings,
+) -> tuple[tuple[str, ...], dict[str, int]]:
     """:func:`generate_dataset`'s arguments checked, each refusal one line naming its parameter: (the families,
     the positive counts)."""
     families = tuple(families)
@@ -276,15 +326,20 @@ def _check_growth(out: Path, old: dict, meta: dict, counts: dict[str, int]) -> N
     old_gen, new_gen = dict(old.get("generator") or {}), dict(meta["generator"])
     old_counts, _ = old_gen.pop("counts", {}), new_gen.pop("counts")
     if old_gen != new_gen:
-        raise DatasetError(f"holds a dataset generated with other settings ({_differences(old_gen, new_gen)}); "
-                           "rerun with the dataset's own settings or choose another output folder",
-                           file=out / "meta.json")
+        raise DatasetError(
+            f"holds a dataset generated with other settings ({_differences(old_gen, new_gen)}); "
+            "rerun with the dataset's own settings or choose another output folder",
+            file=out / "meta.json",
+        )
     fewer = {k: v for k, v in old_counts.items() if counts.get(k, 0) < v}
     if fewer:
         k, v = next(iter(fewer.items()))
-        raise DatasetError(f"holds {v} {k} trajectories; asking for {counts.get(k, 0)} would drop some. A dataset "
-                           "only grows (trajectory i of a split depends on seed, split and i alone): ask for at "
-                           "least as many, or choose another output folder", file=out / "meta.json")
+        raise DatasetError(
+            f"holds {v} {k} trajectories; asking for {counts.get(k, 0)} would drop some. A dataset "
+            "only grows (trajectory i of a split depends on seed, split and i alone): ask for at "
+            "least as many, or choose another output folder",
+            file=out / "meta.json",
+        )
 
 
 def _tasks(out: Path, meta: dict, counts: dict[str, int], job: tuple) -> tuple[list[tuple], dict[str, Path], int]:
@@ -324,5 +379,7 @@ def _run_all(todo: list[tuple], workers: int, progress: bool, desc: str) -> None
 def generation_cost(preset: str, families: tuple[str, ...], settings: Settings) -> tuple[Design, dict]:
     """(design, :func:`hcmt.sim.cost.plan`) of the costliest family's nominal design
     (:func:`hcmt.sim.params.preset_design`): what a trajectory costs."""
-    return max(((d, plan(d, settings)) for d in (preset_design(preset, f) for f in families)),
-               key=lambda dc: dc[1]["estimated_s"])
+    return max(
+        ((d, plan(d, settings)) for d in (preset_design(preset, f) for f in families)),
+        key=lambda dc: dc[1]["estimated_s"],
+    )

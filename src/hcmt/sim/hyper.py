@@ -12,6 +12,7 @@ Degrees of freedom are ``3 node + i``; a fixed one is held at its given value an
 sparsity pattern (the elements' 12x12 blocks and one 3x3 block per node, for contact) is built once; every
 assembly is one ``bincount`` onto it (no loop over elements).
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass, field
@@ -46,8 +47,9 @@ def _cofactors(F: np.ndarray) -> np.ndarray:
 @dataclass
 class Pattern:
     """The reduced (free x free) CSR pattern and where each element / node-block entry lands in it."""
-    keep: np.ndarray      # entries (elements' 144 each, then nodes' 9 each) inside the free system
-    slot: np.ndarray      # their CSR positions
+
+    keep: np.ndarray  # entries (elements' 144 each, then nodes' 9 each) inside the free system
+    slot: np.ndarray  # their CSR positions
     indptr: np.ndarray
     indices: np.ndarray
     size: int
@@ -71,6 +73,7 @@ def _pattern(tets: np.ndarray, num_nodes: int, free: np.ndarray) -> Pattern:
 class NeoHookean:
     """A neo-Hookean body: reference nodes ``pos`` [N,3], tetrahedra [C,4], material, fixed degrees of freedom
     (indices ``3 node + i``)."""
+
     pos: np.ndarray
     tets: np.ndarray
     modulus: float
@@ -89,8 +92,10 @@ class NeoHookean:
         self.free = np.flatnonzero(mask)
         self.pattern = _pattern(self.tets, len(self.pos), self.free)
         # nodal sums of the elements' [C,4,3] forces as one sparse product (N x 4C), no scatter loop
-        self.scatter = sp.csr_matrix((np.ones(self.tets.size), (self.tets.ravel(), np.arange(self.tets.size))),
-                                     shape=(len(self.pos), self.tets.size))
+        self.scatter = sp.csr_matrix(
+            (np.ones(self.tets.size), (self.tets.ravel(), np.arange(self.tets.size))),
+            shape=(len(self.pos), self.tets.size),
+        )
 
     def deformation(self, x: np.ndarray) -> np.ndarray:
         """Deformation gradients F [C,3,3] of the current positions ``x`` [N,3]."""
@@ -110,7 +115,7 @@ class NeoHookean:
         F, J, _, lnJ = self._kinematics(x)
         if lnJ is None:
             return np.inf
-        W = 0.5 * self.mu * (np.einsum("cij,cij->c", F, F) - 3) - self.mu * lnJ + 0.5 * self.lam * lnJ ** 2
+        W = 0.5 * self.mu * (np.einsum("cij,cij->c", F, F) - 3) - self.mu * lnJ + 0.5 * self.lam * lnJ**2
         return float(self.volume @ W)
 
     def forces(self, x: np.ndarray, tangent: bool = False):
@@ -127,9 +132,11 @@ class NeoHookean:
             return f
         VB = B * V
         GG = self.mu * np.matmul(self.grads * V, self.grads.transpose(0, 2, 1))  # [C,4,4]
-        K = (self.lam * VB[:, :, :, None, None] * B[:, None, None, :, :]
-             + ((self.mu - self.lam * lnJ)[:, None, None] * VB)[:, :, None, None, :]
-             * B.transpose(0, 2, 1)[:, None, :, :, None])
+        K = (
+            self.lam * VB[:, :, :, None, None] * B[:, None, None, :, :]
+            + ((self.mu - self.lam * lnJ)[:, None, None] * VB)[:, :, None, None, :]
+            * B.transpose(0, 2, 1)[:, None, :, :, None]
+        )
         K += GG[:, :, None, :, None] * np.eye(3)[None, None, :, None, :]
         return f, K
 

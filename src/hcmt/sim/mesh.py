@@ -8,6 +8,7 @@ radius ``r`` and ``y`` the axis ``z``: the plate is a circular disk clamped at `
 Node types (MeshGraphNets enum + SYMMETRIC, as the official HCMT data): plate NORMAL 0, ball OBSTACLE 1, every node
 on ``x = 0`` (plate and ball) SYMMETRIC 7 (x fixed), plate nodes on ``x = L`` HANDLE 3 (clamped).
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -56,8 +57,16 @@ def structured_triangles(xs: np.ndarray, ys: np.ndarray) -> tuple[np.ndarray, np
     return pos, np.concatenate([t1, t2]).astype(np.int64)
 
 
-def plate_mesh(thickness: float, half_length: float, mesh_size: float, *, layers: int | None = None,
-               growth: float = 1.0, h_max: float | None = None, y_growth: float = 1.0) -> tuple[np.ndarray, np.ndarray]:
+def plate_mesh(
+    thickness: float,
+    half_length: float,
+    mesh_size: float,
+    *,
+    layers: int | None = None,
+    growth: float = 1.0,
+    h_max: float | None = None,
+    y_growth: float = 1.0,
+) -> tuple[np.ndarray, np.ndarray]:
     """Plate ``[0, L] x [-t, 0]``: x spacing ``mesh_size`` at the centre (graded by ``growth`` up to ``h_max``),
     ``layers`` element layers through the thickness (default ``max(4, round(t / mesh_size))``; fewer than 4 locks
     CST triangles in bending). ``y_growth > 1`` instead grades the layers like x (``mesh_size`` at the top, contact,
@@ -77,8 +86,9 @@ def plate_mesh(thickness: float, half_length: float, mesh_size: float, *, layers
     return structured_triangles(xs, ys)
 
 
-def ball_mesh(radius: float, mesh_size: float, center_y: float, *, growth: float = 1.0,
-              h_max: float | None = None) -> tuple[np.ndarray, np.ndarray]:
+def ball_mesh(
+    radius: float, mesh_size: float, center_y: float, *, growth: float = 1.0, h_max: float | None = None
+) -> tuple[np.ndarray, np.ndarray]:
     """Half disk ``x >= 0`` of ``radius`` centred at ``(0, center_y)``, Delaunay-triangulated.
 
     Points lie on arcs around the contact pole ``P0 = (0, center_y - radius)`` (the lowest point); the local size
@@ -191,12 +201,25 @@ def pen_tip_mesh(radius: float, mesh_size: float, center_y: float) -> tuple[np.n
     return pos, _counter_clockwise(pos, tri)
 
 
-def impact_plate_mesh(thickness: float, ball_radius: float, mesh_size: float, *, plate_half_length: float = 15.0,
-                      gap: float = 0.02, ball_mesh_size: float | None = None, plate_layers: int | None = None,
-                      plate_growth: float = 1.0, plate_h_max: float | None = None, plate_y_growth: float = 1.0,
-                      ball_growth: float = 1.0, ball_h_max: float | None = None, layers=None,
-                      support_radius: float = 0.0, backing_thickness: float = 0.0,
-                      impactor: str = "ball") -> dict[str, np.ndarray]:
+def impact_plate_mesh(
+    thickness: float,
+    ball_radius: float,
+    mesh_size: float,
+    *,
+    plate_half_length: float = 15.0,
+    gap: float = 0.02,
+    ball_mesh_size: float | None = None,
+    plate_layers: int | None = None,
+    plate_growth: float = 1.0,
+    plate_h_max: float | None = None,
+    plate_y_growth: float = 1.0,
+    ball_growth: float = 1.0,
+    ball_h_max: float | None = None,
+    layers=None,
+    support_radius: float = 0.0,
+    backing_thickness: float = 0.0,
+    impactor: str = "ball",
+) -> dict[str, np.ndarray]:
     """The Impact Plate scene mesh: plate nodes first (the panel's layers, then a backing), then the impactor's.
 
     ``layers``: the thicknesses of a stack of bonded layers from the top (impact) face down, sharing nodes at their
@@ -213,17 +236,26 @@ def impact_plate_mesh(thickness: float, ball_radius: float, mesh_size: float, *,
     ``rigid [N] bool``. ``ball_mesh_size`` defaults to ``mesh_size`` (a pen tip's to ``min(mesh_size, r / 3)``).
     """
     layers = [thickness] if layers is None else [float(t) for t in layers]
-    hb = _impactor_size(layers, ball_radius, mesh_size, plate_half_length, gap, ball_mesh_size, support_radius,
-                        impactor)
+    hb = _impactor_size(
+        layers, ball_radius, mesh_size, plate_half_length, gap, ball_mesh_size, support_radius, impactor
+    )
     if plate_layers is not None or plate_y_growth != 1.0:  # one block with its own rows (the Hertz check)
         if len(layers) > 1 or support_radius > 0 or backing_thickness > 0:
             raise InputError("plate_layers and plate_y_growth make one clamped block: no stack, ring or backing")
-        p_pos, p_cells = plate_mesh(layers[0], plate_half_length, mesh_size, layers=plate_layers,
-                                    growth=plate_growth, h_max=plate_h_max, y_growth=plate_y_growth)
+        p_pos, p_cells = plate_mesh(
+            layers[0],
+            plate_half_length,
+            mesh_size,
+            layers=plate_layers,
+            growth=plate_growth,
+            h_max=plate_h_max,
+            y_growth=plate_y_growth,
+        )
         bounds = np.array([0.0, layers[0]])
     else:
-        p_pos, p_cells, bounds = _stack_mesh(layers, plate_half_length, mesh_size, plate_growth, plate_h_max,
-                                             support_radius, backing_thickness)
+        p_pos, p_cells, bounds = _stack_mesh(
+            layers, plate_half_length, mesh_size, plate_growth, plate_h_max, support_radius, backing_thickness
+        )
     if impactor == "pen":
         b_pos, b_cells = pen_tip_mesh(ball_radius, hb, ball_radius + gap)
     else:
@@ -231,25 +263,47 @@ def impact_plate_mesh(thickness: float, ball_radius: float, mesh_size: float, *,
     pos = np.concatenate([p_pos, b_pos])
     cells = np.concatenate([p_cells, b_cells + len(p_pos)])
     body = np.concatenate([np.zeros(len(p_pos), np.int64), np.ones(len(b_pos), np.int64)])
-    node_type = _node_types(pos, body, bounds, float(np.sum(layers)), plate_half_length, support_radius,
-                            backing_thickness)
+    node_type = _node_types(
+        pos, body, bounds, float(np.sum(layers)), plate_half_length, support_radius, backing_thickness
+    )
     cell_body = np.concatenate([np.zeros(len(p_cells), np.int64), np.ones(len(b_cells), np.int64)])
     centroid_depth = -p_pos[p_cells, 1].mean(1)
-    cell_layer = np.concatenate([np.searchsorted(bounds[1:-1], centroid_depth),
-                                 np.full(len(b_cells), -1)]).astype(np.int64)
+    cell_layer = np.concatenate([np.searchsorted(bounds[1:-1], centroid_depth), np.full(len(b_cells), -1)]).astype(
+        np.int64
+    )
     rigid = np.zeros(len(pos), bool)
     if impactor == "pen":
-        rigid[len(p_pos):] = np.abs(b_pos[:, 1] - (ball_radius + gap)) < 1e-9 * ball_radius
-    return dict(mesh_pos=pos, cells=cells, node_type=node_type, body=body, cell_body=cell_body,
-                cell_layer=cell_layer, rigid=rigid)
+        rigid[len(p_pos) :] = np.abs(b_pos[:, 1] - (ball_radius + gap)) < 1e-9 * ball_radius
+    return dict(
+        mesh_pos=pos,
+        cells=cells,
+        node_type=node_type,
+        body=body,
+        cell_body=cell_body,
+        cell_layer=cell_layer,
+        rigid=rigid,
+    )
 
 
-def _impactor_size(layers: list[float], ball_radius: float, mesh_size: float, plate_half_length: float, gap: float,
-                   ball_mesh_size: float | None, support_radius: float, impactor: str) -> float:
+def _impactor_size(
+    layers: list[float],
+    ball_radius: float,
+    mesh_size: float,
+    plate_half_length: float,
+    gap: float,
+    ball_mesh_size: float | None,
+    support_radius: float,
+    impactor: str,
+) -> float:
     """:func:`impact_plate_mesh`'s lengths checked (one line each); returns the impactor's element size."""
-    for name, v in (("thickness", sum(layers)), ("ball_radius", ball_radius), ("mesh_size", mesh_size),
-                    ("plate_half_length", plate_half_length), ("gap", gap), *((f"layer {i + 1} thickness", t)
-                                                                              for i, t in enumerate(layers))):
+    for name, v in (
+        ("thickness", sum(layers)),
+        ("ball_radius", ball_radius),
+        ("mesh_size", mesh_size),
+        ("plate_half_length", plate_half_length),
+        ("gap", gap),
+        *((f"layer {i + 1} thickness", t) for i, t in enumerate(layers)),
+    ):
         if not np.isfinite(v) or v <= 0:
             raise InputError(f"{name} must be a positive finite length in mm, got {v}")
     if impactor not in ("ball", "pen"):
@@ -268,9 +322,15 @@ def _impactor_size(layers: list[float], ball_radius: float, mesh_size: float, pl
     return hb
 
 
-def _stack_mesh(layers: list[float], plate_half_length: float, mesh_size: float, plate_growth: float,
-                plate_h_max: float | None, support_radius: float,
-                backing_thickness: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _stack_mesh(
+    layers: list[float],
+    plate_half_length: float,
+    mesh_size: float,
+    plate_growth: float,
+    plate_h_max: float | None,
+    support_radius: float,
+    backing_thickness: float,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(positions, cells, layer bounds from the top face down) of the plate: the layers' rows (:func:`layer_rows`),
     a backing under them, the ring's radius on a grid line."""
     rows = layer_rows(layers, mesh_size)
@@ -289,8 +349,15 @@ def _stack_mesh(layers: list[float], plate_half_length: float, mesh_size: float,
     return p_pos, p_cells, bounds
 
 
-def _node_types(pos: np.ndarray, body: np.ndarray, bounds: np.ndarray, panel_depth: float, plate_half_length: float,
-                support_radius: float, backing_thickness: float) -> np.ndarray:
+def _node_types(
+    pos: np.ndarray,
+    body: np.ndarray,
+    bounds: np.ndarray,
+    panel_depth: float,
+    plate_half_length: float,
+    support_radius: float,
+    backing_thickness: float,
+) -> np.ndarray:
     """[N] node types: NORMAL plate, OBSTACLE impactor; the support (a backing's bottom HANDLE, the ring's
     WALL_BOUNDARY node, else the clamped rim's HANDLE); SYMMETRIC on the axis."""
     tol = 1e-9 * max(plate_half_length, 1.0)
@@ -299,8 +366,7 @@ def _node_types(pos: np.ndarray, body: np.ndarray, bounds: np.ndarray, panel_dep
     if backing_thickness > 0:
         node_type[plate & (pos[:, 1] < -bounds[-1] + tol)] = HANDLE
     elif support_radius > 0:
-        node_type[plate & (np.abs(pos[:, 0] - support_radius) < tol) & (pos[:, 1] < -panel_depth + tol)] = \
-            WALL_BOUNDARY
+        node_type[plate & (np.abs(pos[:, 0] - support_radius) < tol) & (pos[:, 1] < -panel_depth + tol)] = WALL_BOUNDARY
     else:
         node_type[plate & (pos[:, 0] > plate_half_length - tol)] = HANDLE
     node_type[np.abs(pos[:, 0]) < tol] = SYMMETRIC

@@ -3,6 +3,7 @@ sampling (:func:`sample_design`) and parsing (``--design K=V``, ``--stack``): th
 command's parsers need (``hcmt generate/simulate --help``, a refused ``--frames 0``) without the solver, the mesh or
 scipy. :mod:`hcmt.sim.scene` assembles a design's scene (its docstring has the choices and units),
 :mod:`hcmt.sim.driver` simulates it."""
+
 from __future__ import annotations
 
 import difflib
@@ -30,8 +31,17 @@ from hcmt.sim.units import DESIGN_UNITS, PARAMETERS  # noqa: F401 (each paramete
 from hcmt.sim.values import a_type, is_number, parse_number  # noqa: F401 (read from here too)
 
 CONTACT_RADIUS = 0.4  # mm, the learned model's contact-edge radius (paper Table 7); the initial gap must be smaller
-UNITS = {"length": "mm", "time": "ms", "mass": "g", "force": "N", "stress": "MPa", "energy": "mJ",
-         "velocity": "mm/ms (= m/s)", "density": "g/mm^3", "modulus": "MPa"}
+UNITS = {
+    "length": "mm",
+    "time": "ms",
+    "mass": "g",
+    "force": "N",
+    "stress": "MPa",
+    "energy": "mJ",
+    "velocity": "mm/ms (= m/s)",
+    "density": "g/mm^3",
+    "modulus": "MPa",
+}
 
 
 @dataclass(frozen=True)
@@ -80,8 +90,10 @@ class Design:
     @property
     def layers(self) -> list[tuple[float, float, float, float]]:
         """The panel's bonded layers from the top face down: (thickness mm, density, modulus MPa, Poisson)."""
-        return [(self.thickness, self.plate_density, self.plate_modulus, self.plate_poisson),
-                *(layer for f in features(self) for layer in f.layers(self))]
+        return [
+            (self.thickness, self.plate_density, self.plate_modulus, self.plate_poisson),
+            *(layer for f in features(self) for layer in f.layers(self)),
+        ]
 
     @property
     def total_thickness(self) -> float:
@@ -117,18 +129,23 @@ class Design:
         check_material("plate", self.plate_density, self.plate_modulus, self.plate_poisson)
         check_material("ball", self.ball_density, self.ball_modulus, self.ball_poisson)
         if self.gap >= CONTACT_RADIUS:
-            raise InputError(f"gap ({self.gap} mm) must be smaller than the contact radius {CONTACT_RADIUS} mm so the "
-                             "first frame already sees the ball near the plate")
+            raise InputError(
+                f"gap ({self.gap} mm) must be smaller than the contact radius {CONTACT_RADIUS} mm so the "
+                "first frame already sees the ball near the plate"
+            )
         if self.mesh_size > self.total_thickness:
             what = "thickness" if len(self.layers) == 1 else "the stack's total thickness"
             raise InputError(f"mesh_size ({self.mesh_size} mm) must not exceed {what} ({self.total_thickness:g} mm)")
         if impactor_of(self) is None and self.mesh_size > self.ball_radius / 3:
-            raise InputError(f"mesh_size ({self.mesh_size} mm) must be at most ball_radius / 3 "
-                             f"({self.ball_radius / 3:.3g} mm)")
+            raise InputError(
+                f"mesh_size ({self.mesh_size} mm) must be at most ball_radius / 3 ({self.ball_radius / 3:.3g} mm)"
+            )
         if self.plate_half_length <= self.impactor_radius:
-            raise InputError(f"plate_half_length ({self.plate_half_length} mm) must exceed the "
-                             f"{'ball_radius' if impactor_of(self) is None else impactor_of(self).switch} "
-                             f"({self.impactor_radius} mm)")
+            raise InputError(
+                f"plate_half_length ({self.plate_half_length} mm) must exceed the "
+                f"{'ball_radius' if impactor_of(self) is None else impactor_of(self).switch} "
+                f"({self.impactor_radius} mm)"
+            )
         for f in features(self):  # each family's own checks (hcmt.sim.families)
             f.check(self)
         return self
@@ -136,14 +153,30 @@ class Design:
 
 #: Sampling ranges (uniform) per preset; parameters not listed keep their :class:`Design` default.
 RANGES: dict[str, dict[str, tuple[float, float]]] = {
-    "paper": dict(thickness=(0.5, 1.0), drop_height=(500.0, 1000.0), plate_density=(2.2e-3, 2.8e-3),
-                  plate_modulus=(50e3, 90e3), plate_poisson=(0.20, 0.25), ball_radius=(3.0, 4.0),
-                  ball_density=(7.75e-3, 8.0e-3), ball_modulus=(190e3, 210e3), mesh_size=(0.12, 0.135),
-                  plate_half_length=(15.0, 15.0)),
-    "small": dict(thickness=(0.5, 1.0), drop_height=(500.0, 1000.0), plate_density=(2.2e-3, 2.8e-3),
-                  plate_modulus=(50e3, 90e3), plate_poisson=(0.20, 0.25), ball_radius=(3.5, 4.25),
-                  ball_density=(7.75e-3, 8.0e-3), ball_modulus=(190e3, 210e3), mesh_size=(0.29, 0.32),
-                  plate_half_length=(12.0, 12.0)),
+    "paper": dict(
+        thickness=(0.5, 1.0),
+        drop_height=(500.0, 1000.0),
+        plate_density=(2.2e-3, 2.8e-3),
+        plate_modulus=(50e3, 90e3),
+        plate_poisson=(0.20, 0.25),
+        ball_radius=(3.0, 4.0),
+        ball_density=(7.75e-3, 8.0e-3),
+        ball_modulus=(190e3, 210e3),
+        mesh_size=(0.12, 0.135),
+        plate_half_length=(15.0, 15.0),
+    ),
+    "small": dict(
+        thickness=(0.5, 1.0),
+        drop_height=(500.0, 1000.0),
+        plate_density=(2.2e-3, 2.8e-3),
+        plate_modulus=(50e3, 90e3),
+        plate_poisson=(0.20, 0.25),
+        ball_radius=(3.5, 4.25),
+        ball_density=(7.75e-3, 8.0e-3),
+        ball_modulus=(190e3, 210e3),
+        mesh_size=(0.29, 0.32),
+        plate_half_length=(12.0, 12.0),
+    ),
 }
 
 #: Generalization splits (paper appendix): ranges replacing the training ones.
@@ -159,8 +192,12 @@ VARIANTS: dict[str, dict[str, tuple[float, float]]] = {
 EDGES = {"thickness": (0.0, 0.2), "drop_height": (0.8, 1.0)}
 
 
-def family_ranges(preset: str = "small", family: str = "mono", variant: str | None = None,
-                  override: dict[str, tuple[float, float]] | None = None) -> dict:
+def family_ranges(
+    preset: str = "small",
+    family: str = "mono",
+    variant: str | None = None,
+    override: dict[str, tuple[float, float]] | None = None,
+) -> dict:
     """The sampling ranges of a family: the preset's, the family's replacing or adding to them, ``override``'s
     (``generate --range``: a sampled parameter's range widened or narrowed), a generalization variant's last
     (ranges of :data:`RELATIVE` parameters stay fractions)."""
@@ -173,14 +210,18 @@ def family_ranges(preset: str = "small", family: str = "mono", variant: str | No
     ranges = {**RANGES[preset], **FAMILIES[family]}
     for name, span in (override or {}).items():
         if name not in ranges:
-            raise InputError(f"{name} is not a sampled parameter of the {preset} preset's {family} family; those are "
-                             f"{', '.join(sorted(ranges))}", param="range")
+            raise InputError(
+                f"{name} is not a sampled parameter of the {preset} preset's {family} family; those are "
+                f"{', '.join(sorted(ranges))}",
+                param="range",
+            )
         ranges[name] = (float(span[0]), float(span[1]))
     return {**ranges, **(VARIANTS[variant] if variant else {})}
 
 
-def checked_ranges(preset: str, families: tuple[str, ...],
-                   ranges: dict[str, tuple[float, float]] | None) -> dict[str, tuple[float, float]]:
+def checked_ranges(
+    preset: str, families: tuple[str, ...], ranges: dict[str, tuple[float, float]] | None
+) -> dict[str, tuple[float, float]]:
     """``generate_dataset``'s ``ranges`` checked: sampled parameters of every family, finite, low <= high, and
     the designs at every corner valid (each refusal one line naming ``range``)."""
     out: dict[str, tuple[float, float]] = {}
@@ -199,8 +240,11 @@ def checked_ranges(preset: str, families: tuple[str, ...],
             try:
                 Design(**resolve_relative(values)).validate()
             except InputError as e:
-                raise InputError(f"{', '.join(f'{k}={lo:g}:{hi:g}' for k, (lo, hi) in out.items())} gives a "
-                                 f"design the solver refuses: {e}", param="range") from None
+                raise InputError(
+                    f"{', '.join(f'{k}={lo:g}:{hi:g}' for k, (lo, hi) in out.items())} gives a "
+                    f"design the solver refuses: {e}",
+                    param="range",
+                ) from None
     return out
 
 
@@ -214,13 +258,19 @@ def describe_family(family: str) -> str:
     ranges = FAMILIES[family]
     if not ranges:
         return "the first scene, one clamped layer struck by the ball"
-    return ", ".join(f"{k} {lo:g}-{hi:g}{' x plate_half_length' if k in RELATIVE else ' ' + DESIGN_UNITS[k]}"
-                     for k, (lo, hi) in ranges.items())
+    return ", ".join(
+        f"{k} {lo:g}-{hi:g}{' x plate_half_length' if k in RELATIVE else ' ' + DESIGN_UNITS[k]}"
+        for k, (lo, hi) in ranges.items()
+    )
 
 
 #: the units a value given in a design unit is most often typed in by mistake: (factor to the design unit, name)
-SLIPS = {"mm": ((1e3, "m"), (1e-3, "µm")), "MPa": ((1e-6, "Pa"), (1e-3, "kPa"), (1e3, "GPa")),
-         "g/mm^3": ((1e-6, "kg/m^3"), (1e-3, "g/cm^3")), "g": ((1e3, "kg"), (1e-3, "mg"))}
+SLIPS = {
+    "mm": ((1e3, "m"), (1e-3, "µm")),
+    "MPa": ((1e-6, "Pa"), (1e-3, "kPa"), (1e3, "GPa")),
+    "g/mm^3": ((1e-6, "kg/m^3"), (1e-3, "g/cm^3")),
+    "g": ((1e3, "kg"), (1e-3, "mg")),
+}
 #: a value this many times beyond the nearest end of its expected span is an order-of-magnitude slip, not a design
 SLIP_FACTOR = 10.0
 
@@ -241,8 +291,7 @@ def unit_slip(value: float, unit: str, lo: float, hi: float, factor: float = SLI
         how = f"{value:.6g} is {_times(lo / value)} below it" if value > 0 else f"{value:.6g} is not above 0"
     else:
         return None
-    likely = [f"{name}: {value * scale:.6g} {unit}" for scale, name in SLIPS.get(unit, ())
-              if lo <= value * scale <= hi]
+    likely = [f"{name}: {value * scale:.6g} {unit}" for scale, name in SLIPS.get(unit, ()) if lo <= value * scale <= hi]
     return f"{how}; it looks like {' or '.join(likely)}?" if likely else f"{how}, a unit slip?"
 
 
@@ -266,9 +315,11 @@ def design_values(items: list[str], where: str = "--design") -> dict[str, float]
             raise InputError(f"{where} {shown!r}: expected KEY=VALUE, e.g. thickness=0.8")
         if key not in DESIGN_KEYS:
             close = difflib.get_close_matches(key, DESIGN_KEYS, n=1)
-            raise InputError(f"{where} {shown!r}: unknown parameter {clip(key)!r}; "
-                             + (f"did you mean {close[0]}? " if close else "")
-                             + "the parameters are `hcmt simulate --help`'s (`hcmt models` lists them)")
+            raise InputError(
+                f"{where} {shown!r}: unknown parameter {clip(key)!r}; "
+                + (f"did you mean {close[0]}? " if close else "")
+                + "the parameters are `hcmt simulate --help`'s (`hcmt models` lists them)"
+            )
         if key in values:
             raise InputError(f"{where} {shown!r}: {key} is given twice in one design; give it once")
         values[key] = parse_number(raw, f"{where} {shown!r}: {key}")
@@ -296,9 +347,14 @@ def preset_design(preset: str, family: str = "mono") -> Design:
     return Design(**resolve_relative({k: 0.5 * (lo + hi) for k, (lo, hi) in family_ranges(preset, family).items()}))
 
 
-def sample_design(rng: np.random.Generator, preset: str = "small", variant: str | None = None,
-                  edge_fraction: float = 0.0, family: str = "mono",
-                  override: dict[str, tuple[float, float]] | None = None) -> Design:
+def sample_design(
+    rng: np.random.Generator,
+    preset: str = "small",
+    variant: str | None = None,
+    edge_fraction: float = 0.0,
+    family: str = "mono",
+    override: dict[str, tuple[float, float]] | None = None,
+) -> Design:
     """Draw one design: every parameter of the family's ranges (:func:`family_ranges`) uniform, in sorted order,
     a variant's ranges replacing the training ones. With ``edge_fraction`` > 0, that share of designs then has its
     thickness or its drop height redrawn inside :data:`EDGES` (draws after the uniform ones: a design with
@@ -307,8 +363,7 @@ def sample_design(rng: np.random.Generator, preset: str = "small", variant: str 
     ranges = family_ranges(preset, family, variant, override)
     names = sorted(ranges)
     u = rng.random(len(names))
-    values = resolve_relative({k: float(ranges[k][0] + (ranges[k][1] - ranges[k][0]) * ui)
-                               for k, ui in zip(names, u)})
+    values = resolve_relative({k: float(ranges[k][0] + (ranges[k][1] - ranges[k][0]) * ui) for k, ui in zip(names, u)})
     if edge_fraction > 0 and rng.random() < edge_fraction:
         key = sorted(EDGES)[int(rng.random() < 0.5)]
         (lo, hi), (a, b) = ranges[key], EDGES[key]

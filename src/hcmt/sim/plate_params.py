@@ -1,6 +1,7 @@
 """The Deforming Plate's design schema (light: numpy only, for the command's parsers): design parameters with
 their units and ranges (declared once, :data:`RANGES`), solver settings, sampling. The scene is
 :mod:`hcmt.sim.deforming`."""
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -37,6 +38,7 @@ RANGES: dict[str, tuple[float, float, str]] = {
 @dataclass(frozen=True)
 class PlateDesign:
     """One Deforming Plate trajectory's design (its attributes in the dataset)."""
+
     plate_length: float = 100.0
     plate_width: float = 55.0
     thickness: float = 5.0
@@ -53,12 +55,14 @@ class PlateDesign:
     def validate(self) -> None:
         for k, (lo, hi, _) in RANGES.items():
             v = getattr(self, k)
-            if not np.isfinite(v) or (k in ("plate_length", "plate_width", "thickness", "modulus",
-                                            "actuator_size") and v <= 0):
+            if not np.isfinite(v) or (
+                k in ("plate_length", "plate_width", "thickness", "modulus", "actuator_size") and v <= 0
+            ):
                 raise InputError(f"must be positive and finite, got {v}", param=k)
         if self.shape not in SHAPES or self.path not in PATHS:
-            raise InputError(f"shape must be one of {SHAPES} and path one of {PATHS}, got {self.shape}, "
-                             f"{self.path}", param="shape")
+            raise InputError(
+                f"shape must be one of {SHAPES} and path one of {PATHS}, got {self.shape}, {self.path}", param="shape"
+            )
 
 
 @dataclass(frozen=True)
@@ -66,6 +70,7 @@ class PlateSettings:
     """Solver settings: frames (load steps + 1), plate nodes aimed at, element layers through the thickness,
     actuator mesh cells per edge, contact penalty factor (``k = penalty E h``, ``h`` the in-plane spacing) and reach
     (``delta = reach h``: :class:`hcmt.sim.quasistatic.Contact`), Newton's relative tolerance."""
+
     frames: int = 400
     plate_nodes: int = 1100
     layers: int = 3
@@ -79,8 +84,11 @@ class PlateSettings:
         if self.frames < 2:
             raise InputError(f"must be >= 2, got {self.frames}", param="frames")
         if not 8 <= self.plate_nodes <= 200_000 or self.layers < 1 or self.actuator_cells < 1:
-            raise InputError(f"plate_nodes 8 to 200,000, layers and actuator_cells >= 1, got {self.plate_nodes}, "
-                             f"{self.layers}, {self.actuator_cells}", param="plate_nodes")
+            raise InputError(
+                f"plate_nodes 8 to 200,000, layers and actuator_cells >= 1, got {self.plate_nodes}, "
+                f"{self.layers}, {self.actuator_cells}",
+                param="plate_nodes",
+            )
 
 
 def sample_plate_design(rng: np.random.Generator) -> PlateDesign:

@@ -11,6 +11,7 @@ second term (the curvature of a sphere or cylinder, negative: ``φ' < 0``) enter
 exact tangent, as the generator and the Hertz test use it); it can make the tangent indefinite at a deep
 penetration, where :func:`solve_spd` falls back from Cholesky to LU. The obstacle is pushed by ``Σ φ'(d_a) n_a``.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass, field
@@ -37,6 +38,7 @@ class NotConverged(RuntimeError):
 class Contact:
     """Penalty contact between the body's ``nodes`` and an obstacle: stiffness ``k`` (force per length), reach
     ``delta`` (length)."""
+
     obstacle: Obstacle
     nodes: np.ndarray
     k: float
@@ -53,7 +55,7 @@ class Contact:
         dde = np.where(inside, k, 0.0)
         if h > 0:
             g = np.where(near, h - d, 0.0)
-            e, de, dde = e + k * g ** 3 / (6 * h), de - k * g * g / (2 * h), dde + k * g / h
+            e, de, dde = e + k * g**3 / (6 * h), de - k * g * g / (2 * h), dde + k * g / h
         curvature = de[:, None, None] * dn
         hess = dde[:, None, None] * np.einsum("ni,nj->nij", n, n) + np.where(self.curved, curvature, 0.0)
         return float(e.sum()), de[:, None] * n, hess, inside | near
@@ -65,6 +67,7 @@ class Contact:
 @dataclass
 class NodalForce:
     """Dead loads ``force`` [n,3] on ``nodes`` (potential ``-f·x``), evaluated like a :class:`Contact`."""
+
     nodes: np.ndarray
     force: np.ndarray
 
@@ -76,6 +79,7 @@ class NodalForce:
 @dataclass
 class Newton:
     """Settings: relative force tolerance, iteration limit, line-search cuts, substep depth."""
+
     rtol: float = 1e-8
     max_iter: int = 20
     cuts: int = 10
@@ -85,6 +89,7 @@ class Newton:
 @dataclass
 class StepLog:
     """One solved load step: iterations and the residual norm before each iteration."""
+
     iterations: int = 0
     residuals: list = field(default_factory=list)
     substeps: int = 1
@@ -123,8 +128,11 @@ def _line_search(body, x, dx, r, contacts, cuts):
         e = potential(body, trial, contacts)
         if np.isfinite(e) and e <= e0 + 1e-4 * alpha * slope:
             return trial
-        if np.isfinite(e) and (rt := _system(body, trial, contacts, tangent=False)[0]) is not None \
-                and np.linalg.norm(rt) < (1 - 1e-4 * alpha) * r0:
+        if (
+            np.isfinite(e)
+            and (rt := _system(body, trial, contacts, tangent=False)[0]) is not None
+            and np.linalg.norm(rt) < (1 - 1e-4 * alpha) * r0
+        ):
             return trial
         alpha *= 0.5
     return None
@@ -141,8 +149,9 @@ def solve_spd(K: sp.csr_matrix, b: np.ndarray) -> np.ndarray:
         ab = np.zeros((band + 1, K.shape[0]))
         ab[band + coo.row[up] - coo.col[up], coo.col[up]] = coo.data[up]
         try:
-            return la.cho_solve_banded((la.cholesky_banded(ab, overwrite_ab=True, check_finite=False), False), b,
-                                       check_finite=False)
+            return la.cho_solve_banded(
+                (la.cholesky_banded(ab, overwrite_ab=True, check_finite=False), False), b, check_finite=False
+            )
         except la.LinAlgError:
             pass
     return spla.splu(K.tocsc(), permc_spec="MMD_AT_PLUS_A").solve(b)
@@ -171,8 +180,13 @@ def newton(body: NeoHookean, x: np.ndarray, contacts: list[Contact], settings: N
     raise NotConverged(f"residual {norm:.3g} after {it} iterations")
 
 
-def advance(body: NeoHookean, x: np.ndarray, load: Callable[[float, np.ndarray], list[Contact]],
-            settings: Newton = Newton(), predictor: np.ndarray | None = None):
+def advance(
+    body: NeoHookean,
+    x: np.ndarray,
+    load: Callable[[float, np.ndarray], list[Contact]],
+    settings: Newton = Newton(),
+    predictor: np.ndarray | None = None,
+):
     """Solve the load step ``s: 0 -> 1`` from the equilibrium ``x``: ``load(s, x)`` applies the load at ``s`` (sets
     prescribed values in ``x``, returns the contacts). Newton starts from ``x + s predictor`` (the previous step's
     increment: quasi-static paths are smooth) where that is admissible. On failure the step is halved, recursively,

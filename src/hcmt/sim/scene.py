@@ -15,6 +15,7 @@ a steel ball (7.75-8.0e-3 g/mm^3, 190-210 GPa, nu 0.3) of radius 3-4 mm; the pla
 (``paper``) or 12 mm (``small``) clamped at its rim; mesh size drawn per preset so the node count matches
 (about 2,200 for ``paper`` as in the paper's Table 6, 400-600 for ``small``).
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -30,17 +31,25 @@ def design_mesh(design: Design) -> dict[str, np.ndarray]:
     of :func:`~hcmt.sim.mesh.impact_plate_mesh` (:meth:`hcmt.sim.families.Feature.mesh`: a ring's radius, a
     backing's thickness, the pen)."""
     extra = {k: v for f in features(design) for k, v in f.mesh(design).items()}
-    return impact_plate_mesh(design.thickness, design.impactor_radius, design.mesh_size,
-                             plate_half_length=design.plate_half_length, gap=design.gap,
-                             layers=[layer[0] for layer in design.layers], **extra)
+    return impact_plate_mesh(
+        design.thickness,
+        design.impactor_radius,
+        design.mesh_size,
+        plate_half_length=design.plate_half_length,
+        gap=design.gap,
+        layers=[layer[0] for layer in design.layers],
+        **extra,
+    )
 
 
 def cell_materials(design: Design, mesh: dict) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(density, modulus, Poisson) per cell [C] from the mesh's ``cell_layer``: the panel's layers, the backing
     (last), the impactor (-1: the ball_* material)."""
     under = [layer for f in features(design) for layer in f.under(design)]  # a backing's (Feature.under)
-    table = np.array([layer[1:] for layer in [*design.layers, *under]]
-                     + [(design.ball_density, design.ball_modulus, design.ball_poisson)])
+    table = np.array(
+        [layer[1:] for layer in [*design.layers, *under]]
+        + [(design.ball_density, design.ball_modulus, design.ball_poisson)]
+    )
     m = table[mesh["cell_layer"]]  # -1 picks the impactor's row
     return m[:, 0], m[:, 1], m[:, 2]
 
@@ -48,8 +57,13 @@ def cell_materials(design: Design, mesh: dict) -> tuple[np.ndarray, np.ndarray, 
 def fem_model(design: Design, settings: Settings, mesh: dict):
     """The finite-element model of a design's mesh (:func:`hcmt.sim.solver.build_model`, its cells' materials
     from :func:`cell_materials`)."""
-    return build_model(mesh["mesh_pos"], mesh["cells"], *cell_materials(design, mesh),
-                       formulation=settings.formulation, bulk_viscosity=settings.bulk_viscosity)
+    return build_model(
+        mesh["mesh_pos"],
+        mesh["cells"],
+        *cell_materials(design, mesh),
+        formulation=settings.formulation,
+        bulk_viscosity=settings.bulk_viscosity,
+    )
 
 
 def fixed_dofs(node_type: np.ndarray) -> np.ndarray:
@@ -80,9 +94,12 @@ def static_fields(design: Design, mesh: dict, formulation: str = "axisymmetric")
     for f in features(design):
         density = f.scene(design, mesh, density, formulation)
     return dict(
-        mesh_pos=mesh["mesh_pos"].astype(np.float32), cells=cells.astype(np.int32),
+        mesh_pos=mesh["mesh_pos"].astype(np.float32),
+        cells=cells.astype(np.int32),
         node_type=mesh["node_type"].astype(np.int32)[:, None],
-        density=density.astype(np.float32)[:, None], modulus=modulus.astype(np.float32)[:, None])
+        density=density.astype(np.float32)[:, None],
+        modulus=modulus.astype(np.float32)[:, None],
+    )
 
 
 def feature_spec(settings: Settings = Settings()) -> dict:
@@ -96,6 +113,7 @@ def feature_spec(settings: Settings = Settings()) -> dict:
         "modulus": {"type": "static", "shape": [-1, 1], "dtype": "float32"},
         "world_pos": {"type": "dynamic", "shape": [T, -1, 2], "dtype": "float32"},
         "stress": {"type": "dynamic", "shape": [T, -1, 1], "dtype": "float32"},
-        **({"stress_max": {"type": "dynamic", "shape": [T, -1, 1], "dtype": "float32"}} if settings.peak_stress
-           else {}),
+        **(
+            {"stress_max": {"type": "dynamic", "shape": [T, -1, 1], "dtype": "float32"}} if settings.peak_stress else {}
+        ),
     }

@@ -1,5 +1,6 @@
 """The solver and recording settings a whole dataset shares (:class:`Settings`, meta.json's ``generator``), the
 formulations and gravity: part of the design schema (:mod:`hcmt.sim.params` reads them from here). Light."""
+
 from __future__ import annotations
 
 from dataclasses import dataclass, fields
@@ -50,11 +51,14 @@ class Settings:
             object.__setattr__(self, f.name, v)
 
     def validate(self) -> "Settings":
-        for name, ok, expected in (("formulation", self.formulation in FORMULATIONS, f"one of {FORMULATIONS}"),
-                                   ("frames", self.frames >= 2, ">= 2"), ("frame_dt", self.frame_dt > 0, "> 0 ms"),
-                                   ("safety", 0 < self.safety <= 0.8, "in (0, 0.8]"),
-                                   ("bulk_viscosity", self.bulk_viscosity >= 0, ">= 0"),
-                                   ("penalty", 0 < self.penalty <= 0.5, "in (0, 0.5]")):
+        for name, ok, expected in (
+            ("formulation", self.formulation in FORMULATIONS, f"one of {FORMULATIONS}"),
+            ("frames", self.frames >= 2, ">= 2"),
+            ("frame_dt", self.frame_dt > 0, "> 0 ms"),
+            ("safety", 0 < self.safety <= 0.8, "in (0, 0.8]"),
+            ("bulk_viscosity", self.bulk_viscosity >= 0, ">= 0"),
+            ("penalty", 0 < self.penalty <= 0.5, "in (0, 0.5]"),
+        ):
             if not ok:  # param: the command names its flag (--frames)
                 raise InputError(f"must be {expected}, got {getattr(self, name)!r}", param=name)
         return self

@@ -23,6 +23,7 @@ Hot path: ``F`` for all elements is one sparse product ``D @ x`` with a precompu
 (rows: dN/dX, dN/dY, centroid average); the nodal forces are ``D^T @ Q`` with ``Q`` the weighted stresses. No loop
 over elements.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -74,8 +75,16 @@ def lame(modulus, poisson):
     return modulus * poisson / ((1 + poisson) * (1 - 2 * poisson)), modulus / (2 * (1 + poisson))
 
 
-def build_model(X: np.ndarray, cells: np.ndarray, density, modulus, poisson, *, formulation: str = "axisymmetric",
-                bulk_viscosity: float = 0.0) -> FEModel:
+def build_model(
+    X: np.ndarray,
+    cells: np.ndarray,
+    density,
+    modulus,
+    poisson,
+    *,
+    formulation: str = "axisymmetric",
+    bulk_viscosity: float = 0.0,
+) -> FEModel:
     """Precompute the CST operators of a mesh. ``density``, ``modulus`` (MPa), ``poisson`` are per cell or scalars."""
     if formulation not in FORMULATIONS:
         raise InputError(f"formulation must be one of {FORMULATIONS}, got {formulation!r}")
@@ -89,8 +98,9 @@ def build_model(X: np.ndarray, cells: np.ndarray, density, modulus, poisson, *, 
     p = X[cells]  # [C,3,2]
     # grad N_a = perp(x_c - x_b) / (2A) for the cyclic triple (a, b, c)
     nxt, prv = p[:, [1, 2, 0]], p[:, [2, 0, 1]]
-    A = 0.5 * ((p[:, 1, 0] - p[:, 0, 0]) * (p[:, 2, 1] - p[:, 0, 1])
-               - (p[:, 1, 1] - p[:, 0, 1]) * (p[:, 2, 0] - p[:, 0, 0]))
+    A = 0.5 * (
+        (p[:, 1, 0] - p[:, 0, 0]) * (p[:, 2, 1] - p[:, 0, 1]) - (p[:, 1, 1] - p[:, 0, 1]) * (p[:, 2, 0] - p[:, 0, 0])
+    )
     if np.any(A <= 0):
         bad = np.flatnonzero(A <= 0)[:5]
         raise InputError(f"cells must be counter-clockwise with positive area; cells {bad.tolist()} are not")
@@ -117,10 +127,23 @@ def build_model(X: np.ndarray, cells: np.ndarray, density, modulus, poisson, *, 
     avg = sp.csr_matrix((np.repeat(A, 3), (cells.ravel(), np.repeat(np.arange(C), 3))), shape=(N, C))
     deg = np.asarray(avg.sum(1)).ravel()
     avg = sp.diags(1.0 / np.where(deg > 0, deg, 1.0)) @ avg
-    return FEModel(X=X, cells=cells, formulation=formulation, D=D.tocsc(), DT=D.T,  # CSC: faster multivector products
-                   W=W, Rc=Rc, lam=lam, mu=mu,
-                   rho=rho, wave_speed=c, altitude=altitude, mass=mass, nodal_average=avg.tocsr(),
-                   bulk_viscosity=float(bulk_viscosity))
+    return FEModel(
+        X=X,
+        cells=cells,
+        formulation=formulation,
+        D=D.tocsc(),
+        DT=D.T,  # CSC: faster multivector products
+        W=W,
+        Rc=Rc,
+        lam=lam,
+        mu=mu,
+        rho=rho,
+        wave_speed=c,
+        altitude=altitude,
+        mass=mass,
+        nodal_average=avg.tocsr(),
+        bulk_viscosity=float(bulk_viscosity),
+    )
 
 
 def stable_time_step(model: FEModel, safety: float = 0.8) -> float:
@@ -137,15 +160,19 @@ def deformation(model: FEModel, x: np.ndarray):
     C = model.num_cells
     G = model.D @ x  # [3C,2] ([2C,2] plane strain)
     F11, F21 = G[:C, 0], G[:C, 1]
-    F12, F22 = G[C:2 * C, 0], G[C:2 * C, 1]
-    F33 = G[2 * C:, 0] / model.Rc if model.formulation == "axisymmetric" else np.ones(C)
+    F12, F22 = G[C : 2 * C, 0], G[C : 2 * C, 1]
+    F33 = G[2 * C :, 0] / model.Rc if model.formulation == "axisymmetric" else np.ones(C)
     return F11, F12, F21, F22, F33
 
 
 def green_lagrange(F11, F12, F21, F22, F33):
     """E = (F^T F - I)/2 as (E11, E22, E12, E33)."""
-    return (0.5 * (F11 * F11 + F21 * F21 - 1), 0.5 * (F12 * F12 + F22 * F22 - 1), 0.5 * (F11 * F12 + F21 * F22),
-            0.5 * (F33 * F33 - 1))
+    return (
+        0.5 * (F11 * F11 + F21 * F21 - 1),
+        0.5 * (F12 * F12 + F22 * F22 - 1),
+        0.5 * (F11 * F12 + F21 * F22),
+        0.5 * (F33 * F33 - 1),
+    )
 
 
 def internal_force(model: FEModel, x: np.ndarray, v: np.ndarray | None = None) -> np.ndarray:
@@ -160,13 +187,13 @@ def internal_force(model: FEModel, x: np.ndarray, v: np.ndarray | None = None) -
     C = model.num_cells
     visc = v is not None and model.bulk_viscosity > 0
     G = model.D @ (np.concatenate((x, v), axis=1) if visc else x)
-    F11, F21, F12, F22 = G[:C, 0], G[:C, 1], G[C:2 * C, 0], G[C:2 * C, 1]
+    F11, F21, F12, F22 = G[:C, 0], G[:C, 1], G[C : 2 * C, 0], G[C : 2 * C, 1]
     axi = model.formulation == "axisymmetric"
     E11 = 0.5 * (F11 * F11 + F21 * F21 - 1.0)
     E22 = 0.5 * (F12 * F12 + F22 * F22 - 1.0)
     tr = E11 + E22
     if axi:
-        F33 = G[2 * C:, 0] / model.Rc
+        F33 = G[2 * C :, 0] / model.Rc
         E33 = 0.5 * (F33 * F33 - 1.0)
         tr += E33
     lt = model.lamW * tr  # weighted stresses W S
@@ -175,18 +202,18 @@ def internal_force(model: FEModel, x: np.ndarray, v: np.ndarray | None = None) -
     S12 = model.mu2W * (F11 * F12 + F21 * F22) * 0.5
     q = 0.0
     if visc:
-        rate = G[:C, 2] + G[C:2 * C, 3]
+        rate = G[:C, 2] + G[C : 2 * C, 3]
         if axi:
-            rate += G[2 * C:, 2] / model.Rc
+            rate += G[2 * C :, 2] / model.Rc
         q = model.etaW * rate
     Q = np.empty((len(G), 2))
     Q[:C, 0] = F11 * S11 + F12 * S12 + q
     Q[:C, 1] = F21 * S11 + F22 * S12
-    Q[C:2 * C, 0] = F11 * S12 + F12 * S22
-    Q[C:2 * C, 1] = F21 * S12 + F22 * S22 + q
+    Q[C : 2 * C, 0] = F11 * S12 + F12 * S22
+    Q[C : 2 * C, 1] = F21 * S12 + F22 * S22 + q
     if axi:
-        Q[2 * C:, 0] = (F33 * (lt + model.mu2W * E33) + q) / model.Rc
-        Q[2 * C:, 1] = 0.0
+        Q[2 * C :, 0] = (F33 * (lt + model.mu2W * E33) + q) / model.Rc
+        Q[2 * C :, 1] = 0.0
     return model.DT @ Q
 
 
@@ -209,8 +236,7 @@ def cauchy_stress(model: FEModel, x: np.ndarray):
     J = (F11 * F22 - F12 * F21) * F33
     P11, P12 = F11 * S11 + F12 * S12, F11 * S12 + F12 * S22
     P21, P22 = F21 * S11 + F22 * S12, F21 * S12 + F22 * S22
-    return ((P11 * F11 + P12 * F12) / J, (P21 * F21 + P22 * F22) / J, (P11 * F21 + P12 * F22) / J,
-            S33 * F33 * F33 / J)
+    return ((P11 * F11 + P12 * F12) / J, (P21 * F21 + P22 * F22) / J, (P11 * F21 + P12 * F22) / J, S33 * F33 * F33 / J)
 
 
 def von_mises(s11, s22, s12, s33):
@@ -236,8 +262,16 @@ class CentralDifference:
     ``rigid = (nodes [N] bool, mass M)``: those nodes are held by a rigid rod of mass ``M`` (g) that moves along y
     only (the pen): they share one axial acceleration ``a_y = (sum_G f_y - M g) / (sum_G m + M)`` and keep their x."""
 
-    def __init__(self, model: FEModel, fixed: np.ndarray, dt: float, *, contact=None, gravity: float = 0.0,
-                 rigid: tuple[np.ndarray, float] | None = None):
+    def __init__(
+        self,
+        model: FEModel,
+        fixed: np.ndarray,
+        dt: float,
+        *,
+        contact=None,
+        gravity: float = 0.0,
+        rigid: tuple[np.ndarray, float] | None = None,
+    ):
         if not dt > 0:
             raise InputError(f"time step must be > 0, got {dt}")
         self.model, self.dt, self.contact, self.gravity = model, float(dt), contact, float(gravity)
@@ -293,12 +327,16 @@ class CentralDifference:
         rod = dict(kinetic=0.0, gravity=0.0)
         if self.rigid is not None:  # the rod moves with its nodes (their mean height)
             j = self.rigid
-            rod = dict(kinetic=0.5 * self.rod_mass * float(v[j[0], 1]) ** 2,
-                       gravity=self.rod_mass * self.gravity * float(self.x[j, 1].mean()))
-        return dict(kinetic=float(0.5 * np.dot(m, (v * v).sum(1))) + rod["kinetic"],
-                    strain=strain_energy(self.model, self.x),
-                    contact=self.contact.energy(self.x) if self.contact is not None else 0.0,
-                    gravity=float(self.gravity * np.dot(m, self.x[:, 1])) + rod["gravity"])
+            rod = dict(
+                kinetic=0.5 * self.rod_mass * float(v[j[0], 1]) ** 2,
+                gravity=self.rod_mass * self.gravity * float(self.x[j, 1].mean()),
+            )
+        return dict(
+            kinetic=float(0.5 * np.dot(m, (v * v).sum(1))) + rod["kinetic"],
+            strain=strain_energy(self.model, self.x),
+            contact=self.contact.energy(self.x) if self.contact is not None else 0.0,
+            gravity=float(self.gravity * np.dot(m, self.x[:, 1])) + rod["gravity"],
+        )
 
 
 def linear_stiffness(model: FEModel) -> sp.csr_matrix:
@@ -307,9 +345,9 @@ def linear_stiffness(model: FEModel) -> sp.csr_matrix:
     ``B`` maps u to (eps11, eps22, gamma12, eps33) per element; eps33 = u_r / R_c in the axisymmetric case, 0 else."""
     C, N = model.num_cells, model.num_nodes
     D = model.D.tocsr()
-    Dx, Dy = D[:C], D[C:2 * C]
+    Dx, Dy = D[:C], D[C : 2 * C]
     zero = sp.csr_matrix((C, N))
-    hoop = sp.diags(1.0 / model.Rc) @ D[2 * C:] if model.formulation == "axisymmetric" else zero
+    hoop = sp.diags(1.0 / model.Rc) @ D[2 * C :] if model.formulation == "axisymmetric" else zero
     B = sp.bmat([[Dx, zero], [zero, Dy], [Dy, Dx], [hoop, zero]]).tocsr()  # columns: all ux, then all uy
     lam, mu = model.lam * model.W, model.mu * model.W
     a = lam + 2 * mu

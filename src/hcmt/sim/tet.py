@@ -1,6 +1,7 @@
 """Tetrahedral meshes of the 3-D Deforming Plate generator: structured boxes (each hexahedron split into six
 tetrahedra around its main diagonal), the box mapped onto a ball or a cylinder (the actuators), the boundary
 faces, and the linear tetrahedron's shape-function gradients and volumes."""
+
 from __future__ import annotations
 
 import numpy as np

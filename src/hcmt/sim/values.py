@@ -1,5 +1,6 @@
 """Numbers as the design schema reads them (:mod:`hcmt.sim.params`, :mod:`hcmt.sim.families`): whether a value is
 a real or whole number, how a refusal names a type, a finite number from text. Light: numpy only."""
+
 from __future__ import annotations
 
 import numbers

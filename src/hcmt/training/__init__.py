@@ -1,6 +1,7 @@
 """Training: the frames of a split as a ``Dataset`` (:mod:`~hcmt.training.dataset`), the loop
 (:class:`~hcmt.training.trainer.Trainer`), its schedule and its process plumbing (:mod:`~hcmt.training.runtime`),
 and :func:`train`, the one entry (``hcmt.train``, ``hcmt train``)."""
+
 from __future__ import annotations
 
 import os
@@ -16,9 +17,23 @@ from hcmt.training.start import check_data, check_model, check_paths, inherit
 from hcmt.training.trainer import Trainer
 
 
-def train(config, data, model: str | None, out, *, overrides=None, resume: bool = False, overwrite: bool = False,
-          ablation: str | None = None, seed: int = 0, device: str | None = None, progress: bool = True,
-          stop_at: int | None = None, init: str | None = None, init_normalizers: str = "keep") -> dict:
+def train(
+    config,
+    data,
+    model: str | None,
+    out,
+    *,
+    overrides=None,
+    resume: bool = False,
+    overwrite: bool = False,
+    ablation: str | None = None,
+    seed: int = 0,
+    device: str | None = None,
+    progress: bool = True,
+    stop_at: int | None = None,
+    init: str | None = None,
+    init_normalizers: str = "keep",
+) -> dict:
     """Train ``model`` (``hcmt``, ``mgn``, ``gt``) on the native dataset ``data`` into the run folder ``out``;
     returns the training summary (final loss, steps, ms per step, best validation metric); :meth:`hcmt.Run.load`
     (``out``) gives the trained model.
@@ -37,15 +52,26 @@ def train(config, data, model: str | None, out, *, overrides=None, resume: bool 
     freezes its normalizer statistics, ``reaccumulate`` zeroes them and accumulates them on ``data``. run.yaml
     records it. Threads: torch's count where the caller set one, else the command's default (``--threads auto``,
     :func:`hcmt.config.default_threads`)."""
-    cfg, model = _start(config, data, model, out, overrides=overrides, resume=resume, overwrite=overwrite,
-                        ablation=ablation, init=init)
+    cfg, model = _start(
+        config, data, model, out, overrides=overrides, resume=resume, overwrite=overwrite, ablation=ablation, init=init
+    )
     out, folder = Path(out), RunFolder(out, must_exist=False)
     default_threads()
 
     def run() -> dict:
         with deterministic_scope():  # train.deterministic holds for this run only
-            return Trainer(cfg, data, model, out, seed=seed, resume=resume, device=device,
-                           progress=progress, init=init, init_normalizers=init_normalizers).run(stop_at)
+            return Trainer(
+                cfg,
+                data,
+                model,
+                out,
+                seed=seed,
+                resume=resume,
+                device=device,
+                progress=progress,
+                init=init,
+                init_normalizers=init_normalizers,
+            ).run(stop_at)
 
     if int(os.environ.get("RANK", 0)) != 0:  # torchrun's other ranks: rank 0 owns the folder
         return run()
@@ -77,8 +103,11 @@ def _start(config, data, model, out, *, overrides, resume: bool, overwrite: bool
     config, model = inherit(init, config, model) if init is not None and not resume else (config, model)
     model = check_model(config, model)
     out = Path(out)
-    check_apart({"out": out}, {"data": data, "init": None if str(init or "").startswith("pretrained:") else init},
-                owned=("out",))
+    check_apart(
+        {"out": out},
+        {"data": data, "init": None if str(init or "").startswith("pretrained:") else init},
+        owned=("out",),
+    )
     overrides = override_list(overrides) + ([f"model.ablation={ablation}"] if ablation else [])
     cfg = as_config(config, overrides).for_training()
     check_data(cfg, data, given, init, overrides)  # a config of another dataset than the data's

@@ -9,6 +9,7 @@ item ``i`` is training frame ``i`` (``frames[i] = (trajectory, t)``), with noise
   file opened lazily in each process: a DataLoader worker or DDP rank holds the index, not the split, and reads
   only the trajectories of its own keys.
 """
+
 from __future__ import annotations
 
 import functools
@@ -32,8 +33,9 @@ class InMemorySplit:
     (``FrameDataset(in_memory=True)``), for small data and to check the lazy path against. Loaded lazily in each
     process; pickles without its trajectories."""
 
-    def __init__(self, dataset, split: str, adapter: Adapter, levels: int, remesh: bool,
-                 exclude: list[int] | None = None):
+    def __init__(
+        self, dataset, split: str, adapter: Adapter, levels: int, remesh: bool, exclude: list[int] | None = None
+    ):
         self.args = (dataset, split, adapter, levels, remesh)
         self.exclude, self._trajs = exclude, None
         self.steps = np.asarray([tr.num_steps for tr in self.trajectories], np.int64)
@@ -80,18 +82,36 @@ class FrameDataset(Dataset):
     instead (:func:`load_split`); both give the same items bit for bit.
     """
 
-    def __init__(self, data: str | Path, split: str, adapter: Adapter, levels: int, remesh: bool, radius: float,
-                 noise_std: float = 0.0, gamma: float = 1.0, seed: int = 0, exclude: list[int] | None = None,
-                 noise_nodes: str = "normal", in_memory: bool = False, keep: int = 4,
-                 contact_free_weight: float = 1.0):
+    def __init__(
+        self,
+        data: str | Path,
+        split: str,
+        adapter: Adapter,
+        levels: int,
+        remesh: bool,
+        radius: float,
+        noise_std: float = 0.0,
+        gamma: float = 1.0,
+        seed: int = 0,
+        exclude: list[int] | None = None,
+        noise_nodes: str = "normal",
+        in_memory: bool = False,
+        keep: int = 4,
+        contact_free_weight: float = 1.0,
+    ):
         self.data, self.split, self.adapter = Path(data), split, adapter
         self.levels, self.remesh, self.radius = levels, remesh, float(radius)
         self.noise_std, self.gamma, self.seed, self.exclude = float(noise_std), float(gamma), int(seed), exclude
         self.noise_nodes, self.contact_free_weight = noise_nodes, float(contact_free_weight)
-        self.source = (InMemorySplit(data, split, adapter, levels, remesh, exclude) if in_memory
-                       else SplitReader(data, split, adapter, levels, remesh, exclude, keep))
-        self.frames = np.asarray([(i, t) for i, steps in enumerate(self.source.steps)
-                                  for t in range(adapter.history, int(steps) - 1)], np.int64).reshape(-1, 2)
+        self.source = (
+            InMemorySplit(data, split, adapter, levels, remesh, exclude)
+            if in_memory
+            else SplitReader(data, split, adapter, levels, remesh, exclude, keep)
+        )
+        self.frames = np.asarray(
+            [(i, t) for i, steps in enumerate(self.source.steps) for t in range(adapter.history, int(steps) - 1)],
+            np.int64,
+        ).reshape(-1, 2)
 
     def __len__(self) -> int:
         return len(self.frames)
@@ -116,8 +136,9 @@ class FrameDataset(Dataset):
         tr, t, noise, gen = self._draw(key, self.adapter.history + 1)
         u = float(torch.rand((), generator=gen))
         if u < probability and t - 1 >= self.adapter.history:
-            return self._weigh(pushforward_sample(model, tr, t, noise, self._noise(tr, gen), self.gamma, self.radius,
-                                                  forward))
+            return self._weigh(
+                pushforward_sample(model, tr, t, noise, self._noise(tr, gen), self.gamma, self.radius, forward)
+            )
         return self._weigh(training_sample(tr, t, noise, self.gamma, self.radius))
 
     def _weigh(self, item: tuple[Graph, Tensor, Tensor]) -> tuple[Graph, Tensor, Tensor]:
@@ -132,8 +153,11 @@ class FrameDataset(Dataset):
 
     def _noise(self, tr: Trajectory, gen: torch.Generator) -> Tensor:
         d = tr.world_pos.shape[-1]
-        return (torch.randn((tr.num_nodes, d), generator=gen) * self.noise_std
-                * noise_mask(self.adapter, tr.static["node_type"], d, self.noise_nodes))
+        return (
+            torch.randn((tr.num_nodes, d), generator=gen)
+            * self.noise_std
+            * noise_mask(self.adapter, tr.static["node_type"], d, self.noise_nodes)
+        )
 
     def _draw(self, key, back: int) -> tuple[Trajectory, int, Tensor, torch.Generator]:
         """The item's trajectory with frames ``t - back .. t + 1`` read, ``t``, its noise and generator."""
@@ -164,8 +188,13 @@ def pad_sizes(dataset: FrameDataset, batch: int) -> PadSizes:
     for ti in range(len(dataset.source)):
         tr = dataset.source.static(ti)
         h = tr.hierarchy
-        counts.append((tr.num_nodes, int(h.edges[0].shape[1]),
-                       [(len(h.pool[l]), int(h.edges[l + 1].shape[1])) for l in range(h.levels)]))
+        counts.append(
+            (
+                tr.num_nodes,
+                int(h.edges[0].shape[1]),
+                [(len(h.pool[l]), int(h.edges[l + 1].shape[1])) for l in range(h.levels)],
+            )
+        )
     dataset.source.close()  # DataLoader workers open the file themselves
     return PadSizes.fit(counts, batch)
 
@@ -192,8 +221,9 @@ class StepSampler(Sampler):
     (seeded by ``(seed, epoch)``), each rank taking its share of the step's global batch of ``batch`` frames per
     rank. A pure function of (seed, step, rank), so a resumed run sees the same data as one that never stopped."""
 
-    def __init__(self, dataset: FrameDataset, batch: int, seed: int, start: int, end: int, world: int = 1,
-                 rank: int = 0):
+    def __init__(
+        self, dataset: FrameDataset, batch: int, seed: int, start: int, end: int, world: int = 1, rank: int = 0
+    ):
         self.dataset, self.batch, self.seed, self.start, self.end = dataset, batch, seed, start, end
         self.world, self.rank = world, rank
         self.per_epoch = max(len(dataset) // (world * batch), 1)
@@ -206,13 +236,14 @@ class StepSampler(Sampler):
             epoch, pos = divmod(step, self.per_epoch)
             perm = np.random.default_rng([self.seed, epoch]).permutation(len(self.dataset))
             first = (pos * self.world + self.rank) * self.batch
-            picks = perm[first:first + self.batch]
+            picks = perm[first : first + self.batch]
             sizes = [self.dataset.num_nodes(i) for i in picks]
             yield [(int(i), step, self.rank, tuple(sizes[:k])) for k, i in enumerate(picks)]
 
 
-def step_loader(frames: FrameDataset, sampler: StepSampler, pad: PadSizes | None = None, workers: int = 0,
-                pushforward=None):
+def step_loader(
+    frames: FrameDataset, sampler: StepSampler, pad: PadSizes | None = None, workers: int = 0, pushforward=None
+):
     """An iterator over the training steps' batches ``(graph, target, mask)``: built by ``DataLoader`` workers
     (``workers``; 0: in this process) in step order, padded to ``pad`` when given (``train.compile``). With
     ``pushforward`` (``key -> item``: the item needs the model) the batches are built in this process, each just
@@ -220,8 +251,15 @@ def step_loader(frames: FrameDataset, sampler: StepSampler, pad: PadSizes | None
     collate = collate_samples if pad is None else functools.partial(collate_padded, sizes=pad)
     if pushforward is not None:
         return (collate([pushforward(key) for key in keys]) for keys in sampler)
-    return iter(torch.utils.data.DataLoader(frames, batch_sampler=sampler, collate_fn=collate, num_workers=workers,
-                                            worker_init_fn=_ignore_sigint if workers else None))
+    return iter(
+        torch.utils.data.DataLoader(
+            frames,
+            batch_sampler=sampler,
+            collate_fn=collate,
+            num_workers=workers,
+            worker_init_fn=_ignore_sigint if workers else None,
+        )
+    )
 
 
 def _ignore_sigint(worker_id: int) -> None:

@@ -17,6 +17,7 @@ lr_decay_steps       null        1e6          exponential_decay(lr, step, decay_
 
 (``lr_decay_steps`` null: the decay runs from ``lr`` to ``lr_final`` over the run, :func:`learning_rate`.)
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass, fields, replace
@@ -69,12 +70,22 @@ class TrainingPolicy:
 
 
 #: the named policies (``train.policy``)
-POLICIES = {"hcmt": TrainingPolicy(),
-            "official": TrainingPolicy(normalizer_warmup="nodes", mesh_edges_twice=True, loss_denominator="nodes",
-                                       adam_epsilon=1e-7, adam_epsilon_hat=True, lr_decay_steps=1_000_000)}
+POLICIES = {
+    "hcmt": TrainingPolicy(),
+    "official": TrainingPolicy(
+        normalizer_warmup="nodes",
+        mesh_edges_twice=True,
+        loss_denominator="nodes",
+        adam_epsilon=1e-7,
+        adam_epsilon_hat=True,
+        lr_decay_steps=1_000_000,
+    ),
+}
 
 
 def policy_of(tc: TrainConfig) -> TrainingPolicy:
     """``train.policy``'s :class:`TrainingPolicy`, with the fields a config sets (non-null) in its place."""
-    return replace(POLICIES[tc.policy], **{f.name: getattr(tc, f.name) for f in fields(TrainingPolicy)
-                                           if getattr(tc, f.name) is not None})
+    return replace(
+        POLICIES[tc.policy],
+        **{f.name: getattr(tc, f.name) for f in fields(TrainingPolicy) if getattr(tc, f.name) is not None},
+    )

@@ -7,6 +7,7 @@ every forward, so the normalizers' statistics are rank 0's (a sample of the data
 every rank normalizes its inputs alike; a non-finite loss on any rank stops all of them (:func:`stop_together`).
 Validation rollouts run on rank 0 while the others wait in the next all-reduce (keep them shorter than the backend's
 timeout)."""
+
 from __future__ import annotations
 
 import contextlib
@@ -34,6 +35,7 @@ from hcmt.training.policy import policy_of
 def check_resume(saved: dict, run: dict, out: Path) -> None:
     """An exact continuation needs the settings the run started with; only ``train.steps`` may grow (the
     learning-rate schedule then stretches to the new length)."""
+
     def strip(r):
         policy = asdict(policy_of(r["config"].train))  # the loop's conventions, named by the policy or key by key
         r = dict(r, config=r["config"].to_dict(), model=architecture(r["model"]))  # older runs saved more
@@ -48,9 +50,11 @@ def check_resume(saved: dict, run: dict, out: Path) -> None:
     for k in ("model", "config", "seed", "world_size"):
         changed += _differences(a.get(k, b[k]), b[k], k)
     if changed:
-        raise InputError(f"{out}: resuming with other settings than the run was started with: {'; '.join(changed)} "
-                         f"(see {out / 'run.yaml'}); `hcmt train --resume --out {out}` alone resumes with the saved "
-                         "settings")
+        raise InputError(
+            f"{out}: resuming with other settings than the run was started with: {'; '.join(changed)} "
+            f"(see {out / 'run.yaml'}); `hcmt train --resume --out {out}` alone resumes with the saved "
+            "settings"
+        )
 
 
 def _differences(a, b, key: str) -> list[str]:
@@ -105,8 +109,10 @@ def distributed() -> tuple[int, int]:
         world = int(os.environ["WORLD_SIZE"])
         gpus = torch.cuda.device_count() if torch.cuda.is_available() else 0
         if gpus and world > gpus:
-            raise InputError(f"{world} training processes but {gpus} GPU(s): NCCL needs one GPU per process; use "
-                             f"torchrun --nproc_per_node={gpus}, or run on the CPU (CUDA_VISIBLE_DEVICES= gives gloo)")
+            raise InputError(
+                f"{world} training processes but {gpus} GPU(s): NCCL needs one GPU per process; use "
+                f"torchrun --nproc_per_node={gpus}, or run on the CPU (CUDA_VISIBLE_DEVICES= gives gloo)"
+            )
         if not dist.is_initialized():
             dist.init_process_group("nccl" if gpus else "gloo")
         return dist.get_rank(), dist.get_world_size()
@@ -118,8 +124,10 @@ def lock_run(out: Path) -> Path:
     lock = out / ".lock"
     holder = take_lock(lock)
     if holder is not None:
-        raise InputError(f"{out} is being written by another training process (pid {holder}, {lock}); wait for "
-                         "it or choose another run folder")
+        raise InputError(
+            f"{out} is being written by another training process (pid {holder}, {lock}); wait for "
+            "it or choose another run folder"
+        )
     return lock
 
 
@@ -158,8 +166,11 @@ def deterministic_kernels() -> None:
 @contextlib.contextmanager
 def deterministic_scope():
     """Restore torch's deterministic-algorithm and cuDNN settings on exit (``train.deterministic`` is per run)."""
-    saved = (torch.are_deterministic_algorithms_enabled(), torch.is_deterministic_algorithms_warn_only_enabled(),
-             torch.backends.cudnn.benchmark)
+    saved = (
+        torch.are_deterministic_algorithms_enabled(),
+        torch.is_deterministic_algorithms_warn_only_enabled(),
+        torch.backends.cudnn.benchmark,
+    )
     try:
         yield
     finally:
@@ -201,8 +212,9 @@ def _say_no_tensorboard() -> None:
     global _no_tensorboard_said
     if not _no_tensorboard_said:
         _no_tensorboard_said = True
-        logging.getLogger("hcmt.train").info("no TensorBoard scalars: tensorboard is not installed "
-                                             "(pip install 'hcmt[tensorboard]'); log.jsonl has them")
+        logging.getLogger("hcmt.train").info(
+            "no TensorBoard scalars: tensorboard is not installed (pip install 'hcmt[tensorboard]'); log.jsonl has them"
+        )
 
 
 def step_times(times: list[tuple[float, float]]) -> dict:

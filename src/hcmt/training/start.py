@@ -1,6 +1,7 @@
 """How a run starts: the record ``run.yaml`` keeps (model arguments, config, data, seed, processes, the model it
 started from) and the checks before anything is written: a resumed run's settings are the saved ones, a
 fine-tuned run's (``--init``) model is its source's, inherited (:func:`inherit`)."""
+
 from __future__ import annotations
 
 import os
@@ -21,12 +22,17 @@ def init_source(init: str, args: dict) -> Run:
     listing what differs when its constructor arguments (architecture, feature widths) are not this run's."""
     source = Run.load(init, "cpu")
     theirs, args = architecture(source.info.model), architecture(args)
-    differ = [f"{k} {theirs.get(k)!r} there, {args.get(k)!r} here" for k in sorted(set(theirs) | set(args))
-              if theirs.get(k) != args.get(k)]
+    differ = [
+        f"{k} {theirs.get(k)!r} there, {args.get(k)!r} here"
+        for k in sorted(set(theirs) | set(args))
+        if theirs.get(k) != args.get(k)
+    ]
     if differ:
-        raise InputError(f"{init}: its model differs from this run's: {'; '.join(differ)}; fine-tuning needs the "
-                         "same model, architecture and feature widths (train with the config it was trained with)",
-                         param="init")
+        raise InputError(
+            f"{init}: its model differs from this run's: {'; '.join(differ)}; fine-tuning needs the "
+            "same model, architecture and feature widths (train with the config it was trained with)",
+            param="init",
+        )
     return source
 
 
@@ -79,15 +85,28 @@ def check_data(cfg: Config, data, config, init: str | None, overrides: list) -> 
     check_same_dataset(cfg.dataset, meta, data, source, origin)
 
 
-def start_record(folder: RunFolder, args: dict, cfg: Config, data, seed: int, world: int, *, resume: bool,
-                 init: str | None, init_normalizers: str) -> tuple[dict, Run | None]:
+def start_record(
+    folder: RunFolder,
+    args: dict,
+    cfg: Config,
+    data,
+    seed: int,
+    world: int,
+    *,
+    resume: bool,
+    init: str | None,
+    init_normalizers: str,
+) -> tuple[dict, Run | None]:
     """``run.yaml``'s record of this run and the :class:`Run` it starts from (``init``; None when resuming: the
     checkpoint holds the weights already), every start rule checked."""
     if init_normalizers not in INIT_NORMALIZERS:
         raise InputError(f"init_normalizers must be one of {', '.join(INIT_NORMALIZERS)}, got {init_normalizers!r}")
     if resume and init is not None:
-        raise InputError("starts a run from another model's weights and resuming continues a run (whose "
-                         "run.yaml remembers where it started); give one of them", param="init")
+        raise InputError(
+            "starts a run from another model's weights and resuming continues a run (whose "
+            "run.yaml remembers where it started); give one of them",
+            param="init",
+        )
     run = {"model": args, "config": cfg, "data": str(Path(data).resolve()), "seed": seed, "world_size": world}
     source, started_from = None, None
     if resume and folder.info is not None:
@@ -112,11 +131,15 @@ def resume_state(folder: RunFolder, model, opt, device, steps: int, rank: int) -
         model.load_state_dict(state["model"])
         opt.load_state_dict(state["optimizer"])
     except (KeyError, RuntimeError, ValueError) as exc:
-        raise InputError(f"{path}: the checkpoint does not fit this run's model or optimizer "
-                         f"({exc.__class__.__name__}); resuming continues only the run that wrote it") from None
+        raise InputError(
+            f"{path}: the checkpoint does not fit this run's model or optimizer "
+            f"({exc.__class__.__name__}); resuming continues only the run that wrote it"
+        ) from None
     step, best = int(state["step"]), float(state["best"])
     if step > steps:
-        raise InputError(f"{folder.path}: train.steps {steps}, but the run has done {step} steps; a "
-                         "run only grows (train.steps, --steps in hcmt train, >= the steps done)")
+        raise InputError(
+            f"{folder.path}: train.steps {steps}, but the run has done {step} steps; a "
+            "run only grows (train.steps, --steps in hcmt train, >= the steps done)"
+        )
     kept = [r for r in folder.log_records() if r["step"] <= step] if rank == 0 and folder.log.is_file() else None
     return step, best, kept

@@ -18,6 +18,7 @@ graphs as they are, otherwise on graphs padded to static sizes, :func:`hcmt.grap
 buckets, so CUDA graphs can replay the step; the normalizers accumulate eagerly before the compiled forward, which
 mutates no buffer), ``deterministic`` (:func:`~hcmt.training.runtime.deterministic_kernels`: a resumed CUDA run ends
 bit for bit like an unbroken one, at a cost in speed; CPU runs are exact without it)."""
+
 from __future__ import annotations
 
 import json
@@ -66,11 +67,26 @@ class Trainer:
     data, optimizer, resume), :meth:`step` (one optimizer step on one batch), :meth:`validate` (validation
     rollouts, best.pt) and :meth:`save` (checkpoints); :meth:`run` loops over them."""
 
-    def __init__(self, cfg: Config, data, model_name: str, out: Path, *, seed: int, resume: bool, device,
-                 progress: bool, init: str | None = None, init_normalizers: str = "keep"):
+    def __init__(
+        self,
+        cfg: Config,
+        data,
+        model_name: str,
+        out: Path,
+        *,
+        seed: int,
+        resume: bool,
+        device,
+        progress: bool,
+        init: str | None = None,
+        init_normalizers: str = "keep",
+    ):
         self.rank, self.world = distributed()
-        self.device = resolve_device(device) if device else (
-            torch.device(f"cuda:{self.rank}") if torch.cuda.is_available() else torch.device("cpu"))
+        self.device = (
+            resolve_device(device)
+            if device
+            else (torch.device(f"cuda:{self.rank}") if torch.cuda.is_available() else torch.device("cpu"))
+        )
         cfg = cfg.for_training()
         self.cfg, self.tc, self.out, self.seed, self.model_name = cfg, cfg.train, out, seed, model_name
         self.steps, self.policy, self.progress = cfg.train.steps, policy_of(cfg.train), progress
@@ -79,8 +95,17 @@ class Trainer:
         self.ckpt_path = self.folder.latest
         if resume or self.ckpt_path.is_file():  # train() has cleared or refused a folder holding only run.yaml
             check_start(self.folder, resume, flags=True)
-        run, source = start_record(self.folder, self.args, cfg, data, seed, self.world, resume=resume, init=init,
-                                   init_normalizers=init_normalizers)
+        run, source = start_record(
+            self.folder,
+            self.args,
+            cfg,
+            data,
+            seed,
+            self.world,
+            resume=resume,
+            init=init,
+            init_normalizers=init_normalizers,
+        )
         self._build_model(source, run.get("init"), init_normalizers)
         self._build_data(data)
         # fused: one kernel for every parameter, on CUDA and on the CPU (3.1 against 11-13 ms of CPU per step for the
@@ -96,12 +121,20 @@ class Trainer:
             if resume and self._kept_log is not None:
                 rewrite_log(self.folder.log, self._kept_log)  # what was logged after the checkpoint goes
         self._wrap_model()
-        self.writer = summary_writer(self.folder.tensorboard, self.step_count if resume else None) if self.rank == 0 \
-            else None
+        self.writer = (
+            summary_writer(self.folder.tensorboard, self.step_count if resume else None) if self.rank == 0 else None
+        )
         self.log = open(self.folder.log, "a") if self.rank == 0 else None
         self._handler = rank_zero_logging(self.rank, self.folder.text_log)
-        logger.info("%s: %s on %s, %d training frames, steps %d -> %d", out, model_name, self.device,
-                    len(self.frames), self.step_count, self.steps)
+        logger.info(
+            "%s: %s on %s, %d training frames, steps %d -> %d",
+            out,
+            model_name,
+            self.device,
+            len(self.frames),
+            self.step_count,
+            self.steps,
+        )
         say_no_tensorboard(self.writer)
 
     def _build_model(self, source, started_from: dict | None, init_normalizers: str) -> None:
@@ -111,8 +144,10 @@ class Trainer:
         lpe = self.args.get("ablation") == "lpe"  # auto: eager for it; an explicit mode: refused
         self.compile = resolve_compile(tc.compile, steps=tc.steps, device=self.device, lpe=lpe)
         if self.compile != "none" and lpe:
-            raise InputError("train.compile: the lpe ablation computes its eigenvectors per graph outside the model's "
-                             "tensors; use train.compile=none with it")
+            raise InputError(
+                "train.compile: the lpe ablation computes its eigenvectors per graph outside the model's "
+                "tensors; use train.compile=none with it"
+            )
         if tc.deterministic:
             deterministic_kernels()
         torch.manual_seed(self.seed)  # parameter initialization
@@ -132,12 +167,26 @@ class Trainer:
         tc, cfg = self.tc, self.cfg
         levels, remesh = uses_hierarchy(self.args, cfg.data.remesh)
         self.radius = tc.contact_radius
-        self.frames = FrameDataset(data, "train", self.adapter, levels, remesh, self.radius,
-                                   tc.noise_std, noise_gamma(cfg, self.adapter), self.seed,
-                                   cfg.data.exclude_trajectories, tc.noise_nodes, in_memory=cfg.data.in_memory,
-                                   contact_free_weight=tc.contact_free_weight)
-        self.valid_trajs = (load_split(data, "valid", self.adapter, levels, remesh, limit=tc.valid_trajectories)
-                            if (Path(data) / "valid.h5").is_file() else [])
+        self.frames = FrameDataset(
+            data,
+            "train",
+            self.adapter,
+            levels,
+            remesh,
+            self.radius,
+            tc.noise_std,
+            noise_gamma(cfg, self.adapter),
+            self.seed,
+            cfg.data.exclude_trajectories,
+            tc.noise_nodes,
+            in_memory=cfg.data.in_memory,
+            contact_free_weight=tc.contact_free_weight,
+        )
+        self.valid_trajs = (
+            load_split(data, "valid", self.adapter, levels, remesh, limit=tc.valid_trajectories)
+            if (Path(data) / "valid.h5").is_file()
+            else []
+        )
 
     def _wrap_model(self) -> None:
         """``self.net``: the model the step calls, under DDP with several processes, compiled: on the CPU in mode
@@ -146,7 +195,8 @@ class Trainer:
         self.net = self.model
         if self.world > 1:
             self.net = torch.nn.parallel.DistributedDataParallel(
-                self.model, device_ids=[self.device.index] if self.device.type == "cuda" else None)
+                self.model, device_ids=[self.device.index] if self.device.type == "cuda" else None
+            )
         self.pad = None  # padded compiles: static shapes, padded batches, contact edges bucketed
         self.dynamic = self.compile == "default" and self.device.type == "cpu"
         if self.compile != "none":
@@ -155,8 +205,9 @@ class Trainer:
 
     def _resume(self) -> None:
         """Model, optimizer, step and best score from the run's latest checkpoint (:func:`resume_state`)."""
-        self.step_count, self.best, self._kept_log = resume_state(self.folder, self.model, self.opt, self.device,
-                                                                  self.steps, self.rank)
+        self.step_count, self.best, self._kept_log = resume_state(
+            self.folder, self.model, self.opt, self.device, self.steps, self.rank
+        )
 
     def _pushforward_probability(self) -> float:
         """``train.pushforward`` from ``train.pushforward_start`` on (and never while only the normalizers learn)."""
@@ -210,8 +261,12 @@ class Trainer:
             self.save(self.folder.best)
 
     def save(self, path: Path) -> None:
-        save_atomic(checkpoint_state(self.model, self.args, optimizer=self.opt.state_dict(), step=self.step_count,
-                                     best=self.best), path)
+        save_atomic(
+            checkpoint_state(
+                self.model, self.args, optimizer=self.opt.state_dict(), step=self.step_count, best=self.best
+            ),
+            path,
+        )
 
     def _record(self, rec: dict) -> None:
         self.log.write(json.dumps(rec) + "\n")
@@ -222,12 +277,19 @@ class Trainer:
         sampler = StepSampler(self.frames, self.tc.batch_size, self.seed, self.step_count, end, self.world, self.rank)
         forward = None  # eager: the model itself
         if self.compile != "none":
-            net = (self.net if self.world == 1  # DDP's forward would sync buffers
-                   else compile_simulator(self.model, self.compile, dynamic=self.dynamic))
-            forward = (padded_forward(net, self.pad) if self.pad is not None
-                       else (lambda graph: net(graph, accumulate=False)))
-        pushforward = (lambda key: self.frames.pushforward_item(key, self.model, self._pushforward_probability(),
-                                                                forward)) if self.tc.pushforward > 0 else None
+            net = (
+                self.net
+                if self.world == 1  # DDP's forward would sync buffers
+                else compile_simulator(self.model, self.compile, dynamic=self.dynamic)
+            )
+            forward = (
+                padded_forward(net, self.pad) if self.pad is not None else (lambda graph: net(graph, accumulate=False))
+            )
+        pushforward = (
+            (lambda key: self.frames.pushforward_item(key, self.model, self._pushforward_probability(), forward))
+            if self.tc.pushforward > 0
+            else None
+        )
         return step_loader(self.frames, sampler, self.pad, self.tc.workers, pushforward)
 
     def _report(self, loss: float, lr: float, times: list, end: int, stop: bool) -> None:
@@ -237,7 +299,7 @@ class Trainer:
             self.bar.set_postfix(loss=f"{loss:.4g}", lr=f"{lr:.2e}")
             for k, v in (("train/loss", loss), ("train/lr", lr)):
                 self.writer.add_scalar(k, v, step)
-            self._record({"step": step, "loss": loss, "lr": lr, **step_times(times[-tc.log_every:])})
+            self._record({"step": step, "loss": loss, "lr": lr, **step_times(times[-tc.log_every :])})
         if self.valid_trajs and tc.valid_every and (step % tc.valid_every == 0 or step == self.steps):
             self.validate()
         if step % tc.checkpoint_every == 0 or step == end or stop:
@@ -248,9 +310,14 @@ class Trainer:
     def run(self, stop_at: int | None = None) -> dict:
         """Train to ``train.steps`` (or to ``stop_at``, checkpointed, as an interruption would); the summary."""
         end = self.steps if stop_at is None else min(self.steps, int(stop_at))
-        self.bar = tqdm(total=self.steps, initial=self.step_count, disable=not self.progress or self.rank != 0,
-                        desc=f"train {self.model_name}", dynamic_ncols=True,
-                        mininterval=0.1 if sys.stderr.isatty() else 30.0)
+        self.bar = tqdm(
+            total=self.steps,
+            initial=self.step_count,
+            disable=not self.progress or self.rank != 0,
+            desc=f"train {self.model_name}",
+            dynamic_ncols=True,
+            mininterval=0.1 if sys.stderr.isatty() else 30.0,
+        )
         loader = self._loader(end)
         times, loss = [], float("nan")
         interrupted = InterruptFlag()  # Ctrl-C / SIGTERM end the current step, then save and stop
@@ -263,15 +330,18 @@ class Trainer:
                 finite, stop = stop_together(self.world, self.device, loss, interrupted.set)
                 step = self.step_count
                 if not finite:
-                    raise FloatingPointError(f"loss became non-finite at step {step} (rank {self.rank}: {loss}); "
-                                             "lower train.lr or check the data")
+                    raise FloatingPointError(
+                        f"loss became non-finite at step {step} (rank {self.rank}: {loss}); "
+                        "lower train.lr or check the data"
+                    )
                 self.bar.update(1)
                 if self.rank == 0:
                     self._report(loss, lr, times, end, stop)
                 if stop:
                     logger.info("interrupted at step %d: checkpoint saved", step)
-                    raise TrainingInterrupted(f"interrupted: checkpoint of step {step} of {self.steps} saved in "
-                                              f"{self.ckpt_path}")
+                    raise TrainingInterrupted(
+                        f"interrupted: checkpoint of step {step} of {self.steps} saved in {self.ckpt_path}"
+                    )
         finally:
             interrupted.restore()
             self.bar.close()
@@ -285,16 +355,24 @@ class Trainer:
         return summary
 
     def _finish(self, times: list[float], loss: float) -> dict:
-        summary = {"steps": self.step_count, "final_loss": loss,
-                   **{f"train_{k}": v for k, v in step_times(times).items()},
-                   "best_valid_position_rmse_all": self.best if math.isfinite(self.best) else None,
-                   "world_size": self.world, "device": str(self.device)}
+        summary = {
+            "steps": self.step_count,
+            "final_loss": loss,
+            **{f"train_{k}": v for k, v in step_times(times).items()},
+            "best_valid_position_rmse_all": self.best if math.isfinite(self.best) else None,
+            "world_size": self.world,
+            "device": str(self.device),
+        }
         if self.rank == 0 and self.step_count == self.steps:
             if not self.folder.best.is_file():
                 self.save(self.folder.best)
             self.folder.write_stats(summary)
-            logger.info("%s: finished %d steps, %.1f ms per step", self.out, self.step_count,
-                        summary["train_ms_per_step"] or float("nan"))
+            logger.info(
+                "%s: finished %d steps, %.1f ms per step",
+                self.out,
+                self.step_count,
+                summary["train_ms_per_step"] or float("nan"),
+            )
         if self.world > 1:
             dist.barrier()
         return summary

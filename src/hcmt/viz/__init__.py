@@ -13,6 +13,7 @@
 matplotlib (and meshio, for the export) come with the ``viz`` extra (``pip install 'hcmt[viz]'``); without
 matplotlib, importing this package fails in one line naming it.
 """
+
 from hcmt.errors import require_installed
 
 require_installed("viz", "matplotlib")

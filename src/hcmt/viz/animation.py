@@ -7,6 +7,7 @@ minimum) to the ground truth's 99th percentile over all frames and nodes (``perc
 than the maximum is our choice: the impact's peak lasts a few frames at a few nodes and would leave the rest of
 the animation one dark colour; values beyond it saturate, and the colour bar's arrow says so.
 """
+
 from __future__ import annotations
 
 from pathlib import Path
@@ -80,8 +81,9 @@ def animation_axes(case: Case, field: str, norm, extend: str, percentile: float,
     fig = new_figure(w * cols + 1.0, h + zh + 0.7)
     kw = {"projection": "3d"} if three_d else {}
     axes = [[fig.add_subplot(rows, cols, r * cols + c + 1, **kw) for c in range(cols)] for r in range(rows)]
-    cbar = fig.colorbar(ScalarMappable(norm=norm, cmap=cmap), ax=[a for row in axes for a in row], extend=extend,
-                        aspect=25)
+    cbar = fig.colorbar(
+        ScalarMappable(norm=norm, cmap=cmap), ax=[a for row in axes for a in row], extend=extend, aspect=25
+    )
     label = field_label(case, field)
     if norm.vmin == 0:
         label += f"\n(scale: 0 to the ground truth's {percentile:g}th percentile)"
@@ -138,8 +140,16 @@ def render_frames(fig, axes, title, frames: list[int], draw, three_d: bool, dpi:
     return images
 
 
-def animate(case: Case, path: str | Path, *, fps: int = 10, stride: int | None = None, cmap: str = "viridis",
-            percentile: float = 99.0, dpi: int = 100) -> Path:
+def animate(
+    case: Case,
+    path: str | Path,
+    *,
+    fps: int = 10,
+    stride: int | None = None,
+    cmap: str = "viridis",
+    percentile: float = 99.0,
+    dpi: int = 100,
+) -> Path:
     """Write the animation to ``path`` (``.gif``); returns it. One animation frame per drawn rollout frame
     (:func:`animation_frames`). The zoom row shows one window for the whole animation (the impact window at the
     frame of closest approach), so the view does not jump; everything but the meshes and the title is drawn once
@@ -166,8 +176,9 @@ def animate(case: Case, path: str | Path, *, fps: int = 10, stride: int | None =
                 before = set(ax.get_children())
                 values = field_values(s, f, field)
                 if three_d:
-                    draw_field_3d(ax, s.world_pos[f], case.cells, values, norm, cmap, limits=limits3d,
-                                  length_unit=length)
+                    draw_field_3d(
+                        ax, s.world_pos[f], case.cells, values, norm, cmap, limits=limits3d, length_unit=length
+                    )
                 else:
                     draw_field_2d(ax, s.world_pos[f], case.cells, values, norm, cmap, edges=r == 1)
                     ax.set_xlim(*(box if r == 0 else window)[:2])
@@ -179,6 +190,7 @@ def animate(case: Case, path: str | Path, *, fps: int = 10, stride: int | None =
 
     images = render_frames(fig, axes, title, animation_frames(case.num_frames, stride), draw, three_d, dpi)
     with atomic_path(path) as tmp:
-        images[0].save(tmp, format="GIF", save_all=True, append_images=images[1:], duration=int(round(1000 / fps)),
-                       loop=0)
+        images[0].save(
+            tmp, format="GIF", save_all=True, append_images=images[1:], duration=int(round(1000 / fps)), loop=0
+        )
     return path

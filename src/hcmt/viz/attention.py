@@ -20,6 +20,7 @@ plate, object 0, top left; the ball bottom right, as the paper's Fig. 15 describ
 every level (the bottom block for level λ), like Fig. 15. The Graph Transformer baseline gives ``gt{n}`` over mesh
 and contact edges together.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
@@ -99,18 +100,21 @@ def default_frame(world_pos: np.ndarray, object_id: np.ndarray, history: int) ->
     return int(np.clip(np.argmin(gaps), history, len(world_pos) - 2))
 
 
-def frame_attention(run: Run, data: str | Path, split: str = "test", trajectory: int | str = 0,
-                    frame: int | None = None) -> AttentionMaps:
+def frame_attention(
+    run: Run, data: str | Path, split: str = "test", trajectory: int | str = 0, frame: int | None = None
+) -> AttentionMaps:
     """Attention maps of a run's model on one ground-truth frame (default: the impact, :func:`default_frame`)."""
     if not REGISTRY[run.info.model["name"]].has_attention:
-        raise InputError(f"{run.label} has no attention to show (MeshGraphNets is not a Transformer); use an HCMT "
-                         "or GT run")
+        raise InputError(
+            f"{run.label} has no attention to show (MeshGraphNets is not a Transformer); use an HCMT or GT run"
+        )
     adapter = run.adapter
     levels, remesh = run.hierarchy_spec
     with Split(data, split) as s:
         index = trajectory_index(s.names, trajectory)
-        traj = prepare_trajectory(s[index], s.names[index], adapter, levels, remesh, hierarchy_cache_dir(data),
-                                  s.attrs(index))
+        traj = prepare_trajectory(
+            s[index], s.names[index], adapter, levels, remesh, hierarchy_cache_dir(data), s.attrs(index)
+        )
     world = traj.world_pos
     obj = np.asarray(traj.hierarchy.object_id)
     h = adapter.history
@@ -118,15 +122,24 @@ def frame_attention(run: Run, data: str | Path, split: str = "test", trajectory:
     if frame is None:
         frame = default_frame(world.numpy(), obj, h)
     if not h <= frame <= T - 2:
-        raise InputError(f"frame {frame} out of range: a graph needs frames {h}..{T - 2} of trajectory {traj.name} "
-                         f"(the previous frame as input, the next one for prescribed nodes)")
+        raise InputError(
+            f"frame {frame} out of range: a graph needs frames {h}..{T - 2} of trajectory {traj.name} "
+            f"(the previous frame as input, the next one for prescribed nodes)"
+        )
     graph = input_graph(traj, world[frame], world[frame - h], world[frame + 1], run.radius)
     level_nodes = [np.asarray(v) for v in traj.hierarchy.nodes[1:]]
     maps = maps_from_model(run.model, graph)
     nt = traj.static["node_type"].numpy()
-    return AttentionMaps(maps["matrices"], maps["blocks"], [obj] + [obj[v] for v in level_nodes],
-                         traj.name, int(frame), run.label, [nt] + [nt[v] for v in level_nodes],
-                         maps["normalized_for_display"])
+    return AttentionMaps(
+        maps["matrices"],
+        maps["blocks"],
+        [obj] + [obj[v] for v in level_nodes],
+        traj.name,
+        int(frame),
+        run.label,
+        [nt] + [nt[v] for v in level_nodes],
+        maps["normalized_for_display"],
+    )
 
 
 def object_order(object_id: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -180,8 +193,9 @@ def attention_figure(maps: AttentionMaps, panels: list[tuple[str, str]] | None =
         size = float(np.clip((200.0 / max(n, 1)) ** 2, 1.0, 25.0))  # about one node's width, at least a point
         if maps.blocks[name].branch == "contact":
             size = max(size, 6.0)  # contact edges are few: make them visible
-        mappable = ax.scatter(rank[coo.col], rank[coo.row], c=coo.data, s=size, marker="s", linewidths=0,
-                              norm=norm, cmap="viridis")
+        mappable = ax.scatter(
+            rank[coo.col], rank[coo.row], c=coo.data, s=size, marker="s", linewidths=0, norm=norm, cmap="viridis"
+        )
         for b in bounds:
             ax.axhline(b - 0.5, color="red", lw=0.6)
             ax.axvline(b - 0.5, color="red", lw=0.6)
@@ -195,8 +209,7 @@ def attention_figure(maps: AttentionMaps, panels: list[tuple[str, str]] | None =
             ticks.append((a + b - 1) / 2)
             types = maps.node_type[level][order[a:b]] if maps.node_type else None
             common = int(np.bincount(types).argmax()) if types is not None and len(types) else None
-            labels.append(f"obj {o}" + (f"\n{NodeType(common).name}" if common in NodeType._value2member_map_
-                                        else ""))
+            labels.append(f"obj {o}" + (f"\n{NodeType(common).name}" if common in NodeType._value2member_map_ else ""))
         ax.set_xticks(ticks, labels, fontsize=6)
         ax.set_yticks(ticks, labels, fontsize=6, rotation=90, va="center")
         ax.set_xlabel(f"sender j ({n} nodes)", fontsize=7)
@@ -204,13 +217,18 @@ def attention_figure(maps: AttentionMaps, panels: list[tuple[str, str]] | None =
         ax.set_title(f"{title}\n{coo.nnz} edges", fontsize=8)
     cbar = fig.colorbar(mappable, ax=fig.axes, aspect=40)
     if maps.normalized_for_display:
-        cbar.set_label("$w_{ij} / \\sum_j w_{ij}$ (official attention, normalized for display)\n"
-                       "(mean over heads and channels)", fontsize=8)
+        cbar.set_label(
+            "$w_{ij} / \\sum_j w_{ij}$ (official attention, normalized for display)\n(mean over heads and channels)",
+            fontsize=8,
+        )
     else:
         cbar.set_label("attention weight $a_{ij}$\n(mean over heads and channels)", fontsize=8)
-    fig.suptitle(f"Attention maps of {maps.model}, trajectory {maps.trajectory}, frame {maps.frame} "
-                 "\nrow i: how receiver i spreads its attention over its senders j (each row sums to 1); "
-                 "red lines: object blocks", fontsize=9)
+    fig.suptitle(
+        f"Attention maps of {maps.model}, trajectory {maps.trajectory}, frame {maps.frame} "
+        "\nrow i: how receiver i spreads its attention over its senders j (each row sums to 1); "
+        "red lines: object blocks",
+        fontsize=9,
+    )
     return fig
 
 

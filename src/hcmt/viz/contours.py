@@ -13,6 +13,7 @@ Two pictures for a 2-D scene: the whole scene, with the zoom window marked by a 
 the zoom window itself (:func:`hcmt.viz.meshplot.impact_window`) with the mesh edges drawn, so the node positions
 of prediction and ground truth can be compared where the ball meets the plate.
 """
+
 from __future__ import annotations
 
 from pathlib import Path
@@ -104,8 +105,12 @@ def view_box(case: Case, frames: list[int]) -> tuple[float, float, float, float]
     allpos = allpos[np.isfinite(allpos).all(1)]
     every = scene_box(allpos)
     wx, wy = truth[1] - truth[0], truth[3] - truth[2]
-    return (max(every[0], truth[0] - wx / 2), min(every[1], truth[1] + wx / 2),
-            max(every[2], truth[2] - wy / 2), min(every[3], truth[3] + wy / 2))
+    return (
+        max(every[0], truth[0] - wx / 2),
+        min(every[1], truth[1] + wx / 2),
+        max(every[2], truth[2] - wy / 2),
+        min(every[3], truth[3] + wy / 2),
+    )
 
 
 def frame_rmse(series: Series, truth: Series, frame: int, field: str) -> float:
@@ -151,8 +156,16 @@ def draw_panel_2d(ax, case: Case, s, f: int, field: str, norm, cmap: str, zoom: 
     return mappable
 
 
-def contour_figure(case: Case, frames: list[int] | None = None, *, field: str | None = None, zoom: bool = False,
-                   cmap: str = "viridis", scale: str = "frame", panel_width: float = 3.2):
+def contour_figure(
+    case: Case,
+    frames: list[int] | None = None,
+    *,
+    field: str | None = None,
+    zoom: bool = False,
+    cmap: str = "viridis",
+    scale: str = "frame",
+    panel_width: float = 3.2,
+):
     """The contour grid (rows: frames, columns: ground truth then predictions). ``zoom`` draws the impact window
     of each frame (2-D only) instead of the whole scene; ``scale`` is ``frame`` (one colour scale per row) or
     ``all`` (one for the figure). Returns the figure."""
@@ -160,8 +173,11 @@ def contour_figure(case: Case, frames: list[int] | None = None, *, field: str | 
     field = field or field_name(case)
     if scale not in SCALES:
         raise InputError(f"scale must be one of {SCALES}, got {scale!r}")
-    norms = ([shared_norm(case, [f], field) for f in frames] if scale == "frame"
-             else [shared_norm(case, frames, field)] * len(frames))
+    norms = (
+        [shared_norm(case, [f], field) for f in frames]
+        if scale == "frame"
+        else [shared_norm(case, frames, field)] * len(frames)
+    )
     series = case.series
     rows, cols = len(frames), len(series)
     three_d = case.dim == 3
@@ -185,8 +201,16 @@ def contour_figure(case: Case, frames: list[int] | None = None, *, field: str | 
         for c, s in enumerate(series):
             if three_d:
                 ax = sub.add_subplot(1, cols, c + 1, projection="3d")
-                mappable = draw_field_3d(ax, s.world_pos[f], case.cells, field_values(s, f, field), norm, cmap,
-                                         limits=limits3d, length_unit=length)
+                mappable = draw_field_3d(
+                    ax,
+                    s.world_pos[f],
+                    case.cells,
+                    field_values(s, f, field),
+                    norm,
+                    cmap,
+                    limits=limits3d,
+                    length_unit=length,
+                )
             else:
                 ax = sub.add_subplot(1, cols, c + 1)
                 mappable = draw_panel_2d(ax, case, s, f, field, norm, cmap, zoom, windows[r], first=c == 0)
@@ -203,8 +227,15 @@ def contour_figure(case: Case, frames: list[int] | None = None, *, field: str | 
     return fig
 
 
-def plot_contours(case: Case, out_dir: str | Path, frames: list[int] | None = None, *, cmap: str = "viridis",
-                  scale: str = "frame", dpi: int = 150) -> list[Path]:
+def plot_contours(
+    case: Case,
+    out_dir: str | Path,
+    frames: list[int] | None = None,
+    *,
+    cmap: str = "viridis",
+    scale: str = "frame",
+    dpi: int = 150,
+) -> list[Path]:
     """Write ``<field>_contours.png`` (whole scene) and, for a 2-D scene of several objects,
     ``<field>_contours_zoom.png`` (the impact window). Returns the paths written."""
     out_dir = Path(out_dir)

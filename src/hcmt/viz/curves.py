@@ -6,6 +6,7 @@ scaling is for printing numbers, not for axes), averaged over the trajectories e
 band between the best and the worst trajectory when there are several. Steps before a run's first predicted frame
 are the data's and are not drawn.
 """
+
 from __future__ import annotations
 
 from pathlib import Path
@@ -25,8 +26,15 @@ from hcmt.viz.rollouts import quantity_label, unique_labels
 QUANTITIES = ("position", "stress")
 
 
-def rollout_errors(runs: list[Run | RunFolder], data: str | Path, split: str = "test", labels: list[str] | None = None,
-                   limit: int | None = None, *, progress: bool = True) -> dict[str, dict]:
+def rollout_errors(
+    runs: list[Run | RunFolder],
+    data: str | Path,
+    split: str = "test",
+    labels: list[str] | None = None,
+    limit: int | None = None,
+    *,
+    progress: bool = True,
+) -> dict[str, dict]:
     """Per-step RMSE of every run: ``{label: {"position": [n, T], "stress": [n, T] (if any), "start": int,
     "trajectories": names}}`` over the trajectories all runs have rolled out (rolling out the first ``limit``, or
     all, where a run has no rollout file yet)."""
@@ -41,8 +49,10 @@ def rollout_errors(runs: list[Run | RunFolder], data: str | Path, split: str = "
     with Split(data, split, meta) as s:
         names = [n for n in s.names if n in names]
         if not names:
-            raise InputError(f"the runs' rollout files ({', '.join(map(str, paths))}) share no trajectory of split "
-                             f"{split!r}; roll them out on the same data")
+            raise InputError(
+                f"the runs' rollout files ({', '.join(map(str, paths))}) share no trajectory of split "
+                f"{split!r}; roll them out on the same data"
+            )
         truths = {n: s[s.names.index(n)] for n in names}
     for label, path in zip(labels, paths):
         errors = {q: [] for q in QUANTITIES}
@@ -59,8 +69,9 @@ def rollout_errors(runs: list[Run | RunFolder], data: str | Path, split: str = "
     return out
 
 
-def plot_error_curves(errors: dict[str, dict], meta: dict, path: str | Path, *, log: bool | None = None,
-                      dpi: int = 150) -> Path:
+def plot_error_curves(
+    errors: dict[str, dict], meta: dict, path: str | Path, *, log: bool | None = None, dpi: int = 150
+) -> Path:
     """One chart per quantity (position, stress), one line per run (mean over trajectories, min-max band).
     ``log`` y-axis: default when the errors span more than two decades."""
     quantities = [q for q in QUANTITIES if any(q in e for e in errors.values())]
@@ -73,7 +84,7 @@ def plot_error_curves(errors: dict[str, dict], meta: dict, path: str | Path, *, 
         for label, e in errors.items():
             if q not in e:
                 continue
-            values = e[q][:, e["start"]:]
+            values = e[q][:, e["start"] :]
             steps = np.arange(e["start"], e["start"] + values.shape[1])
             mean = values.mean(0)
             (line,) = ax.plot(steps, mean, label=label, lw=1.5)
@@ -96,8 +107,11 @@ def plot_error_curves(errors: dict[str, dict], meta: dict, path: str | Path, *, 
         ax.grid(True, alpha=0.3)
         ax.legend(fontsize=8)
     n = len(next(iter(errors.values()))["trajectories"])
-    fig.suptitle(f"Rollout error per step, mean over {n} trajector{'y' if n == 1 else 'ies'}"
-                 + (" (band: best to worst)" if n > 1 else ""), fontsize=10)
+    fig.suptitle(
+        f"Rollout error per step, mean over {n} trajector{'y' if n == 1 else 'ies'}"
+        + (" (band: best to worst)" if n > 1 else ""),
+        fontsize=10,
+    )
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     save_figure(fig, path, dpi=dpi)
@@ -113,10 +127,12 @@ def read_log(run: str | Path) -> tuple[dict[str, np.ndarray], dict[str, np.ndarr
     train, valid = {}, {}
     for rec in folder.log_records():
         (train if "loss" in rec else valid)[rec["step"]] = rec
+
     def columns(recs):
         steps = sorted(recs)
         keys = sorted({k for r in recs.values() for k in r})
         return {k: np.array([recs[s].get(k, np.nan) for s in steps], np.float64) for k in keys}
+
     return columns(train), columns(valid)
 
 
@@ -128,8 +144,9 @@ def running_mean(y: np.ndarray, window: int) -> np.ndarray:
     return (c[n] - c[lo]) / (n - lo)
 
 
-def plot_training_curves(runs: list[Run | RunFolder], meta: dict, path: str | Path, labels: list[str] | None = None,
-                         dpi: int = 150) -> Path:
+def plot_training_curves(
+    runs: list[Run | RunFolder], meta: dict, path: str | Path, labels: list[str] | None = None, dpi: int = 150
+) -> Path:
     """Training loss, learning rate and the validation rollout RMSE-all (position, and stress when logged) against
     the step, one line per run. The validation metrics are logged x10^3 (the paper's tables) and drawn in physical
     units."""
@@ -138,10 +155,12 @@ def plot_training_curves(runs: list[Run | RunFolder], meta: dict, path: str | Pa
     has_stress = any("valid/stress_rmse_all" in v for _, v in logs)
     panels = ["loss", "lr", "valid/position_rmse_all"] + (["valid/stress_rmse_all"] if has_stress else [])
     units = meta.get("units") or {}
-    titles = {"loss": ("training loss", "one-step MSE, normalized"), "lr": ("learning rate", "learning rate"),
-              "valid/position_rmse_all": ("validation rollout",
-                                          quantity_label("position RMSE-all", units.get("length"))),
-              "valid/stress_rmse_all": ("validation rollout", quantity_label("stress RMSE-all", units.get("stress")))}
+    titles = {
+        "loss": ("training loss", "one-step MSE, normalized"),
+        "lr": ("learning rate", "learning rate"),
+        "valid/position_rmse_all": ("validation rollout", quantity_label("position RMSE-all", units.get("length"))),
+        "valid/stress_rmse_all": ("validation rollout", quantity_label("stress RMSE-all", units.get("stress"))),
+    }
     fig = new_figure(8.4, 6.4)
     for k, key in enumerate(panels):
         ax = fig.add_subplot(2, 2, k + 1)
@@ -154,8 +173,13 @@ def plot_training_curves(runs: list[Run | RunFolder], meta: dict, path: str | Pa
             y = cols[key] / (1.0 if key in ("loss", "lr") else SCALE)
             if key == "loss" and len(y) >= 30:  # noisy: the raw values faint, a running mean over 5% on top
                 (line,) = ax.plot(cols["step"], y, lw=0.6, alpha=0.35)
-                ax.plot(cols["step"], running_mean(y, max(3, len(y) // 20)), color=line.get_color(), lw=1.4,
-                        label=f"{label} (running mean)")
+                ax.plot(
+                    cols["step"],
+                    running_mean(y, max(3, len(y) // 20)),
+                    color=line.get_color(),
+                    lw=1.4,
+                    label=f"{label} (running mean)",
+                )
             else:
                 ax.plot(cols["step"], y, label=label, lw=1.2, marker="o" if len(y) < 15 else None, ms=3)
             spans.append(y[np.isfinite(y) & (y > 0)])

@@ -18,6 +18,7 @@ or the frame number when the dataset records no ``dt``.
   points once: they are the initial positions ``x_0``; apply *Warp By Vector* with ``displacement`` to see the
   deformed mesh (a limitation of the time-series writer, which has no moving points).
 """
+
 from __future__ import annotations
 
 import os
@@ -50,8 +51,11 @@ def pad3(x: np.ndarray) -> np.ndarray:
 def point_data(case: Case, series: Series, frame: int) -> dict[str, np.ndarray]:
     """The point data of one frame of one series (see the module docstring)."""
     pos = series.world_pos[frame]
-    data = {"node_type": case.node_type.astype(np.int32), "position": pad3(pos),
-            "displacement": pad3(pos - series.world_pos[0])}
+    data = {
+        "node_type": case.node_type.astype(np.int32),
+        "position": pad3(pos),
+        "displacement": pad3(pos - series.world_pos[0]),
+    }
     if series.stress is not None:
         data["stress"] = np.asarray(series.stress[frame], np.float64).reshape(-1)
     if series is not case.truth:
@@ -75,8 +79,9 @@ def write_pvd(path: Path, files: list[Path], times: list[float]) -> Path:
     root = ET.Element("VTKFile", type="Collection", version="0.1", byte_order="LittleEndian")
     coll = ET.SubElement(root, "Collection")
     for f, t in zip(files, times):
-        ET.SubElement(coll, "DataSet", timestep=repr(float(t)), group="", part="0",
-                      file=f.relative_to(path.parent).as_posix())
+        ET.SubElement(
+            coll, "DataSet", timestep=repr(float(t)), group="", part="0", file=f.relative_to(path.parent).as_posix()
+        )
     ET.indent(root)
     with atomic_path(path) as tmp:
         tmp.write_bytes(b'<?xml version="1.0"?>\n' + ET.tostring(root) + b"\n")

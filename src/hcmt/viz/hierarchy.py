@@ -11,6 +11,7 @@ picture isolates what remeshing changes. Each panel's title gives the node count
 mean scaled Jacobian of the level's cells (before remeshing: the triangles of the 2-hop graph,
 :func:`hcmt.graph.remesh.clique_cells`), the measure of the paper's Table 7.
 """
+
 from __future__ import annotations
 
 from pathlib import Path
@@ -49,8 +50,9 @@ def object_legend(fig, object_id: np.ndarray, node_type: np.ndarray | None) -> N
     fig.legend(handles=handles, fontsize=7, loc="outside lower center", ncols=len(handles), frameon=False)
 
 
-def _draw_level(ax, pos: np.ndarray, edges: np.ndarray, colours: np.ndarray, box, *, marked: bool = False,
-                lw: float = 0.5) -> None:
+def _draw_level(
+    ax, pos: np.ndarray, edges: np.ndarray, colours: np.ndarray, box, *, marked: bool = False, lw: float = 0.5
+) -> None:
     edges = edges[:, edges[0] < edges[1]]  # each undirected edge once
     if pos.shape[1] == 3:
         seg = np.stack([pos[edges[0]], pos[edges[1]]], axis=1)
@@ -65,8 +67,14 @@ def _draw_level(ax, pos: np.ndarray, edges: np.ndarray, colours: np.ndarray, box
     draw_edges(ax, pos, edges, colors=list(colours[edges[0]]), linewidths=lw)
     inside = ((pos[:, 0] >= box[0]) & (pos[:, 0] <= box[1]) & (pos[:, 1] >= box[2]) & (pos[:, 1] <= box[3])).sum()
     size = float(np.clip(2000.0 / max(int(inside), 1), 0.3, 9.0))  # dots shrink as the visible nodes crowd
-    ax.scatter(pos[:, 0], pos[:, 1], s=size if marked else min(size, 1.5), c="black" if marked else list(colours),
-               zorder=3, linewidths=0)
+    ax.scatter(
+        pos[:, 0],
+        pos[:, 1],
+        s=size if marked else min(size, 1.5),
+        c="black" if marked else list(colours),
+        zorder=3,
+        linewidths=0,
+    )
     ax.set_xlim(box[0], box[1])
     ax.set_ylim(box[2], box[3])
     ax.set_aspect("equal")
@@ -89,8 +97,16 @@ def _view(mesh_pos: np.ndarray, hierarchy: Hierarchy, zoom: bool):
     return pos0, three_d, box
 
 
-def level_figure(mesh_pos: np.ndarray, hierarchy: Hierarchy, *, levels: list[int] | None = None, zoom: bool = False,
-                 length_unit: str | None = None, node_type: np.ndarray | None = None, columns: int = 4):
+def level_figure(
+    mesh_pos: np.ndarray,
+    hierarchy: Hierarchy,
+    *,
+    levels: list[int] | None = None,
+    zoom: bool = False,
+    length_unit: str | None = None,
+    node_type: np.ndarray | None = None,
+    columns: int = 4,
+):
     """The level-wise meshes (Fig. 4): one panel per level (default all, ``0..λ``); ``zoom`` shows the impact
     window (2-D). Returns the figure."""
     levels = list(range(hierarchy.levels + 1)) if levels is None else [int(l) for l in levels]
@@ -117,13 +133,22 @@ def level_figure(mesh_pos: np.ndarray, hierarchy: Hierarchy, *, levels: list[int
             ax.set_xlabel(quantity_label("x", length_unit), fontsize=7)
             ax.set_ylabel(quantity_label("y", length_unit), fontsize=7)
     how = "Delaunay remeshing" if hierarchy.remesh else "2-hop edges, no remeshing"
-    fig.suptitle(f"Mesh hierarchy, level by level ({how}; {'impact zoom' if zoom else 'whole scene'})\n"
-                 "scaled Jacobian: mean over the level's cells, 1 for equilateral triangles", fontsize=9)
+    fig.suptitle(
+        f"Mesh hierarchy, level by level ({how}; {'impact zoom' if zoom else 'whole scene'})\n"
+        "scaled Jacobian: mean over the level's cells, 1 for equilateral triangles",
+        fontsize=9,
+    )
     return fig
 
 
-def remeshing_figure(mesh_pos: np.ndarray, hierarchy: Hierarchy, *, zoom: bool = False,
-                     length_unit: str | None = None, node_type: np.ndarray | None = None):
+def remeshing_figure(
+    mesh_pos: np.ndarray,
+    hierarchy: Hierarchy,
+    *,
+    zoom: bool = False,
+    length_unit: str | None = None,
+    node_type: np.ndarray | None = None,
+):
     """Each level ``1..λ`` before (2-hop edges of the pooled nodes) and after Delaunay remeshing (Fig. 10); the
     pooled nodes are the black dots. Needs a hierarchy built with ``remesh=True``."""
     if not hierarchy.remesh:
@@ -140,8 +165,10 @@ def remeshing_figure(mesh_pos: np.ndarray, hierarchy: Hierarchy, *, zoom: bool =
         nodes = hierarchy.nodes[l]
         n_fine = hierarchy.num_nodes(l - 1)
         before = two_hop_edges(hierarchy.edges[l - 1], n_fine, hierarchy.pool[l - 1])
-        graphs = (("before", before, clique_cells(before, len(nodes), k_cell)),
-                  ("after", hierarchy.edges[l], hierarchy.cells[l]))
+        graphs = (
+            ("before", before, clique_cells(before, len(nodes), k_cell)),
+            ("after", hierarchy.edges[l], hierarchy.cells[l]),
+        )
         for c, (when, edges, cells) in enumerate(graphs):
             ax = _axes(fig, rows, 2, 2 * (l - 1) + c + 1, three_d)
             _draw_level(ax, pos0[nodes], edges, colours[nodes], box, marked=True, lw=0.6)
@@ -153,14 +180,25 @@ def remeshing_figure(mesh_pos: np.ndarray, hierarchy: Hierarchy, *, zoom: bool =
             if not three_d:
                 ax.set_xlabel(quantity_label("x", length_unit), fontsize=7)
                 ax.set_ylabel(quantity_label("y", length_unit), fontsize=7)
-    fig.suptitle("Pooled levels before (2-hop edges) and after Delaunay remeshing"
-                 + (" (impact zoom)" if zoom else "") + "\nblack dots: the pooled nodes; scaled Jacobian: mean over "
-                 "the cells, 1 for equilateral triangles", fontsize=9)
+    fig.suptitle(
+        "Pooled levels before (2-hop edges) and after Delaunay remeshing"
+        + (" (impact zoom)" if zoom else "")
+        + "\nblack dots: the pooled nodes; scaled Jacobian: mean over "
+        "the cells, 1 for equilateral triangles",
+        fontsize=9,
+    )
     return fig
 
 
-def plot_hierarchy(mesh_pos: np.ndarray, hierarchy: Hierarchy, out_dir: str | Path, *,
-                   length_unit: str | None = None, node_type: np.ndarray | None = None, dpi: int = 150) -> list[Path]:
+def plot_hierarchy(
+    mesh_pos: np.ndarray,
+    hierarchy: Hierarchy,
+    out_dir: str | Path,
+    *,
+    length_unit: str | None = None,
+    node_type: np.ndarray | None = None,
+    dpi: int = 150,
+) -> list[Path]:
     """Write ``hierarchy_levels.png`` and ``hierarchy_remeshing.png`` (whole scene) and, for a 2-D scene of several
     objects, their ``_zoom`` versions. Returns the paths written."""
     out_dir = Path(out_dir)

@@ -12,6 +12,7 @@ thinnest object's thickness (the smaller side of its bounding box; 3 mm for a 0.
 inside the scene's bounding box. That shows the ball's tip and the plate beneath it with the through-thickness
 stress visible at any plate thickness.
 """
+
 from __future__ import annotations
 
 from pathlib import Path
@@ -86,16 +87,24 @@ def draw_field_2d(ax, pos: np.ndarray, cells: np.ndarray, values: np.ndarray, no
     """Gouraud-shaded nodal ``values`` [N] on the triangles ``cells`` at positions ``pos`` [N, 2]; returns the
     mappable. ``edges`` overlays the mesh (thin lines) so the node positions can be compared."""
     tri = Triangulation(pos[:, 0], pos[:, 1], surface_triangles(cells))
-    artist = ax.tripcolor(tri, np.asarray(values, np.float64), shading="gouraud", norm=norm, cmap=cmap,
-                          rasterized=True)
+    artist = ax.tripcolor(tri, np.asarray(values, np.float64), shading="gouraud", norm=norm, cmap=cmap, rasterized=True)
     if edges:
         ax.triplot(tri, color="white", lw=0.3, alpha=0.55)
     ax.set_aspect("equal")
     return artist
 
 
-def draw_field_3d(ax, pos: np.ndarray, cells: np.ndarray, values: np.ndarray, norm, cmap, *,
-                  limits: tuple[np.ndarray, np.ndarray] | None = None, length_unit: str | None = None):
+def draw_field_3d(
+    ax,
+    pos: np.ndarray,
+    cells: np.ndarray,
+    values: np.ndarray,
+    norm,
+    cmap,
+    *,
+    limits: tuple[np.ndarray, np.ndarray] | None = None,
+    length_unit: str | None = None,
+):
     """Surface triangles of a 3-D mesh, each coloured by its nodes' mean value, at equal scale on every axis.
     ``limits`` (lo [3], hi [3]): the axes' box, shared by the panels to compare (default: ``pos``'s own)."""
 
@@ -165,8 +174,9 @@ def closest_contact(pos: np.ndarray, object_id: np.ndarray) -> np.ndarray | None
     return None if pair is None else 0.5 * (pair[0] + pair[1])
 
 
-def impact_window(pos: np.ndarray, object_id: np.ndarray, reference: np.ndarray | None = None
-                  ) -> tuple[float, float, float, float] | None:
+def impact_window(
+    pos: np.ndarray, object_id: np.ndarray, reference: np.ndarray | None = None
+) -> tuple[float, float, float, float] | None:
     """Zoom window ``(x0, x1, y0, y1)`` around the impact at 2-D positions ``pos`` (see the module docstring);
     thicknesses are measured on ``reference`` (the undeformed mesh; default ``pos``). None for a single object."""
     centre = closest_contact(pos, object_id)

@@ -5,6 +5,7 @@ A run's predictions live in ``RUN/rollout_<split>.h5`` (one group per trajectory
 rolled out first. Every series is checked against the dataset (node count, dimension, frame count) so a rollout of
 another dataset is refused rather than drawn on the wrong mesh.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass, field
@@ -87,8 +88,7 @@ def quantity_label(name: str, unit: str | None) -> str:
 
 def unique_labels(runs: list[Run | RunFolder]) -> list[str]:
     """Run labels, with the run folder's name added where two runs would otherwise share one."""
-    labels = [r.label if isinstance(r, Run) else model_label(r.info["model"], r.info.get("config"))
-              for r in runs]
+    labels = [r.label if isinstance(r, Run) else model_label(r.info["model"], r.info.get("config")) for r in runs]
     return [f"{lab} ({Path(r.source).name})" if labels.count(lab) > 1 else lab for lab, r in zip(labels, runs)]
 
 
@@ -96,8 +96,10 @@ def trajectory_index(names: list[str], trajectory: int | str) -> int:
     """Position of a trajectory given by index (``0``, ``-1``) or by name (``traj_00003``)."""
     if isinstance(trajectory, str) and not trajectory.removeprefix("-").isdigit():
         if trajectory not in names:
-            raise InputError(f"trajectory {trajectory!r} is not in the split; it has {names[:5]}"
-                             + (" ..." if len(names) > 5 else ""))
+            raise InputError(
+                f"trajectory {trajectory!r} is not in the split; it has {names[:5]}"
+                + (" ..." if len(names) > 5 else "")
+            )
         return names.index(trajectory)
     i = int(trajectory)
     if not -len(names) <= i < len(names):
@@ -114,17 +116,32 @@ def read_series(path: Path, name: str, label: str, truth: Series, run: Path | No
         stress = g["stress"][()] if "stress" in g else None
         start = int(g.attrs.get("start", 1))
     if pos.shape != truth.world_pos.shape:
-        raise DatasetError(f"world_pos shape {list(pos.shape)} differs from the dataset's "
-                           f"{list(truth.world_pos.shape)}; was it rolled out on another dataset?", file=path,
-                           trajectory=name, field="world_pos")
+        raise DatasetError(
+            f"world_pos shape {list(pos.shape)} differs from the dataset's "
+            f"{list(truth.world_pos.shape)}; was it rolled out on another dataset?",
+            file=path,
+            trajectory=name,
+            field="world_pos",
+        )
     if stress is not None and truth.stress is not None and stress.shape != truth.stress.shape:
-        raise DatasetError(f"stress shape {list(stress.shape)} differs from the dataset's {list(truth.stress.shape)}",
-                           file=path, trajectory=name, field="stress")
+        raise DatasetError(
+            f"stress shape {list(stress.shape)} differs from the dataset's {list(truth.stress.shape)}",
+            file=path,
+            trajectory=name,
+            field="stress",
+        )
     return Series(label, pos, stress, start, run)
 
 
-def load_case(runs: list[Run | RunFolder], data: str | Path, split: str = "test", trajectory: int | str = 0,
-              labels: list[str] | None = None, *, progress: bool = True) -> Case:
+def load_case(
+    runs: list[Run | RunFolder],
+    data: str | Path,
+    split: str = "test",
+    trajectory: int | str = 0,
+    labels: list[str] | None = None,
+    *,
+    progress: bool = True,
+) -> Case:
     """The ground truth of one trajectory and every run's rollout of it (rolled out when missing, by the one cache
     rule :func:`hcmt.inference.evaluate.rollout_for`; a bare :class:`RunFolder`'s file as it is)."""
     meta = read_meta(data)
@@ -133,9 +150,15 @@ def load_case(runs: list[Run | RunFolder], data: str | Path, split: str = "test"
         name = s.names[index]
         fields = s[index]
     truth = Series("Ground truth", fields["world_pos"], fields.get("stress"))
-    case = Case(name=name, mesh_pos=fields["mesh_pos"], cells=fields["cells"].astype(np.int64),
-                node_type=fields["node_type"].reshape(-1).astype(np.int64), truth=truth, meta=meta,
-                fields={k: v for k, v in fields.items() if k not in ("world_pos", "stress", "mesh_pos", "cells")})
+    case = Case(
+        name=name,
+        mesh_pos=fields["mesh_pos"],
+        cells=fields["cells"].astype(np.int64),
+        node_type=fields["node_type"].reshape(-1).astype(np.int64),
+        truth=truth,
+        meta=meta,
+        fields={k: v for k, v in fields.items() if k not in ("world_pos", "stress", "mesh_pos", "cells")},
+    )
     labels = labels or (unique_labels(runs) if runs else [])
     for run, label in zip(runs, labels):
         path = rollout_file(run, data, split, need=index + 1, progress=progress)

@@ -1,4 +1,5 @@
 """The arguments and first checks of ``hcmt generate``, ``simulate``, ``convert``, ``info`` and ``hierarchy``."""
+
 from __future__ import annotations
 
 import argparse
@@ -34,8 +35,9 @@ def parse_families(text: str) -> tuple[str, ...]:
     names = tuple(t.strip() for t in text.split(",") if t.strip())
     for name in names or ("",):
         if name not in FAMILIES:
-            raise CommandError(f"--family {clip(text)!r}: family {clip(name)!r} does not exist; the families are "
-                               f"{', '.join(FAMILIES)}")
+            raise CommandError(
+                f"--family {clip(text)!r}: family {clip(name)!r} does not exist; the families are {', '.join(FAMILIES)}"
+            )
     return names
 
 
@@ -65,71 +67,140 @@ def range_overrides(args) -> dict[str, tuple[float, float]]:
 def _settings_arguments(parser: argparse.ArgumentParser, generate: bool = False) -> None:
     d = Settings()
     g = parser.add_argument_group("solver")
-    g.add_argument("--formulation", choices=FORMULATIONS, default=d.formulation,
-                   help="axisymmetric (sphere on a disk, default) or plane strain")
+    g.add_argument(
+        "--formulation",
+        choices=FORMULATIONS,
+        default=d.formulation,
+        help="axisymmetric (sphere on a disk, default) or plane strain",
+    )
     plate = f"; deforming-plate: {PlateSettings().frames}" if generate else ""
-    g.add_argument("--frames", type=int, default=None if generate else d.frames,
-                   help=f"recorded frames, >= 2 (default {d.frames}{plate}; a model's window may be longer: `hcmt "
-                        "models` shows it; a window too short cuts a thin plate's peak)")
+    g.add_argument(
+        "--frames",
+        type=int,
+        default=None if generate else d.frames,
+        help=f"recorded frames, >= 2 (default {d.frames}{plate}; a model's window may be longer: `hcmt "
+        "models` shows it; a window too short cuts a thin plate's peak)",
+    )
     g.add_argument("--frame-dt", type=float, default=d.frame_dt, help=f"ms between frames (default {d.frame_dt})")
-    g.add_argument("--bulk-viscosity", type=float, default=d.bulk_viscosity,
-                   help=f"linear bulk viscosity b1, 0 = off (default {d.bulk_viscosity})")
+    g.add_argument(
+        "--bulk-viscosity",
+        type=float,
+        default=d.bulk_viscosity,
+        help=f"linear bulk viscosity b1, 0 = off (default {d.bulk_viscosity})",
+    )
     g.add_argument("--penalty", type=float, default=d.penalty, help=f"contact penalty factor (default {d.penalty})")
-    g.add_argument("--peak-stress", action="store_true",
-                   help="also record stress_max: each node's largest von Mises stress between two frames (a model "
-                        "trains on it with --set data.stress_field=stress_max)")
+    g.add_argument(
+        "--peak-stress",
+        action="store_true",
+        help="also record stress_max: each node's largest von Mises stress between two frames (a model "
+        "trains on it with --set data.stress_field=stress_max)",
+    )
 
 
 def settings_of_args(args) -> Settings:
     """The solver settings of ``generate`` / ``simulate``, validated (a bad one names its flag: ``--frames``)."""
     frames = Settings().frames if args.frames is None else args.frames  # None: generate's per-dataset default
-    return Settings(formulation=args.formulation, frames=frames, frame_dt=args.frame_dt,
-                    bulk_viscosity=args.bulk_viscosity, penalty=args.penalty,
-                    peak_stress=getattr(args, "peak_stress", False)).validate()
+    return Settings(
+        formulation=args.formulation,
+        frames=frames,
+        frame_dt=args.frame_dt,
+        bulk_viscosity=args.bulk_viscosity,
+        penalty=args.penalty,
+        peak_stress=getattr(args, "peak_stress", False),
+    ).validate()
 
 
 def configure_generate(parser: argparse.ArgumentParser) -> None:
     trajectories = count(0, MAX_TRAJECTORIES)
-    parser.add_argument("dataset", choices=["impact-plate", "deforming-plate"],
-                        help="which dataset to generate: impact-plate (2-D explicit dynamics) or deforming-plate (3-D "
-                             "quasi-static, the MeshGraphNets layout; takes --train/--valid/--test, --seed, --workers, "
-                             "--frames, --force, --no-progress; the other options are impact-plate's)")
+    parser.add_argument(
+        "dataset",
+        choices=["impact-plate", "deforming-plate"],
+        help="which dataset to generate: impact-plate (2-D explicit dynamics) or deforming-plate (3-D "
+        "quasi-static, the MeshGraphNets layout; takes --train/--valid/--test, --seed, --workers, "
+        "--frames, --force, --no-progress; the other options are impact-plate's)",
+    )
     parser.add_argument("out", help="output dataset folder (created; an interrupted run resumes in place)")
-    parser.add_argument("--preset", choices=sorted(RANGES), default="small",
-                        help="paper: ~2,200 nodes as the paper; small: ~400-600 nodes for CPU training")
-    for flag, what, default in (("--train", "training", 2000), ("--valid", "validation", 200),
-                                ("--test", "test", 200)):
-        parser.add_argument(flag, type=trajectories, default=default, metavar="N",
-                            help=f"{what} trajectories, {span(0, MAX_TRAJECTORIES)} (default {default})")
-    parser.add_argument("--variants", action="store_true",
-                        help="also write test_thicker, test_higher, test_thicker_higher (generalization splits)")
-    parser.add_argument("--variant-count", type=trajectories, default=50, metavar="N",
-                        help=f"trajectories per variant split, {span(0, MAX_TRAJECTORIES)} (default 50)")
+    parser.add_argument(
+        "--preset",
+        choices=sorted(RANGES),
+        default="small",
+        help="paper: ~2,200 nodes as the paper; small: ~400-600 nodes for CPU training",
+    )
+    for flag, what, default in (("--train", "training", 2000), ("--valid", "validation", 200), ("--test", "test", 200)):
+        parser.add_argument(
+            flag,
+            type=trajectories,
+            default=default,
+            metavar="N",
+            help=f"{what} trajectories, {span(0, MAX_TRAJECTORIES)} (default {default})",
+        )
+    parser.add_argument(
+        "--variants",
+        action="store_true",
+        help="also write test_thicker, test_higher, test_thicker_higher (generalization splits)",
+    )
+    parser.add_argument(
+        "--variant-count",
+        type=trajectories,
+        default=50,
+        metavar="N",
+        help=f"trajectories per variant split, {span(0, MAX_TRAJECTORIES)} (default 50)",
+    )
     parser.add_argument("--seed", type=int, default=0, help="dataset seed (default 0)")
-    parser.add_argument("--edge-fraction", type=float, default=0.0,
-                        help="share of training designs drawn at the ranges' edges where models fail first: thin "
-                             "plates (lowest fifth of the thickness range) or high drops (top fifth); default 0")
-    parser.add_argument("--range", type=parameter_range, action="append", default=[], metavar="NAME=LO:HI",
-                        help="replace a sampled parameter's range in every split (repeatable; e.g. --range "
-                             "thickness=0.5:1.25 --range drop_height=500:1250); a variant split keeps its own range "
-                             "of the parameters it sets; meta.json records it as range_overrides")
-    parser.add_argument("--workers", type=cores_count, default=1, metavar="N",
-                        help=f"worker processes, 1 to this machine's cores ({cores()}; default 1)")
-    parser.add_argument("--family", default="mono", metavar="F[,F...]",
-                        help="design families, taking each split's trajectories in turn: "
-                             + "; ".join(f"{k}: {describe_family(k)}" for k in FAMILIES) + " (default mono)")
+    parser.add_argument(
+        "--edge-fraction",
+        type=float,
+        default=0.0,
+        help="share of training designs drawn at the ranges' edges where models fail first: thin "
+        "plates (lowest fifth of the thickness range) or high drops (top fifth); default 0",
+    )
+    parser.add_argument(
+        "--range",
+        type=parameter_range,
+        action="append",
+        default=[],
+        metavar="NAME=LO:HI",
+        help="replace a sampled parameter's range in every split (repeatable; e.g. --range "
+        "thickness=0.5:1.25 --range drop_height=500:1250); a variant split keeps its own range "
+        "of the parameters it sets; meta.json records it as range_overrides",
+    )
+    parser.add_argument(
+        "--workers",
+        type=cores_count,
+        default=1,
+        metavar="N",
+        help=f"worker processes, 1 to this machine's cores ({cores()}; default 1)",
+    )
+    parser.add_argument(
+        "--family",
+        default="mono",
+        metavar="F[,F...]",
+        help="design families, taking each split's trajectories in turn: "
+        + "; ".join(f"{k}: {describe_family(k)}" for k in FAMILIES)
+        + " (default mono)",
+    )
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
-    parser.add_argument("--force", action="store_true",
-                        help=f"generate even when a trajectory is estimated to take over {MAX_ESTIMATED_SECONDS:.0f} s")
+    parser.add_argument(
+        "--force",
+        action="store_true",
+        help=f"generate even when a trajectory is estimated to take over {MAX_ESTIMATED_SECONDS:.0f} s",
+    )
     _settings_arguments(parser, generate=True)
 
 
 #: impact-plate's options that deforming-plate refuses when set (flag, argument, default)
-_IMPACT_ONLY = (("--preset", "preset", "small"), ("--variants", "variants", False), ("--family", "family", "mono"),
-                ("--edge-fraction", "edge_fraction", 0.0), ("--formulation", "formulation", Settings().formulation),
-                ("--frame-dt", "frame_dt", Settings().frame_dt), ("--penalty", "penalty", Settings().penalty),
-                ("--bulk-viscosity", "bulk_viscosity", Settings().bulk_viscosity),
-                ("--peak-stress", "peak_stress", False), ("--range", "range", []))
+_IMPACT_ONLY = (
+    ("--preset", "preset", "small"),
+    ("--variants", "variants", False),
+    ("--family", "family", "mono"),
+    ("--edge-fraction", "edge_fraction", 0.0),
+    ("--formulation", "formulation", Settings().formulation),
+    ("--frame-dt", "frame_dt", Settings().frame_dt),
+    ("--penalty", "penalty", Settings().penalty),
+    ("--bulk-viscosity", "bulk_viscosity", Settings().bulk_viscosity),
+    ("--peak-stress", "peak_stress", False),
+    ("--range", "range", []),
+)
 
 
 def plate_settings_of_args(args) -> PlateSettings:
@@ -143,8 +214,10 @@ def check_generate(args) -> None:
     if args.dataset == "deforming-plate":
         for flag, name, default in _IMPACT_ONLY:
             if getattr(args, name) != default:
-                raise CommandError(f"{flag} is an impact-plate option; deforming-plate takes --train, --valid, "
-                                   "--test, --seed, --workers, --frames, --force and --no-progress")
+                raise CommandError(
+                    f"{flag} is an impact-plate option; deforming-plate takes --train, --valid, "
+                    "--test, --seed, --workers, --frames, --force and --no-progress"
+                )
         plate_settings_of_args(args)
         return
     families = parse_families(args.family)
@@ -153,27 +226,48 @@ def check_generate(args) -> None:
 
 
 def configure_simulate(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--preset", choices=sorted(RANGES), default="small",
-                        help="defaults for unspecified parameters: the middle of the preset's sampling ranges "
-                             "(default small, as `hcmt generate`). `hcmt predict` and `sweep` take the middle of "
-                             "their model's training designs instead (`hcmt models` lists them; for the shipped "
-                             "model, trained on small, within 0.1 %% of these) and its recorded window (--frames)")
-    parser.add_argument("--family", default="mono",
-                        help=f"defaults from this family's ranges instead: one of {', '.join(FAMILIES)} (default mono)")
-    parser.add_argument("--stack", default=None, metavar="SPEC",
-                        help="the panel's bonded layers from the top, MATERIAL:THICKNESS[:density=..][:modulus=..]"
-                             f"[:poisson=..] separated by commas, 1-4 layers, MATERIAL one of {', '.join(MATERIALS)}"
-                             " (e.g. glass:0.55,adhesive:0.05,film:0.2); sets thickness, plate_* and layer2-4_*")
-    parser.add_argument("--design", nargs="+", default=[], metavar="KEY=VALUE",
-                        help="the design, spelled as in predict and sweep, e.g. --design thickness=0.8 "
-                             "drop_height=900 (unspecified parameters from --preset / --family); each parameter is "
-                             "also its own flag below (--thickness 0.8)")
+    parser.add_argument(
+        "--preset",
+        choices=sorted(RANGES),
+        default="small",
+        help="defaults for unspecified parameters: the middle of the preset's sampling ranges "
+        "(default small, as `hcmt generate`). `hcmt predict` and `sweep` take the middle of "
+        "their model's training designs instead (`hcmt models` lists them; for the shipped "
+        "model, trained on small, within 0.1 %% of these) and its recorded window (--frames)",
+    )
+    parser.add_argument(
+        "--family",
+        default="mono",
+        help=f"defaults from this family's ranges instead: one of {', '.join(FAMILIES)} (default mono)",
+    )
+    parser.add_argument(
+        "--stack",
+        default=None,
+        metavar="SPEC",
+        help="the panel's bonded layers from the top, MATERIAL:THICKNESS[:density=..][:modulus=..]"
+        f"[:poisson=..] separated by commas, 1-4 layers, MATERIAL one of {', '.join(MATERIALS)}"
+        " (e.g. glass:0.55,adhesive:0.05,film:0.2); sets thickness, plate_* and layer2-4_*",
+    )
+    parser.add_argument(
+        "--design",
+        nargs="+",
+        default=[],
+        metavar="KEY=VALUE",
+        help="the design, spelled as in predict and sweep, e.g. --design thickness=0.8 "
+        "drop_height=900 (unspecified parameters from --preset / --family); each parameter is "
+        "also its own flag below (--thickness 0.8)",
+    )
     for name, parameter in PARAMETERS.items():  # each parameter's unit and help: hcmt.sim.units
-        parser.add_argument("--" + name.replace("_", "-"), type=float, default=None,
-                            help=parameter.describe(contact_radius=CONTACT_RADIUS))
+        parser.add_argument(
+            "--" + name.replace("_", "-"),
+            type=float,
+            default=None,
+            help=parameter.describe(contact_radius=CONTACT_RADIUS),
+        )
     parser.add_argument("--out", default=None, help="write the trajectory to FILE.h5 (meta.json beside it)")
-    parser.add_argument("--force", action="store_true",
-                        help=f"solve even when the estimated time exceeds {MAX_ESTIMATED_SECONDS:.0f} s")
+    parser.add_argument(
+        "--force", action="store_true", help=f"solve even when the estimated time exceeds {MAX_ESTIMATED_SECONDS:.0f} s"
+    )
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
     _settings_arguments(parser)
 
@@ -184,8 +278,9 @@ def simulate_inputs(args) -> tuple[Design, Settings]:
     listed = design_values(args.design)
     twice = sorted(set(listed) & set(given))
     if twice:
-        raise CommandError(f"--design {twice[0]}=... and --{twice[0].replace('_', '-')}: the same parameter twice; "
-                           "give it once")
+        raise CommandError(
+            f"--design {twice[0]}=... and --{twice[0].replace('_', '-')}: the same parameter twice; give it once"
+        )
     given.update(listed)
     stack = parse_stack(args.stack) if args.stack is not None else {}
     both = sorted(set(stack) & set(given))
@@ -212,14 +307,19 @@ def configure_convert(parser: argparse.ArgumentParser) -> None:
 
 def check_convert(args) -> None:
     if not Path(args.src).exists():
-        raise CommandError(f"SRC {args.src}: no such file or folder; expected a TFRecord dataset folder or "
-                           "GGNS pickle(s)")
+        raise CommandError(
+            f"SRC {args.src}: no such file or folder; expected a TFRecord dataset folder or GGNS pickle(s)"
+        )
 
 
 def configure_info(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("dataset", help="native dataset folder (meta.json + <split>.h5)")
-    parser.add_argument("--all", action="store_true", help="list every design parameter on its own line, the "
-                        "constant ones too (default: the varying ones, the constants in one line)")
+    parser.add_argument(
+        "--all",
+        action="store_true",
+        help="list every design parameter on its own line, the "
+        "constant ones too (default: the varying ones, the constants in one line)",
+    )
 
 
 def check_info(args) -> None:
@@ -228,13 +328,23 @@ def check_info(args) -> None:
 
 def configure_hierarchy(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("dataset", metavar="DATASET", help="native dataset folder (meta.json + <split>.h5)")
-    parser.add_argument("--levels", type=count(0, MAX_LEVELS), required=True, metavar="N",
-                        help=f"number of pooled levels lambda, {span(0, MAX_LEVELS)} (paper: 6 for Impact Plate, 2 "
-                             "Deforming Plate, 4 Sphere Simple, 1 Deformable Plate)")
+    parser.add_argument(
+        "--levels",
+        type=count(0, MAX_LEVELS),
+        required=True,
+        metavar="N",
+        help=f"number of pooled levels lambda, {span(0, MAX_LEVELS)} (paper: 6 for Impact Plate, 2 "
+        "Deforming Plate, 4 Sphere Simple, 1 Deformable Plate)",
+    )
     parser.add_argument("--json", metavar="FILE", help="also write the table as JSON: one object per level 0..L")
     parser.add_argument("--split", default="train", help="split to read (default: train)")
-    parser.add_argument("--trajectories", type=count(0, MAX_TRAJECTORIES), default=0, metavar="N",
-                        help=f"use the first N trajectories, {span(0, MAX_TRAJECTORIES)} (default 0: all)")
+    parser.add_argument(
+        "--trajectories",
+        type=count(0, MAX_TRAJECTORIES),
+        default=0,
+        metavar="N",
+        help=f"use the first N trajectories, {span(0, MAX_TRAJECTORIES)} (default 0: all)",
+    )
     parser.add_argument("--no-cache", action="store_true", help="do not read or write DATASET/.cache/hierarchy")
 
 

@@ -107,3 +107,46 @@ def test_aot_falls_back_to_torch_compile_with_a_warning_where_the_export_fails(m
     assert rollout_module.exported(model, graph) is forward  # kept on the model: not tried again
     with torch.no_grad():
         torch.testing.assert_close(forward(graph, accumulate=False), model(graph, accumulate=False))
+
+
+def test_the_compile_cache_is_hcmts_folder_not_the_temporary_one(tmp_path):
+    """Importing the models (which imports torch_geometric, which makes Inductor fix its cache folder) leaves
+    Inductor's cache in ``$XDG_CACHE_HOME/hcmt/inductor``, where the docs say; a folder the user set wins."""
+    import os
+    import subprocess
+    import sys
+
+    probe = "import os, hcmt.models, torch_geometric; print(os.environ['TORCHINDUCTOR_CACHE_DIR'])"
+    env = {k: v for k, v in os.environ.items() if k != "TORCHINDUCTOR_CACHE_DIR"}
+    env.update(XDG_CACHE_HOME=str(tmp_path / "xdg"), TMPDIR=str(tmp_path / "tmp"))
+    (tmp_path / "tmp").mkdir()
+    out = subprocess.run([sys.executable, "-c", probe], env=env, capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == str(tmp_path / "xdg" / "hcmt" / "inductor")
+    env["TORCHINDUCTOR_CACHE_DIR"] = str(tmp_path / "mine")
+    out = subprocess.run([sys.executable, "-c", probe], env=env, capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == str(tmp_path / "mine")
+
+
+def test_the_one_time_build_announces_itself_and_hides_torchs_future_warnings(tmp_path, monkeypatch, caplog):
+    """Before the minute-long build: one warning-level line (shown with ``--no-progress`` too) saying what, why,
+    about how long and where; torch's FutureWarnings from inside the export do not reach the user."""
+    import warnings
+
+    def export(*args, **kwargs):
+        warnings.warn("a deprecation inside torch", FutureWarning)
+        raise RuntimeError("stop here")
+
+    monkeypatch.setenv("TORCHINDUCTOR_CACHE_DIR", str(tmp_path))
+    monkeypatch.setattr(export_module.torch.export, "export", export)
+    model = make("mgn", blocks=1)
+    graph = collate([grid_graph(5, 6, levels=0, node_in=NODE_IN, contacts=2, seed=3)])
+    with caplog.at_level("WARNING", logger="hcmt.models.export"), warnings.catch_warnings(record=True) as seen:
+        warnings.simplefilter("always")
+        with pytest.raises(RuntimeError, match="stop here"):
+            exported_forward(model, graph)
+    assert [r.getMessage() for r in caplog.records] == [
+        f"hcmt: compiling MGN's forward once for this machine (torch.export + AOTInductor, about a minute of one "
+        f"core), so that every later run loads it in milliseconds; it goes to {export_module.package_path(model)}"
+    ]
+    assert not [w for w in seen if issubclass(w.category, FutureWarning)]
+    assert not list(tmp_path.glob("aoti/*.pt2"))  # a failed build leaves no package

@@ -13,8 +13,10 @@ from __future__ import annotations
 from hcmt.config import MODELS, ModelConfig
 from hcmt.errors import InputError
 
+from .base import Simulator, resolve_device  # first: it sets Inductor's cache folder before torch_geometric loads
+
+# isort: split
 from .attention import MODES as ATTENTION_MODES, check_mode
-from .base import Simulator, resolve_device
 from .gt import GT
 from .hcmt import ABLATIONS, HCMT
 from .mgn import MGN

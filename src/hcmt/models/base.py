@@ -60,8 +60,6 @@ def compile_simulator(model: nn.Module, mode: str, dynamic: bool = False) -> nn.
         raise InputError(f"compile mode {mode!r}: expected one of {', '.join(TORCH_COMPILE_MODES)}")
     import torch._dynamo
 
-    os.environ.setdefault("TORCHINDUCTOR_CACHE_DIR", str(compile_cache_dir()))
-
     torch._dynamo.config.recompile_limit = max(torch._dynamo.config.recompile_limit, 64)
     options = None
     if mode == "default" and torch.get_num_threads() > 1 and all(p.device.type == "cpu" for p in model.parameters()):
@@ -101,12 +99,19 @@ def resolve_compile(
 
 
 def compile_cache_dir() -> Path:
-    """Where compiled kernels persist across processes and sessions (Inductor's FX-graph and AOT-autograd caches):
-    ``$TORCHINDUCTOR_CACHE_DIR`` when set, else ``$XDG_CACHE_HOME/hcmt/inductor`` (``~/.cache/hcmt/inductor``), not
-    Inductor's default under the temporary folder, so a shape's compilation is paid once per machine."""
+    """Where compiled kernels and packages persist across processes and sessions (Inductor's FX-graph and
+    AOT-autograd caches, the ahead-of-time packages): ``$TORCHINDUCTOR_CACHE_DIR`` when set before hcmt.models is
+    imported, else ``$XDG_CACHE_HOME/hcmt/inductor`` (``~/.cache/hcmt/inductor``), not Inductor's default under the
+    temporary folder, so a shape's compilation is paid once per machine."""
     if os.environ.get("TORCHINDUCTOR_CACHE_DIR"):
         return Path(os.environ["TORCHINDUCTOR_CACHE_DIR"])
     return Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / "hcmt" / "inductor"
+
+
+# Inductor fixes its cache folder the first time anything asks for it, and importing torch_geometric (the models'
+# scatter and softmax) asks: without this line every compiled kernel and package would land under the temporary
+# folder, not in compile_cache_dir(). hcmt.models imports this module before any model; a folder set before it wins.
+os.environ.setdefault("TORCHINDUCTOR_CACHE_DIR", str(compile_cache_dir()))
 
 
 class Simulator(nn.Module):

@@ -15,8 +15,11 @@ node's output is what the model gives without them (tests/models/test_export.py)
 from __future__ import annotations
 
 import hashlib
+import logging
 import os
 import platform
+import time
+import warnings
 from dataclasses import replace
 from pathlib import Path
 
@@ -26,6 +29,8 @@ from torch import Tensor, nn
 from hcmt.graph.batch import Graph
 
 from .base import compile_cache_dir
+
+logger = logging.getLogger(__name__)
 
 #: the Graph fields an exported forward takes, in order (lists become tuples); masks are never passed (inference)
 FIELDS = (
@@ -129,6 +134,35 @@ def cpu_name() -> str:
     return platform.processor()
 
 
+def build_package(model: nn.Module, example: Graph, path: Path) -> None:
+    """Export ``model``'s forward with symbolic sizes from ``example`` and compile it into the package ``path``
+    (written under a temporary name, then renamed), announced in one line first: it takes about a minute of one
+    core, once per machine and model."""
+    logger.warning(
+        "hcmt: compiling %s's forward once for this machine (torch.export + AOTInductor, about a minute of one "
+        "core), so that every later run loads it in milliseconds; it goes to %s",
+        type(model).__name__,
+        path,
+    )
+    start = time.perf_counter()
+    model.eval()
+    args = _inputs(with_dummies(example))
+    auto = torch.export.Dim.AUTO
+
+    def dims(x):
+        if isinstance(x, tuple):
+            return tuple(dims(y) for y in x)
+        return {i: auto for i in range(x.dim())}
+
+    with torch.no_grad():
+        program = torch.export.export(_Forward(model), args, dynamic_shapes=dims(args), strict=True)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(f".{os.getpid()}.{path.name}")  # AOTInductor wants the .pt2 suffix
+    torch._inductor.aoti_compile_and_package(program, package_path=str(tmp))
+    os.replace(tmp, path)
+    logger.info("compiled %s's forward in %.0f s", type(model).__name__, time.perf_counter() - start)
+
+
 def exported_forward(model: nn.Module, example: Graph):
     """``graph -> model(graph, accumulate=False)`` through an AOTInductor package of ``model`` (eval mode, no
     gradient), built from ``example`` (any graph of the model's kind: the sizes are symbolic) on the first call on
@@ -136,23 +170,12 @@ def exported_forward(model: nn.Module, example: Graph):
     import torch._inductor
 
     path = package_path(model)
-    if not path.is_file():
-        model.eval()
-        args = _inputs(with_dummies(example))
-        auto = torch.export.Dim.AUTO
-
-        def dims(x):
-            if isinstance(x, tuple):
-                return tuple(dims(y) for y in x)
-            return {i: auto for i in range(x.dim())}
-
-        with torch.no_grad():
-            program = torch.export.export(_Forward(model), args, dynamic_shapes=dims(args), strict=True)
-        path.parent.mkdir(parents=True, exist_ok=True)
-        tmp = path.with_name(f".{os.getpid()}.{path.name}")  # AOTInductor wants the .pt2 suffix
-        torch._inductor.aoti_compile_and_package(program, package_path=str(tmp))
-        os.replace(tmp, path)
-    compiled = torch._inductor.aoti_load_package(str(path))
+    with warnings.catch_warnings():
+        # torch's deprecation notices from inside export and packaging: about torch's internals, not the user's code
+        warnings.simplefilter("ignore", FutureWarning)
+        if not path.is_file():
+            build_package(model, example, path)
+        compiled = torch._inductor.aoti_load_package(str(path))
 
     def forward(graph: Graph) -> Tensor:
         return compiled(*_inputs(with_dummies(graph)))[: graph.num_nodes]

@@ -25,7 +25,8 @@ from hcmt.inference.evaluate import evaluate
 from hcmt.inference.metrics import plate_mask, rollout_details as details
 from hcmt.inference.run import Run
 from hcmt.sim.generate import generate_dataset
-from hcmt.sim.params import VARIANTS, Settings
+from hcmt.sim.params import Settings
+from hcmt.sim.sampling import VARIANTS
 from hcmt.training import train
 
 # Benchmarks run two scripts side by side on the 2-core machine: one intra-op thread each avoids oversubscription.

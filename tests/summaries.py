@@ -10,7 +10,7 @@ import typing
 from dataclasses import MISSING, fields
 
 from hcmt.design.summary import Summary, VerifyRow
-from hcmt.inference.metrics import ImpactMetrics
+from hcmt.inference.physics import ImpactMetrics
 
 _ZERO = {
     "float": 0.0,
@@ -50,7 +50,7 @@ def fake_verify(**given) -> VerifyRow:
 def type_errors(obj, where: str = "") -> list[str]:
     """Every field of a dataclass ``obj`` (and of the dataclasses it holds) whose value does not match its declared
     type: ``float`` is a Python float (not an int, not a numpy scalar), ``int`` an int and not a bool, containers
-    checked element by element."""
+    checked element by element, ``X | None`` holding a value as ``X`` (a nested record's own fields named)."""
     hints = typing.get_type_hints(type(obj))
     out = []
     for f in dataclasses.fields(obj):
@@ -61,6 +61,9 @@ def type_errors(obj, where: str = "") -> list[str]:
 def _mismatch(value, hint, where: str) -> list[str]:
     origin, args = typing.get_origin(hint), typing.get_args(hint)
     if origin in (typing.Union, types.UnionType):
+        others = [a for a in args if a is not type(None)]
+        if value is not None and len(others) == 1:  # X | None holding a value: X's own errors, nested ones named
+            return _mismatch(value, others[0], where)
         tried = [_mismatch(value, a, where) for a in args]
         return [] if any(not t for t in tried) else [f"{where}: {value!r:.60} is not {hint}"]
     if hint is type(None):

@@ -14,13 +14,15 @@ import pytest
 from hcmt.config import DATASET_NAMES, MODELS, ModelConfig, load_config
 from hcmt.design.basics import QUANTITIES, value_problem
 from hcmt.design.surrogate import ANSWER_UNITS
-from hcmt.domains.adapters import ADAPTERS, dataset_spec
+from hcmt.domains.adapters import ADAPTERS
+from hcmt.domains.spec import dataset_spec
 from hcmt.inference.quantities import ImpactQuantities
 from hcmt.models import REGISTRY, build_model
 from hcmt.models.attention import AttentionTap, recording
 from hcmt.models.registry import REGISTRY as REGISTERED
 from hcmt.sim.contact import PenaltyContact
 from hcmt.sim.driver import simulate
+from hcmt.sim.explicit import CentralDifference
 from hcmt.sim.families import FEATURES, Feature
 from hcmt.sim.mesh import impact_plate_mesh
 from hcmt.sim.params import (
@@ -31,10 +33,10 @@ from hcmt.sim.params import (
     FAMILIES,
     FIRST_SCENE_KEYS,
     Settings,
-    sample_design,
 )
+from hcmt.sim.sampling import sample_design
 from hcmt.sim.scene import cell_materials, design_mesh, fixed_dofs, static_fields
-from hcmt.sim.solver import CentralDifference, build_model as fem, nodal_von_mises, stable_time_step
+from hcmt.sim.solver import build_model as fem, nodal_von_mises, stable_time_step
 
 CONFIGS = Path(__file__).resolve().parents[1] / "src" / "hcmt" / "configs"
 

@@ -22,8 +22,8 @@ from pathlib import Path  # noqa: E402
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))  # benchmarks/: common
 from common import write_json  # noqa: E402
 from hcmt.sim.deforming import simulate_plate  # noqa: E402
-from hcmt.sim.generate import trajectory_rng  # noqa: E402
 from hcmt.sim.plate_params import PlateSettings, sample_plate_design  # noqa: E402
+from hcmt.sim.writer import trajectory_rng  # noqa: E402
 
 
 def main() -> None:

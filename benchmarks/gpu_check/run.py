@@ -35,7 +35,7 @@ from common import portable  # noqa: E402
 from hcmt.config import load_config  # noqa: E402
 from hcmt.data.runs import RunFolder  # noqa: E402
 from hcmt.design.check import check_designs  # noqa: E402
-from hcmt.domains.adapters import build_for_dataset, dataset_spec  # noqa: E402
+from hcmt.domains.spec import build_for_dataset, dataset_spec  # noqa: E402
 from hcmt.files import atomic_path  # noqa: E402
 from hcmt.graph.batch import collate  # noqa: E402
 from hcmt.graph.build import frame_graph  # noqa: E402
@@ -44,7 +44,8 @@ from hcmt.inference.evaluate import evaluate  # noqa: E402
 from hcmt.inference.run import Run  # noqa: E402
 from hcmt.sim.generate import generate_dataset  # noqa: E402
 from hcmt.sim.mesh import impact_plate_mesh  # noqa: E402
-from hcmt.sim.params import Settings, sample_design  # noqa: E402
+from hcmt.sim.params import Settings  # noqa: E402
+from hcmt.sim.sampling import sample_design  # noqa: E402
 from hcmt.training import train  # noqa: E402
 from micro.bench_models import _step_fn, _sync, impact_plate_graph  # noqa: E402
 from speed.run import _one  # noqa: E402
@@ -353,7 +354,7 @@ def accuracy(c: Check) -> dict:
                 "seed": seed,
                 "position_rmse_all": m.position.rmse_all,
                 "stress_rmse_all": m.stress.rmse_all,
-                "physics": m.physics,
+                "physics": None if m.physics is None else m.physics.to_json(),
             }
         )
     mean = {k: statistics.mean(r["position_rmse_all"] for r in rows if r["model"] == k) for k in ("hcmt", "mgn")}

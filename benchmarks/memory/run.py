@@ -41,7 +41,8 @@ from common import write_json  # noqa: E402
 from hcmt.data.format import NodeType, make_meta, write_meta, write_split  # noqa: E402
 from hcmt.design.start import initial_frames  # noqa: E402
 from hcmt.domains.adapters import get_adapter  # noqa: E402
-from hcmt.sim.params import Settings, sample_design  # noqa: E402
+from hcmt.sim.params import Settings  # noqa: E402
+from hcmt.sim.sampling import sample_design  # noqa: E402
 from hcmt.sim.scene import feature_spec  # noqa: E402
 from hcmt.training.dataset import FrameDataset, StepSampler, collate_samples, step_loader  # noqa: E402
 

@@ -28,7 +28,7 @@ import time
 import numpy as np
 import torch
 
-from hcmt.domains.adapters import build_for_dataset, dataset_spec
+from hcmt.domains.spec import build_for_dataset, dataset_spec
 from hcmt.graph.batch import PadSizes, collate, pad_graph, pad_rows
 from hcmt.graph.build import frame_graph
 from hcmt.graph.hierarchy import build_hierarchy

@@ -20,8 +20,9 @@ for var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):  # on
 import numpy as np  # noqa: E402
 
 from hcmt.sim.driver import simulate  # noqa: E402
-from hcmt.sim.generate import trajectory_rng  # noqa: E402
-from hcmt.sim.params import Settings, sample_design  # noqa: E402
+from hcmt.sim.params import Settings  # noqa: E402
+from hcmt.sim.sampling import sample_design  # noqa: E402
+from hcmt.sim.writer import trajectory_rng  # noqa: E402
 
 
 def main() -> None:

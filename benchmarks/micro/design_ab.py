@@ -108,7 +108,7 @@ def main() -> None:
     import numpy as np
 
     from hcmt.inference.run import Run
-    from hcmt.sim.params import sample_design
+    from hcmt.sim.sampling import sample_design
 
     preset = Run.load(a.model, "cpu").meta["generator"]["preset"]
     rng = np.random.default_rng(a.seed)

@@ -27,7 +27,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent.parent))  # benchmarks/: 
 from common import write_json  # noqa: E402
 from hcmt.design.check import check_designs  # noqa: E402
 from hcmt.inference.run import Run  # noqa: E402
-from hcmt.sim.params import sample_design  # noqa: E402
+from hcmt.sim.sampling import sample_design  # noqa: E402
 
 
 def main() -> None:

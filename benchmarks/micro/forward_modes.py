@@ -36,7 +36,7 @@ from hcmt.graph.batch import PadSizes, collate, pad_graph  # noqa: E402
 from hcmt.inference.run import Run  # noqa: E402
 from hcmt.models.base import compile_simulator  # noqa: E402
 from hcmt.models.export import exported_forward  # noqa: E402
-from hcmt.sim.params import sample_design  # noqa: E402
+from hcmt.sim.sampling import sample_design  # noqa: E402
 
 MODES = ("eager", "compiled-static", "compiled-dynamic", "frozen", "frozen-bf16", "bf16", "aot")
 

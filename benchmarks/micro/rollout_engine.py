@@ -42,7 +42,7 @@ from hcmt.errors import InputError, RolloutError  # noqa: E402
 from hcmt.graph.batch import collate  # noqa: E402
 from hcmt.inference.rollout import rollout_batch  # noqa: E402
 from hcmt.inference.run import Run  # noqa: E402
-from hcmt.sim.params import sample_design  # noqa: E402
+from hcmt.sim.sampling import sample_design  # noqa: E402
 from machine import core_peak  # noqa: E402
 
 

@@ -16,7 +16,7 @@ import sys
 import numpy as np
 import torch
 
-from hcmt.domains.adapters import dataset_spec
+from hcmt.domains.spec import dataset_spec
 from hcmt.graph.build import frame_graph
 from hcmt.graph.hierarchy import build_hierarchy
 from hcmt.sim.mesh import preset_mesh

@@ -24,7 +24,7 @@ import numpy as np  # noqa: E402
 import torch  # noqa: E402
 from torch.utils.flop_counter import FlopCounterMode  # noqa: E402
 
-from hcmt.domains.adapters import build_for_dataset  # noqa: E402
+from hcmt.domains.spec import build_for_dataset  # noqa: E402
 from hcmt.graph.batch import Graph  # noqa: E402
 from micro.bench_models import _step_fn as train_and_infer  # noqa: E402
 

@@ -18,7 +18,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parent.parent))  # benchmarks/: 
 from common import write_json  # noqa: E402
 from hcmt.inference.quantities import body_history, deflection, peak, plate_mask  # noqa: E402
 from hcmt.sim.driver import simulate  # noqa: E402
-from hcmt.sim.params import RANGES, Design, Settings  # noqa: E402
+from hcmt.sim.params import Design, Settings  # noqa: E402
+from hcmt.sim.sampling import RANGES  # noqa: E402
 
 CORNERS = [(0.5, 500), (0.5, 1000), (0.6, 1000), (0.75, 750), (1.0, 1000), (1.0, 500)]
 

@@ -125,11 +125,11 @@ def test_errors(loaded: Run, data: Path, limit: int | None, split: str | tuple[s
     errors; its rollout files are not kept."""
     splits = (split,) if isinstance(split, str) else tuple(split)
     ms = [evaluate(loaded, data, s, limit=limit, progress=False) for s in splits]
-    rows = [r["physics"] for m in ms for r in m.per_trajectory]
+    rows = [r.physics for m in ms for r in m.per_trajectory]
     counts = [m.trajectories for m in ms]
-    peak = np.abs([r["peak_plate_stress_error_pct"] for r in rows])
-    defl = np.abs([r["max_deflection_error_pct"] for r in rows])
-    ghost = np.abs([r["model_ghost_ratio"] - r["solver_ghost_ratio"] for r in rows])
+    peak = np.abs([r.peak_plate_stress_error_pct for r in rows])
+    defl = np.abs([r.max_deflection_error_pct for r in rows])
+    ghost = np.abs([r.model_ghost_ratio - r.solver_ghost_ratio for r in rows])
     for s in splits:
         loaded.folder.rollout_path(s, data).unlink(missing_ok=True)
 
@@ -151,8 +151,8 @@ def test_errors(loaded: Run, data: Path, limit: int | None, split: str | tuple[s
             "deflection_error_pct": float(defl.max()),
             "ghost_difference": float(ghost.max()),
         },
-        "solver_ghost_ratio": float(np.median([r["solver_ghost_ratio"] for r in rows])),
-        "rebound_agreement": pooled([m.physics["rebound_agreement"] for m in ms]),
+        "solver_ghost_ratio": float(np.median([r.solver_ghost_ratio for r in rows])),
+        "rebound_agreement": pooled([m.physics.rebound_agreement for m in ms]),
     }
 
 

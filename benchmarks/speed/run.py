@@ -35,16 +35,18 @@ import torch
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))  # benchmarks/: common
 from common import write_json  # noqa: E402
-from hcmt.domains.adapters import build_for_dataset, get_adapter  # noqa: E402
+from hcmt.domains.adapters import get_adapter  # noqa: E402
+from hcmt.domains.spec import build_for_dataset  # noqa: E402
 from hcmt.domains.trajectory import prepare_trajectory  # noqa: E402
 from hcmt.graph.build import frame_graph  # noqa: E402
 from hcmt.graph.hierarchy import build_hierarchy  # noqa: E402
 from hcmt.inference.rollout import rollout  # noqa: E402
 from hcmt.inference.run import load_run  # noqa: E402
 from hcmt.sim.driver import simulate  # noqa: E402
-from hcmt.sim.generate import trajectory_rng  # noqa: E402
 from hcmt.sim.mesh import impact_plate_mesh  # noqa: E402
-from hcmt.sim.params import Settings, sample_design  # noqa: E402
+from hcmt.sim.params import Settings  # noqa: E402
+from hcmt.sim.sampling import sample_design  # noqa: E402
+from hcmt.sim.writer import trajectory_rng  # noqa: E402
 
 
 def _rollout(args) -> None:

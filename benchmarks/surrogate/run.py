@@ -62,13 +62,14 @@ from hcmt.design.readout import (
     READOUTS,
     summarize_fields,
 )
-from hcmt.design.summary import Summary  # noqa: E402
+from hcmt.design.summary import Summary, SurrogateAnswer  # noqa: E402
 from hcmt.design.surrogate import QUANTITIES, Z95, Surrogate, dataset_answers  # noqa: E402
 from hcmt.design.sweep import trends_agree  # noqa: E402
 from hcmt.files import atomic_path  # noqa: E402
 from hcmt.inference.quantities import contact_gap, contact_window, ghost_ratio, plate_mask  # noqa: E402
 from hcmt.inference.run import Run  # noqa: E402
-from hcmt.sim.params import Design, middle_design, sample_design  # noqa: E402
+from hcmt.sim.params import Design  # noqa: E402
+from hcmt.sim.sampling import middle_design, sample_design  # noqa: E402
 from report_common import MODEL_GOALS, OUTSIDE_GOALS  # noqa: E402
 
 #: the four thickness sweeps (drop height mm, yield MPa); two more get the solver's median peak as yield
@@ -383,10 +384,10 @@ def unsafe_passes(model_peaks, solver_peaks, yield_mpa: float) -> int:
     return int(sum(m < yield_mpa <= t for m, t in zip(model_peaks, solver_peaks)))
 
 
-def _answers(r: dict, g: dict) -> tuple[float, dict]:
+def _answers(r: dict, g: dict[str, SurrogateAnswer]) -> tuple[float, SurrogateAnswer]:
     """What :func:`hcmt.design.calls.trusted_bounds` reads: the model's peak (default read-out) and the GP's
     interval of it."""
-    return r["model"][MODEL]["peak_plate_stress_mpa"], asdict(g["peak_plate_stress_mpa"])
+    return r["model"][MODEL]["peak_plate_stress_mpa"], g["peak_plate_stress_mpa"]
 
 
 def own(r: dict) -> tuple[float, float] | None:

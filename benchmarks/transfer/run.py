@@ -151,17 +151,17 @@ def judged(run: Path | str, data: Path, limit: int, out: Path | None = None) -> 
     families = (meta.get("families") or {}).get("test") or ["mono"] * m.trajectories
     rows = []
     for i, r in enumerate(m.per_trajectory):
-        p = r["physics"]
+        p = r.physics
         rows.append(
             {
-                "trajectory": r["trajectory"],
+                "trajectory": r.trajectory,
                 "family": families[i],
-                "peak_error_pct": p["peak_plate_stress_error_pct"],
-                "deflection_error_pct": p["max_deflection_error_pct"],
-                "critical_mm": crit[r["trajectory"]],
-                "rebound_agrees": bool(p["rebound_agrees"]),
-                "stress_rmse_all": r.get("stress_rmse_all"),
-                "position_rmse_all": r.get("position_rmse_all"),
+                "peak_error_pct": p.peak_plate_stress_error_pct,
+                "deflection_error_pct": p.max_deflection_error_pct,
+                "critical_mm": crit[r.trajectory],
+                "rebound_agrees": bool(p.rebound_agrees),
+                "stress_rmse_all": None if r.stress is None else r.stress.rmse_all,
+                "position_rmse_all": r.position.rmse_all,
             }
         )
     steps = int(meta["trajectory_length"]) - 2

@@ -77,7 +77,7 @@ from hcmt.design.model_interval import (  # noqa: E402
     fit,
 )
 from hcmt.design.prediction import predict  # noqa: E402
-from hcmt.design.surrogate import run_name  # noqa: E402
+from hcmt.design.surrogate_use import run_name  # noqa: E402
 from hcmt.errors import InputError  # noqa: E402
 from hcmt.files import atomic_path  # noqa: E402
 from hcmt.inference.run import Run  # noqa: E402

@@ -16,7 +16,7 @@ with the coverage it measured) and benchmarks/results/trust.json (docs/RESULTS.m
 Designs (per seed and group, ``numpy.random.default_rng([seed, crc32(group)])``, so a group's first n designs are the
 same whatever the other groups' counts: a larger run extends the cache of a smaller one): ``inside``, every parameter
 whose training range (``run.ranges``, min and max over the training designs) is not a single value uniform inside it,
-the others at :func:`hcmt.sim.params.middle_design`; an outside cell (``--cells``: parameters with their side, at each
+the others at :func:`hcmt.sim.sampling.middle_design`; an outside cell (``--cells``: parameters with their side, at each
 ``--distances`` d), the same draw with each named parameter beyond its side by an excess uniform in
 ((d - 0.2) width, d width], so the design's cell (:func:`hcmt.design.model_interval.cell_of`) is ``CELL:d`` (checked).
 A draw that :meth:`hcmt.sim.params.Design.validate` refuses is drawn again (counted). Names:
@@ -28,7 +28,7 @@ Measured per evaluation seed and pooled, per cell and per region (inside, each o
 share of designs whose solver value lies inside the interval (peak plate stress, max deflection, the whole plate
 stress history), the median relative width of the peak's interval ((hi - lo) / model), the designs without an
 interval; beside it on the same designs, the response surface's 95 % interval of the peak
-(:func:`hcmt.design.surrogate.for_run`) and the fallback band the calls used before (model ± 60 %,
+(:func:`hcmt.design.surrogate_use.for_run`) and the fallback band the calls used before (model ± 60 %,
 :data:`hcmt.design.calls.MODEL_BAND`). Limit calls: at yield stresses of the solver's peak x :data:`FACTORS` per
 design, each trust's calls (:func:`hcmt.design.calls.trusted_bounds`, :func:`hcmt.design.calls.call_of`; a design in
 an uncalibrated cell outside the ranges undecided, :func:`hcmt.design.calls.outside_reason`): passes the solver fails
@@ -81,13 +81,14 @@ from hcmt.design.model_interval import (  # noqa: E402
     interval_path,
 )
 from hcmt.design.prediction import predict  # noqa: E402
-from hcmt.design.surrogate import for_run as surrogate_for_run, run_name  # noqa: E402
+from hcmt.design.surrogate_use import for_run as surrogate_for_run, run_name  # noqa: E402
 from hcmt.design.verification import solve  # noqa: E402
 from hcmt.errors import InputError  # noqa: E402
 from hcmt.files import atomic_path  # noqa: E402
 from hcmt.inference.run import Run  # noqa: E402
 from hcmt.sim.cost import check_size, estimate  # noqa: E402
-from hcmt.sim.params import DESIGN_KEYS, Design, middle_design  # noqa: E402
+from hcmt.sim.params import DESIGN_KEYS, Design  # noqa: E402
+from hcmt.sim.sampling import middle_design  # noqa: E402
 
 PEAK = "peak_plate_stress_mpa"
 HISTORY = "plate_stress_history_mpa"
@@ -311,7 +312,7 @@ def rows_of(runner: Runner, designs: list, seed: int, gp) -> list[dict]:
     solver, model = runner.solver(pairs, f"solver, seed {seed}"), runner.model(pairs)
     if gp is not None:
         preds = gp.predict([d for _, d in pairs])
-        gps = [None if gp.cannot_take(d) else asdict(p[PEAK]) for (_, d), p in zip(pairs, preds)]
+        gps = [None if gp.cannot_take(d) else p[PEAK] for (_, d), p in zip(pairs, preds)]
     else:
         gps = [None] * len(pairs)
     return [
@@ -340,8 +341,8 @@ def judge(rows: list[dict], cal: Calibration, ranges: dict) -> None:
         r["width"] = (iv.bounds[PEAK][1] - iv.bounds[PEAK][0]) / m[PEAK] if iv is not None else None
         r["band"] = cal.cells[iv.cell].band if iv is not None else None  # the history band's half-width / peak
         g = r["gp"]
-        r["gp_covers"] = None if g is None else bool(g["lo"] <= s[PEAK] <= g["hi"])
-        r["gp_width"] = None if g is None else (g["hi"] - g["lo"]) / g["mean"]
+        r["gp_covers"] = None if g is None else bool(g.lo <= s[PEAK] <= g.hi)
+        r["gp_width"] = None if g is None else (g.hi - g.lo) / g.mean
         r["band_covers"] = bool(m[PEAK] * (1 - MODEL_BAND) <= s[PEAK] <= m[PEAK] * (1 + MODEL_BAND))
         r["error_pct"] = 100 * (m[PEAK] - s[PEAK]) / s[PEAK]
 

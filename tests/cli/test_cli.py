@@ -9,7 +9,7 @@ import pytest
 import hcmt.cli.design
 import hcmt.errors
 from hcmt.cli import COMMANDS, THREADED, flag_of, main as cli
-from hcmt.inference.evaluate import check_options
+from hcmt.inference.rollout_files import check_options
 
 DOCUMENTED = [
     "generate",

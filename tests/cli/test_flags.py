@@ -3,7 +3,7 @@
 import argparse
 
 from hcmt.cli import parsers
-from hcmt.sim.params import preset_design
+from hcmt.sim.sampling import preset_design
 
 
 def parsed(name: str, argv: list[str]) -> argparse.Namespace:

@@ -16,7 +16,7 @@ from pathlib import Path
 
 import pytest
 
-import hcmt.inference.evaluate as evaluate_module
+import hcmt.inference.rollout_files as rollout_files_module
 from conftest import IMPACT_DATA
 from hcmt.cli import main as cli
 from hcmt.data.runs import PRETRAINED_DIR
@@ -25,7 +25,8 @@ from hcmt.errors import RolloutError
 from hcmt.inference import run as run_module
 from hcmt.inference.run import Run
 from hcmt.sim.cost import estimate
-from hcmt.sim.params import Design, middle_design
+from hcmt.sim.params import Design
+from hcmt.sim.sampling import middle_design
 from hcmt.sim.scene import design_mesh
 from hcmt.training import train
 from hcmt.viz.meshplot import new_figure, save_figure
@@ -717,6 +718,6 @@ def test_a_diverging_rollout_is_one_line(setup, tmp_path, capsys, monkeypatch):
             "trajectory traj_00000: the predicted state became non-finite at step 3 (frame 3 of 8); the model diverged"
         )
 
-    monkeypatch.setattr(evaluate_module, "rollout_batch", diverge)
+    monkeypatch.setattr(rollout_files_module, "rollout_batch", diverge)
     msg = one_line(capsys, cli(["rollout", str(setup / "run"), "--data", str(setup / "data"), "--no-progress"]))
     assert "traj_00000" in msg and "non-finite at step 3" in msg

@@ -23,7 +23,7 @@ from hcmt.config import MAX_TRAJECTORIES, PRETRAINED_DIR, load_config
 from hcmt.data.convert import convert
 from hcmt.design.check import weak_reasons
 from hcmt.design.inputs import read_designs_csv
-from hcmt.design.summary import CallInterval
+from hcmt.design.summary import CallInterval, Confidence
 from hcmt.design.surrogate import Surrogate, SurrogateError
 from hcmt.errors import InputError
 from hcmt.sim.generate import generate_dataset
@@ -292,7 +292,9 @@ def test_settings_and_generate_name_their_parameter(tmp_path):
 # -- 11. notes that ask for a solver run that does not come --------------------------------------------------------
 def note_of(call: str | None, verified: bool = False) -> str:
     summary = fake_summary(
-        confidence={"region": "outside"}, peak_plate_stress_mpa=500.0, verify=fake_verify() if verified else None
+        confidence=Confidence("outside", "outside the training ranges", 0),
+        peak_plate_stress_mpa=500.0,
+        verify=fake_verify() if verified else None,
     )
     if call is not None:
         summary = replace(

@@ -20,7 +20,7 @@ from hcmt.data.convert import convert
 from hcmt.data.format import GENERATE_LOCK, load_dataset, read_meta
 from hcmt.errors import DatasetError, InputError
 from hcmt.files import folder_lock, lock_holder
-from hcmt.inference.evaluate import check_results_folder
+from hcmt.inference.rollout_files import check_results_folder
 from hcmt.sim.generate import generate_dataset
 from refusals import refused
 

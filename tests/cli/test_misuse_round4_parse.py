@@ -21,7 +21,8 @@ from hcmt.cli import LINE, build_parser, main as cli
 from hcmt.design.basics import check_values, value_problem
 from hcmt.errors import InputError
 from hcmt.sim.cost import fall, plan, solver_seconds, window_warnings
-from hcmt.sim.params import DESIGN_KEYS, Design, Settings, preset_design
+from hcmt.sim.params import DESIGN_KEYS, Design, Settings
+from hcmt.sim.sampling import preset_design
 from refusals import refused
 
 ROOT = Path(__file__).resolve().parents[2]

@@ -19,7 +19,8 @@ from hcmt.design.check import Prediction, check_designs, cost_check, weak_reason
 from hcmt.design.inputs import confidence, read_designs_csv, region_of
 from hcmt.design.reports import contour_picture
 from hcmt.inference.run import Run
-from hcmt.sim.params import DESIGN_KEYS, Design, Settings, middle_design, parse_design
+from hcmt.sim.params import DESIGN_KEYS, Design, Settings, parse_design
+from hcmt.sim.sampling import middle_design
 from hcmt.training import train
 from hcmt.viz.contours import axis_names, shared_norm
 from hcmt.viz.rollouts import load_case

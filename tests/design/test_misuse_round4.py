@@ -29,9 +29,11 @@ from hcmt.design.calls import add_calls, final_calls
 from hcmt.design.check import check_designs, check_options, predict_designs, solve_chunk
 from hcmt.design.inputs import design_for, range_warnings, region_of, with_family_defaults
 from hcmt.design.prediction import check_design_list
+from hcmt.design.summary import Confidence, SurrogateAnswer
 from hcmt.design.sweep import analyse, sweep
 from hcmt.errors import InputError
-from hcmt.sim.params import DESIGN_KEYS, DESIGN_UNITS, RANGES, Design, Settings, design_values, preset_design
+from hcmt.sim.params import DESIGN_KEYS, DESIGN_UNITS, Design, Settings, design_values
+from hcmt.sim.sampling import RANGES, preset_design
 from refusals import refused
 from summaries import fake_summary
 
@@ -59,7 +61,7 @@ def shipped():
 
 def stand_in(design: Design, peak: float, surrogate: tuple[float, float, float] | None = None) -> SimpleNamespace:
     """A prediction as the calls read it: the design, the mesh model's peak and the surrogate's (mean, lo, hi)."""
-    answers = {"peak_plate_stress_mpa": dict(zip(("mean", "lo", "hi"), map(float, surrogate)))} if surrogate else None
+    answers = {"peak_plate_stress_mpa": SurrogateAnswer(*map(float, surrogate))} if surrogate else None
     summary = fake_summary(peak_plate_stress_mpa=float(peak), max_deflection_mm=0.2, surrogate=answers)
     return SimpleNamespace(name="p", design=design, summary=summary)
 
@@ -255,9 +257,7 @@ def test_a_summary_that_records_an_outside_region_is_undecided_too():
     """Without the run's ranges the calls read the region the check recorded (``confidence``)."""
     for call_yield in (1.0, 1e5):
         p = stand_in(Design(), 500.0, (500.0, 450.0, 550.0))
-        p.summary = replace(
-            p.summary, confidence={"region": "outside", "label": "outside the training ranges", "designs": 0}
-        )
+        p.summary = replace(p.summary, confidence=Confidence("outside", "outside the training ranges", 0))
         add_calls([p], call_yield)
         assert p.summary.call == "undecided"
 

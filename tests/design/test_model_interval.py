@@ -24,6 +24,7 @@ from hcmt.design.model_interval import (
     fit,
     history_score,
 )
+from hcmt.design.summary import SurrogateAnswer
 from hcmt.errors import InputError
 from hcmt.sim.params import DESIGN_KEYS, Design
 
@@ -148,7 +149,7 @@ def test_history_score_is_how_far_the_solver_leaves_the_envelope():
 def test_calls_trust_the_interval_and_decide_outside_only_where_calibrated():
     iv = (600.0, 700.0)
     assert trusted_bounds(650.0, None, "model", iv) == (600.0, 700.0, "model interval")
-    assert trusted_bounds(650.0, {"mean": 640, "lo": 620, "hi": 720}, "union", iv) == (600.0, 720.0, "union")
+    assert trusted_bounds(650.0, SurrogateAnswer(640.0, 620.0, 720.0), "union", iv) == (600.0, 720.0, "union")
     assert trusted_bounds(650.0, None, "model", None)[2] == "model"  # no interval: the old band
     assert call_of(*iv, 720.0) == "pass" and call_of(*iv, 650.0) == "undecided"
 
@@ -239,7 +240,7 @@ def test_a_higher_level_needs_more_designs_and_a_zero_answer_gets_no_interval():
 
 
 def test_intersection_narrows_where_both_intervals_overlap_and_falls_back_to_the_union():
-    surface = {"mean": 660.0, "lo": 640.0, "hi": 690.0}
+    surface = SurrogateAnswer(660.0, 640.0, 690.0)
     assert trusted_bounds(650.0, surface, "intersection", (600.0, 700.0)) == (640.0, 690.0, "intersection")
     assert trusted_bounds(650.0, surface, "intersection", (700.0, 760.0))[:2] == (640.0, 760.0)  # disjoint: union
     assert trusted_bounds(650.0, surface, "intersection", None)[:2] == (640.0, 690.0)  # no interval: union with 650

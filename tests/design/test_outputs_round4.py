@@ -19,10 +19,11 @@ from hcmt.data.runs import PRETRAINED_DIR
 from hcmt.design import readout as ro
 from hcmt.design.check import Prediction, verify_designs
 from hcmt.design.reports import format_table, table_rows
-from hcmt.design.surrogate import for_run
+from hcmt.design.surrogate_use import for_run
 from hcmt.design.sweep import analyse, format_analysis, plot_sweep, trends_agree
 from hcmt.inference.evaluate import format_metrics
-from hcmt.inference.metrics import EvalMetrics, Rmse, format_physics, summarize_impact
+from hcmt.inference.metrics import EvalMetrics, Rmse
+from hcmt.inference.physics import format_physics, summarize_impact
 from hcmt.sim.params import Design
 from impact_trajectory import DT, fields
 from summaries import fake_metrics, fake_summary

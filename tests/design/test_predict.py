@@ -22,7 +22,8 @@ from hcmt.inference.metrics import plate_mask
 from hcmt.inference.rollout import rollout
 from hcmt.inference.run import Run
 from hcmt.sim.driver import simulate
-from hcmt.sim.params import Design, Settings, middle_design, parse_design, sample_design
+from hcmt.sim.params import Design, Settings, parse_design
+from hcmt.sim.sampling import middle_design, sample_design
 from hcmt.training import train
 
 pytestmark = pytest.mark.slow  # trained runs and solver verification

@@ -118,8 +118,7 @@ def test_verify_prints_each_quantity_once():
     row = preds[0].summary.verify
     assert row.peak_plate_stress_error_pct == pytest.approx(100 * (1 / 1.2 - 1))
     assert (
-        verified["peak_plate_stress_error_pct"]["median"]
-        == verified["physics"]["peak_plate_stress_error_pct"]["median_abs"]
+        verified["peak_plate_stress_error_pct"]["median"] == verified["physics"].peak_plate_stress_error_pct.median_abs
     )
 
 

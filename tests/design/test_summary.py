@@ -3,7 +3,9 @@ the design check wrote as plain dicts: tests/design/summary_json_keys.json was r
 1b29aa3, the shipped model on one design: with a yield stress; contact read-out with the solver; no surrogate),
 with the mesh model's own interval (``model_interval``) added after ``confidence`` since.
 Each field's declared type is checked against the values of a real run (:func:`summaries.type_errors`): the
-shipped model's check of one design, and a tiny solver run."""
+shipped model's check of one design, and a tiny solver run. The model card's region (``confidence``) and the response
+surface's answers (``surrogate``) are typed records too (:class:`Confidence`, :class:`SurrogateAnswer`), each writing
+its block of the JSON as the plain dicts did: the card's entry, ``{mean, lo, hi}`` per answer."""
 
 from __future__ import annotations
 
@@ -14,7 +16,7 @@ from pathlib import Path
 
 import pytest
 
-from hcmt.design.summary import PlateReadout, Summary, VerifyRow
+from hcmt.design.summary import Confidence, PlateReadout, Summary, SurrogateAnswer, VerifyRow
 from summaries import fake_summary, type_errors
 
 RECORDED = json.loads((Path(__file__).with_name("summary_json_keys.json")).read_text())
@@ -69,6 +71,70 @@ def test_the_type_check_finds_a_wrong_type():
     assert type_errors(fake_summary(peak_plate_frame=3)) == []
     assert any("peak_plate_frame" in e for e in type_errors(fake_summary(peak_plate_frame=3.0)))
     assert any("contact_frames" in e for e in type_errors(fake_summary(contact_frames=4)))  # an int: the old type
+    # the nested records: a plain dict where a record is declared, and a wrong type inside a record
+    block = {"mean": 680.0, "lo": 660.0, "hi": 700.0}
+    assert any("Summary.surrogate" in e for e in type_errors(fake_summary(surrogate={"peak_plate_stress_mpa": block})))
+    assert any("Summary.confidence" in e for e in type_errors(fake_summary(confidence={"region": "outside"})))
+    wrong = {"peak_plate_stress_mpa": SurrogateAnswer(680, 660.0, 700.0)}  # an int mean
+    assert any("SurrogateAnswer.mean" in e for e in type_errors(fake_summary(surrogate=wrong)))
+    assert any("Confidence.designs" in e for e in type_errors(fake_summary(confidence=Confidence("inside", "", 2.0))))
+
+
+CARD_ENTRY = {
+    "region": "thin",
+    "label": "thin plates (lowest fifth of thickness)",
+    "designs": 4,
+    "peak_plate_stress_error_pct_median": 2.3,
+    "peak_plate_stress_error_pct_worst": 4.6,
+    "max_deflection_error_pct_median": 4.1,
+    "rebound_agreement": 1.0,
+}
+
+
+def test_the_records_write_the_blocks_the_dicts_did():
+    """``confidence``: the card's entry as it is (outside: region, label and designs only), null for an annotated
+    design the card has no region for; ``surrogate``: ``{answer: {mean, lo, hi}}``."""
+    c = Confidence.from_card(CARD_ENTRY)
+    assert type_errors(c) == [] and c.to_json() == CARD_ENTRY and list(c.to_json()) == list(CARD_ENTRY)
+    outside = Confidence("outside", "outside the training ranges", 0)
+    assert outside.to_json() == {"region": "outside", "label": "outside the training ranges", "designs": 0}
+    answers = {
+        "peak_plate_stress_mpa": SurrogateAnswer(680.0, 660.0, 700.0),
+        "max_deflection_mm": SurrogateAnswer(0.15, 0.14, 0.16),
+    }
+    s = fake_summary(model="m", confidence=c, surrogate=answers)
+    j = s.to_json()
+    assert j["confidence"] == CARD_ENTRY and list(j["confidence"]) == list(CARD_ENTRY)
+    assert j["surrogate"] == {q: dataclasses.asdict(a) for q, a in answers.items()}
+    assert [list(v) for v in j["surrogate"].values()] == [["mean", "lo", "hi"]] * 2
+    assert fake_summary(model="m").to_json()["confidence"] is None and "surrogate" not in fake_summary().to_json()
+    assert "confidence" not in fake_summary().to_json()  # not annotated by the check: left out
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        answers["peak_plate_stress_mpa"].mean = 1.0
+
+
+@pytest.mark.slow  # the shipped model on one design, no solver (~15 s on one thread)
+def test_a_real_check_holds_a_typed_confidence_and_surrogate():
+    """The shipped model's check of a thin plate (a region its card measured) with its own response surface: the
+    nested records hold the declared types, and their JSON blocks are the card's entry and ``{mean, lo, hi}``."""
+    from hcmt.design.check import check_designs
+    from hcmt.design.inputs import design_for, region_of
+    from hcmt.inference.run import Run
+
+    run = Run.load("pretrained:impact_plate_small", "cpu")
+    design = design_for(run, thickness=0.55)
+    assert region_of(design, run.ranges) == "thin"
+    (p,) = check_designs(run, [("thin", design)], progress=False, yield_mpa=750.0).preds
+    s = p.summary
+    assert isinstance(s, Summary) and type_errors(s) == []
+    assert isinstance(s.confidence, Confidence) and s.confidence.region == "thin"
+    assert s.confidence.peak_plate_stress_error_pct_median is not None
+    assert s.surrogate is not None and set(s.surrogate) >= {"peak_plate_stress_mpa", "max_deflection_mm"}
+    assert all(isinstance(a, SurrogateAnswer) and a.lo <= a.mean <= a.hi for a in s.surrogate.values())
+    entry = next(r for r in run.card["confidence"] if r["region"] == "thin")
+    j = s.to_json()
+    assert j["confidence"] == entry and list(j["confidence"]) == list(entry)  # the card's entry, as it was written
+    assert j["surrogate"] == {q: {"mean": a.mean, "lo": a.lo, "hi": a.hi} for q, a in s.surrogate.items()}
 
 
 @pytest.mark.slow  # the shipped model on one design three times, and the solver once (~1.5 min on one thread)

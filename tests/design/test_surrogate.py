@@ -17,10 +17,13 @@ from hcmt.design import readout as ro
 from hcmt.design.check import MODEL_BAND, call_of, check_designs, predict_designs, trusted_interval
 from hcmt.design.inputs import design_for
 from hcmt.design.reports import finite
-from hcmt.design.surrogate import Surrogate, SurrogateError, for_run
+from hcmt.design.summary import SurrogateAnswer
+from hcmt.design.surrogate import Surrogate, SurrogateError
+from hcmt.design.surrogate_use import for_run
 from hcmt.inference.run import Run
 from hcmt.sim.driver import simulate
-from hcmt.sim.params import DESIGN_KEYS, FIRST_SCENE_KEYS, Design, Settings, sample_design
+from hcmt.sim.params import DESIGN_KEYS, FIRST_SCENE_KEYS, Design, Settings
+from hcmt.sim.sampling import sample_design
 from hcmt.training import train
 from summaries import fake_summary
 
@@ -273,7 +276,7 @@ def test_calls_pass_only_below_and_fail_only_above_the_trusted_interval():
     assert call_of(600, 690, 700) == "pass" and call_of(710, 800, 700) == "fail"
     assert call_of(650, 750, 700) == "undecided" and call_of(700, 720, 700) == "undecided"
     summary = fake_summary(
-        peak_plate_stress_mpa=760.0, surrogate={"peak_plate_stress_mpa": {"mean": 680, "lo": 660, "hi": 700}}
+        peak_plate_stress_mpa=760.0, surrogate={"peak_plate_stress_mpa": SurrogateAnswer(680.0, 660.0, 700.0)}
     )
     assert trusted_interval(summary, "surrogate")[:2] == (660, 700)
     assert trusted_interval(summary, "union")[:2] == (660, 760)  # widened to hold the mesh model
@@ -366,7 +369,7 @@ def test_fit_command_writes_the_runs_surrogate_and_predict_reports_both(family, 
     assert "surrogate" not in json.loads(out.read_text())["designs"][0]
     # the Python API runs the same check
     (p,) = predict_designs(Run.load(run, "cpu"), [("x", Design(**d["design"]))], progress=False)
-    assert p.summary.surrogate["peak_plate_stress_mpa"]["mean"] == pytest.approx(iv["mean"], rel=1e-9)
+    assert p.summary.surrogate["peak_plate_stress_mpa"].mean == pytest.approx(iv["mean"], rel=1e-9)
 
 
 def test_verify_auto_runs_the_solver_on_the_undecided_designs_only(family, tmp_path, capsys):

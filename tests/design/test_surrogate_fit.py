@@ -15,7 +15,8 @@ from hcmt.cli import main as cli
 from hcmt.data.runs import PRETRAINED_DIR
 from hcmt.design.check import check_designs
 from hcmt.design.inputs import design_for
-from hcmt.design.surrogate import Surrogate, SurrogateError, dataset_facts, for_run
+from hcmt.design.surrogate import Surrogate, SurrogateError, dataset_facts
+from hcmt.design.surrogate_use import for_run
 from hcmt.inference.run import Run
 
 SHIPPED = PRETRAINED_DIR / "impact_plate_small.surrogate.json"

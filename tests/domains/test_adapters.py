@@ -6,7 +6,8 @@ from pathlib import Path
 import pytest
 
 from hcmt.config import load_config
-from hcmt.domains.adapters import ADAPTERS, Adapter, exclude_trajectories, model_args
+from hcmt.domains.adapters import ADAPTERS, Adapter, exclude_trajectories
+from hcmt.domains.spec import model_args
 from hcmt.errors import InputError
 from hcmt.models import REGISTRY, architecture, make_model
 from hcmt.training.runtime import check_resume

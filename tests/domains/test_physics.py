@@ -17,7 +17,7 @@ from hcmt.domains.adapters import config_adapter, get_adapter, integrate, noise_
 from hcmt.domains.frames import input_graph
 from hcmt.graph.build import frame_graph
 from hcmt.inference.evaluate import evaluate
-from hcmt.inference.metrics import impact_metrics, summarize_impact
+from hcmt.inference.physics import impact_metrics, summarize_impact
 from hcmt.inference.run import Run
 from hcmt.training import train
 from hcmt.training.dataset import FrameDataset, collate_samples
@@ -208,22 +208,23 @@ def test_summarize_impact_medians_percentiles_and_the_signed_worst():
         for a, e, f in [(True, -30.0, 1), (True, 10.0, -2), (False, 5.0, 0), (True, -1.0, 4)]
     ]
     s = summarize_impact(rows)
-    assert s["rebound_agreement"] == 0.75 and s["model_rebounds"] == 3 and s["solver_rebounds"] == 4
-    e = s["peak_plate_stress_error_pct"]
-    assert e["median_abs"] == 7.5 and e["median"] == 2.0 and e["worst"] == -30.0
-    assert e["p90_abs"] == pytest.approx(np.percentile([30, 10, 5, 1], 90))
-    assert s["peak_plate_frame_error"]["worst"] == 4
+    assert s.rebound_agreement == 0.75 and s.model_rebounds == 3 and s.solver_rebounds == 4
+    e = s.peak_plate_stress_error_pct
+    assert e.median_abs == 7.5 and e.median == 2.0 and e.worst == -30.0
+    assert e.p90_abs == pytest.approx(np.percentile([30, 10, 5, 1], 90))
+    assert s.peak_plate_frame_error.worst == 4
+    assert s.far_deflection_error_um.median == 1.0 and s.far_deflection_error_pct.worst == 2.0
 
 
 def test_evaluate_reports_physics_and_errors_by_body(data, tmp_path, tiny_config):
     train(tiny_config(*EXTRA), data, "mgn", tmp_path / "run", progress=False)
     m = evaluate(Run.load(tmp_path / "run", "cpu"), data, "test")
     p = m.physics
-    assert p["trajectories"] == 1 and 0 <= p["rebound_agreement"] <= 1
+    assert p is not None and p.trajectories == 1 and 0 <= p.rebound_agreement <= 1
     assert set(m.error_by_step) == {f"{q}_{g}" for q in ("position", "stress") for g in ("ball", "contact", "far")}
     assert len(m.error_by_step["position_far"]) == FRAMES - 2
     saved = json.loads((tmp_path / "run" / "metrics_test.json").read_text())
-    assert saved["physics"] == p and "physics" in saved["per_trajectory"][0]
+    assert saved["physics"] == p.to_json() and "physics" in saved["per_trajectory"][0]
 
 
 # -- sweeps ------------------------------------------------------------------------------------------------------

@@ -6,7 +6,7 @@ import pytest
 
 from hcmt.errors import InputError
 from hcmt.inference import quantities as q
-from hcmt.inference.metrics import impact_metrics
+from hcmt.inference.physics import impact_metrics
 from impact_trajectory import DT, GAP, T, trajectory
 
 

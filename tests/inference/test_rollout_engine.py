@@ -28,7 +28,7 @@ from hcmt.graph.hierarchy import build_hierarchy
 from hcmt.inference.rollout import rollout, rollout_batch
 from hcmt.inference.run import Run
 from hcmt.models import build_model
-from hcmt.sim.params import sample_design
+from hcmt.sim.sampling import sample_design
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "benchmarks"))
 from micro.rollout_engine import old_rollout_batch  # noqa: E402

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 import torch
 
-from hcmt.domains.adapters import build_for_dataset, dataset_spec
+from hcmt.domains.spec import build_for_dataset, dataset_spec
 from models_grid import hop_distance, paper_graph
 
 pytestmark = pytest.mark.slow  # paper-size models

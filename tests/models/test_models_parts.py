@@ -9,7 +9,7 @@ import pytest
 import torch
 
 from hcmt.config import DATASET_NAMES, ModelConfig
-from hcmt.domains.adapters import build_for_dataset, dataset_spec
+from hcmt.domains.spec import build_for_dataset, dataset_spec
 from hcmt.domains.updater import update_positions
 from hcmt.models import ABLATIONS, HCMT, build_model
 from hcmt.models.lpe import LaplacianPE, laplacian_pe

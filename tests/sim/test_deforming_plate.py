@@ -123,9 +123,9 @@ def test_a_design_that_does_not_converge_is_replaced_by_the_next_draw(monkeypatc
     """The generator's job redraws from the trajectory's own stream when the solve fails (deterministic: the
     replacement is the stream's second design) and records how many it replaced; five failures are refused."""
     import hcmt.sim.deforming_data as dd
-    from hcmt.sim.generate import trajectory_rng
     from hcmt.sim.plate_params import sample_plate_design
     from hcmt.sim.quasistatic import NotConverged
+    from hcmt.sim.writer import trajectory_rng
 
     seen = []
 

@@ -12,9 +12,10 @@ import pytest
 
 import hcmt
 import hcmt.sim.generate as gen
+import hcmt.sim.writer as writer
 from hcmt.data.format import open_split
 from hcmt.errors import InputError
-from hcmt.sim.params import RANGES, VARIANTS, checked_ranges, family_ranges, sample_design
+from hcmt.sim.sampling import RANGES, VARIANTS, checked_ranges, family_ranges, sample_design
 
 NARROW = {"thickness": (1.2, 1.25)}  # outside the small preset's 0.5-1.0: a draw inside it is the override's
 TINY = hcmt.Settings(frames=4)
@@ -94,7 +95,7 @@ def test_family_parameters_can_be_overridden_only_where_every_family_samples_the
     ],
 )
 def test_bad_ranges_are_refused_before_anything_is_written(tmp_path, ranges, words, monkeypatch):
-    monkeypatch.setattr(gen, "_run_one", lambda task: pytest.fail("work started"))
+    monkeypatch.setattr(writer, "_run_one", lambda task: pytest.fail("work started"))
     with pytest.raises(InputError, match=words) as e:
         gen.generate_dataset(
             tmp_path / "d", preset="small", counts={"train": 1}, settings=TINY, progress=False, ranges=ranges
@@ -123,7 +124,7 @@ def test_generated_data_lies_in_the_overridden_range_and_meta_records_it(tmp_pat
         for i in range(counts[split]):
             attrs = data.attrs(i)
             assert lo <= attrs["thickness"] <= hi, (split, i, attrs["thickness"])
-            drawn = sample_design(gen.trajectory_rng(seed, split, i), "small", override=NARROW)
+            drawn = sample_design(writer.trajectory_rng(seed, split, i), "small", override=NARROW)
             assert attrs["thickness"] == pytest.approx(drawn.thickness)
             assert attrs["drop_height"] == pytest.approx(drawn.drop_height)
     vlo, vhi = VARIANTS["test_thicker"]["thickness"]

@@ -20,11 +20,14 @@ from hcmt.domains.adapters import get_adapter, position_mask
 from hcmt.inference.metrics import plate_mask
 from hcmt.sim.contact import PenaltyContact
 from hcmt.sim.driver import simulate, solver
+from hcmt.sim.explicit import CentralDifference
 from hcmt.sim.generate import generate_dataset
+from hcmt.sim.materials import MATERIALS, parse_stack
 from hcmt.sim.mesh import HANDLE, SYMMETRIC, WALL_BOUNDARY, impact_plate_mesh, layer_rows
-from hcmt.sim.params import FAMILIES, MATERIALS, Design, Settings, parse_stack, sample_design
+from hcmt.sim.params import FAMILIES, Design, Settings
+from hcmt.sim.sampling import sample_design
 from hcmt.sim.scene import fixed_dofs
-from hcmt.sim.solver import CentralDifference, build_model, linear_stiffness, stable_time_step
+from hcmt.sim.solver import build_model, linear_stiffness, stable_time_step
 from hertz import contact_history, hertz
 
 STEEL = (7.85e-3, 200e3, 0.3)

@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 
 import hcmt.sim.generate as gen
+import hcmt.sim.writer as writer
 from hcmt.cli import main
 from hcmt.data.format import NodeType, list_splits, open_split
 from hcmt.errors import DatasetError
@@ -17,7 +18,8 @@ from hcmt.inference.evaluate import evaluate
 from hcmt.inference.run import Run
 from hcmt.sim.cost import plan
 from hcmt.sim.driver import simulate
-from hcmt.sim.params import GRAVITY, RANGES, Design, Settings, sample_design
+from hcmt.sim.params import GRAVITY, Design, Settings
+from hcmt.sim.sampling import RANGES, sample_design
 from hcmt.sim.scene import design_mesh
 from hcmt.training import train
 
@@ -66,13 +68,13 @@ def test_same_seed_same_output_whatever_the_worker_count(tmp_path):
             for k in fa:
                 np.testing.assert_array_equal(fa[k], fb[k])
     # a different seed gives different designs
-    other = sample_design(gen.trajectory_rng(8, "train", 0), "small")
-    assert other != sample_design(gen.trajectory_rng(7, "train", 0), "small")
+    other = sample_design(writer.trajectory_rng(8, "train", 0), "small")
+    assert other != sample_design(writer.trajectory_rng(7, "train", 0), "small")
 
 
 def test_resume_after_interruption(tmp_path, monkeypatch):
     out = tmp_path / "ds"
-    real = gen._run_one
+    real = writer._run_one
     calls = []
 
     def crash_on_third(task):
@@ -81,12 +83,12 @@ def test_resume_after_interruption(tmp_path, monkeypatch):
         calls.append(task[5])
         return real(task)
 
-    monkeypatch.setattr(gen, "_run_one", crash_on_third)
+    monkeypatch.setattr(writer, "_run_one", crash_on_third)
     with pytest.raises(KeyboardInterrupt):
         gen.generate_dataset(out, preset="small", counts=dict(train=3), seed=1, settings=SHORT, progress=False)
     assert not (out / "train.h5").exists()  # no split file until it is complete
     assert sorted(p.name for p in (out / ".parts" / "train").iterdir()) == ["00000.h5", "00001.h5"]
-    monkeypatch.setattr(gen, "_run_one", real)
+    monkeypatch.setattr(writer, "_run_one", real)
     result = gen.generate_dataset(out, preset="small", counts=dict(train=3), seed=1, settings=SHORT, progress=False)
     assert result["simulated"] == 1 and result["skipped"] == 2
     assert not (out / ".parts").exists()
@@ -306,7 +308,7 @@ def test_disk_full_is_one_line_and_a_rerun_resumes(tmp_path, monkeypatch, capsys
 
 
 def test_interrupted_generate_is_one_line_and_keeps_finished_work(tmp_path, monkeypatch, capsys):
-    real = gen._run_one
+    real = writer._run_one
     calls = []
 
     def stop_on_second(task):
@@ -315,7 +317,7 @@ def test_interrupted_generate_is_one_line_and_keeps_finished_work(tmp_path, monk
         calls.append(task)
         return real(task)
 
-    monkeypatch.setattr(gen, "_run_one", stop_on_second)
+    monkeypatch.setattr(writer, "_run_one", stop_on_second)
     out = tmp_path / "ds"
     args = [
         "generate",

@@ -10,10 +10,10 @@ import pytest
 from scipy.sparse.linalg import eigsh, spsolve
 
 from hcmt.sim.contact import PenaltyContact
+from hcmt.sim.explicit import CentralDifference
 from hcmt.sim.mesh import SYMMETRIC, impact_plate_mesh, plate_mesh, preset_mesh
 from hcmt.sim.scene import fixed_dofs
 from hcmt.sim.solver import (
-    CentralDifference,
     build_model,
     internal_force,
     linear_stiffness,

@@ -9,7 +9,7 @@ from graph_meshes import plate_and_ball
 from hcmt.cli.parsers import configure_train
 from hcmt.config import Config, builtin_configs, load_config
 from hcmt.data.runs import PRETRAINED_DIR, RunFolder
-from hcmt.domains.adapters import dataset_spec, model_args
+from hcmt.domains.spec import dataset_spec, model_args
 from hcmt.errors import InputError
 from hcmt.graph.hierarchy import build_hierarchy
 from hcmt.graph.remesh import two_hop_edges

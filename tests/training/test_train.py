@@ -16,6 +16,7 @@ import pytest
 import torch
 import yaml
 
+import hcmt.training.build as build_module
 import hcmt.training.trainer as trainer_module
 from conftest import TINY
 from hcmt.cli import main as cli
@@ -26,10 +27,11 @@ from hcmt.domains.frames import input_graph
 from hcmt.domains.trajectory import build_graph, load_split
 from hcmt.errors import DatasetError, RolloutError
 from hcmt.graph.batch import PadSizes
-from hcmt.inference.evaluate import evaluate, run_rollouts
+from hcmt.inference.evaluate import evaluate
 from hcmt.inference.metrics import Rmse
 from hcmt.inference.quantities import CONTACT_TOL
 from hcmt.inference.rollout import rollout
+from hcmt.inference.rollout_files import run_rollouts
 from hcmt.inference.run import Run, load_run
 from hcmt.models import Normalizer, architecture
 from hcmt.training import train
@@ -602,7 +604,7 @@ def test_lazily_read_run_ends_with_the_eager_in_memory_runs_parameters(impact, t
     bit for bit as one that holds the split in memory (load_split), pushforward items included."""
     cfg = tiny_config(*EXTRA, "train.steps=5", "train.noise_std=0.01", "train.batch_size=2", "train.pushforward=0.5")
     train(cfg, impact, "hcmt", tmp_path / "lazy", seed=4, progress=False, device="cpu")
-    monkeypatch.setattr(trainer_module, "FrameDataset", functools.partial(FrameDataset, in_memory=True))
+    monkeypatch.setattr(build_module, "FrameDataset", functools.partial(FrameDataset, in_memory=True))
     train(cfg, impact, "hcmt", tmp_path / "eager", seed=4, progress=False, device="cpu")
     a, b = (torch.load(tmp_path / name / "checkpoint.pt", weights_only=True)["model"] for name in ("lazy", "eager"))
     assert a.keys() == b.keys() and all(torch.equal(a[k], b[k]) for k in a)
@@ -682,9 +684,9 @@ def test_compiled_training_matches_eager(impact, tmp_path, monkeypatch, tiny_con
         "compile",
         lambda model, **kw: calls.append(kw) or compile_(model, backend="eager", dynamic=kw["dynamic"]),
     )
-    made, predictions = trainer_module.padded_forward, []
+    made, predictions = build_module.padded_forward, []
     monkeypatch.setattr(
-        trainer_module,
+        build_module,
         "padded_forward",
         lambda net, sizes: (
             lambda graph, forward=made(net, sizes): predictions.append(graph.num_nodes) or forward(graph)

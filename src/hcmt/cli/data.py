@@ -26,8 +26,9 @@ from hcmt.inference import quantities
 from hcmt.sim.cost import check_cost, plan, validated_warnings, window_warnings
 from hcmt.sim.deforming_data import estimate_seconds, generate_deforming_plate
 from hcmt.sim.driver import simulate
-from hcmt.sim.generate import dataset_meta, generate_dataset, generation_cost, trajectory_name
-from hcmt.sim.params import VARIANTS
+from hcmt.sim.generate import dataset_meta, generate_dataset, generation_cost
+from hcmt.sim.sampling import VARIANTS
+from hcmt.sim.writer import trajectory_name
 
 
 # -- generate, simulate ---------------------------------------------------------------------------------------------

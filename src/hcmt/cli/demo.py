@@ -27,7 +27,8 @@ from hcmt.errors import missing_extra
 from hcmt.inference.evaluate import evaluate, format_metrics
 from hcmt.inference.run import Run
 from hcmt.sim.generate import generate_dataset
-from hcmt.sim.params import middle_design, parse_design
+from hcmt.sim.params import parse_design
+from hcmt.sim.sampling import middle_design
 from hcmt.training import train
 
 #: three designs inside the shipped model's training ranges, chosen by hand (not sampled from its data)

@@ -18,12 +18,13 @@ from hcmt.design.check import check_designs
 from hcmt.design.inputs import range_warnings, read_designs_csv, settings_of
 from hcmt.design.model_interval import Calibration, interval_path
 from hcmt.design.reports import contour_picture, format_calls, format_table, to_json, write_csv
-from hcmt.design.surrogate import run_surrogate_path
+from hcmt.design.surrogate_use import run_surrogate_path
 from hcmt.errors import missing_extra
 from hcmt.files import atomic_path, check_apart, undo_on_error
 from hcmt.inference.run import Run
 from hcmt.sim.cost import duration, solver_seconds
-from hcmt.sim.params import DESIGN_KEYS, DESIGN_UNITS, FAMILIES, describe_family, middle_design, parse_design
+from hcmt.sim.params import DESIGN_KEYS, DESIGN_UNITS, FAMILIES, parse_design
+from hcmt.sim.sampling import describe_family, middle_design
 
 
 def readout_words(readout: str) -> str:

@@ -12,15 +12,8 @@ from hcmt.cli import CommandError, check_outputs
 from hcmt.data.format import Split
 from hcmt.data.runs import RunFolder, check_start
 from hcmt.files import atomic_path, check_apart, undo_on_error
-from hcmt.inference.evaluate import (
-    check_options,
-    check_results_folder,
-    compare,
-    evaluate,
-    format_compare,
-    format_metrics,
-    run_rollouts,
-)
+from hcmt.inference.evaluate import compare, evaluate, format_compare, format_metrics
+from hcmt.inference.rollout_files import check_options, check_results_folder, run_rollouts
 from hcmt.inference.run import Run, dataset_warnings
 from hcmt.training import train
 

@@ -28,7 +28,7 @@ from hcmt.data.format import Split, read_meta
 from hcmt.data.runs import RunFolder
 from hcmt.files import check_apart
 from hcmt.graph.hierarchy import cached_hierarchy, hierarchy_cache_dir
-from hcmt.inference.evaluate import rollout_file
+from hcmt.inference.rollout_files import rollout_file
 from hcmt.inference.run import Run
 from hcmt.models import REGISTRY, uses_hierarchy
 from hcmt.viz.animation import animate

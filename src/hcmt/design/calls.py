@@ -8,7 +8,7 @@ from dataclasses import replace
 
 from hcmt.design.inputs import outside
 from hcmt.design.prediction import Prediction
-from hcmt.design.summary import CallInterval, Summary
+from hcmt.design.summary import CallInterval, Summary, SurrogateAnswer
 from hcmt.errors import InputError
 
 #: the interval the limit calls trust (:func:`trusted_interval`), chosen by measurement (docs/MODELS.md, "Calls")
@@ -45,10 +45,10 @@ def model_bounds(summary: Summary) -> tuple[float, float] | None:
 
 
 def trusted_bounds(
-    model: float, surrogate: dict | None, trust: str = TRUST, interval: tuple[float, float] | None = None
+    model: float, surrogate: SurrogateAnswer | None, trust: str = TRUST, interval: tuple[float, float] | None = None
 ) -> tuple[float, float, str]:
     """(lo, hi, what) of the peak plate stress a call trusts, from the mesh model's answer ``model``, its own
-    calibrated ``interval`` (None: none) and the surrogate's ``{mean, lo, hi}`` (None: no surrogate):
+    calibrated ``interval`` (None: none) and the surrogate's answer of it (None: no surrogate):
     ``surrogate``, the surrogate's 95 % interval; ``union``, that interval widened to hold the mesh model's
     interval (its answer where it has none); ``model`` (and whenever there is no surrogate), the mesh model's
     interval, or its answer ± :data:`MODEL_BAND` where it has none; ``intersection``, the part both intervals hold
@@ -63,10 +63,10 @@ def trusted_bounds(
             return lo, hi, "model interval"
         return m * (1 - MODEL_BAND), m * (1 + MODEL_BAND), "model"
     if trust == "surrogate":
-        return s["lo"], s["hi"], "surrogate"
-    if trust == "intersection" and interval is not None and max(s["lo"], lo) <= min(s["hi"], hi):
-        return max(s["lo"], lo), min(s["hi"], hi), "intersection"  # both calibrated: the surface narrows it
-    return min(s["lo"], lo), max(s["hi"], hi), "union"
+        return s.lo, s.hi, "surrogate"
+    if trust == "intersection" and interval is not None and max(s.lo, lo) <= min(s.hi, hi):
+        return max(s.lo, lo), min(s.hi, hi), "intersection"  # both calibrated: the surface narrows it
+    return min(s.lo, lo), max(s.hi, hi), "union"
 
 
 def call_of(lo: float, hi: float, yield_mpa: float) -> str:
@@ -87,7 +87,7 @@ def outside_reason(p: Prediction, ranges: dict[str, tuple[float, float]] | None,
         if not keys:
             return None
         where = f" ({', '.join(keys)})"
-    elif (p.summary.confidence or {}).get("region") == "outside":
+    elif p.summary.confidence is not None and p.summary.confidence.region == "outside":
         where = ""
     else:
         return None

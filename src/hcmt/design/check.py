@@ -37,7 +37,6 @@ from hcmt.design.calls import (  # noqa: F401 (re-exported: hcmt.design.check.tr
     final_calls,
     trusted_interval,
 )
-from hcmt.design.gp import Interval
 from hcmt.design.inputs import check_run, confidence, outside, range_warnings, settings_of
 from hcmt.design.model_interval import ANSWERS, Calibration, ModelInterval, for_run as interval_for_run
 from hcmt.design.notes import NOTE_DISAGREEMENT, verify_hint, weak_reasons  # noqa: F401 (re-exported)
@@ -51,8 +50,9 @@ from hcmt.design.prediction import (  # noqa: F401 (re-exported)
     summarize,
 )
 from hcmt.design.readout import CONTACT_END_BOUND, DEFAULT_READOUT, check_readout
-from hcmt.design.summary import Summary
-from hcmt.design.surrogate import Surrogate, for_run, side_by_side
+from hcmt.design.summary import Summary, SurrogateAnswer
+from hcmt.design.surrogate import Surrogate
+from hcmt.design.surrogate_use import for_run, side_by_side
 from hcmt.design.verification import (  # noqa: F401 (re-exported)
     solve,
     speedup_measured,
@@ -110,7 +110,9 @@ def summary_of(p: Prediction) -> Summary:
     return p.summary
 
 
-def beside_model(p: Prediction, run, surrogate: Surrogate | None, interval: dict | None, cannot: list[str]) -> None:
+def beside_model(
+    p: Prediction, run, surrogate: Surrogate | None, interval: dict[str, SurrogateAnswer] | None, cannot: list[str]
+) -> None:
     """The surrogate's answer beside the model's in ``p.summary`` (and its range warnings), or the warning that it
     cannot take the design."""
     summary = summary_of(p)
@@ -120,10 +122,9 @@ def beside_model(p: Prediction, run, surrogate: Surrogate | None, interval: dict
             f"the response surface cannot take {', '.join(cannot)} (held fixed over its training designs: "
             "another design family); no surrogate answer for this design, the call trusts the model's band"
         )
-    answers = {}
     if interval is not None:
         assert surrogate is not None, "an interval is the surrogate's answer"
-        answers = side_by_side(summary, interval)
+        summary = side_by_side(summary, interval)
         # a user's own surrogate has its own training ranges: warn for a parameter outside them too
         own = set(outside(p.design, run.ranges))
         warnings += range_warnings(
@@ -131,7 +132,7 @@ def beside_model(p: Prediction, run, surrogate: Surrogate | None, interval: dict
             {k: r for k, r in surrogate.ranges().items() if k not in own},
             "the response surface's training designs",
         )
-    p.summary = replace(summary, warnings=warnings, **answers)
+    p.summary = replace(summary, warnings=warnings)
 
 
 def check_options(designs, verify, yield_mpa: float | None, batch: int, readout: str) -> float | None:
@@ -165,7 +166,7 @@ def annotate(
     p: Prediction,
     run,
     surrogate: Surrogate | None,
-    interval: dict | None,
+    interval: dict[str, SurrogateAnswer] | None,
     cannot: list[str],
     calibration: Calibration | None = None,
 ) -> None:
@@ -216,7 +217,7 @@ def check_designs(
     """The design check, the one sequence behind ``hcmt predict``, ``hcmt sweep``, ``hcmt demo`` and
     :func:`predict_designs`: cost check, prediction (range warnings, the model's name and the confidence recorded
     in each summary), the surrogate's answers beside the model's (``surrogate``: True, the run's own; a path or a
-    :class:`~hcmt.design.surrogate.Surrogate`; False / None: none; :func:`hcmt.design.surrogate.for_run`), the
+    :class:`~hcmt.design.surrogate.Surrogate`; False / None: none; :func:`hcmt.design.surrogate_use.for_run`), the
     yield margin and the limit calls
     (:func:`add_calls`, ``trust``: which interval they trust), and the solver: on every design with
     ``verify=True``, on the undecided ones only with ``verify="auto"`` (which needs ``yield_mpa``), each chunk of
@@ -236,7 +237,7 @@ def check_designs(
     surrogate, note, ends_window = for_run(run, surrogate)
     notes = [n for n in (interval_note, note) if n]
     cost_check(run, designs, settings, bool(verify), force)
-    intervals: list[dict[str, Interval] | None] | None = (
+    intervals: list[dict[str, SurrogateAnswer] | None] | None = (
         list(surrogate.predict([d for _, d in designs])) if surrogate is not None else None
     )
     # a design with a parameter the surrogate's training designs held fixed (another family): no surrogate answer
@@ -302,5 +303,5 @@ def predict_designs(
 ) -> list[Prediction]:
     """The design check of :func:`check_designs` for Python users (``hcmt.predict_designs``): the same cost
     check, range warnings, confidence notes and, with ``surrogate=True`` (default), the run's own response surface
-    beside the model (:func:`hcmt.design.surrogate.for_run`; a path: that file; False or None: none)."""
+    beside the model (:func:`hcmt.design.surrogate_use.for_run`; a path: that file; False or None: none)."""
     return check_designs(run, designs, surrogate=surrogate, **options).preds

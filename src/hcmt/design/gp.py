@@ -11,26 +11,15 @@ the transforms and the file around it are :class:`hcmt.design.surrogate.Surrogat
 from __future__ import annotations
 
 import warnings
-from dataclasses import dataclass
 
 import numpy as np
 from sklearn.exceptions import ConvergenceWarning
 from sklearn.gaussian_process import GaussianProcessRegressor
 from sklearn.gaussian_process.kernels import RBF, ConstantKernel, WhiteKernel
 
+from hcmt.design.summary import SurrogateAnswer
+
 Z95 = 1.959963984540054  # the standard normal's 97.5 % quantile: a central 95 % interval
-
-
-@dataclass
-class Interval:
-    """A surrogate's answer: central estimate and the central 95 % interval."""
-
-    mean: float
-    lo: float
-    hi: float
-
-    def covers(self, value: float) -> bool:
-        return self.lo <= value <= self.hi
 
 
 def kernel(d: int, hyper: dict | None = None):
@@ -67,12 +56,13 @@ def fit_gp(
     return gp, hyper or hyperparameters(gp.kernel_)
 
 
-def intervals(gp: GaussianProcessRegressor, z: np.ndarray, mean: float, std: float) -> list[Interval]:
-    """Per row of ``z``, the answer's :class:`Interval` ``exp(m + s (μ ± 1.96 σ))``: the process predicts the
-    standardized log answer (``mean``, ``std``: its standardization), σ from the white-noise-including kernel."""
+def intervals(gp: GaussianProcessRegressor, z: np.ndarray, mean: float, std: float) -> list[SurrogateAnswer]:
+    """Per row of ``z``, the answer's :class:`~hcmt.design.summary.SurrogateAnswer` ``exp(m + s (μ ± 1.96 σ))``: the
+    process predicts the standardized log answer (``mean``, ``std``: its standardization), σ from the
+    white-noise-including kernel."""
     mu, sd = gp.predict(z, return_std=True)
     return [
-        Interval(
+        SurrogateAnswer(
             float(np.exp(mean + std * mu[i])),
             float(np.exp(mean + std * (mu[i] - Z95 * sd[i]))),
             float(np.exp(mean + std * (mu[i] + Z95 * sd[i]))),

@@ -8,21 +8,21 @@ from dataclasses import asdict, fields
 from pathlib import Path
 
 from hcmt.design.basics import read_table
+from hcmt.design.summary import Confidence
 from hcmt.errors import InputError, clip
 from hcmt.sim.params import (
     DESIGN_KEYS,
     DESIGN_UNITS,
-    EDGES,
     FIRST_SCENE_KEYS,
     Design,
     Settings,
     a_type,
     is_number,
-    middle_design,
     parse_design,
     parse_number,
     unit_slip,
 )
+from hcmt.sim.sampling import EDGES, middle_design
 
 
 # -- designs -----------------------------------------------------------------------------------------------------
@@ -107,7 +107,7 @@ def region_of(design: Design, ranges: dict[str, tuple[float, float]]) -> str:
     """Where a design lies in the training ranges, for the model card's measured error by region: ``thin``
     (thickness in the lowest fifth of its range), ``high`` (drop height in the top fifth), ``thin+high``,
     ``inside``, or ``outside`` (a parameter outside the training ranges). The fifths are those of the generator's
-    ``--edge-fraction`` (:data:`hcmt.sim.params.EDGES`)."""
+    ``--edge-fraction`` (:data:`hcmt.sim.sampling.EDGES`)."""
     if range_warnings(design, ranges):
         return "outside"
     parts = []
@@ -121,14 +121,14 @@ def region_of(design: Design, ranges: dict[str, tuple[float, float]]) -> str:
     return "+".join(parts) or "inside"
 
 
-def confidence(design: Design, run) -> dict | None:
-    """The model card's measured error for the design's region (:func:`region_of`), or None when the card has
-    none: ``{"region", "label", "designs", "peak_plate_stress_error_pct_median", ...}``."""
+def confidence(design: Design, run) -> Confidence | None:
+    """The model card's measured error for the design's region (:func:`region_of`; the card's entries are a JSON
+    document's dicts), or None when the card has none."""
     regions = {r["region"]: r for r in (run.card or {}).get("confidence", [])}
     region = region_of(design, run.ranges)
     if region == "outside":
-        return {"region": region, "label": "outside the training ranges", "designs": 0}
-    return regions.get(region)
+        return Confidence(region, "outside the training ranges", 0)
+    return Confidence.from_card(regions[region]) if region in regions else None
 
 
 def settings_of(meta: dict | None) -> Settings:
@@ -156,7 +156,7 @@ def check_run(run, param: str = "run"):
 
 def design_for(run, **params) -> Design:
     """An Impact Plate :class:`~hcmt.sim.params.Design` for a model: ``params`` (``thickness=0.7, ...``: numbers,
-    a numpy one too) over the middle of the model's training ranges (:func:`hcmt.sim.params.middle_design`),
+    a numpy one too) over the middle of the model's training ranges (:func:`hcmt.sim.sampling.middle_design`),
     validated (``hcmt.design_for``)."""
     check_run(run)
     for k, v in params.items():

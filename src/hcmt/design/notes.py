@@ -19,7 +19,7 @@ def weak_reasons(p: Prediction) -> list[str]:
     (its call is undecided: :func:`hcmt.design.calls.add_calls`)."""
     out = []
     c, iv = p.summary.confidence, p.summary.model_interval
-    if c and c["region"] == "outside":
+    if c is not None and c.region == "outside":
         if iv is not None:
             lo, hi = iv.bounds["peak_plate_stress_mpa"]
             out.append(
@@ -34,22 +34,22 @@ def weak_reasons(p: Prediction) -> list[str]:
             )
     g = (p.summary.surrogate or {}).get("peak_plate_stress_mpa")
     if g:
-        gap = (p.summary.chosen.peak_plate_stress_mpa - g["mean"]) / g["mean"]
+        gap = (p.summary.chosen.peak_plate_stress_mpa - g.mean) / g.mean
         if abs(gap) > NOTE_DISAGREEMENT:
             how = "" if p.summary.readout == "raw" else f" ({p.summary.readout} read-out)"
             out.append(
                 f"{p.name}: the mesh model's peak plate stress{how} is {100 * gap:+.0f} % from the response "
-                f"surface's {g['mean']:.0f} MPa [{g['lo']:.0f}, {g['hi']:.0f}]; low confidence" + verify_hint(p)
+                f"surface's {g.mean:.0f} MPa [{g.lo:.0f}, {g.hi:.0f}]; low confidence" + verify_hint(p)
             )
         return out
-    if not c or c["region"] == "outside":
+    if c is None or c.region == "outside":
         return out
-    med, worst = c["peak_plate_stress_error_pct_median"], c["peak_plate_stress_error_pct_worst"]
-    if med <= 10.0 and abs(worst) <= 25.0:
+    med, worst = c.peak_plate_stress_error_pct_median, c.peak_plate_stress_error_pct_worst
+    if med is None or worst is None or (med <= 10.0 and abs(worst) <= 25.0):
         return out
     return out + [
-        f"{p.name}: {c['label']}: the model card measured a median peak plate stress error of {med:.1f} % "
-        f"(worst {worst:+.1f} %) over {c['designs']} such designs; low confidence" + verify_hint(p)
+        f"{p.name}: {c.label}: the model card measured a median peak plate stress error of {med:.1f} % "
+        f"(worst {worst:+.1f} %) over {c.designs} such designs; low confidence" + verify_hint(p)
     ]
 
 

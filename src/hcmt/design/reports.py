@@ -13,9 +13,10 @@ import numpy as np
 from hcmt.config import plural
 from hcmt.design.check import Check, Prediction, weak_reasons
 from hcmt.design.readout import contact_note, readout_key
-from hcmt.design.summary import Summary
+from hcmt.design.summary import Summary, SurrogateAnswer
+from hcmt.design.verification import verify_to_json
 from hcmt.files import atomic_path
-from hcmt.inference.metrics import format_physics
+from hcmt.inference.physics import format_physics
 from hcmt.sim.params import DESIGN_KEYS
 
 # -- output --------------------------------------------------------------------------------------------------------
@@ -41,11 +42,11 @@ VERIFY_COLUMNS = [
 ]
 
 
-def _interval(block: dict | None, fmt: str = "{:.0f}") -> str:
+def _interval(answer: SurrogateAnswer | None, fmt: str = "{:.0f}") -> str:
     """``mean [lo, hi]`` of a surrogate answer ("-" when there is none)."""
-    if not block:
+    if answer is None:
         return "-"
-    return f"{fmt.format(block['mean'])} [{fmt.format(block['lo'])}, {fmt.format(block['hi'])}]"
+    return f"{fmt.format(answer.mean)} [{fmt.format(answer.lo)}, {fmt.format(answer.hi)}]"
 
 
 def verify_block(summary: Summary) -> dict:
@@ -210,7 +211,7 @@ def csv_rows(preds: list[Prediction]) -> tuple[list[str], list[list]]:
             v = block.get(k)
             row += (list(v) if v else ["", ""]) if k.endswith("where_mm") else [v]
         answers = p.summary.surrogate or {}
-        row += [answers.get(q, {}).get(b) for q in skeys for b in ("mean", "lo", "hi")]
+        row += [getattr(answers[q], b) if q in answers else None for q in skeys for b in ("mean", "lo", "hi")]
         verify = verify_block(p.summary)
         row += [verify.get(k) for k in vkeys]
         warnings = (p.summary.warnings or []) + verify.get("solver_warnings", []) + weak_reasons(p)
@@ -243,7 +244,7 @@ def to_json(
         "designs": [
             {"name": p.name, "design": asdict(p.design), **p.summary.to_json(), "notes": weak_reasons(p)} for p in preds
         ],
-        **({"verify": verified} if verified else {}),
+        **({"verify": verify_to_json(verified)} if verified else {}),
     }
     if check is not None:
         out["readout"] = check.readout

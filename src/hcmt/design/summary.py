@@ -1,5 +1,6 @@
 """Design check, one design's numbers as typed, frozen records: :class:`Summary` (what ``Prediction.summary``
-holds), its derived read-out (:class:`PlateReadout`) and its comparison with the solver (:class:`VerifyRow`).
+holds), its derived read-out (:class:`PlateReadout`), the model card's region of it (:class:`Confidence`), the
+response surface's answers (:class:`SurrogateAnswer`) and its comparison with the solver (:class:`VerifyRow`).
 
 A summary is the trajectory's own quantities (:class:`hcmt.inference.quantities.ImpactQuantities`, which it
 extends), the read-out used, a derived read-out's peak block (``derived``), the wall time, then what the design
@@ -46,6 +47,53 @@ class PlateReadout:
 
 
 @dataclass(frozen=True)
+class Confidence:
+    """The model card's measured error for a design's region (:func:`hcmt.design.inputs.confidence`): the region
+    (:func:`hcmt.design.inputs.region_of`), its label and how many held-out designs the card measured there, then
+    the errors it measured (percent; None for ``outside``, where the card measured none). :meth:`to_json` is the
+    design's ``confidence`` block of the JSON: the card's entry, a field not set left out."""
+
+    region: str
+    label: str
+    designs: int
+    peak_plate_stress_error_pct_median: float | None = None
+    peak_plate_stress_error_pct_worst: float | None = None
+    max_deflection_error_pct_median: float | None = None
+    rebound_agreement: float | None = None  # the share of those designs whose rebound the model got right
+
+    @classmethod
+    def from_card(cls, entry: dict) -> Confidence:
+        """A model card's ``confidence`` entry (a JSON document's dict, as ``benchmarks/release/ship_model.py``
+        writes it)."""
+        measured = {
+            f.name: float(entry[f.name])
+            for f in fields(cls)
+            if f.name not in ("region", "label", "designs") and entry.get(f.name) is not None
+        }
+        return cls(str(entry["region"]), str(entry["label"]), int(entry["designs"]), **measured)
+
+    def to_json(self) -> dict:
+        return {k: v for k, v in asdict(self).items() if v is not None}
+
+
+@dataclass(frozen=True)
+class SurrogateAnswer:
+    """The response surface's answer for one quantity of a design (:meth:`hcmt.design.surrogate.Surrogate.predict`,
+    in the quantity's unit): its central estimate and central 95 % interval. A design's summary holds one per
+    answer (``Summary.surrogate``); :meth:`to_json` is its ``{mean, lo, hi}`` block of the JSON."""
+
+    mean: float
+    lo: float
+    hi: float
+
+    def covers(self, value: float) -> bool:
+        return self.lo <= value <= self.hi
+
+    def to_json(self) -> dict:
+        return {"mean": self.mean, "lo": self.lo, "hi": self.hi}
+
+
+@dataclass(frozen=True)
 class VerifyRow:
     """One design, model against solver: ``Summary.verify``. Stresses MPa, lengths mm (``_um``: µm), times ms;
     errors signed (model - solver), in % of the solver's value where named ``_pct``, in frames where
@@ -53,7 +101,7 @@ class VerifyRow:
 
     solver_peak_plate_stress_mpa: float
     solver_max_deflection_mm: float
-    # the physics block's (hcmt.inference.metrics.impact_metrics)
+    # the physics block's (hcmt.inference.physics.impact_metrics)
     peak_plate_stress_error_pct: float
     max_deflection_error_pct: float
     model_rebounds: bool
@@ -114,9 +162,9 @@ class Summary(ImpactQuantities):
     # what the design check adds
     model: str | None = None
     warnings: list[str] | None = None  # range warnings, one line each
-    confidence: dict | None = None  # the model card's region of the design (None: the card has none)
+    confidence: Confidence | None = None  # the model card's region of the design (None: the card has none)
     model_interval: ModelInterval | None = None  # the mesh model's own calibrated interval (hcmt.design.model_interval)
-    surrogate: dict | None = None  # the response surface's answers {answer: {mean, lo, hi}}
+    surrogate: dict[str, SurrogateAnswer] | None = None  # the response surface's answers, by answer name
     disagreement: bool | None = None  # the model's peak plate stress outside the surrogate's interval
     disagreement_by_answer: dict[str, bool] | None = None
     low_confidence: bool | None = None
@@ -145,8 +193,10 @@ class Summary(ImpactQuantities):
                 out.update(v.to_json(self.readout) if v is not None else {})
             elif f.name == "derived_yield_margin_mpa":
                 out.update({f"{self.readout}_yield_margin_mpa": v} if v is not None else {})
-            elif f.name in ("verify", "model_interval", "call_interval_mpa"):
-                out.update({f.name: v.to_json()} if v is not None else {})
+            elif f.name in ("confidence", "model_interval", "call_interval_mpa", "verify") and v is not None:
+                out[f.name] = v.to_json()
+            elif f.name == "surrogate" and v is not None:
+                out[f.name] = {q: a.to_json() for q, a in v.items()}
             elif v is not None or f.name in ALWAYS or (f.name == "confidence" and self.model is not None):
                 out[f.name] = v
         return out

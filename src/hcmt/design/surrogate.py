@@ -19,24 +19,23 @@ Stored without pickle (:meth:`Surrogate.save`, :meth:`Surrogate.load`; the forma
 loading refits the posterior with the stored hyperparameters (no optimizer run), so a loaded surrogate predicts what
 the fitted one did, to rounding. The process itself is :mod:`hcmt.design.gp`; the training data and what a surrogate
 records of it, :mod:`hcmt.design.surrogate_data`.
-A surrogate meets a model in :func:`for_run`: one that does not fit it (:meth:`Surrogate.check_model`) is refused,
-and one whose window is not known to be the model's never ends the model's read-out window.
+A surrogate meets a model in :func:`hcmt.design.surrogate_use.for_run`: one that does not fit it
+(:meth:`Surrogate.check_model`) is refused, and one whose window is not known to be the model's never ends the model's
+read-out window.
 """
 
 from __future__ import annotations
 
 import json
-import math
-from dataclasses import asdict
 from pathlib import Path
 
 import numpy as np
 
 from hcmt.config import plural
 from hcmt.data.format import read_meta
-from hcmt.data.runs import beside_model
 from hcmt.design.basics import QUANTITIES, RESTARTS  # noqa: F401 (QUANTITIES: hcmt.design.surrogate.QUANTITIES)
-from hcmt.design.gp import Z95, Interval, fit_gp, intervals  # noqa: F401 (Z95: re-exported)
+from hcmt.design.gp import Z95, fit_gp, intervals  # noqa: F401 (Z95: re-exported)
+from hcmt.design.summary import SurrogateAnswer
 from hcmt.design.surrogate_data import (  # noqa: F401 (re-exported: hcmt.design.surrogate.dataset_facts, ...)
     ANSWER_UNITS,
     SurrogateError,
@@ -81,7 +80,7 @@ class Surrogate:
         dataset: dict | None = None,
     ):
         self.parameters, self.fixed, self.source = list(parameters), dict(fixed), source
-        self.name = ""  # what the header calls it (:attr:`label`): set by :func:`for_run`, never a path
+        self.name = ""  # what the header calls it (:attr:`label`): set by surrogate_use.for_run, never a path
         self.dataset = dict(dataset) if dataset is not None else None
         if not self.parameters:
             raise InputError("no design parameter varies over the training designs: nothing to fit")
@@ -193,8 +192,9 @@ class Surrogate:
             len(designs), len(self.parameters)
         )
 
-    def predict(self, designs: list[Design]) -> list[dict[str, Interval]]:
-        """Per design, each answer's :class:`Interval` (central estimate and 95 % interval, in the answer's unit)."""
+    def predict(self, designs: list[Design]) -> list[dict[str, SurrogateAnswer]]:
+        """Per design, each answer's :class:`~hcmt.design.summary.SurrogateAnswer` (central estimate and 95 %
+        interval, in the answer's unit)."""
         if not designs:
             return []
         X = self.matrix(designs)
@@ -292,86 +292,3 @@ class Surrogate:
                 f"{where}: does not fit the model: {differ[0]}{more}; fit it on the model's own training data",
                 param=param,
             )
-
-
-def side_by_side(summary, interval: dict[str, Interval]) -> dict:
-    """The surrogate's fields of a design's summary: its answers (``{q: {mean, lo, hi}}``) and ``disagreement``:
-    the mesh model's answer (``summary``) outside the surrogate's 95 % interval, per answer and for peak plate
-    stress."""
-    block = {q: asdict(v) for q, v in interval.items()}
-    model = {q: getattr(summary, q, None) for q in interval}  # the model's own answers (a Summary's fields)
-    outside = {
-        q: not v.covers(model[q])
-        for q, v in interval.items()
-        if isinstance(model[q], (int, float)) and math.isfinite(model[q])
-    }
-    return {
-        "surrogate": block,
-        "disagreement": bool(outside.get("peak_plate_stress_mpa", False)),
-        "disagreement_by_answer": outside,
-    }
-
-
-def run_surrogate_path(run) -> Path | None:
-    """Where a run's own surrogate lives: ``hcmt/pretrained/NAME.surrogate.json`` beside a shipped model,
-    ``RUN/surrogate.json`` in a run folder (``hcmt surrogate fit DATA --out RUN/surrogate.json``)."""
-    return beside_model(run, "surrogate.json")
-
-
-def run_name(run) -> str:
-    """A model's name without a machine's path: ``pretrained:NAME``, or its run folder's name."""
-    source = str(run.source)
-    return source if source.startswith("pretrained:") else Path(source).name
-
-
-def for_run(run, choice: "Surrogate | str | Path | bool | None" = True) -> tuple["Surrogate | None", str | None, bool]:
-    """(surrogate, note, ends_window) for a run: ``True``, the run's own (:func:`run_surrogate_path`; note when it
-    has none); a path, that file; a :class:`Surrogate`, itself; ``False`` / ``None``, none. A surrogate that does
-    not fit the model is refused (:meth:`Surrogate.check_model`; ``param`` surrogate when it was given).
-    ``ends_window``: whether its bound of when the ball leaves may end the model's read-out window: only when its
-    training window is known to be the model's (recorded, or the run's own file) and the ball left within it in
-    some training run (in none: its bound is the window's end, not the ball's); otherwise the model's answer is its
-    own and the note says why."""
-    if choice is None or choice is False:
-        return None, None, False
-    own = choice is True
-    if isinstance(choice, Surrogate):
-        s, where = choice, "surrogate"
-    elif own:
-        path = run_surrogate_path(run)
-        if path is None or not path.is_file():
-            return (
-                None,
-                (
-                    f"{run.source} has no response surface ({path or 'no run folder'}); fit one with "
-                    "`hcmt surrogate fit DATA --out FILE` and pass --surrogate FILE"
-                ),
-                False,
-            )
-        s, where = Surrogate.load(path), str(path)
-        s.name = f"{run_name(run)}'s own"
-    else:
-        s, where = Surrogate.load(choice), str(choice)
-        s.name = Path(choice).name
-    stress_field = getattr(getattr(run, "adapter", None), "stress_field", "stress")
-    if getattr(run, "ranges", None):
-        s.check_model(run.ranges, getattr(run, "meta", None), stress_field, where, None if own else "surrogate")
-    if s.censored >= len(s):
-        return (
-            s,
-            (
-                f"{where}: in none of its {len(s)} training runs did the ball leave the plate within the window; "
-                "its bound of when the ball leaves is not used (the model's window stands)"
-            ),
-            False,
-        )
-    if s.dataset is None and not own:
-        return (
-            s,
-            (
-                f"{where}: records no training window (written before format 2, or fitted without a dataset); "
-                "its bound of when the ball leaves is not used (the model's window stands)"
-            ),
-            False,
-        )
-    return s, None, True

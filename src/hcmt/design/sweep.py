@@ -243,10 +243,8 @@ def plot_sweep(check: Check, analysis: dict, out_dir: str | Path, label: str) ->
         band = [(v, p.summary.surrogate[q]) for v, p in zip(x, check.preds) if q in (p.summary.surrogate or {})]
         if band:
             xs, bs = zip(*band)
-            ax.fill_between(
-                xs, [b["lo"] for b in bs], [b["hi"] for b in bs], color="C1", alpha=0.25, label="surrogate 95 %"
-            )
-            ax.plot(xs, [b["mean"] for b in bs], "-", color="C1", lw=1)
+            ax.fill_between(xs, [b.lo for b in bs], [b.hi for b in bs], color="C1", alpha=0.25, label="surrogate 95 %")
+            ax.plot(xs, [b.mean for b in bs], "-", color="C1", lw=1)
         if q == "peak_plate_stress_mpa" and analysis["limit"]:
             ax.axhline(analysis["limit"]["yield_mpa"], color="r", lw=1, label=f"Y = {analysis['limit']['yield_mpa']:g}")
         ax.set_xlabel(axis_label(analysis["param"]))

@@ -12,7 +12,8 @@ from hcmt.config import plural
 from hcmt.design.prediction import Prediction, summarize
 from hcmt.design.readout import history_correlation
 from hcmt.design.summary import VerifyRow
-from hcmt.inference.metrics import impact_metrics, rollout_rmse, summarize_impact
+from hcmt.inference.metrics import rollout_rmse
+from hcmt.inference.physics import ImpactMetrics, ImpactSummary, impact_metrics, summarize_impact
 from hcmt.inference.quantities import plate_mask
 from hcmt.sim.cost import validated_warnings
 from hcmt.sim.driver import simulate
@@ -72,8 +73,8 @@ _PHYSICS = (
 )
 
 
-def verify_row(p: Prediction, t: Prediction) -> tuple[VerifyRow, dict]:
-    """(the :class:`VerifyRow`, :func:`hcmt.inference.metrics.impact_metrics`) of one design, model against solver;
+def verify_row(p: Prediction, t: Prediction) -> tuple[VerifyRow, ImpactMetrics]:
+    """(the :class:`VerifyRow`, :func:`hcmt.inference.physics.impact_metrics`) of one design, model against solver;
     the peak, deflection and rebound errors are the physics block's (one definition each,
     :mod:`hcmt.inference.quantities`), the rest read off the two summaries."""
     a, b = p.summary, t.summary
@@ -104,7 +105,8 @@ def verify_designs(preds: list[Prediction], truth: list[Prediction], measured: d
     """Per design (added to each prediction's summary under ``verify``, :func:`verify_row`) and summarized over
     designs: the model-vs-solver error of peak plate stress (%), of its location (mm), of maximum deflection (%),
     position RMSE over the window (mm, all nodes and predicted frames), the rise time and the speedup (solver ÷
-    prediction wall time); ``physics``: :func:`hcmt.inference.metrics.summarize_impact` of the same rows.
+    prediction wall time); ``physics``: :func:`hcmt.inference.physics.summarize_impact` of the same rows (an
+    :class:`~hcmt.inference.physics.ImpactSummary`; the JSON: :func:`verify_to_json`).
     ``measured``: how the wall times were measured (:func:`speedup_measured`), recorded as ``speedup_measured``
     and said in the ``note``."""
     rows, physics = [], []
@@ -139,6 +141,12 @@ def verify_designs(preds: list[Prediction], truth: list[Prediction], measured: d
         f"prediction wall time per design, {how}",
         **({"speedup_measured": measured} if measured else {}),
     }
+
+
+def verify_to_json(verified: dict) -> dict:
+    """:func:`verify_designs`' summary as the design check's JSON writes it: the ``physics`` block by its own
+    ``to_json``, every other key as it is, in order."""
+    return {k: v.to_json() if isinstance(v, ImpactSummary) else v for k, v in verified.items()}
 
 
 def speedup_measured(batch: int, designs: int, verify: bool | str, device: str, threads: int) -> dict:

@@ -3,7 +3,7 @@
 ``build_model(name, node_in, mesh_in, contact_in, out, ...)`` makes one; :data:`REGISTRY` says, per model name, its
 display label, whether it needs the mesh hierarchy and whether it returns attention maps, as each model declares it
 (:mod:`hcmt.models.registry`; adding a model: docs/extending.md);
-:func:`hcmt.domains.adapters.build_for_dataset` fills the widths (Table 9) and depths (Table 8) of a dataset. Every
+:func:`hcmt.domains.spec.build_for_dataset` fills the widths (Table 9) and depths (Table 8) of a dataset. Every
 model maps a :class:`hcmt.graph.batch.Graph` to a normalized output ``[N, out]`` and owns its normalizers
 (``normalize_target``, ``denormalize``).
 """

@@ -1,6 +1,6 @@
 """``hcmt generate deforming-plate``: a native Deforming Plate dataset (meta.json ``dataset: deforming_plate``, the
-public MeshGraphNets fields and node types), written by :func:`hcmt.sim.generate.write_dataset` (parallel,
-resumable, locked: the Impact Plate generator's machinery)."""
+public MeshGraphNets fields and node types), written by :func:`hcmt.sim.writer.write_dataset` (parallel,
+resumable, locked: the machinery the Impact Plate generator uses too)."""
 
 from __future__ import annotations
 
@@ -9,10 +9,10 @@ from dataclasses import asdict
 from hcmt.data.format import make_meta
 from hcmt.errors import InputError
 from hcmt.sim.deforming import feature_spec, simulate_plate
-from hcmt.sim.generate import checked_counts, trajectory_rng, write_dataset
 from hcmt.sim.params import MAX_ESTIMATED_SECONDS
 from hcmt.sim.plate_params import PATHS, RANGES, SHAPES, UNITS, PlateSettings, sample_plate_design
 from hcmt.sim.quasistatic import NotConverged
+from hcmt.sim.writer import checked_counts, trajectory_rng, write_dataset
 
 #: one core, measured (docs/solver.md, "Deforming Plate: cost"): seconds per load step per plate node, with the
 #: ~1-2 Newton iterations a step of a 400-frame trajectory takes; the estimate behind the cost guard

@@ -1,5 +1,6 @@
 """The solver driver: a design's scene (:mod:`hcmt.sim.scene`) started in the explicit solver
-(:mod:`hcmt.sim.solver`, :mod:`hcmt.sim.contact`) and run frame by frame into one trajectory."""
+(:mod:`hcmt.sim.solver`, :mod:`hcmt.sim.explicit`, :mod:`hcmt.sim.contact`) and run frame by frame into one
+trajectory."""
 
 from __future__ import annotations
 
@@ -11,9 +12,10 @@ import numpy as np
 from hcmt.errors import InputError
 from hcmt.sim.contact import PenaltyContact
 from hcmt.sim.cost import check_size
+from hcmt.sim.explicit import CentralDifference
 from hcmt.sim.params import Design, Settings
 from hcmt.sim.scene import design_mesh, fem_model, fixed_dofs, static_fields
-from hcmt.sim.solver import CentralDifference, deformation, nodal_von_mises, stable_time_step
+from hcmt.sim.solver import deformation, nodal_von_mises, stable_time_step
 
 
 @dataclass(frozen=True)

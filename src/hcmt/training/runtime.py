@@ -222,3 +222,17 @@ def step_times(times: list[tuple[float, float]]) -> dict:
     in ms, of ``(wall s, cpu s)`` pairs."""
     wall, cpu = (1e3 * float(np.median([t[k] for t in times])) if times else None for k in (0, 1))
     return {"ms_per_step": wall, "cpu_ms_per_step": cpu}
+
+
+def run_summary(steps: int, loss: float, times: list, best: float, world: int, device: torch.device) -> dict:
+    """The training summary (``train_stats.json``, what :func:`hcmt.training.train` returns): steps done, the last
+    loss, step times (:func:`step_times`), the best validation position RMSE-all (None before any), processes and
+    device."""
+    return {
+        "steps": steps,
+        "final_loss": loss,
+        **{f"train_{k}": v for k, v in step_times(times).items()},
+        "best_valid_position_rmse_all": best if math.isfinite(best) else None,
+        "world_size": world,
+        "device": str(device),
+    }

@@ -1,6 +1,7 @@
 """How a run starts: the record ``run.yaml`` keeps (model arguments, config, data, seed, processes, the model it
 started from) and the checks before anything is written: a resumed run's settings are the saved ones, a
-fine-tuned run's (``--init``) model is its source's, inherited (:func:`inherit`)."""
+fine-tuned run's (``--init``) model is its source's, inherited (:func:`inherit`). Once they pass, the run folder is
+written (:func:`write_start`)."""
 
 from __future__ import annotations
 
@@ -10,11 +11,11 @@ from pathlib import Path
 
 from hcmt.config import INIT_NORMALIZERS, MODELS, Config, as_config, check_same_dataset, set_in
 from hcmt.data.format import read_meta
-from hcmt.data.runs import RunFolder, read_checkpoint
+from hcmt.data.runs import RunFolder, check_start, read_checkpoint
 from hcmt.errors import InputError, clip
 from hcmt.inference.run import Run
 from hcmt.models import architecture
-from hcmt.training.runtime import check_resume
+from hcmt.training.runtime import check_resume, rewrite_log
 
 
 def init_source(init: str, args: dict) -> Run:
@@ -98,7 +99,10 @@ def start_record(
     init_normalizers: str,
 ) -> tuple[dict, Run | None]:
     """``run.yaml``'s record of this run and the :class:`Run` it starts from (``init``; None when resuming: the
-    checkpoint holds the weights already), every start rule checked."""
+    checkpoint holds the weights already), every start rule checked (the run folder's first:
+    :func:`~hcmt.data.runs.check_start`)."""
+    if resume or folder.latest.is_file():  # train() has cleared or refused a folder holding only run.yaml
+        check_start(folder, resume, flags=True)
     if init_normalizers not in INIT_NORMALIZERS:
         raise InputError(f"init_normalizers must be one of {', '.join(INIT_NORMALIZERS)}, got {init_normalizers!r}")
     if resume and init is not None:
@@ -143,3 +147,13 @@ def resume_state(folder: RunFolder, model, opt, device, steps: int, rank: int) -
         )
     kept = [r for r in folder.log_records() if r["step"] <= step] if rank == 0 and folder.log.is_file() else None
     return step, best, kept
+
+
+def write_start(folder: RunFolder, run: dict, data, kept_log: list | None) -> None:
+    """The run folder written once every check passed: ``run.yaml`` (``run``), the data's facts and, resuming, the
+    log records up to the checkpoint's step (``kept_log``, :func:`resume_state`)."""
+    folder.path.mkdir(parents=True, exist_ok=True)
+    folder.write_info(run)
+    folder.write_data_facts(data)
+    if kept_log is not None:
+        rewrite_log(folder.log, kept_log)  # what was logged after the checkpoint goes

@@ -11,13 +11,7 @@ step, rank), so a run stopped and resumed ends with the same parameters as one t
 statistics accumulate through training (MeshGraphNets); the first ``normalizer_steps`` steps only accumulate them,
 without parameter updates. The loop's conventions (normalizer warm-up, loss denominator, Adam's ε, step decay) are
 ``train.policy``'s: :mod:`hcmt.training.policy`. Several processes (``torchrun``): :mod:`hcmt.training.runtime`.
-Speed options (``train.*``): ``workers`` (DataLoader processes build the graphs), ``precision: bf16`` (autocast),
-``checkpoint_blocks`` (activation checkpointing per block), ``compile`` (default ``auto``: compiled in runs of 5,000
-steps or more, :func:`hcmt.models.base.resolve_compile`; on the CPU in mode ``default`` with symbolic sizes on the
-graphs as they are, otherwise on graphs padded to static sizes, :func:`hcmt.graph.batch.pad_graph`, contact edges in
-buckets, so CUDA graphs can replay the step; the normalizers accumulate eagerly before the compiled forward, which
-mutates no buffer), ``deterministic`` (:func:`~hcmt.training.runtime.deterministic_kernels`: a resumed CUDA run ends
-bit for bit like an unbroken one, at a cost in speed; CPU runs are exact without it)."""
+How the model and the data are built, and the speed options (``train.*``): :mod:`hcmt.training.build`."""
 
 from __future__ import annotations
 
@@ -34,30 +28,28 @@ from tqdm import tqdm
 
 from hcmt.config import Config
 from hcmt.data.format import read_meta
-from hcmt.data.runs import RunFolder, check_start
-from hcmt.domains.adapters import config_adapter, model_args, noise_gamma
+from hcmt.data.runs import RunFolder
+from hcmt.domains.adapters import config_adapter
 from hcmt.domains.frames import step_seed
-from hcmt.domains.trajectory import load_split
-from hcmt.errors import InputError
+from hcmt.domains.spec import model_args
 from hcmt.inference.evaluate import validation_rmse
-from hcmt.models import Normalizer, checkpoint_state, make_model, resolve_device, uses_hierarchy
-from hcmt.models.base import compile_simulator, resolve_compile
-from hcmt.training.dataset import FrameDataset, StepSampler, pad_sizes, padded_forward, step_loader
+from hcmt.models import checkpoint_state
+from hcmt.training.build import adam, build_model, item_forward, step_model, training_data, training_device
+from hcmt.training.dataset import StepSampler, step_loader
 from hcmt.training.policy import policy_of
 from hcmt.training.runtime import (
     InterruptFlag,
     TrainingInterrupted,
-    deterministic_kernels,
     distributed,
     rank_zero_logging,
-    rewrite_log,
+    run_summary,
     save_atomic,
     say_no_tensorboard,
     step_times,
     stop_together,
     summary_writer,
 )
-from hcmt.training.start import resume_state, start_record
+from hcmt.training.start import resume_state, start_record, write_start
 
 logger = logging.getLogger("hcmt.train")  # rank-zero messages (hcmt.training.runtime.rank_zero_logging)
 
@@ -82,19 +74,13 @@ class Trainer:
         init_normalizers: str = "keep",
     ):
         self.rank, self.world = distributed()
-        self.device = (
-            resolve_device(device)
-            if device
-            else (torch.device(f"cuda:{self.rank}") if torch.cuda.is_available() else torch.device("cpu"))
-        )
+        self.device = training_device(device, self.rank)
         cfg = cfg.for_training()
         self.cfg, self.tc, self.out, self.seed, self.model_name = cfg, cfg.train, out, seed, model_name
         self.steps, self.policy, self.progress = cfg.train.steps, policy_of(cfg.train), progress
         self.adapter, self.args = config_adapter(cfg), model_args(cfg, model_name, read_meta(data))
         self.folder = RunFolder(out, must_exist=False)
         self.ckpt_path = self.folder.latest
-        if resume or self.ckpt_path.is_file():  # train() has cleared or refused a folder holding only run.yaml
-            check_start(self.folder, resume, flags=True)
         run, source = start_record(
             self.folder,
             self.args,
@@ -106,21 +92,21 @@ class Trainer:
             init=init,
             init_normalizers=init_normalizers,
         )
-        self._build_model(source, run.get("init"), init_normalizers)
-        self._build_data(data)
-        # fused: one kernel for every parameter, on CUDA and on the CPU (3.1 against 11-13 ms of CPU per step for the
-        # small HCMT's 199 tensors); it agrees with the per-tensor Adam within float32 rounding (test_speed_options)
-        self.opt = torch.optim.Adam(self.model.parameters(), lr=self.tc.lr, eps=self.policy.adam_epsilon, fused=True)
+        self.model, self.compile = build_model(self.args, self.tc, seed, self.device, source, init_normalizers)
+        self.frozen_normalizers = bool(run.get("init")) and run["init"]["normalizers"] == "keep"
+        self.normalizer_steps = 0 if self.frozen_normalizers else self.tc.normalizer_steps
+        self.bf16 = self.tc.precision == "bf16"  # autocast forward and loss in bfloat16
+        self.radius = self.tc.contact_radius
+        self.frames, self.valid_trajs = training_data(data, cfg, self.adapter, self.args, seed)
+        self.opt = adam(self.model, self.tc.lr, self.policy.adam_epsilon)
         self.step_count, self.best = 0, math.inf
         if resume:
             self._resume()
         if self.rank == 0:  # every check passed: only now is the run folder written (a refused start changes nothing)
-            out.mkdir(parents=True, exist_ok=True)
-            self.folder.write_info(run)
-            self.folder.write_data_facts(data)
-            if resume and self._kept_log is not None:
-                rewrite_log(self.folder.log, self._kept_log)  # what was logged after the checkpoint goes
-        self._wrap_model()
+            write_start(self.folder, run, data, self._kept_log if resume else None)
+        self.net, self.pad, self.dynamic = step_model(
+            self.model, self.compile, self.world, self.device, self.frames, self.tc.batch_size
+        )
         self.writer = (
             summary_writer(self.folder.tensorboard, self.step_count if resume else None) if self.rank == 0 else None
         )
@@ -136,72 +122,6 @@ class Trainer:
             self.steps,
         )
         say_no_tensorboard(self.writer)
-
-    def _build_model(self, source, started_from: dict | None, init_normalizers: str) -> None:
-        """The model on its device, from ``source``'s weights when fine-tuning: its normalizers kept (frozen) or
-        re-accumulated on this data."""
-        tc = self.tc
-        lpe = self.args.get("ablation") == "lpe"  # auto: eager for it; an explicit mode: refused
-        self.compile = resolve_compile(tc.compile, steps=tc.steps, device=self.device, lpe=lpe)
-        if self.compile != "none" and lpe:
-            raise InputError(
-                "train.compile: the lpe ablation computes its eigenvectors per graph outside the model's "
-                "tensors; use train.compile=none with it"
-            )
-        if tc.deterministic:
-            deterministic_kernels()
-        torch.manual_seed(self.seed)  # parameter initialization
-        self.model = make_model(self.args).to(self.device)
-        self.frozen_normalizers = bool(started_from) and started_from["normalizers"] == "keep"
-        if source is not None:
-            self.model.load_state_dict(source.model.state_dict())
-            for m in self.model.modules() if init_normalizers == "reaccumulate" else ():
-                if isinstance(m, Normalizer):
-                    m.reset()  # statistics counted afresh on this data
-        self.normalizer_steps = 0 if self.frozen_normalizers else tc.normalizer_steps
-        self.model.checkpoint_blocks = tc.checkpoint_blocks  # memory for recomputation
-        self.bf16 = tc.precision == "bf16"  # autocast forward and loss in bfloat16
-
-    def _build_data(self, data) -> None:
-        """The training frames and the validation trajectories."""
-        tc, cfg = self.tc, self.cfg
-        levels, remesh = uses_hierarchy(self.args, cfg.data.remesh)
-        self.radius = tc.contact_radius
-        self.frames = FrameDataset(
-            data,
-            "train",
-            self.adapter,
-            levels,
-            remesh,
-            self.radius,
-            tc.noise_std,
-            noise_gamma(cfg, self.adapter),
-            self.seed,
-            cfg.data.exclude_trajectories,
-            tc.noise_nodes,
-            in_memory=cfg.data.in_memory,
-            contact_free_weight=tc.contact_free_weight,
-        )
-        self.valid_trajs = (
-            load_split(data, "valid", self.adapter, levels, remesh, limit=tc.valid_trajectories)
-            if (Path(data) / "valid.h5").is_file()
-            else []
-        )
-
-    def _wrap_model(self) -> None:
-        """``self.net``: the model the step calls, under DDP with several processes, compiled: on the CPU in mode
-        ``default`` with symbolic sizes on the graphs as they are (no padding; one compiled graph for every mesh and
-        contact count, as rollouts), else on padded batches of static shapes (CUDA graphs need them)."""
-        self.net = self.model
-        if self.world > 1:
-            self.net = torch.nn.parallel.DistributedDataParallel(
-                self.model, device_ids=[self.device.index] if self.device.type == "cuda" else None
-            )
-        self.pad = None  # padded compiles: static shapes, padded batches, contact edges bucketed
-        self.dynamic = self.compile == "default" and self.device.type == "cpu"
-        if self.compile != "none":
-            self.pad = None if self.dynamic else pad_sizes(self.frames, self.tc.batch_size)
-            self.net = compile_simulator(self.net, self.compile, dynamic=self.dynamic)
 
     def _resume(self) -> None:
         """Model, optimizer, step and best score from the run's latest checkpoint (:func:`resume_state`)."""
@@ -275,16 +195,7 @@ class Trainer:
     def _loader(self, end: int):
         """This rank's batches of the steps up to ``end`` (pushforward items through the model, compiled if it is)."""
         sampler = StepSampler(self.frames, self.tc.batch_size, self.seed, self.step_count, end, self.world, self.rank)
-        forward = None  # eager: the model itself
-        if self.compile != "none":
-            net = (
-                self.net
-                if self.world == 1  # DDP's forward would sync buffers
-                else compile_simulator(self.model, self.compile, dynamic=self.dynamic)
-            )
-            forward = (
-                padded_forward(net, self.pad) if self.pad is not None else (lambda graph: net(graph, accumulate=False))
-            )
+        forward = item_forward(self.model, self.net, self.compile, self.world, self.dynamic, self.pad)
         pushforward = (
             (lambda key: self.frames.pushforward_item(key, self.model, self._pushforward_probability(), forward))
             if self.tc.pushforward > 0
@@ -355,14 +266,7 @@ class Trainer:
         return summary
 
     def _finish(self, times: list[float], loss: float) -> dict:
-        summary = {
-            "steps": self.step_count,
-            "final_loss": loss,
-            **{f"train_{k}": v for k, v in step_times(times).items()},
-            "best_valid_position_rmse_all": self.best if math.isfinite(self.best) else None,
-            "world_size": self.world,
-            "device": str(self.device),
-        }
+        summary = run_summary(self.step_count, loss, times, self.best, self.world, self.device)
         if self.rank == 0 and self.step_count == self.steps:
             if not self.folder.best.is_file():
                 self.save(self.folder.best)

@@ -17,8 +17,8 @@ import numpy as np
 from hcmt.data.format import Split, read_meta
 from hcmt.data.runs import RunFolder
 from hcmt.errors import InputError
-from hcmt.inference.evaluate import rollout_file
 from hcmt.inference.metrics import SCALE, step_rmse
+from hcmt.inference.rollout_files import rollout_file
 from hcmt.inference.run import Run
 from hcmt.viz.meshplot import new_figure, save_figure
 from hcmt.viz.rollouts import quantity_label, unique_labels

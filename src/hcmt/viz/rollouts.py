@@ -1,7 +1,7 @@
 """What the pictures show: one trajectory's ground truth beside the rollouts of one or more runs.
 
 A run's predictions live in ``RUN/rollout_<split>.h5`` (one group per trajectory, written by
-:func:`hcmt.inference.evaluate.run_rollouts`); when that file is missing, or lacks the trajectory asked for, it is
+:func:`hcmt.inference.rollout_files.run_rollouts`); when that file is missing, or lacks the trajectory asked for, it is
 rolled out first. Every series is checked against the dataset (node count, dimension, frame count) so a rollout of
 another dataset is refused rather than drawn on the wrong mesh.
 """
@@ -18,7 +18,7 @@ from hcmt.data.format import Split, read_meta
 from hcmt.data.runs import RunFolder
 from hcmt.errors import DatasetError, InputError
 from hcmt.graph.contact import object_ids
-from hcmt.inference.evaluate import rollout_file
+from hcmt.inference.rollout_files import rollout_file
 from hcmt.inference.run import Run, model_label
 
 
@@ -143,7 +143,7 @@ def load_case(
     progress: bool = True,
 ) -> Case:
     """The ground truth of one trajectory and every run's rollout of it (rolled out when missing, by the one cache
-    rule :func:`hcmt.inference.evaluate.rollout_for`; a bare :class:`RunFolder`'s file as it is)."""
+    rule :func:`hcmt.inference.rollout_files.rollout_for`; a bare :class:`RunFolder`'s file as it is)."""
     meta = read_meta(data)
     with Split(data, split, meta) as s:
         index = trajectory_index(s.names, trajectory)

@@ -2,9 +2,9 @@
 torch, scipy, scikit-learn or matplotlib, so that a mistake in the command line is one line in a fraction of a
 second, before the command's module (:data:`hcmt.cli.COMMANDS`) loads them. One module per command group, every
 name importable from here: :mod:`~hcmt.cli.parsers.common` (counts, shared options and checks),
-:mod:`~hcmt.cli.parsers.data` (generate, simulate, convert, info, hierarchy), :mod:`~hcmt.cli.parsers.train`
-(train, rollout, evaluate, compare), :mod:`~hcmt.cli.parsers.design` (predict, sweep, models, surrogate) and
-:mod:`~hcmt.cli.parsers.viz` (plot, export, demo).
+:mod:`~hcmt.cli.parsers.data` (generate, simulate), :mod:`~hcmt.cli.parsers.datasets` (convert, info, hierarchy),
+:mod:`~hcmt.cli.parsers.train` (train, rollout, evaluate, compare), :mod:`~hcmt.cli.parsers.design` (predict, sweep,
+models, surrogate) and :mod:`~hcmt.cli.parsers.viz` (plot, export, demo).
 
 Counts: every count option has its bound in its help, and a value outside it is refused in one line (one rule for
 all, no silent capping): ``--threads`` and ``--workers`` at most this machine's cores, trajectories per split
@@ -37,21 +37,23 @@ from hcmt.cli.parsers.common import (
     verify_arg,
 )
 from hcmt.cli.parsers.data import (
-    check_convert,
     check_generate,
-    check_hierarchy,
-    check_info,
     check_simulate,
-    configure_convert,
     configure_generate,
-    configure_hierarchy,
-    configure_info,
     configure_simulate,
     parse_families,
     plate_settings_of_args,
     range_overrides,
     settings_of_args,
     simulate_inputs,
+)
+from hcmt.cli.parsers.datasets import (
+    check_convert,
+    check_hierarchy,
+    check_info,
+    configure_convert,
+    configure_hierarchy,
+    configure_info,
 )
 from hcmt.cli.parsers.design import (
     check_options,

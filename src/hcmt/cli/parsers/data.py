@@ -1,4 +1,4 @@
-"""The arguments and first checks of ``hcmt generate``, ``simulate``, ``convert``, ``info`` and ``hierarchy``."""
+"""The arguments and first checks of ``hcmt generate`` and ``simulate``, the two commands that run the solver."""
 
 from __future__ import annotations
 
@@ -7,26 +7,22 @@ from dataclasses import asdict, fields
 from pathlib import Path
 
 from hcmt.cli import CommandError
-from hcmt.cli.parsers.common import MAX_LEVELS, check_folder, cores, cores_count, count, span
+from hcmt.cli.parsers.common import cores, cores_count, count, span
 from hcmt.config import MAX_TRAJECTORIES
 from hcmt.errors import clip
+from hcmt.sim.materials import MATERIALS, parse_stack
 from hcmt.sim.params import (
     CONTACT_RADIUS,
     FAMILIES,
     FORMULATIONS,
-    MATERIALS,
     MAX_ESTIMATED_SECONDS,
     PARAMETERS,
-    RANGES,
     Design,
     Settings,
-    checked_ranges,
-    describe_family,
     design_values,
-    parse_stack,
-    preset_design,
 )
 from hcmt.sim.plate_params import PlateSettings
+from hcmt.sim.sampling import RANGES, checked_ranges, describe_family, preset_design
 
 
 # -- generate, simulate ---------------------------------------------------------------------------------------------
@@ -297,55 +293,3 @@ def simulate_inputs(args) -> tuple[Design, Settings]:
 
 
 check_simulate = simulate_inputs
-
-
-# -- convert, info, hierarchy --------------------------------------------------------------------------------------
-def configure_convert(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("src", help="TFRecord dataset folder (meta.json + <split>.tfrecord) or GGNS pickle(s)")
-    parser.add_argument("out", help="output folder for the native dataset (meta.json + <split>.h5)")
-
-
-def check_convert(args) -> None:
-    if not Path(args.src).exists():
-        raise CommandError(
-            f"SRC {args.src}: no such file or folder; expected a TFRecord dataset folder or GGNS pickle(s)"
-        )
-
-
-def configure_info(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("dataset", help="native dataset folder (meta.json + <split>.h5)")
-    parser.add_argument(
-        "--all",
-        action="store_true",
-        help="list every design parameter on its own line, the "
-        "constant ones too (default: the varying ones, the constants in one line)",
-    )
-
-
-def check_info(args) -> None:
-    check_folder("DATASET", args.dataset, "a native dataset folder (meta.json + <split>.h5)")
-
-
-def configure_hierarchy(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("dataset", metavar="DATASET", help="native dataset folder (meta.json + <split>.h5)")
-    parser.add_argument(
-        "--levels",
-        type=count(0, MAX_LEVELS),
-        required=True,
-        metavar="N",
-        help=f"number of pooled levels lambda, {span(0, MAX_LEVELS)} (paper: 6 for Impact Plate, 2 "
-        "Deforming Plate, 4 Sphere Simple, 1 Deformable Plate)",
-    )
-    parser.add_argument("--json", metavar="FILE", help="also write the table as JSON: one object per level 0..L")
-    parser.add_argument("--split", default="train", help="split to read (default: train)")
-    parser.add_argument(
-        "--trajectories",
-        type=count(0, MAX_TRAJECTORIES),
-        default=0,
-        metavar="N",
-        help=f"use the first N trajectories, {span(0, MAX_TRAJECTORIES)} (default 0: all)",
-    )
-    parser.add_argument("--no-cache", action="store_true", help="do not read or write DATASET/.cache/hierarchy")
-
-
-check_hierarchy = check_info

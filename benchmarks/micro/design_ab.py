@@ -11,7 +11,9 @@ seeded), in an order that alternates between rounds, so the three see the same l
 ``check_designs(run, designs)`` with the checkout's defaults (what a user of ``hcmt predict --designs`` gets: the
 old batch of 8 and eager model; the new one's ``DESIGN_BATCH`` and ``compile="auto"``); its time per design is the
 call's wall time over the designs, compilation included, and ``steady_s`` the median per design after the first chunk
-(compilation excluded). The solver's time per design is each simulation's wall time.
+(compilation excluded). The solver's time per design is each simulation's wall time, the solver run as ``hcmt
+simulate`` runs it (the training data's settings, its between-frame peak recording off unless the model learned
+``stress_max``).
 """
 
 from __future__ import annotations
@@ -42,7 +44,8 @@ run = Run.load(job["model"], "cpu")
 if job["side"] == "solver":
     from hcmt.design.inputs import settings_of
     from hcmt.sim.driver import simulate
-    settings = settings_of(run.meta)
+    # as a user runs it (hcmt simulate): the between-frame peaks recorded only where a stress_max model reads them
+    settings = dataclasses.replace(settings_of(run.meta), peak_stress=run.adapter.stress_field == "stress_max")
     per = []
     for _, d in designs:
         t0 = time.perf_counter(); simulate(d, settings); per.append(time.perf_counter() - t0)

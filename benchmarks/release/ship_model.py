@@ -33,7 +33,6 @@ from hcmt.design.check import check_designs, predict  # noqa: E402
 from hcmt.design.inputs import region_of  # noqa: E402
 from hcmt.design.reports import format_table  # noqa: E402
 from hcmt.design.surrogate import Surrogate  # noqa: E402
-from hcmt.design.verification import verify_to_json  # noqa: E402
 from hcmt.inference.evaluate import evaluate  # noqa: E402
 from hcmt.inference.run import Run  # noqa: E402
 from hcmt.sim.params import parse_design  # noqa: E402
@@ -161,7 +160,7 @@ def main() -> None:
             k: metrics.to_json()[k]
             for k in ("split", "trajectories", "position", "stress", "inference_ms_per_step", "physics")
         },
-        "verify": None if check.verified is None else verify_to_json(check.verified),
+        "verify": None if check.verified is None else check.verified.to_json(),
         "per_design": [{"name": q.name, **q.summary.to_json()} for q in check.preds],
         "sweeps": sweeps,
         "predict_wall_s_total": check.wall_s,

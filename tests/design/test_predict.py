@@ -18,6 +18,7 @@ from hcmt.design.check import Prediction, check_designs, design_trajectory, pred
 from hcmt.design.inputs import settings_of
 from hcmt.design.reports import format_table, to_json
 from hcmt.design.start import initial_frames, start_frames
+from hcmt.design.verification import SOLVER_AS_SIMULATE, SOLVER_RECORDING
 from hcmt.inference.metrics import plate_mask
 from hcmt.inference.rollout import rollout
 from hcmt.inference.run import Run
@@ -25,6 +26,7 @@ from hcmt.sim.driver import simulate
 from hcmt.sim.params import Design, Settings, parse_design
 from hcmt.sim.sampling import middle_design, sample_design
 from hcmt.training import train
+from summaries import type_errors
 
 pytestmark = pytest.mark.slow  # trained runs and solver verification
 
@@ -223,22 +225,69 @@ def test_model_and_solver_alternate_per_chunk_and_the_note_says_so(tiny_run, mon
         ("solver", ["d2"]),
         ("solver", ["d3"]),
     ]
-    measured = check.verified["speedup_measured"]
-    assert measured["interleaved"] and measured["batch"] == 2 and measured["chunks"] == 2
-    assert measured["threads"] == torch.get_num_threads() and measured["device"] == "cpu"
+    assert check.verified is not None and check.verified.speedup_measured is not None
+    assert type_errors(check.verified) == []
+    measured = check.verified.speedup_measured
+    assert measured.interleaved and measured.batch == 2 and measured.chunks == 2
+    assert measured.threads == torch.get_num_threads() and measured.device == "cpu"
     assert (
-        "model and solver alternating per chunk of 2 designs (2 chunks" in check.verified["note"]
-        and measured["how"] in check.verified["note"]
+        "model and solver alternating per chunk of 2 designs (2 chunks" in check.verified.note
+        and measured.how in check.verified.note
     )
-    assert f"{torch.get_num_threads()} torch thread" in measured["how"]
-    assert to_json(check.preds, check.verified, run.source, "cpu", check)["verify"]["speedup_measured"] == measured
+    assert f"{torch.get_num_threads()} torch thread" in measured.how
+    # the tiny model learned the frame stress: the solver ran as `hcmt simulate` runs it, and the words say so
+    assert measured.solver == SOLVER_AS_SIMULATE and measured.solver in measured.how
+    got = to_json(check.preds, check.verified, run.source, "cpu", check)["verify"]["speedup_measured"]
+    assert got == measured.to_json() and list(got) == [
+        "how",
+        "interleaved",
+        "batch",
+        "chunks",
+        "device",
+        "threads",
+        "solver",
+    ]
     assert "speedup = solver ÷ model wall time per design, model and solver alternating" in format_table(
         check.preds, check.verified
     )
     # one chunk holding every design cannot alternate, and says so
     one = check_designs(run, designs[:2], batch=2, verify=True, progress=False, surrogate=False)
-    assert not one.verified["speedup_measured"]["interleaved"]
-    assert "not alternating: the model's one batch of 2 designs, then the solver" in one.verified["note"]
+    assert one.verified is not None and one.verified.speedup_measured is not None
+    assert not one.verified.speedup_measured.interleaved
+    assert "not alternating: the model's one batch of 2 designs, then the solver" in one.verified.note
+
+
+@pytest.mark.parametrize("field_", ["stress", "stress_max"])
+def test_the_verify_solver_records_between_frame_peaks_only_when_the_comparison_reads_them(
+    tiny_run, monkeypatch, field_
+):
+    """Training data made with --peak-stress (as the shipped model's was): a model that learned the frame stress is
+    compared with the solver as `hcmt simulate` runs it (no between-frame peak recording: the speedup divides by the
+    solver a user runs), a stress_max model with the recording it reads; the speedup's words say which."""
+    run = Run.load(tiny_run, "cpu")
+    run.meta = {**run.meta, "generator": {**run.meta["generator"]}}
+    run.meta["generator"]["settings"] = {**run.meta["generator"]["settings"], "peak_stress": True}
+    run.adapter = replace(run.adapter, stress_field=field_)
+    seen, real_simulate = [], verification.simulate
+
+    def simulate_(design, settings):
+        seen.append(settings)
+        return real_simulate(design, settings)
+
+    monkeypatch.setattr(verification, "simulate", simulate_)
+    check = check_designs(run, [("d", middle_design(run.meta))], verify=True, progress=False, surrogate=False)
+    recording = field_ == "stress_max"
+    assert settings_of(run.meta).peak_stress and seen == [replace(settings_of(run.meta), peak_stress=recording)]
+    assert check.verified is not None and check.verified.speedup_measured is not None
+    measured = check.verified.speedup_measured
+    assert (
+        measured.solver == (SOLVER_RECORDING if recording else SOLVER_AS_SIMULATE) and measured.solver in measured.how
+    )
+    assert ("the solver with between-frame peak recording, which the comparison reads" in measured.how) == recording
+    assert measured.how in format_table(check.preds, check.verified) and measured.how in check.verified.note
+    assert to_json(check.preds, check.verified, run.source, "cpu", check)["verify"]["speedup_measured"]["solver"] == (
+        measured.solver
+    )
 
 
 @pytest.mark.parametrize("name", sorted(available_pretrained()) or ["<none shipped>"])

@@ -117,9 +117,7 @@ def test_verify_prints_each_quantity_once():
         assert text.count(name) == 1, (name, text)
     row = preds[0].summary.verify
     assert row.peak_plate_stress_error_pct == pytest.approx(100 * (1 / 1.2 - 1))
-    assert (
-        verified["peak_plate_stress_error_pct"]["median"] == verified["physics"].peak_plate_stress_error_pct.median_abs
-    )
+    assert verified.peak_plate_stress_error_pct.median == verified.physics.peak_plate_stress_error_pct.median_abs
 
 
 def test_the_verify_block_is_typed_and_its_json_keys_are_the_ones_the_dict_wrote():

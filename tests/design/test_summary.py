@@ -142,7 +142,7 @@ def test_the_json_keys_and_every_fields_type_on_a_real_run():
     from hcmt.design.check import check_designs
     from hcmt.design.inputs import design_for
     from hcmt.design.reports import to_json
-    from hcmt.design.verification import verify_row
+    from hcmt.design.verification import VerifySummary, verify_row
     from hcmt.inference.run import Run
 
     run = Run.load("pretrained:impact_plate_small", "cpu")
@@ -158,6 +158,9 @@ def test_the_json_keys_and_every_fields_type_on_a_real_run():
         if c.truth:
             assert type_errors(c.truth[0].summary) == [] and isinstance(c.preds[0].summary.verify, VerifyRow)
             assert type_errors(verify_row(c.preds[0], c.truth[0])[1]) == []  # the physics block: ImpactMetrics
+            # the summary over designs: a VerifySummary of Stats, its physics an ImpactSummary, how it was measured
+            assert isinstance(c.verified, VerifySummary) and type_errors(c.verified) == []
+            assert c.verified.speedup_measured is not None and c.verified.readout_errors  # the contact read-out's
         got = list(to_json(c.preds, c.verified, run.source, "cpu", c)["designs"][0])
         assert got == RECORDED[f"{tag}_json"], tag
 

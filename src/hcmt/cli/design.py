@@ -175,34 +175,37 @@ def trained_families(meta: dict | None) -> dict[str, int]:
     return {k: listed.count(k) for k in dict.fromkeys(listed)}
 
 
+def model_card(name: str, path: Path) -> dict:
+    """The card ``hcmt models`` prints (or writes as JSON) of the shipped model ``name``, its file ``path``."""
+    run = Run.load(f"pretrained:{name}", "cpu")
+    defaults = middle_design(run.meta, run.ranges)
+    settings = settings_of(run.meta)
+    surrogate = run_surrogate_path(run)
+    return {
+        "file": str(path),
+        "size_mb": path.stat().st_size / 1e6,
+        **run.card,
+        "window": {"frames": settings.frames, "frame_dt_ms": settings.frame_dt},
+        "surrogate": str(surrogate) if surrogate is not None and surrogate.is_file() else None,
+        "families": trained_families(run.meta),
+        "model_interval": interval_card(run),
+        "design_parameters": {
+            k: {
+                "training_range": list(run.ranges[k]) if k in run.ranges else None,
+                "default": getattr(defaults, k),
+                "unit": DESIGN_UNITS[k],
+            }
+            for k in DESIGN_KEYS
+        },
+    }
+
+
 def main_models(args: argparse.Namespace) -> int:
     shipped = available_pretrained()
     if not shipped:
         print("no shipped models in this installation")
         return 0
-    cards = {}
-    for name, path in shipped.items():
-        run = Run.load(f"pretrained:{name}", "cpu")
-        defaults = middle_design(run.meta, run.ranges)
-        settings = settings_of(run.meta)
-        surrogate = run_surrogate_path(run)
-        cards[name] = {
-            "file": str(path),
-            "size_mb": path.stat().st_size / 1e6,
-            **run.card,
-            "window": {"frames": settings.frames, "frame_dt_ms": settings.frame_dt},
-            "surrogate": str(surrogate) if surrogate is not None and surrogate.is_file() else None,
-            "families": trained_families(run.meta),
-            "model_interval": interval_card(run),
-            "design_parameters": {
-                k: {
-                    "training_range": list(run.ranges[k]) if k in run.ranges else None,
-                    "default": getattr(defaults, k),
-                    "unit": DESIGN_UNITS[k],
-                }
-                for k in DESIGN_KEYS
-            },
-        }
+    cards = {name: model_card(name, path) for name, path in shipped.items()}
     if args.json:
         print(json.dumps(cards, indent=2))
         return 0

@@ -54,10 +54,12 @@ from hcmt.design.summary import Summary, SurrogateAnswer
 from hcmt.design.surrogate import Surrogate
 from hcmt.design.surrogate_use import for_run, side_by_side
 from hcmt.design.verification import (  # noqa: F401 (re-exported)
+    VerifySummary,
     solve,
     speedup_measured,
     verify_designs,
     verify_row,
+    verify_settings,
 )
 from hcmt.errors import InputError
 from hcmt.sim.cost import check_cost, check_size
@@ -73,7 +75,7 @@ class Check:
 
     preds: list[Prediction]
     truth: list[Prediction | None] | None
-    verified: dict | None
+    verified: VerifySummary | None
     settings: Settings
     wall_s: float  # the model's wall time over all designs (its chunks' rollouts, the solver's runs not counted)
     surrogate: str | None = None  # where the surrogate came from (None: no surrogate)
@@ -252,8 +254,8 @@ def check_designs(
         if intervals and ends_window and readout == "contact"
         else None
     )
-    field_ = run.adapter.stress_field  # stress_max: the solver records it as the model learned it
-    solver_settings = replace(settings, peak_stress=True) if field_ == "stress_max" else settings
+    field_ = run.adapter.stress_field  # stress_max: the solver records the between-frame peaks the model learned
+    solver_settings = verify_settings(settings, field_)  # else it runs as `hcmt simulate` does
     # The speedup compares the solver's wall time with the model's, so both are measured under the same load: the
     # model and the solver alternate per chunk of ``batch`` designs, so a change of load on a shared machine slows
     # both alike. Everything after the rollout is per design (warnings, the surrogate beside the model, margin,
@@ -283,7 +285,7 @@ def check_designs(
             add_calls(chunk, yield_mpa, trust, run.ranges)
             truth += solve_chunk(chunk, verify, solver_settings, field_, solver_bar)
     solved = [(p, t) for p, t in zip(preds, truth) if t is not None]  # the designs the solver ran
-    measured = speedup_measured(batch, len(designs), verify, str(run.device), torch.get_num_threads())
+    measured = speedup_measured(batch, len(designs), verify, str(run.device), torch.get_num_threads(), solver_settings)
     verified = verify_designs([p for p, _ in solved], [t for _, t in solved], measured) if solved else None
     final_calls(preds, truth if verify else None, yield_mpa)
     return Check(

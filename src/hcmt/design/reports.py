@@ -14,7 +14,7 @@ from hcmt.config import plural
 from hcmt.design.check import Check, Prediction, weak_reasons
 from hcmt.design.readout import contact_note, readout_key
 from hcmt.design.summary import Summary, SurrogateAnswer
-from hcmt.design.verification import verify_to_json
+from hcmt.design.verification import VerifySummary
 from hcmt.files import atomic_path
 from hcmt.inference.physics import format_physics
 from hcmt.sim.params import DESIGN_KEYS
@@ -97,32 +97,30 @@ def table_rows(preds: list[Prediction]) -> tuple[list[str], list[list[str]]]:
     return head, rows
 
 
-def format_table(preds: list[Prediction], verified: dict | None = None) -> str:
+def format_table(preds: list[Prediction], verified: VerifySummary | None = None) -> str:
     head, rows = table_rows(preds)
     width = [max(len(h), *(len(r[i]) for r in rows)) for i, h in enumerate(head)]
     lines = ["  ".join(h.rjust(w) for h, w in zip(head, width))]
     lines += ["  ".join(c.rjust(w) for c, w in zip(r, width)) for r in rows]
-    if verified:
+    if verified is not None:
         v = verified
         lines.append(
-            f"against the solver over {plural(v['designs'], 'design')}: location of the plate's peak median "
-            f"{v['peak_plate_location_error_mm']['median']:.2f} mm off, speedup median {v['speedup']['median']:.1f}x"
+            f"against the solver over {plural(v.designs, 'design')}: location of the plate's peak median "
+            f"{v.peak_plate_location_error_mm.median:.2f} mm off, speedup median {v.speedup.median:.1f}x"
         )
         lines.append(
             f"  rise time (first frame at 95 % of the plate's peak): median "
-            f"{v['peak_plate_t95_frame_error']['median']:.1f} frames off; the critical node's stress history, "
-            f"model against solver: correlation median {v['critical_node_history_correlation']['median']:.2f} "
-            f"(lowest {v['critical_node_history_correlation']['min']:.2f})"
+            f"{v.peak_plate_t95_frame_error.median:.1f} frames off; the critical node's stress history, "
+            f"model against solver: correlation median {v.critical_node_history_correlation.median:.2f} "
+            f"(lowest {v.critical_node_history_correlation.min:.2f})"
         )
-        if "speedup_measured" in v:
-            lines.append(f"  speedup = solver ÷ model wall time per design, {v['speedup_measured']['how']}")
+        if v.speedup_measured is not None:
+            lines.append(f"  speedup = solver ÷ model wall time per design, {v.speedup_measured.how}")
         lines += [
-            f"  {k.split('_peak')[0]} read-out's peak plate stress error median {e['median']:.1f} % (worst "
-            f"{e['max']:.1f} %)"
-            for k, e in v.items()
-            if k.endswith("_peak_plate_stress_error_pct")
+            f"  {k.split('_peak')[0]} read-out's peak plate stress error median {e.median:.1f} % (worst {e.max:.1f} %)"
+            for k, e in v.readout_errors.items()
         ]
-        lines += [line[2:] for line in format_physics(v["physics"])]
+        lines += [line[2:] for line in format_physics(v.physics)]
     lines += [
         f"solver warning: {p.name}: {w}" for p in preds for w in verify_block(p.summary).get("solver_warnings", [])
     ]
@@ -231,7 +229,11 @@ def write_csv(preds: list[Prediction], path: str | Path) -> Path:
 
 
 def to_json(
-    preds: list[Prediction], verified: dict | None, run_source: str, device: str, check: "Check | None" = None
+    preds: list[Prediction],
+    verified: VerifySummary | None,
+    run_source: str,
+    device: str,
+    check: "Check | None" = None,
 ) -> dict:
     """The design check as JSON: per design its parameters and summary (the model's own answer, a derived
     read-out's fields under their own names, the surrogate's answers, ``disagreement``, the calls, the plate's
@@ -244,7 +246,7 @@ def to_json(
         "designs": [
             {"name": p.name, "design": asdict(p.design), **p.summary.to_json(), "notes": weak_reasons(p)} for p in preds
         ],
-        **({"verify": verify_to_json(verified)} if verified else {}),
+        **({"verify": verified.to_json()} if verified is not None else {}),
     }
     if check is not None:
         out["readout"] = check.readout

@@ -67,18 +67,11 @@ def evaluate(
             if run.adapter.stress_field in truth:  # the field the model learned (data.stress_field)
                 truth["stress"] = truth[run.adapter.stress_field]
             g = f[name]
-            start = int(g.attrs["start"])
-            position = Rmse(**rollout_rmse(g["world_pos"][()], truth["world_pos"], start))
-            stress: Rmse | None = None
-            phys: ImpactMetrics | None = None
-            if "stress" in g and "stress" in truth:
-                stress = Rmse(**rollout_rmse(g["stress"][()], truth["stress"], start))
+            row, steps = _trajectory_metrics(name, g, truth, meta.get("dataset") == "impact_plate")
             ms.append(float(g.attrs["ms_per_step"]))
-            if meta.get("dataset") == "impact_plate" and stress is not None:
-                phys, steps = impact_physics(g["world_pos"][()], g["stress"][()], truth, start)
-                for key, curve in steps.items():
-                    by_step[key].append(curve)
-            rows.append(TrajectoryMetrics(trajectory=name, position=position, stress=stress, physics=phys))
+            for key, curve in steps.items():
+                by_step[key].append(curve)
+            rows.append(row)
     physics = [r.physics for r in rows if r.physics is not None]
     units = meta.get("units") or {}
 
@@ -105,6 +98,22 @@ def evaluate(
     with atomic_path(folder.metrics_path(split, data)) as tmp:  # one file per split: never overwrites another's
         tmp.write_text(json.dumps(metrics.to_json(), indent=2))
     return metrics
+
+
+def _trajectory_metrics(
+    name: str, g: h5py.Group, truth: dict, impact: bool
+) -> tuple[TrajectoryMetrics, dict[str, list[float]]]:
+    """One rollout's (``g``) metrics against its trajectory ``truth``, and (``impact``) its error by step."""
+    start = int(g.attrs["start"])
+    position = Rmse(**rollout_rmse(g["world_pos"][()], truth["world_pos"], start))
+    stress: Rmse | None = None
+    phys: ImpactMetrics | None = None
+    steps: dict[str, list[float]] = {}
+    if "stress" in g and "stress" in truth:
+        stress = Rmse(**rollout_rmse(g["stress"][()], truth["stress"], start))
+    if impact and stress is not None:
+        phys, steps = impact_physics(g["world_pos"][()], g["stress"][()], truth, start)
+    return TrajectoryMetrics(trajectory=name, position=position, stress=stress, physics=phys), steps
 
 
 def validation_rmse(model, adapter, trajs, radius: float) -> dict:

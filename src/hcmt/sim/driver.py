@@ -15,7 +15,7 @@ from hcmt.sim.cost import check_size
 from hcmt.sim.explicit import CentralDifference
 from hcmt.sim.params import Design, Settings
 from hcmt.sim.scene import design_mesh, fem_model, fixed_dofs, static_fields
-from hcmt.sim.solver import deformation, nodal_von_mises, stable_time_step
+from hcmt.sim.solver import FEModel, deformation, nodal_von_mises, stable_time_step
 
 
 @dataclass(frozen=True)
@@ -102,15 +102,7 @@ def simulate(design: Design, settings: Settings = Settings(), *, progress=None) 
         elif k:
             sim.step(substeps)
         world_pos[k] = sim.x
-        F11, F12, F21, F22, F33 = deformation(model, sim.x)
-        inverted = np.flatnonzero((F11 * F22 - F12 * F21) * F33 <= 0)
-        if len(inverted) or not np.isfinite(sim.x).all():
-            what = f"element {int(inverted[0])} inverted" if len(inverted) else "positions became non-finite"
-            raise SolverError(
-                f"solve stopped at frame {k} (t = {k * settings.frame_dt:.4g} ms): {what}; the design "
-                "is outside what the explicit solver handles (see the validated ranges in "
-                "docs/solver.md)"
-            )
+        _check_frame(model, sim.x, k, settings.frame_dt)
         stress[k, :, 0] = nodal_von_mises(model, sim.x)
         if peak is not None and k == 0:
             peak[0] = stress[0]
@@ -135,3 +127,16 @@ def simulate(design: Design, settings: Settings = Settings(), *, progress=None) 
         energy={k: float(v) for k, v in sim.energies().items()},
     )
     return SimResult(fields_, attrs, info)
+
+
+def _check_frame(model: FEModel, x: np.ndarray, k: int, frame_dt: float) -> None:
+    """Raise :class:`SolverError` if frame ``k``'s positions ``x`` invert an element or are not finite."""
+    F11, F12, F21, F22, F33 = deformation(model, x)
+    inverted = np.flatnonzero((F11 * F22 - F12 * F21) * F33 <= 0)
+    if len(inverted) or not np.isfinite(x).all():
+        what = f"element {int(inverted[0])} inverted" if len(inverted) else "positions became non-finite"
+        raise SolverError(
+            f"solve stopped at frame {k} (t = {k * frame_dt:.4g} ms): {what}; the design "
+            "is outside what the explicit solver handles (see the validated ranges in "
+            "docs/solver.md)"
+        )

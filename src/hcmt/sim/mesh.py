@@ -136,50 +136,19 @@ def impact_plate_mesh(
     hb = _impactor_size(
         layers, ball_radius, mesh_size, plate_half_length, gap, ball_mesh_size, support_radius, impactor
     )
-    if plate_layers is not None or plate_y_growth != 1.0:  # one block with its own rows (the Hertz check)
-        if len(layers) > 1 or support_radius > 0 or backing_thickness > 0:
-            raise InputError("plate_layers and plate_y_growth make one clamped block: no stack, ring or backing")
-        p_pos, p_cells = plate_mesh(
-            layers[0],
-            plate_half_length,
-            mesh_size,
-            layers=plate_layers,
-            growth=plate_growth,
-            h_max=plate_h_max,
-            y_growth=plate_y_growth,
-        )
-        bounds = np.array([0.0, layers[0]])
-    else:
-        p_pos, p_cells, bounds = _stack_mesh(
-            layers, plate_half_length, mesh_size, plate_growth, plate_h_max, support_radius, backing_thickness
-        )
-    if impactor == "pen":
-        b_pos, b_cells = pen_tip_mesh(ball_radius, hb, ball_radius + gap)
-    else:
-        b_pos, b_cells = ball_mesh(ball_radius, hb, ball_radius + gap, growth=ball_growth, h_max=ball_h_max)
-    pos = np.concatenate([p_pos, b_pos])
-    cells = np.concatenate([p_cells, b_cells + len(p_pos)])
-    body = np.concatenate([np.zeros(len(p_pos), np.int64), np.ones(len(b_pos), np.int64)])
-    node_type = _node_types(
-        pos, body, bounds, float(np.sum(layers)), plate_half_length, support_radius, backing_thickness
+    plate = _plate_part(
+        layers,
+        plate_half_length,
+        mesh_size,
+        plate_growth,
+        plate_h_max,
+        support_radius,
+        backing_thickness,
+        plate_layers,
+        plate_y_growth,
     )
-    cell_body = np.concatenate([np.zeros(len(p_cells), np.int64), np.ones(len(b_cells), np.int64)])
-    centroid_depth = -p_pos[p_cells, 1].mean(1)
-    cell_layer = np.concatenate([np.searchsorted(bounds[1:-1], centroid_depth), np.full(len(b_cells), -1)]).astype(
-        np.int64
-    )
-    rigid = np.zeros(len(pos), bool)
-    if impactor == "pen":
-        rigid[len(p_pos) :] = np.abs(b_pos[:, 1] - (ball_radius + gap)) < 1e-9 * ball_radius
-    return dict(
-        mesh_pos=pos,
-        cells=cells,
-        node_type=node_type,
-        body=body,
-        cell_body=cell_body,
-        cell_layer=cell_layer,
-        rigid=rigid,
-    )
+    tip = _impactor_part(impactor, ball_radius, hb, ball_radius + gap, ball_growth, ball_h_max)
+    return _joined(plate, tip, float(np.sum(layers)), plate_half_length, support_radius, backing_thickness)
 
 
 def _impactor_size(
@@ -219,7 +188,7 @@ def _impactor_size(
     return hb
 
 
-def _stack_mesh(
+def _plate_part(
     layers: list[float],
     plate_half_length: float,
     mesh_size: float,
@@ -227,9 +196,25 @@ def _stack_mesh(
     plate_h_max: float | None,
     support_radius: float,
     backing_thickness: float,
+    plate_layers: int | None,
+    plate_y_growth: float,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(positions, cells, layer bounds from the top face down) of the plate: the layers' rows (:func:`layer_rows`),
-    a backing under them, the ring's radius on a grid line."""
+    """(positions, cells, layer bounds from the top face down) of the plate: one block with its own rows when
+    ``plate_layers`` or ``plate_y_growth`` is given (:func:`plate_mesh`, the Hertz check), else the layers' rows
+    (:func:`layer_rows`), a backing under them, the ring's radius on a grid line."""
+    if plate_layers is not None or plate_y_growth != 1.0:  # one block with its own rows (the Hertz check)
+        if len(layers) > 1 or support_radius > 0 or backing_thickness > 0:
+            raise InputError("plate_layers and plate_y_growth make one clamped block: no stack, ring or backing")
+        p_pos, p_cells = plate_mesh(
+            layers[0],
+            plate_half_length,
+            mesh_size,
+            layers=plate_layers,
+            growth=plate_growth,
+            h_max=plate_h_max,
+            y_growth=plate_y_growth,
+        )
+        return p_pos, p_cells, np.array([0.0, layers[0]])
     rows = layer_rows(layers, mesh_size)
     depth = [np.linspace(0.0, t, n + 1)[1:] for t, n in zip(layers, rows)]
     bounds = np.concatenate([[0.0], np.cumsum(layers)])
@@ -244,6 +229,48 @@ def _stack_mesh(
         xs[j] = support_radius
     p_pos, p_cells = structured_triangles(xs, -depth[::-1])
     return p_pos, p_cells, bounds
+
+
+def _impactor_part(
+    impactor: str, radius: float, mesh_size: float, center_y: float, growth: float, h_max: float | None
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(positions, cells, rigid nodes) of the impactor: a ball, none rigid, or a pen's tip, its top face rigid."""
+    if impactor == "pen":
+        b_pos, b_cells = pen_tip_mesh(radius, mesh_size, center_y)
+        return b_pos, b_cells, np.abs(b_pos[:, 1] - center_y) < 1e-9 * radius
+    b_pos, b_cells = ball_mesh(radius, mesh_size, center_y, growth=growth, h_max=h_max)
+    return b_pos, b_cells, np.zeros(len(b_pos), bool)
+
+
+def _joined(
+    plate: tuple[np.ndarray, np.ndarray, np.ndarray],
+    tip: tuple[np.ndarray, np.ndarray, np.ndarray],
+    panel_depth: float,
+    plate_half_length: float,
+    support_radius: float,
+    backing_thickness: float,
+) -> dict[str, np.ndarray]:
+    """:func:`impact_plate_mesh`'s arrays from its plate and impactor parts: plate first, node types of the support."""
+    (p_pos, p_cells, bounds), (b_pos, b_cells, b_rigid) = plate, tip
+    pos = np.concatenate([p_pos, b_pos])
+    cells = np.concatenate([p_cells, b_cells + len(p_pos)])
+    body = np.concatenate([np.zeros(len(p_pos), np.int64), np.ones(len(b_pos), np.int64)])
+    node_type = _node_types(pos, body, bounds, panel_depth, plate_half_length, support_radius, backing_thickness)
+    cell_body = np.concatenate([np.zeros(len(p_cells), np.int64), np.ones(len(b_cells), np.int64)])
+    centroid_depth = -p_pos[p_cells, 1].mean(1)
+    cell_layer = np.concatenate([np.searchsorted(bounds[1:-1], centroid_depth), np.full(len(b_cells), -1)]).astype(
+        np.int64
+    )
+    rigid = np.concatenate([np.zeros(len(p_pos), bool), b_rigid])
+    return dict(
+        mesh_pos=pos,
+        cells=cells,
+        node_type=node_type,
+        body=body,
+        cell_body=cell_body,
+        cell_layer=cell_layer,
+        rigid=rigid,
+    )
 
 
 def _node_types(

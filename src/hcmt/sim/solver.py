@@ -96,16 +96,7 @@ def build_model(
     rho, E, nu = (np.broadcast_to(np.asarray(v, float), (C,)).copy() for v in (density, modulus, poisson))
     check_material("element", rho, E, nu)
     p = X[cells]  # [C,3,2]
-    # grad N_a = perp(x_c - x_b) / (2A) for the cyclic triple (a, b, c)
-    nxt, prv = p[:, [1, 2, 0]], p[:, [2, 0, 1]]
-    A = 0.5 * (
-        (p[:, 1, 0] - p[:, 0, 0]) * (p[:, 2, 1] - p[:, 0, 1]) - (p[:, 1, 1] - p[:, 0, 1]) * (p[:, 2, 0] - p[:, 0, 0])
-    )
-    if np.any(A <= 0):
-        bad = np.flatnonzero(A <= 0)[:5]
-        raise InputError(f"cells must be counter-clockwise with positive area; cells {bad.tolist()} are not")
-    dNdX = (nxt[..., 1] - prv[..., 1]) / (2 * A[:, None])  # [C,3]
-    dNdY = (prv[..., 0] - nxt[..., 0]) / (2 * A[:, None])
+    A, dNdX, dNdY, altitude = _triangle_geometry(p)
     Rc = p[:, :, 0].mean(1)
     if formulation == "axisymmetric":
         if np.any(X[:, 0] < -1e-9):
@@ -114,15 +105,9 @@ def build_model(
     else:
         Rc = np.ones(C)
         W = A.copy()
-    blocks = 3 if formulation == "axisymmetric" else 2  # the centroid-average rows only carry the hoop stretch
-    rows = np.concatenate([np.repeat(np.arange(C), 3) + k * C for k in range(blocks)])
-    cols = np.tile(cells.ravel(), blocks)
-    vals = np.concatenate([dNdX.ravel(), dNdY.ravel(), np.full(3 * C, 1.0 / 3.0)][:blocks])
-    D = sp.csr_matrix((vals, (rows, cols)), shape=(blocks * C, N))
+    D = _gradient_operator(cells, dNdX, dNdY, N, formulation)
     lam, mu = lame(E, nu)
     c = np.sqrt((lam + 2 * mu) / rho)
-    edge = np.linalg.norm(nxt - p, axis=2)  # edge a -> a+1, opposite vertex a+2
-    altitude = (2 * A[:, None] / edge).min(1)
     mass = np.bincount(cells.ravel(), weights=np.repeat(rho * W / 3.0, 3), minlength=N)
     avg = sp.csr_matrix((np.repeat(A, 3), (cells.ravel(), np.repeat(np.arange(C), 3))), shape=(N, C))
     deg = np.asarray(avg.sum(1)).ravel()
@@ -144,6 +129,34 @@ def build_model(
         nodal_average=avg.tocsr(),
         bulk_viscosity=float(bulk_viscosity),
     )
+
+
+def _triangle_geometry(p: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """(area [C], dN/dX [C,3], dN/dY [C,3], smallest altitude [C]) of triangles ``p`` [C,3,2], counter-clockwise."""
+    # grad N_a = perp(x_c - x_b) / (2A) for the cyclic triple (a, b, c)
+    nxt, prv = p[:, [1, 2, 0]], p[:, [2, 0, 1]]
+    A = 0.5 * (
+        (p[:, 1, 0] - p[:, 0, 0]) * (p[:, 2, 1] - p[:, 0, 1]) - (p[:, 1, 1] - p[:, 0, 1]) * (p[:, 2, 0] - p[:, 0, 0])
+    )
+    if np.any(A <= 0):
+        bad = np.flatnonzero(A <= 0)[:5]
+        raise InputError(f"cells must be counter-clockwise with positive area; cells {bad.tolist()} are not")
+    dNdX = (nxt[..., 1] - prv[..., 1]) / (2 * A[:, None])  # [C,3]
+    dNdY = (prv[..., 0] - nxt[..., 0]) / (2 * A[:, None])
+    edge = np.linalg.norm(nxt - p, axis=2)  # edge a -> a+1, opposite vertex a+2
+    return A, dNdX, dNdY, (2 * A[:, None] / edge).min(1)
+
+
+def _gradient_operator(
+    cells: np.ndarray, dNdX: np.ndarray, dNdY: np.ndarray, N: int, formulation: str
+) -> sp.csr_matrix:
+    """The operator ``D`` [3C, N] (dN/dX, dN/dY and centroid-average rows; no hoop rows in plane strain)."""
+    C = len(cells)
+    blocks = 3 if formulation == "axisymmetric" else 2  # the centroid-average rows only carry the hoop stretch
+    rows = np.concatenate([np.repeat(np.arange(C), 3) + k * C for k in range(blocks)])
+    cols = np.tile(cells.ravel(), blocks)
+    vals = np.concatenate([dNdX.ravel(), dNdY.ravel(), np.full(3 * C, 1.0 / 3.0)][:blocks])
+    return sp.csr_matrix((vals, (rows, cols)), shape=(blocks * C, N))
 
 
 def stable_time_step(model: FEModel, safety: float = 0.8) -> float:

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import os
 import shutil
+from collections.abc import Callable
 from pathlib import Path
 
 from hcmt.config import as_config, default_threads, override_list
@@ -75,6 +76,11 @@ def train(
 
     if int(os.environ.get("RANK", 0)) != 0:  # torchrun's other ranks: rank 0 owns the folder
         return run()
+    return _locked(run, out, folder, resume)
+
+
+def _locked(run: Callable[[], dict], out: Path, folder: RunFolder, resume: bool) -> dict:
+    """``run()`` with the run folder ``out`` created and locked; a failure before the first checkpoint undoes it."""
     created = not out.exists()
     out.mkdir(parents=True, exist_ok=True)
     lock = lock_run(out)

@@ -107,6 +107,10 @@ class Trainer:
         self.net, self.pad, self.dynamic = step_model(
             self.model, self.compile, self.world, self.device, self.frames, self.tc.batch_size
         )
+        self._open_logs(resume)
+
+    def _open_logs(self, resume: bool) -> None:
+        """Open the run's logs (TensorBoard, log.jsonl, the text log) and announce the run in them."""
         self.writer = (
             summary_writer(self.folder.tensorboard, self.step_count if resume else None) if self.rank == 0 else None
         )
@@ -114,8 +118,8 @@ class Trainer:
         self._handler = rank_zero_logging(self.rank, self.folder.text_log)
         logger.info(
             "%s: %s on %s, %d training frames, steps %d -> %d",
-            out,
-            model_name,
+            self.out,
+            self.model_name,
             self.device,
             len(self.frames),
             self.step_count,

@@ -166,6 +166,22 @@ def default_panels(maps: AttentionMaps) -> list[tuple[str, str]]:
     return panels
 
 
+def object_ticks(
+    maps: AttentionMaps, level: int, order: np.ndarray, bounds: np.ndarray
+) -> tuple[list[float], list[str]]:
+    """One tick per object block of a level's map, labelled with the object and its most common node type."""
+    n = len(order)
+    starts = np.concatenate([[0], bounds])
+    ends = np.concatenate([bounds, [n]])
+    ticks, labels = [], []
+    for o, (a, b) in enumerate(zip(starts, ends)):  # one tick per object block
+        ticks.append((a + b - 1) / 2)
+        types = maps.node_type[level][order[a:b]] if maps.node_type else None
+        common = int(np.bincount(types).argmax()) if types is not None and len(types) else None
+        labels.append(f"obj {o}" + (f"\n{NodeType(common).name}" if common in NodeType._value2member_map_ else ""))
+    return ticks, labels
+
+
 def attention_figure(maps: AttentionMaps, panels: list[tuple[str, str]] | None = None, columns: int = 3):
     """The maps as sparse-matrix images, one panel per block, one logarithmic colour scale for all (the weights of
     a row sum to 1; a log scale shows the spread of small weights and the few large ones alike)."""
@@ -202,14 +218,7 @@ def attention_figure(maps: AttentionMaps, panels: list[tuple[str, str]] | None =
         ax.set_xlim(-0.5, n - 0.5)
         ax.set_ylim(n - 0.5, -0.5)
         ax.set_aspect("equal")
-        starts = np.concatenate([[0], bounds])
-        ends = np.concatenate([bounds, [n]])
-        ticks, labels = [], []
-        for o, (a, b) in enumerate(zip(starts, ends)):  # one tick per object block
-            ticks.append((a + b - 1) / 2)
-            types = maps.node_type[level][order[a:b]] if maps.node_type else None
-            common = int(np.bincount(types).argmax()) if types is not None and len(types) else None
-            labels.append(f"obj {o}" + (f"\n{NodeType(common).name}" if common in NodeType._value2member_map_ else ""))
+        ticks, labels = object_ticks(maps, level, order, bounds)
         ax.set_xticks(ticks, labels, fontsize=6)
         ax.set_yticks(ticks, labels, fontsize=6, rotation=90, va="center")
         ax.set_xlabel(f"sender j ({n} nodes)", fontsize=7)

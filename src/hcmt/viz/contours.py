@@ -156,6 +156,32 @@ def draw_panel_2d(ax, case: Case, s, f: int, field: str, norm, cmap: str, zoom: 
     return mappable
 
 
+def draw_panel_3d(ax, case: Case, s, f: int, field: str, norm, cmap: str, limits):
+    """One 3-D contour panel of ``contour_figure``: the field on the deformed mesh in ``limits``; the mappable."""
+    return draw_field_3d(
+        ax,
+        s.world_pos[f],
+        case.cells,
+        field_values(s, f, field),
+        norm,
+        cmap,
+        limits=limits,
+        length_unit=case.unit("length"),
+    )
+
+
+def row_windows(case: Case, frames: list[int], zoom: bool) -> list:
+    """Axes limits of each row of ``contour_figure``: the frame's impact window (``zoom``, 2-D), else the full view."""
+    if zoom:
+        if case.dim == 3:
+            raise InputError("the zoomed view is for 2-D scenes; this dataset is 3-D")
+        windows = [impact_window(case.truth.world_pos[f], case.object_id, case.truth.world_pos[0]) for f in frames]
+        if any(w is None for w in windows):
+            raise InputError(f"trajectory {case.name} has a single object: there is no impact to zoom on")
+        return windows
+    return [view_box(case, frames)] * len(frames)
+
+
 def contour_figure(
     case: Case,
     frames: list[int] | None = None,
@@ -181,18 +207,9 @@ def contour_figure(
     series = case.series
     rows, cols = len(frames), len(series)
     three_d = case.dim == 3
-    obj = case.object_id
-    if zoom:
-        if three_d:
-            raise InputError("the zoomed view is for 2-D scenes; this dataset is 3-D")
-        windows = [impact_window(case.truth.world_pos[f], obj, case.truth.world_pos[0]) for f in frames]
-        if any(w is None for w in windows):
-            raise InputError(f"trajectory {case.name} has a single object: there is no impact to zoom on")
-    else:
-        windows = [view_box(case, frames)] * rows
+    windows = row_windows(case, frames, zoom)
     w, h = panel_size(windows[0], panel_width) if not three_d else (panel_width, panel_width * 0.8)
     fig = new_figure(w * cols + 1.2, (h + 0.9) * rows + 0.4)  # + row title, panel titles, x label
-    length = case.unit("length")
     limits3d = box_3d([case.truth.world_pos[f] for f in frames]) if three_d else None  # shared by every panel
     for r, (f, sub) in enumerate(zip(frames, np.atleast_1d(fig.subfigures(rows, 1)))):  # one row per frame
         norm, extend = norms[r]
@@ -201,16 +218,7 @@ def contour_figure(
         for c, s in enumerate(series):
             if three_d:
                 ax = sub.add_subplot(1, cols, c + 1, projection="3d")
-                mappable = draw_field_3d(
-                    ax,
-                    s.world_pos[f],
-                    case.cells,
-                    field_values(s, f, field),
-                    norm,
-                    cmap,
-                    limits=limits3d,
-                    length_unit=length,
-                )
+                mappable = draw_panel_3d(ax, case, s, f, field, norm, cmap, limits3d)
             else:
                 ax = sub.add_subplot(1, cols, c + 1)
                 mappable = draw_panel_2d(ax, case, s, f, field, norm, cmap, zoom, windows[r], first=c == 0)

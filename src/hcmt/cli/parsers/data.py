@@ -106,22 +106,9 @@ def settings_of_args(args) -> Settings:
     ).validate()
 
 
-def configure_generate(parser: argparse.ArgumentParser) -> None:
+def _split_arguments(parser: argparse.ArgumentParser) -> None:
+    """``generate``'s trajectories per split: --train, --valid, --test, --variants and --variant-count."""
     trajectories = count(0, MAX_TRAJECTORIES)
-    parser.add_argument(
-        "dataset",
-        choices=["impact-plate", "deforming-plate"],
-        help="which dataset to generate: impact-plate (2-D explicit dynamics) or deforming-plate (3-D "
-        "quasi-static, the MeshGraphNets layout; takes --train/--valid/--test, --seed, --workers, "
-        "--frames, --force, --no-progress; the other options are impact-plate's)",
-    )
-    parser.add_argument("out", help="output dataset folder (created; an interrupted run resumes in place)")
-    parser.add_argument(
-        "--preset",
-        choices=sorted(RANGES),
-        default="small",
-        help="paper: ~2,200 nodes as the paper; small: ~400-600 nodes for CPU training",
-    )
     for flag, what, default in (("--train", "training", 2000), ("--valid", "validation", 200), ("--test", "test", 200)):
         parser.add_argument(
             flag,
@@ -142,6 +129,24 @@ def configure_generate(parser: argparse.ArgumentParser) -> None:
         metavar="N",
         help=f"trajectories per variant split, {span(0, MAX_TRAJECTORIES)} (default 50)",
     )
+
+
+def configure_generate(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument(
+        "dataset",
+        choices=["impact-plate", "deforming-plate"],
+        help="which dataset to generate: impact-plate (2-D explicit dynamics) or deforming-plate (3-D "
+        "quasi-static, the MeshGraphNets layout; takes --train/--valid/--test, --seed, --workers, "
+        "--frames, --force, --no-progress; the other options are impact-plate's)",
+    )
+    parser.add_argument("out", help="output dataset folder (created; an interrupted run resumes in place)")
+    parser.add_argument(
+        "--preset",
+        choices=sorted(RANGES),
+        default="small",
+        help="paper: ~2,200 nodes as the paper; small: ~400-600 nodes for CPU training",
+    )
+    _split_arguments(parser)
     parser.add_argument("--seed", type=int, default=0, help="dataset seed (default 0)")
     parser.add_argument(
         "--edge-fraction",

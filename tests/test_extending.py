@@ -33,6 +33,7 @@ from hcmt.sim.params import (
     FAMILIES,
     FIRST_SCENE_KEYS,
     Settings,
+    value_rules,
 )
 from hcmt.sim.sampling import sample_design
 from hcmt.sim.scene import cell_materials, design_mesh, fixed_dofs, static_fields
@@ -71,8 +72,8 @@ def test_recording_refuses_a_tap_the_model_does_not_declare():
 
 # -- a panel family ------------------------------------------------------------------------------------------------
 @pytest.mark.parametrize("feature", FEATURES, ids=lambda f: f.name)
-def test_a_family_feature_defines_its_checks_mesh_scene_and_cost(feature):
-    for method in ("check", "mesh", "scene", "cost"):
+def test_a_family_feature_defines_its_rules_checks_mesh_scene_and_cost(feature):
+    for method in ("rules", "check", "mesh", "scene", "cost"):
         assert getattr(type(feature), method) is not getattr(Feature, method), f"{feature.name} lacks {method}"
     assert feature.switch in feature.fields and set(feature.switches) <= set(feature.fields)
     for key in feature.fields:  # new design fields come after the first scene's, each with its unit
@@ -84,6 +85,19 @@ def test_every_field_after_the_first_scene_belongs_to_one_feature():
     owned = [key for f in FEATURES for key in f.fields]
     assert sorted(owned) == sorted(DESIGN_KEYS[FIRST_SCENE_KEYS:]) and len(set(owned)) == len(owned)
     assert list(FAMILIES) == ["mono", *(name for f in FEATURES for name in f.families)]
+
+
+@pytest.mark.parametrize("feature", FEATURES, ids=lambda f: f.name)
+def test_every_field_of_a_family_has_its_value_rule(feature):
+    """Each field a feature owns has a value rule once its values turn it on (a switch alone, even off), as every
+    field of the first scene has: Design.validate and a designs CSV's first checks refuse by these rules alone."""
+    on = dict.fromkeys(feature.switches, 1.0)
+    assert sorted(rule.param for rule in feature.rules({})) == sorted(feature.switches)
+    assert {rule.param for rule in feature.rules(on)} == set(feature.fields), "a field without its rule"
+    assert {rule.param for rule in value_rules(on)} >= set(feature.fields)
+    assert {rule.param for rule in value_rules({})} >= set(DESIGN_KEYS[:FIRST_SCENE_KEYS])
+    for key in feature.fields:  # the design check's first checks read them: a negative value is refused
+        assert value_problem({**on, key: -1.0})[0] == key
 
 
 @pytest.mark.parametrize("switch", [s for f in FEATURES for s in f.switches])

@@ -205,9 +205,6 @@ def test_the_size_check_sees_a_long_module(tmp_path, monkeypatch):
 #: the most lines a function of src may hold, ``def`` to last line as the formatter leaves it (docstring included):
 #: a longer one does several jobs, and a step with a job of its own becomes a helper with a name and a docstring
 MAX_FUNCTION_LINES = 60
-#: functions allowed more for now, each with its own limit (module.qualified name: lines): the design check's one
-#: long function, until it is split; then its entry goes
-FUNCTION_ALLOWANCE = {"hcmt.design.check.check_designs": 97}
 
 
 def functions(path: Path) -> list[tuple[str, int, int]]:
@@ -230,11 +227,11 @@ def functions(path: Path) -> list[tuple[str, int, int]]:
 
 
 def too_long_functions() -> list[str]:
-    """Each function of src over its limit, as ``path:line name: N lines``."""
+    """Each function of src over the limit, as ``path:line name: N lines``."""
     out = []
     for path in sorted(SRC.rglob("*.py")):
         for name, line, n in functions(path):
-            if n > FUNCTION_ALLOWANCE.get(f"{module_name(path)}.{name}", MAX_FUNCTION_LINES):
+            if n > MAX_FUNCTION_LINES:
                 out.append(f"{path.relative_to(SRC.parent)}:{line} {name}: {n} lines")
     return out
 
@@ -244,11 +241,10 @@ def test_no_function_is_too_long():
 
 
 def test_the_function_size_check_sees_a_long_function(tmp_path, monkeypatch):
-    """The test above can fail: a function and a method one line over the limit are named; one at the limit, and
-    an allowed function at its allowance, are not."""
+    """The test above can fail: a function and a method one line over the limit are named; one at the limit is
+    not."""
     fake = tmp_path / "hcmt"
     (fake / "sim").mkdir(parents=True)
-    (fake / "design").mkdir()
     (fake / "sim" / "mesh.py").write_text(
         "def short():\n"
         + "    x = 1\n" * (MAX_FUNCTION_LINES - 1)
@@ -257,9 +253,6 @@ def test_the_function_size_check_sees_a_long_function(tmp_path, monkeypatch):
     )
     (fake / "sim" / "solver.py").write_text(
         "class Model:\n    def __init__(self):\n" + "        x = 1\n" * MAX_FUNCTION_LINES
-    )
-    (fake / "design" / "check.py").write_text(
-        "def check_designs():\n" + "    x = 1\n" * (FUNCTION_ALLOWANCE["hcmt.design.check.check_designs"] - 1)
     )
     monkeypatch.setattr(__import__(__name__), "SRC", fake)
     assert too_long_functions() == [

@@ -10,7 +10,7 @@ import pytest
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "benchmarks"))
 from scaling.analysis import extrapolate, fit_power_law, margin_trend, means_by, reaches  # noqa: E402
-from scaling.report import _restored, scaling  # noqa: E402
+from scaling.report import _long_run_ratio, _restored, long_run_ratios, scaling  # noqa: E402
 from scaling.run import EVAL_FILE, name, overrides, plan, restore  # noqa: E402
 
 
@@ -407,3 +407,27 @@ def test_report_fits_a_missed_error_goal_against_the_judged_steps():
     lines = []
     scaling(lines, _budget_study(lambda b: 40.0 * b**-0.25), None, None, judges)
     assert "it does not fall with the step: no budget along this run reaches it." in "\n".join(lines)
+
+
+def _long_row(model, run, step, position, stress):
+    row = {"run": run, "checkpoint_step": step, "errors": {"position_rmse_all": position, "stress_rmse_all": stress}}
+    return {**row, "model": model} if model else row  # rows written before the model was recorded: HCMT's
+
+
+def test_hcmt_over_mgn_is_read_at_matched_checkpoint_steps_only():
+    """The long schedule's ratio pairs each HCMT run's row with MGN's row of the same step (a matched budget); a
+    step only one model reached gives no ratio, and the section names the largest matched step."""
+    rows = [
+        _long_row(None, "second run", 100000, 20.0, 16000.0),
+        _long_row("hcmt", "second run", 120000, 9.0, 10000.0),
+        _long_row("hcmt", "first run", 100000, 8.0, 14000.0),
+        _long_row("mgn", "MGN", 60000, 130.0, 100000.0),
+        _long_row("mgn", "MGN", 100000, 160.0, 80000.0),
+    ]
+    got = long_run_ratios(rows)
+    assert [(r["step"], r["run"]) for r in got] == [(100000, "second run"), (100000, "first run")]
+    assert got[0]["position"] == pytest.approx(20 / 160) and got[1]["stress"] == pytest.approx(14000 / 80000)
+    text = "\n".join(_long_run_ratio(rows))
+    assert "At the largest matched step (100,000 of" in text and "0.12 / 0.20 (second run)" in text
+    assert long_run_ratios([r for r in rows if r.get("model") != "mgn"]) == []
+    assert _long_run_ratio(rows[:3]) == []

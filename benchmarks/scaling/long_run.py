@@ -6,9 +6,11 @@
 ``SNAPSHOT``: a copy of the long run's folder (run.yaml, best.pt) taken while it trains (copy it: the run rewrites
 best.pt). Its best.pt is judged on DATA's test split exactly as every point of :mod:`scaling.run`
 (:func:`scaling.run.test_errors`) and kept in ``--out`` under its checkpoint step, so each later snapshot adds a
-row. The long run is HCMT with the study's recipe on all 480 designs, but its learning rate decays over its own
-400,000 steps: a checkpoint at step N is not the study's N-step run (whose rate has fully decayed by N), so its rows
-stand beside the study's fit, not in it (docs/RESULTS.md, section "Scaling with budget and designs").
+row (each row names its model: ``model``; a row without one is HCMT's). The long run is HCMT with the study's
+recipe on all 480 designs (and MGN with the same recipe, data and schedule, labelled apart), but its learning rate
+decays over its own 400,000 steps: a checkpoint at step N is not the study's N-step run (whose rate has fully
+decayed by N), so its rows stand beside the study's fit, not in it (docs/RESULTS.md, section "Scaling with
+budget and designs").
 ``--label`` names the run a row belongs to (a row is kept per label and step): the first long run was lost at step
 ~212,000 with its disk, and the second, trained again from step 0 with the same command, adds its own rows.
 ``--split`` judges other splits of DATA instead, their designs pooled (``test_thicker test_higher
@@ -69,6 +71,7 @@ def main(argv=None) -> None:
         "snapshot": str(a.snapshot),
         "checkpoint": a.checkpoint,
         "run": a.label or a.snapshot.name,
+        "model": loaded.info.model["name"],
     }
     if a.split != ["test"]:
         row["split"] = " + ".join(a.split)
@@ -81,7 +84,6 @@ def main(argv=None) -> None:
     runs = list(dict.fromkeys(run_of(r) for r in kept + [row]))  # each run's rows together, in order of its first
     out = {
         "command": f"python benchmarks/scaling/long_run.py SNAPSHOT --data {a.data} --checkpoint step_N --label RUN",
-        "model": "hcmt",
         "checkpoints": sorted(
             kept + [row], key=lambda r: (runs.index(run_of(r)), r["checkpoint_step"], r.get("split", "test"))
         ),

@@ -21,7 +21,7 @@ from hcmt.cli import LINE, build_parser, main as cli
 from hcmt.design.basics import check_values, value_problem
 from hcmt.errors import InputError
 from hcmt.sim.cost import fall, plan, solver_seconds, window_warnings
-from hcmt.sim.params import DESIGN_KEYS, Design, Settings
+from hcmt.sim.params import DESIGN_KEYS, Settings, parse_design, value_rules
 from hcmt.sim.sampling import preset_design
 from refusals import refused
 
@@ -127,42 +127,68 @@ def test_value_errors_come_before_the_heavy_imports_in_little_time(tmp_path):
     assert cpu < 1.5 and wall < 6.0, (cpu, wall)  # the interpreter and all 16 refusals
 
 
-def test_value_problem_refuses_only_what_design_validate_refuses():
-    """Each rule of the parse step is one of Design.validate's that holds whatever the defaults: a value it
-    refuses is refused by validate over the shipped model's defaults too, naming the same parameter, and a good
-    design passes (no false refusal)."""
+#: every panel family's sizes set (the ring's left 0: one support), so that each family's rules apply
+ALL_ON = dict(
+    layer2_thickness=0.1, layer3_thickness=0.1, layer4_thickness=0.1, backing_thickness=1.5, pen_tip_radius=0.8
+)
+#: a value that each design parameter's rules refuse
+BAD = dict(
+    thickness=0,
+    drop_height=-1,
+    plate_density=0,
+    plate_modulus=-5,
+    plate_poisson=0.5,
+    ball_radius=-3,
+    ball_density=-1,
+    ball_modulus=0,
+    ball_poisson=-1,
+    mesh_size=0,
+    plate_half_length=-1,
+    gap=0.4,
+    layer2_thickness=-0.1,
+    layer2_density=0,
+    layer2_modulus=-1,
+    layer2_poisson=0.47,
+    layer3_thickness=-0.1,
+    layer3_density=-1,
+    layer3_modulus=0,
+    layer3_poisson=-0.1,
+    layer4_thickness=-1,
+    layer4_density=0,
+    layer4_modulus=-2,
+    layer4_poisson=0.5,
+    support_radius=-1,
+    backing_thickness=-2,
+    backing_modulus=0,
+    pen_tip_radius=-1,
+    pen_mass=-2,
+)
+
+
+def test_a_designs_file_and_design_refuse_the_same_values_in_the_same_words(tmp_path):
+    """A ``--designs`` file's first checks (value_problem, before torch) and ``--design`` (Design.validate) read the
+    same rules (hcmt.sim.params.value_rules): a value that breaks one is refused by both, naming the same parameter
+    with the same "must be ..." words; a good design passes both (no false refusal)."""
     base = preset_design("small")
-    assert value_problem(asdict(base)) is None
-    bad = {
-        "thickness": 0,
-        "drop_height": -1,
-        "ball_radius": -3,
-        "mesh_size": 0,
-        "plate_half_length": -1,
-        "gap": 0.4,
-        "plate_density": 0,
-        "plate_modulus": -5,
-        "plate_poisson": 0.5,
-        "ball_density": -1,
-        "ball_modulus": 0,
-        "ball_poisson": -1,
-        "layer2_thickness": -0.1,
-        "support_radius": -1,
-        "backing_thickness": -2,
-        "pen_tip_radius": -1,
-    }
-    for key, v in bad.items():
-        problem = value_problem({key: v})
-        assert problem is not None and problem[0] == key, (key, problem)
-        with pytest.raises(InputError) as exc:
-            Design(**{**asdict(base), key: v}).validate()
-        assert key in str(exc.value), (key, exc.value)
+    assert value_problem(asdict(base)) is None and value_problem(ALL_ON) is None
+    assert parse_design([f"{k}={x}" for k, x in ALL_ON.items()], base).family == "stack4+backing+pen"
+    assert {rule.param for rule in value_rules({**asdict(base), **ALL_ON})} == set(BAD) == set(DESIGN_KEYS)
+    for key, v in BAD.items():
+        values = {**ALL_ON, key: v}
+        (tmp_path / "d.csv").write_text(f"{','.join(values)}\n{','.join(map(str, values.values()))}\n")
+        with pytest.raises(InputError) as from_file:
+            check_values([], tmp_path / "d.csv")
+        with pytest.raises(InputError) as from_flag:
+            parse_design([f"{k}={x}" for k, x in values.items()], base)
+        words = str(from_file.value).split(f" ({key}) must be ", 1)[1].rsplit(", got ", 1)[0]
+        assert str(from_flag.value).startswith(f"--design {key} "), (key, from_flag.value)
+        assert f"must be {words}" in str(from_flag.value), (key, from_file.value, from_flag.value)
+        assert value_problem(values)[0] == key
     # a layer's, the backing's or the pen's material only where the same values set that layer, backing or pen
     assert value_problem({"layer2_density": -1}) is None
     assert value_problem({"layer2_thickness": 0.1, "layer2_poisson": 0.47})[0] == "layer2_poisson"
     assert value_problem({"backing_thickness": 1, "backing_modulus": 0})[0] == "backing_modulus"
     assert value_problem({"pen_tip_radius": 1, "pen_mass": -2})[0] == "pen_mass"
-    assert set(bad) <= set(DESIGN_KEYS)
 
 
 def test_check_values_counts_the_files_designs(tmp_path):

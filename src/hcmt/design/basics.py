@@ -11,16 +11,14 @@ from pathlib import Path
 from hcmt.config import MAX_DESIGNS
 from hcmt.errors import InputError, clip
 from hcmt.sim.params import (
-    CONTACT_RADIUS,
     DESIGN_KEYS,
-    DESIGN_UNITS,
-    MAX_LAYER_POISSON,
     a_type,
     design_key,
     design_values,
     is_number,
     parse_number,
     unit_slip,
+    value_rules,
 )
 
 #: the scalar answers a surrogate predicts (keys of a design's summary)
@@ -158,57 +156,15 @@ def parse_vary(text: str) -> tuple[str, float, float, int]:
 
 
 # -- values checked as they are read, before any model loads -------------------------------------------------------
-def _rules(values: dict[str, float]) -> list[tuple[str, object, str]]:
-    """(parameter, test, what was expected) of :meth:`hcmt.sim.params.Design.validate`'s rules that hold whatever
-    the parameters ``values`` leave unset: a layer's, the backing's or the pen's material only where ``values``
-    itself sets that layer's, the backing's or the pen's size."""
-    positive, zero_or_more = lambda v: v > 0, lambda v: v >= 0
-    unit = DESIGN_UNITS  # each parameter's unit, declared once (hcmt.sim.units)
-    rules = [
-        (k, positive, f"> 0 ({unit[k]})")
-        for k in ("thickness", "drop_height", "ball_radius", "mesh_size", "plate_half_length", "gap")
-    ]
-    rules += [
-        (k, zero_or_more, f">= 0 {unit[k]} (0: none)")
-        for k in (
-            "layer2_thickness",
-            "layer3_thickness",
-            "layer4_thickness",
-            "support_radius",
-            "backing_thickness",
-            "pen_tip_radius",
-        )
-    ]
-    rules.append(
-        ("gap", lambda v: v < CONTACT_RADIUS, f"smaller than the contact radius {CONTACT_RADIUS} {unit['gap']}")
-    )
-    materials = ["plate", "ball"] + [f"layer{k}" for k in (2, 3, 4) if values.get(f"layer{k}_thickness", 0) > 0]
-    for m in materials:
-        rules += [
-            (f"{m}_density", positive, f"> 0 {unit[f'{m}_density']}"),
-            (f"{m}_modulus", positive, f"> 0 {unit[f'{m}_modulus']} (Young's modulus)"),
-            (f"{m}_poisson", lambda v: -1 < v < 0.5, "in (-1, 0.5) (Poisson ratio)")
-            if m in ("plate", "ball")
-            else (
-                f"{m}_poisson",
-                lambda v: 0 <= v <= MAX_LAYER_POISSON,
-                f"in [0, {MAX_LAYER_POISSON}] (near 0.5 the linear triangles lock volumetrically)",
-            ),
-        ]
-    if values.get("backing_thickness", 0) > 0:
-        rules.append(("backing_modulus", positive, f"> 0 {unit['backing_modulus']} (Young's modulus)"))
-    if values.get("pen_tip_radius", 0) > 0:
-        rules.append(("pen_mass", positive, f"> 0 {unit['pen_mass']}"))
-    return rules
-
-
 def value_problem(values: dict[str, float]) -> tuple[str, str] | None:
     """The first (parameter, "must be ...") of ``values`` (finite numbers) that :meth:`Design.validate` would
-    refuse whatever the defaults that fill the rest (a model's, known only once it loads), or None. The rules that
-    need the whole design (mesh_size against the thickness, the ball, the support) wait for it."""
-    for key, ok, expected in _rules(values):
-        if key in values and not ok(values[key]):
-            return key, f"must be {expected}, got {values[key]:g}"
+    refuse whatever the defaults that fill the rest (a model's, known only once it loads), or None: the same rules
+    (:func:`hcmt.sim.params.value_rules`; a layer's, the backing's or the pen's material only where ``values`` itself
+    sets that layer's, the backing's or the pen's size). The checks that need the whole design (mesh_size against
+    the thickness, the ball, the support) wait for it."""
+    for rule in value_rules(values):
+        if rule.param in values and not rule.holds(values[rule.param]):
+            return rule.param, f"must be {rule.expected}, got {values[rule.param]:g}"
     return None
 
 

@@ -13,19 +13,30 @@ designs as one batched graph per step (on the CPU in blocks of at most ``CPU_BLO
 
 :func:`check_designs` is the whole sequence (cost check, prediction with range warnings, margin, calls,
 verification) that ``hcmt predict``, ``hcmt sweep`` and ``hcmt demo`` share; its parts live by job in
-:mod:`hcmt.design.prediction` (rollout and read-out), :mod:`hcmt.design.calls` (limit calls),
+:mod:`hcmt.design.prediction` (rollout and read-out), :mod:`hcmt.design.annotation` (each prediction's summary as
+the check reports it, the surrogate's answers), :mod:`hcmt.design.calls` (limit calls),
 :mod:`hcmt.design.verification` (against the solver, statistics) and :mod:`hcmt.design.notes` (low-confidence
 notes), their public names importable from here as before.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import torch
 from tqdm import tqdm
 
+from hcmt.design.annotation import (  # noqa: F401 (re-exported: hcmt.design.check.own_interval, ...)
+    SurrogateAnswers,
+    annotate,
+    annotate_chunk,
+    beside_model,
+    own_interval,
+    summary_of,
+    surrogate_answers,
+)
 from hcmt.design.basics import DESIGN_BATCH, check_yield
 from hcmt.design.calls import (  # noqa: F401 (re-exported: hcmt.design.check.trusted_interval, ...)
     MODEL_BAND,
@@ -37,8 +48,8 @@ from hcmt.design.calls import (  # noqa: F401 (re-exported: hcmt.design.check.tr
     final_calls,
     trusted_interval,
 )
-from hcmt.design.inputs import check_run, confidence, outside, range_warnings, settings_of
-from hcmt.design.model_interval import ANSWERS, Calibration, ModelInterval, for_run as interval_for_run
+from hcmt.design.inputs import check_run, settings_of
+from hcmt.design.model_interval import Calibration, for_run as interval_for_run
 from hcmt.design.notes import NOTE_DISAGREEMENT, verify_hint, weak_reasons  # noqa: F401 (re-exported)
 from hcmt.design.prediction import (  # noqa: F401 (re-exported)
     Prediction,
@@ -49,10 +60,9 @@ from hcmt.design.prediction import (  # noqa: F401 (re-exported)
     predict_chunks,
     summarize,
 )
-from hcmt.design.readout import CONTACT_END_BOUND, DEFAULT_READOUT, check_readout
-from hcmt.design.summary import Summary, SurrogateAnswer
+from hcmt.design.readout import DEFAULT_READOUT, check_readout
 from hcmt.design.surrogate import Surrogate
-from hcmt.design.surrogate_use import for_run, side_by_side
+from hcmt.design.surrogate_use import for_run
 from hcmt.design.verification import (  # noqa: F401 (re-exported)
     VerifySummary,
     solve,
@@ -106,37 +116,6 @@ def cost_check(run, designs: list[tuple[str, Design]], settings: Settings, verif
         )
 
 
-def summary_of(p: Prediction) -> Summary:
-    """A predicted design's summary: :func:`predict_chunks` summarizes every prediction it yields."""
-    assert p.summary is not None, "predict_chunks summarizes every prediction it yields"
-    return p.summary
-
-
-def beside_model(
-    p: Prediction, run, surrogate: Surrogate | None, interval: dict[str, SurrogateAnswer] | None, cannot: list[str]
-) -> None:
-    """The surrogate's answer beside the model's in ``p.summary`` (and its range warnings), or the warning that it
-    cannot take the design."""
-    summary = summary_of(p)
-    warnings = list(summary.warnings or [])
-    if cannot:
-        warnings.append(
-            f"the response surface cannot take {', '.join(cannot)} (held fixed over its training designs: "
-            "another design family); no surrogate answer for this design, the call trusts the model's band"
-        )
-    if interval is not None:
-        assert surrogate is not None, "an interval is the surrogate's answer"
-        summary = side_by_side(summary, interval)
-        # a user's own surrogate has its own training ranges: warn for a parameter outside them too
-        own = set(outside(p.design, run.ranges))
-        warnings += range_warnings(
-            p.design,
-            {k: r for k, r in surrogate.ranges().items() if k not in own},
-            "the response surface's training designs",
-        )
-    p.summary = replace(summary, warnings=warnings)
-
-
 def check_options(designs, verify, yield_mpa: float | None, batch: int, readout: str) -> float | None:
     """:func:`check_designs`'s designs (:func:`check_design_list`) and options, each refused naming its
     parameter; returns the yield stress as a float (:func:`hcmt.design.basics.check_yield`: a plausible one in MPa,
@@ -155,37 +134,6 @@ def check_options(designs, verify, yield_mpa: float | None, batch: int, readout:
     return yield_mpa
 
 
-def own_interval(p: Prediction, run, calibration: Calibration | None) -> ModelInterval | None:
-    """The mesh model's own interval of a prediction from the run's calibration (None: none, or the design's
-    cell not calibrated): :meth:`hcmt.design.model_interval.Calibration.interval` of its own answers."""
-    if calibration is None:
-        return None
-    s = summary_of(p)
-    return calibration.interval(p.design, run.ranges, {a: getattr(s, a) for a in ANSWERS}, s.plate_stress_history_mpa)
-
-
-def annotate(
-    p: Prediction,
-    run,
-    surrogate: Surrogate | None,
-    interval: dict[str, SurrogateAnswer] | None,
-    cannot: list[str],
-    calibration: Calibration | None = None,
-) -> None:
-    """A prediction's summary as the check reports it: the model's name, range warnings, confidence, its own
-    calibrated interval (:func:`own_interval`), the surrogate's answer beside the model's (:func:`beside_model`)
-    and whether its confidence is low."""
-    p.summary = replace(
-        summary_of(p),
-        model=run.source,
-        warnings=range_warnings(p.design, run.ranges),
-        confidence=confidence(p.design, run),
-        model_interval=own_interval(p, run, calibration),
-    )
-    beside_model(p, run, surrogate, interval, cannot)
-    p.summary = replace(summary_of(p), low_confidence=bool(weak_reasons(p)))
-
-
 def solve_chunk(
     chunk: list[Prediction], verify: bool | str, settings: Settings, field_: str, bar: tqdm
 ) -> list[Prediction | None]:
@@ -199,6 +147,84 @@ def solve_chunk(
         bar.refresh()
     ran = dict(zip(chosen, solve([(chunk[i].name, chunk[i].design) for i in chosen], settings, field_, bar=bar)))
     return [ran.get(i) for i in range(len(chunk))]
+
+
+@dataclass(frozen=True)
+class Plan:
+    """What :func:`check_designs` resolved before its first chunk, its options checked: what each chunk's steps
+    (:func:`check_chunk`) and the check's end (:func:`verify_and_call`) take."""
+
+    run: Any
+    designs: list[tuple[str, Design]]
+    batch: int
+    verify: bool | str
+    yield_mpa: float | None
+    trust: str
+    readout: str
+    calibration: Calibration | None
+    answers: SurrogateAnswers
+    solver_settings: Settings  # the solver's settings for the verification (:func:`verify_settings`)
+    field_: str  # the stress field the solver records (the run's adapter's)
+
+
+def solver_bar(designs: list, verify: bool | str, progress: bool) -> tqdm:
+    """The "solver" progress bar over the designs the solver runs: all of them (``verify=True``), or a total that
+    :func:`solve_chunk` grows chunk by chunk (``"auto"``); silent unless ``progress`` and ``verify``."""
+    return tqdm(
+        total=len(designs) if verify is True else 0,
+        desc="solver",
+        unit="design",
+        disable=not progress or not verify,
+        dynamic_ncols=True,
+    )
+
+
+def check_chunk(chunk: list[Prediction], first: int, plan: Plan, bar: tqdm) -> list[Prediction | None]:
+    """One predicted chunk's steps, in order: its designs annotated (``first``: the index of its first design),
+    their margins and calls, then the solver's runs of it (:func:`solve_chunk`), which it returns."""
+    annotate_chunk(chunk, first, plan.run, plan.answers, plan.calibration)
+    add_margin(chunk, plan.yield_mpa)
+    add_calls(chunk, plan.yield_mpa, plan.trust, plan.run.ranges)
+    return solve_chunk(chunk, plan.verify, plan.solver_settings, plan.field_, bar)
+
+
+def predict_and_solve(plan: Plan, compile: str, progress: bool) -> tuple[list[Prediction], list[Prediction | None]]:
+    """The model's predictions of the designs, a chunk of ``batch`` designs at a time, each chunk's steps
+    (:func:`check_chunk`) right after it: (predictions, the solver's runs as :attr:`Check.truth` holds them)."""
+    # The speedup compares the solver's wall time with the model's, so both are measured under the same load: the
+    # model and the solver alternate per chunk of ``batch`` designs, so a change of load on a shared machine slows
+    # both alike. Everything after the rollout is per design (warnings, the surrogate beside the model, margin,
+    # call), so each chunk's calls are made as soon as it is predicted, and verify="auto" solves the chunk's
+    # undecided designs right after it as verify=True solves all of them: one order for both, the model timed once.
+    # Only the final calls and the comparison wait for the end.
+    run, designs = plan.run, plan.designs
+    preds: list[Prediction] = []
+    truth: list[Prediction | None] = []
+    with predict_bar(run, designs, progress) as bar, solver_bar(designs, plan.verify, progress) as solver:
+        for chunk in predict_chunks(
+            run,
+            designs,
+            batch=plan.batch,
+            bar=bar,
+            compile=compile,
+            readout=plan.readout,
+            contact_end_ms=plan.answers.ends,
+        ):
+            truth += check_chunk(chunk, len(preds), plan, solver)
+            preds += chunk
+    return preds, truth
+
+
+def verify_and_call(plan: Plan, preds: list[Prediction], truth: list[Prediction | None]) -> VerifySummary | None:
+    """The check's end, once every chunk is done: the model against the solver on the designs the solver ran
+    (None: none ran), then the final calls (:func:`final_calls`: the solver's answers where it ran)."""
+    solved = [(p, t) for p, t in zip(preds, truth) if t is not None]  # the designs the solver ran
+    measured = speedup_measured(
+        plan.batch, len(plan.designs), plan.verify, str(plan.run.device), torch.get_num_threads(), plan.solver_settings
+    )
+    verified = verify_designs([p for p, _ in solved], [t for _, t in solved], measured) if solved else None
+    final_calls(preds, truth if plan.verify else None, plan.yield_mpa)
+    return verified
 
 
 def check_designs(
@@ -239,55 +265,12 @@ def check_designs(
     surrogate, note, ends_window = for_run(run, surrogate)
     notes = [n for n in (interval_note, note) if n]
     cost_check(run, designs, settings, bool(verify), force)
-    intervals: list[dict[str, SurrogateAnswer] | None] | None = (
-        list(surrogate.predict([d for _, d in designs])) if surrogate is not None else None
-    )
-    # a design with a parameter the surrogate's training designs held fixed (another family): no surrogate answer
-    cannot = [surrogate.cannot_take(d) if surrogate is not None else [] for _, d in designs]
-    if intervals is not None:
-        intervals = [None if c else iv for iv, c in zip(intervals, cannot)]
-    ends = (
-        [
-            getattr(iv["contact_end_ms"], CONTACT_END_BOUND) if iv and "contact_end_ms" in iv else None
-            for iv in intervals
-        ]
-        if intervals and ends_window and readout == "contact"
-        else None
-    )
+    answers = surrogate_answers(surrogate, designs, readout, ends_window)
     field_ = run.adapter.stress_field  # stress_max: the solver records the between-frame peaks the model learned
     solver_settings = verify_settings(settings, field_)  # else it runs as `hcmt simulate` does
-    # The speedup compares the solver's wall time with the model's, so both are measured under the same load: the
-    # model and the solver alternate per chunk of ``batch`` designs, so a change of load on a shared machine slows
-    # both alike. Everything after the rollout is per design (warnings, the surrogate beside the model, margin,
-    # call), so each chunk's calls are made as soon as it is predicted, and verify="auto" solves the chunk's
-    # undecided designs right after it as verify=True solves all of them: one order for both, the model timed once.
-    # Only the final calls and the comparison wait for the end.
-    preds: list[Prediction] = []
-    truth: list[Prediction | None] = []
-    with (
-        predict_bar(run, designs, progress) as bar,
-        tqdm(
-            total=len(designs) if verify is True else 0,
-            desc="solver",
-            unit="design",
-            disable=not progress or not verify,
-            dynamic_ncols=True,
-        ) as solver_bar,
-    ):
-        for chunk in predict_chunks(
-            run, designs, batch=batch, bar=bar, compile=compile, readout=readout, contact_end_ms=ends
-        ):
-            for p in chunk:
-                i = len(preds)
-                annotate(p, run, surrogate, intervals[i] if intervals is not None else None, cannot[i], calibration)
-                preds.append(p)
-            add_margin(chunk, yield_mpa)
-            add_calls(chunk, yield_mpa, trust, run.ranges)
-            truth += solve_chunk(chunk, verify, solver_settings, field_, solver_bar)
-    solved = [(p, t) for p, t in zip(preds, truth) if t is not None]  # the designs the solver ran
-    measured = speedup_measured(batch, len(designs), verify, str(run.device), torch.get_num_threads(), solver_settings)
-    verified = verify_designs([p for p, _ in solved], [t for _, t in solved], measured) if solved else None
-    final_calls(preds, truth if verify else None, yield_mpa)
+    plan = Plan(run, designs, batch, verify, yield_mpa, trust, readout, calibration, answers, solver_settings, field_)
+    preds, truth = predict_and_solve(plan, compile, progress)
+    verified = verify_and_call(plan, preds, truth)
     return Check(
         preds,
         truth if verify else None,

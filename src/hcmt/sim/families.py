@@ -3,8 +3,9 @@ the design, the mesher's call, the scene and the cost estimate ask, instead of a
 
 A :class:`Feature` owns its design fields (after ``gap``: the first scene's fields come first) and says, of a
 design: whether it is present (its ``switch`` field > 0: a dataset made before it existed stores no such field and
-reads as the first scene), its part of the family's label, its checks, the bonded layers it adds to the panel
-(:meth:`~Feature.layers`) or under it (:meth:`~Feature.under`), its arguments to
+reads as the first scene), its part of the family's label, its fields' value rules (:meth:`~Feature.rules`, read
+by the design's validation and the design check's first checks), its whole-design checks, the bonded layers it
+adds to the panel (:meth:`~Feature.layers`) or under it (:meth:`~Feature.under`), its arguments to
 :func:`hcmt.sim.mesh.impact_plate_mesh` (:meth:`~Feature.mesh`), its change to the nodes' static fields
 (:meth:`~Feature.scene`) and its impactor's share of the cost estimate (:meth:`~Feature.cost`).
 :data:`FEATURES` lists them in the order of a combined label (``stack3+pen``); :data:`FAMILIES`, the named
@@ -15,9 +16,13 @@ Light (numpy only): the command's parsers read :data:`FAMILIES` before torch loa
 
 from __future__ import annotations
 
+from collections.abc import Mapping
+
 import numpy as np
 
-from hcmt.errors import InputError, clip
+from hcmt.errors import InputError
+from hcmt.sim.rules import Rule, material_rules, positive, switch_rules
+from hcmt.sim.units import DESIGN_UNITS
 
 #: the largest Poisson ratio of a layer under the top one (an adhesive): near 0.5 linear triangles lock
 MAX_LAYER_POISSON = 0.45
@@ -32,19 +37,6 @@ _HALF_LENGTH = dict(plate_half_length=(10.0, 14.0))
 
 def _layer(k: int, thickness: tuple[float, float], material: dict) -> dict:
     return {f"layer{k}_thickness": thickness, **{f"layer{k}_{m}": r for m, r in material.items()}}
-
-
-def check_material(name: str, density, modulus, poisson) -> None:
-    """Refuse impossible materials with a message naming the parameter (``plate_density``: param=, so that the
-    command names its flag) and the expected range."""
-    for key, v, ok, expected in (
-        ("density", density, lambda a: a > 0, "> 0 g/mm^3"),
-        ("modulus", modulus, lambda a: a > 0, "> 0 MPa (Young's modulus)"),
-        ("poisson", poisson, lambda a: (a > -1) & (a < 0.5), "in (-1, 0.5) (Poisson ratio)"),
-    ):
-        a = np.asarray(v, float)
-        if not np.all(np.isfinite(a)) or not np.all(ok(a)):
-            raise InputError(f"must be {expected}, got {clip(v)}", param=f"{name}_{key}")
 
 
 class Feature:
@@ -64,7 +56,17 @@ class Feature:
     def label(self, design) -> str:
         return self.name
 
-    def check(self, design) -> None:  # required: refuse an impossible design, naming the parameter
+    def rules(self, values: Mapping[str, float]) -> list[Rule]:  # required
+        """Its fields' value rules (:class:`hcmt.sim.rules.Rule`) that ``values`` (a design's, or the few a designs
+        CSV's row gives) call for: each of its ``switches`` >= 0, and its other fields' where ``values`` turn it on.
+        Every field has one (tests/test_extending.py); a rule that needs other fields goes in :meth:`check`."""
+        raise NotImplementedError
+
+    def given(self, values: Mapping[str, float]) -> bool:
+        """Whether ``values`` turn it on (its ``switch`` > 0; unset: off)."""
+        return values.get(self.switch, 0) > 0
+
+    def check(self, design) -> None:  # required: refuse an impossible whole design (its values passed rules())
         raise NotImplementedError
 
     def layers(self, design) -> list[tuple[float, float, float, float]]:
@@ -122,22 +124,26 @@ class Stack(Feature):
                 out.append((t, *(getattr(design, f"layer{k}_{m}") for m in ("density", "modulus", "poisson"))))
         return out
 
-    def check(self, design) -> None:
+    def rules(self, values: Mapping[str, float]) -> list[Rule]:
+        out = switch_rules(self.switches)
         for k in (2, 3, 4):
-            if getattr(design, f"layer{k}_thickness") > 0:
-                if k > 2 and not getattr(design, f"layer{k - 1}_thickness") > 0:
-                    raise InputError(
-                        f"layer{k}_thickness is set but layer{k - 1}_thickness is 0: layers stack "
-                        "from the top without gaps"
+            if values.get(f"layer{k}_thickness", 0) > 0:
+                out += material_rules(f"layer{k}", ("density", "modulus"))
+                out.append(
+                    Rule(
+                        f"layer{k}_poisson",
+                        lambda v: (v >= 0) & (v <= MAX_LAYER_POISSON),
+                        f"in [0, {MAX_LAYER_POISSON}] (near 0.5 the linear triangles lock volumetrically)",
+                        words="{param} must be {expected}, got {value}",  # no flag: --stack may have set it
                     )
-                nu = getattr(design, f"layer{k}_poisson")
-                if not 0 <= nu <= MAX_LAYER_POISSON:
-                    raise InputError(
-                        f"layer{k}_poisson must be in [0, {MAX_LAYER_POISSON}] (near 0.5 the linear "
-                        f"triangles lock volumetrically), got {nu}"
-                    )
-                check_material(
-                    f"layer{k}", *(getattr(design, f"layer{k}_{m}") for m in ("density", "modulus", "poisson"))
+                )
+        return out
+
+    def check(self, design) -> None:
+        for k in (3, 4):
+            if getattr(design, f"layer{k}_thickness") > 0 and not getattr(design, f"layer{k - 1}_thickness") > 0:
+                raise InputError(
+                    f"layer{k}_thickness is set but layer{k - 1}_thickness is 0: layers stack from the top without gaps"
                 )
 
     def mesh(self, design) -> dict:
@@ -155,6 +161,9 @@ class Ring(Feature):
 
     name, switch, switches, fields = "ring", "support_radius", ("support_radius",), ("support_radius",)
     families = {"ring": dict(**_HALF_LENGTH, support_radius=(0.6, 0.9))}  # a fraction of plate_half_length
+
+    def rules(self, values: Mapping[str, float]) -> list[Rule]:
+        return switch_rules(self.switches)
 
     def check(self, design) -> None:
         r, h, L = design.support_radius, design.mesh_size, design.plate_half_length
@@ -182,12 +191,14 @@ class Backing(Feature):
     fields = ("backing_thickness", "backing_modulus")
     families = {"backing": dict(**_HALF_LENGTH, backing_thickness=(1.0, 2.0), backing_modulus=(5.0, 50.0))}
 
+    def rules(self, values: Mapping[str, float]) -> list[Rule]:  # its density and Poisson ratio are fixed: BACKING_*
+        return switch_rules(self.switches) + (material_rules("backing", ("modulus",)) if self.given(values) else [])
+
     def check(self, design) -> None:
         if design.support_radius > 0:
             raise InputError(
                 "support_radius and backing_thickness are both set: choose one support (a ring, or a backing)"
             )
-        check_material("backing", BACKING_DENSITY, design.backing_modulus, BACKING_POISSON)
 
     def under(self, design) -> list[tuple[float, float, float, float]]:
         return [(design.backing_thickness, BACKING_DENSITY, design.backing_modulus, BACKING_POISSON)]
@@ -213,6 +224,10 @@ class Pen(Feature):
     def radius(self, design) -> float:
         return design.pen_tip_radius
 
+    def rules(self, values: Mapping[str, float]) -> list[Rule]:
+        mass = Rule("pen_mass", positive, f"> 0 {DESIGN_UNITS['pen_mass']}")
+        return switch_rules(self.switches) + ([mass] if self.given(values) else [])
+
     def check(self, design) -> None:
         r, h, t = design.pen_tip_radius, design.mesh_size, design.total_thickness
         if not h <= r <= 10 * t:
@@ -220,8 +235,6 @@ class Pen(Feature):
                 f"pen_tip_radius ({r} mm) must lie between mesh_size ({h:g} mm) and 10 x the panel's "
                 f"thickness ({10 * t:g} mm)"
             )
-        if not (np.isfinite(design.pen_mass) and design.pen_mass > 0):
-            raise InputError(f"must be > 0 g, got {design.pen_mass}", param="pen_mass")
 
     def mesh(self, design) -> dict:
         return {"impactor": "pen"}

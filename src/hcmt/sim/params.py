@@ -7,6 +7,7 @@ generate/simulate --help``, a refused ``--frames 0``) without the solver, the me
 from __future__ import annotations
 
 import difflib
+from collections.abc import Mapping
 from dataclasses import asdict, dataclass, fields
 
 import numpy as np
@@ -19,11 +20,11 @@ from hcmt.sim.families import (  # noqa: F401 (the schema's names, read from her
     FEATURES,
     MAX_LAYER_POISSON,
     RELATIVE,
-    check_material,
     family_label,
     features,
     impactor_of,
 )
+from hcmt.sim.rules import Rule, material_rules, refuse, size_rules
 from hcmt.sim.settings import FORMULATIONS, GRAVITY, Settings  # noqa: F401 (read from here too)
 from hcmt.sim.units import DESIGN_UNITS, PARAMETERS  # noqa: F401 (each parameter's unit and help, declared there)
 from hcmt.sim.values import a_type, is_number, parse_number  # noqa: F401 (read from here too)
@@ -115,22 +116,11 @@ class Design:
         return family_label(self)
 
     def validate(self) -> "Design":
-        """Refuse impossible designs with a message naming the parameter and what was expected."""
-        for name in ("thickness", "ball_radius", "mesh_size", "plate_half_length", "drop_height", "gap"):
-            v = getattr(self, name)
-            if not np.isfinite(v) or v <= 0:
-                raise InputError(f"must be > 0 (mm), got {v}", param=name)
-        for name in (name for f in FEATURES for name in f.switches):
-            v = getattr(self, name)
-            if not np.isfinite(v) or v < 0:
-                raise InputError(f"must be >= 0 mm (0: none), got {v}", param=name)
-        check_material("plate", self.plate_density, self.plate_modulus, self.plate_poisson)
-        check_material("ball", self.ball_density, self.ball_modulus, self.ball_poisson)
-        if self.gap >= CONTACT_RADIUS:
-            raise InputError(
-                f"gap ({self.gap} mm) must be smaller than the contact radius {CONTACT_RADIUS} mm so the "
-                "first frame already sees the ball near the plate"
-            )
+        """Refuse impossible designs with a message naming the parameter and what was expected: each value by its
+        rule (:func:`value_rules`), then the whole design (mesh_size against the thickness and the ball, the plate
+        against the impactor, each family's :meth:`~hcmt.sim.families.Feature.check`)."""
+        values = vars(self)
+        refuse(value_rules(values), values)
         if self.mesh_size > self.total_thickness:
             what = "thickness" if len(self.layers) == 1 else "the stack's total thickness"
             raise InputError(f"mesh_size ({self.mesh_size} mm) must not exceed {what} ({self.total_thickness:g} mm)")
@@ -147,6 +137,27 @@ class Design:
         for f in features(self):  # each family's own checks (hcmt.sim.families)
             f.check(self)
         return self
+
+
+def value_rules(values: Mapping[str, float]) -> list[Rule]:
+    """Each design value's validity rule (:class:`hcmt.sim.rules.Rule`) that ``values`` (a design's, or the few a
+    designs CSV's row gives) call for, whatever the values they leave unset: the first scene's, then each panel
+    family's (:meth:`hcmt.sim.families.Feature.rules`: its sizes, and its other fields' where ``values`` turn it
+    on). :meth:`Design.validate` refuses by them before its whole-design checks; the design check's first checks
+    (:func:`hcmt.design.basics.value_problem`) read them too, before torch loads."""
+    contact = Rule(
+        "gap",
+        lambda v: v < CONTACT_RADIUS,
+        f"smaller than the contact radius {CONTACT_RADIUS} {DESIGN_UNITS['gap']}",
+        words="{param} ({value} {unit}) must be {expected} so the first frame already sees the ball near the plate",
+    )
+    return [
+        *size_rules(("thickness", "drop_height", "ball_radius", "mesh_size", "plate_half_length", "gap")),
+        contact,
+        *material_rules("plate"),
+        *material_rules("ball"),
+        *(rule for f in FEATURES for rule in f.rules(values)),
+    ]
 
 
 #: the units a value given in a design unit is most often typed in by mistake: (factor to the design unit, name)

@@ -32,7 +32,8 @@ import numpy as np
 import scipy.sparse as sp
 
 from hcmt.errors import InputError
-from hcmt.sim.params import FORMULATIONS, check_material
+from hcmt.sim.params import FORMULATIONS
+from hcmt.sim.rules import check_material
 
 
 @dataclass

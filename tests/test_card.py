@@ -166,3 +166,17 @@ def test_a_shipped_model_reports_the_step_of_its_weights():
     assert run.checkpoint_step == pack["card"]["checkpoint"]["step"]
     shipped = json.loads((RESULTS / "model_impact_plate_small.json").read_text())
     assert run.checkpoint_step == shipped["card"]["checkpoint"]["step"]
+
+
+def test_the_readme_headline_ratio_is_the_long_schedules_largest_matched_step():
+    """The README's HCMT ÷ MGN row quotes scaling_long_run.json at the largest checkpoint step both models reached,
+    for the HCMT run the model was shipped from (the second run), with that step named."""
+    sys.path.insert(0, str(ROOT / "benchmarks"))
+    from scaling.report import long_run_ratios
+
+    ratios = long_run_ratios(card_module.load("scaling_long_run.json")["checkpoints"])
+    last = max(r["step"] for r in ratios)
+    (shipped,) = [r for r in ratios if r["step"] == last and r["run"] == "second run"]
+    readme = (ROOT / "README.md").read_text()
+    assert f"| HCMT ÷ MGN, the shipped model's recipe and 480 designs, at step {last:,} of its 400,000-step" in readme
+    assert f"(paper: 0.51 / 0.41) | {shipped['position']:.2f} / {shipped['stress']:.2f} |" in readme

@@ -275,8 +275,8 @@ def _long_run_ratio(rows: list[dict]) -> list[str]:
     out += [
         "",
         sentences(
-            f"At the largest matched step ({last:,} of the 400,000-step schedule, the learning rate still "
-            "undecayed) HCMT ÷ MGN is "
+            f"At the largest matched step ({last:,} of the 400,000-step schedule, its learning rate not yet "
+            "decayed to the end) HCMT ÷ MGN is "
             + " and ".join(f"{r['position']:.2f} / {r['stress']:.2f} ({r['run']})" for r in at)
             + "; one checkpoint of each model, whose validation error still swings from one kept checkpoint to the "
             "next, so read it against the table above, not as the converged ratio."
